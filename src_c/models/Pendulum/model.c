@@ -1,0 +1,188 @@
+/* Pendulum: Ziemkiewicz Eq. (A2) with a sum of torque inputs.
+ *   phi' = w
+ *   w'   = -(g g_factor / L) sin(phi) - (omega0 / Q) w + tau / (m L^2)
+ * Ticks (upward zero crossings) and turning points are located on the
+ * dense output of each accepted step, then the tick time is polished with
+ * a full fifth-order step, so that period measurements do not depend on
+ * the communication step. */
+#include <math.h>
+
+#include "cw_rk.h"
+#include "cw_runtime.h"
+#include "cw_vars.h"
+
+enum { S_PHI, S_W, S_H_NEXT, N_REAL_STATE };
+
+static double damping_rate(const cw_instance *inst) {
+    return R(Q) > 0 ? sqrt(R(g) / R(L)) / R(Q) : 0.0;
+}
+
+static double torque(const cw_instance *inst, double t) {
+    return IN(tau_escapement, t) + IN(tau_drag, t) + IN(tau_coupling, t) +
+           IN(tau_external, t);
+}
+
+static double acceleration(const cw_instance *inst, double t, double phi,
+                           double w) {
+    const double inertia = R(m) * R(L) * R(L);
+    return -(R(g) * IN(g_factor, t) / R(L)) * sin(phi) -
+           damping_rate(inst) * w + torque(inst, t) / inertia;
+}
+
+static void rhs(void *ctx, double t, const double *x, double *dx) {
+    const cw_instance *inst = ctx;
+    dx[0] = x[1];
+    dx[1] = acceleration(inst, t, x[0], x[1]);
+}
+
+static void initialize(cw_instance *inst) {
+    inst->s[S_PHI] = R(phi_start);
+    inst->s[S_W] = R(w_start);
+    inst->s[S_H_NEXT] = 0.0;
+    I(tick_count) = 0;
+    R(tick_time) = 0.0;
+    R(period) = 0.0;
+    R(amplitude) = 0.0;
+}
+
+static void calc_outputs(cw_instance *inst) {
+    const double phi = inst->s[S_PHI], w = inst->s[S_W];
+    R(phi) = phi;
+    R(w) = w;
+    R(a) = acceleration(inst, inst->time, phi, w);
+    R(energy) = 0.5 * R(m) * R(L) * R(L) * w * w +
+                R(m) * R(g) * R(L) * (1.0 - cos(phi));
+}
+
+/* Root of component `c` of the dense output inside the last step, by the
+ * Illinois variant of regula falsi. */
+static double dense_root(const cw_rk *rk, int c) {
+    double a = rk->t0, b = rk->t0 + rk->h;
+    double fa = rk->x0[c], fb = rk->x1[c], x[CW_RK_MAXN];
+    int side = 0;
+    for (int it = 0; it < 200; it++) {
+        double t = (fa * b - fb * a) / (fa - fb);
+        if (!(t > a && t < b)) t = 0.5 * (a + b);
+        cw_rk_dense(rk, t, x);
+        double ft = x[c];
+        if (ft == 0.0 || b - a <= 4e-16 * fmax(1.0, fabs(t))) return t;
+        if ((ft < 0) == (fa < 0)) {
+            a = t;
+            fa = ft;
+            if (side == -1) fb *= 0.5;
+            side = -1;
+        } else {
+            b = t;
+            fb = ft;
+            if (side == 1) fa *= 0.5;
+            side = 1;
+        }
+    }
+    return 0.5 * (a + b);
+}
+
+static int observe_step(void *ctx, const cw_rk *rk) {
+    cw_instance *inst = ctx;
+    const double phi0 = rk->x0[0], phi1 = rk->x1[0];
+    const double w0 = rk->x0[1], w1 = rk->x1[1];
+    if (phi0 < 0.0 && phi1 >= 0.0) {
+        double t = dense_root(rk, 0);
+        /* Polish: integrate exactly to t and take Newton steps on phi. */
+        for (int it = 0; it < 2; it++) {
+            double x[2];
+            cw_rk_single_step(2, rhs, inst, rk->t0, rk->x0, t - rk->t0, x);
+            if (x[1] == 0.0) break;
+            double dt = -x[0] / x[1];
+            if (!(fabs(dt) < rk->h)) break;
+            t += dt;
+        }
+        int n = I(tick_count);
+        if (n > 0) R(period) = t - R(tick_time);
+        R(tick_time) = t;
+        I(tick_count) = n + 1;
+        cw_log(inst, fmi2OK, "logEvents", "tick %d at t = %.17g s", n + 1, t);
+    }
+    if ((w0 > 0.0 && w1 <= 0.0) || (w0 < 0.0 && w1 >= 0.0)) {
+        double t = dense_root(rk, 1), x[CW_RK_MAXN];
+        cw_rk_dense(rk, t, x);
+        R(amplitude) = fabs(x[0]);
+    }
+    return 0;
+}
+
+static fmi2Status do_step(cw_instance *inst, double t_end) {
+    cw_rk rk;
+    cw_rk_init(&rk, 2, R(rtol), R(atol), R(h_max));
+    double x[2] = {inst->s[S_PHI], inst->s[S_W]};
+    double t = inst->time, h_next = inst->s[S_H_NEXT];
+    /* Tick outputs are updated by the observer; keep them for a retry. */
+    const int ticks = I(tick_count);
+    const double tick_time = R(tick_time), period = R(period),
+                 amplitude = R(amplitude);
+    cw_rk_result res =
+        cw_rk_advance(&rk, rhs, inst, &t, t_end, x, &h_next, observe_step, inst);
+    if (res != CW_RK_OK || !isfinite(x[0]) || !isfinite(x[1])) {
+        I(tick_count) = ticks;
+        R(tick_time) = tick_time;
+        R(period) = period;
+        R(amplitude) = amplitude;
+        cw_log(inst, fmi2Discard, "logStatusDiscard",
+               "Pendulum: integration from t = %.17g to %.17g failed (%s) at "
+               "t = %.17g with phi = %g rad, w = %g rad/s; the step is "
+               "discarded.",
+               inst->time, t_end,
+               res == CW_RK_STEP_TOO_SMALL   ? "step size underflow"
+               : res == CW_RK_TOO_MANY_STEPS ? "too many internal steps"
+                                             : "non-finite state",
+               t, x[0], x[1]);
+        return fmi2Discard;
+    }
+    inst->s[S_PHI] = x[0];
+    inst->s[S_W] = x[1];
+    inst->s[S_H_NEXT] = h_next;
+    return fmi2OK;
+}
+
+static int output_derivative(cw_instance *inst, unsigned vr, int order,
+                             double *value) {
+    const double phi = inst->s[S_PHI], w = inst->s[S_W], t = inst->time;
+    const double a = acceleration(inst, t, phi, w);
+    if (vr == VR_phi) {
+        *value = order == 1 ? w : a;
+        return order <= 2;
+    }
+    if (vr == VR_w) {
+        if (order == 1) {
+            *value = a;
+            return 1;
+        }
+        if (order == 2) {
+            /* da/dt, including the inputs' own first derivatives. */
+            const double inertia = R(m) * R(L) * R(L);
+            double dtau = cw_input_rate(inst, VR_tau_escapement, t) +
+                          cw_input_rate(inst, VR_tau_drag, t) +
+                          cw_input_rate(inst, VR_tau_coupling, t) +
+                          cw_input_rate(inst, VR_tau_external, t);
+            double gf = IN(g_factor, t), dgf = cw_input_rate(inst, VR_g_factor, t);
+            *value = -(R(g) / R(L)) * (gf * cos(phi) * w + dgf * sin(phi)) -
+                     damping_rate(inst) * a + dtau / inertia;
+            return 1;
+        }
+    }
+    return 0;
+}
+
+const cw_model CW_MODEL = {
+    .name = CW_MODEL_NAME,
+    .guid = CW_MODEL_GUID,
+    .nvars = CW_NVARS,
+    .vars = CW_VARS,
+    .n_real_state = N_REAL_STATE,
+    .n_uint_state = 0,
+    .validate = NULL, /* every rule is a single-variable range */
+    .initialize = initialize,
+    .calc_outputs = calc_outputs,
+    .do_step = do_step,
+    .commit = NULL,
+    .output_derivative = output_derivative,
+};

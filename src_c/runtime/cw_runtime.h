@@ -1,0 +1,139 @@
+/* clockwork FMI 2.0 Co-Simulation runtime: the part shared by every model.
+ *
+ * The runtime owns the fmi2 functions, the state machine, argument checks,
+ * logging, per-instance storage of variable values and the FMU state
+ * serialization. A model supplies its variable table (generated into
+ * cw_vars.h from model.toml) and a cw_model with its equations. */
+#ifndef CW_RUNTIME_H
+#define CW_RUNTIME_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "fmi2Functions.h"
+
+typedef enum { CW_REAL = 0, CW_INTEGER = 1, CW_BOOLEAN = 2 } cw_type;
+
+typedef enum {
+    CW_PARAMETER = 0,
+    CW_INPUT = 1,
+    CW_OUTPUT = 2,
+    CW_LOCAL = 3
+} cw_causality;
+
+typedef enum {
+    CW_FIXED = 0,
+    CW_TUNABLE = 1,
+    CW_DISCRETE = 2,
+    CW_CONTINUOUS = 3
+} cw_variability;
+
+typedef struct {
+    const char *name;
+    unsigned vr;
+    cw_type type;
+    cw_causality causality;
+    cw_variability variability;
+    double start;
+    double min; /* -HUGE_VAL when unbounded */
+    double max; /* +HUGE_VAL when unbounded */
+    int max_derivative_order;
+    int event_indicator;
+} cw_var_info;
+
+/* States of the FMI 2.0 Co-Simulation state machine. */
+typedef enum {
+    CW_INSTANTIATED = 1 << 0,
+    CW_INIT_MODE = 1 << 1,
+    CW_STEP_COMPLETE = 1 << 2,
+    CW_STEP_FAILED = 1 << 3,
+    CW_TERMINATED = 1 << 4,
+    CW_ERROR = 1 << 5
+} cw_machine_state;
+
+struct cw_instance;
+
+typedef struct {
+    const char *name;
+    const char *guid;
+    int nvars;               /* table size; value references are < nvars */
+    const cw_var_info *vars; /* indexed by value reference */
+    int n_real_state;        /* model doubles kept in inst->s and serialized */
+    int n_uint_state;        /* model counters / RNG words in inst->u */
+
+    /* Cross-parameter checks at fmi2ExitInitializationMode and whenever a
+     * tunable parameter changes. Log the offending variable and value and
+     * return fmi2Error to refuse. Single-variable ranges are checked by the
+     * runtime from the table already. */
+    fmi2Status (*validate)(struct cw_instance *inst);
+
+    /* Set the model state from parameters; called once when leaving
+     * initialization mode (after validate) and after fmi2Reset. */
+    void (*initialize)(struct cw_instance *inst);
+
+    /* Compute outputs from state and current inputs (at inst->time). Called
+     * lazily by the runtime before outputs are read after inputs changed. */
+    void (*calc_outputs)(struct cw_instance *inst);
+
+    /* Advance the model from inst->time to t_end exactly. Inputs are read
+     * through cw_input(). Return fmi2OK, or fmi2Discard/fmi2Error after
+     * logging why. NULL for models without dynamics. */
+    fmi2Status (*do_step)(struct cw_instance *inst, double t_end);
+
+    /* Called at the start of fmi2DoStep before do_step: commit discrete
+     * modes decided from inputs at the communication point (may be NULL). */
+    void (*commit)(struct cw_instance *inst);
+
+    /* Time derivative of given order of an output at inst->time; returns
+     * 0 when unavailable (may be NULL). */
+    int (*output_derivative)(struct cw_instance *inst, unsigned vr, int order,
+                             double *value);
+} cw_model;
+
+typedef struct cw_instance {
+    const cw_model *model;
+    fmi2CallbackFunctions cb;
+    char *instance_name;
+    int logging_on;
+    cw_machine_state state;
+
+    double time;       /* current communication point, s */
+    double start_time; /* from fmi2SetupExperiment */
+    double stop_time;
+    int stop_time_defined;
+
+    double *r;  /* Real values by value reference */
+    int32_t *i; /* Integer and Boolean values by value reference */
+
+    /* Input polynomials: u(t) = r[vr] + d1 (t - t_ref) + d2 (t - t_ref)^2/2 */
+    double *in_d1, *in_d2, *in_tref;
+
+    double *s;   /* model state doubles, n_real_state */
+    uint64_t *u; /* model state words, n_uint_state */
+
+    int outputs_dirty;
+    int in_callback_error; /* set by cw_fail from model code */
+} cw_instance;
+
+/* Value of input `vr` at time t, following the input derivatives. */
+double cw_input(const cw_instance *inst, unsigned vr, double t);
+
+/* Time derivative of input `vr` at time t. */
+double cw_input_rate(const cw_instance *inst, unsigned vr, double t);
+
+/* Log through the environment's logger; category "logStatusError" etc. */
+void cw_log(cw_instance *inst, fmi2Status status, const char *category,
+            const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 4, 5)))
+#endif
+    ;
+
+/* Shorthand used by models to refuse a parameter with a named message. */
+fmi2Status cw_refuse(cw_instance *inst, const char *var, double value,
+                     const char *expected);
+
+/* The model's definition, provided by model.c. */
+extern const cw_model CW_MODEL;
+
+#endif
