@@ -43,6 +43,8 @@ static void initialize(cw_instance *inst) {
     R(tick_time) = 0.0;
     R(period) = 0.0;
     R(amplitude) = 0.0;
+    R(tick_w) = 0.0;
+    I(turn_count) = 0;
 }
 
 static void calc_outputs(cw_instance *inst) {
@@ -88,14 +90,15 @@ static int observe_step(void *ctx, const cw_rk *rk) {
     if (phi0 < 0.0 && phi1 >= 0.0) {
         double t = dense_root(rk, 0);
         /* Polish: integrate exactly to t and take Newton steps on phi. */
+        double x[2] = {0.0, rk->x1[1]};
         for (int it = 0; it < 2; it++) {
-            double x[2];
             cw_rk_single_step(2, rhs, inst, rk->t0, rk->x0, t - rk->t0, x);
             if (x[1] == 0.0) break;
             double dt = -x[0] / x[1];
             if (!(fabs(dt) < rk->h)) break;
             t += dt;
         }
+        R(tick_w) = x[1];
         int n = I(tick_count);
         if (n > 0) R(period) = t - R(tick_time);
         R(tick_time) = t;
@@ -106,6 +109,7 @@ static int observe_step(void *ctx, const cw_rk *rk) {
         double t = dense_root(rk, 1), x[CW_RK_MAXN];
         cw_rk_dense(rk, t, x);
         R(amplitude) = fabs(x[0]);
+        I(turn_count) = I(turn_count) + 1;
     }
     return 0;
 }
@@ -116,13 +120,16 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
     double x[2] = {inst->s[S_PHI], inst->s[S_W]};
     double t = inst->time, h_next = inst->s[S_H_NEXT];
     /* Tick outputs are updated by the observer; keep them for a retry. */
-    const int ticks = I(tick_count);
+    const int ticks = I(tick_count), turns = I(turn_count);
+    const double tick_w = R(tick_w);
     const double tick_time = R(tick_time), period = R(period),
                  amplitude = R(amplitude);
     cw_rk_result res =
         cw_rk_advance(&rk, rhs, inst, &t, t_end, x, &h_next, observe_step, inst);
     if (res != CW_RK_OK || !isfinite(x[0]) || !isfinite(x[1])) {
         I(tick_count) = ticks;
+        I(turn_count) = turns;
+        R(tick_w) = tick_w;
         R(tick_time) = tick_time;
         R(period) = period;
         R(amplitude) = amplitude;

@@ -1,0 +1,60 @@
+"""Exceptions with one-line messages meant for the user.
+
+The CLI prints `clockwork: error: <str(exc)>` and exits with 2 for
+`SceneError`/`UsageError` (bad input) and 1 for `SimulationError` (a run
+that failed).
+"""
+
+from __future__ import annotations
+
+
+class ClockworkError(Exception):
+    """Base class; str() is a single line."""
+
+
+class SceneError(ClockworkError):
+    """A scene file (or a --set override) that is malformed or inconsistent.
+
+    `path` is the scene file, `key` the dotted key (e.g.
+    `components.pendulum.parameters.L`, `connections[2]`, `--set pendulum.L`)
+    and `detail` what was wrong or expected. str() joins them into one line.
+    """
+
+    def __init__(self, detail: str, path: object = None, key: str | None = None):
+        self.path = None if path is None else str(path)
+        self.key = key
+        self.detail = _one_line(detail)
+        parts = [p for p in (self.path, self.key) if p]
+        super().__init__(": ".join(parts + [self.detail]))
+
+
+class UsageError(ClockworkError):
+    """Bad command-line usage or an unusable output directory."""
+
+    def __init__(self, message: str):
+        super().__init__(_one_line(message))
+
+
+class SimulationError(ClockworkError):
+    """A run that failed (an FMU returned an error, a step did not converge...).
+
+    `time` (s), `instance` and `variable` locate the failure when known.
+    """
+
+    def __init__(self, message: str, time: float | None = None,
+                 instance: str | None = None, variable: str | None = None):
+        self.message = _one_line(message)
+        self.time = time
+        self.instance = instance
+        self.variable = variable
+        where = []
+        if time is not None:
+            where.append(f"t = {time!r} s")
+        if instance is not None:
+            where.append(instance if variable is None else f"{instance}.{variable}")
+        prefix = ", ".join(where) + ": " if where else ""
+        super().__init__(prefix + self.message)
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())

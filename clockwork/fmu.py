@@ -1,0 +1,260 @@
+"""One FMU instance as the master sees it.
+
+Loading goes through fmpy (``FMU2Slave``); the per-step hot path calls the
+FMU's own C symbols with preallocated ctypes arrays, so that a
+communication step costs a few ctypes calls and no Python-side allocation.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import shutil
+import tempfile
+import threading
+import xml.etree.ElementTree as ET
+import zipfile
+from ctypes import POINTER, byref, c_double, c_int, c_size_t, c_uint, c_void_p
+from dataclasses import dataclass
+from pathlib import Path
+
+from fmpy import read_model_description
+from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
+from fmpy import calloc, free
+
+from .errors import SimulationError
+
+OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
+STATUS_NAMES = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
+
+_extract_lock = threading.Lock()
+_extracted: dict[str, Path] = {}
+
+
+def sha256_of(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def extract(path: Path) -> Path:
+    """Unzip an FMU once per process into a private temporary folder."""
+    key = f"{Path(path).resolve()}:{os.stat(path).st_mtime_ns}"
+    with _extract_lock:
+        if key not in _extracted:
+            target = Path(tempfile.mkdtemp(prefix="clockwork_fmu_"))
+            with zipfile.ZipFile(path) as z:
+                z.extractall(target)
+            _extracted[key] = target
+        return _extracted[key]
+
+
+def event_indicator_names(path: Path) -> list[str]:
+    """Outputs that the FMU declares as event indicators (vendor annotation)."""
+    with zipfile.ZipFile(path) as z:
+        root = ET.fromstring(z.read("modelDescription.xml"))
+    names = []
+    for tool in root.iterfind("VendorAnnotations/Tool"):
+        if tool.get("name") == "clockwork":
+            names += [i.get("name") for i in tool.iterfind("EventIndicators/Indicator")]
+    return names
+
+
+@dataclass
+class Variable:
+    name: str
+    vr: int
+    type: str
+    causality: str
+    variability: str
+    unit: str | None
+    dependencies: list[str] | None  # direct feedthrough inputs (outputs only)
+
+
+class Instance:
+    """An instantiated FMU with fast access to its fmi2 functions."""
+
+    def __init__(self, name: str, path: Path, model_description=None):
+        self.name = name
+        self.path = Path(path)
+        self.md = model_description or read_model_description(str(path), validate=False)
+        self.model_name = self.md.modelName
+        self.variables: dict[str, Variable] = {}
+        by_index = list(self.md.modelVariables)
+        deps: dict[str, list[str]] = {}
+        for u in self.md.outputs:
+            deps[u.variable.name] = (
+                None if u.dependencies is None else [d.name for d in u.dependencies]
+            )
+        for v in by_index:
+            self.variables[v.name] = Variable(
+                v.name, v.valueReference, v.type, v.causality, v.variability,
+                getattr(v, "unit", None) or (v.declaredType.unit if v.declaredType else None),
+                deps.get(v.name),
+            )
+        cs = self.md.coSimulation
+        self.max_output_derivative_order = int(cs.maxOutputDerivativeOrder or 0)
+        self.can_interpolate_inputs = bool(cs.canInterpolateInputs)
+        self.can_get_set_state = bool(cs.canGetAndSetFMUstate)
+        self.event_indicators = event_indicator_names(self.path)
+        self.messages: list[tuple[int, str]] = []
+        self._slave = None
+        self._state = c_void_p()
+
+    # -- loading -------------------------------------------------------
+
+    def instantiate(self) -> None:
+        unzip = extract(self.path)
+        self._slave = FMU2Slave(
+            guid=self.md.guid,
+            unzipDirectory=str(unzip),
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName=self.name,
+        )
+        messages = self.messages
+
+        def logger(env, instance_name, status, category, message):
+            messages.append((status, message.decode("utf-8", "replace")))
+            del messages[:-50]
+
+        self._callbacks = fmi2CallbackFunctions()
+        self._callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+        self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        try:
+            self._slave.instantiate(callbacks=self._callbacks)
+        except Exception as e:
+            raise SimulationError(
+                f"{self.name}: cannot instantiate {self.path.name}: {self.last_message() or e}",
+                instance=self.name,
+            ) from None
+        self.component = self._slave.component
+        dll = self._slave.dll
+        self._bind(dll)
+
+    def _bind(self, dll) -> None:
+        """Raw C symbols with argtypes, bypassing fmpy's per-call wrappers."""
+
+        def fn(name, *argtypes):
+            f = getattr(dll, name)
+            f.argtypes = list(argtypes)
+            f.restype = c_int
+            return f
+
+        comp = c_void_p
+        self.c_doStep = fn("fmi2DoStep", comp, c_double, c_double, c_int)
+        self.c_getReal = fn("fmi2GetReal", comp, POINTER(c_uint), c_size_t, POINTER(c_double))
+        self.c_setReal = fn("fmi2SetReal", comp, POINTER(c_uint), c_size_t, POINTER(c_double))
+        self.c_getInteger = fn("fmi2GetInteger", comp, POINTER(c_uint), c_size_t, POINTER(c_int))
+        self.c_setInteger = fn("fmi2SetInteger", comp, POINTER(c_uint), c_size_t, POINTER(c_int))
+        self.c_setBoolean = fn("fmi2SetBoolean", comp, POINTER(c_uint), c_size_t, POINTER(c_int))
+        self.c_getBoolean = fn("fmi2GetBoolean", comp, POINTER(c_uint), c_size_t, POINTER(c_int))
+        self.c_setInputDerivatives = fn(
+            "fmi2SetRealInputDerivatives", comp, POINTER(c_uint), c_size_t, POINTER(c_int), POINTER(c_double)
+        )
+        self.c_getOutputDerivatives = fn(
+            "fmi2GetRealOutputDerivatives", comp, POINTER(c_uint), c_size_t, POINTER(c_int), POINTER(c_double)
+        )
+        self.c_getState = fn("fmi2GetFMUstate", comp, POINTER(c_void_p))
+        self.c_setState = fn("fmi2SetFMUstate", comp, c_void_p)
+        self.c_freeState = fn("fmi2FreeFMUstate", comp, POINTER(c_void_p))
+        self.c_reset = fn("fmi2Reset", comp)
+        self.c_setup = fn("fmi2SetupExperiment", comp, c_int, c_double, c_double, c_int, c_double)
+        self.c_enterInit = fn("fmi2EnterInitializationMode", comp)
+        self.c_exitInit = fn("fmi2ExitInitializationMode", comp)
+        self.c_terminate = fn("fmi2Terminate", comp)
+
+    def free(self) -> None:
+        if self._slave is None:
+            return
+        if self._state.value:
+            self.c_freeState(self.component, byref(self._state))
+        try:
+            self._slave.fmi2FreeInstance(self.component)
+        finally:
+            self._slave = None
+
+    # -- status handling ------------------------------------------------
+
+    def last_message(self) -> str:
+        return self.messages[-1][1] if self.messages else ""
+
+    def fail(self, what: str, status: int, time: float | None = None) -> SimulationError:
+        msg = self.last_message()
+        text = f"{self.name} ({self.model_name}): {what} returned {STATUS_NAMES[status]}"
+        if msg:
+            text += f": {msg}"
+        return SimulationError(text, time=time, instance=self.name)
+
+    def check(self, status: int, what: str, time: float | None = None) -> None:
+        if status > WARNING:
+            raise self.fail(what, status, time)
+
+    # -- setup ----------------------------------------------------------
+
+    def setup(self, start: float, parameters: dict[str, object]) -> None:
+        """fmi2SetupExperiment, parameters, initialization mode."""
+        self.check(self.c_setup(self.component, 0, 0.0, start, 0, 0.0), "fmi2SetupExperiment")
+        self.set_values(parameters, "setting parameters")
+        self.check(self.c_enterInit(self.component), "fmi2EnterInitializationMode")
+
+    def set_values(self, values: dict[str, object], what: str = "fmi2Set*") -> None:
+        for name, value in values.items():
+            v = self.variables[name]
+            vr = (c_uint * 1)(v.vr)
+            if v.type == "Real":
+                st = self.c_setReal(self.component, vr, 1, (c_double * 1)(float(value)))
+            elif v.type == "Integer":
+                st = self.c_setInteger(self.component, vr, 1, (c_int * 1)(int(value)))
+            elif v.type == "Boolean":
+                st = self.c_setBoolean(self.component, vr, 1, (c_int * 1)(1 if value else 0))
+            else:
+                raise SimulationError(f"{self.name}.{name}: type {v.type} is not supported")
+            self.check(st, f"{what} ({name} = {value!r})")
+
+    def exit_init(self) -> None:
+        self.check(self.c_exitInit(self.component), "fmi2ExitInitializationMode")
+
+    def reset(self) -> None:
+        self.check(self.c_reset(self.component), "fmi2Reset")
+
+    # -- convenience getters (not on the hot path) ----------------------
+
+    def get_real(self, names: list[str]) -> list[float]:
+        vrs = (c_uint * len(names))(*[self.variables[n].vr for n in names])
+        out = (c_double * len(names))()
+        self.check(self.c_getReal(self.component, vrs, len(names), out), "fmi2GetReal")
+        return list(out)
+
+    def get_integer(self, names: list[str]) -> list[int]:
+        vrs = (c_uint * len(names))(*[self.variables[n].vr for n in names])
+        out = (c_int * len(names))()
+        self.check(self.c_getInteger(self.component, vrs, len(names), out), "fmi2GetInteger")
+        return list(out)
+
+    def output_derivatives(self, names: list[str], order: int) -> list[float] | None:
+        """Derivatives of outputs, or None when the FMU does not offer them."""
+        if order > self.max_output_derivative_order:
+            return None
+        n = len(names)
+        vrs = (c_uint * n)(*[self.variables[x].vr for x in names])
+        orders = (c_int * n)(*([order] * n))
+        out = (c_double * n)()
+        keep = len(self.messages)
+        if self.c_getOutputDerivatives(self.component, vrs, n, orders, out) > WARNING:
+            del self.messages[keep:]  # an unsupported derivative is not an error
+            return None
+        return list(out)
+
+    # -- FMU state ------------------------------------------------------
+
+    def save_state(self) -> None:
+        """Overwrite this instance's one saved state (no allocation growth)."""
+        self.check(self.c_getState(self.component, byref(self._state)), "fmi2GetFMUstate")
+
+    def restore_state(self) -> None:
+        self.check(self.c_setState(self.component, self._state), "fmi2SetFMUstate")

@@ -1,0 +1,562 @@
+"""The co-simulation master: the stepping loop.
+
+One communication step from t to t + h reads like this (``_advance``):
+
+1. feedthrough-only instances (escapements, drag) call fmi2DoStep while
+   their inputs still hold the values at t: they commit the discrete mode
+   decided at t; their event indicators are read (z at t+);
+2. dynamic instances (pendulum, vibration, averaged model) step, in
+   Gauss-Seidel order (each sees the newest outputs of those before it) or
+   in Jacobi order (all see the values at t), their inputs extrapolated by
+   polynomials of order 0, 1 or 2 through fmi2SetRealInputDerivatives;
+3. outputs are updated at t + h in the dependency order of the
+   ModelStructure, which also gives the event indicators z at t + h.
+
+Around it, ``step`` adds what makes the result accurate:
+
+- event location: when an indicator changes sign inside the step, every
+  FMU is rolled back with fmi2SetFMUstate and the step is shortened by
+  Illinois iteration until the crossing is bracketed to the time tolerance
+  or the indicator is within its tolerance; the communication point is put
+  just past the crossing, where the feedthrough FMU reads the new mode;
+- optional strong coupling (fixed-point iteration of the step with the
+  coupling inputs interpolated linearly over the step) and Richardson step
+  doubling with step-size control.
+
+FMU state is saved only when a step may need a rollback, into one reused
+buffer per instance. When an event arrives in a step that was predicted
+free of events, the master returns to its last checkpoint and replays the
+(deterministic) steps since then.
+"""
+
+from __future__ import annotations
+
+import math
+from ctypes import c_double, c_int, c_uint
+from dataclasses import dataclass, field
+
+from .errors import SimulationError
+from .events import Illinois
+from .fmu import DISCARD, WARNING, Instance
+from .graph import Link, Wiring, build
+
+
+@dataclass
+class MasterSettings:
+    step: float = 0.01  # nominal communication step, s
+    order: str = "gauss-seidel"  # or "jacobi"
+    extrapolation: int = 0  # order of the input polynomials: 0, 1, 2
+    event_location: bool = True
+    event_time_tolerance: float = 1e-10  # s
+    event_indicator_tolerance: float = 1e-12  # in the indicator's unit (rad)
+    iterations: int = 0  # strong coupling: fixed-point iterations per step (0 = off)
+    iteration_tolerance: float = 1e-10
+    richardson: bool = False
+    richardson_tolerance: float = 1e-8
+    min_step: float = 1e-9  # s
+    max_step: float | None = None  # s; None = step
+    divergence_limit: float = 1e8  # |output| beyond this counts as divergence
+
+
+@dataclass
+class Statistics:
+    steps: int = 0
+    events: int = 0
+    event_iterations: int = 0
+    rollbacks: int = 0
+    replays: int = 0
+    states_saved: int = 0
+    rejected: int = 0
+    coupling_iterations: int = 0
+
+
+class _Port:
+    """Preallocated ctypes arrays of one instance's connected variables."""
+
+    def __init__(self, inst: Instance, inputs: list[str], outputs: list[str], indicators: list[str]):
+        self.inst = inst
+        self.comp = inst.component
+        self.out_names = outputs + [z for z in indicators if z not in outputs]
+        self.n_out = len(self.out_names)
+        self.out_vr = (c_uint * max(1, self.n_out))(*[inst.variables[n].vr for n in self.out_names])
+        self.out = (c_double * max(1, self.n_out))()
+        self.z_pos = [self.out_names.index(z) for z in indicators]
+        self.in_names = inputs
+        self.n_in = len(inputs)
+        self.in_vr = (c_uint * max(1, self.n_in))(*[inst.variables[n].vr for n in inputs])
+        self.inp = (c_double * max(1, self.n_in))()
+        self.der_vr = (c_uint * max(1, 2 * self.n_in))(*([inst.variables[n].vr for n in inputs] * 2))
+        self.der_order = (c_int * max(1, 2 * self.n_in))(*([1] * self.n_in + [2] * self.n_in))
+        self.der = (c_double * max(1, 2 * self.n_in))()
+        # (input position, source port, source output position)
+        self.sources: list[tuple[int, "_Port", int]] = []
+
+
+@dataclass
+class _History:
+    """Recent values of dynamic inputs for finite-difference extrapolation."""
+
+    times: list[float] = field(default_factory=list)
+    values: list[list[float]] = field(default_factory=list)
+
+
+class Master:
+    def __init__(self, instances: dict[str, Instance], links: list[Link],
+                 settings: MasterSettings, start_time: float = 0.0,
+                 step_order: list[str] | None = None,
+                 extra_outputs: dict[str, list[str]] | None = None):
+        self.instances = instances
+        self.settings = settings
+        self.wiring: Wiring = build(instances, links, step_order)
+        self.t = start_time
+        self.start_time = start_time
+        self.stats = Statistics()
+        s = settings
+        if s.order not in ("gauss-seidel", "jacobi"):
+            raise ValueError(f"master.order = {s.order!r}: expected 'gauss-seidel' or 'jacobi'")
+        if s.extrapolation not in (0, 1, 2):
+            raise ValueError(f"master.extrapolation = {s.extrapolation}: expected 0, 1 or 2")
+
+        inputs: dict[str, list[str]] = {n: [] for n in instances}
+        outputs: dict[str, list[str]] = {n: [] for n in instances}
+        for link in links:
+            inputs[link.dst].append(link.input)
+            if link.output not in outputs[link.src]:
+                outputs[link.src].append(link.output)
+        for n, names in (extra_outputs or {}).items():
+            outputs[n] += [x for x in names if x not in outputs[n]]
+        indicators = {
+            n: (inst.event_indicators if s.event_location else []) for n, inst in instances.items()
+        }
+        self.ports = {n: _Port(inst, inputs[n], outputs[n], indicators[n]) for n, inst in instances.items()}
+        for link in links:
+            dst, src = self.ports[link.dst], self.ports[link.src]
+            dst.sources.append((dst.in_names.index(link.input), src, src.out_names.index(link.output)))
+
+        w = self.wiring
+        self._first = [self.ports[n] for n in w.feedthrough_only]
+        self._dynamic = [self.ports[n] for n in w.dynamic]
+        self._order = [self.ports[n] for n in w.evaluation_order]
+        self._first_in_order = [p for p in self._order if p in self._first]
+        self._indicator_ports = [p for p in self.ports.values() if p.z_pos]
+        self._all = list(self.ports.values())
+        self._history = {p.inst.name: _History() for p in self._dynamic}
+        self._deriv_sources = self._derivative_sources() if s.extrapolation else {}
+        self._z_start: list[float] = []
+        self._z_end: list[float] = []
+        self._checkpoint: tuple | None = None
+        self._since_checkpoint: list[float] = []
+        self._last_dz: list[float] = []
+        self._last_h = s.step
+        self._after_event = True
+        self.on_step = None  # optional callback(master) after each accepted step
+
+    # -- initialization --------------------------------------------------
+
+    def initialize(self, parameters: dict[str, dict[str, object]]) -> None:
+        """Set up every instance, resolve the initial outputs, leave init mode."""
+        for name, inst in self.instances.items():
+            inst.setup(self.start_time, parameters.get(name, {}))
+        # Outputs in initialization mode follow from parameters; two sweeps
+        # settle feedthrough chains of any depth found in these scenes.
+        for _ in range(2):
+            self._propagate(self._order, initial=True)
+        for inst in self.instances.values():
+            inst.exit_init()
+        self._propagate(self._order, initial=True)
+        self.t = self.start_time
+        self._reset_soft_state()
+
+    def reinitialize(self, parameters: dict[str, dict[str, object]]) -> None:
+        """fmi2Reset every instance and initialize again (shooting uses this)."""
+        for inst in self.instances.values():
+            inst.reset()
+        self.initialize(parameters)
+
+    def _reset_soft_state(self) -> None:
+        for h in self._history.values():
+            h.times.clear()
+            h.values.clear()
+        self._checkpoint = None
+        self._since_checkpoint = []
+        self._after_event = True
+        self._record_history()
+
+    # -- the communication step ----------------------------------------
+
+    def _propagate(self, ports: list[_Port], initial: bool = False) -> None:
+        """Set inputs from their sources and read outputs, in order."""
+        t = self.t
+        for p in ports:
+            if p.n_in:
+                inp = p.inp
+                for k, src, j in p.sources:
+                    inp[k] = src.out[j]
+                st = p.inst.c_setReal(p.comp, p.in_vr, p.n_in, inp)
+                if st > WARNING:
+                    raise p.inst.fail("fmi2SetReal of inputs", st, t)
+            if p.n_out:
+                st = p.inst.c_getReal(p.comp, p.out_vr, p.n_out, p.out)
+                if st > WARNING:
+                    raise p.inst.fail("fmi2GetReal", st, t)
+
+    def _read(self, p: _Port) -> None:
+        if p.n_out:
+            st = p.inst.c_getReal(p.comp, p.out_vr, p.n_out, p.out)
+            if st > WARNING:
+                raise p.inst.fail("fmi2GetReal", st, self.t)
+
+    def _set_inputs(self, p: _Port, t: float, h: float, coupling_end: list[float] | None = None) -> None:
+        """Inputs of a dynamic instance at t, with polynomial extrapolation."""
+        inp = p.inp
+        for k, src, j in p.sources:
+            inp[k] = src.out[j]
+        st = p.inst.c_setReal(p.comp, p.in_vr, p.n_in, inp)
+        if st > WARNING:
+            raise p.inst.fail("fmi2SetReal of inputs", st, t)
+        if coupling_end is not None:
+            # Strong coupling: interpolate linearly towards the last iterate.
+            for k in range(p.n_in):
+                p.der[k] = (coupling_end[k] - inp[k]) / h
+                p.der[p.n_in + k] = 0.0
+            self._set_derivatives(p, t, 2)
+        elif self.settings.extrapolation and not self._after_event:
+            self._extrapolate(p, t)
+
+    def _set_derivatives(self, p: _Port, t: float, order: int) -> None:
+        n = p.n_in * (2 if order >= 2 else 1)
+        st = p.inst.c_setInputDerivatives(p.comp, p.der_vr, n, p.der_order, p.der)
+        if st > WARNING:
+            raise p.inst.fail("fmi2SetRealInputDerivatives", st, t)
+
+    def _derivative_sources(self) -> dict:
+        """For each dynamic input: a source offering output derivatives, if any."""
+        found = {}
+        for p in self._dynamic:
+            for k, src, j in p.sources:
+                inst = src.inst
+                name = src.out_names[j]
+                var = inst.variables[name]
+                has_feed = var.dependencies is None or len(var.dependencies) > 0
+                if not has_feed and inst.max_output_derivative_order >= 1:
+                    got = inst.output_derivatives([name], 1)
+                    if got is not None:
+                        found[(p.inst.name, k)] = (inst, c_uint(var.vr))
+        return found
+
+    def _extrapolate(self, p: _Port, t: float) -> None:
+        order = self.settings.extrapolation
+        hist = self._history[p.inst.name]
+        n = p.n_in
+        for k in range(n):
+            d1 = d2 = 0.0
+            src = self._deriv_sources.get((p.inst.name, k))
+            if src is not None:
+                inst, vr = src
+                vrs = (c_uint * 2)(vr.value, vr.value)
+                orders = (c_int * 2)(1, 2)
+                out = (c_double * 2)()
+                m = 2 if (order >= 2 and inst.max_output_derivative_order >= 2) else 1
+                if inst.c_getOutputDerivatives(inst.component, vrs, m, orders, out) <= WARNING:
+                    d1 = out[0]
+                    d2 = out[1] if m == 2 else 0.0
+            elif len(hist.times) >= 2:
+                t1, t0 = hist.times[-1], hist.times[-2]
+                u1, u0 = hist.values[-1][k], hist.values[-2][k]
+                d1 = (u1 - u0) / (t1 - t0)
+                if order >= 2 and len(hist.times) >= 3:
+                    tm, um = hist.times[-3], hist.values[-3][k]
+                    dprev = (u0 - um) / (t0 - tm)
+                    d2 = 2.0 * (d1 - dprev) / (t1 - tm)
+                    # Derivative at t1 of the parabola through the 3 points.
+                    d1 = d1 + 0.5 * d2 * (t1 - t0)
+            p.der[k] = d1
+            p.der[n + k] = d2 if order >= 2 else 0.0
+        self._set_derivatives(p, t, order)
+
+    def _record_history(self) -> None:
+        if not self.settings.extrapolation:
+            return
+        for p in self._dynamic:
+            if not p.n_in:
+                continue
+            hist = self._history[p.inst.name]
+            hist.times.append(self.t)
+            hist.values.append([src.out[j] for _, src, j in p.sources])
+            if len(hist.times) > 3:
+                del hist.times[0], hist.values[0]
+
+    def _indicators(self) -> list[float]:
+        return [p.out[k] for p in self._indicator_ports for k in p.z_pos]
+
+    def _advance(self, t: float, h: float, coupling: dict | None = None) -> None:
+        """One communication step from t to t + h of every instance."""
+        t_new = t + h
+        for p in self._first:
+            st = p.inst.c_doStep(p.comp, t, h, 0)
+            if st > WARNING:
+                raise p.inst.fail(f"fmi2DoStep({t!r}, {h!r})", st, t)
+            self._read(p)
+        self._z_start = self._indicators()
+        jacobi = self.settings.order == "jacobi"
+        if jacobi:
+            for p in self._dynamic:
+                if p.n_in:
+                    self._set_inputs(p, t, h, coupling.get(p.inst.name) if coupling else None)
+        last = len(self._dynamic) - 1
+        for i, p in enumerate(self._dynamic):
+            if not jacobi and p.n_in:
+                self._set_inputs(p, t, h, coupling.get(p.inst.name) if coupling else None)
+            st = p.inst.c_doStep(p.comp, t, h, 0)
+            if st > WARNING:
+                raise p.inst.fail(
+                    f"fmi2DoStep({t!r}, {h!r})", st, t) if st != DISCARD else SimulationError(
+                    f"{p.inst.name}: fmi2DoStep from t = {t!r} s with h = {h!r} s was discarded: "
+                    f"{p.inst.last_message()}", time=t, instance=p.inst.name)
+            self._read(p)
+            if not jacobi and i < last:
+                # Newest values flow on to the instances stepped later.
+                self._propagate(self._first_in_order)
+        self.t = t_new
+        self._propagate(self._order)
+        self._z_end = self._indicators()
+
+    def _save_all(self) -> None:
+        for p in self._all:
+            p.inst.save_state()
+        self.stats.states_saved += 1
+
+    def _restore_all(self) -> None:
+        for p in self._all:
+            p.inst.restore_state()
+        self.stats.rollbacks += 1
+
+    def _soft_state(self) -> tuple:
+        return (
+            self.t,
+            {n: (list(h.times), [list(v) for v in h.values]) for n, h in self._history.items()},
+            self._after_event,
+            list(self._last_dz),
+            self._last_h,
+        )
+
+    def _restore_soft_state(self, snap: tuple) -> None:
+        self.t, hist, self._after_event, dz, self._last_h = snap
+        self._last_dz = list(dz)
+        for n, (times, values) in hist.items():
+            self._history[n].times[:] = times
+            self._history[n].values[:] = [list(v) for v in values]
+        # The FMU states hold their inputs; only the cached outputs are stale.
+        for p in self._all:
+            self._read(p)
+
+    def _event_possible(self, h: float) -> bool:
+        """Could an indicator reach zero within h? Conservative extrapolation."""
+        if not self._indicator_ports:
+            return False
+        if self._after_event or not self._last_dz:
+            return True
+        scale = 4.0 * h / self._last_h
+        z = self._indicators()
+        return any(abs(zi) <= scale * abs(dzi) + 1e-15 for zi, dzi in zip(z, self._last_dz))
+
+    @staticmethod
+    def _crossed(z0: float, z1: float) -> bool:
+        return (z0 > 0.0 and z1 <= 0.0) or (z0 < 0.0 and z1 >= 0.0)
+
+    def step(self, h: float) -> float:
+        """Advance by at most h (less when an event is located). Returns the step taken."""
+        s = self.settings
+        t = self.t
+        self._after_event_step = False
+        needs_rollback = s.iterations > 0 or s.richardson
+        possible = s.event_location and self._event_possible(h)
+        if possible or needs_rollback:
+            self._save_all()
+            self._checkpoint = self._soft_state()
+            self._since_checkpoint = []
+        if s.richardson:
+            h = self._richardson_step(t, h)
+        elif s.iterations > 0:
+            self._coupled_step(t, h)
+        else:
+            self._advance(t, h)
+        taken = h
+        if s.event_location and self._indicator_ports:
+            crossed = [self._crossed(a, b) for a, b in zip(self._z_start, self._z_end)]
+            if any(crossed):
+                if not (possible or needs_rollback):
+                    self._replay_to(t)
+                taken = self._locate(t, h, crossed)
+        self._last_dz = [b - a for a, b in zip(self._z_start, self._z_end)] if not self._after_event_step else []
+        self._last_h = taken
+        self._after_event = self._after_event_step
+        self._since_checkpoint.append(taken)
+        self.stats.steps += 1
+        self._check_finite()
+        self._record_history()
+        if self.on_step is not None:
+            self.on_step(self)
+        return taken
+
+    _after_event_step = False
+
+    def _replay_to(self, t: float) -> None:
+        """An event in a step predicted free of events: go back and redo."""
+        self.stats.replays += 1
+        if self._checkpoint is None:
+            raise SimulationError(
+                f"an event indicator changed sign at t = {t!r} s in a step without a checkpoint",
+                time=t)
+        self._restore_all()
+        steps = list(self._since_checkpoint)
+        self._restore_soft_state(self._checkpoint)
+        for h in steps:
+            self._advance(self.t, h)
+            self._record_history()
+        if abs(self.t - t) > 1e-9 * max(1.0, abs(t)):
+            raise SimulationError(f"replay ended at t = {self.t!r} s instead of {t!r} s", time=t)
+        self.t = t
+        self._save_all()
+        self._checkpoint = self._soft_state()
+        self._since_checkpoint = []
+
+    def _locate(self, t: float, h: float, crossed: list[bool]) -> float:
+        """Shorten the step to land just past the earliest crossing."""
+        s = self.settings
+        z0 = list(self._z_start)
+        z1 = list(self._z_end)
+        # The indicator whose linear interpolant crosses first leads.
+        lead = min(
+            (k for k, c in enumerate(crossed) if c),
+            key=lambda k: z0[k] / (z0[k] - z1[k]),
+        )
+        search = Illinois(0.0, z0[lead], h, z1[lead])
+        hi, z_hi = h, list(z1)
+        last = h
+        while True:
+            if hi - search.lo <= s.event_time_tolerance or abs(z_hi[lead]) <= s.event_indicator_tolerance:
+                break
+            trial = search.next()
+            if not (search.lo < trial < hi):
+                trial = 0.5 * (search.lo + hi)
+            self._restore_all()
+            self._restore_soft_state(self._checkpoint)
+            self._advance(t, trial)
+            self.stats.event_iterations += 1
+            last = trial
+            z = self._z_end
+            now = [self._crossed(a, b) for a, b in zip(self._z_start, z)]
+            if any(now):
+                earlier = [k for k, c in enumerate(now) if c]
+                if lead not in earlier:
+                    lead = earlier[0]
+                    search = Illinois(search.lo, z0[lead] if search.lo == 0 else search.z_lo, trial, z[lead])
+                else:
+                    search.update(trial, z[lead], crossed=True)
+                hi, z_hi = trial, list(z)
+            else:
+                search.update(trial, z[lead], crossed=False)
+            if search.iterations > 200:
+                raise SimulationError(
+                    f"event location did not converge in (t, t+h) = ({t!r}, {t + h!r}) s", time=t)
+        if last != hi:
+            self._restore_all()
+            self._restore_soft_state(self._checkpoint)
+            self._advance(t, hi)
+        self.stats.events += 1
+        self._after_event_step = True
+        return hi
+
+    def _coupled_step(self, t: float, h: float) -> None:
+        """Fixed-point iteration of the step on the dynamic-to-dynamic inputs."""
+        s = self.settings
+        self._advance(t, h)
+        for _ in range(s.iterations):
+            ends = {p.inst.name: [src.out[j] for _, src, j in p.sources] for p in self._dynamic if p.n_in}
+            self._restore_all()
+            self._restore_soft_state(self._checkpoint)
+            self._advance(t, h, coupling=ends)
+            self.stats.coupling_iterations += 1
+            change = max(
+                (abs(src.out[j] - ends[p.inst.name][k]) for p in self._dynamic if p.n_in
+                 for k, (_, src, j) in enumerate(p.sources)),
+                default=0.0,
+            )
+            if change <= s.iteration_tolerance:
+                break
+
+    def _richardson_step(self, t: float, h: float) -> float:
+        """Step doubling: compare one step of h with two of h/2; adapt h."""
+        s = self.settings
+        p_order = s.extrapolation + 1
+        while True:
+            self._advance(t, h)
+            full = self._dynamic_outputs()
+            self._restore_all()
+            self._restore_soft_state(self._checkpoint)
+            self._advance(t, 0.5 * h)
+            self._record_history()
+            self._advance(t + 0.5 * h, 0.5 * h)
+            half = self._dynamic_outputs()
+            err = max(
+                (abs(a - b) / (s.richardson_tolerance * (1.0 + abs(b))) for a, b in zip(full, half)),
+                default=0.0,
+            ) / (2 ** p_order - 1)
+            if err <= 1.0 or h <= s.min_step:
+                factor = 0.9 * err ** (-1.0 / (p_order + 1)) if err > 0 else 2.0
+                self._richardson_next = min(max(factor, 0.2), 2.0) * h
+                return h
+            self.stats.rejected += 1
+            h = max(s.min_step, h * max(0.2, 0.9 * err ** (-1.0 / (p_order + 1))))
+            self._restore_all()
+            self._restore_soft_state(self._checkpoint)
+
+    _richardson_next: float | None = None
+
+    def _dynamic_outputs(self) -> list[float]:
+        return [p.out[k] for p in self._dynamic for k in range(p.n_out)]
+
+    def _check_finite(self) -> None:
+        limit = self.settings.divergence_limit
+        for p in self._all:
+            out = p.out
+            for k in range(p.n_out):
+                x = out[k]
+                if not (-limit < x < limit):
+                    what = "is not finite" if not math.isfinite(x) else f"exceeds the divergence limit {limit:g}"
+                    raise SimulationError(
+                        f"{p.inst.name}.{p.out_names[k]} = {x!r} {what} at t = {self.t!r} s",
+                        time=self.t, instance=p.inst.name, variable=p.out_names[k])
+
+    # -- running ----------------------------------------------------------
+
+    def run_until(self, t_stop: float, on_point=None) -> None:
+        """Step to t_stop on the grid start + k*step, plus located events.
+
+        Grid points are computed as start + k*step, never by summing steps,
+        so that time does not drift.
+        """
+        s = self.settings
+        h_nom = s.step
+        k = math.floor((self.t - self.start_time) / h_nom + 1e-9) + 1
+        while self.t < t_stop - 1e-12 * max(1.0, abs(t_stop)):
+            grid = min(self.start_time + k * h_nom, t_stop)
+            if s.richardson and self._richardson_next is not None:
+                grid = min(self.t + max(self._richardson_next, s.min_step), t_stop)
+            h = grid - self.t
+            if h <= 0:
+                k += 1
+                continue
+            self.step(h)
+            if on_point is not None:
+                on_point(self)
+            if self.t >= self.start_time + k * h_nom - 1e-12 * max(1.0, abs(self.t)):
+                k = math.floor((self.t - self.start_time) / h_nom + 1e-9) + 1
+
+    def terminate(self) -> None:
+        for inst in self.instances.values():
+            try:
+                inst.free()
+            except Exception:
+                pass

@@ -1,0 +1,157 @@
+/* AveragedPendulum: Hoyng's amplitude-phase (KBM averaged) equations.
+ *
+ * In normalized time tau = omega0 t, omega0 = sqrt(g/L), with
+ * phi = lambda sin(psi), epsilon = 1/(2Q) and torques in units of m g L:
+ *
+ * escapement = 0 (model escapement, mu = drive/(m g L); Eqs. 15-16)
+ *   d(lambda^2)/dtau = -2 eps lambda^2 + 4 mu phi_r/pi
+ *   dpsi/dtau        = 1 + circ(lambda)
+ *                      + (2 mu/(pi lambda)) sqrt(1 - (phi_r/lambda)^2)
+ * escapement = 1 (one impulse of work e = drive/(m g L) per period at
+ * phi_1; Eqs. C4-C5, C4 rewritten for lambda^2)
+ *   d(lambda^2)/dtau = -2 eps lambda^2 + e/pi
+ *   dpsi/dtau        = 1 + circ(lambda) - (e/(2 pi lambda^2)) tan(psi1),
+ *   tan(psi1) = phi_1/sqrt(lambda^2 - phi_1^2)
+ * circ(lambda) = J1(lambda)/lambda - 1/2 (Eq. A1) or -lambda^2/16.
+ *
+ * Stall: when lambda <= phi_r (or <= |phi_1|) the pendulum no longer
+ * reaches the angle where the escapement acts; the escapement terms are 0
+ * and the amplitude decays freely. Nothing restarts a stalled pendulum, as
+ * in a real clock.
+ *
+ * The state is lambda^2 (its equation is linear, so constant driving gives
+ * an exact exponential) and the phase deviation D = psi - omega0 t, which
+ * keeps the slow part of the phase away from the large, exactly known
+ * nominal part; integration is in laboratory time t. */
+#define _DEFAULT_SOURCE /* j1() from <math.h> */
+#include <math.h>
+
+#include "cw_rk.h"
+#include "cw_runtime.h"
+#include "cw_vars.h"
+
+enum { S_LAM2, S_DEV, S_H_NEXT, N_REAL_STATE };
+
+static const double PI = 3.14159265358979323846;
+
+static double omega0(const cw_instance *inst) { return sqrt(R(g) / R(L)); }
+
+static double epsilon(const cw_instance *inst) {
+    return R(Q) > 0 ? 0.5 / R(Q) : 0.0;
+}
+
+/* J1(x)/x - 1/2. The power series avoids the cancellation of the Bessel
+ * form at small amplitudes; it alternates with shrinking terms for x < 2. */
+static double circ_bessel(double x) {
+    if (x >= 2.0) return j1(x) / x - 0.5;
+    const double q = -0.25 * x * x;
+    double term = 0.5, sum = 0.0;
+    for (int k = 1; k < 40; k++) {
+        term *= q / ((double)k * (double)(k + 1));
+        sum += term;
+        if (fabs(term) <= 1e-17 * fabs(sum)) break;
+    }
+    return sum;
+}
+
+static double circ(const cw_instance *inst, double lambda) {
+    return I(circular) ? circ_bessel(lambda) : -lambda * lambda / 16.0;
+}
+
+typedef struct {
+    double dlam2; /* d(lambda^2)/dtau */
+    double dev;   /* dpsi/dtau - 1 */
+    int stalled;
+} averaged;
+
+static averaged averages(const cw_instance *inst, double lam2, double drive) {
+    const double lam = sqrt(fmax(lam2, 0.0));
+    const double drive_n = drive / (R(m) * R(g) * R(L));
+    averaged a;
+    a.dlam2 = -2.0 * epsilon(inst) * lam2;
+    a.dev = circ(inst, lam);
+    if (I(escapement) == 0) {
+        const double phi0 = R(phi_r);
+        a.stalled = !(lam > phi0);
+        if (!a.stalled) {
+            const double r = phi0 / lam;
+            a.dlam2 += 4.0 * drive_n * phi0 / PI;
+            a.dev += (2.0 * drive_n / (PI * lam)) * sqrt(1.0 - r * r);
+        }
+    } else {
+        const double phi1 = R(phi_1);
+        a.stalled = !(lam > fabs(phi1));
+        if (!a.stalled) {
+            const double tan_psi1 = phi1 / sqrt(lam2 - phi1 * phi1);
+            a.dlam2 += drive_n / PI;
+            a.dev -= (drive_n / (2.0 * PI * lam2)) * tan_psi1;
+        }
+    }
+    return a;
+}
+
+static void rhs(void *ctx, double t, const double *x, double *dx) {
+    const cw_instance *inst = ctx;
+    const double w0 = omega0(inst);
+    averaged a = averages(inst, x[0], IN(drive, t));
+    dx[0] = w0 * a.dlam2;
+    dx[1] = w0 * a.dev;
+}
+
+static void initialize(cw_instance *inst) {
+    inst->s[S_LAM2] = R(amplitude_start) * R(amplitude_start);
+    inst->s[S_DEV] = R(phase_start) - omega0(inst) * inst->start_time;
+    inst->s[S_H_NEXT] = 0.0;
+}
+
+static void calc_outputs(cw_instance *inst) {
+    const double w0 = omega0(inst), t = inst->time;
+    const double lam2 = inst->s[S_LAM2], dev = inst->s[S_DEV];
+    averaged a = averages(inst, lam2, IN(drive, t));
+    R(amplitude) = sqrt(fmax(lam2, 0.0));
+    R(phase) = w0 * t + dev;
+    R(pendulum_time) = t + dev / w0;
+    R(rate) = 1.0 + a.dev;
+    R(rate_s_per_day) = 86400.0 * a.dev;
+    I(stalled) = a.stalled;
+}
+
+static fmi2Status do_step(cw_instance *inst, double t_end) {
+    cw_rk rk;
+    cw_rk_init(&rk, 2, R(rtol), R(atol), R(h_max));
+    double x[2] = {inst->s[S_LAM2], inst->s[S_DEV]};
+    double t = inst->time, h_next = inst->s[S_H_NEXT];
+    cw_rk_result res =
+        cw_rk_advance(&rk, rhs, inst, &t, t_end, x, &h_next, NULL, NULL);
+    if (res != CW_RK_OK || !isfinite(x[0]) || !isfinite(x[1])) {
+        cw_log(inst, fmi2Discard, "logStatusDiscard",
+               "AveragedPendulum: integration from t = %.17g to %.17g failed "
+               "(%s) at t = %.17g with lambda^2 = %g rad^2, psi - omega0 t = "
+               "%g rad; the step is discarded and the state is unchanged.",
+               inst->time, t_end,
+               res == CW_RK_STEP_TOO_SMALL   ? "step size underflow"
+               : res == CW_RK_TOO_MANY_STEPS ? "too many internal steps"
+                                             : "non-finite state",
+               t, x[0], x[1]);
+        return fmi2Discard;
+    }
+    inst->s[S_LAM2] = x[0];
+    inst->s[S_DEV] = x[1];
+    inst->s[S_H_NEXT] = h_next;
+    return fmi2OK;
+}
+
+const cw_model CW_MODEL = {
+    .name = CW_MODEL_NAME,
+    .guid = CW_MODEL_GUID,
+    .nvars = CW_NVARS,
+    .vars = CW_VARS,
+    .n_real_state = N_REAL_STATE,
+    .n_uint_state = 0,
+    .validate = NULL, /* every rule is a single-variable range */
+    .initialize = initialize,
+    .calc_outputs = calc_outputs,
+    .do_step = do_step,
+    .commit = NULL,
+    .output_derivative = NULL,
+};
