@@ -90,6 +90,7 @@ class _Port:
         self.der = (c_double * max(1, 2 * self.n_in))()
         # (input position, source port, source output position)
         self.sources: list[tuple[int, "_Port", int]] = []
+        self.out_time = 0.0  # time at which `out` was read, s
 
 
 @dataclass
@@ -199,18 +200,33 @@ class Master:
                 st = p.inst.c_getReal(p.comp, p.out_vr, p.n_out, p.out)
                 if st > WARNING:
                     raise p.inst.fail("fmi2GetReal", st, t)
+            p.out_time = t
 
-    def _read(self, p: _Port) -> None:
+    def _read(self, p: _Port, t: float) -> None:
         if p.n_out:
             st = p.inst.c_getReal(p.comp, p.out_vr, p.n_out, p.out)
             if st > WARNING:
-                raise p.inst.fail("fmi2GetReal", st, self.t)
+                raise p.inst.fail("fmi2GetReal", st, t)
+        p.out_time = t
 
     def _set_inputs(self, p: _Port, t: float, h: float, coupling_end: list[float] | None = None) -> None:
-        """Inputs of a dynamic instance at t, with polynomial extrapolation."""
+        """Inputs of a dynamic instance for the step from t.
+
+        Sources that already stepped (Gauss-Seidel) hold values at t + h;
+        with extrapolation the polynomial through them is re-anchored at t,
+        which makes it an interpolation over the step.
+        """
         inp = p.inp
-        for k, src, j in p.sources:
-            inp[k] = src.out[j]
+        if coupling_end is not None:
+            starts, coupling_end = coupling_end
+            for k in range(p.n_in):
+                inp[k] = starts[k]
+        else:
+            for k, src, j in p.sources:
+                inp[k] = src.out[j]
+        polynomial = self.settings.extrapolation and not self._after_event and coupling_end is None
+        if polynomial:
+            self._extrapolate(p, t)
         st = p.inst.c_setReal(p.comp, p.in_vr, p.n_in, inp)
         if st > WARNING:
             raise p.inst.fail("fmi2SetReal of inputs", st, t)
@@ -219,9 +235,9 @@ class Master:
             for k in range(p.n_in):
                 p.der[k] = (coupling_end[k] - inp[k]) / h
                 p.der[p.n_in + k] = 0.0
-            self._set_derivatives(p, t, 2)
-        elif self.settings.extrapolation and not self._after_event:
-            self._extrapolate(p, t)
+            self._set_derivatives(p, t, 1)
+        elif polynomial:
+            self._set_derivatives(p, t, self.settings.extrapolation)
 
     def _set_derivatives(self, p: _Port, t: float, order: int) -> None:
         n = p.n_in * (2 if order >= 2 else 1)
@@ -241,38 +257,42 @@ class Master:
                 if not has_feed and inst.max_output_derivative_order >= 1:
                     got = inst.output_derivatives([name], 1)
                     if got is not None:
-                        found[(p.inst.name, k)] = (inst, c_uint(var.vr))
+                        m = 2 if inst.max_output_derivative_order >= 2 else 1
+                        found[(p.inst.name, k)] = (
+                            inst, (c_uint * 2)(var.vr, var.vr), (c_int * 2)(1, 2), (c_double * 2)(), m)
         return found
 
     def _extrapolate(self, p: _Port, t: float) -> None:
+        """Fill p.inp (values at t) and p.der (derivatives at t) from the sources."""
         order = self.settings.extrapolation
         hist = self._history[p.inst.name]
         n = p.n_in
-        for k in range(n):
+        for k, (_, src, j) in enumerate(p.sources):
+            ta, ua = src.out_time, src.out[j]
             d1 = d2 = 0.0
-            src = self._deriv_sources.get((p.inst.name, k))
-            if src is not None:
-                inst, vr = src
-                vrs = (c_uint * 2)(vr.value, vr.value)
-                orders = (c_int * 2)(1, 2)
-                out = (c_double * 2)()
-                m = 2 if (order >= 2 and inst.max_output_derivative_order >= 2) else 1
+            dsrc = self._deriv_sources.get((p.inst.name, k))
+            if dsrc is not None:
+                inst, vrs, orders, out, m = dsrc
+                m = min(m, order)
                 if inst.c_getOutputDerivatives(inst.component, vrs, m, orders, out) <= WARNING:
                     d1 = out[0]
                     d2 = out[1] if m == 2 else 0.0
-            elif len(hist.times) >= 2:
-                t1, t0 = hist.times[-1], hist.times[-2]
-                u1, u0 = hist.values[-1][k], hist.values[-2][k]
-                d1 = (u1 - u0) / (t1 - t0)
-                if order >= 2 and len(hist.times) >= 3:
-                    tm, um = hist.times[-3], hist.values[-3][k]
-                    dprev = (u0 - um) / (t0 - tm)
-                    d2 = 2.0 * (d1 - dprev) / (t1 - tm)
-                    # Derivative at t1 of the parabola through the 3 points.
-                    d1 = d1 + 0.5 * d2 * (t1 - t0)
-            p.der[k] = d1
-            p.der[n + k] = d2 if order >= 2 else 0.0
-        self._set_derivatives(p, t, order)
+            else:
+                # Divided differences through the history and the current value.
+                pts = [(tt, vv[k]) for tt, vv in zip(hist.times, hist.values) if tt < ta - 1e-15]
+                pts = pts[-order:] + [(ta, ua)]
+                if len(pts) >= 2:
+                    (t1, u1), (t2, u2) = pts[-2], pts[-1]
+                    d1 = (u2 - u1) / (t2 - t1)
+                    if order >= 2 and len(pts) >= 3:
+                        t0, u0 = pts[-3]
+                        d0 = (u1 - u0) / (t1 - t0)
+                        d2 = 2.0 * (d1 - d0) / (t2 - t0)
+                        d1 += 0.5 * d2 * (t2 - t1)
+            dt = t - ta
+            p.inp[k] = ua + dt * (d1 + 0.5 * dt * d2)
+            p.der[k] = d1 + d2 * dt
+            p.der[n + k] = d2
 
     def _record_history(self) -> None:
         if not self.settings.extrapolation:
@@ -296,7 +316,7 @@ class Master:
             st = p.inst.c_doStep(p.comp, t, h, 0)
             if st > WARNING:
                 raise p.inst.fail(f"fmi2DoStep({t!r}, {h!r})", st, t)
-            self._read(p)
+            self._read(p, t)
         self._z_start = self._indicators()
         jacobi = self.settings.order == "jacobi"
         if jacobi:
@@ -313,10 +333,12 @@ class Master:
                     f"fmi2DoStep({t!r}, {h!r})", st, t) if st != DISCARD else SimulationError(
                     f"{p.inst.name}: fmi2DoStep from t = {t!r} s with h = {h!r} s was discarded: "
                     f"{p.inst.last_message()}", time=t, instance=p.inst.name)
-            self._read(p)
+            self._read(p, t_new)
             if not jacobi and i < last:
                 # Newest values flow on to the instances stepped later.
+                saved_t, self.t = self.t, t_new
                 self._propagate(self._first_in_order)
+                self.t = saved_t
         self.t = t_new
         self._propagate(self._order)
         self._z_end = self._indicators()
@@ -348,7 +370,7 @@ class Master:
             self._history[n].values[:] = [list(v) for v in values]
         # The FMU states hold their inputs; only the cached outputs are stale.
         for p in self._all:
-            self._read(p)
+            self._read(p, self.t)
 
     def _event_possible(self, h: float) -> bool:
         """Could an indicator reach zero within h? Conservative extrapolation."""
@@ -471,15 +493,17 @@ class Master:
     def _coupled_step(self, t: float, h: float) -> None:
         """Fixed-point iteration of the step on the dynamic-to-dynamic inputs."""
         s = self.settings
+        starts = {p.inst.name: [src.out[j] for _, src, j in p.sources] for p in self._dynamic if p.n_in}
         self._advance(t, h)
         for _ in range(s.iterations):
-            ends = {p.inst.name: [src.out[j] for _, src, j in p.sources] for p in self._dynamic if p.n_in}
+            ends = {p.inst.name: (starts[p.inst.name], [src.out[j] for _, src, j in p.sources])
+                    for p in self._dynamic if p.n_in}
             self._restore_all()
             self._restore_soft_state(self._checkpoint)
             self._advance(t, h, coupling=ends)
             self.stats.coupling_iterations += 1
             change = max(
-                (abs(src.out[j] - ends[p.inst.name][k]) for p in self._dynamic if p.n_in
+                (abs(src.out[j] - ends[p.inst.name][1][k]) for p in self._dynamic if p.n_in
                  for k, (_, src, j) in enumerate(p.sources)),
                 default=0.0,
             )

@@ -109,7 +109,7 @@ def assert_refused(unpacked, name, params, variable):
 # ---------------------------------------------------------------- validate
 
 
-@pytest.mark.parametrize("name", ["Drag", "MechanismVibration", "AveragedPendulum"])
+@pytest.mark.parametrize("name", ["Drag", "MechanismVibration"])
 def test_validate(name):
     assert validate_fmu(str(fmu_file(name))) == []
 

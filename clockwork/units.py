@@ -1,0 +1,142 @@
+"""Quantities written as "<number> <unit>" and their conversion.
+
+A variable's allowed units come from its FMU: the variable's own unit, its
+display units, and every unit of the FMU's UnitDefinitions whose BaseUnit
+has the same SI exponents (with that unit's display units). FMI 2.0 defines
+
+    value_in_base_SI = baseUnit.factor * value_in_unit + baseUnit.offset
+    value_in_display = displayUnit.factor * value_in_unit + displayUnit.offset
+
+Experiment and master times use the fixed table TIME_UNITS instead.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0, "h": 3600.0, "d": 86400.0}
+ANGLE_UNITS = {"rad": 1.0, "mrad": 1e-3, "deg": math.pi / 180.0}
+
+_EXPONENTS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+_NUMBER = r"[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?|[-+]?(?:inf|nan)"
+_QUANTITY = re.compile(rf"^\s*({_NUMBER})(?:\s*(\S.*?))?\s*$")
+
+
+class UnitError(ValueError):
+    """str() says what was expected, e.g. 'a unit of rad: rad, deg'."""
+
+
+def fmt(x: float) -> str:
+    """Short exact rendering: integral floats without '.0', else repr."""
+    if isinstance(x, float) and x.is_integer() and abs(x) < 1e16:
+        return str(int(x))
+    return repr(x)
+
+
+def parse_quantity(value: object) -> tuple[float, str | None]:
+    """(number, unit or None) from a TOML number or a '<number> [unit]' string."""
+    if isinstance(value, bool):
+        raise UnitError("a number or a string '<number> <unit>'")
+    if isinstance(value, (int, float)):
+        number = float(value)
+        unit = None
+    elif isinstance(value, str):
+        m = _QUANTITY.match(value)
+        if not m:
+            raise UnitError("a number or a string '<number> <unit>'")
+        number = float(m.group(1))
+        unit = m.group(2)
+    else:
+        raise UnitError("a number or a string '<number> <unit>'")
+    if not math.isfinite(number):
+        raise UnitError("a finite number")
+    return number, unit
+
+
+def to_seconds(value: object) -> float:
+    """A time: bare number in s, or a string with a unit of TIME_UNITS."""
+    try:
+        number, unit = parse_quantity(value)
+    except UnitError:
+        raise UnitError(f"a time: a number in s or '<number> <unit>' with unit {', '.join(TIME_UNITS)}") from None
+    if unit is None:
+        return number
+    if unit not in TIME_UNITS:
+        raise UnitError(f"a time unit: one of {', '.join(TIME_UNITS)}")
+    return number * TIME_UNITS[unit]
+
+
+def to_radians(value: object) -> float:
+    """An angle: bare number in rad, or a string with a unit of ANGLE_UNITS."""
+    try:
+        number, unit = parse_quantity(value)
+    except UnitError:
+        raise UnitError(f"an angle: a number in rad or '<number> <unit>' with unit {', '.join(ANGLE_UNITS)}") from None
+    if unit is None:
+        return number
+    if unit not in ANGLE_UNITS:
+        raise UnitError(f"an angle unit: one of {', '.join(ANGLE_UNITS)}")
+    return number * ANGLE_UNITS[unit]
+
+
+def _base(unit_def) -> tuple | None:
+    b = getattr(unit_def, "baseUnit", None)
+    if b is None:
+        return None
+    return tuple(int(getattr(b, e, 0) or 0) for e in _EXPONENTS), float(b.factor), float(b.offset)
+
+
+def unit_conversions(model_description, unit: str) -> dict[str, tuple[float, float]]:
+    """{unit name: (scale, offset)} with value_in_`unit` = scale * value + offset.
+
+    The first entry is `unit` itself; its own display units come next, then
+    the other units with the same BaseUnit exponents. A name defined twice
+    keeps its first (closest) meaning.
+    """
+    defs = {u.name: u for u in getattr(model_description, "unitDefinitions", None) or []}
+    conv: dict[str, tuple[float, float]] = {unit: (1.0, 0.0)}
+    target = defs.get(unit)
+    if target is None:
+        return conv
+
+    def add_displays(udef, scale: float, offset: float) -> None:
+        for d in udef.displayUnits or []:
+            fd, od = float(d.factor), float(d.offset)
+            # value_in_udef = (v_display - od) / fd
+            conv.setdefault(d.name, (scale / fd, offset - scale * od / fd))
+
+    add_displays(target, 1.0, 0.0)
+    tb = _base(target)
+    if tb is None:
+        return conv
+    t_exp, t_factor, t_offset = tb
+    for name, udef in defs.items():
+        ub = _base(udef)
+        if name == unit or ub is None or ub[0] != t_exp:
+            continue
+        _, u_factor, u_offset = ub
+        # base = uf*vu + uo = tf*vt + to
+        scale = u_factor / t_factor
+        offset = (u_offset - t_offset) / t_factor
+        conv.setdefault(name, (scale, offset))
+        add_displays(udef, scale, offset)
+    return conv
+
+
+def to_unit(value: object, model_description, unit: str | None) -> float:
+    """Convert a TOML number or '<number> <unit>' string to a value in `unit`.
+
+    A bare number is taken to be in `unit` already; a dimensionless
+    variable (unit None) takes bare numbers only.
+    """
+    number, given = parse_quantity(value)
+    if given is None or given == unit:
+        return number
+    if not unit:
+        raise UnitError("a bare number (the variable is dimensionless)")
+    conv = unit_conversions(model_description, unit)
+    if given not in conv:
+        raise UnitError(f"a unit of {unit}: one of {', '.join(conv)}")
+    scale, offset = conv[given]
+    return scale * number + offset

@@ -1,0 +1,226 @@
+"""The co-simulation master against the monolithic reference and theory."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import quad, solve_ivp
+
+from clockwork import analytic, reference
+from clockwork.errors import SimulationError
+from clockwork.master import MasterSettings
+from clockwork.steady import Shooter, energy_balance_amplitude, find_steady_state
+from clockwork.system import System
+
+from conftest import FMU_DIR
+
+GRASSHOPPER_LINKS = [
+    "pendulum.phi -> escapement.phi",
+    "pendulum.w -> escapement.w",
+    "escapement.tau -> pendulum.tau_escapement",
+]
+PEND = {"L": 1.0, "m": 1.0, "g": 9.81, "Q": 1000.0}
+
+
+@pytest.fixture(autouse=True)
+def _fmus(monkeypatch):
+    monkeypatch.setenv("CLOCKWORK_FMU_DIR", str(FMU_DIR))
+
+
+def grasshopper(torque, phi_r_deg=2.0, Q=1000.0, step=0.5, **pend):
+    params = {"pendulum": dict(Q=Q, rtol=1e-12, atol=1e-14, **pend),
+              "escapement": dict(torque=torque, phi_r=math.radians(phi_r_deg))}
+    sysm = System({"pendulum": ("Pendulum", params["pendulum"]),
+                   "escapement": ("GrasshopperEscapement", params["escapement"])},
+                  GRASSHOPPER_LINKS, MasterSettings(step=step),
+                  record={"pendulum": ["tick_time", "tick_w", "amplitude"]})
+    return sysm, params
+
+
+@pytest.mark.parametrize("torque", [0.002, 0.004])
+def test_steady_state_rate_matches_monolithic_reference(torque):
+    """Co-simulated steady-state rate within 1e-3 s/day of scipy DOP853 shooting."""
+    sysm, params = grasshopper(torque)
+    with sysm:
+        pp = dict(PEND)
+        guess = energy_balance_amplitude(pp, "GrasshopperEscapement", params["escapement"])
+        shooter = Shooter(sysm.master, params, "pendulum", pp)
+        ours = find_steady_state(shooter, guess, math.radians(2.0))
+    ref = reference.steady_state(reference.ClockParams(escapement="grasshopper", torque=torque,
+                                                       phi_r=math.radians(2.0), Q=1000.0))
+    assert not ours.stalled and not ref.stalled
+    diff_s_per_day = abs(ours.E_T - ref.E_T) * analytic.SECONDS_PER_DAY
+    assert diff_s_per_day < 1e-3, (ours.E_T, ref.E_T)
+    assert abs(ours.amplitude - ref.amplitude) < 1e-8
+
+
+def test_switch_time_is_located_to_1e_10_s():
+    """The first torque switch lands within 1e-10 s of the exact crossing of phi_r.
+
+    Undamped pendulum from phi = 0 with speed w0 and constant torque M:
+    w(phi)^2 = w0^2 + 2 (M/I) phi - 2 (g/L)(1 - cos phi); the crossing time
+    of phi_r is the quadrature of dphi/w.
+    """
+    M, phi_r, w0 = 0.004, math.radians(2.0), 0.2
+    sysm = System({"pendulum": ("Pendulum", dict(Q=0.0, phi_start=0.0, w_start=w0, rtol=1e-13, atol=1e-15)),
+                   "escapement": ("GrasshopperEscapement", dict(torque=M, phi_r=phi_r))},
+                  GRASSHOPPER_LINKS, MasterSettings(step=0.37))
+    with sysm:
+        m = sysm.master
+        while m.stats.events == 0:
+            m.step(0.37)
+        t_landed = m.t
+        mode = sysm.instances["escapement"].get_integer(["mode"])[0]
+    speed = lambda phi: math.sqrt(w0 ** 2 + 2 * M * phi - 2 * 9.81 * (1 - math.cos(phi)))
+    t_exact, err = quad(lambda phi: 1.0 / speed(phi), 0.0, phi_r, epsabs=1e-15, epsrel=1e-14)
+    assert err < 1e-13
+    assert mode == -1
+    assert t_landed >= t_exact - 1e-12
+    assert abs(t_landed - t_exact) < 1e-10, (t_landed, t_exact)
+
+
+def test_event_location_makes_the_result_independent_of_the_step():
+    results = []
+    for step in (0.5, 0.05):
+        sysm, _ = grasshopper(0.004, step=step, phi_start=math.radians(5))
+        with sysm:
+            sysm.master.run_until(40.0)
+            results.append((sysm.output("pendulum", "tick_time"), sysm.output("pendulum", "phi")))
+    assert abs(results[0][0] - results[1][0]) < 1e-10
+    assert abs(results[0][1] - results[1][1]) < 1e-9
+
+
+def test_without_event_location_the_switch_is_smeared():
+    """The same clock without event location is wrong by O(step): the reason to locate."""
+    ticks = {}
+    for located in (True, False):
+        sysm = System({"pendulum": ("Pendulum", dict(Q=1000.0, phi_start=math.radians(5))),
+                       "escapement": ("GrasshopperEscapement", dict(torque=0.004, phi_r=math.radians(2)))},
+                      GRASSHOPPER_LINKS, MasterSettings(step=0.05, event_location=located),
+                      record={"pendulum": ["tick_time"]})
+        with sysm:
+            sysm.master.run_until(40.0)
+            ticks[located] = sysm.output("pendulum", "tick_time")
+    assert abs(ticks[True] - ticks[False]) > 1e-4
+
+
+def test_rollback_is_deterministic():
+    """Two identical runs with many rollbacks agree bit for bit."""
+    runs = []
+    for _ in range(2):
+        sysm, _ = grasshopper(0.004, step=0.3, phi_start=math.radians(6))
+        with sysm:
+            sysm.master.run_until(30.0)
+            p = sysm.master.ports["pendulum"]
+            runs.append((list(p.out), sysm.master.stats.rollbacks))
+    assert runs[0][1] > 50
+    assert runs[0][0] == runs[1][0]
+
+
+def test_saving_state_only_when_needed_gives_the_same_bits():
+    """Skipping fmi2GetFMUstate in steps predicted free of events changes nothing."""
+    outs = []
+    for always in (False, True):
+        sysm, _ = grasshopper(0.004, step=0.02, phi_start=math.radians(6))
+        with sysm:
+            m = sysm.master
+            if always:
+                m._event_possible = lambda h: True
+            m.run_until(10.0)
+            outs.append((list(m.ports["pendulum"].out), m.stats.states_saved, m.stats.steps))
+    assert outs[0][0] == outs[1][0]
+    assert outs[0][1] < 0.5 * outs[0][2]  # most steps saved nothing
+    assert outs[1][1] >= outs[1][2]
+
+
+# -- convergence orders on a smooth coupled pair --------------------------------
+
+VIB = dict(gamma2=0.05, omega02=5.0, kappa=0.0, C1=5.0, C2=5.0, a2_start=0.0, rtol=1e-12, atol=1e-15)
+
+
+def coupled_reference(t_end):
+    g, L = 9.81, 1.0
+    w0 = math.sqrt(g / L)
+
+    def rhs(t, y):
+        phi, w, a2, v2 = y
+        return [w, -(g / L) * math.sin(phi) - (w0 / 1000.0) * w - VIB["C1"] * a2,
+                v2, -VIB["gamma2"] * v2 - VIB["omega02"] ** 2 * a2 - VIB["C2"] * phi]
+
+    sol = solve_ivp(rhs, (0, t_end), [math.radians(10), 0.0, 0.0, 0.0], method="DOP853",
+                    rtol=1e-13, atol=1e-15)
+    return sol.y[:, -1]
+
+
+def coupled_error(step, extrapolation, order="gauss-seidel", t_end=2.0):
+    sysm = System({"pendulum": ("Pendulum", dict(Q=1000.0, rtol=1e-12, atol=1e-15)),
+                   "vibration": ("MechanismVibration", VIB)},
+                  ["pendulum.phi -> vibration.a1", "vibration.tau -> pendulum.tau_coupling"],
+                  MasterSettings(step=step, extrapolation=extrapolation, order=order),
+                  record={"pendulum": ["phi"]})
+    with sysm:
+        sysm.master.run_until(t_end)
+        phi = sysm.output("pendulum", "phi")
+    return abs(phi - coupled_reference(t_end)[0])
+
+
+@pytest.mark.parametrize("extrapolation,expected", [(0, 1.0), (1, 2.0)])
+def test_convergence_order_of_the_coupling(extrapolation, expected):
+    steps = [0.02, 0.01, 0.005]
+    errors = [coupled_error(h, extrapolation) for h in steps]
+    slope = np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert abs(slope - expected) < 0.3, (errors, slope)
+
+
+def test_jacobi_is_first_order_too():
+    steps = [0.02, 0.01, 0.005]
+    errors = [coupled_error(h, 0, order="jacobi") for h in steps]
+    slope = np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert abs(slope - 1.0) < 0.3, (errors, slope)
+
+
+def coupled_iterated_error(step):
+    sysm = System({"pendulum": ("Pendulum", dict(Q=1000.0, rtol=1e-12, atol=1e-15)),
+                   "vibration": ("MechanismVibration", VIB)},
+                  ["pendulum.phi -> vibration.a1", "vibration.tau -> pendulum.tau_coupling"],
+                  MasterSettings(step=step, iterations=10, iteration_tolerance=1e-14),
+                  record={"pendulum": ["phi"]})
+    with sysm:
+        sysm.master.run_until(2.0)
+        err = abs(sysm.output("pendulum", "phi") - coupled_reference(2.0)[0])
+        iterations = sysm.master.stats.coupling_iterations / sysm.master.stats.steps
+    return err, iterations
+
+
+def test_strong_coupling_converges_to_a_second_order_scheme():
+    """Iterating the step with linearly interpolated coupling signals is the
+    trapezoidal-type fixed point: second order, and below plain ZOH."""
+    steps = [0.02, 0.01, 0.005]
+    results = [coupled_iterated_error(h) for h in steps]
+    errors = [e for e, _ in results]
+    slope = np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert abs(slope - 2.0) < 0.3, (errors, slope)
+    assert errors[0] < coupled_error(0.02, 0)
+    assert all(it < 10 for _, it in results)  # converged before the cap
+
+
+def test_divergence_is_caught_and_named():
+    """A coupling far beyond its stability limit diverges: reported, not written as NaN."""
+    sysm = System({"pendulum": ("Pendulum", dict(Q=1000.0)),
+                   "vibration": ("MechanismVibration", dict(VIB, C1=5e4, C2=5e4))},
+                  ["pendulum.phi -> vibration.a1", "vibration.tau -> pendulum.tau_coupling"],
+                  MasterSettings(step=0.5, event_location=False))
+    with sysm, pytest.raises(SimulationError) as e:
+        sysm.master.run_until(200.0)
+    assert e.value.time is not None and e.value.instance in ("pendulum", "vibration")
+    assert "t =" in str(e.value)
+
+
+def test_stall_is_a_result():
+    """Too little torque: no periodic orbit above phi_r, reported as a stall."""
+    sysm, params = grasshopper(0.00002)
+    with sysm:
+        shooter = Shooter(sysm.master, params, "pendulum", dict(PEND))
+        guess = energy_balance_amplitude(dict(PEND), "GrasshopperEscapement", params["escapement"])
+        result = find_steady_state(shooter, guess, math.radians(2.0))
+    assert result.stalled
