@@ -386,7 +386,13 @@ def steady_state(params: ClockParams, amplitude_guess: float | None = None, rtol
     Solves A'(A) = A with brentq after bracketing around the energy-balance
     guess. stalled=True when no orbit with A above the smallest amplitude
     that can take energy (phi_r for the grasshopper, alpha_m1 for a
-    chronometer whose window starts at phi > 0) exists.
+    chronometer whose window starts at phi > 0) exists. A chronometer whose
+    window contains phi = 0 always has an orbit; for a small torque it turns
+    inside the window (A < alpha_m2) and is pushed over its whole rising swing.
+
+    E_C is taken at the right turning point A, the largest amplitude of the
+    swing; the amplitude decays by about pi/(2Q) over a free half swing
+    (amplitude_left), which shifts E_E by up to E_C(A) - E_C(amplitude_left).
     """
     p = params
     if p.vibration is not None:

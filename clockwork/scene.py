@@ -744,6 +744,7 @@ def _connections(ctx: _Ctx, conns, components: dict[str, Component], input_param
     out = []
     seen: dict[tuple[str, str], int] = {}
     set_inputs = {(inst, var): key for inst, var, key in input_params}
+    checked = []
     for i, c in enumerate(conns):
         key = f"connections[{i}]"
         if not isinstance(c, str):
@@ -774,6 +775,10 @@ def _connections(ctx: _Ctx, conns, components: dict[str, Component], input_param
             raise ctx.fail(key, f"input {di}.{dv} is connected twice (also by connections[{seen[(di, dv)]}])")
         if (di, dv) in set_inputs:
             raise ctx.fail(key, f"input {di}.{dv} is connected and also set in {set_inputs[(di, dv)]}")
+        seen[(di, dv)] = i
+        checked.append((key, si, sv, di, dv, sc, s, dc, d))
+    # Structure first (names, directions, duplicates), then types and units.
+    for key, si, sv, di, dv, sc, s, dc, d in checked:
         if s.type != d.type:
             raise ctx.fail(key, f"type mismatch: {si}.{sv} is {s.type}, {di}.{dv} is {d.type}")
         su, du = var_unit(s), var_unit(d)
@@ -781,7 +786,6 @@ def _connections(ctx: _Ctx, conns, components: dict[str, Component], input_param
         if su != du:
             raise ctx.fail(key, f"unit mismatch: {si}.{sv} is in {su or 'no unit (dimensionless)'}, "
                                 f"{di}.{dv} in {du or 'no unit (dimensionless)'}")
-        seen[(di, dv)] = i
         out.append(Connection(si, sv, di, dv))
     return tuple(out)
 

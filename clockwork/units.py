@@ -87,41 +87,42 @@ def _base(unit_def) -> tuple | None:
     return tuple(int(getattr(b, e, 0) or 0) for e in _EXPONENTS), float(b.factor), float(b.offset)
 
 
-def unit_conversions(model_description, unit: str) -> dict[str, tuple[float, float]]:
-    """{unit name: (scale, offset)} with value_in_`unit` = scale * value + offset.
+def unit_conversions(model_description, unit: str) -> dict[str, tuple[float, ...]]:
+    """{unit name: conversion} for the names a value in `unit` may be given in.
 
-    The first entry is `unit` itself; its own display units come next, then
-    the other units with the same BaseUnit exponents. A name defined twice
+    A conversion (fd, od, fu, ou, ft, ot) maps x to
+    (fu * ((x - od) / fd) + ou - ot) / ft: display unit -> its unit -> SI
+    base -> `unit` (see apply_conversion). Identity steps are exact, so
+    "99.4 cm" gives 0.994 m, not 0.9940000000000001. The first entry is
+    `unit` itself, then its display units, then the other units with the
+    same BaseUnit exponents and their display units; a name defined twice
     keeps its first (closest) meaning.
     """
     defs = {u.name: u for u in getattr(model_description, "unitDefinitions", None) or []}
-    conv: dict[str, tuple[float, float]] = {unit: (1.0, 0.0)}
+    conv: dict[str, tuple[float, ...]] = {unit: (1.0, 0.0, 1.0, 0.0, 1.0, 0.0)}
     target = defs.get(unit)
     if target is None:
         return conv
-
-    def add_displays(udef, scale: float, offset: float) -> None:
-        for d in udef.displayUnits or []:
-            fd, od = float(d.factor), float(d.offset)
-            # value_in_udef = (v_display - od) / fd
-            conv.setdefault(d.name, (scale / fd, offset - scale * od / fd))
-
-    add_displays(target, 1.0, 0.0)
+    for d in target.displayUnits or []:
+        conv.setdefault(d.name, (float(d.factor), float(d.offset), 1.0, 0.0, 1.0, 0.0))
     tb = _base(target)
     if tb is None:
         return conv
-    t_exp, t_factor, t_offset = tb
+    t_exp, ft, ot = tb
     for name, udef in defs.items():
         ub = _base(udef)
         if name == unit or ub is None or ub[0] != t_exp:
             continue
-        _, u_factor, u_offset = ub
-        # base = uf*vu + uo = tf*vt + to
-        scale = u_factor / t_factor
-        offset = (u_offset - t_offset) / t_factor
-        conv.setdefault(name, (scale, offset))
-        add_displays(udef, scale, offset)
+        _, fu, ou = ub
+        conv.setdefault(name, (1.0, 0.0, fu, ou, ft, ot))
+        for d in udef.displayUnits or []:
+            conv.setdefault(d.name, (float(d.factor), float(d.offset), fu, ou, ft, ot))
     return conv
+
+
+def apply_conversion(c: tuple[float, ...], x: float) -> float:
+    fd, od, fu, ou, ft, ot = c
+    return (fu * ((x - od) / fd) + ou - ot) / ft
 
 
 def to_unit(value: object, model_description, unit: str | None) -> float:
@@ -138,5 +139,4 @@ def to_unit(value: object, model_description, unit: str | None) -> float:
     conv = unit_conversions(model_description, unit)
     if given not in conv:
         raise UnitError(f"a unit of {unit}: one of {', '.join(conv)}")
-    scale, offset = conv[given]
-    return scale * number + offset
+    return apply_conversion(conv[given], number)

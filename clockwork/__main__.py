@@ -1,0 +1,5 @@
+"""python -m clockwork"""
+
+from .cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,162 @@
+"""Analyses: what a scene measures at each sweep point.
+
+- ``time_series``: co-simulate from start to stop, record outputs (and tick
+  times) at communication points.
+- ``ticks``: the same, but keep only the pendulum's tick times and rates.
+- ``steady_state``: the periodic orbit by shooting (clockwork.steady) and
+  its rate errors E_T, E_C, E_E.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import analytic
+from .errors import SimulationError
+from .steady import Shooter, energy_balance_amplitude, find_steady_state
+
+ESCAPEMENTS = ("GrasshopperEscapement", "ChronometerEscapement")
+
+
+def _find(scene, model: str | tuple[str, ...]) -> str | None:
+    models = (model,) if isinstance(model, str) else model
+    for name, c in scene.components.items():
+        if c.model_description.modelName in models:
+            return name
+    return None
+
+
+def run_analysis(scene, point: dict, progress: bool = False) -> dict:
+    kind = (scene.analysis or {}).get("kind", "time_series")
+    if kind == "steady_state":
+        return steady_state(scene, point)
+    return time_series(scene, point, progress=progress, ticks_only=(kind == "ticks"))
+
+
+def steady_state(scene, point: dict) -> dict:
+    from .runner import build_system, parameters
+
+    cfg = scene.analysis or {}
+    pendulum = _find(scene, "Pendulum")
+    if pendulum is None:
+        raise SimulationError("the steady_state analysis needs a Pendulum component")
+    escapement = _find(scene, ESCAPEMENTS)
+    params = parameters(scene, point)
+    pp = params[pendulum]
+    esc_model = scene.components[escapement].model_description.modelName if escapement else None
+    esc = params.get(escapement, {})
+    a_min = None
+    if esc_model == "GrasshopperEscapement":
+        a_min = esc["phi_r"]
+    elif esc_model == "ChronometerEscapement":
+        a_min = max(esc["alpha_m2"], 0.0)
+    guess = cfg.get("amplitude_guess") or energy_balance_amplitude(pp, esc_model, esc)
+    if guess is None:
+        raise SimulationError("steady_state: give analysis.amplitude_guess (no energy balance for this escapement)")
+    tolerance = cfg.get("tolerance_s_per_day", 1e-3) / analytic.SECONDS_PER_DAY
+    system = build_system(scene, point, record={pendulum: ["tick_time", "tick_w", "amplitude"]})
+    with system:
+        shooter = Shooter(system.master, params, pendulum, pp,
+                          max_period_factor=float(cfg.get("max_periods", 3)))
+        if guess <= 0:
+            result = None
+        else:
+            result = find_steady_state(shooter, guess, a_min, tolerance=tolerance)
+        stats = vars(system.master.stats).copy()
+    if result is None:
+        from .steady import SteadyState
+        result = SteadyState(stalled=True, tolerance=tolerance, reason="no driving torque")
+    out = result.as_dict()
+    torque = esc.get("torque") if esc else None
+    out["torque_Nm"] = torque
+    out["energy_balance_amplitude_deg"] = math.degrees(guess) if guess else None
+    if esc_model == "GrasshopperEscapement" and not result.stalled and pp["Q"] > 0:
+        out["E_E_B7_s_per_day"] = analytic.escapement_error_B7(result.amplitude, esc["phi_r"], pp["Q"]) * analytic.SECONDS_PER_DAY
+    return {"kind": "steady_state", "result": out, "statistics": stats}
+
+
+def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = False) -> dict:
+    from .runner import build_system, experiment
+
+    start, stop = experiment(scene, point)
+    outputs = [] if ticks_only else list(scene.record.outputs)
+    record: dict[str, list[str]] = {}
+    for inst, var in outputs:
+        record.setdefault(inst, []).append(var)
+    tick_inst = scene.record.ticks or (_find(scene, "Pendulum") if ticks_only else None)
+    if tick_inst:
+        record.setdefault(tick_inst, []).append("tick_time")
+    system = build_system(scene, point, record=record)
+    columns: dict[str, list[float]] = {"time": []}
+    for inst, var in outputs:
+        columns[f"{inst}.{var}"] = []
+    ticks: list[float] = []
+    with system:
+        m = system.master
+        ports = [(m.ports[i], m.ports[i].out_names.index(v)) for i, v in outputs]
+        names = [f"{i}.{v}" for i, v in outputs]
+        tick_port = m.ports[tick_inst] if tick_inst else None
+        tick_pos = tick_port.out_names.index("tick_time") if tick_inst else 0
+        step = m.settings.step
+        interval = scene.record.interval
+        stride = max(1, round(interval / step)) if interval else 1
+        state = {"k": 0, "last_tick": tick_port.out[tick_pos] if tick_port else 0.0}
+
+        def sample(master) -> None:
+            if tick_port is not None:
+                tt = tick_port.out[tick_pos]
+                if tt != state["last_tick"] and tt > 0:
+                    ticks.append(tt)
+                    state["last_tick"] = tt
+            if not outputs:
+                return
+            on_grid = abs((master.t - master.start_time) / step - round((master.t - master.start_time) / step)) < 1e-6
+            if on_grid:
+                state["k"] += 1
+                if state["k"] % stride:
+                    return
+            elif interval:
+                return
+            columns["time"].append(master.t)
+            for name, (p, j) in zip(names, ports):
+                columns[name].append(p.out[j])
+
+        if outputs:
+            columns["time"].append(m.t)
+            for name, (p, j) in zip(names, ports):
+                columns[name].append(p.out[j])
+        _run_with_progress(m, stop, sample, progress, label=scene.path.stem)
+        stats = vars(m.stats).copy()
+    result: dict = {"t_end_s": stop}
+    if ticks:
+        t = np.asarray(ticks)
+        result["ticks"] = len(ticks)
+        if len(t) > 1:
+            periods = np.diff(t)
+            result["mean_period_s"] = float(periods.mean())
+            result["last_period_s"] = float(periods[-1])
+    out = {"kind": "ticks" if ticks_only else "time_series", "result": result, "statistics": stats}
+    if outputs:
+        out["series"] = columns
+    if tick_inst:
+        out["ticks"] = ticks
+    return out
+
+
+def _run_with_progress(master, stop: float, on_point, progress: bool, label: str) -> None:
+    from tqdm import tqdm
+
+    span = stop - master.t
+    with tqdm(total=span, disable=not progress, delay=1.0, desc=label, unit="s sim",
+              bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]") as bar:
+        step = master.settings.step
+        # Chunks are whole multiples of the step so that the grid is kept.
+        chunk = step * max(1, round(span / 200.0 / step))
+        t0 = master.t
+        n = 0
+        while master.t < stop - 1e-12 * max(1.0, abs(stop)):
+            n += 1
+            master.run_until(min(stop, t0 + n * chunk), on_point)
+            bar.update(master.t - t0 - bar.n)

@@ -1,0 +1,181 @@
+"""The `clockwork` command: run, validate, list, info.
+
+Bad input of any kind ends with one line `clockwork: error: <message>` on
+stderr and exit code 2; a failed simulation with one line and exit code 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from . import __version__
+from .errors import SceneError, SimulationError, UsageError
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that raises instead of printing usage and exiting."""
+
+    def error(self, message: str):
+        sub = self.prog.removeprefix("clockwork").strip()
+        raise UsageError(f"{sub}: {message}" if sub else message)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return n
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="clockwork", description="Pendulum-clock co-simulation on FMI 2.0 FMUs.")
+    p.add_argument("--version", action="version", version=f"clockwork {__version__}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    def add_set(sp):
+        sp.add_argument("--set", dest="overrides", action="append", default=[], metavar="INST.PARAM=VALUE",
+                        help='override a parameter or setting, e.g. pendulum.Q=500, '
+                             'escapement.torque="0.4 N.cm", master.step=0.01 (repeatable)')
+
+    r = sub.add_parser("run", help="run a scene and write its results")
+    r.add_argument("scene", metavar="SCENE.toml")
+    r.add_argument("--out", required=True, metavar="DIR", help="output directory (created if its parent exists)")
+    add_set(r)
+    r.add_argument("--workers", type=_positive_int, default=None, metavar="N",
+                   help="parallel processes for sweeps (default: the runner's choice)")
+    r.add_argument("--scheduler", default=None, metavar="ADDRESS", help="address of a distributed scheduler")
+    r.add_argument("--no-progress", action="store_true", help="no progress bar")
+    r.set_defaults(func=cmd_run)
+
+    v = sub.add_parser("validate", help="check a scene file without running it")
+    v.add_argument("scene", metavar="SCENE.toml")
+    add_set(v)
+    v.set_defaults(func=cmd_validate)
+
+    ls = sub.add_parser("list", help="list the scenes of a directory")
+    ls.add_argument("dir", nargs="?", default=None, metavar="DIR", help="default: the repository's scenarios/")
+    ls.set_defaults(func=cmd_list)
+
+    i = sub.add_parser("info", help="describe an FMU: capabilities, variables, event indicators")
+    i.add_argument("fmu", metavar="X.fmu|MODEL")
+    i.set_defaults(func=cmd_info)
+    return p
+
+
+def cmd_run(args) -> int:
+    from .results import check_output_dir
+    from .scene import load_scene
+
+    scene = load_scene(args.scene, args.overrides)
+    out = check_output_dir(args.out)
+    from .runner import run_scene  # the runner pulls in the master and fmpy's loaders
+
+    run_scene(scene, out, workers=args.workers, scheduler=args.scheduler, progress=not args.no_progress)
+    return 0
+
+
+def cmd_validate(args) -> int:
+    from .scene import load_scene
+
+    scene = load_scene(args.scene, args.overrides)
+    n, m = len(scene.components), len(scene.connections)
+    print(f"ok: {scene.title} ({n} component{'s' * (n != 1)}, {m} connection{'s' * (m != 1)})")
+    return 0
+
+
+def cmd_list(args) -> int:
+    from .scene import load_scene
+
+    d = Path(args.dir) if args.dir else REPO / "scenarios"
+    if not d.is_dir():
+        raise UsageError(f"no such directory: {d}")
+    files = sorted(d.glob("*.toml"))
+    width = max((len(f.name) for f in files), default=0)
+    broken = 0
+    for f in files:
+        try:
+            s = load_scene(f)
+        except SceneError as e:
+            broken += 1
+            where = f"{e.key}: " if e.key else ""
+            print(f"{f.name:<{width}}  ERROR: {where}{e.detail}")
+            continue
+        line = f"{f.name:<{width}}  {s.title}"
+        if s.reproduces:
+            line += f"  [reproduces {s.reproduces}]"
+        print(line)
+    return 1 if broken else 0
+
+
+def _flag(x) -> str:
+    if isinstance(x, bool):
+        return "true" if x else "false"
+    return "-" if x is None else str(x)
+
+
+def cmd_info(args) -> int:
+    from .scene import FmuError, read_fmu, resolve_fmu, var_unit
+
+    try:
+        path = resolve_fmu(args.fmu, Path.cwd())
+        md, digest, indicators = read_fmu(path, need_binary=False)
+    except FmuError as e:
+        raise UsageError(str(e)) from None
+    cs = md.coSimulation
+    print(f"{md.modelName} (FMI {md.fmiVersion} Co-Simulation)")
+    print(f"  file         {path}")
+    print(f"  sha256       {digest}")
+    print(f"  guid         {md.guid}")
+    print(f"  generated by {md.generationTool or '-'}")
+    if md.description:
+        print(f"  description  {md.description}")
+    print("capabilities:")
+    for cap in ("canHandleVariableCommunicationStepSize", "canGetAndSetFMUstate", "canSerializeFMUstate",
+                "canInterpolateInputs", "maxOutputDerivativeOrder"):
+        print(f"  {cap:<40} {_flag(getattr(cs, cap, None))}")
+    rows = [("name", "causality", "variability", "type", "unit", "start", "min", "max", "description")]
+    for v in md.modelVariables:
+        rows.append((v.name, v.causality or "-", v.variability or "-", v.type, var_unit(v) or "-",
+                     _flag(v.start), _flag(v.min), _flag(v.max), v.description or ""))
+    widths = [max(len(r[k]) for r in rows) for k in range(len(rows[0]) - 1)]
+    print(f"variables ({len(md.modelVariables)}):")
+    for r in rows:
+        print("  " + "  ".join(c.ljust(w) for c, w in zip(r, widths)) + "  " + r[-1])
+    print(f"event indicators: {', '.join(indicators) if indicators else 'none'}")
+    return 0
+
+
+def _error(message: object) -> None:
+    text = " ".join(str(message).split())
+    print(f"clockwork: error: {text}", file=sys.stderr)
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as e:  # --help / --version
+        return e.code if isinstance(e.code, int) else 0
+    except UsageError as e:
+        _error(e)
+        return 2
+    try:
+        return args.func(args)
+    except (SceneError, UsageError) as e:
+        _error(e)
+        return 2
+    except SimulationError as e:
+        _error(e)
+        return 1
+    except KeyboardInterrupt:
+        _error("interrupted")
+        return 130
+    except BrokenPipeError:  # e.g. `clockwork list | head`
+        return 0
