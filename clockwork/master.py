@@ -91,6 +91,9 @@ class _Port:
         # (input position, source port, source output position)
         self.sources: list[tuple[int, "_Port", int]] = []
         self.out_time = 0.0  # time at which `out` was read, s
+        self.doStep, self.getReal, self.setReal = inst.c_doStep, inst.c_getReal, inst.c_setReal
+        self.sent: list[float] = []  # inputs last given to the FMU (ZOH), to skip repeats
+        self.sent_valid = False
 
 
 @dataclass
@@ -151,6 +154,18 @@ class Master:
         self._last_h = s.step
         self._after_event = True
         self.on_step = None  # optional callback(master) after each accepted step
+        self._needs_rollback = s.iterations > 0 or s.richardson
+        self._locating = bool(s.event_location and self._indicator_ports)
+        self._extrapolating = bool(s.extrapolation)
+        self._jacobi = s.order == "jacobi"
+        # After a step, only feedthrough outputs need an update at t + h;
+        # a dynamic instance's own inputs are set when its next step starts.
+        self._final_order = [
+            p for p in self._order
+            if p in self._first or any(
+                self.wiring.feedthrough_outputs.get((p.inst.name, n), self._feeds(p.inst, n))
+                for n in p.out_names)
+        ]
 
     # -- initialization --------------------------------------------------
 
@@ -196,6 +211,7 @@ class Master:
                 st = p.inst.c_setReal(p.comp, p.in_vr, p.n_in, inp)
                 if st > WARNING:
                     raise p.inst.fail("fmi2SetReal of inputs", st, t)
+                p.sent_valid = False
             if p.n_out:
                 st = p.inst.c_getReal(p.comp, p.out_vr, p.n_out, p.out)
                 if st > WARNING:
@@ -224,12 +240,16 @@ class Master:
         else:
             for k, src, j in p.sources:
                 inp[k] = src.out[j]
-        polynomial = self.settings.extrapolation and not self._after_event and coupling_end is None
+        polynomial = self._extrapolating and not self._after_event and coupling_end is None
         if polynomial:
             self._extrapolate(p, t)
-        st = p.inst.c_setReal(p.comp, p.in_vr, p.n_in, inp)
+        elif coupling_end is None and p.sent_valid and p.sent == inp[:p.n_in]:
+            return  # held value unchanged: the FMU already has it
+        st = p.setReal(p.comp, p.in_vr, p.n_in, inp)
         if st > WARNING:
             raise p.inst.fail("fmi2SetReal of inputs", st, t)
+        p.sent = inp[:p.n_in]
+        p.sent_valid = not polynomial and coupling_end is None
         if coupling_end is not None:
             # Strong coupling: interpolate linearly towards the last iterate.
             for k in range(p.n_in):
@@ -313,35 +333,64 @@ class Master:
         """One communication step from t to t + h of every instance."""
         t_new = t + h
         for p in self._first:
-            st = p.inst.c_doStep(p.comp, t, h, 0)
+            st = p.doStep(p.comp, t, h, 0)
             if st > WARNING:
-                raise p.inst.fail(f"fmi2DoStep({t!r}, {h!r})", st, t)
-            self._read(p, t)
-        self._z_start = self._indicators()
-        jacobi = self.settings.order == "jacobi"
+                raise self._step_failure(p, st, t, h)
+            if p.z_pos and self._after_event:
+                # A commit may have switched the mode: read z at t+.
+                p.getReal(p.comp, p.out_vr, p.n_out, p.out)
+        if self._locating:
+            # Without a commit of a new mode, z at t+ is z at t.
+            self._z_start = ([p.out[k] for p in self._indicator_ports for k in p.z_pos]
+                             if self._after_event else self._z_end)
+        jacobi = self._jacobi
+        dynamic = self._dynamic
         if jacobi:
-            for p in self._dynamic:
+            for p in dynamic:
                 if p.n_in:
                     self._set_inputs(p, t, h, coupling.get(p.inst.name) if coupling else None)
-        last = len(self._dynamic) - 1
-        for i, p in enumerate(self._dynamic):
+        last = dynamic[-1] if dynamic else None
+        for p in dynamic:
             if not jacobi and p.n_in:
                 self._set_inputs(p, t, h, coupling.get(p.inst.name) if coupling else None)
-            st = p.inst.c_doStep(p.comp, t, h, 0)
+            st = p.doStep(p.comp, t, h, 0)
             if st > WARNING:
-                raise p.inst.fail(
-                    f"fmi2DoStep({t!r}, {h!r})", st, t) if st != DISCARD else SimulationError(
-                    f"{p.inst.name}: fmi2DoStep from t = {t!r} s with h = {h!r} s was discarded: "
-                    f"{p.inst.last_message()}", time=t, instance=p.inst.name)
-            self._read(p, t_new)
-            if not jacobi and i < last:
+                raise self._step_failure(p, st, t, h)
+            if p.n_out:
+                st = p.getReal(p.comp, p.out_vr, p.n_out, p.out)
+                if st > WARNING:
+                    raise p.inst.fail("fmi2GetReal", st, t_new)
+            p.out_time = t_new
+            if not jacobi and p is not last:
                 # Newest values flow on to the instances stepped later.
                 saved_t, self.t = self.t, t_new
                 self._propagate(self._first_in_order)
                 self.t = saved_t
         self.t = t_new
-        self._propagate(self._order)
-        self._z_end = self._indicators()
+        for p in self._final_order:
+            if p.n_in:
+                inp = p.inp
+                for k, src, j in p.sources:
+                    inp[k] = src.out[j]
+                st = p.setReal(p.comp, p.in_vr, p.n_in, inp)
+                if st > WARNING:
+                    raise p.inst.fail("fmi2SetReal of inputs", st, t_new)
+                p.sent_valid = False
+            if p.n_out:
+                st = p.getReal(p.comp, p.out_vr, p.n_out, p.out)
+                if st > WARNING:
+                    raise p.inst.fail("fmi2GetReal", st, t_new)
+            p.out_time = t_new
+        if self._locating:
+            self._z_end = [p.out[k] for p in self._indicator_ports for k in p.z_pos]
+
+    @staticmethod
+    def _step_failure(p: _Port, st: int, t: float, h: float) -> SimulationError:
+        if st == DISCARD:
+            return SimulationError(
+                f"{p.inst.name}: fmi2DoStep from t = {t!r} s with h = {h!r} s was discarded: "
+                f"{p.inst.last_message()}", time=t, instance=p.inst.name)
+        return p.inst.fail(f"fmi2DoStep({t!r}, {h!r})", st, t)
 
     def _save_all(self) -> None:
         for p in self._all:
@@ -351,10 +400,12 @@ class Master:
     def _restore_all(self) -> None:
         for p in self._all:
             p.inst.restore_state()
+            p.sent_valid = False
         self.stats.rollbacks += 1
 
     def _soft_state(self) -> tuple:
         return (
+            self._z_end,
             self.t,
             {n: (list(h.times), [list(v) for v in h.values]) for n, h in self._history.items()},
             self._after_event,
@@ -363,7 +414,7 @@ class Master:
         )
 
     def _restore_soft_state(self, snap: tuple) -> None:
-        self.t, hist, self._after_event, dz, self._last_h = snap
+        self._z_end, self.t, hist, self._after_event, dz, self._last_h = snap
         self._last_dz = list(dz)
         for n, (times, values) in hist.items():
             self._history[n].times[:] = times
@@ -371,16 +422,6 @@ class Master:
         # The FMU states hold their inputs; only the cached outputs are stale.
         for p in self._all:
             self._read(p, self.t)
-
-    def _event_possible(self, h: float) -> bool:
-        """Could an indicator reach zero within h? Conservative extrapolation."""
-        if not self._indicator_ports:
-            return False
-        if self._after_event or not self._last_dz:
-            return True
-        scale = 4.0 * h / self._last_h
-        z = self._indicators()
-        return any(abs(zi) <= scale * abs(dzi) + 1e-15 for zi, dzi in zip(z, self._last_dz))
 
     @staticmethod
     def _crossed(z0: float, z1: float) -> bool:
@@ -391,8 +432,19 @@ class Master:
         s = self.settings
         t = self.t
         self._after_event_step = False
-        needs_rollback = s.iterations > 0 or s.richardson
-        possible = s.event_location and self._event_possible(h)
+        needs_rollback = self._needs_rollback
+        locating = self._locating
+        possible = False
+        if locating:
+            if self._after_event or not self._last_dz or len(self._since_checkpoint) >= self.MAX_REPLAY_STEPS:
+                possible = True
+            else:
+                # Conservative: could z reach 0 at 4x the last step's rate of change?
+                scale = 4.0 * h / self._last_h
+                for zi, dzi in zip(self._z_end, self._last_dz):
+                    if abs(zi) <= scale * abs(dzi) + 1e-15:
+                        possible = True
+                        break
         if possible or needs_rollback:
             self._save_all()
             self._checkpoint = self._soft_state()
@@ -404,22 +456,33 @@ class Master:
         else:
             self._advance(t, h)
         taken = h
-        if s.event_location and self._indicator_ports:
-            crossed = [self._crossed(a, b) for a, b in zip(self._z_start, self._z_end)]
-            if any(crossed):
+        if locating:
+            z0, z1 = self._z_start, self._z_end
+            hit = False
+            for a, b in zip(z0, z1):
+                if (a > 0.0 and b <= 0.0) or (a < 0.0 and b >= 0.0):
+                    hit = True
+                    break
+            if hit:
+                crossed = [(a > 0.0 and b <= 0.0) or (a < 0.0 and b >= 0.0) for a, b in zip(z0, z1)]
                 if not (possible or needs_rollback):
                     self._replay_to(t)
                 taken = self._locate(t, h, crossed)
-        self._last_dz = [b - a for a, b in zip(self._z_start, self._z_end)] if not self._after_event_step else []
-        self._last_h = taken
+                self._last_dz = []
+            else:
+                self._last_dz = [b - a for a, b in zip(z0, z1)]
+            self._last_h = taken
+            self._since_checkpoint.append(taken)
         self._after_event = self._after_event_step
-        self._since_checkpoint.append(taken)
         self.stats.steps += 1
         self._check_finite()
-        self._record_history()
+        if self._extrapolating:
+            self._record_history()
         if self.on_step is not None:
             self.on_step(self)
         return taken
+
+    MAX_REPLAY_STEPS = 64  # a forced checkpoint bounds replay work and memory
 
     _after_event_step = False
 
@@ -541,9 +604,17 @@ class Master:
     def _dynamic_outputs(self) -> list[float]:
         return [p.out[k] for p in self._dynamic for k in range(p.n_out)]
 
+    @staticmethod
+    def _feeds(inst: Instance, name: str) -> bool:
+        v = inst.variables[name]
+        return v.causality == "output" and (v.dependencies is None or len(v.dependencies) > 0)
+
     def _check_finite(self) -> None:
         limit = self.settings.divergence_limit
         for p in self._all:
+            # One C-level pass per instance; the detailed search only on failure.
+            if sum(map(abs, p.out)) < limit:
+                continue
             out = p.out
             for k in range(p.n_out):
                 x = out[k]
@@ -562,21 +633,25 @@ class Master:
         so that time does not drift.
         """
         s = self.settings
-        h_nom = s.step
-        k = math.floor((self.t - self.start_time) / h_nom + 1e-9) + 1
-        while self.t < t_stop - 1e-12 * max(1.0, abs(t_stop)):
-            grid = min(self.start_time + k * h_nom, t_stop)
+        h_nom, t0 = s.step, self.start_time
+        eps = 1e-12 * max(1.0, abs(t_stop))
+        k = math.floor((self.t - t0) / h_nom + 1e-9) + 1
+        step = self.step
+        while self.t < t_stop - eps:
+            grid = t0 + k * h_nom
+            if grid > t_stop:
+                grid = t_stop
             if s.richardson and self._richardson_next is not None:
                 grid = min(self.t + max(self._richardson_next, s.min_step), t_stop)
             h = grid - self.t
-            if h <= 0:
+            if h <= eps:
                 k += 1
                 continue
-            self.step(h)
+            step(h)
             if on_point is not None:
                 on_point(self)
-            if self.t >= self.start_time + k * h_nom - 1e-12 * max(1.0, abs(self.t)):
-                k = math.floor((self.t - self.start_time) / h_nom + 1e-9) + 1
+            if self.t >= grid - eps:
+                k += 1
 
     def terminate(self) -> None:
         for inst in self.instances.values():

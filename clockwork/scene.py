@@ -27,7 +27,7 @@ from typing import Any, Callable, NamedTuple
 import numpy as np
 
 from .errors import SceneError
-from .units import UnitError, fmt, to_radians, to_seconds, to_unit
+from .units import UnitError, fmt, parse_quantity, to_radians, to_seconds, to_unit
 
 REPO = Path(__file__).resolve().parents[1]
 NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
@@ -324,7 +324,8 @@ def resolve_fmu(spec: str, base_dir: Path | None = None) -> Path:
         if not p.is_absolute():
             p = (base_dir or Path.cwd()) / p
         if not p.is_file():
-            raise FmuError(f"no such FMU file: {p}")
+            rel = "" if Path(spec).is_absolute() else " (a relative path is taken from the scene file's directory)"
+            raise FmuError(f"no such FMU file: {p}{rel}")
         return p
     if not NAME_RE.match(spec):
         raise FmuError("expected a model name (e.g. \"Pendulum\") or a path ending .fmu")
@@ -335,7 +336,7 @@ def resolve_fmu(spec: str, base_dir: Path | None = None) -> Path:
     known = sorted(q.stem for q in d.glob("*.fmu")) if d.is_dir() else []
     close = difflib.get_close_matches(spec, known, n=1)
     hint = f" (did you mean {close[0]}?)" if close else ""
-    src = f"; is it a model in src_c/models/?" if not (REPO / "src_c" / "models" / spec).is_dir() else ""
+    src = f"; there is no src_c/models/{spec} either" if not (REPO / "src_c" / "models" / spec).is_dir() else ""
     raise FmuError(
         f"no FMU named {spec}{hint}: looked for {p} (the FMU directory is $CLOCKWORK_FMU_DIR, "
         f"else <repo>/fmus; build the FMUs with `cmake --build build`{src})"
@@ -480,8 +481,10 @@ class _Ctx:
                 raise self.fail(full, f"unknown key{hint}; allowed: {allowed_s}{extra}")
         for k in required:
             if k not in table:
-                full = f"{where}.{k}" if where else k
-                raise self.fail(full, "missing required key")
+                if where:
+                    raise self.fail(f"{where}.{k}", "missing required key")
+                header = "components.<instance>" if k == "components" else k
+                raise self.fail(k, f"missing required table [{header}]")
 
     def table(self, parent: dict, k: str, where: str, required: bool = False) -> dict | None:
         full = f"{where}.{k}" if where else k
@@ -732,7 +735,7 @@ def _convert_value(ctx: _Ctx, key: str, value: object, v, md):
             expected = f"a value >= {fmt(lo)}{u}"
         else:
             expected = f"a value <= {fmt(hi)}{u}"
-        if isinstance(value, str):
+        if isinstance(value, str) and parse_quantity(value)[1] not in (None, unit):
             expected += f" (got {fmt(x)}{u})"
         raise ctx.bad(key, value, expected)
     return x
