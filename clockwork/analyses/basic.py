@@ -1,4 +1,4 @@
-"""Analyses: what a scene measures at each sweep point.
+"""The basic analyses.
 
 - ``time_series``: co-simulate from start to stop, record outputs (and tick
   times) at communication points.
@@ -13,14 +13,16 @@ import math
 
 import numpy as np
 
-from . import analytic
-from .errors import SimulationError
-from .steady import Shooter, energy_balance_amplitude, find_steady_state
+from . import register
+from .. import analytic
+from ..errors import SimulationError
+from ..steady import Shooter, energy_balance_amplitude, find_steady_state
 
 ESCAPEMENTS = ("GrasshopperEscapement", "ChronometerEscapement")
 
 
-def _find(scene, model: str | tuple[str, ...]) -> str | None:
+def find_component(scene, model: str | tuple[str, ...]) -> str | None:
+    """Name of the first component whose model is `model` (or one of them)."""
     models = (model,) if isinstance(model, str) else model
     for name, c in scene.components.items():
         if c.model_description.modelName in models:
@@ -28,21 +30,15 @@ def _find(scene, model: str | tuple[str, ...]) -> str | None:
     return None
 
 
-def run_analysis(scene, point: dict, progress: bool = False) -> dict:
-    kind = (scene.analysis or {}).get("kind", "time_series")
-    if kind == "steady_state":
-        return steady_state(scene, point)
-    return time_series(scene, point, progress=progress, ticks_only=(kind == "ticks"))
-
-
-def steady_state(scene, point: dict) -> dict:
-    from .runner import build_system, parameters
+@register("steady_state", {"tolerance_s_per_day", "max_periods", "measure_periods", "amplitude_guess"})
+def steady_state(scene, point: dict, progress: bool = False) -> dict:
+    from ..runner import build_system, parameters
 
     cfg = scene.analysis or {}
-    pendulum = _find(scene, "Pendulum")
+    pendulum = find_component(scene, "Pendulum")
     if pendulum is None:
         raise SimulationError("the steady_state analysis needs a Pendulum component")
-    escapement = _find(scene, ESCAPEMENTS)
+    escapement = find_component(scene, ESCAPEMENTS)
     params = parameters(scene, point)
     pp = params[pendulum]
     esc_model = scene.components[escapement].model_description.modelName if escapement else None
@@ -66,7 +62,7 @@ def steady_state(scene, point: dict) -> dict:
             result = find_steady_state(shooter, guess, a_min, tolerance=tolerance)
         stats = vars(system.master.stats).copy()
     if result is None:
-        from .steady import SteadyState
+        from ..steady import SteadyState
         result = SteadyState(stalled=True, tolerance=tolerance, reason="no driving torque")
     out = result.as_dict()
     torque = esc.get("torque") if esc else None
@@ -77,15 +73,21 @@ def steady_state(scene, point: dict) -> dict:
     return {"kind": "steady_state", "result": out, "statistics": stats}
 
 
+@register("ticks")
+def ticks(scene, point: dict, progress: bool = False) -> dict:
+    return time_series(scene, point, progress=progress, ticks_only=True)
+
+
+@register("time_series")
 def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = False) -> dict:
-    from .runner import build_system, experiment
+    from ..runner import build_system, experiment
 
     start, stop = experiment(scene, point)
     outputs = [] if ticks_only else list(scene.record.outputs)
     record: dict[str, list[str]] = {}
     for inst, var in outputs:
         record.setdefault(inst, []).append(var)
-    tick_inst = scene.record.ticks or (_find(scene, "Pendulum") if ticks_only else None)
+    tick_inst = scene.record.ticks or (find_component(scene, "Pendulum") if ticks_only else None)
     if tick_inst:
         record.setdefault(tick_inst, []).append("tick_time")
     system = build_system(scene, point, record=record)
@@ -127,7 +129,7 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
             columns["time"].append(m.t)
             for name, (p, j) in zip(names, ports):
                 columns[name].append(p.out[j])
-        _run_with_progress(m, stop, sample, progress, label=scene.path.stem)
+        run_with_progress(m, stop, sample, progress, label=scene.path.stem)
         stats = vars(m.stats).copy()
     result: dict = {"t_end_s": stop}
     if ticks:
@@ -145,7 +147,7 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
     return out
 
 
-def _run_with_progress(master, stop: float, on_point, progress: bool, label: str) -> None:
+def run_with_progress(master, stop: float, on_point, progress: bool, label: str) -> None:
     from tqdm import tqdm
 
     span = stop - master.t
