@@ -185,7 +185,7 @@ class Instance:
 
     def fail(self, what: str, status: int, time: float | None = None) -> SimulationError:
         msg = self.last_message()
-        text = f"{self.name} ({self.model_name}): {what} returned {STATUS_NAMES[status]}"
+        text = f"{self.model_name}: {what} returned {STATUS_NAMES[status]}"
         if msg:
             text += f": {msg}"
         return SimulationError(text, time=time, instance=self.name)
@@ -235,6 +235,12 @@ class Instance:
         out = (c_int * len(names))()
         self.check(self.c_getInteger(self.component, vrs, len(names), out), "fmi2GetInteger")
         return list(out)
+
+    def get_boolean(self, names: list[str]) -> list[bool]:
+        vrs = (c_uint * len(names))(*[self.variables[n].vr for n in names])
+        out = (c_int * len(names))()
+        self.check(self.c_getBoolean(self.component, vrs, len(names), out), "fmi2GetBoolean")
+        return [bool(x) for x in out]
 
     def output_derivatives(self, names: list[str], order: int) -> list[float] | None:
         """Derivatives of outputs, or None when the FMU does not offer them."""

@@ -127,8 +127,21 @@ class Master:
             inputs[link.dst].append(link.input)
             if link.output not in outputs[link.src]:
                 outputs[link.src].append(link.output)
+        for link in links:
+            for inst_name, var in ((link.src, link.output), (link.dst, link.input)):
+                if instances[inst_name].variables[var].type != "Real":
+                    raise SimulationError(
+                        f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: only Real "
+                        f"connections are supported, {inst_name}.{var} is "
+                        f"{instances[inst_name].variables[var].type}")
+        # Integer and Boolean outputs are discrete: read on demand, not per step.
+        self.discrete_outputs: dict[str, list[str]] = {n: [] for n in instances}
         for n, names in (extra_outputs or {}).items():
-            outputs[n] += [x for x in names if x not in outputs[n]]
+            for x in names:
+                if instances[n].variables[x].type != "Real":
+                    self.discrete_outputs[n].append(x)
+                elif x not in outputs[n]:
+                    outputs[n].append(x)
         indicators = {
             n: (inst.event_indicators if s.event_location else []) for n, inst in instances.items()
         }

@@ -60,6 +60,9 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
         files.append("sweep.csv")
         summary["points_failed"] = sum(1 for r in points if "error" in r)
     files += make_plots(scene, results, out)
+    from .headlines import headlines_for
+
+    summary["headlines"] = _clean(headlines_for(scene, summary, results))
     summary["files"] = files + ["summary.json"]
     summary["wall_time_s"] = time.perf_counter() - t_start
     write_json_atomic(out / "summary.json", _clean(summary))

@@ -531,6 +531,8 @@ def parse_override(text: str) -> tuple[str, str, object]:
 
 def load_scene(path: str | os.PathLike, overrides=()) -> Scene:
     """Load, override and validate a scene file; raises SceneError."""
+    from . import analyses, plots  # noqa: F401  (register their kinds first)
+
     path = Path(path)
     try:
         data = path.read_bytes()

@@ -33,4 +33,4 @@ def run_analysis(scene, point: dict, progress: bool = False) -> dict:
     return ANALYSES[kind](scene, point, progress=progress)
 
 
-from . import basic  # noqa: E402,F401  (registers the basic kinds)
+from . import basic, chaos, hoyng, ziemkiewicz  # noqa: E402,F401  (each registers its kinds)

@@ -97,7 +97,22 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
     ticks: list[float] = []
     with system:
         m = system.master
-        ports = [(m.ports[i], m.ports[i].out_names.index(v)) for i, v in outputs]
+        discrete = {(i, v) for i, v in outputs if v in m.discrete_outputs.get(i, [])}
+
+        class _Discrete:
+            """Reads an Integer/Boolean output when sampled (not per step)."""
+
+            def __init__(self, inst, var):
+                self.inst, self.var = system.instances[inst], var
+                self.kind = self.inst.variables[var].type
+
+            def __getitem__(self, _):
+                return float(self.inst.get_integer([self.var])[0] if self.kind == "Integer"
+                             else self.inst.get_boolean([self.var])[0])
+
+        ports = [(_Discrete(i, v), 0) if (i, v) in discrete else (m.ports[i], m.ports[i].out_names.index(v))
+                 for i, v in outputs]
+        ports = [(p.out if hasattr(p, "out") else p, j) for p, j in ports]
         names = [f"{i}.{v}" for i, v in outputs]
         tick_port = m.ports[tick_inst] if tick_inst else None
         tick_pos = tick_port.out_names.index("tick_time") if tick_inst else 0
@@ -122,13 +137,13 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
             elif interval:
                 return
             columns["time"].append(master.t)
-            for name, (p, j) in zip(names, ports):
-                columns[name].append(p.out[j])
+            for name, (arr, j) in zip(names, ports):
+                columns[name].append(arr[j])
 
         if outputs:
             columns["time"].append(m.t)
-            for name, (p, j) in zip(names, ports):
-                columns[name].append(p.out[j])
+            for name, (arr, j) in zip(names, ports):
+                columns[name].append(arr[j])
         run_with_progress(m, stop, sample, progress, label=scene.path.stem)
         stats = vars(m.stats).copy()
     result: dict = {"t_end_s": stop}

@@ -1,0 +1,1 @@
+"""Analyses and headlines for chaos scenes (see clockwork.analyses)."""

@@ -1,0 +1,1 @@
+"""Analyses and headlines for hoyng scenes (see clockwork.analyses)."""

@@ -1,0 +1,1 @@
+"""Analyses and headlines for ziemkiewicz scenes (see clockwork.analyses)."""
