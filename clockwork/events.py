@@ -36,3 +36,66 @@ class Illinois:
             if self._kept == -1:
                 self.z_hi *= 0.5
             self._kept = -1
+
+
+def hermite_root(h: float, z0: float, dz0: float, z1: float, dz1: float) -> float | None:
+    """Root in (0, h) of the cubic Hermite interpolant of (z, dz/dt) at 0 and h.
+
+    The first guess of an event search: with the indicator's slopes from the
+    connected outputs' derivatives, it is accurate to O(h^4).
+    """
+    if not (z0 * z1 < 0.0 or z1 == 0.0):
+        return None
+
+    def p(x: float) -> float:
+        s = x / h
+        h00 = (1 + 2 * s) * (1 - s) ** 2
+        h10 = s * (1 - s) ** 2
+        h01 = s * s * (3 - 2 * s)
+        h11 = s * s * (s - 1)
+        return h00 * z0 + h10 * h * dz0 + h01 * z1 + h11 * h * dz1
+
+    lo, hi, flo = 0.0, h, z0
+    for _ in range(60):  # bisection-secant on a polynomial: cheap, no FMU calls
+        x = lo - flo * (hi - lo) / (p(hi) - flo) if p(hi) != flo else 0.5 * (lo + hi)
+        if not lo < x < hi:
+            x = 0.5 * (lo + hi)
+        fx = p(x)
+        if (fx > 0) == (flo > 0):
+            lo, flo = x, fx
+        else:
+            hi = x
+        if hi - lo < 1e-15 * h:
+            break
+    x = 0.5 * (lo + hi)
+    return x if 0.0 < x < h else None
+
+
+def hermite_extremum(h: float, z0: float, dz0: float, z1: float, dz1: float) -> float | None:
+    """Where in (0, h) the Hermite interpolant reaches the other sign, if it does.
+
+    Returns the location of the interpolant's extremum when z0 and z1 have
+    the same sign but the extremum between them has the opposite sign: the
+    mark of two crossings hidden inside one step.
+    """
+    # p(s) = a s^3 + b s^2 + c s + d on s in [0, 1]
+    c = h * dz0
+    d = z0
+    a = 2 * z0 - 2 * z1 + h * dz0 + h * dz1
+    b = -3 * z0 + 3 * z1 - 2 * h * dz0 - h * dz1
+    # p'(s) = 3a s^2 + 2b s + c
+    roots = []
+    if abs(a) < 1e-300:
+        if b != 0:
+            roots = [-c / (2 * b)]
+    else:
+        disc = b * b - 3 * a * c
+        if disc >= 0:
+            r = disc ** 0.5
+            roots = [(-b - r) / (3 * a), (-b + r) / (3 * a)]
+    for sx in sorted(roots):
+        if 0.0 < sx < 1.0:
+            val = ((a * sx + b) * sx + c) * sx + d
+            if (val > 0) != (z0 > 0) or val == 0.0:
+                return sx * h
+    return None

@@ -36,9 +36,12 @@ from ctypes import c_double, c_int, c_uint
 from dataclasses import dataclass, field
 
 from .errors import SimulationError
-from .events import Illinois
+from .events import Illinois, hermite_extremum, hermite_root
 from .fmu import DISCARD, WARNING, Instance
 from .graph import Link, Wiring, build
+
+
+_ORDER_ONE = (c_int * 1)(1)
 
 
 @dataclass
@@ -171,6 +174,11 @@ class Master:
         self._locating = bool(s.event_location and self._indicator_ports)
         self._extrapolating = bool(s.extrapolation)
         self._jacobi = s.order == "jacobi"
+        self._z_sources = self._indicator_sources()
+        self._z_sources_any = any(x is not None for x in self._z_sources)
+        self._z_src_prev = None
+        self._src_amp = [(0.0, 0.0)] * len(self._z_sources)
+        self._event_step_cap = math.inf
         # After a step, only feedthrough outputs need an update at t + h;
         # a dynamic instance's own inputs are set when its next step starts.
         self._final_order = [
@@ -209,6 +217,9 @@ class Master:
         self._checkpoint = None
         self._since_checkpoint = []
         self._after_event = True
+        self._z_src_prev = None
+        self._src_amp = [(0.0, 0.0)] * len(self._z_sources)
+        self._event_step_cap = math.inf
         self._record_history()
 
     # -- the communication step ----------------------------------------
@@ -444,6 +455,11 @@ class Master:
         """Advance by at most h (less when an event is located). Returns the step taken."""
         s = self.settings
         t = self.t
+        if self._z_sources_any:
+            if self._z_src_prev is None:
+                h *= 0.125  # no time scale known yet: a short first step
+            elif h > self._event_step_cap:
+                h = self._event_step_cap
         self._after_event_step = False
         needs_rollback = self._needs_rollback
         locating = self._locating
@@ -476,16 +492,41 @@ class Master:
                 if (a > 0.0 and b <= 0.0) or (a < 0.0 and b >= 0.0):
                     hit = True
                     break
+            if not hit and self._z_sources_any:
+                hidden = self._hidden_crossing(h, z0, z1)
+                if hidden is not None:
+                    # Two crossings inside one step cancel at its ends; try
+                    # the step up to the interpolant's extremum.
+                    if not (possible or needs_rollback):
+                        self._replay_to(t)
+                    self._restore_all()
+                    self._restore_soft_state(self._checkpoint)
+                    self._advance(t, hidden)
+                    self.stats.event_iterations += 1
+                    z0, z1 = self._z_start, self._z_end
+                    hit = any((a > 0.0 and b <= 0.0) or (a < 0.0 and b >= 0.0) for a, b in zip(z0, z1))
+                    if hit:
+                        h = hidden
+                        possible = True
+                    else:  # the interpolant was wrong: redo the whole step
+                        self._restore_all()
+                        self._restore_soft_state(self._checkpoint)
+                        self._advance(t, h)
+                        z0, z1 = self._z_start, self._z_end
             if hit:
                 crossed = [(a > 0.0 and b <= 0.0) or (a < 0.0 and b >= 0.0) for a, b in zip(z0, z1)]
                 if not (possible or needs_rollback):
                     self._replay_to(t)
                 taken = self._locate(t, h, crossed)
                 self._last_dz = []
+                self._last_h = taken
+                self._since_checkpoint.append(self.t - self._located_from)
             else:
                 self._last_dz = [b - a for a, b in zip(z0, z1)]
-            self._last_h = taken
-            self._since_checkpoint.append(taken)
+                self._last_h = taken
+                self._since_checkpoint.append(taken)
+        if self._z_sources_any:
+            self._remember_indicator_sources()
         self._after_event = self._after_event_step
         self.stats.steps += 1
         self._check_finite()
@@ -520,51 +561,188 @@ class Master:
         self._since_checkpoint = []
 
     def _locate(self, t: float, h: float, crossed: list[bool]) -> float:
-        """Shorten the step to land just past the earliest crossing."""
+        """Shorten the step to land just past the earliest crossing.
+
+        The first trial comes from a cubic Hermite interpolant of the lead
+        indicator, its slopes taken from the derivatives of the output it
+        depends on (e.g. the pendulum's dphi/dt = w); then Illinois
+        iteration on the bracket until the crossing is bracketed to the time
+        tolerance or the indicator is within its tolerance.
+        """
         s = self.settings
         z0 = list(self._z_start)
         z1 = list(self._z_end)
         # The indicator whose linear interpolant crosses first leads.
-        lead = min(
-            (k for k, c in enumerate(crossed) if c),
-            key=lambda k: z0[k] / (z0[k] - z1[k]),
-        )
+        lead = min((k for k, c in enumerate(crossed) if c), key=lambda k: z0[k] / (z0[k] - z1[k]))
+        slope_end = self._indicator_slope_source(lead)
+        self._restore_all()
+        self._restore_soft_state(self._checkpoint)
+        first = None
+        newton = None  # (ratio dz/du, instance, vr) for Newton steps after each trial
+        if slope_end is not None:
+            (u1, du1), src, pos, inst, vr = slope_end
+            u0, du0 = src.out[pos], self._output_rate(inst, vr)
+            if du0 is not None and u1 != u0:
+                ratio = (z1[lead] - z0[lead]) / (u1 - u0)
+                first = hermite_root(h, z0[lead], ratio * du0, z1[lead], ratio * du1)
+                newton = (ratio, inst, vr, lead)
         search = Illinois(0.0, z0[lead], h, z1[lead])
         hi, z_hi = h, list(z1)
-        last = h
+        z_lo = list(z0)
+        base = 0.0  # offset from t of the checkpoint the trials start from
+        last = None  # the FMUs stand at the checkpoint after the restore above
         while True:
             if hi - search.lo <= s.event_time_tolerance or abs(z_hi[lead]) <= s.event_indicator_tolerance:
                 break
-            trial = search.next()
+            trial, first = (first, None) if first is not None else (search.next(), None)
             if not (search.lo < trial < hi):
                 trial = 0.5 * (search.lo + hi)
-            self._restore_all()
-            self._restore_soft_state(self._checkpoint)
-            self._advance(t, trial)
+            # A trial must move the FMUs' clock: at least a few ulps past lo.
+            min_move = 8 * math.ulp(abs(t) + abs(hi) + 1.0)
+            if (t + trial) - (t + search.lo) < min_move:
+                trial = search.lo + min(0.5 * (hi - search.lo), max(min_move, 0.25 * s.event_time_tolerance))
+            if last is not None:
+                self._restore_all()
+                self._restore_soft_state(self._checkpoint)
+            self._advance(self.t, (t + trial) - self.t)
             self.stats.event_iterations += 1
             last = trial
             z = self._z_end
+            if newton is not None and newton[3] == lead:
+                # Newton from this trial, with dz/dt = (dz/du) du/dt, aimed a
+                # hair past the root so that the landing point has crossed.
+                rate = self._output_rate(newton[1], newton[2])
+                if rate:
+                    slope = newton[0] * rate
+                    delta = -z[lead] / slope
+                    past = min(0.25 * s.event_time_tolerance, 0.25 * s.event_indicator_tolerance / abs(slope))
+                    first = trial + delta + math.copysign(past, delta)
             now = [self._crossed(a, b) for a, b in zip(self._z_start, z)]
             if any(now):
                 earlier = [k for k, c in enumerate(now) if c]
                 if lead not in earlier:
-                    lead = earlier[0]
-                    search = Illinois(search.lo, z0[lead] if search.lo == 0 else search.z_lo, trial, z[lead])
+                    # Another indicator crosses first: restart on it.
+                    lead = min(earlier, key=lambda k: z_lo[k] / (z_lo[k] - z[k]))
+                    search = Illinois(search.lo, z_lo[lead], trial, z[lead])
+                    first = None
                 else:
                     search.update(trial, z[lead], crossed=True)
                 hi, z_hi = trial, list(z)
             else:
                 search.update(trial, z[lead], crossed=False)
+                # Later trials start here: no need to integrate [t, t + trial] again.
+                z_lo = list(z)
+                self._save_all()
+                self._checkpoint = self._soft_state()
+                base, last = trial, None
             if search.iterations > 200:
                 raise SimulationError(
                     f"event location did not converge in (t, t+h) = ({t!r}, {t + h!r}) s", time=t)
         if last != hi:
-            self._restore_all()
-            self._restore_soft_state(self._checkpoint)
-            self._advance(t, hi)
+            if last is not None:
+                self._restore_all()
+                self._restore_soft_state(self._checkpoint)
+            self._advance(self.t, (t + hi) - self.t)
+        self._since_checkpoint = [] if base > 0.0 else self._since_checkpoint
+        self._located_from = t + base
         self.stats.events += 1
         self._after_event_step = True
         return hi
+
+    def _remember_indicator_sources(self) -> None:
+        """Values and rates of the indicators' source outputs at this point.
+
+        They also bound the step: the hidden-crossing check interpolates over
+        a step, which is reliable up to about a quarter of the source's
+        oscillation period, estimated as 2 pi max|u| / max|du/dt| over the
+        recent past (slowly forgotten).
+        """
+        mem = []
+        cap = math.inf
+        for k, info in enumerate(self._z_sources):
+            if info is None:
+                mem.append(None)
+                continue
+            src, pos, inst, vr = info
+            u, du = src.out[pos], self._output_rate(inst, vr)
+            mem.append((u, du))
+            if du is not None:
+                amp_u, amp_du = self._src_amp[k]
+                amp_u = max(abs(u), 0.999 * amp_u)
+                amp_du = max(abs(du), 0.999 * amp_du)
+                self._src_amp[k] = (amp_u, amp_du)
+                if amp_du > 0.0 and amp_u > 0.0:
+                    cap = min(cap, 0.2 * 2 * math.pi * amp_u / amp_du)
+        self._z_src_prev = mem
+        self._event_step_cap = cap
+
+    def _hidden_crossing(self, h: float, z0: list[float], z1: list[float]) -> float | None:
+        """Offset of an indicator's extremum inside the step, when its Hermite
+        interpolant (slopes from the source outputs' derivatives) changes
+        sign there although z has the same sign at both ends; else None."""
+        prev = self._z_src_prev
+        if prev is None:
+            return None
+        best = None
+        for k, info in enumerate(self._z_sources):
+            if info is None or prev[k] is None or prev[k][1] is None:
+                continue
+            src, pos, inst, vr = info
+            u0, du0 = prev[k]
+            u1 = src.out[pos]
+            if u1 == u0 or z0[k] == 0.0:
+                continue
+            ratio = (z1[k] - z0[k]) / (u1 - u0)
+            dz0 = ratio * du0
+            if z0[k] * dz0 >= 0.0:
+                continue  # moving away from zero at the start: no early crossing
+            du1 = self._output_rate(inst, vr)
+            if du1 is None:
+                continue
+            dz1 = ratio * du1
+            if z1[k] * dz1 <= 0.0:
+                continue  # still approaching at the end: no turn inside the step
+            x = hermite_extremum(h, z0[k], dz0, z1[k], dz1)
+            if x is not None and (best is None or x < best):
+                best = x
+        return best
+
+    def _indicator_slope_source(self, k: int):
+        """For indicator k: ((u, du/dt) now, source port, position, instance, vr) of
+        the single connected output it depends on, when that output offers a
+        time derivative; else None."""
+        info = self._z_sources[k]
+        if info is None:
+            return None
+        src, pos, inst, vr = info
+        rate = self._output_rate(inst, vr)
+        if rate is None:
+            return None
+        return (src.out[pos], rate), src, pos, inst, vr
+
+    @staticmethod
+    def _output_rate(inst: Instance, vr) -> float | None:
+        out = (c_double * 1)()
+        if inst.c_getOutputDerivatives(inst.component, vr, 1, _ORDER_ONE, out) > WARNING:
+            return None
+        return out[0]
+
+    def _indicator_sources(self) -> list:
+        found = []
+        for p in self._indicator_ports:
+            for k in p.z_pos:
+                name = p.out_names[k]
+                deps = p.inst.variables[name].dependencies or []
+                info = None
+                if len(deps) == 1 and deps[0] in p.in_names:
+                    k_in = p.in_names.index(deps[0])
+                    for kk, src, j in p.sources:
+                        if kk == k_in:
+                            var = src.inst.variables[src.out_names[j]]
+                            if src.inst.max_output_derivative_order >= 1 and not self._feeds(src.inst, var.name):
+                                info = (src, j, src.inst, (c_uint * 1)(var.vr))
+                found.append(info)
+        return found
 
     def _coupled_step(self, t: float, h: float) -> None:
         """Fixed-point iteration of the step on the dynamic-to-dynamic inputs."""

@@ -224,3 +224,41 @@ def test_stall_is_a_result():
         guess = energy_balance_amplitude(dict(PEND), "GrasshopperEscapement", params["escapement"])
         result = find_steady_state(shooter, guess, math.radians(2.0))
     assert result.stalled
+
+
+def test_two_crossings_inside_one_long_step_are_not_missed():
+    """A step long enough to contain both crossings of phi_r (up and back
+    down) would hide them from a sign test at its ends; the master's
+    Hermite check and step cap must still find every switch."""
+    eps, mu, phi0 = 1.167245e-4, 1.5e-5, 0.03
+    lam = phi0 * math.sqrt(2 * mu / (math.pi * eps * phi0))
+    ticks = {}
+    for step in (0.785, 2.5, math.pi):
+        sysm = System({"pendulum": ("Pendulum", dict(L=1.0, g=1.0, m=1.0, Q=1 / (2 * eps), phi_start=0.0, w_start=lam)),
+                       "escapement": ("GrasshopperEscapement", dict(torque=mu, phi_r=phi0))},
+                      GRASSHOPPER_LINKS, MasterSettings(step=step), record={"pendulum": ["tick_time"]})
+        with sysm:
+            sysm.master.run_until(50 * 2 * math.pi)
+            ticks[step] = (sysm.output("pendulum", "tick_time"), sysm.master.stats.events)
+    assert ticks[0.785][1] == 100
+    for step in (2.5, math.pi):
+        assert ticks[step][1] == 100
+        assert abs(ticks[step][0] - ticks[0.785][0]) < 1e-9
+
+
+def test_richardson_control_tightens_with_its_tolerance():
+    errors, steps = [], []
+    ref = coupled_reference(2.0)[0]
+    for tol in (1e-4, 1e-6, 1e-8):
+        sysm = System({"pendulum": ("Pendulum", dict(Q=1000.0, rtol=1e-12, atol=1e-15)),
+                       "vibration": ("MechanismVibration", VIB)},
+                      ["pendulum.phi -> vibration.a1", "vibration.tau -> pendulum.tau_coupling"],
+                      MasterSettings(step=0.05, richardson=True, richardson_tolerance=tol),
+                      record={"pendulum": ["phi"]})
+        with sysm:
+            sysm.master.run_until(2.0)
+            errors.append(abs(sysm.output("pendulum", "phi") - ref))
+            steps.append(sysm.master.stats.steps)
+            assert sysm.master.t == 2.0
+    assert errors[0] > errors[1] > errors[2]
+    assert steps[0] < steps[1] < steps[2]
