@@ -42,6 +42,7 @@ from .graph import Link, Wiring, build
 
 
 _ORDER_ONE = (c_int * 1)(1)
+_RATE_BUFFER = (c_double * 1)()
 
 
 @dataclass
@@ -176,9 +177,12 @@ class Master:
         self._jacobi = s.order == "jacobi"
         self._z_sources = self._indicator_sources()
         self._z_sources_any = any(x is not None for x in self._z_sources)
+        self._sample_countdown = 0
+        self._stale_sources = False
         self._z_src_prev = None
         self._src_amp = [(0.0, 0.0)] * len(self._z_sources)
         self._event_step_cap = math.inf
+        self._du_end_cache = [None] * len(self._z_sources)
         # After a step, only feedthrough outputs need an update at t + h;
         # a dynamic instance's own inputs are set when its next step starts.
         self._final_order = [
@@ -220,6 +224,8 @@ class Master:
         self._z_src_prev = None
         self._src_amp = [(0.0, 0.0)] * len(self._z_sources)
         self._event_step_cap = math.inf
+        self._du_end_cache = [None] * len(self._z_sources)
+        self._stale_sources = False
         self._record_history()
 
     # -- the communication step ----------------------------------------
@@ -356,6 +362,8 @@ class Master:
     def _advance(self, t: float, h: float, coupling: dict | None = None) -> None:
         """One communication step from t to t + h of every instance."""
         t_new = t + h
+        if self._z_sources_any:
+            self._du_end_cache = [None] * len(self._z_sources)
         for p in self._first:
             st = p.doStep(p.comp, t, h, 0)
             if st > WARNING:
@@ -474,6 +482,10 @@ class Master:
                     if abs(zi) <= scale * abs(dzi) + 1e-15:
                         possible = True
                         break
+        if possible and self._stale_sources:
+            # The hidden-crossing check needs the sources at the step start.
+            self._remember_indicator_sources()
+            self._stale_sources = False
         if possible or needs_rollback:
             self._save_all()
             self._checkpoint = self._soft_state()
@@ -492,7 +504,7 @@ class Master:
                 if (a > 0.0 and b <= 0.0) or (a < 0.0 and b >= 0.0):
                     hit = True
                     break
-            if not hit and self._z_sources_any:
+            if not hit and self._z_sources_any and possible:
                 hidden = self._hidden_crossing(h, z0, z1)
                 if hidden is not None:
                     # Two crossings inside one step cancel at its ends; try
@@ -526,7 +538,15 @@ class Master:
                 self._last_h = taken
                 self._since_checkpoint.append(taken)
         if self._z_sources_any:
-            self._remember_indicator_sources()
+            # Sources are sampled where a crossing is near, and now and then
+            # to keep the time-scale estimate behind the step cap fresh.
+            self._sample_countdown -= 1
+            if possible or self._sample_countdown <= 0 or self._z_src_prev is None:
+                self._remember_indicator_sources()
+                self._sample_countdown = 16
+                self._stale_sources = False
+            else:
+                self._stale_sources = True
         self._after_event = self._after_event_step
         self.stats.steps += 1
         self._check_finite()
@@ -664,7 +684,10 @@ class Master:
                 mem.append(None)
                 continue
             src, pos, inst, vr = info
-            u, du = src.out[pos], self._output_rate(inst, vr)
+            du = self._du_end_cache[k]
+            if du is None:
+                du = self._output_rate(inst, vr)
+            u = src.out[pos]
             mem.append((u, du))
             if du is not None:
                 amp_u, amp_du = self._src_amp[k]
@@ -675,6 +698,7 @@ class Master:
                     cap = min(cap, 0.2 * 2 * math.pi * amp_u / amp_du)
         self._z_src_prev = mem
         self._event_step_cap = cap
+        self._du_end_cache = [None] * len(self._z_sources)
 
     def _hidden_crossing(self, h: float, z0: list[float], z1: list[float]) -> float | None:
         """Offset of an indicator's extremum inside the step, when its Hermite
@@ -699,6 +723,7 @@ class Master:
             du1 = self._output_rate(inst, vr)
             if du1 is None:
                 continue
+            self._du_end_cache[k] = du1
             dz1 = ratio * du1
             if z1[k] * dz1 <= 0.0:
                 continue  # still approaching at the end: no turn inside the step
@@ -722,7 +747,7 @@ class Master:
 
     @staticmethod
     def _output_rate(inst: Instance, vr) -> float | None:
-        out = (c_double * 1)()
+        out = _RATE_BUFFER
         if inst.c_getOutputDerivatives(inst.component, vr, 1, _ORDER_ONE, out) > WARNING:
             return None
         return out[0]
