@@ -66,6 +66,14 @@ def build_parser() -> argparse.ArgumentParser:
     i = sub.add_parser("info", help="describe an FMU: capabilities, variables, event indicators")
     i.add_argument("fmu", metavar="X.fmu|MODEL")
     i.set_defaults(func=cmd_info)
+
+    e = sub.add_parser("export-ssp", help="write a scene as an SSP 1.0 archive for other FMI tools")
+    e.add_argument("scene", metavar="SCENE.toml")
+    e.add_argument("--out", required=True, metavar="X.ssp", help="archive to write (its folder must exist)")
+    add_set(e)
+    e.add_argument("--point", type=int, default=None, metavar="N",
+                   help="sweep point to export, counted from 0 (required when the scene has a sweep)")
+    e.set_defaults(func=cmd_export_ssp)
     return p
 
 
@@ -112,6 +120,33 @@ def cmd_list(args) -> int:
             line += f"  [reproduces {s.reproduces}]"
         print(line)
     return 1 if broken else 0
+
+
+def cmd_export_ssp(args) -> int:
+    from .scene import load_scene
+    from .ssp import PARAMETER_SET, export_ssp
+
+    scene = load_scene(args.scene, args.overrides)
+    out = Path(args.out)
+    if out.suffix != ".ssp":
+        raise UsageError(f"--out {out}: expected a file name ending .ssp")
+    if not out.parent.is_dir():
+        raise UsageError(f"--out {out}: no such directory: {out.parent}")
+    points = scene.points()
+    point = None
+    if scene.sweep is not None:
+        if args.point is None:
+            raise UsageError(f"{args.scene} has a sweep of {len(points)} points: choose one with --point N")
+        if not 0 <= args.point < len(points):
+            raise UsageError(f"--point {args.point}: expected 0 to {len(points) - 1}")
+        point = points[args.point]
+    elif args.point not in (None, 0):
+        raise UsageError(f"--point {args.point}: {args.scene} has no sweep")
+    export_ssp(scene, out, point)
+    n = len(scene.components)
+    print(f"wrote {out}: {n} component{'s' * (n != 1)}, step {scene.master.step:g} s, "
+          f"parameter set {PARAMETER_SET!r}")
+    return 0
 
 
 def _flag(x) -> str:

@@ -38,37 +38,44 @@ class Illinois:
             self._kept = -1
 
 
+def _hermite_coefficients(h: float, z0: float, dz0: float, z1: float, dz1: float):
+    """p(s) = a s^3 + b s^2 + c s + d on s in [0, 1] (s = x/h)."""
+    c = h * dz0
+    d = z0
+    a = 2 * z0 - 2 * z1 + h * dz0 + h * dz1
+    b = -3 * z0 + 3 * z1 - 2 * h * dz0 - h * dz1
+    return a, b, c, d
+
+
 def hermite_root(h: float, z0: float, dz0: float, z1: float, dz1: float) -> float | None:
     """Root in (0, h) of the cubic Hermite interpolant of (z, dz/dt) at 0 and h.
 
     The first guess of an event search: with the indicator's slopes from the
-    connected outputs' derivatives, it is accurate to O(h^4).
+    connected outputs' derivatives, it is accurate to O(h^4). Newton's method
+    on the cubic, kept inside the bracket by bisection.
     """
     if not (z0 * z1 < 0.0 or z1 == 0.0):
         return None
-
-    def p(x: float) -> float:
-        s = x / h
-        h00 = (1 + 2 * s) * (1 - s) ** 2
-        h10 = s * (1 - s) ** 2
-        h01 = s * s * (3 - 2 * s)
-        h11 = s * s * (s - 1)
-        return h00 * z0 + h10 * h * dz0 + h01 * z1 + h11 * h * dz1
-
-    lo, hi, flo = 0.0, h, z0
-    for _ in range(60):  # bisection-secant on a polynomial: cheap, no FMU calls
-        x = lo - flo * (hi - lo) / (p(hi) - flo) if p(hi) != flo else 0.5 * (lo + hi)
-        if not lo < x < hi:
-            x = 0.5 * (lo + hi)
-        fx = p(x)
-        if (fx > 0) == (flo > 0):
-            lo, flo = x, fx
+    a, b, c, d = _hermite_coefficients(h, z0, dz0, z1, dz1)
+    lo, hi = 0.0, 1.0
+    x = z0 / (z0 - z1) if z0 != z1 else 0.5
+    for _ in range(50):
+        f = ((a * x + b) * x + c) * x + d
+        if f == 0.0:
+            break
+        if (f > 0.0) == (z0 > 0.0):
+            lo = x
         else:
             hi = x
-        if hi - lo < 1e-15 * h:
+        df = (3 * a * x + 2 * b) * x + c
+        x_new = x - f / df if df != 0.0 else 0.5 * (lo + hi)
+        if not lo < x_new < hi:
+            x_new = 0.5 * (lo + hi)
+        if abs(x_new - x) < 1e-15:
+            x = x_new
             break
-    x = 0.5 * (lo + hi)
-    return x if 0.0 < x < h else None
+        x = x_new
+    return x * h if 0.0 < x < 1.0 else None
 
 
 def hermite_extremum(h: float, z0: float, dz0: float, z1: float, dz1: float) -> float | None:
@@ -78,11 +85,7 @@ def hermite_extremum(h: float, z0: float, dz0: float, z1: float, dz1: float) -> 
     the same sign but the extremum between them has the opposite sign: the
     mark of two crossings hidden inside one step.
     """
-    # p(s) = a s^3 + b s^2 + c s + d on s in [0, 1]
-    c = h * dz0
-    d = z0
-    a = 2 * z0 - 2 * z1 + h * dz0 + h * dz1
-    b = -3 * z0 + 3 * z1 - 2 * h * dz0 - h * dz1
+    a, b, c, d = _hermite_coefficients(h, z0, dz0, z1, dz1)
     # p'(s) = 3a s^2 + 2b s + c
     roots = []
     if abs(a) < 1e-300:

@@ -1,7 +1,7 @@
 /* Dormand-Prince 5(4) with Shampine's fourth-order dense output.
  * Coefficients: J. R. Dormand, P. J. Prince, J. Comput. Appl. Math. 6 (1980)
  * and Hairer, Norsett, Wanner, Solving ODEs I, Sec. II.5/II.6. Their order
- * conditions are checked by tests/test_rk.py through a small test driver. */
+ * conditions are checked by tests/fmu/test_rk.py through libcw_rk_probe. */
 #include "cw_rk.h"
 
 #include <math.h>
@@ -43,9 +43,10 @@ void cw_rk_init(cw_rk *rk, int n, double rtol, double atol, double h_max) {
     rk->max_steps = 100000000L;
 }
 
-/* Stages 2..7 of one step; k[0] must hold f(t, x). Writes x_new. */
+/* Stages 2..7 of one step; k[0] must hold f(t, x). Writes x_new. The end
+ * of the step is passed as t_next: t + h can round past t_end by an ulp. */
 static void stages(cw_rk *rk, cw_rhs f, void *ctx, double t, const double *x,
-                   double h, double *x_new) {
+                   double h, double t_next, double *x_new) {
     const int n = rk->n;
     double y[CW_RK_MAXN] = {0};
     double(*k)[CW_RK_MAXN] = rk->k;
@@ -63,11 +64,11 @@ static void stages(cw_rk *rk, cw_rhs f, void *ctx, double t, const double *x,
     for (int i = 0; i < n; i++)
         y[i] = x[i] + h * (A61 * k[0][i] + A62 * k[1][i] + A63 * k[2][i] +
                            A64 * k[3][i] + A65 * k[4][i]);
-    f(ctx, t + h, y, k[5]);
+    f(ctx, t_next, y, k[5]);
     for (int i = 0; i < n; i++)
         x_new[i] = x[i] + h * (B1 * k[0][i] + B3 * k[2][i] + B4 * k[3][i] +
                                B5 * k[4][i] + B6 * k[5][i]);
-    f(ctx, t + h, x_new, k[6]);
+    f(ctx, t_next, x_new, k[6]);
     rk->n_rhs += 6;
 }
 
@@ -169,7 +170,7 @@ cw_rk_result cw_rk_advance(cw_rk *rk, cw_rhs f, void *ctx, double *t,
         if (!last && h_try <= 16 * 2.2e-16 * fabs(*t) + 1e-300)
             return CW_RK_STEP_TOO_SMALL;
         if (++steps > rk->max_steps) return CW_RK_TOO_MANY_STEPS;
-        stages(rk, f, ctx, *t, x, h_try, x_new);
+        stages(rk, f, ctx, *t, x, h_try, last ? t_end : *t + h_try, x_new);
         double err = error_norm(rk, x, x_new, h_try);
         if (!isfinite(err)) err = 1e10; /* treat overflow as a rejection */
         double fac = err > 0 ? 0.9 * pow(err, -0.2) : 5.0;
@@ -206,5 +207,5 @@ void cw_rk_single_step(int n, cw_rhs f, void *ctx, double t, const double *x,
     cw_rk rk;
     cw_rk_init(&rk, n, 1, 1, 0);
     f(ctx, t, x, rk.k[0]);
-    stages(&rk, f, ctx, t, x, h, x_out);
+    stages(&rk, f, ctx, t, x, h, t + h, x_out);
 }

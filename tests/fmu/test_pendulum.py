@@ -25,12 +25,10 @@ import pytest
 from scipy.special import ellipj, ellipk
 
 from conftest import FMU_DIR, fmu_file
-from fmu_driver import DISCARD, ERROR, OK, Instance, unpack
+from fmu_driver import ERROR, OK, Instance, unpack
 
 G = 9.81
 OMEGA0 = math.sqrt(G / 1.0)
-REALS = ["phi", "w", "a", "energy", "tick_time", "period", "amplitude"]
-ALL_OUTPUTS = REALS + ["tick_count"]
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +37,7 @@ def fmu():
 
 
 def agm(a: float, b: float) -> float:
-    while abs(a - b) > 1e-17 * a:
+    for _ in range(40):  # quadratic convergence; a == b may never hold exactly
         a, b = 0.5 * (a + b), math.sqrt(a * b)
     return a
 
@@ -57,7 +55,9 @@ def free_motion(amplitude: float, t: float, length: float = 1.0, g: float = G):
 
 
 def outputs(p: Instance) -> tuple:
-    return tuple(p.get_many(ALL_OUTPUTS))
+    """Every output of the model description, in vr order."""
+    names = sorted((v for v in p.vars.values() if v.causality == "output"), key=lambda v: v.valueReference)
+    return tuple(p.get_many([v.name for v in names]))
 
 
 def bits(values) -> bytes:
@@ -221,8 +221,8 @@ def test_one_long_step_equals_many_short_ones(fmu):
         assert abs(phi - ref_phi) <= tol
         assert abs(w - ref_w) <= tol * OMEGA0
     (_, phi1, w1, n1, tick1), (_, phi2, w2, n2, tick2) = runs
-    assert n1 == n2 == 4
-    assert abs(tick1 - (0.75 * T + 3 * T)) <= 1e-9
+    assert n1 == n2 == 5
+    assert abs(tick1 - (0.75 * T + 4 * T)) <= 1e-9
     assert abs(tick1 - tick2) <= 1e-9
 
 
@@ -273,7 +273,7 @@ def test_get_set_state_reproduces_bit_for_bit(fmu):
         state = p.get_state()
         t_saved = p.time
         first = _run(p, steps)
-        assert first[-1][ALL_OUTPUTS.index("tick_count")] >= 5  # ticks are covered
+        assert p.get("tick_count") >= 5  # ticks are covered
         assert p.set_state(state) == OK
         assert p.last_successful_time() == t_saved
         p.time = t_saved
@@ -462,7 +462,7 @@ def _linear_response(t, c, d, e, inertia, w0):
 @pytest.mark.parametrize("every_step", [False, True])
 def test_input_derivatives_are_honoured(fmu, order, every_step):
     """tau = c + d (t - t0) [+ e (t - t0)^2/2] with phi(t0) = w(t0) = 0, Q = 0.
-    phi stays below 3e-6 rad, so sin(phi) = phi to 2e-12 relative; with rtol
+    phi stays below 5e-6 rad, so sin(phi) = phi to 4e-12 relative; with rtol
     1e-12 the linear solution must hold to 1e-9 of max |phi|."""
     t0 = 2.0
     m, L = 1.3, 0.7
@@ -492,7 +492,7 @@ def test_input_derivatives_are_honoured(fmu, order, every_step):
     assert t_end == pytest.approx(t[-1], abs=1e-12)
     exact = _linear_response(t - t0, c, d, e, inertia, w0)
     scale = np.max(np.abs(exact))
-    assert 1e-6 < scale < 3e-6
+    assert 1e-6 < scale < 5e-6
     assert np.max(np.abs(phis - exact)) <= 1e-9 * scale
     # Holding the input over each step instead misses by far more.
     held, _ = run("hold")
@@ -503,10 +503,12 @@ def test_input_derivatives_are_honoured(fmu, order, every_step):
 
 
 def test_output_derivatives_against_finite_differences(fmu):
-    """5-point central differences of the outputs at t1 - 2 dt .. t1 + 2 dt
-    (truncation dt^4/30 f^(5) resp. dt^4/90 f^(6), ~1e-8 relative here);
-    the input ramps make the input-rate terms of da/dt ~2% of it."""
-    dt = 1e-2
+    """5-point central differences of the outputs at t1 - 2 dt .. t1 + 2 dt:
+    truncation dt^4/30 f^(5) resp. dt^4/90 f^(6) <= ~1e-8 relative here
+    (f^(n) ~ omega0^n phi, omega0^2 = 10.9/s^2); integration error over one
+    step / dt^2 ~ 1e-9. The input ramps make the input-rate terms of da/dt
+    ~2% of it."""
+    dt = 5e-3
     t1 = 1.3
     params = dict(Q=20, phi_start=0.5, L=0.9, m=1.1, rtol=1e-13, atol=1e-16)
     with Instance(fmu, params) as p:
@@ -535,10 +537,10 @@ def test_output_derivatives_against_finite_differences(fmu):
     # The derivative outputs are the states themselves.
     assert der["phi", 1] == w and der["phi", 2] == a and der["w", 1] == a
     assert der["phi", 1] == pytest.approx(d1(0), rel=1e-7)
-    assert der["phi", 2] == pytest.approx(d2(0), rel=1e-6)
+    assert der["phi", 2] == pytest.approx(d2(0), rel=1e-7)
     assert der["w", 1] == pytest.approx(d1(1), rel=1e-7)
-    assert der["w", 2] == pytest.approx(d2(1), rel=1e-6)
-    assert der["w", 2] == pytest.approx(d1(2), rel=1e-6)
+    assert der["w", 2] == pytest.approx(d2(1), rel=1e-7)
+    assert der["w", 2] == pytest.approx(d1(2), rel=1e-7)
     input_terms = 0.1 / (1.1 * 0.81) - (G / 0.9) * 0.05 * math.sin(phi)
     assert abs(input_terms) > 1e-2 * abs(der["w", 2])
 
