@@ -809,6 +809,8 @@ class Master:
             if err <= 1.0 or h <= s.min_step:
                 factor = 0.9 * err ** (-1.0 / (p_order + 1)) if err > 0 else 2.0
                 self._richardson_next = min(max(factor, 0.2), 2.0) * h
+                if s.max_step:
+                    self._richardson_next = min(self._richardson_next, s.max_step)
                 return h
             self.stats.rejected += 1
             h = max(s.min_step, h * max(0.2, 0.9 * err ** (-1.0 / (p_order + 1))))

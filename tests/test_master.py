@@ -262,3 +262,16 @@ def test_richardson_control_tightens_with_its_tolerance():
             assert sysm.master.t == 2.0
     assert errors[0] > errors[1] > errors[2]
     assert steps[0] < steps[1] < steps[2]
+
+
+def test_an_fmu_failure_is_reported_with_its_own_message():
+    """A blow-up inside an FMU's step (Duffing with kappa < 0 runs away) is
+    reported with the FMU's log message, the time and the instance."""
+    sysm = System({"pendulum": ("Pendulum", dict(Q=1000.0, phi_start=math.radians(10))),
+                   "vibration": ("MechanismVibration", dict(VIB, kappa=-1e15, a2_start=0.1))},
+                  ["pendulum.phi -> vibration.a1", "vibration.tau -> pendulum.tau_coupling"],
+                  MasterSettings(step=0.5, event_location=False))
+    with sysm, pytest.raises(SimulationError) as e:
+        sysm.master.run_until(10.0)
+    assert e.value.instance == "vibration"
+    assert "MechanismVibration" in str(e.value) and "discarded" in str(e.value)

@@ -146,7 +146,10 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
                 columns[name].append(arr[j])
         run_with_progress(m, stop, sample, progress, label=scene.path.stem)
         stats = vars(m.stats).copy()
+        stall = _stall_check(scene, point, system)
     result: dict = {"t_end_s": stop}
+    if stall is not None:
+        result.update(stall)
     if ticks:
         t = np.asarray(ticks)
         result["ticks"] = len(ticks)
@@ -177,3 +180,26 @@ def run_with_progress(master, stop: float, on_point, progress: bool, label: str)
             n += 1
             master.run_until(min(stop, t0 + n * chunk), on_point)
             bar.update(master.t - t0 - bar.n)
+
+
+def _stall_check(scene, point: dict, system) -> dict | None:
+    """A grasshopper clock whose swing ended below phi_r has stalled: a result.
+
+    The relay never switches again, so the pendulum settles; the last
+    turning-point amplitude tells.
+    """
+    from ..runner import parameters
+
+    pendulum = find_component(scene, "Pendulum")
+    escapement = find_component(scene, "GrasshopperEscapement")
+    if pendulum is None or escapement is None:
+        return None
+    phi_r = parameters(scene, point)[escapement]["phi_r"]
+    amplitude = system.value(pendulum, "amplitude")
+    turns = system.instances[pendulum].get_integer(["turn_count"])[0]
+    stalled = turns == 0 or amplitude <= phi_r
+    out = {"stalled": stalled, "last_amplitude_deg": math.degrees(amplitude)}
+    if stalled:
+        out["reason"] = (f"the swing ({math.degrees(amplitude):.4g} deg at the last turning point) "
+                         f"no longer reaches phi_r = {math.degrees(phi_r):.4g} deg")
+    return out

@@ -28,8 +28,7 @@ clockwork's master, with a tool's switches with the tool.
 from __future__ import annotations
 
 import shutil
-import tempfile
-from dataclasses import dataclass
+from ctypes import c_double, c_uint
 
 import numpy as np
 from fmpy import extract, read_model_description
@@ -43,14 +42,22 @@ TOOL_MODES = {
 }
 
 
-@dataclass
 class _Unit:
-    name: str
-    fmu: FMU2Slave
-    dir: str
-    vr: dict
-    inputs: list  # (input vr, source unit name, source output vr)
-    outputs: list  # output vrs to read
+    """One FMU with preallocated ctypes buffers for its connected variables."""
+
+    def __init__(self, name: str, fmu: FMU2Slave, unzip_dir: str, variables: dict):
+        self.name, self.fmu, self.dir, self.vr = name, fmu, unzip_dir, variables
+        self.inputs: list = []  # (input vr, source unit, source output vr)
+        self.outputs: list = []  # output vrs read after a step
+        self.feedthrough = False  # some connected output depends directly on an input
+
+    def freeze(self, record_vrs: list[int]) -> None:
+        self.read_vrs = self.outputs + [v for v in record_vrs if v not in self.outputs]
+        self.c_read_vr = (c_uint * max(1, len(self.read_vrs)))(*self.read_vrs)
+        self.c_read = (c_double * max(1, len(self.read_vrs)))()
+        self.c_in_vr = (c_uint * max(1, len(self.inputs)))(*[vr for vr, _, _ in self.inputs])
+        self.c_in = (c_double * max(1, len(self.inputs)))()
+        self.value = {}  # output vr -> latest value
 
 
 def _value_setter(fmu, var, value):
@@ -62,6 +69,28 @@ def _value_setter(fmu, var, value):
         fmu.setBoolean([var.valueReference], [bool(value)])
     else:
         raise ValueError(f"{var.name}: type {var.type}")
+
+
+def _feedthrough_order(units: dict) -> list:
+    """Units with connected feedthrough outputs, each after the feedthrough units feeding it."""
+    order, state = [], {}
+
+    def visit(u):
+        if state.get(u.name) == 2:
+            return
+        if state.get(u.name) == 1:
+            raise ValueError(f"algebraic loop through {u.name}")
+        state[u.name] = 1
+        for _, src, _ in u.inputs:
+            if src.feedthrough:
+                visit(src)
+        state[u.name] = 2
+        if u.feedthrough:
+            order.append(u)
+
+    for u in units.values():
+        visit(u)
+    return order
 
 
 def run(scene, steps: int, record: list[str], time: str = "grid", sampling: str = "fresh",
@@ -76,73 +105,78 @@ def run(scene, steps: int, record: list[str], time: str = "grid", sampling: str 
             d = extract(str(comp.fmu_path))
             fmu = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier,
                             instanceName=name)
-            variables = {v.name: v for v in md.modelVariables}
-            units[name] = _Unit(name, fmu, d, variables, [], [])
+            units[name] = u = _Unit(name, fmu, d, {v.name: v for v in md.modelVariables})
+            deps = {o.variable.name: o.dependencies for o in md.outputs}
+            u.deps = deps
             fmu.instantiate()
             fmu.setupExperiment(startTime=t0)
             for var, value in comp.parameters.items():
-                _value_setter(fmu, variables[var], value)
+                _value_setter(fmu, u.vr[var], value)
             fmu.enterInitializationMode()
         for c in scene.connections:
             src, dst = units[c.src_instance], units[c.dst_instance]
             out_vr = src.vr[c.src_var].valueReference
             if out_vr not in src.outputs:
                 src.outputs.append(out_vr)
-            dst.inputs.append((dst.vr[c.dst_var].valueReference, c.src_instance, out_vr))
+            dst.inputs.append((dst.vr[c.dst_var].valueReference, src, out_vr))
+            d = src.deps.get(c.src_var)
+            if d is None or len(d) > 0:  # no dependency list means "depends on every input"
+                src.feedthrough = True
         rec = []
         for r in record:
             inst, var = r.split(".", 1)
-            rec.append((inst, units[inst].vr[var].valueReference))
-
-        out_values = {n: {} for n in units}  # latest output values {vr: value}
-        held = {n: {} for n in units}  # values waiting at each input {vr: value}
+            rec.append((units[inst], units[inst].vr[var].valueReference))
+        for u in units.values():
+            u.freeze([vr for uu, vr in rec if uu is u])
+        all_units = list(units.values())
+        ft_order = _feedthrough_order(units)
 
         def read(u: _Unit):
-            vrs = u.outputs + [vr for inst, vr in rec if inst == u.name]
-            vals = u.fmu.getReal(vrs)
-            out_values[u.name].update(zip(vrs, vals))
+            u.fmu.fmi2GetReal(u.fmu.component, u.c_read_vr, len(u.read_vrs), u.c_read)
+            u.value.update(zip(u.read_vrs, u.c_read))
 
-        def transfer():
-            for u in units.values():
-                for in_vr, src, out_vr in u.inputs:
-                    held[u.name][in_vr] = out_values[src][out_vr]
+        def transfer():  # the values waiting at each input
+            for u in all_units:
+                for k, (_, src, out_vr) in enumerate(u.inputs):
+                    u.c_in[k] = src.value[out_vr]
 
         def push(u: _Unit):
             if u.inputs:
-                vrs = [vr for vr, _, _ in u.inputs]
-                u.fmu.setReal(vrs, [held[u.name][vr] for vr in vrs])
+                u.fmu.fmi2SetReal(u.fmu.component, u.c_in_vr, len(u.inputs), u.c_in)
 
-        n_units = len(units)
         if start == "consistent":
             # Jacobi sweeps in initialization mode; one per unit settles any
             # chain of direct feedthrough.
-            for u in units.values():
+            for u in all_units:
                 read(u)
-            for _ in range(n_units):
+            for _ in all_units:
                 transfer()
-                for u in units.values():
+                for u in all_units:
                     push(u)
                     read(u)
             transfer()
-            for u in units.values():
+            for u in all_units:
                 push(u)
                 u.fmu.exitInitializationMode()
-            for u in units.values():
+            for u in all_units:
                 read(u)
             transfer()
             if sampling == "fresh":
-                for u in units.values():
+                for u in ft_order:
                     push(u)
                     read(u)
-                transfer()
+                    transfer()
         elif start == "zero":
-            for u in units.values():
+            for u in all_units:
                 u.fmu.exitInitializationMode()
-            for u in units.values():
-                for in_vr, _, _ in u.inputs:
-                    held[u.name][in_vr] = 0.0
+            for u in all_units:
+                for k in range(len(u.inputs)):
+                    u.c_in[k] = 0.0
         else:
             raise ValueError(start)
+        if sampling not in ("fresh", "held"):
+            raise ValueError(sampling)
+        fresh = sampling == "fresh"
 
         h_ns = round(h * 1e9)
         t = t0
@@ -158,27 +192,23 @@ def run(scene, steps: int, record: list[str], time: str = "grid", sampling: str 
             else:
                 raise ValueError(time)
             step = h if time == "sum" else t_next - t
-            for u in units.values():
+            for u in all_units:
                 push(u)
-            for u in units.values():
-                u.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=step)
-            for u in units.values():
+            for u in all_units:
+                u.fmu.fmi2DoStep(u.fmu.component, t, step, 0)
+            for u in all_units:
                 read(u)
             transfer()
-            if sampling == "fresh":
-                # Feedthrough outputs at the new point: sweeps as in the
-                # initialization (one per unit).
-                for _ in range(n_units):
-                    for u in units.values():
-                        push(u)
-                        read(u)
+            if fresh:
+                # Feedthrough outputs at the new point, in dependency order.
+                for u in ft_order:
+                    push(u)
+                    read(u)
                     transfer()
-            elif sampling != "held":
-                raise ValueError(sampling)
             t = t_next
             times[k] = t
-            for j, (inst, vr) in enumerate(rec):
-                values[j, k] = out_values[inst][vr]
+            for j, (u, vr) in enumerate(rec):
+                values[j, k] = u.value[vr]
         result = {"time": times}
         result.update({r: values[j] for j, r in enumerate(record)})
         return result
