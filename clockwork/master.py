@@ -165,11 +165,8 @@ class Master:
         self._deriv_sources = self._derivative_sources() if s.extrapolation else {}
         self._z_start: list[float] = []
         self._z_end: list[float] = []
-        self._checkpoint: tuple | None = None
-        self._since_checkpoint: list[float] = []
         self._last_dz: list[float] = []
         self._last_h = s.step
-        self._after_event = True
         self.on_step = None  # optional callback(master) after each accepted step
         self._needs_rollback = s.iterations > 0 or s.richardson
         self._locating = bool(s.event_location and self._indicator_ports)
@@ -178,11 +175,7 @@ class Master:
         self._z_sources = self._indicator_sources()
         self._z_sources_any = any(x is not None for x in self._z_sources)
         self._sample_countdown = 0
-        self._stale_sources = False
-        self._z_src_prev = None
-        self._src_amp = [(0.0, 0.0)] * len(self._z_sources)
-        self._event_step_cap = math.inf
-        self._du_end_cache = [None] * len(self._z_sources)
+        self._reset_soft_state()
         # After a step, only feedthrough outputs need an update at t + h;
         # a dynamic instance's own inputs are set when its next step starts.
         self._final_order = [
@@ -201,10 +194,10 @@ class Master:
         # Outputs in initialization mode follow from parameters; two sweeps
         # settle feedthrough chains of any depth found in these scenes.
         for _ in range(2):
-            self._propagate(self._order, initial=True)
+            self._propagate(self._order)
         for inst in self.instances.values():
             inst.exit_init()
-        self._propagate(self._order, initial=True)
+        self._propagate(self._order)
         self.t = self.start_time
         self._reset_soft_state()
 
@@ -230,7 +223,7 @@ class Master:
 
     # -- the communication step ----------------------------------------
 
-    def _propagate(self, ports: list[_Port], initial: bool = False) -> None:
+    def _propagate(self, ports: list[_Port]) -> None:
         """Set inputs from their sources and read outputs, in order."""
         t = self.t
         for p in ports:

@@ -645,7 +645,7 @@ def plot_period_amplitude(scene, results, spec):
     ax.plot(A, T, "o", ms=4, mfc="none", color="C0", label="simulated (FMU ticks)")
     ax.set_ylabel("period T (s)")
     ax.legend(loc="upper left", fontsize=8)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(_title(scene, spec), fontsize=10)
     bx.semilogy(A, np.maximum(np.abs(rel), 1e-17), "o", ms=4, mfc="none", color="C0",
                 label="|simulated/AGM - 1|")
     eq2_rel = np.abs(eq2[1:] / agm[1:] - 1.0)
@@ -678,7 +678,7 @@ def plot_rate_errors(scene, results, spec):
     ax.axhline(0.0, color="0.7", lw=0.5)
     ax.set_xlabel("amplitude A (deg)")
     ax.set_ylabel("rate error (s/day, + = clock loses)")
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(_title(scene, spec), fontsize=10)
     handles, labels = ax.get_legend_handles_labels()
     if spec.get("torque", True):
         tx = ax.twinx()
@@ -728,7 +728,7 @@ def plot_recoil(scene, results, spec):
     tx.set_ylim(-lim, lim)
     alim = 1.3 * np.max(np.abs(phi))
     ax.set_ylim(-alim, alim)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(_title(scene, spec), fontsize=10)
     ax.text(0.01, 0.02, "shaded: recoil ($M_F$ opposes the motion); dashed: $\\pm\\alpha_r$",
             transform=ax.transAxes, fontsize=7, color="0.3")
     return fig
@@ -784,7 +784,7 @@ def plot_contour(scene, results, spec):
         ax.legend(loc="upper left", fontsize=8)
     ax.set_xlabel(xl)
     ax.set_ylabel(yl)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(_title(scene, spec), fontsize=10)
     return fig
 
 
@@ -829,7 +829,7 @@ def plot_curves(scene, results, spec):
     ax.set_xlabel("amplitude A (deg)" if xk == "amplitude_deg" else xk)
     ax.set_ylabel(ERROR_LABELS.get(yk, yk) + " (s/day)")
     ax.legend(loc="best", fontsize=7)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(_title(scene, spec), fontsize=10)
     return fig
 
 
@@ -855,7 +855,7 @@ def plot_disturbance(scene, results, spec):
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = tx.get_legend_handles_labels()
     ax.legend(h1 + h2, l1 + l2, loc="upper right", fontsize=8)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(_title(scene, spec), fontsize=10)
     bx.plot(t, err, color="C2", lw=1.2)
     bx.axvline(tk, color="0.6", ls=":", lw=0.8)
     bx.set_ylabel("time error $\\Sigma(T - T_{stat})$ (s)")
@@ -899,6 +899,26 @@ def _minimum(rows, y: str = "E_T_s_per_day", x: str = "amplitude_deg") -> tuple[
     return float(xm), float(np.polyval(c, xm))
 
 
+def zheadline(*stems):
+    """headline() that flags results of an overridden scene: the paper's numbers
+    belong to the scene as written."""
+    def wrap(func):
+        def marked(scene, summary, results):
+            out = func(scene, summary, results)
+            if scene.overrides:
+                flag = "scene run with --set " + ", ".join(scene.overrides) + "; the paper's value is for the scene as written"
+                for h in out:
+                    h["note"] = f"{h['note']}; {flag}" if h.get("note") else flag
+            return out
+        return headline(*stems)(marked)
+    return wrap
+
+
+def _title(scene, spec) -> str:
+    t = spec.get("title", scene.title)
+    return t + ("\n[--set " + ", ".join(scene.overrides) + "]" if scene.overrides else "")
+
+
 def _h(quantity, paper, ours, unit="", tolerance=None, note=None) -> dict:
     d = {"quantity": quantity, "paper": paper, "ours": ours, "unit": unit}
     if tolerance is not None:
@@ -912,7 +932,7 @@ def _r(x, digits=4):
     return None if x is None else float(f"{x:.{digits}g}")
 
 
-@headline("ziemkiewicz_fig1")
+@zheadline("ziemkiewicz_fig1")
 def _headline_fig1(scene, summary, results):
     rows = _sorted_rows(results)
     worst = max(abs(r["result"]["rel_diff_agm"]) for r in rows)
@@ -934,7 +954,7 @@ def _fig2_common(rows):
     return A, EE
 
 
-@headline("ziemkiewicz_fig2a")
+@zheadline("ziemkiewicz_fig2a")
 def _headline_fig2a(scene, summary, results):
     rows = _sorted_rows(results)
     A, EE = _fig2_common(rows)
@@ -957,7 +977,7 @@ def _headline_fig2a(scene, summary, results):
     return out
 
 
-@headline("ziemkiewicz_fig2b")
+@zheadline("ziemkiewicz_fig2b")
 def _headline_fig2b(scene, summary, results):
     rows = _sorted_rows(results)
     A, EE = _fig2_common(rows)
@@ -973,7 +993,7 @@ def _headline_fig2b(scene, summary, results):
     ]
 
 
-@headline("ziemkiewicz_fig2c")
+@zheadline("ziemkiewicz_fig2c")
 def _headline_fig2c(scene, summary, results):
     rows = _sorted_rows(results)
     A, EE = _fig2_common(rows)
@@ -988,7 +1008,7 @@ def _headline_fig2c(scene, summary, results):
     ]
 
 
-@headline("ziemkiewicz_fig3")
+@zheadline("ziemkiewicz_fig3")
 def _headline_fig3(scene, summary, results):
     r = results[0]
     res, s = r["result"], r["series"]
@@ -1062,17 +1082,17 @@ def _fig4_headlines(scene, results, panel: str) -> list[dict]:
     return out
 
 
-@headline("ziemkiewicz_fig4a")
+@zheadline("ziemkiewicz_fig4a")
 def _headline_fig4a(scene, summary, results):
     return _fig4_headlines(scene, results, "a")
 
 
-@headline("ziemkiewicz_fig4b")
+@zheadline("ziemkiewicz_fig4b")
 def _headline_fig4b(scene, summary, results):
     return _fig4_headlines(scene, results, "b")
 
 
-@headline("ziemkiewicz_fig4c")
+@zheadline("ziemkiewicz_fig4c")
 def _headline_fig4c(scene, summary, results):
     return _fig4_headlines(scene, results, "c")
 
@@ -1085,7 +1105,7 @@ def _et_at(scene, torque: float, Q: float) -> float:
     return st.E_T * DAY
 
 
-@headline("ziemkiewicz_fig5")
+@zheadline("ziemkiewicz_fig5")
 def _headline_fig5(scene, summary, results):
     e0 = _et_at(scene, 0.004, 1000.0)
     e8, e12 = _et_at(scene, 0.004, 800.0), _et_at(scene, 0.004, 1200.0)
@@ -1132,7 +1152,7 @@ def _band_width(A, E, band=2.0) -> tuple[float, float, float]:
     return best
 
 
-@headline("ziemkiewicz_fig6")
+@zheadline("ziemkiewicz_fig6")
 def _headline_fig6(scene, summary, results):
     esc = find_component(scene, "GrasshopperEscapement")
     drag = find_component(scene, "Drag")
@@ -1175,7 +1195,7 @@ def _headline_fig6(scene, summary, results):
     return out
 
 
-@headline("ziemkiewicz_fig7a", "ziemkiewicz_fig7b", "ziemkiewicz_fig7c")
+@zheadline("ziemkiewicz_fig7a", "ziemkiewicz_fig7b", "ziemkiewicz_fig7c")
 def _headline_fig7(scene, summary, results):
     res = results[0]["result"]
     panel = scene.path.stem[-1]
