@@ -71,6 +71,8 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("scene", metavar="SCENE.toml")
     e.add_argument("--out", required=True, metavar="X.ssp", help="archive to write (its folder must exist)")
     add_set(e)
+    e.add_argument("--container-dir", default=None, metavar="DIR",
+                   help="also write DIR/<scene>.json for fmu-manipulation-toolbox's fmucontainer, with the FMUs")
     e.add_argument("--point", type=int, default=None, metavar="N",
                    help="sweep point to export, counted from 0 (required when the scene has a sweep)")
     e.set_defaults(func=cmd_export_ssp)
@@ -142,10 +144,18 @@ def cmd_export_ssp(args) -> int:
         point = points[args.point]
     elif args.point not in (None, 0):
         raise UsageError(f"--point {args.point}: {args.scene} has no sweep")
+    if args.container_dir is not None and not Path(args.container_dir).parent.is_dir():
+        raise UsageError(f"--container-dir {args.container_dir}: no such directory: "
+                         f"{Path(args.container_dir).parent}")
     export_ssp(scene, out, point)
     n = len(scene.components)
     print(f"wrote {out}: {n} component{'s' * (n != 1)}, step {scene.master.step:g} s, "
           f"parameter set {PARAMETER_SET!r}")
+    if args.container_dir is not None:
+        from .ssp import write_container_description
+
+        js = write_container_description(scene, args.container_dir, point)
+        print(f"wrote {js}: fmucontainer -container {js.name} -fmu-directory {js.parent}")
     return 0
 
 

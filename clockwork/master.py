@@ -207,6 +207,19 @@ class Master:
             inst.reset()
         self.initialize(parameters)
 
+    def discontinuity(self) -> None:
+        """Tell the master that something changed outside the wiring at this
+        communication point (a tunable parameter, an unconnected input): the
+        input polynomials restart from zero-order hold, finite differences
+        forget the past, and the next step takes a fresh checkpoint so that a
+        replay never reaches back across the change."""
+        self._after_event = True
+        self._last_dz = []
+        for hist in self._history.values():
+            hist.times.clear()
+            hist.values.clear()
+        self._record_history()
+
     def _reset_soft_state(self) -> None:
         for h in self._history.values():
             h.times.clear()
@@ -340,6 +353,11 @@ class Master:
     def _record_history(self) -> None:
         if not self.settings.extrapolation:
             return
+        if self._after_event_step or self._after_event:
+            # Values before a discontinuity say nothing about the signal after it.
+            for hist in self._history.values():
+                hist.times.clear()
+                hist.values.clear()
         for p in self._dynamic:
             if not p.n_in:
                 continue

@@ -215,6 +215,59 @@ def export_ssp(scene, out: str | Path, point: dict | None = None) -> Path:
     return out
 
 
+def container_description(scene, point: dict | None = None) -> tuple[dict, dict[str, Path]]:
+    """An fmu-manipulation-toolbox ``fmucontainer`` description (JSON) of the
+    scene: its FMUs (one entry per instance, named ``<instance>.fmu``), links,
+    parameter values as start values, every output exposed as
+    ``<instance>_<output>`` and the unconnected inputs as inputs. Returns (description, {entry name: FMU file}).
+
+    fmucontainer also reads .ssp archives, but (version 2.0) without their
+    parameter bindings; the JSON form carries them."""
+    if point:
+        scene = scene.variant(point)
+    files = {f"{inst}.fmu": Path(c.fmu_path) for inst, c in scene.components.items()}
+    start, outputs = [], []
+    for inst, comp in scene.components.items():
+        for name, value in comp.parameters.items():
+            if isinstance(value, float):
+                value = float(value)
+            start.append([f"{inst}.fmu", name, value])
+        for v in comp.model_description.modelVariables:
+            if v.causality == "output":
+                # "<instance>.<output>" is taken: fmucontainer names its
+                # internal (linked) variables so.
+                outputs.append([f"{inst}.fmu", v.name, f"{inst}_{v.name}"])
+    desc = {
+        "name": f"{_identifier(scene.path.stem)}.fmu",
+        "step_size": scene.master.step,
+        "auto_link": False,
+        "auto_input": True,  # unconnected inputs become the container's, at their start values
+        "auto_output": False,
+        "fmu": list(files),
+        "link": [[f"{c.src_instance}.fmu", c.src_var, f"{c.dst_instance}.fmu", c.dst_var]
+                 for c in scene.connections],
+        "output": outputs,
+        "start": start,
+    }
+    return desc, files
+
+
+def write_container_description(scene, directory: str | Path, point: dict | None = None) -> Path:
+    """Write DIR/<scene>.json for ``fmucontainer -container <scene>.json
+    -fmu-directory DIR`` with a copy of each instance's FMU beside it."""
+    import json
+    import shutil
+
+    directory = Path(directory)
+    directory.mkdir(exist_ok=True)
+    desc, files = container_description(scene, point)
+    for name, src in files.items():
+        shutil.copyfile(src, directory / name)
+    out = directory / (Path(desc["name"]).stem + ".json")
+    out.write_text(json.dumps(desc, indent=2) + "\n")
+    return out
+
+
 def fmpy_parameter_set(ssp: str | Path):
     """The components' parameter bindings as one fmpy ParameterSet whose names
     carry the instance prefix, for ``fmpy.ssp.simulation.simulate_ssp``

@@ -16,8 +16,23 @@ Analysis kinds (see docs/scenes.md for the keys):
   1 ms at a zero crossing (or a turning point), follow the momentary
   period, amplitude and accumulated time error.
 
-Plot kinds: ``period_amplitude``, ``rate_errors``, ``recoil``, ``contour``,
-``curves``, ``disturbance``. Headlines for every ziemkiewicz_fig* scene.
+Analysis keys (angles take "<n> deg", times "<n> s"/"ms"):
+
+- free_period: periods (int, tick intervals averaged) [3]
+- escapement_steady_state: tolerance_s_per_day [1e-3], max_periods [3],
+  amplitude_guess (angle; default from the energy balance)
+- steady_orbit: amplitude (angle, or "optimal" = minimum of E_T; default: the
+  scene's torque), periods [2], tolerance_s_per_day, max_periods
+- disturbance: amplitude (as above), kick_time (s) [experiment.start],
+  kick_duration (s) [1 ms], g_factor [2], kick_at ("zero_crossing" |
+  "turning_point") [zero_crossing], tolerance_s_per_day, max_periods
+
+Plot kinds: ``period_amplitude`` (free_period sweep), ``rate_errors`` (y:
+error columns, dashed: columns drawn dashed, torque: bool), ``recoil``
+(steady_orbit), ``contour`` (x, y: sweep parameters, z: result column,
+levels, log_x, marker = [x, y] in SI), ``curves`` (x, y, group: sweep
+parameters that make a curve, dashed_if: one of them, dashed when non-zero),
+``disturbance``. Headlines for every ziemkiewicz_fig1..7 scene.
 """
 
 from __future__ import annotations
@@ -429,6 +444,9 @@ def steady_orbit(scene, point: dict, progress: bool = False) -> dict:
         sample()
         _advance_to(m, t0 + periods * st.period, sample)
         out = c.result(st)
+        # Closing the orbit checks that the start was on it.
+        out["orbit_closure_rad_per_s"] = abs(cols["w"][-1] - W)
+        out["orbit_closure_phi_rad"] = abs(cols["phi"][-1])
         stats = vars(m.stats).copy()
     t, phi, w, tau = (np.asarray(cols[k]) for k in ("time", "phi", "w", "tau"))
     # Recoil: the torque opposes the motion. Time share from the samples,
@@ -521,14 +539,11 @@ def disturbance(scene, point: dict, progress: bool = False) -> dict:
         pend = sysm.instances[c.pendulum]
 
         def set_g(value: float, until: float) -> None:
-            # The master replays from its last checkpoint when an event comes
-            # unannounced, restoring the FMU states: a checkpoint taken before
-            # an input change would undo it. An input jump is a discontinuity
-            # like an event, so mark it as one (the next step checkpoints and
-            # restarts input extrapolation). TODO(lead): a public
-            # Master.discontinuity() would replace the private flag.
+            # An input jump is a discontinuity like an event: the next step
+            # checkpoints (so a replay never undoes the change) and restarts
+            # input extrapolation.
             pend.set_values({"g_factor": value})
-            m._after_event = True
+            m.discontinuity()
             saved = m.stats.states_saved
             m.step(min(m.settings.step, until - m.t))
             watch()
@@ -904,7 +919,10 @@ def zheadline(*stems):
     belong to the scene as written."""
     def wrap(func):
         def marked(scene, summary, results):
-            out = func(scene, summary, results)
+            try:
+                out = func(scene, summary, results)
+            except SimulationError as e:  # a reference orbit failed: say so, keep the run
+                return [{"quantity": "headline", "paper": None, "ours": None, "note": f"not computed: {e}"}]
             if scene.overrides:
                 flag = "scene run with --set " + ", ".join(scene.overrides) + "; the paper's value is for the scene as written"
                 for h in out:

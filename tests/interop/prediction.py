@@ -61,8 +61,18 @@ def changes(values: np.ndarray) -> np.ndarray:
     return v[keep]
 
 
+_runs: dict = {}
+
+
 def accurate_run(scene, stop: float, point: dict | None = None) -> Run:
-    """clockwork's master with the scene's own (accurate) settings."""
+    """clockwork's master with the scene's own (accurate) settings (cached per process)."""
+    key = (str(scene.path), scene.sha256, stop, tuple(sorted((point or {}).items())))
+    if key not in _runs:
+        _runs[key] = _accurate_run(scene, stop, point)
+    return _runs[key]
+
+
+def _accurate_run(scene, stop: float, point: dict | None) -> Run:
     ticks, amps = [], []
     with build_system(scene, point or {}, record={"pendulum": ["tick_time", "amplitude"]}) as sysm:
         def on_point(_m):

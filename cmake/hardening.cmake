@@ -1,0 +1,52 @@
+# Hardening (included at the end of CMakeLists.txt).
+#
+# For every model, a C driver (tests/c/fmu_driver.c) that loads the model's
+# binary with dlopen and drives it through the FMI API with its own logger
+# and a counting allocator; ctest runs one test per model. With
+# CW_SANITIZE=ON the drivers and the FMUs are built with
+# -fsanitize=address,undefined, the drivers run with LeakSanitizer on, and
+# the pytest FMU suite (test fmu_tests) runs with the AddressSanitizer
+# runtime preloaded into Python, which the instrumented FMUs need.
+
+set(CW_SAN_ENV)
+if(CW_SANITIZE)
+  # Sanitizer reports are failures: abort on the first one.
+  list(APPEND CW_SAN_ENV
+       "UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1:abort_on_error=1"
+       "ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1:check_initialization_order=1")
+endif()
+
+foreach(table ${MODEL_TABLES})
+  get_filename_component(model_dir "${table}" DIRECTORY)
+  get_filename_component(model "${model_dir}" NAME)
+  set(gen_dir "${CMAKE_BINARY_DIR}/gen/${model}")
+  add_executable(fmu_driver_${model} "${CMAKE_SOURCE_DIR}/tests/c/fmu_driver.c"
+                                     "${gen_dir}/cw_vars.h")
+  target_include_directories(fmu_driver_${model} PRIVATE
+    "${CMAKE_SOURCE_DIR}/tests/c" "${gen_dir}" "${RUNTIME_DIR}" "${FMI_HEADERS}")
+  target_compile_options(fmu_driver_${model} PRIVATE ${CW_WARNINGS} ${CW_SAN_FLAGS})
+  target_link_options(fmu_driver_${model} PRIVATE ${CW_SAN_FLAGS})
+  target_link_libraries(fmu_driver_${model} PRIVATE m ${CMAKE_DL_LIBS})
+  add_dependencies(fmu_driver_${model} ${model})
+  add_test(NAME driver_${model}
+           COMMAND fmu_driver_${model} "$<TARGET_FILE:${model}>")
+  if(CW_SAN_ENV)
+    set_tests_properties(driver_${model} PROPERTIES ENVIRONMENT "${CW_SAN_ENV}")
+  endif()
+endforeach()
+
+if(CW_SANITIZE)
+  # Python itself is not instrumented: the runtime must be loaded first,
+  # and Python's own allocations at exit are no leaks of ours (the drivers
+  # above run with leak detection on for the FMUs).
+  execute_process(COMMAND "${CMAKE_C_COMPILER}" -print-file-name=libasan.so
+                  OUTPUT_VARIABLE CW_ASAN_RUNTIME OUTPUT_STRIP_TRAILING_WHITESPACE)
+  if(NOT EXISTS "${CW_ASAN_RUNTIME}")
+    message(FATAL_ERROR "CW_SANITIZE: '${CMAKE_C_COMPILER} -print-file-name=libasan.so' "
+                        "gave '${CW_ASAN_RUNTIME}', which does not exist.")
+  endif()
+  set_property(TEST fmu_tests APPEND PROPERTY ENVIRONMENT
+    "LD_PRELOAD=${CW_ASAN_RUNTIME}"
+    "ASAN_OPTIONS=detect_leaks=0:abort_on_error=1"
+    "UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1:abort_on_error=1")
+endif()
