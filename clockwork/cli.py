@@ -69,7 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     e = sub.add_parser("export-ssp", help="write a scene as an SSP 1.0 archive for other FMI tools")
     e.add_argument("scene", metavar="SCENE.toml")
-    e.add_argument("--out", required=True, metavar="X.ssp", help="archive to write (its folder must exist)")
+    e.add_argument("--out", required=True, metavar="X.ssp", help="archive to write (its folder is created if its parent exists)")
     add_set(e)
     e.add_argument("--container-dir", default=None, metavar="DIR",
                    help="also write DIR/<scene>.json for fmu-manipulation-toolbox's fmucontainer, with the FMUs")
@@ -133,7 +133,9 @@ def cmd_export_ssp(args) -> int:
     if out.suffix != ".ssp":
         raise UsageError(f"--out {out}: expected a file name ending .ssp")
     if not out.parent.is_dir():
-        raise UsageError(f"--out {out}: no such directory: {out.parent}")
+        if not out.parent.parent.is_dir():  # like `run --out`: one missing level is created
+            raise UsageError(f"--out {out}: no such directory: {out.parent}")
+        out.parent.mkdir()
     points = scene.points()
     point = None
     if scene.sweep is not None:

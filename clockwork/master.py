@@ -42,6 +42,7 @@ from .graph import Link, Wiring, build
 
 
 _ORDER_ONE = (c_int * 1)(1)
+_ORDER_TWO = (c_int * 1)(2)
 _RATE_BUFFER = (c_double * 1)()
 
 
@@ -200,6 +201,8 @@ class Master:
         self._propagate(self._order)
         self.t = self.start_time
         self._reset_soft_state()
+        self._z_end = self._indicators()
+        self._z_seen = list(self._z_end)
 
     def reinitialize(self, parameters: dict[str, dict[str, object]]) -> None:
         """fmi2Reset every instance and initialize again (shooting uses this)."""
@@ -229,6 +232,7 @@ class Master:
         self._after_event = True
         self._z_src_prev = None
         self._src_amp = [(0.0, 0.0)] * len(self._z_sources)
+        self._z_seen = [None] * len(self._z_sources)
         self._event_step_cap = math.inf
         self._du_end_cache = [None] * len(self._z_sources)
         self._stale_sources = False
@@ -482,18 +486,20 @@ class Master:
         self._after_event_step = False
         needs_rollback = self._needs_rollback
         locating = self._locating
-        possible = False
+        near = False  # could an indicator reach zero in this step?
         if locating:
-            if self._after_event or not self._last_dz or len(self._since_checkpoint) >= self.MAX_REPLAY_STEPS:
-                possible = True
+            if self._after_event or not self._last_dz:
+                near = True
             else:
                 # Conservative: could z reach 0 at 4x the last step's rate of change?
                 scale = 4.0 * h / self._last_h
                 for zi, dzi in zip(self._z_end, self._last_dz):
                     if abs(zi) <= scale * abs(dzi) + 1e-15:
-                        possible = True
+                        near = True
                         break
-        if possible and self._stale_sources:
+        # A checkpoint also bounds how far back a replay must go.
+        possible = near or (locating and len(self._since_checkpoint) >= self.MAX_REPLAY_STEPS)
+        if near and self._stale_sources:
             # The hidden-crossing check needs the sources at the step start.
             self._remember_indicator_sources()
             self._stale_sources = False
@@ -515,7 +521,7 @@ class Master:
                 if (a > 0.0 and b <= 0.0) or (a < 0.0 and b >= 0.0):
                     hit = True
                     break
-            if not hit and self._z_sources_any and possible:
+            if not hit and self._z_sources_any and near:
                 hidden = self._hidden_crossing(h, z0, z1)
                 if hidden is not None:
                     # Two crossings inside one step cancel at its ends; try
@@ -530,7 +536,7 @@ class Master:
                     hit = any((a > 0.0 and b <= 0.0) or (a < 0.0 and b >= 0.0) for a, b in zip(z0, z1))
                     if hit:
                         h = hidden
-                        possible = True
+                        possible = near = True
                     else:  # the interpolant was wrong: redo the whole step
                         self._restore_all()
                         self._restore_soft_state(self._checkpoint)
@@ -538,9 +544,11 @@ class Master:
                         z0, z1 = self._z_start, self._z_end
             if hit:
                 crossed = [(a > 0.0 and b <= 0.0) or (a < 0.0 and b >= 0.0) for a, b in zip(z0, z1)]
+                z0, z1 = list(z0), list(z1)
                 if not (possible or needs_rollback):
                     self._replay_to(t)
-                taken = self._locate(t, h, crossed)
+                    self._advance(t, h)  # back at t + h, now with a checkpoint at t
+                taken = self._locate(t, h, crossed, z0, z1)
                 self._last_dz = []
                 self._last_h = taken
                 self._since_checkpoint.append(self.t - self._located_from)
@@ -552,7 +560,7 @@ class Master:
             # Sources are sampled where a crossing is near, and now and then
             # to keep the time-scale estimate behind the step cap fresh.
             self._sample_countdown -= 1
-            if possible or self._sample_countdown <= 0 or self._z_src_prev is None:
+            if near or self._sample_countdown <= 0 or self._z_src_prev is None:
                 self._remember_indicator_sources()
                 self._sample_countdown = 16
                 self._stale_sources = False
@@ -591,7 +599,7 @@ class Master:
         self._checkpoint = self._soft_state()
         self._since_checkpoint = []
 
-    def _locate(self, t: float, h: float, crossed: list[bool]) -> float:
+    def _locate(self, t: float, h: float, crossed: list[bool], z0: list[float], z1: list[float]) -> float:
         """Shorten the step to land just past the earliest crossing.
 
         The first trial comes from a cubic Hermite interpolant of the lead
@@ -601,8 +609,6 @@ class Master:
         tolerance or the indicator is within its tolerance.
         """
         s = self.settings
-        z0 = list(self._z_start)
-        z1 = list(self._z_end)
         # The indicator whose linear interpolant crosses first leads.
         lead = min((k for k, c in enumerate(crossed) if c), key=lambda k: z0[k] / (z0[k] - z1[k]))
         slope_end = self._indicator_slope_source(lead)
@@ -700,13 +706,22 @@ class Master:
                 du = self._output_rate(inst, vr)
             u = src.out[pos]
             mem.append((u, du))
-            if du is not None:
+            z_now = self._z_end[k] if k < len(self._z_end) else None
+            constant = z_now is not None and z_now == self._z_seen[k]
+            self._z_seen[k] = z_now
+            if du is not None and not constant:
                 amp_u, amp_du = self._src_amp[k]
                 amp_u = max(abs(u), 0.999 * amp_u)
                 amp_du = max(abs(du), 0.999 * amp_du)
                 self._src_amp[k] = (amp_u, amp_du)
-                if amp_du > 0.0 and amp_u > 0.0:
-                    cap = min(cap, 0.2 * 2 * math.pi * amp_u / amp_du)
+                omega = amp_du / amp_u if amp_u > 0.0 else 0.0
+                # At a turning point |du| says nothing yet; |d2u/dt2| / |u| does.
+                if inst.max_output_derivative_order >= 2 and u != 0.0:
+                    acc = self._output_rate(inst, vr, order=2)
+                    if acc is not None:
+                        omega = max(omega, math.sqrt(abs(acc / u)))
+                if omega > 0.0:
+                    cap = min(cap, 0.2 * 2 * math.pi / omega)
         self._z_src_prev = mem
         self._event_step_cap = cap
         self._du_end_cache = [None] * len(self._z_sources)
@@ -757,9 +772,10 @@ class Master:
         return (src.out[pos], rate), src, pos, inst, vr
 
     @staticmethod
-    def _output_rate(inst: Instance, vr) -> float | None:
+    def _output_rate(inst: Instance, vr, order: int = 1) -> float | None:
         out = _RATE_BUFFER
-        if inst.c_getOutputDerivatives(inst.component, vr, 1, _ORDER_ONE, out) > WARNING:
+        orders = _ORDER_ONE if order == 1 else _ORDER_TWO
+        if inst.c_getOutputDerivatives(inst.component, vr, 1, orders, out) > WARNING:
             return None
         return out[0]
 

@@ -144,6 +144,27 @@ static void refresh_outputs(cw_instance *inst) {
     inst->outputs_dirty = 0;
 }
 
+/* Refresh the outputs and refuse to hand out a non-finite one: inputs and
+ * parameters inside their ranges can still overflow a model's arithmetic
+ * (found by fuzz/fuzz_fmu.c), and a NaN or inf must never reach the master
+ * with fmi2OK. */
+static int outputs_finite(cw_instance *inst, const char *fn) {
+    refresh_outputs(inst);
+    const cw_model *m = inst->model;
+    for (int k = 0; k < m->nvars; k++) {
+        const cw_var_info *v = &m->vars[k];
+        if (v->name && v->type == CW_REAL && v->causality == CW_OUTPUT &&
+            !isfinite(inst->r[k])) {
+            fail(inst,
+                 "%s: output %s = %g at t = %.17g is not finite: the inputs "
+                 "or parameters are beyond what %s can represent.",
+                 fn, v->name, inst->r[k], inst->time, m->name);
+            return 0;
+        }
+    }
+    return 1;
+}
+
 /* ------------------------------------------------------------------ */
 /* Inquire version numbers and setting logging status                 */
 
@@ -307,7 +328,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
         return fmi2Error;
     fmi2Status st = validate_and_initialize(inst);
     if (st > fmi2Warning) return st;
-    refresh_outputs(inst);
+    if (!outputs_finite(inst, "fmi2ExitInitializationMode")) return fmi2Error;
     inst->state = CW_STEP_COMPLETE;
     return fmi2OK;
 }
@@ -343,7 +364,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[],
     if (inst->state == CW_INIT_MODE && inst->outputs_dirty &&
         inst->model->initialize)
         inst->model->initialize(inst); /* outputs from the current parameters */
-    refresh_outputs(inst);
+    if (!outputs_finite(inst, "fmi2GetReal")) return fmi2Error;
     for (size_t k = 0; k < nvr; k++) {
         const cw_var_info *v = var(inst, vr[k]);
         if (!v || v->type != CW_REAL) {
@@ -370,7 +391,7 @@ static fmi2Status get_int_like(cw_instance *inst, const char *fn, cw_type type,
     if (inst->state == CW_INIT_MODE && inst->outputs_dirty &&
         inst->model->initialize)
         inst->model->initialize(inst);
-    refresh_outputs(inst);
+    if (!outputs_finite(inst, fn)) return fmi2Error;
     for (size_t k = 0; k < nvr; k++) {
         const cw_var_info *v = var(inst, vr[k]);
         if (!v || v->type != type) {
@@ -733,8 +754,9 @@ static fmi2Status decode_state(cw_instance *inst, const unsigned char *buf,
     if (get_u32(&p) != (uint32_t)m->n_real_state)
         return fail(inst, "%s: the state has the wrong model state size.", fn);
     for (int k = 0; k < m->n_real_state; k++)
-        if (isnan(get_f64(&p)))
-            return fail(inst, "%s: the state's model state %d is NaN.", fn, k);
+        if (!isfinite(get_f64(&p)))
+            return fail(inst, "%s: the state's model state %d is not finite.",
+                        fn, k);
     if (get_u32(&p) != (uint32_t)m->n_uint_state)
         return fail(inst, "%s: the state has the wrong counter count.", fn);
 
@@ -771,7 +793,8 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     if (!allowed(inst, "fmi2GetFMUstate", STATE_STATES & ~CW_ERROR))
         return fmi2Error;
     if (!FMUstate) return fail(inst, "fmi2GetFMUstate: FMUstate is NULL.");
-    refresh_outputs(inst);
+    /* A state with non-finite outputs could never be restored. */
+    if (!outputs_finite(inst, "fmi2GetFMUstate")) return fmi2Error;
     size_t size = state_size(inst->model);
     cw_state_blob *blob = (cw_state_blob *)*FMUstate;
     if (blob && blob->size != size) {
@@ -975,7 +998,7 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c,
                nvr);
         return fmi2Error;
     }
-    refresh_outputs(inst);
+    if (!outputs_finite(inst, "fmi2GetRealOutputDerivatives")) return fmi2Error;
     for (size_t k = 0; k < nvr; k++) {
         const cw_var_info *v = var(inst, vr[k]);
         if (!v || v->type != CW_REAL || v->causality != CW_OUTPUT) {
@@ -994,6 +1017,11 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c,
                    v->name, v->max_derivative_order, (int)order[k]);
             return fmi2Error;
         }
+        if (!isfinite(value[k]))
+            return fail(inst,
+                        "fmi2GetRealOutputDerivatives: derivative of order %d "
+                        "of %s = %g at t = %.17g is not finite.",
+                        (int)order[k], v->name, value[k], inst->time);
     }
     return fmi2OK;
 }
@@ -1029,6 +1057,20 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                inst->stop_time);
         return fmi2Error;
     }
+    /* Input polynomials are checked where the model will evaluate them:
+     * huge derivatives can overflow them to inf over a step. */
+    for (int k = 0; k < inst->model->nvars; k++) {
+        const cw_var_info *v = &inst->model->vars[k];
+        if (!v->name || v->type != CW_REAL || v->causality != CW_INPUT) continue;
+        const double u0 = cw_input(inst, (unsigned)k, tc),
+                     u1 = cw_input(inst, (unsigned)k, t_end);
+        if (!isfinite(u0) || !isfinite(u1))
+            return fail(inst,
+                        "fmi2DoStep: input %s, following its derivatives, is "
+                        "%g at t = %.17g and %g at t = %.17g; expected finite "
+                        "values.",
+                        v->name, u0, tc, u1, t_end);
+    }
     inst->time = tc;
     if (inst->model->commit) inst->model->commit(inst);
     fmi2Status st = fmi2OK;
@@ -1036,7 +1078,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
     inst->outputs_dirty = 1;
     if (st == fmi2OK || st == fmi2Warning) {
         inst->time = t_end;
-        refresh_outputs(inst);
+        if (!outputs_finite(inst, "fmi2DoStep")) return fmi2Error;
         return st;
     }
     if (st == fmi2Discard) {
@@ -1062,7 +1104,10 @@ fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s,
     if (!allowed(inst, "fmi2GetStatus",
                  CW_STEP_COMPLETE | CW_STEP_FAILED | CW_TERMINATED))
         return fmi2Error;
-    if (!value) return fmi2Error;
+    if (!value) {
+        cw_log(inst, fmi2Error, "logStatusError", "fmi2GetStatus: value is NULL.");
+        return fmi2Error;
+    }
     if (s == fmi2DoStepStatus) {
         *value = inst->state == CW_STEP_FAILED ? fmi2Discard : fmi2OK;
         return fmi2OK;
@@ -1078,7 +1123,11 @@ fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s,
     if (!allowed(inst, "fmi2GetRealStatus",
                  CW_STEP_COMPLETE | CW_STEP_FAILED | CW_TERMINATED))
         return fmi2Error;
-    if (!value) return fmi2Error;
+    if (!value) {
+        cw_log(inst, fmi2Error, "logStatusError",
+               "fmi2GetRealStatus: value is NULL.");
+        return fmi2Error;
+    }
     if (s == fmi2LastSuccessfulTime) {
         *value = inst->time;
         return fmi2OK;

@@ -850,7 +850,7 @@ static void test_state(void) {
     h_put_u32(buf + ms, (uint32_t)(buf[ms] + 1u));
     h_fix_checksum(buf, size);
     expect_refused(B.c, buf, size, "model state count", 0);
-    const uint32_t n_real = (uint32_t)buf[ms];
+    const uint32_t n_real = (uint32_t)saved[ms];
     for (uint32_t k = 0; k < n_real; k++)
         for (int j = 0; j < 3; j++) {
             memcpy(buf, saved, size);

@@ -92,7 +92,7 @@ def run_cli(*args, cwd=ROOT):
 
 
 def test_cli_writes_archive(tmp_path):
-    out = tmp_path / "clock.ssp"
+    out = tmp_path / "new" / "clock.ssp"  # one missing folder level is created
     p = run_cli("export-ssp", "scenarios/core_grasshopper.toml", "--out", str(out), "--set", "pendulum.Q=500")
     assert p.returncode == 0, p.stderr
     assert "parameter set 'clockwork'" in p.stdout
@@ -103,7 +103,7 @@ def test_cli_writes_archive(tmp_path):
 def test_cli_errors(tmp_path):
     p = run_cli("export-ssp", "scenarios/core_grasshopper.toml", "--out", str(tmp_path / "x.zip"))
     assert p.returncode == 2 and "expected a file name ending .ssp" in p.stderr
-    p = run_cli("export-ssp", "scenarios/core_grasshopper.toml", "--out", str(tmp_path / "no" / "x.ssp"))
+    p = run_cli("export-ssp", "scenarios/core_grasshopper.toml", "--out", str(tmp_path / "no" / "no" / "x.ssp"))
     assert p.returncode == 2 and "no such directory" in p.stderr
     p = run_cli("export-ssp", "scenarios/ziemkiewicz_fig4a.toml", "--out", str(tmp_path / "x.ssp"))
     assert p.returncode == 2 and "--point" in p.stderr and not (tmp_path / "x.ssp").exists()

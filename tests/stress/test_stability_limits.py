@@ -16,8 +16,8 @@ import math
 
 import pytest
 
-import stability as st
-from stress_support import FULL, fmus, size  # noqa: F401
+from stress_support import FULL, fmus, size  # noqa: F401 (first: puts benchmarks/ on sys.path)
+import stability as st  # noqa: E402
 
 COUPLINGS = size([st.Coupling(0.0, 5.0), st.Coupling(1e9, 5.0)],
                  [st.Coupling(k, c2) for k in (0.0, 1e7, 1e9) for c2 in (2.5, 5.0)])
@@ -56,13 +56,21 @@ def test_the_sweep_reaches_the_stability_limit(cfg):
 
 
 @pytest.mark.parametrize("coupling", COUPLINGS, ids=lambda c: c.label)
-def test_fixed_point_iterations_are_stable_where_zoh_is_not(coupling):
-    h = 0.64
-    zoh = [st.amplification(coupling, st.Config(order, 0), h, PERIODS) for order in ("gauss-seidel", "jacobi")]
-    it5 = [st.amplification(coupling, st.Config(order, ex, 5), h, PERIODS)
-           for order in ("gauss-seidel", "jacobi") for ex in (0, 2)]
-    assert all(r["unstable"] for r in zoh), [r["amplification"] for r in zoh]
-    assert not any(r["unstable"] for r in it5), [r["amplification"] for r in it5]
+def test_fixed_point_iterations_hold_where_zoh_does_not(coupling):
+    """Gauss-Seidel with inputs held turns unstable at some step up to 0.64 s
+    (stability is not monotone in the step: aliasing with the 0.29 s
+    vibration period); five fixed-point iterations hold at every one."""
+    steps = st.step_grid(0.04, 0.65, 1)
+    zoh = [st.amplification(coupling, st.Config("gauss-seidel", 0), h, PERIODS) for h in steps]
+    assert any(r["unstable"] for r in zoh), [(r["step_s"], r["amplification"]) for r in zoh]
+    bad = []
+    for order in ("gauss-seidel", "jacobi"):
+        for ex in (0, 2):
+            for h in steps:
+                r = st.amplification(coupling, st.Config(order, ex, 5), h, PERIODS)
+                if r["unstable"]:
+                    bad.append((order, ex, h, r["amplification"]))
+    assert not bad, bad
 
 
 def test_one_way_coupling_is_stable_at_any_step():
@@ -106,12 +114,17 @@ def test_richardson_respects_max_step():
 @pytest.mark.xfail(strict=True, reason="master bug: with richardson on, Master.step never calls the "
                                        "fixed-point iteration; `iterations` is silently ignored")
 def test_iterations_are_not_ignored_under_richardson():
+    """Either the combination works (iterations happen) or it is refused."""
     from clockwork.master import MasterSettings
 
     outs = []
     for iterations in (0, 5):
         settings = MasterSettings(step=0.3, richardson=True, richardson_tolerance=1e-5, iterations=iterations)
-        with st.vibration_system(st.Coupling(0.0, 5.0), settings) as s:
+        try:
+            system = st.vibration_system(st.Coupling(0.0, 5.0), settings)
+        except ValueError:
+            return  # refused: fine
+        with system as s:
             s.master.run_until(4.0)
             outs.append((list(s.master.ports["pendulum"].out), s.master.stats.coupling_iterations))
-    assert outs[1][1] > 0 or outs[0] != outs[1], outs
+    assert outs[1][1] > 0 and outs[0][0] != outs[1][0], outs

@@ -25,6 +25,7 @@ static void calc_outputs(cw_instance *inst) {
     R(tau) = inside && w > 0.0 ? R(torque) : 0.0;
     R(event_indicator_lower) = phi - R(alpha_m1);
     R(event_indicator_upper) = R(alpha_m2) - phi;
+    R(event_indicator_turn) = inside ? w : 1.0;
     R(work_per_period) = R(torque) * (R(alpha_m2) - R(alpha_m1));
 }
 

@@ -112,6 +112,8 @@ static void calc_outputs(cw_instance *inst) {
     R(tau) = p.d * R(torque) * profile_factor(inst, &p) * velocity_factor *
              (1.0 + p.delta);
     R(event_indicator) = R(phi_r) - inst->s[S_MODE] * p.phi;
+    /* Only Harrison's profile changes the torque where the swing reverses. */
+    R(event_indicator_turn) = I(profile) == 3 ? IN(w, inst->time) : 1.0;
     I(mode) = p.d;
     R(torque_amplitude) = R(torque) * (1.0 + p.delta);
 }
