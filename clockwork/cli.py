@@ -76,7 +76,34 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--point", type=int, default=None, metavar="N",
                    help="sweep point to export, counted from 0 (required when the scene has a sweep)")
     e.set_defaults(func=cmd_export_ssp)
+
+    g = sub.add_parser("gallery", help="run every scene and write the figures with an index page")
+    g.add_argument("--out", required=True, metavar="DIR", help="output directory (one folder per scene + index.md)")
+    g.add_argument("--quick", action="store_true",
+                   help="reduced settings where <scenarios>/quick.json defines them")
+    g.add_argument("--scenarios", default=None, metavar="DIR", help="default: the repository's scenarios/")
+    g.add_argument("--only", nargs="+", default=None, metavar="STEM", help="only these scenes (file stems)")
+    g.add_argument("--workers", type=_positive_int, default=None, metavar="N", help="processes for sweeps")
+    g.add_argument("--no-progress", action="store_true", help="no progress bars")
+    g.set_defaults(func=cmd_gallery)
     return p
+
+
+def cmd_gallery(args) -> int:
+    from .gallery import run_gallery
+    from .results import check_output_dir
+
+    scenarios = Path(args.scenarios) if args.scenarios else None
+    if scenarios is not None and not scenarios.is_dir():
+        raise UsageError(f"no such directory: {scenarios}")
+    out = check_output_dir(args.out)
+    g = run_gallery(out, scenarios, quick=args.quick, only=args.only, workers=args.workers,
+                    progress=not args.no_progress)
+    n = len(g["scenes"])
+    print(f"gallery: {n - len(g['failed'])} of {n} scenes in {g['wall_time_s']:.1f} s -> {out / 'index.md'}")
+    for stem in g["failed"]:
+        print(f"gallery: {stem} failed", file=sys.stderr)
+    return 1 if g["failed"] else 0
 
 
 def cmd_run(args) -> int:

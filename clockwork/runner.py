@@ -124,6 +124,14 @@ def run_scene(scene, out_dir, workers: int | None = None, scheduler: str | None 
                     results[i] = json.loads(f.read_text())
                 except json.JSONDecodeError:
                     results[i] = None  # a torn file from a killed run: recompute
+            # >>> content-addressed cache across output dirs (clockwork.sweep)
+            if results[i] is None:
+                from .sweep import cache_load
+
+                results[i] = cache_load(k)
+                if results[i] is not None:
+                    write_json_atomic(f, results[i])
+            # <<< cache
     todo = [i for i, r in enumerate(results) if r is None]
     reused = len(points) - len(todo)
 
@@ -131,6 +139,9 @@ def run_scene(scene, out_dir, workers: int | None = None, scheduler: str | None 
         results[i] = r
         if sweep:
             write_json_atomic(store / f"{keys[i]}.json", r)
+            from .sweep import cache_store  # >>> cache <<<
+
+            cache_store(keys[i], r)
 
     if not sweep:
         finished(0, run_point(scene, points[0], progress=progress))

@@ -125,7 +125,17 @@ class _Parts:
         self.pp = self.params[self.pendulum]
         self.esc = self.params.get(self.escapement, {})
         self.vib = self.params.get(self.vibration, {})
+        for inst in (self.pendulum, self.escapement, self.vibration):
+            if inst is not None:
+                self._fill_defaults(scene, inst)
         self.omega0 = math.sqrt(self.pp["g"] / self.pp["L"])
+
+    def _fill_defaults(self, scene, inst: str) -> None:
+        """Parameters the scene leaves out take the FMU's start values."""
+        p = self.params.setdefault(inst, {})
+        for v in scene.components[inst].model_description.modelVariables:
+            if v.causality == "parameter" and v.name not in p and v.type == "Real" and v.start is not None:
+                p[v.name] = float(v.start)
 
     def need_vibration(self, kind: str) -> None:
         if self.vibration is None or self.escapement is None:
@@ -151,6 +161,11 @@ def _hermite(t: float, t0: float, t1: float, f0: float, f1: float, d0: float, d1
     s2, s3 = s * s, s * s * s
     return ((2 * s3 - 3 * s2 + 1) * f0 + (s3 - 2 * s2 + s) * h * d0
             + (-2 * s3 + 3 * s2) * f1 + (s3 - s2) * h * d1)
+
+
+def _json_list(a) -> list:
+    """JSON has no NaN: None instead."""
+    return [float(v) if math.isfinite(v) else None for v in np.asarray(a, dtype=float)]
 
 
 def _stats(m) -> dict:
@@ -305,21 +320,27 @@ def vibration_series(scene, point: dict, progress: bool = False) -> dict:
 def section_statistics(x: np.ndarray, y: np.ndarray, grid: int = 32) -> dict:
     """Shape statistics of section points (x, y), in any common unit.
 
-    ring_width: IQR/median of the distance from the median point; near 0
-    for points on one closed curve around it (regular, quasi-periodic),
-    of order 1 for a cloud. occupied_fraction: share of a grid x grid
-    raster over the points' extent holding a point, divided by the largest
-    possible share min(1, n/grid^2); a few repeated points (periodic) or a
-    thin curve give small values, a cloud large ones. positive_fraction:
-    share of points with x > 0 (both wells of a double well visited: ~0.5).
+    ring_width: IQR/median of the distances from the centre of the circle
+    fitted by algebraic least squares (Kasa); near 0 for points on one
+    closed, near-circular curve (a quasi-periodic orbit of a weakly
+    nonlinear mode), of order 1 for a cloud. occupied_fraction: share of
+    the cells of a grid x grid raster over the points' extent that hold a
+    point, divided by the largest possible share min(1, n/grid^2): a few
+    repeated points (periodic) or a thin curve give small values, a cloud
+    large ones (meaningful for n >> grid). positive_fraction: share of
+    points with x > 0 (both wells of a double well visited: ~0.5).
     """
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
     n = len(x)
     if n < 8:
         return {"n_points": n}
-    cx, cy = np.median(x), np.median(y)
-    r = np.hypot(x - cx, y - cy)
+    sx, sy = np.std(x), np.std(y)
+    scale = max(sx, sy) or 1.0
+    u, v = (x - x.mean()) / scale, (y - y.mean()) / scale
+    A = np.column_stack([u, v, np.ones(n)])
+    (D, E, F), *_ = np.linalg.lstsq(A, -(u * u + v * v), rcond=None)
+    r = np.hypot(u + D / 2, v + E / 2)
     q1, med, q3 = np.percentile(r, [25, 50, 75])
     ex, ey = np.ptp(x), np.ptp(y)
     ix = np.minimum((grid * (x - x.min()) / ex).astype(int), grid - 1) if ex > 0 else np.zeros(n, int)
@@ -328,6 +349,7 @@ def section_statistics(x: np.ndarray, y: np.ndarray, grid: int = 32) -> dict:
     return {
         "n_points": n,
         "ring_width": float((q3 - q1) / med) if med > 0 else 0.0,
+        "ring_radius_rel_std": float(np.std(r) / np.mean(r)) if np.mean(r) > 0 else 0.0,
         "occupied_fraction": cells / min(n, grid * grid),
         "positive_fraction": float(np.mean(x > 0)),
     }
@@ -557,8 +579,8 @@ def lyapunov(scene, point: dict, progress: bool = False) -> dict:
     half = start + 0.5 * (stop - start)
     late1 = running_exponent(t, rows["d1"], max(half, fit_start))
     late2 = running_exponent(t, rows["d2"], max(half, fit_start))
-    rows["lambda1"] = list(lam1)
-    rows["lambda2"] = list(lam2)
+    rows["lambda1"] = _json_list(lam1)
+    rows["lambda2"] = _json_list(lam2)
 
     def last(x):
         x = np.asarray(x)
@@ -712,7 +734,7 @@ def step_accuracy(scene, point: dict, progress: bool = False) -> dict:
     hs = sorted({h for c in curves.values() for h in c})
     series = {"h_s": hs}
     for name, c in curves.items():
-        series[f"{name}_rel_err"] = [c.get(h, math.nan) for h in hs]
+        series[f"{name}_rel_err"] = [c.get(h) for h in hs]
     e1 = (analytic.series_period(A, L, g, terms=1) - T_agm) / T0
     e2 = (analytic.series_period(A, L, g, terms=2) - T_agm) / T0
     result = {
@@ -957,6 +979,10 @@ def plot_step_accuracy(scene, results, spec):
 # --- headlines -----------------------------------------------------------------------------
 
 
+def _g(x) -> str:
+    return "n/a" if x is None else f"{x:.3g}"
+
+
 def _res(summary):
     return summary.get("result") or {}
 
@@ -1025,10 +1051,10 @@ def _h10b(scene, summary, results):
         tag = f"C1 = {p['C1']:g}, C2 = {p['C2']:g}"
         out.append({"quantity": f"lambda_2 ({tag})", "paper": 0.05 if coupled else 0.0,
                     "ours": p.get("lambda2_end_per_s"), "unit": "1/s",
-                    "note": f"late-half slope {p.get('lambda2_late_per_s')}"})
+                    "note": f"late-half slope {_g(p.get('lambda2_late_per_s'))}; d2 grew x{_g(p.get('d2_growth'))}"})
         out.append({"quantity": f"lambda_1 ({tag})", "paper": 0.01 if coupled else 0.0,
                     "ours": p.get("lambda1_end_per_s"), "unit": "1/s",
-                    "note": f"late-half slope {p.get('lambda1_late_per_s')}; d1 grew x{p.get('d1_growth')}"})
+                    "note": f"late-half slope {_g(p.get('lambda1_late_per_s'))}; d1 grew x{_g(p.get('d1_growth'))}"})
     return out
 
 

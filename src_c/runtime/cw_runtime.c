@@ -893,6 +893,9 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c,
         probe.s = s;
         probe.u = u;
         st = decode_state(&probe, blob->bytes, size, "fmi2DeSerializeFMUstate");
+    } else {
+        cw_log(inst, fmi2Error, "logStatusError",
+               "fmi2DeSerializeFMUstate: out of memory.");
     }
     void *scratch[] = {r, iv, d1, d2, tr, s, u};
     for (size_t k = 0; k < sizeof scratch / sizeof *scratch; k++)

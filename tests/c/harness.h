@@ -128,7 +128,7 @@ static fmi2CallbackFunctions h_callbacks(h_log *log) {
 /* ------------------------------------------------------------------ */
 /* The variable table */
 
-static const cw_var_info *h_find(const char *name) {
+static inline const cw_var_info *h_find(const char *name) {
     for (int k = 0; k < CW_NVARS; k++)
         if (CW_VARS[k].name && strcmp(CW_VARS[k].name, name) == 0)
             return &CW_VARS[k];

@@ -10,7 +10,6 @@ import re
 import subprocess
 import sys
 
-import pytest
 
 from interop_common import FMU_DIR, ROOT, relative_difference, require
 

@@ -1,0 +1,210 @@
+"""Sweeps at scale: Dask, the result cache, resume after SIGKILL, worker count."""
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from clockwork import runner, sweep
+from clockwork.runner import run_scene
+from clockwork.scene import load_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+FMU_DIR = Path(os.environ.get("CW_FMU_DIR", ROOT / "fmus"))
+
+# A grasshopper clock whose torque is swept; each point is a short time
+# series (a fraction of a second). `pendulum` is given by model name,
+# `escapement` by a path relative to the scene file: both ways must ship.
+SCENE = """
+connections = [
+  "pendulum.phi -> escapement.phi",
+  "pendulum.w -> escapement.w",
+  "escapement.tau -> pendulum.tau_escapement",
+]
+
+[scene]
+title = "sweep test"
+
+[components.pendulum]
+fmu = "Pendulum"
+parameters = {{ Q = 1000, phi_start = "5 deg" }}
+
+[components.escapement]
+fmu = "fmus_local/GrasshopperEscapement.fmu"
+parameters = {{ torque = "0.4 N.cm", phi_r = "2 deg" }}
+
+[experiment]
+stop = "{stop} s"
+
+[master]
+step = "0.5 s"
+
+[record]
+outputs = ["pendulum.phi"]
+interval = "2 s"
+ticks = "pendulum"
+
+[sweep]
+axes = [ {{ parameter = "escapement.torque", start = "0.2 N.cm", stop = "0.6 N.cm", num = {num} }} ]
+"""
+
+
+@pytest.fixture(autouse=True)
+def _env(monkeypatch, tmp_path):
+    if not (FMU_DIR / "Pendulum.fmu").exists():
+        pytest.fail(f"no FMUs in {FMU_DIR}: build them first")
+    monkeypatch.setenv("CLOCKWORK_FMU_DIR", str(FMU_DIR))
+    monkeypatch.setenv("CLOCKWORK_CACHE", "off")
+
+
+def make_scene(d: Path, num: int = 4, stop: float = 10.0) -> Path:
+    (d / "fmus_local").mkdir(parents=True, exist_ok=True)
+    shutil.copy(FMU_DIR / "GrasshopperEscapement.fmu", d / "fmus_local" / "GrasshopperEscapement.fmu")
+    f = d / "sweep.toml"
+    f.write_text(SCENE.format(num=num, stop=stop))
+    return f
+
+
+def csv_text(d: Path) -> str:
+    return (d / "sweep.csv").read_text()
+
+
+def csv_table(d: Path) -> dict:
+    """sweep.csv as {column: [exact text of each value]}.
+
+    Column order is left out on purpose: the report orders result columns
+    as they first appear, and points loaded from JSON (resumed or cached)
+    have sorted keys while fresh ones keep the analysis' order.
+    """
+    header, *rows = (d / "sweep.csv").read_text().splitlines()
+    names = header.split(",")
+    cols = {n: [] for n in names}
+    for row in rows:
+        for n, v in zip(names, row.split(",")):
+            cols[n].append(v)
+    return cols
+
+
+def test_dask_local_cluster_equals_local_run(tmp_path):
+    from distributed import LocalCluster
+
+    scene = load_scene(make_scene(tmp_path / "scene"))
+    run_scene(scene, tmp_path / "local", workers=1, progress=False)
+    with LocalCluster(processes=False, n_workers=1, threads_per_worker=2, dashboard_address=None) as cluster:
+        run_scene(scene, tmp_path / "dask", scheduler=cluster.scheduler_address, progress=False)
+    assert csv_text(tmp_path / "dask") == csv_text(tmp_path / "local")
+    for f in (tmp_path / "local" / "points").glob("*.json"):
+        a = json.loads(f.read_text())
+        b = json.loads((tmp_path / "dask" / "points" / f.name).read_text())
+        assert a["ticks"] == b["ticks"] and a["series"] == b["series"]
+
+
+def test_bundle_is_self_contained(tmp_path):
+    """The worker side needs nothing from the original files: delete them first."""
+    src = make_scene(tmp_path / "scene")
+    scene = load_scene(src)
+    b = sweep.bundle(scene)
+    assert set(b["fmus"]) == {"pendulum", "escapement"}
+    shutil.rmtree(tmp_path / "scene")
+    loaded = sweep.materialize(b, root=tmp_path / "worker")
+    for c in loaded.components.values():
+        assert Path(c.fmu_path).is_relative_to(tmp_path / "worker")
+    # same FMU bytes and parameters: the same content address
+    p = scene.points()[1]
+    assert runner.point_key(loaded, p) == runner.point_key(scene, p)
+    r = runner.run_point(loaded, p)
+    assert r["ticks"] == runner.run_point(scene_from(tmp_path, b), p)["ticks"]
+
+
+def scene_from(tmp_path, b):
+    """The same bundle materialized a second time, elsewhere."""
+    return sweep.materialize(b, root=tmp_path / "worker2")
+
+
+def test_cache_across_output_dirs(tmp_path, monkeypatch):
+    monkeypatch.setenv("CLOCKWORK_CACHE", str(tmp_path / "cache"))
+    scene = load_scene(make_scene(tmp_path / "scene", num=3))
+    run_scene(scene, tmp_path / "a", workers=1, progress=False)
+    cached = list((tmp_path / "cache").rglob("*.json"))
+    assert len(cached) == 3
+
+    def no_compute(*a, **k):
+        raise AssertionError("a cached point was computed again")
+
+    monkeypatch.setattr(runner, "run_point", no_compute)
+    summary = run_scene(scene, tmp_path / "b", workers=1, progress=False)
+    assert summary["points_reused"] == 3
+    assert csv_table(tmp_path / "b") == csv_table(tmp_path / "a")
+    # another parameter value is another key: computed, not taken from the cache
+    other = load_scene(tmp_path / "scene" / "sweep.toml", ["pendulum.Q=900"])
+    with pytest.raises(AssertionError, match="computed again"):
+        run_scene(other, tmp_path / "c", workers=1, progress=False)
+
+
+def test_cache_off_and_code_namespace(tmp_path, monkeypatch):
+    monkeypatch.setenv("CLOCKWORK_CACHE", "off")
+    assert sweep.cache_dir() is None
+    monkeypatch.setenv("CLOCKWORK_CACHE", str(tmp_path))
+    assert sweep.cache_dir() == tmp_path / sweep.code_hash()
+    sweep.cache_store("k", {"error": "x"})
+    assert sweep.cache_load("k") is None  # failures are not cached
+
+
+def _cli(*args, env):
+    return [sys.executable, "-m", "clockwork", *map(str, args)]
+
+
+def test_sigkill_resume_and_uninterrupted_equal(tmp_path):
+    scene = make_scene(tmp_path / "scene", num=10, stop=60.0)
+    env = dict(os.environ, CLOCKWORK_FMU_DIR=str(FMU_DIR), CLOCKWORK_CACHE="off")
+    out = tmp_path / "killed"
+    proc = subprocess.Popen(_cli("run", scene, "--out", out, "--workers", 1, "--no-progress", env=env),
+                            env=env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 60
+    points = out / "points"
+    try:
+        while time.monotonic() < deadline:
+            done = list(points.glob("*.json")) if points.is_dir() else []
+            if len(done) >= 3:
+                break
+            assert proc.poll() is None, proc.communicate()
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    finished = {f.name: (f.stat().st_mtime_ns, f.read_bytes()) for f in points.glob("*.json")}
+    assert 3 <= len(finished) < 10, "the run was not interrupted halfway"
+    assert not (out / "sweep.csv").exists()
+    r = subprocess.run(_cli("run", scene, "--out", out, "--workers", 1, "--no-progress", env=env),
+                       env=env, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["points_reused"] == len(finished)
+    for name, (mtime, data) in finished.items():  # not recomputed, not rewritten
+        f = points / name
+        assert f.stat().st_mtime_ns == mtime and f.read_bytes() == data
+    clean = tmp_path / "clean"
+    r = subprocess.run(_cli("run", scene, "--out", clean, "--workers", 1, "--no-progress", env=env),
+                       env=env, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert csv_table(out) == csv_table(clean)
+
+
+def test_one_and_two_workers_bit_identical(tmp_path):
+    scene = load_scene(make_scene(tmp_path / "scene", num=4))
+    run_scene(scene, tmp_path / "w1", workers=1, progress=False)
+    run_scene(scene, tmp_path / "w2", workers=2, progress=False)
+    assert csv_text(tmp_path / "w1") == csv_text(tmp_path / "w2")
+    for f in (tmp_path / "w1" / "points").glob("*.json"):
+        a = json.loads(f.read_text())
+        b = json.loads((tmp_path / "w2" / "points" / f.name).read_text())
+        for k in ("result", "series", "ticks", "statistics"):
+            assert a[k] == b[k], k

@@ -1,0 +1,90 @@
+#!/usr/bin/env bash
+# Build the libFuzzer harness fuzz/fuzz_fmu.c against every model and run it.
+#
+#   bash tools/fuzz.sh                 bounded run (CI): 20000 executions per model
+#   bash tools/fuzz.sh --long          long run: 600 s per model
+#   bash tools/fuzz.sh --time 3600     long run of that many seconds per model
+#   bash tools/fuzz.sh --runs N --model Pendulum [--model Drag ...]
+#
+# Builds into build-fuzz/ (or $CW_FUZZ_DIR); the corpus grows in
+# build-fuzz/corpus/<Model>/, starting from fuzz/seeds/ (kept across runs, so
+# long runs build on earlier ones). A crash, sanitizer report, broken
+# invariant or timeout leaves its input in build-fuzz/crash-<Model>-* and
+# fails the script; rerun one with  build-fuzz/fuzz_<Model> FILE.
+# Needs clang with libFuzzer: tools/install_fuzz_deps.sh.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+RUNS=20000
+TIME=0
+MODELS=()
+OUT=${CW_FUZZ_DIR:-build-fuzz}
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --runs) RUNS=$2; shift 2 ;;
+    --time) TIME=$2; RUNS=-1; shift 2 ;;
+    --long) TIME=600; RUNS=-1; shift ;;
+    --model) MODELS+=("$2"); shift 2 ;;
+    --out) OUT=$2; shift 2 ;;
+    *) echo "fuzz.sh: unknown argument $1" >&2; exit 2 ;;
+  esac
+done
+
+CC=${CW_FUZZ_CC:-}
+if [ -z "$CC" ]; then
+  CC=$(command -v clang || ls /usr/bin/clang-[0-9]* 2>/dev/null | sort -V | tail -n 1 || true)
+fi
+if [ -z "$CC" ]; then
+  echo "fuzz.sh: no clang found; run tools/install_fuzz_deps.sh" >&2
+  exit 1
+fi
+PY=${PYTHON:-python3}
+FMI=$("$PY" -c "import fmpy, os; print(os.path.join(os.path.dirname(fmpy.__file__), 'c-code'))")
+if [ ${#MODELS[@]} -eq 0 ]; then
+  for t in src_c/models/*/model.toml; do MODELS+=("$(basename "$(dirname "$t")")"); done
+fi
+
+# The integrators' per-call step limit is lowered so that a fuzzed step of
+# 1e9 s with a 1e-9 s step cap is discarded after 20000 internal steps
+# instead of 1e6: the same code path, at fuzzing speed.
+FLAGS=(-std=c99 -g -O1 -fno-omit-frame-pointer
+       -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all
+       -DCW_RK_MAX_STEPS=20000 -Wall -Wno-unused-parameter)
+mkdir -p "$OUT"
+summary="$OUT/summary.txt"
+: > "$summary"
+failed=0
+total=0
+for m in "${MODELS[@]}"; do
+  gen="$OUT/gen/$m"
+  "$PY" tools/fmugen.py "src_c/models/$m" "$gen" --sources cw_runtime.c cw_rk.c model.c > /dev/null
+  "$CC" "${FLAGS[@]}" -I"$gen" -Isrc_c/runtime -I"$FMI" -Itests/c \
+        fuzz/fuzz_fmu.c src_c/runtime/cw_runtime.c src_c/runtime/cw_rk.c \
+        "src_c/models/$m/model.c" -lm -o "$OUT/fuzz_$m"
+  corpus="$OUT/corpus/$m"
+  mkdir -p "$corpus"
+  seeds=()
+  [ -d "fuzz/seeds/$m" ] && seeds+=("fuzz/seeds/$m")
+  [ -d fuzz/seeds/common ] && seeds+=(fuzz/seeds/common)
+  log="$OUT/fuzz_$m.log"
+  args=(-seed=1 -timeout=20 -max_len=4096 -rss_limit_mb=2048 -print_final_stats=1
+        -artifact_prefix="$OUT/crash-$m-")
+  if [ "$RUNS" -ge 0 ]; then args+=(-runs="$RUNS"); else args+=(-max_total_time="$TIME"); fi
+  start=$(date +%s)
+  set +e
+  "$OUT/fuzz_$m" "${args[@]}" "$corpus" "${seeds[@]}" > "$log" 2>&1
+  rc=$?
+  set -e
+  secs=$(( $(date +%s) - start ))
+  execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -n 1)
+  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -n 1 | cut -d' ' -f2)
+  execs=${execs:-0}
+  total=$(( total + execs ))
+  if [ "$rc" -eq 0 ]; then result=ok; else result="FAILED (exit $rc, see $log)"; failed=1; fi
+  line="$m: $execs executions in ${secs} s, coverage ${cov:-?} edges, corpus $(ls "$corpus" | wc -l) inputs: $result"
+  echo "fuzz: $line"
+  echo "$line" >> "$summary"
+  if [ "$rc" -ne 0 ]; then grep -E "ERROR|FAIL|fuzz_fmu|SUMMARY|runtime error" "$log" | head -n 20 >&2 || true; fi
+done
+echo "fuzz: $total executions in total" | tee -a "$summary"
+exit "$failed"
