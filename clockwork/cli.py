@@ -1,4 +1,4 @@
-"""The `clockwork` command: run, validate, list, info.
+"""The `clockwork` command: run, validate, list, info, export-ssp, gallery, bench.
 
 Bad input of any kind ends with one line `clockwork: error: <message>` on
 stderr and exit code 2; a failed simulation with one line and exit code 1.
@@ -86,7 +86,30 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--workers", type=_positive_int, default=None, metavar="N", help="processes for sweeps")
     g.add_argument("--no-progress", action="store_true", help="no progress bars")
     g.set_defaults(func=cmd_gallery)
+
+    b = sub.add_parser("bench", help="accuracy against run time, beside other masters (see docs/benchmarks.md)")
+    b.add_argument("--quick", action="store_true", help="a reduced set of rows (a few minutes)")
+    b.add_argument("--out", default="out/bench", metavar="DIR", help="output directory [out/bench]")
+    b.add_argument("--no-progress", action="store_true", help="no line per row")
+    b.set_defaults(func=cmd_bench)
     return p
+
+
+def cmd_bench(args) -> int:
+    from .bench import full_config, quick_config, run_bench
+    from .results import check_output_dir
+
+    if args.out == "out/bench":
+        Path("out").mkdir(exist_ok=True)  # the default's parent
+    out = check_output_dir(args.out)
+    cfg = quick_config() if args.quick else full_config()
+    command = "clockwork bench" + (" --quick" if args.quick else "") + f" --out {args.out}"
+    blob = run_bench(out, cfg, progress=not args.no_progress, command=command)
+    bad = [c["check"] for c in blob["checks"] if not c["ok"]]
+    print(f"bench: {len(blob['rows'])} rows in {blob['info']['wall_s']:.0f} s -> {out / 'bench.md'}")
+    for name in bad:
+        print(f"bench: reference check failed: {name}", file=sys.stderr)
+    return 1 if bad else 0
 
 
 def cmd_gallery(args) -> int:

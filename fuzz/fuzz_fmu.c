@@ -140,6 +140,15 @@ static double fuzz_step(reader *r) {
 static fmi2Component C; /* the instance under test, or NULL */
 static double T;        /* the master's idea of the FMU's time */
 
+/* C's experiment setup. Start and stop time belong to the instance, not to
+ * the FMU state (docs/design.md's layout has neither), so a twin restored
+ * from serialized bytes gets the same setup first. */
+static struct {
+    int set;
+    double t0, stop;
+    fmi2Boolean has_stop;
+} EXP;
+
 static void check_values(fmi2Component c, h_values *out) {
     h_values v;
     h_read_all(&api, c, &v);
@@ -240,6 +249,8 @@ static void round_trip(reader *r) {
             return;
         }
         fmi2FMUstate t = NULL;
+        if (EXP.set)
+            api.SetupExperiment(twin, fmi2False, 0.0, EXP.t0, EXP.has_stop, EXP.stop);
         if (api.DeSerializeFMUstate(twin, (fmi2Byte *)buf, size, &t) != fmi2OK) {
             if (h_fail_countdown < 0)
                 FAIL("a fresh instance refused a serialized state");
@@ -343,11 +354,13 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     const long live_at_start = h_live_blocks;
     memset(slot, 0, sizeof slot);
     T = 0.0;
+    EXP.set = 0;
     C = instantiate(r);
     if (!C) FAIL("plain instantiation failed");
     const uint8_t start = u8(r);
     if (start & 1) { /* most sequences want an initialized instance */
-        CALL(SetupExperiment, C, fmi2False, 0.0, 0.0, fmi2False, 0.0);
+        if (CALL(SetupExperiment, C, fmi2False, 0.0, 0.0, fmi2False, 0.0) == fmi2OK)
+            EXP.set = 1, EXP.t0 = 0.0, EXP.has_stop = fmi2False, EXP.stop = 0.0;
         CALL(EnterInitializationMode, C);
         CALL(ExitInitializationMode, C);
     }
@@ -356,6 +369,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
         const uint8_t op = u8(r);
         if (!C) { /* only a new instance can follow a failed instantiation */
             C = instantiate(r);
+            EXP.set = 0;
             continue;
         }
         switch (op % 24) {
@@ -451,7 +465,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
             break;
         }
         case 17:
-            CALL(Reset, C);
+            if (CALL(Reset, C) == fmi2OK) EXP.set = 0;
             T = 0.0;
             break;
         case 18: CALL(Terminate, C); break;
@@ -459,8 +473,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
             const double t0 = u8(r) & 1 ? fuzz_double(r, NULL) : 0.0;
             const fmi2Boolean has_stop = u8(r) & 1;
             const double stop = fuzz_double(r, NULL);
-            if (CALL(SetupExperiment, C, fmi2False, 0.0, t0, has_stop, stop) == fmi2OK)
+            if (CALL(SetupExperiment, C, fmi2False, 0.0, t0, has_stop, stop) == fmi2OK) {
                 T = t0;
+                EXP.set = 1, EXP.t0 = t0, EXP.has_stop = has_stop, EXP.stop = stop;
+            }
             break;
         }
         case 20:
@@ -495,6 +511,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
             free_all();
             C = instantiate(r);
             T = 0.0;
+            EXP.set = 0;
             break;
         }
     }

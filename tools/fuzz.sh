@@ -5,6 +5,7 @@
 #   bash tools/fuzz.sh --long          long run: 600 s per model
 #   bash tools/fuzz.sh --time 3600     long run of that many seconds per model
 #   bash tools/fuzz.sh --runs N --model Pendulum [--model Drag ...]
+#   bash tools/fuzz.sh --fresh         start from the seeds only (CI: same work every run)
 #
 # Builds into build-fuzz/ (or $CW_FUZZ_DIR); the corpus grows in
 # build-fuzz/corpus/<Model>/, starting from fuzz/seeds/ (kept across runs, so
@@ -18,6 +19,7 @@ cd "$(dirname "$0")/.."
 RUNS=20000
 TIME=0
 MODELS=()
+FRESH=0
 OUT=${CW_FUZZ_DIR:-build-fuzz}
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -25,6 +27,7 @@ while [ $# -gt 0 ]; do
     --time) TIME=$2; RUNS=-1; shift 2 ;;
     --long) TIME=600; RUNS=-1; shift ;;
     --model) MODELS+=("$2"); shift 2 ;;
+    --fresh) FRESH=1; shift ;;
     --out) OUT=$2; shift 2 ;;
     *) echo "fuzz.sh: unknown argument $1" >&2; exit 2 ;;
   esac
@@ -62,6 +65,7 @@ for m in "${MODELS[@]}"; do
         fuzz/fuzz_fmu.c src_c/runtime/cw_runtime.c src_c/runtime/cw_rk.c \
         "src_c/models/$m/model.c" -lm -o "$OUT/fuzz_$m"
   corpus="$OUT/corpus/$m"
+  [ "$FRESH" -eq 1 ] && rm -rf "$corpus"
   mkdir -p "$corpus"
   seeds=()
   [ -d "fuzz/seeds/$m" ] && seeds+=("fuzz/seeds/$m")

@@ -4,8 +4,19 @@
  * conditions are checked by tests/fmu/test_rk.py through libcw_rk_probe. */
 #include "cw_rk.h"
 
+#include <float.h>
 #include <math.h>
 #include <string.h>
+
+/* fmi2DoStep cannot be interrupted (no fmi2CancelStep), so the work of one
+ * call is bounded: past this many internal steps the step is given up and
+ * the model returns fmi2Discard, and the master can retry with a shorter
+ * one. 1e6 steps are some 1e4 pendulum periods and well under a second;
+ * the fuzz build lowers it to keep executions fast (found by fuzzing: a
+ * 1e300 s step ran 1e8 internal steps, minutes, before giving up). */
+#ifndef CW_RK_MAX_STEPS
+#define CW_RK_MAX_STEPS 1000000L
+#endif
 
 static const double C2 = 1.0 / 5.0, C3 = 3.0 / 10.0, C4 = 4.0 / 5.0,
                     C5 = 8.0 / 9.0;
@@ -40,7 +51,7 @@ void cw_rk_init(cw_rk *rk, int n, double rtol, double atol, double h_max) {
     rk->rtol = rtol;
     rk->atol = atol;
     rk->h_max = h_max;
-    rk->max_steps = 100000000L;
+    rk->max_steps = CW_RK_MAX_STEPS;
 }
 
 /* Stages 2..7 of one step; k[0] must hold f(t, x). Writes x_new. The end
@@ -190,7 +201,9 @@ cw_rk_result cw_rk_advance(cw_rk *rk, cw_rhs f, void *ctx, double *t,
             double suggested = h_try * fac;
             if (last && h_try < h) suggested = fmax(suggested, h);
             if (rk->h_max > 0) suggested = fmin(suggested, rk->h_max);
-            h = suggested;
+            /* 5 x a huge last step overflows; the suggestion is kept in
+             * the FMU state, which must stay finite (found by fuzzing). */
+            h = fmin(suggested, DBL_MAX);
             *h_next = h;
             if (observer && observer(observer_ctx, rk)) return CW_RK_STOPPED;
             if (last) return CW_RK_OK;

@@ -1053,6 +1053,13 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
         return fmi2Error;
     }
     const double t_end = tc + h;
+    if (!isfinite(t_end)) { /* found by fuzzing: time became inf */
+        cw_log(inst, fmi2Error, "logStatusError",
+               "fmi2DoStep: the step from %.17g by %.17g ends beyond the "
+               "largest representable time.",
+               tc, h);
+        return fmi2Error;
+    }
     if (inst->stop_time_defined &&
         t_end > inst->stop_time + 1e-9 * fmax(1.0, fabs(inst->stop_time))) {
         cw_log(inst, fmi2Error, "logStatusError",

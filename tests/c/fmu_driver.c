@@ -14,6 +14,7 @@
  * Compiled once per model against the model's generated cw_vars.h, which
  * provides the variable table; nothing else here is model specific. */
 #include <dlfcn.h>
+#include <float.h>
 
 #include "harness.h"
 
@@ -591,6 +592,14 @@ static void test_bad_values(void) {
     CHECK_REFUSED(api.DoStep(I.c, I.t, 2 * STEP, fmi2False), "step past the stop time");
     free_inst(&I);
 
+    /* A step whose end overflows the time axis. */
+    I = make(ST_INSTANTIATED);
+    CHECK_OK(api.SetupExperiment(I.c, 0, 0, 1e308, 0, 0), "start at 1e308 s");
+    api.EnterInitializationMode(I.c);
+    api.ExitInitializationMode(I.c);
+    CHECK_REFUSED(api.DoStep(I.c, 1e308, 1e308, fmi2False), "step to inf");
+    free_inst(&I);
+
     /* Logging categories. */
     I = make(ST_INSTANTIATED);
     const fmi2String good[] = {"logEvents", "logStatusError", "logAll"};
@@ -600,6 +609,44 @@ static void test_bad_values(void) {
     CHECK_REFUSED(api.SetDebugLogging(I.c, fmi2True, 2, bad_cat), "unknown category");
     CHECK_REFUSED(api.SetDebugLogging(I.c, fmi2True, 1, null_cat), "NULL category");
     CHECK_REFUSED(api.SetDebugLogging(I.c, fmi2True, 1, NULL), "NULL categories");
+    free_inst(&I);
+    CHECK(h_live_blocks == 0, "%ld blocks live", h_live_blocks);
+}
+
+/* ------------------------------------------------------------------ */
+/* Extreme but accepted inputs: outputs that overflow are refused with
+ * fmi2Error, never returned as inf/NaN with fmi2OK; input polynomials that
+ * overflow within a step are refused. */
+
+static void test_extreme_inputs(void) {
+    section = "extreme inputs";
+    const double extremes[] = {DBL_MAX, -DBL_MAX, 1e300, -1e300, 4.9e-324};
+    for (size_t j = 0; j < sizeof extremes / sizeof *extremes; j++) {
+        inst I = make(ST_STEP_COMPLETE);
+        for (int vr = 0; vr < CW_NVARS; vr++) {
+            const cw_var_info *v = &CW_VARS[vr];
+            if (v->name && v->type == CW_REAL && v->causality == CW_INPUT &&
+                extremes[j] >= v->min && extremes[j] <= v->max)
+                set_real(I.c, (unsigned)vr, extremes[j]);
+        }
+        h_values vals;
+        h_read_all(&api, I.c, &vals);
+        const char *bad = h_unfit_value(&vals);
+        CHECK(!bad, "inputs %g: %s is not finite with fmi2OK", extremes[j], bad);
+        fmi2Status st = api.DoStep(I.c, I.t, STEP, fmi2False);
+        h_read_all(&api, I.c, &vals);
+        bad = h_unfit_value(&vals);
+        CHECK(!bad, "inputs %g, step %d: %s is not finite with fmi2OK", extremes[j],
+              (int)st, bad);
+        free_inst(&I);
+    }
+    /* Derivatives that carry an input to inf within the step. */
+    inst I = make(ST_STEP_COMPLETE);
+    fmi2ValueReference in = first_var(CW_INPUT, 0);
+    fmi2Integer one = 1;
+    double d = 1e300;
+    CHECK_OK(api.SetRealInputDerivatives(I.c, &in, 1, &one, &d), "huge derivative");
+    CHECK_REFUSED(api.DoStep(I.c, I.t, 1e10, fmi2False), "input overflows in the step");
     free_inst(&I);
     CHECK(h_live_blocks == 0, "%ld blocks live", h_live_blocks);
 }
@@ -946,6 +993,7 @@ int main(int argc, char **argv) {
     test_lifecycle();
     test_wrong_states();
     test_bad_values();
+    test_extreme_inputs();
     test_out_of_memory();
     test_state();
 

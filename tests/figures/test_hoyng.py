@@ -254,6 +254,23 @@ def test_fig6_averaged_only_follows_the_twin(long_run, tmp_path):
     assert diff16.max() < 2 * 16 * TWO_PI * 1.167245e-4 * np.abs(twin16).max()
 
 
+def test_fig6_replayed_twins_equal_cosimulated_twins():
+    """The twins run after the co-simulation on the recorded torque changes
+    (the default) see the same zero-order hold as twins stepped inside it:
+    the same phases up to the integrators' different step sequences (rtol
+    1e-12 over ~4e3 rad: < 1e-9 rad)."""
+    base = [f"experiment.stop={periods(600)}", f"escapement.noise_start={periods(300)}",
+            "analysis.sample_every=1"]
+    runs = {tw: run_point(load_scene(SCENES / "hoyng_fig6.toml", base + [f'analysis.twins="{tw}"']), {})
+            for tw in ("replay", "cosimulate")}
+    for a in ("averaged", "averaged_bessel"):
+        x = np.asarray(runs["replay"]["series"][f"psi_{a}_minus_t_cycles"])
+        y = np.asarray(runs["cosimulate"]["series"][f"psi_{a}_minus_t_cycles"])
+        assert len(x) == len(y) == 600
+        assert np.max(np.abs(x - y)) * TWO_PI < 1e-9
+    assert runs["replay"]["result"]["torque_changes"] >= 300
+
+
 def test_escapement_noise_replica_is_bit_exact(tmp_path):
     """escapement_noise() against the FMU: drive the escapement's phi through zero crossings."""
     from clockwork.master import MasterSettings
