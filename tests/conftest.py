@@ -1,20 +1,10 @@
-"""Shared test fixtures: where the built FMUs are."""
+"""Root fixtures of the test suites; shared paths live in cwtest.py."""
 
-import os
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-FMU_DIR = Path(os.environ.get("CW_FMU_DIR", ROOT / "fmus"))
-BUILD_DIR = Path(os.environ.get("CW_BUILD_DIR", ROOT / "build"))
-
-
-def fmu_file(name: str) -> Path:
-    path = FMU_DIR / f"{name}.fmu"
-    if not path.exists():
-        pytest.fail(f"{path} is missing: build the FMUs first (cmake --build build)")
-    return path
+from cwtest import FMU_DIR
 
 
 @pytest.fixture(scope="session")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import FMU_DIR, fmu_file
+from cwtest import FMU_DIR, fmu_file
 from clockwork import cli
 from clockwork.errors import SimulationError
 

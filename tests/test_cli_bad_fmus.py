@@ -12,7 +12,7 @@ import zipfile
 
 import pytest
 
-from conftest import FMU_DIR, fmu_file
+from cwtest import FMU_DIR, fmu_file
 from clockwork import cli
 
 SCENE = ('[scene]\ntitle = "broken fmu"\n[components.pendulum]\nfmu = "{fmu}"\n'

@@ -12,7 +12,7 @@ from clockwork.master import MasterSettings
 from clockwork.steady import Shooter, energy_balance_amplitude, find_steady_state
 from clockwork.system import System
 
-from conftest import FMU_DIR
+from cwtest import FMU_DIR
 
 GRASSHOPPER_LINKS = [
     "pendulum.phi -> escapement.phi",

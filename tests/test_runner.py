@@ -6,7 +6,7 @@ import math
 import pytest
 
 from clockwork.cli import main
-from conftest import FMU_DIR
+from cwtest import FMU_DIR
 
 SCENE = """
 connections = [

@@ -11,7 +11,7 @@ from pathlib import Path
 import fmpy
 import pytest
 
-from conftest import FMU_DIR, fmu_file
+from cwtest import FMU_DIR, fmu_file
 from clockwork.errors import SceneError
 from clockwork.scene import (
     ANALYSIS_KEYS,

@@ -73,7 +73,9 @@ for m in "${MODELS[@]}"; do
   log="$OUT/fuzz_$m.log"
   args=(-seed=1 -timeout=20 -max_len=4096 -rss_limit_mb=2048 -print_final_stats=1
         -artifact_prefix="$OUT/crash-$m-")
-  if [ "$RUNS" -ge 0 ]; then args+=(-runs="$RUNS"); else args+=(-max_total_time="$TIME"); fi
+  # Long runs let the input length (the length of the call sequences) grow
+  # faster than libFuzzer's default.
+  if [ "$RUNS" -ge 0 ]; then args+=(-runs="$RUNS"); else args+=(-max_total_time="$TIME" -len_control=20); fi
   start=$(date +%s)
   set +e
   "$OUT/fuzz_$m" "${args[@]}" "$corpus" "${seeds[@]}" > "$log" 2>&1

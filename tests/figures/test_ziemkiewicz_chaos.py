@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import FMU_DIR, fmu_file
+from cwtest import FMU_DIR, fmu_file
 from clockwork import analytic, reference
 from clockwork.analyses import chaos, run_analysis
 from clockwork.headlines import headlines_for

@@ -25,7 +25,7 @@ from fmpy.validation import validate_fmu
 from scipy.integrate import quad
 from scipy.special import j1
 
-from conftest import fmu_file
+from cwtest import fmu_file
 
 EPS, MU0, MU1, PHI0 = 2.5e-4, 2e-5, 4e-5, 0.03
 POINT_A = {"L": 1.0, "g": 1.0, "m": 1.0, "Q": 1 / (2 * EPS), "phi_r": PHI0}

@@ -28,7 +28,7 @@ from fmpy.fmi2 import (
 )
 from fmpy.validation import validate_fmu
 
-from conftest import fmu_file
+from cwtest import fmu_file
 
 OMEGA02 = 7.0 * math.sqrt(9.81)  # rad/s, the FMU's default
 TIGHT = {"rtol": 1e-12, "atol": 1e-16}

@@ -27,7 +27,7 @@ from fmpy.fmi2 import (
 )
 from fmpy.validation import validate_fmu
 
-from conftest import fmu_file
+from cwtest import fmu_file
 
 DEG = math.pi / 180.0
 FMI2_ERROR = 3

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 from scipy.special import ellipj, ellipk
 
-from conftest import FMU_DIR, fmu_file
+from cwtest import FMU_DIR, fmu_file
 from fmu_driver import ERROR, OK, Instance, unpack
 
 G = 9.81

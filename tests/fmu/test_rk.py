@@ -10,7 +10,7 @@ import random
 import numpy as np
 import pytest
 
-from conftest import BUILD_DIR
+from cwtest import BUILD_DIR
 
 MAXN = 8  # CW_RK_MAXN
 OK, STEP_TOO_SMALL, TOO_MANY_STEPS, NONFINITE, STOPPED = range(5)

@@ -9,7 +9,7 @@ import re
 
 import pytest
 
-from conftest import fmu_file
+from cwtest import fmu_file
 from fmu_driver import DISCARD, ERROR, OK, FmuError, Instance, unpack
 
 NUMBER = re.compile(r"[-+]?(?:nan|inf|(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)", re.I)

@@ -1,5 +1,5 @@
 """Shared setup of the stress tests (no conftest.py here: a second module
-named `conftest` would shadow tests/conftest.py for `from conftest import`).
+named `conftest` would shadow tests/conftest.py for `from cwtest import`).
 
 Size: reduced by default (CI); `CLOCKWORK_STRESS=full` runs the full sizes
 documented in docs/stress.md.
