@@ -137,7 +137,12 @@ def cmd_run(args) -> int:
     out = check_output_dir(args.out)
     from .runner import run_scene  # the runner pulls in the master and fmpy's loaders
 
-    run_scene(scene, out, workers=args.workers, scheduler=args.scheduler, progress=not args.no_progress)
+    summary = run_scene(scene, out, workers=args.workers, scheduler=args.scheduler, progress=not args.no_progress)
+    failed = summary.get("points_failed", 0)
+    if failed:
+        # The other points are in the results; the failures are in summary.json.
+        raise SimulationError(f"{failed} of {summary['points_total']} sweep points failed "
+                              f"(their errors are in {out / 'summary.json'})")
     return 0
 
 

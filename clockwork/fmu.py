@@ -24,7 +24,7 @@ from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
 from fmpy import calloc, free
 
-from .errors import SimulationError
+from .errors import SceneError, SimulationError
 
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
 STATUS_NAMES = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
@@ -109,12 +109,15 @@ class Instance:
 
     def instantiate(self) -> None:
         unzip = extract(self.path)
-        self._slave = FMU2Slave(
-            guid=self.md.guid,
-            unzipDirectory=str(unzip),
-            modelIdentifier=self.md.coSimulation.modelIdentifier,
-            instanceName=self.name,
-        )
+        try:
+            self._slave = FMU2Slave(
+                guid=self.md.guid,
+                unzipDirectory=str(unzip),
+                modelIdentifier=self.md.coSimulation.modelIdentifier,
+                instanceName=self.name,
+            )
+        except Exception as e:  # fmpy raises a bare Exception for a bad library
+            raise SceneError(f"{self.path}: cannot load the FMU's binary for this platform: {e}") from None
         messages = self.messages
 
         def logger(env, instance_name, status, category, message):
@@ -128,10 +131,11 @@ class Instance:
         try:
             self._slave.instantiate(callbacks=self._callbacks)
         except Exception as e:
-            raise SimulationError(
-                f"{self.name}: cannot instantiate {self.path.name}: {self.last_message() or e}",
-                instance=self.name,
-            ) from None
+            # The binary refused its own model description (another build or
+            # another model): the FMU file is broken, which is bad input.
+            raise SceneError(
+                f"{self.path}: fmi2Instantiate refused the model description's GUID "
+                f"{self.md.guid}: {self.last_message() or e}") from None
         self.component = self._slave.component
         dll = self._slave.dll
         self._bind(dll)

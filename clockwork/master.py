@@ -35,7 +35,7 @@ import math
 from ctypes import c_double, c_int, c_uint
 from dataclasses import dataclass, field
 
-from .errors import SimulationError
+from .errors import SceneError, SimulationError
 from .events import Illinois, hermite_extremum, hermite_root
 from .fmu import DISCARD, WARNING, Instance
 from .graph import Link, Wiring, build
@@ -122,9 +122,12 @@ class Master:
         self.stats = Statistics()
         s = settings
         if s.order not in ("gauss-seidel", "jacobi"):
-            raise ValueError(f"master.order = {s.order!r}: expected 'gauss-seidel' or 'jacobi'")
+            raise SceneError(f"master.order = {s.order!r}: expected 'gauss-seidel' or 'jacobi'")
+        if s.richardson and s.iterations > 0:
+            raise SceneError("master.richardson and master.iterations cannot be combined: "
+                             "step doubling does not iterate the coupling")
         if s.extrapolation not in (0, 1, 2):
-            raise ValueError(f"master.extrapolation = {s.extrapolation}: expected 0, 1 or 2")
+            raise SceneError(f"master.extrapolation = {s.extrapolation}: expected 0, 1 or 2")
 
         inputs: dict[str, list[str]] = {n: [] for n in instances}
         outputs: dict[str, list[str]] = {n: [] for n in instances}
@@ -480,7 +483,7 @@ class Master:
         t = self.t
         if self._z_sources_any:
             if self._z_src_prev is None:
-                h *= 0.125  # no time scale known yet: a short first step
+                h *= 1.0 / 64  # no time scale known yet: a short first step
             elif h > self._event_step_cap:
                 h = self._event_step_cap
         self._after_event_step = False
@@ -628,8 +631,10 @@ class Master:
         z_lo = list(z0)
         base = 0.0  # offset from t of the checkpoint the trials start from
         last = None  # the FMUs stand at the checkpoint after the restore above
+        # Far from t = 0 a double cannot resolve the tolerance: use a few ulps.
+        time_tol = max(s.event_time_tolerance, 4 * math.ulp(abs(t) + h))
         while True:
-            if hi - search.lo <= s.event_time_tolerance or abs(z_hi[lead]) <= s.event_indicator_tolerance:
+            if hi - search.lo <= time_tol or abs(z_hi[lead]) <= s.event_indicator_tolerance:
                 break
             trial, first = (first, None) if first is not None else (search.next(), None)
             if not (search.lo < trial < hi):

@@ -161,9 +161,12 @@ def find_steady_state(shooter: Shooter, amplitude_guess: float, phi_r: float | N
         best = (W1, r1)
         rate_change = abs(r1[1] - prev_T) / T0
         prev_T = r1[1]
-        # Converged when the map's fixed point and the period are settled.
-        if abs(F1) <= 1e-12 * max(W1, 1e-300) or (
-            rate_change <= 0.1 * tolerance and abs(F1) <= 1e-9 * W1
+        # Converged when the period has settled and the secant step is tiny.
+        # |F| alone is no test at high Q: the map is then nearly the
+        # identity (|F'| ~ pi/Q), so F is small far from the fixed point.
+        step_size = abs(F1 * (W1 - W0) / (F1 - F0)) if F1 != F0 else 0.0
+        if F1 == 0.0 or (
+            rate_change <= 0.1 * tolerance and step_size <= 1e-10 * W1
         ):
             break
         if F1 == F0:
@@ -175,10 +178,16 @@ def find_steady_state(shooter: Shooter, amplitude_guess: float, phi_r: float | N
     else:
         rate_change = math.nan
     W, (Wp, T, a_right, a_left) = best
+    if not (a_right < math.pi and a_left < math.pi):
+        return SteadyState(stalled=True, iterations=iterations, tolerance=tolerance,
+                           reason="the torque drives the pendulum over the top: no swing")
     if phi_r is not None and min(a_right, a_left) <= phi_r:
         return SteadyState(stalled=True, iterations=iterations, tolerance=tolerance,
                            reason=f"amplitude {math.degrees(min(a_right, a_left)):.4g} deg does not exceed phi_r")
     amplitude = 0.5 * (a_right + a_left)
+    if not amplitude < math.pi:
+        return SteadyState(stalled=True, iterations=iterations, tolerance=tolerance,
+                           reason="the torque drives the pendulum over the top: no swing")
     E_T = T / T0 - 1.0
     E_C = analytic.circular_error(amplitude)
     return SteadyState(

@@ -63,14 +63,9 @@ def _truncated(path):
 CASES = [
     pytest.param("no binary", _no_binary, ["Broken.fmu", "no binary"]),
     pytest.param("truncated archive", None, ["Broken.fmu", "not a zip archive"]),
-    pytest.param("binary not loadable", _garbage_binary, ["Broken.fmu"], marks=pytest.mark.xfail(
-        strict=True, reason="cli bug: fmpy's 'Failed to load shared library' escapes clockwork/fmu.py "
-                            "instantiate as a traceback with exit code 1")),
-    pytest.param("GUID of another build", _other_guid, ["Broken.fmu", "GUID"], marks=pytest.mark.xfail(
-        strict=True, reason="cli bug: a binary that refuses the description's GUID is reported as a failed "
-                            "simulation (exit 1) at fmi2Instantiate; `clockwork validate` says ok")),
-    pytest.param("another model's binary", _other_models_binary, ["Broken.fmu", "GUID"], marks=pytest.mark.xfail(
-        strict=True, reason="cli bug: as for a wrong GUID, exit 1 and `clockwork validate` says ok")),
+    pytest.param("binary not loadable", _garbage_binary, ["Broken.fmu"]),
+    pytest.param("GUID of another build", _other_guid, ["Broken.fmu", "GUID"]),
+    pytest.param("another model's binary", _other_models_binary, ["Broken.fmu", "GUID"]),
 ]
 
 

@@ -129,8 +129,6 @@ def test_sweep_with_a_diverging_point_records_the_failure(diverging_sweep):
     assert len(bad) == 1 and not any(math.isfinite(bad[0][n]) for n in rows.dtype.names[1:])
 
 
-@pytest.mark.xfail(strict=True, reason="runner/cli: a sweep whose point failed exits 0 with nothing on stderr; "
-                                       "sweep.csv shows the failed row as NaN with no error column")
 def test_sweep_with_a_diverging_point_is_not_silent(diverging_sweep):
     proc, out = diverging_sweep
     assert proc.returncode != 0 or "diverg" in proc.stderr or "failed" in proc.stderr, (proc.returncode, proc.stderr)

@@ -33,10 +33,11 @@ def test_steady_state_from_q_5_to_1e5(Q):
 
 
 @pytest.mark.parametrize("Q", size([1e7], [1e6, 1e7]))
-@pytest.mark.xfail(strict=True, reason="steady.py bug: find_steady_state stops when |W' - W| <= 1e-9 W, but at "
-                                       "high Q the one-period map is nearly the identity (|F'| ~ pi/Q), so this "
-                                       "holds far from the fixed point: at Q = 1e7 it returns its starting guess "
-                                       "(4.999999 deg against 5.001001), E_T off by 0.016 s/day")
+@pytest.mark.xfail(strict=False, reason=(
+    "measured gap at Q = 1e7: the shooting converges (residual 6e-17, period settled to 3e-13) but the fixed "
+    "point is ill-conditioned: the map's slope is ~pi/Q = 3e-7, so the integrator's per-period error "
+    "(rtol 1e-10) moves the orbit's amplitude by ~1e-5 relative: E_T differs from the reference by 1.3e-3 "
+    "s/day (limit 1e-4); Q = 1e6 passes"))
 def test_steady_state_at_q_1e6_and_beyond(Q):
     M = st.torque_for_amplitude(math.radians(5.0), PHI_R, Q)
     ours = st.clock_steady_state(Q, M, PHI_R, tolerance_s_per_day=TOLERANCE_S_PER_DAY)
@@ -71,10 +72,6 @@ def test_clock_amplitude_against_the_reference(target_deg, phi_r_deg):
     assert ours.amplitude == pytest.approx(ref.amplitude, rel=1e-6)
 
 
-@pytest.mark.xfail(strict=True, reason="steady.py bug: a torque that drives the pendulum over the top makes "
-                                       "find_steady_state call analytic.circular_error with an 'amplitude' "
-                                       "> pi: ValueError (math domain error) instead of a stall/no-orbit result "
-                                       "or a SimulationError; `clockwork run` would print a traceback")
 def test_over_the_top_is_reported_not_crashed():
     M = st.torque_for_amplitude(math.radians(150.0), PHI_R, 1000.0)
     try:
@@ -171,9 +168,6 @@ def _one_step_case(stop):
 
 
 @pytest.mark.parametrize("stop", size([20.0], [20.0, 100.0]))
-@pytest.mark.xfail(strict=True, reason="master bug: with no time scale known yet, the first step is h/8 "
-                                       "(2.5 s for h = 20 s, longer than the 2 s period): whole swings inside "
-                                       "it are missed (18 of 20 switches found in 20 s, 88 of 100 in 100 s)")
 def test_one_step_for_the_whole_run(stop):
     small, one = _one_step_case(stop)
     assert one["events"] == small["events"]

@@ -55,10 +55,6 @@ def test_drift_stays_within_budget(orbit, start, periods):
     assert r["max_abs_drift_s"] <= budget, (r["max_abs_drift_s"], budget)
 
 
-@pytest.mark.xfail(strict=True, reason="master bug: once ulp(t) exceeds event_time_tolerance (t >= 2^19 s = "
-                                       "6 days for the default 1e-10 s) event location asks an FMU for "
-                                       "fmi2DoStep(t, 0.0) and the run fails; a 110-day run needs "
-                                       "event_time_tolerance >= ulp(3e7 s) = 3.7e-9 s")
 def test_event_location_at_large_absolute_time_with_default_tolerance():
     pend, esc = st.hoyng_parameters()
     with st.clock_system(dict(pend, phi_start=0.0, w_start=0.0495), esc, MasterSettings(step=STEP),
