@@ -108,6 +108,7 @@ class BenchConfig:
     shooting_tolerance_s_per_day: float = 1e-4  # find_steady_state's stop on the rate change
     long_run_tolerances: tuple = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7)  # s/day change of the period between periods
     long_run_max_periods: int = 20000
+    scipy_long_run_tolerances: tuple = (1e-5, 1e-6)  # the same criterion for a monolithic plain run
     scipy_rtols: tuple = (1e-6, 1e-8, 1e-10, 1e-11)
     peer_tools: tuple = ("fmpy", "libcosim", "ecos")
     peer_steps: tuple = (1e-2, 1e-3, 1e-4)
@@ -209,7 +210,7 @@ def full_config() -> BenchConfig:
 def quick_config() -> BenchConfig:
     return BenchConfig(
         name="quick", steady_points=("fig4a_5deg",), steady_families=_steady_families(True),
-        long_run_tolerances=(1e-3, 1e-5), scipy_rtols=(1e-8, 1e-11), peer_steps=(1e-2, 1e-3),
+        long_run_tolerances=(1e-3, 1e-5), scipy_rtols=(1e-8, 1e-11), scipy_long_run_tolerances=(1e-5,), peer_steps=(1e-2, 1e-3),
         peer_points=("fig4a_5deg",), hoyng_families=_hoyng_families(True), hoyng_scipy_rtols=(1e-8,),
         chaos_t_end=100.0, chaos_transient=20.0, chaos_families=_chaos_families(True), chaos_scipy_rtols=(),
         chaos_peer_tools=("ecos",), chaos_peer_steps=(2e-3,), repeats=1, targets=False,
@@ -598,6 +599,27 @@ def master_long_run(pt: SteadyPoint, fam: Family, step: float, rtol: float, chan
     raise SimulationError(f"no convergence to {change_tol * DAY:g} s/day within {len(ticks) - 1} periods")
 
 
+def scipy_long_run(pt: SteadyPoint, rtol: float, change_tol: float, max_periods: int) -> tuple[float, int]:
+    """The plain long run of master_long_run, monolithic: (E_T, periods)."""
+    T0 = pt.params.T0
+    r = None
+    ticks = np.empty(0)
+    while len(ticks) < max_periods + 1:
+        if r is None:
+            r = reference.simulate(pt.params, pt.guess, 0.0, 50 * T0, rtol=rtol, atol=_atol(rtol))
+        else:
+            r = reference.simulate(pt.params, r.y[0], r.y[1], r.t + 50 * T0, t0=r.t, mode=r.mode, rtol=rtol,
+                                   atol=_atol(rtol))
+        ticks = np.concatenate([ticks, r.ticks])
+        T = np.diff(ticks)
+        change = np.abs(np.diff(T)) / T0
+        hit = np.nonzero(change < change_tol)[0]
+        if hit.size:
+            k = hit[0] + 1
+            return T[k] / T0 - 1.0, k + 1
+    raise SimulationError(f"no convergence to {change_tol * DAY:g} s/day within {len(ticks) - 1} periods")
+
+
 def master_hoyng(h: Hoyng, fam: Family, step: float, rtol: float, extra: dict) -> float:
     """Time (s) of tick number h.ticks."""
     pend = dict(L=1.0, g=1.0, m=1.0, Q=0.0 if fam.split else h.Q, phi_start=0.0, w_start=h.lam0,
@@ -867,6 +889,15 @@ def bench_steady(cfg: BenchConfig, pt: SteadyPoint, peers: PeerRunner, log) -> l
         ticks = _try(row, run, cfg)
         if ticks is not None:
             row.error = abs((ticks[n] - ticks[0]) / n / pt.params.T0 - 1.0 - pt.E_T) * DAY
+        rows.append(row)
+        log(row)
+    for ctol in cfg.scipy_long_run_tolerances:
+        row = Row(prob, "scipy DOP853 plain long run", "scipy",
+                  f"rtol = 1e-10, until the period changes < {ctol:g} s/day", unit=unit, rtol=1e-10)
+        res = _try(row, lambda: scipy_long_run(pt, 1e-10, ctol / DAY, cfg.long_run_max_periods), cfg)
+        if res is not None:
+            row.error = abs(res[0] - pt.E_T) * DAY
+            row.note = f"{res[1]} periods from the energy-balance amplitude at rest"
         rows.append(row)
         log(row)
     if prob in cfg.peer_points:

@@ -138,7 +138,7 @@ def cmd_run(args) -> int:
     from .runner import run_scene  # the runner pulls in the master and fmpy's loaders
 
     summary = run_scene(scene, out, workers=args.workers, scheduler=args.scheduler, progress=not args.no_progress)
-    failed = summary.get("points_failed", 0)
+    failed = (summary or {}).get("points_failed", 0)
     if failed:
         # The other points are in the results; the failures are in summary.json.
         raise SimulationError(f"{failed} of {summary['points_total']} sweep points failed "
