@@ -52,4 +52,15 @@ void cw_rk_dense(const cw_rk *rk, double t, double *x);
 void cw_rk_single_step(int n, cw_rhs f, void *ctx, double t, const double *x,
                        double h, double *x_out);
 
+/* The step of a stateful model: integrate the n states kept in
+ * inst->s[first .. first + n) from inst->time to t_end, with the step-size
+ * suggestion in inst->s[h_slot]. On failure, log why (naming the states)
+ * and return fmi2Discard with inst->s untouched. Declared here, defined in
+ * cw_runtime.c, so that every model reports failures alike. */
+struct cw_instance;
+int cw_integrate(struct cw_instance *inst, const char *model, cw_rhs f, int n,
+                 int first, int h_slot, double t_end, double rtol, double atol,
+                 double h_max, const char *const names[],
+                 cw_rk_observer observer);
+
 #endif

@@ -6,6 +6,7 @@
  * storage, input polynomials, and the versioned FMU state layout described
  * in docs/design.md. */
 #include "cw_runtime.h"
+#include "cw_rk.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -1178,4 +1179,39 @@ fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s,
     cw_log(inst, fmi2Error, "logStatusError",
            "fmi2GetStringStatus: no String status is provided.");
     return fmi2Error;
+}
+
+int cw_integrate(struct cw_instance *inst, const char *model, cw_rhs f, int n,
+                 int first, int h_slot, double t_end, double rtol, double atol,
+                 double h_max, const char *const names[],
+                 cw_rk_observer observer) {
+    cw_rk rk;
+    cw_rk_init(&rk, n, rtol, atol, h_max);
+    double x[CW_RK_MAXN];
+    for (int k = 0; k < n; k++) x[k] = inst->s[first + k];
+    double t = inst->time, h_next = inst->s[h_slot];
+    cw_rk_result res =
+        cw_rk_advance(&rk, f, inst, &t, t_end, x, &h_next, observer, inst);
+    int finite = 1;
+    for (int k = 0; k < n; k++) finite = finite && isfinite(x[k]);
+    if (res != CW_RK_OK || !finite) {
+        char state[256];
+        size_t used = 0;
+        for (int k = 0; k < n && used < sizeof state; k++)
+            used += (size_t)snprintf(state + used, sizeof state - used, "%s%s = %g",
+                                     k ? ", " : "", names[k], x[k]);
+        cw_log(inst, fmi2Discard, "logStatusDiscard",
+               "%s: integration from t = %.17g to %.17g failed (%s) at t = "
+               "%.17g with %s; the step is discarded and the state is "
+               "unchanged.",
+               model, inst->time, t_end,
+               res == CW_RK_STEP_TOO_SMALL   ? "step size underflow"
+               : res == CW_RK_TOO_MANY_STEPS ? "too many internal steps"
+                                             : "non-finite state",
+               t, state);
+        return fmi2Discard;
+    }
+    for (int k = 0; k < n; k++) inst->s[first + k] = x[k];
+    inst->s[h_slot] = h_next;
+    return fmi2OK;
 }

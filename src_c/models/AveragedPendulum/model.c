@@ -117,28 +117,9 @@ static void calc_outputs(cw_instance *inst) {
 }
 
 static fmi2Status do_step(cw_instance *inst, double t_end) {
-    cw_rk rk;
-    cw_rk_init(&rk, 2, R(rtol), R(atol), R(h_max));
-    double x[2] = {inst->s[S_LAM2], inst->s[S_DEV]};
-    double t = inst->time, h_next = inst->s[S_H_NEXT];
-    cw_rk_result res =
-        cw_rk_advance(&rk, rhs, inst, &t, t_end, x, &h_next, NULL, NULL);
-    if (res != CW_RK_OK || !isfinite(x[0]) || !isfinite(x[1])) {
-        cw_log(inst, fmi2Discard, "logStatusDiscard",
-               "AveragedPendulum: integration from t = %.17g to %.17g failed "
-               "(%s) at t = %.17g with lambda^2 = %g rad^2, psi - omega0 t = "
-               "%g rad; the step is discarded and the state is unchanged.",
-               inst->time, t_end,
-               res == CW_RK_STEP_TOO_SMALL   ? "step size underflow"
-               : res == CW_RK_TOO_MANY_STEPS ? "too many internal steps"
-                                             : "non-finite state",
-               t, x[0], x[1]);
-        return fmi2Discard;
-    }
-    inst->s[S_LAM2] = x[0];
-    inst->s[S_DEV] = x[1];
-    inst->s[S_H_NEXT] = h_next;
-    return fmi2OK;
+    static const char *const names[] = {"lambda^2", "psi - omega0 t"};
+    return (fmi2Status)cw_integrate(inst, "AveragedPendulum", rhs, 2, S_LAM2, S_H_NEXT, t_end,
+                                    R(rtol), R(atol), R(h_max), names, NULL);
 }
 
 const cw_model CW_MODEL = {
