@@ -806,10 +806,10 @@ def run_peer(cfg: BenchConfig, tool: str, ssp: Path, steps: int, step: float, na
 class PeerRunner:
     """Peers in subprocesses, repeated like clockwork's rows when short."""
 
-    def __init__(self, cfg: BenchConfig, work: Path, log):
-        self.cfg, self.work, self.log = cfg, work, log
+    def __init__(self, cfg: BenchConfig, work: Path):
+        self.cfg, self.work = cfg, work
 
-    def run(self, row: Row, tool: str, kind: str, ssp: Path, steps: int, step: float, names: list[str]):
+    def run(self, row: Row, tool: str, ssp: Path, steps: int, step: float, names: list[str]):
         reason = tool_available(tool)
         if reason is not None:
             row.status = reason
@@ -933,7 +933,7 @@ def _steady_peers(cfg: BenchConfig, pt: SteadyPoint, peers: PeerRunner, log) -> 
                     row.status = f"export failed: {type(e).__name__}: {e}"
                     log(row)
                     continue
-            res = peers.run(row, tool, "steady", ssp, steps, step, ["pendulum.tick_time"])
+            res = peers.run(row, tool, ssp, steps, step, ["pendulum.tick_time"])
             if res is not None:
                 ticks = _ticks(res["pendulum.tick_time"])
                 if len(ticks) < n + 1:
@@ -1026,7 +1026,7 @@ def bench_chaos(cfg: BenchConfig, peers: PeerRunner, log) -> tuple[list[Row], di
                     ssp = export_scene(peers.work / f"chaos_h{step:g}.toml",
                                        scene_toml("bench chaos", comps, GRASSHOPPER_LINKS + VIBRATION_LINKS,
                                                   step, steps * step))
-                res = peers.run(row, tool, "chaos", ssp, steps, step, names)
+                res = peers.run(row, tool, ssp, steps, step, names)
                 if res is None:
                     return None
                 t = np.asarray(res["time"])
@@ -1237,7 +1237,7 @@ def summarize_targets(rows: list[Row], targets: dict) -> list[dict]:
                                         "ratio": fastest.wall_s / best.wall_s if best else math.nan}
             else:
                 bestp = min(peer_rows, key=lambda r: r.error)
-                est = _extrapolate(peer_rows)
+                est = _extrapolate(peer_rows) if tool in PEER_MODULES else None
                 entry["peers"][tool] = {"reaches": False, "row": bestp, "estimate": est}
         out.append(entry)
     return out
@@ -1247,7 +1247,7 @@ def _extrapolate(peer_rows: list[Row]) -> dict | None:
     """Error ~ C h^p from the two finest fixed steps: the step and the wall
     time (~1/h) that 1e-3 s/day would take."""
     rs = sorted((r for r in peer_rows if r.step_s), key=lambda r: r.step_s)
-    if len(rs) < 2 or rs[0].error <= 0 or rs[1].error <= 0:
+    if len(rs) < 2 or rs[0].error <= 0 or rs[1].error <= 0 or rs[0].step_s == rs[1].step_s:
         return None
     a, b = rs[0], rs[1]
     p = math.log(b.error / a.error) / math.log(b.step_s / a.step_s)
@@ -1417,7 +1417,7 @@ def run_bench(out: Path, cfg: BenchConfig | None = None, progress: bool = True, 
         log("the reference does not pass its checks: errors below are measured against it anyway, see bench.md")
     targets: dict = {}
     if not checks_only:
-        peers = PeerRunner(cfg, work, log)
+        peers = PeerRunner(cfg, work)
         for key, pt in points.items():
             log(f"{key}: torque {pt.params.torque:.6g} N.m, E_T {pt.E_T * DAY:.6f} s/day")
             if "build_s" not in info:

@@ -43,7 +43,6 @@ from .graph import Link, Wiring, build
 
 _ORDER_ONE = (c_int * 1)(1)
 _ORDER_TWO = (c_int * 1)(2)
-_RATE_BUFFER = (c_double * 1)()
 
 
 @dataclass
@@ -179,6 +178,7 @@ class Master:
         self._z_sources = self._indicator_sources()
         self._z_sources_any = any(x is not None for x in self._z_sources)
         self._sample_countdown = 0
+        self._rate_buffer = (c_double * 1)()
         self._reset_soft_state()
         # After a step, only feedthrough outputs need an update at t + h;
         # a dynamic instance's own inputs are set when its next step starts.
@@ -776,9 +776,8 @@ class Master:
             return None
         return (src.out[pos], rate), src, pos, inst, vr
 
-    @staticmethod
-    def _output_rate(inst: Instance, vr, order: int = 1) -> float | None:
-        out = _RATE_BUFFER
+    def _output_rate(self, inst: Instance, vr, order: int = 1) -> float | None:
+        out = self._rate_buffer  # per master: masters may run in threads
         orders = _ORDER_ONE if order == 1 else _ORDER_TWO
         if inst.c_getOutputDerivatives(inst.component, vr, 1, orders, out) > WARNING:
             return None

@@ -61,6 +61,21 @@ def build_system(scene, point: dict | None = None, record: dict[str, list[str]] 
                   record=record, start_time=start, model_descriptions=mds)
 
 
+_CODE_DIGEST: str | None = None
+
+
+def _code_digest() -> str:
+    """Hash of the package's own sources: a changed master must not reuse
+    results cached by an older one."""
+    global _CODE_DIGEST
+    if _CODE_DIGEST is None:
+        h = hashlib.sha256()
+        for f in sorted(Path(__file__).resolve().parent.rglob("*.py")):
+            h.update(f.read_bytes())
+        _CODE_DIGEST = h.hexdigest()[:16]
+    return _CODE_DIGEST
+
+
 def point_key(scene, point: dict) -> str:
     """Content address of a sweep point's result."""
     blob = {
@@ -72,6 +87,7 @@ def point_key(scene, point: dict) -> str:
         "analysis": scene.analysis,
         "record": [list(scene.record.outputs), scene.record.interval, scene.record.ticks],
         "version": __version__,
+        "code": _code_digest(),
     }
     text = json.dumps(blob, sort_keys=True, default=repr)
     return hashlib.sha256(text.encode()).hexdigest()[:24]

@@ -117,8 +117,7 @@ def test_a_missing_tool_is_a_row(monkeypatch, tmp_path):
     assert B.tool_available("nosuchtool").startswith("not installed")
     assert B.tool_available("fmpy") is None  # fmpy is a dependency
     row = B.Row("p", "f", "nosuchtool", "x")
-    assert B.PeerRunner(_tiny(), tmp_path, print).run(row, "nosuchtool", "steady", tmp_path / "x.ssp", 1, 0.01,
-                                                      ["a.b"]) is None
+    assert B.PeerRunner(_tiny(), tmp_path).run(row, "nosuchtool", tmp_path / "x.ssp", 1, 0.01, ["a.b"]) is None
     assert row.status.startswith("not installed")
 
 
