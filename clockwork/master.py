@@ -80,11 +80,13 @@ class _Port:
     def __init__(self, inst: Instance, inputs: list[str], outputs: list[str], indicators: list[str]):
         self.inst = inst
         self.comp = inst.component
-        self.out_names = outputs + [z for z in indicators if z not in outputs]
+        # Indicators come last (read twice if also an output), so that the
+        # master takes them all with one slice of `out`.
+        self.out_names = outputs + indicators
         self.n_out = len(self.out_names)
         self.out_vr = (c_uint * max(1, self.n_out))(*[inst.variables[n].vr for n in self.out_names])
-        self.out = (c_double * max(1, self.n_out))()
-        self.z_pos = [self.out_names.index(z) for z in indicators]
+        self.out = (c_double * max(1, self.n_out))()  # rebound by the Master into its one buffer
+        self.z_pos = list(range(len(outputs), self.n_out))
         self.in_names = inputs
         self.n_in = len(inputs)
         self.in_vr = (c_uint * max(1, self.n_in))(*[inst.variables[n].vr for n in inputs])
@@ -153,6 +155,13 @@ class Master:
             n: (inst.event_indicators if s.event_location else []) for n, inst in instances.items()
         }
         self.ports = {n: _Port(inst, inputs[n], outputs[n], indicators[n]) for n, inst in instances.items()}
+        # All outputs live in one buffer: the divergence check is one pass.
+        self._outputs = (c_double * sum(max(1, p.n_out) for p in self.ports.values()))()
+        offset = 0
+        for p in self.ports.values():
+            n = max(1, p.n_out)
+            p.out = (c_double * n).from_buffer(self._outputs, offset * 8)
+            offset += n
         for link in links:
             dst, src = self.ports[link.dst], self.ports[link.src]
             dst.sources.append((dst.in_names.index(link.input), src, src.out_names.index(link.output)))
@@ -163,13 +172,15 @@ class Master:
         self._order = [self.ports[n] for n in w.evaluation_order]
         self._first_in_order = [p for p in self._order if p in self._first]
         self._indicator_ports = [p for p in self.ports.values() if p.z_pos]
+        self._z_spans = [(p.z_pos[0], p.z_pos[-1] + 1, p.out) for p in self._indicator_ports]
         self._all = list(self.ports.values())
         self._history = {p.inst.name: _History() for p in self._dynamic}
         self._deriv_sources = self._derivative_sources() if s.extrapolation else {}
         self._z_start: list[float] = []
         self._z_end: list[float] = []
-        self._last_dz: list[float] = []
-        self._last_h = s.step
+        # Time until the nearest indicator reaches zero at its last rate of
+        # change, s; 0 = unknown (after an event), so the next step checks.
+        self._time_to_zero = 0.0
         self.on_step = None  # optional callback(master) after each accepted step
         self._needs_rollback = s.iterations > 0 or s.richardson
         self._locating = bool(s.event_location and self._indicator_ports)
@@ -220,7 +231,7 @@ class Master:
         forget the past, and the next step takes a fresh checkpoint so that a
         replay never reaches back across the change."""
         self._after_event = True
-        self._last_dz = []
+        self._time_to_zero = 0.0
         for hist in self._history.values():
             hist.times.clear()
             hist.values.clear()
@@ -237,7 +248,7 @@ class Master:
         self._src_amp = [(0.0, 0.0)] * len(self._z_sources)
         self._z_seen = [None] * len(self._z_sources)
         self._event_step_cap = math.inf
-        self._du_end_cache = [None] * len(self._z_sources)
+        self._du_end_cache = {}  # indicator -> d(source)/dt at the step end
         self._stale_sources = False
         self._record_history()
 
@@ -375,13 +386,17 @@ class Master:
                 del hist.times[0], hist.values[0]
 
     def _indicators(self) -> list[float]:
-        return [p.out[k] for p in self._indicator_ports for k in p.z_pos]
+        if len(self._z_spans) == 1:
+            a, b, out = self._z_spans[0]
+            return out[a:b]
+        z = []
+        for a, b, out in self._z_spans:
+            z += out[a:b]
+        return z
 
     def _advance(self, t: float, h: float, coupling: dict | None = None) -> None:
         """One communication step from t to t + h of every instance."""
         t_new = t + h
-        if self._z_sources_any:
-            self._du_end_cache = [None] * len(self._z_sources)
         for p in self._first:
             st = p.doStep(p.comp, t, h, 0)
             if st > WARNING:
@@ -391,8 +406,7 @@ class Master:
                 p.getReal(p.comp, p.out_vr, p.n_out, p.out)
         if self._locating:
             # Without a commit of a new mode, z at t+ is z at t.
-            self._z_start = ([p.out[k] for p in self._indicator_ports for k in p.z_pos]
-                             if self._after_event else self._z_end)
+            self._z_start = self._indicators() if self._after_event else self._z_end
         jacobi = self._jacobi
         dynamic = self._dynamic
         if jacobi:
@@ -432,7 +446,11 @@ class Master:
                     raise p.inst.fail("fmi2GetReal", st, t_new)
             p.out_time = t_new
         if self._locating:
-            self._z_end = [p.out[k] for p in self._indicator_ports for k in p.z_pos]
+            if len(self._z_spans) == 1:
+                a, b, out = self._z_spans[0]
+                self._z_end = out[a:b]
+            else:
+                self._z_end = self._indicators()
 
     @staticmethod
     def _step_failure(p: _Port, st: int, t: float, h: float) -> SimulationError:
@@ -451,6 +469,8 @@ class Master:
         for p in self._all:
             p.inst.restore_state()
             p.sent_valid = False
+        if self._du_end_cache:
+            self._du_end_cache = {}
         self.stats.rollbacks += 1
 
     def _soft_state(self) -> tuple:
@@ -459,13 +479,11 @@ class Master:
             self.t,
             {n: (list(h.times), [list(v) for v in h.values]) for n, h in self._history.items()},
             self._after_event,
-            list(self._last_dz),
-            self._last_h,
+            self._time_to_zero,
         )
 
     def _restore_soft_state(self, snap: tuple) -> None:
-        self._z_end, self.t, hist, self._after_event, dz, self._last_h = snap
-        self._last_dz = list(dz)
+        self._z_end, self.t, hist, self._after_event, self._time_to_zero = snap
         for n, (times, values) in hist.items():
             self._history[n].times[:] = times
             self._history[n].values[:] = [list(v) for v in values]
@@ -476,6 +494,23 @@ class Master:
     @staticmethod
     def _crossed(z0: float, z1: float) -> bool:
         return (z0 > 0.0 and z1 <= 0.0) or (z0 < 0.0 and z1 >= 0.0)
+
+    @staticmethod
+    def _scan(z0: list[float], z1: list[float], h: float) -> float:
+        """-1 when an indicator changed sign over the step of h s; else the
+        time, s, until the nearest one would reach zero at its rate over the
+        step, in either direction (a turn-around is also a risk)."""
+        steps = math.inf
+        for a, b in zip(z0, z1):
+            if (a > 0.0 and b <= 0.0) or (a < 0.0 and b >= 0.0):
+                return -1.0
+            dist = abs(b)
+            if dist <= 1e-15:
+                return 0.0
+            change = abs(b - a)
+            if dist < steps * change:
+                steps = dist / change
+        return steps * h
 
     def step(self, h: float) -> float:
         """Advance by at most h (less when an event is located). Returns the step taken."""
@@ -489,17 +524,11 @@ class Master:
         self._after_event_step = False
         needs_rollback = self._needs_rollback
         locating = self._locating
-        near = False  # could an indicator reach zero in this step?
-        if locating:
-            if self._after_event or not self._last_dz:
-                near = True
-            else:
-                # Conservative: could z reach 0 at 4x the last step's rate of change?
-                scale = 4.0 * h / self._last_h
-                for zi, dzi in zip(self._z_end, self._last_dz):
-                    if abs(zi) <= scale * abs(dzi) + 1e-15:
-                        near = True
-                        break
+        if self._du_end_cache:
+            self._du_end_cache = {}
+        # Could an indicator reach zero in this step? Conservative: at 4x
+        # the last step's rate of change.
+        near = locating and (self._after_event or self._time_to_zero <= 4.0 * h)
         # A checkpoint also bounds how far back a replay must go.
         possible = near or (locating and len(self._since_checkpoint) >= self.MAX_REPLAY_STEPS)
         if near and self._stale_sources:
@@ -510,20 +539,17 @@ class Master:
             self._save_all()
             self._checkpoint = self._soft_state()
             self._since_checkpoint = []
-        if s.richardson:
-            h = self._richardson_step(t, h)
-        elif s.iterations > 0:
-            self._coupled_step(t, h)
-        else:
+        if not needs_rollback:
             self._advance(t, h)
+        elif s.richardson:
+            h = self._richardson_step(t, h)
+        else:
+            self._coupled_step(t, h)
         taken = h
         if locating:
             z0, z1 = self._z_start, self._z_end
-            hit = False
-            for a, b in zip(z0, z1):
-                if (a > 0.0 and b <= 0.0) or (a < 0.0 and b >= 0.0):
-                    hit = True
-                    break
+            time_to_zero = self._scan(z0, z1, h)
+            hit = time_to_zero < 0.0
             if not hit and self._z_sources_any and near:
                 hidden = self._hidden_crossing(h, z0, z1)
                 if hidden is not None:
@@ -536,7 +562,8 @@ class Master:
                     self._advance(t, hidden)
                     self.stats.event_iterations += 1
                     z0, z1 = self._z_start, self._z_end
-                    hit = any((a > 0.0 and b <= 0.0) or (a < 0.0 and b >= 0.0) for a, b in zip(z0, z1))
+                    time_to_zero = self._scan(z0, z1, hidden)
+                    hit = time_to_zero < 0.0
                     if hit:
                         h = hidden
                         possible = near = True
@@ -545,6 +572,7 @@ class Master:
                         self._restore_soft_state(self._checkpoint)
                         self._advance(t, h)
                         z0, z1 = self._z_start, self._z_end
+                        time_to_zero = self._scan(z0, z1, h)
             if hit:
                 crossed = [(a > 0.0 and b <= 0.0) or (a < 0.0 and b >= 0.0) for a, b in zip(z0, z1)]
                 z0, z1 = list(z0), list(z1)
@@ -552,12 +580,10 @@ class Master:
                     self._replay_to(t)
                     self._advance(t, h)  # back at t + h, now with a checkpoint at t
                 taken = self._locate(t, h, crossed, z0, z1)
-                self._last_dz = []
-                self._last_h = taken
+                self._time_to_zero = 0.0
                 self._since_checkpoint.append(self.t - self._located_from)
             else:
-                self._last_dz = [b - a for a, b in zip(z0, z1)]
-                self._last_h = taken
+                self._time_to_zero = time_to_zero
                 self._since_checkpoint.append(taken)
         if self._z_sources_any:
             # Sources are sampled where a crossing is near, and now and then
@@ -571,7 +597,8 @@ class Master:
                 self._stale_sources = True
         self._after_event = self._after_event_step
         self.stats.steps += 1
-        self._check_finite()
+        if not sum(map(abs, self._outputs)) < self.settings.divergence_limit:  # NaN fails too
+            self._check_finite()
         if self._extrapolating:
             self._record_history()
         if self.on_step is not None:
@@ -706,7 +733,7 @@ class Master:
                 mem.append(None)
                 continue
             src, pos, inst, vr = info
-            du = self._du_end_cache[k]
+            du = self._du_end_cache.get(k)
             if du is None:
                 du = self._output_rate(inst, vr)
             u = src.out[pos]
@@ -729,7 +756,7 @@ class Master:
                     cap = min(cap, 0.2 * 2 * math.pi / omega)
         self._z_src_prev = mem
         self._event_step_cap = cap
-        self._du_end_cache = [None] * len(self._z_sources)
+        self._du_end_cache = {}
 
     def _hidden_crossing(self, h: float, z0: list[float], z1: list[float]) -> float | None:
         """Offset of an indicator's extremum inside the step, when its Hermite
@@ -830,8 +857,10 @@ class Master:
             self._restore_all()
             self._restore_soft_state(self._checkpoint)
             self._advance(t, 0.5 * h)
+            z_start = self._z_start  # the indicators must span the whole step
             self._record_history()
             self._advance(t + 0.5 * h, 0.5 * h)
+            self._z_start = z_start
             half = self._dynamic_outputs()
             err = max(
                 (abs(a - b) / (s.richardson_tolerance * (1.0 + abs(b))) for a, b in zip(full, half)),
@@ -860,8 +889,10 @@ class Master:
 
     def _check_finite(self) -> None:
         limit = self.settings.divergence_limit
+        # One pass over all outputs (NaN fails the test); the search only on failure.
+        if sum(map(abs, self._outputs)) < limit:
+            return
         for p in self._all:
-            # One C-level pass per instance; the detailed search only on failure.
             if sum(map(abs, p.out)) < limit:
                 continue
             out = p.out
