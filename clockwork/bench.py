@@ -403,6 +403,9 @@ def hoyng_reference(h: Hoyng, rtol: float = reference.RTOL) -> np.ndarray:
     return ticks
 
 
+TWIN_DPHI = 1e-6 * DEG  # the twins' initial difference, rad (Z Fig. 10b)
+
+
 @dataclass(frozen=True)
 class Chaos:
     """Ziemkiewicz Sec. VIII: gamma1 = pi/500 (Q ~ 500), gamma2 = gamma1/100,
@@ -439,6 +442,19 @@ class Chaos:
         n = int(math.floor(self.t_end / self.sample + 1e-9))
         return self.sample * np.arange(n + 1)
 
+    def lambda2(self, t_grid, run: dict, twin: dict) -> float:
+        """Ziemkiewicz's lambda2 over the whole run (1/s): the least-squares
+        slope of ln d2 over [0, t_end], d2 the twins' distance in the
+        mechanism's phase space (analyses/chaos.py, Fig. 10b)."""
+        from .analyses.chaos import running_exponent
+
+        d2 = np.hypot(run["a2_series"] - twin["a2_series"],
+                      (run["a2dot_series"] - twin["a2dot_series"]) / self.vibration()["omega02"])
+        lam = running_exponent(np.asarray(t_grid), d2)
+        if not np.isfinite(lam[-1]):
+            raise SimulationError("bench: the twins did not part: no lambda2")
+        return float(lam[-1])
+
     def statistics(self, ticks, t_grid, a2) -> dict:
         """Mean rate (s/day, positive: slow) from the ticks in the window, rms of a2 (rad)."""
         ticks = np.asarray(ticks)
@@ -453,9 +469,17 @@ class Chaos:
 
 
 def chaos_reference(c: Chaos, rtol: float = reference.RTOL, dphi: float = 0.0) -> dict:
+    """Statistics, and the a2, a2dot samples (``*_series``) for lambda2."""
     r = reference.simulate(c.params(), c.phi_start + dphi, 0.0, c.t_end, dense=True, rtol=rtol, atol=_atol(rtol))
     t = c.grid()
-    return c.statistics(r.ticks, t, r.sol(t)[2])
+    y = r.sol(t)
+    stats = c.statistics(r.ticks, t, y[2])
+    stats["a2_series"], stats["a2dot_series"] = y[2], y[3]
+    return stats
+
+
+def _public(stats: dict) -> dict:
+    return {k: v for k, v in stats.items() if not k.endswith("_series")}
 
 
 # --- reference checks ---------------------------------------------------------
@@ -656,31 +680,34 @@ def master_hoyng(h: Hoyng, fam: Family, step: float, rtol: float, extra: dict) -
     return ticks[h.ticks - 1]
 
 
-def master_chaos(c: Chaos, fam: Family, step: float, rtol: float, extra: dict) -> dict:
+def master_chaos(c: Chaos, fam: Family, step: float, rtol: float, extra: dict, dphi: float = 0.0) -> dict:
     vib = dict(c.vibration(), inertia=1.0, rtol=rtol, atol=_atol(rtol))
-    comps = {"pendulum": ("Pendulum", dict(L=1.0, m=1.0, g=9.81, Q=c.Q, phi_start=c.phi_start, w_start=0.0,
+    comps = {"pendulum": ("Pendulum", dict(L=1.0, m=1.0, g=9.81, Q=c.Q, phi_start=c.phi_start + dphi, w_start=0.0,
                                            rtol=rtol, atol=_atol(rtol))),
              "escapement": ("GrasshopperEscapement", dict(torque=c.torque, phi_r=2 * DEG)),
              "vibration": ("MechanismVibration", vib)}
     links = GRASSHOPPER_LINKS + VIBRATION_LINKS
     t_grid = c.grid()
-    a2 = np.empty(len(t_grid))
+    a2, a2dot = np.empty(len(t_grid)), np.empty(len(t_grid))
     ticks = []
     with _system(comps, links, _settings(fam, step, extra),
-                 {"pendulum": ["tick_time"], "vibration": ["a2"]}) as s:
+                 {"pendulum": ["tick_time"], "vibration": ["a2", "a2dot"]}) as s:
         m = s.master
         pp, vp = m.ports["pendulum"], m.ports["vibration"]
-        i_tick, i_a2 = pp.out_names.index("tick_time"), vp.out_names.index("a2")
+        i_tick, i_a2, i_v2 = (pp.out_names.index("tick_time"), vp.out_names.index("a2"),
+                              vp.out_names.index("a2dot"))
         last = pp.out[i_tick]
-        a2[0] = vp.out[i_a2]
+        a2[0], a2dot[0] = vp.out[i_a2], vp.out[i_v2]
         for k in range(1, len(t_grid)):  # a sample interval is far shorter than a period: one tick at most
             m.run_until(t_grid[k])
-            a2[k] = vp.out[i_a2]
+            a2[k], a2dot[k] = vp.out[i_a2], vp.out[i_v2]
             tt = pp.out[i_tick]
             if tt != last:
                 last = tt
                 ticks.append(tt)
-    return c.statistics(ticks, t_grid, a2)
+    stats = c.statistics(ticks, t_grid, a2)
+    stats["a2_series"], stats["a2dot_series"] = a2, a2dot
+    return stats
 
 
 def _try(row: Row, fn, cfg: BenchConfig):
@@ -982,13 +1009,17 @@ def bench_chaos(cfg: BenchConfig, peers: PeerRunner, log) -> tuple[list[Row], di
     ref = chaos_reference(c)
     ref_wall = time.perf_counter() - t0
     # The statistics' own scatter: the reference from an angle 1e-6 deg larger (Z Fig. 10b).
-    other = chaos_reference(c, dphi=1e-6 * DEG)
+    # The twin 1e-6 deg higher (Z Fig. 10b) gives the statistics' own scatter
+    # and, with the reference, the reference's lambda2.
+    other = chaos_reference(c, dphi=TWIN_DPHI)
     floor = {"rate_s_per_day": abs(other["rate_s_per_day"] - ref["rate_s_per_day"]),
              "a2_rms_relative": abs(other["a2_rms"] / ref["a2_rms"] - 1.0)}
-    info = {"reference": ref, "wall_s": ref_wall, "floor": floor, "t_end_s": c.t_end, "transient_s": c.transient}
+    lambda2_ref = c.lambda2(c.grid(), ref, other)
+    info = {"reference": _public(ref), "wall_s": ref_wall, "floor": floor, "t_end_s": c.t_end,
+            "transient_s": c.transient, "lambda2_reference_per_s": lambda2_ref}
     rows = []
 
-    def add(fam_name, tool, label, step, rtol, fn, note=""):
+    def add(fam_name, tool, label, step, rtol, fn, note="", twin_fn=None):
         r1 = Row("chaos_rate", fam_name, tool, label, unit="s/day", step_s=step, rtol=rtol, note=note)
         stats = fn(r1)
         r2 = dataclasses.replace(r1, problem="chaos_a2rms", unit="relative")
@@ -999,15 +1030,33 @@ def bench_chaos(cfg: BenchConfig, peers: PeerRunner, log) -> tuple[list[Row], di
         else:
             r2.status, r2.note = r1.status, r1.note
         rows.extend([r1, r2])
+        if twin_fn is not None:
+            # lambda2 needs the twin run too: its wall time is both runs'.
+            r3 = dataclasses.replace(r1, problem="chaos_lambda2", unit="1/s", error=math.nan, wall_s=math.nan)
+            if stats is not None:
+                twin = twin_fn(r3)
+                if twin is not None:
+                    try:
+                        lam = c.lambda2(c.grid(), stats, twin)
+                        r3.error = abs(lam - lambda2_ref)
+                        r3.note = f"lambda2 = {lam:.4g} 1/s"
+                        r3.wall_s = r1.wall_s + r3.wall_s
+                    except SimulationError as e:
+                        r3.status = str(e)
+            else:
+                r3.status = r1.status
+            rows.append(r3)
         log(r1)
 
     for fam in cfg.chaos_families:
         for step, rtol, extra in fam.points:
             add(fam.name, "clockwork", _label(step, rtol, extra), step, rtol,
-                lambda row: _try(row, lambda: master_chaos(c, fam, step, rtol, extra), cfg))
+                lambda row: _try(row, lambda: master_chaos(c, fam, step, rtol, extra), cfg),
+                twin_fn=lambda row: _try(row, lambda: master_chaos(c, fam, step, rtol, extra, TWIN_DPHI), cfg))
     for rtol in cfg.chaos_scipy_rtols:
         add("scipy DOP853 integration", "scipy", f"rtol = {rtol:.0e}", None, rtol,
-            lambda row: _try(row, lambda: chaos_reference(c, rtol=rtol), cfg))
+            lambda row: _try(row, lambda: chaos_reference(c, rtol=rtol), cfg),
+            twin_fn=lambda row: _try(row, lambda: chaos_reference(c, rtol=rtol, dphi=TWIN_DPHI), cfg))
     names = ["pendulum.tick_time", "vibration.a2"]
     for step in cfg.chaos_peer_steps:
         steps = round(c.t_end / step)
@@ -1130,6 +1179,7 @@ PROBLEM_TITLES = {
     "hoyng": ("Hoyng torque jump: time error at tick 1000", "s"),
     "chaos_rate": ("Chaotic clock (Z Sec. VIII): mean-rate error", "s/day"),
     "chaos_a2rms": ("Chaotic clock (Z Sec. VIII): a2 rms error", "relative"),
+    "chaos_lambda2": ("Chaotic clock (Z Sec. VIII): lambda2 error (twin runs)", "1/s"),
 }
 CSV_FIELDS = ["problem", "family", "tool", "label", "step_s", "rtol", "error", "unit", "wall_s", "repeats",
               "status", "note"]
@@ -1291,7 +1341,10 @@ def write_markdown(path: Path, cfg: BenchConfig, rows: list[Row], checks: list[d
               f"{ref['rate_s_per_day']:.6g} s/day over {ref['ticks']} ticks, a2 rms {ref['a2_rms']:.6g} rad; "
               f"{ch['wall_s']:.1f} s wall. Statistics floor (the same reference from 1e-6 deg more): "
               f"{ch['floor']['rate_s_per_day']:.2g} s/day, {ch['floor']['a2_rms_relative']:.2g} relative in the "
-              f"a2 rms. Errors at or below the floor mean the trajectory is followed.", ""]
+              f"a2 rms. Errors at or below the floor mean the trajectory is followed. lambda2 of the reference "
+              f"twins (1e-6 deg apart, fitted over [0, {ch['t_end_s']:g}] s): "
+              f"{ch['lambda2_reference_per_s']:.4g} 1/s; the lambda2 rows run the twin too and are not "
+              f"measured for the peers.", ""]
     if targets:
         L += ["## Targets", ""]
         L += _targets_md(targets)

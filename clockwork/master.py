@@ -216,7 +216,13 @@ class Master:
         self.t = self.start_time
         self._reset_soft_state()
         self._z_end = self._indicators()
-        self._z_seen = list(self._z_end)
+        if self._z_sources_any:
+            # The sources' time scale caps the very first step too (a first
+            # step over several crossings would hide them). When the start
+            # says nothing (at rest at zero), the first step is short instead.
+            self._remember_indicator_sources()
+            if self._event_step_cap == math.inf:
+                self._z_src_prev = None
 
     def reinitialize(self, parameters: dict[str, dict[str, object]]) -> None:
         """fmi2Reset every instance and initialize again (shooting uses this)."""

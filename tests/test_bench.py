@@ -73,7 +73,7 @@ def test_bench_plumbing_on_a_tiny_configuration(tmp_path):
         assert reader.fieldnames == B.CSV_FIELDS
         rows = list(reader)
     problems = {r["problem"] for r in rows}
-    assert problems == {"fig4a_5deg", "hoyng", "chaos_rate", "chaos_a2rms"}
+    assert problems == {"fig4a_5deg", "hoyng", "chaos_rate", "chaos_a2rms", "chaos_lambda2"}
     mine = [r for r in rows if r["tool"] in ("clockwork", "scipy")]
     for r in mine:
         assert r["status"] == "ok", r
@@ -83,6 +83,10 @@ def test_bench_plumbing_on_a_tiny_configuration(tmp_path):
     err = {r["family"]: float(r["error"]) for r in rows if r["problem"] == "fig4a_5deg" and r["tool"] == "clockwork"}
     assert err[B.DEFAULT_FAMILY] < 1e-3
     assert err["events not located"] > 10 * err[B.DEFAULT_FAMILY]
+    # lambda2 from twin runs 1e-6 deg apart (0.15 1/s over these 10 s): the
+    # co-simulated twins follow the reference's to a few percent.
+    (lam,) = [r for r in rows if r["problem"] == "chaos_lambda2"]
+    assert float(lam["error"]) < 0.05 * blob["info"]["chaos"]["lambda2_reference_per_s"], lam
     if peers:
         (peer,) = [r for r in rows if r["tool"] == "ecos" and r["problem"] == "fig4a_5deg"]
         assert peer["status"] == "ok", peer
