@@ -452,11 +452,7 @@ class Master:
                     raise p.inst.fail("fmi2GetReal", st, t_new)
             p.out_time = t_new
         if self._locating:
-            if len(self._z_spans) == 1:
-                a, b, out = self._z_spans[0]
-                self._z_end = out[a:b]
-            else:
-                self._z_end = self._indicators()
+            self._z_end = self._indicators()
 
     @staticmethod
     def _step_failure(p: _Port, st: int, t: float, h: float) -> SimulationError:
@@ -530,8 +526,6 @@ class Master:
         self._after_event_step = False
         needs_rollback = self._needs_rollback
         locating = self._locating
-        if self._du_end_cache:
-            self._du_end_cache = {}
         # Could an indicator reach zero in this step? Conservative: at 4x
         # the last step's rate of change.
         near = locating and (self._after_event or self._time_to_zero <= 4.0 * h)
@@ -739,15 +733,20 @@ class Master:
                 mem.append(None)
                 continue
             src, pos, inst, vr = info
-            du = self._du_end_cache.get(k)
-            if du is None:
-                du = self._output_rate(inst, vr)
             u = src.out[pos]
-            mem.append((u, du))
             z_now = self._z_end[k] if k < len(self._z_end) else None
             constant = z_now is not None and z_now == self._z_seen[k]
             self._z_seen[k] = z_now
-            if du is not None and not constant:
+            if constant:
+                # An indicator that did not move says nothing about its
+                # source's time scale, and has no hidden crossing to look for.
+                mem.append((u, None))
+                continue
+            du = self._du_end_cache.get(k)
+            if du is None:
+                du = self._output_rate(inst, vr)
+            mem.append((u, du))
+            if du is not None:
                 amp_u, amp_du = self._src_amp[k]
                 amp_u = max(abs(u), 0.999 * amp_u)
                 amp_du = max(abs(du), 0.999 * amp_du)
@@ -894,10 +893,9 @@ class Master:
         return v.causality == "output" and (v.dependencies is None or len(v.dependencies) > 0)
 
     def _check_finite(self) -> None:
+        """Name the output that failed step()'s one-pass test over all outputs
+        (a sum of large but legal outputs can fail it too: then nothing)."""
         limit = self.settings.divergence_limit
-        # One pass over all outputs (NaN fails the test); the search only on failure.
-        if sum(map(abs, self._outputs)) < limit:
-            return
         for p in self._all:
             if sum(map(abs, p.out)) < limit:
                 continue
