@@ -27,9 +27,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from clockwork import analytic  # noqa: E402
-from clockwork.master import MasterSettings  # noqa: E402
-from clockwork.system import System  # noqa: E402
+from clockwork.physics import analytic  # noqa: E402
+from clockwork.engine import MasterSettings  # noqa: E402
+from clockwork.engine import System  # noqa: E402
 
 TWO_PI = 2.0 * math.pi
 EPS, MU0, PHI0 = 1.167245e-4, 1.5e-5, 0.03

@@ -30,8 +30,9 @@ sys.path.insert(0, str(ROOT))
 from fmpy import extract, read_model_description  # noqa: E402
 from fmpy.fmi2 import FMU2Slave  # noqa: E402
 
-from clockwork.master import MasterSettings  # noqa: E402
-from clockwork.system import System, fmu_path  # noqa: E402
+from clockwork.engine import MasterSettings  # noqa: E402
+from clockwork.engine import System
+from clockwork.engine.description import resolve_fmu as fmu_path  # noqa: E402
 
 LINKS = ["pendulum.phi -> escapement.phi", "pendulum.w -> escapement.w",
          "escapement.tau -> pendulum.tau_escapement"]

@@ -42,11 +42,12 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from clockwork import analytic, reference  # noqa: E402
+from clockwork.physics import analytic, reference  # noqa: E402
 from clockwork.errors import SimulationError  # noqa: E402
-from clockwork.master import MasterSettings  # noqa: E402
-from clockwork.steady import Shooter, energy_balance_amplitude, find_steady_state  # noqa: E402
-from clockwork.system import System  # noqa: E402
+from clockwork.engine import MasterSettings  # noqa: E402
+from clockwork.analyses.steady_state import energy_balance_amplitude, find_steady_state
+from clockwork.engine.shooting import Shooter  # noqa: E402
+from clockwork.engine import System  # noqa: E402
 
 G = 9.81  # m/s^2
 OMEGA01 = math.sqrt(G)  # rad/s, pendulum of L = 1 m
@@ -440,7 +441,7 @@ def torque_for_amplitude(amplitude: float, phi_r: float, Q: float, L: float = 1.
 
 def clock_steady_state(Q: float, torque: float, phi_r: float, step: float = 0.5,
                        tolerance_s_per_day: float = 1e-4, rtol: float = 1e-11, atol: float = 1e-13):
-    """Co-simulated periodic orbit (clockwork.steady shooting)."""
+    """Co-simulated periodic orbit (clockwork.engine.shooting)."""
     pp = dict(L=1.0, m=1.0, g=G, Q=Q, rtol=rtol, atol=atol)
     esc = dict(torque=torque, phi_r=phi_r)
     with clock_system(pp, esc, MasterSettings(step=step)) as s:
@@ -458,7 +459,7 @@ def reference_steady_state(Q: float, torque: float, phi_r: float):
 
 def free_period(amplitude: float, periods: int = 10, step: float = 0.05, escapement: bool = False) -> dict:
     """Mean period of the undamped pendulum released at `amplitude` (rad), from
-    its tick times, against clockwork.analytic.exact_period. With
+    its tick times, against clockwork.physics.analytic.exact_period. With
     `escapement`, a GrasshopperEscapement with zero torque is wired in (its
     switches are located but push nothing)."""
     pp = dict(L=1.0, m=1.0, g=G, Q=0.0, phi_start=amplitude, rtol=1e-12, atol=1e-14)

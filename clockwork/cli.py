@@ -12,8 +12,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import SceneError, SimulationError, UsageError
-
-REPO = Path(__file__).resolve().parents[1]
+from .paths import REPO
 
 
 class _Parser(argparse.ArgumentParser):
@@ -96,15 +95,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def cmd_bench(args) -> int:
-    from .bench import full_config, quick_config, run_bench
-    from .results import check_output_dir
+    from . import bench
+    from .results.files import check_output_dir
 
     if args.out == "out/bench":
         Path("out").mkdir(exist_ok=True)  # the default's parent
     out = check_output_dir(args.out)
-    cfg = quick_config() if args.quick else full_config()
+    cfg = bench.quick_config() if args.quick else bench.full_config()
     command = "clockwork bench" + (" --quick" if args.quick else "") + f" --out {args.out}"
-    blob = run_bench(out, cfg, progress=not args.no_progress, command=command)
+    blob = bench.run_bench(out, cfg, progress=not args.no_progress, command=command)
     bad = [c["check"] for c in blob["checks"] if not c["ok"]]
     print(f"bench: {len(blob['rows'])} rows in {blob['info']['wall_s']:.0f} s -> {out / 'bench.md'}")
     for name in bad:
@@ -113,8 +112,8 @@ def cmd_bench(args) -> int:
 
 
 def cmd_gallery(args) -> int:
-    from .gallery import run_gallery
-    from .results import check_output_dir
+    from .results.files import check_output_dir
+    from .run.gallery import run_gallery
 
     scenarios = Path(args.scenarios) if args.scenarios else None
     if scenarios is not None and not scenarios.is_dir():
@@ -130,12 +129,12 @@ def cmd_gallery(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from .results import check_output_dir
-    from .scene import load_scene
+    from .results.files import check_output_dir
+    from .run.catalog import load_scene
 
     scene = load_scene(args.scene, args.overrides)
     out = check_output_dir(args.out)
-    from .runner import run_scene  # the runner pulls in the master and fmpy's loaders
+    from .run.scene_run import run_scene
 
     summary = run_scene(scene, out, workers=args.workers, scheduler=args.scheduler, progress=not args.no_progress)
     failed = (summary or {}).get("points_failed", 0)
@@ -147,7 +146,7 @@ def cmd_run(args) -> int:
 
 
 def cmd_validate(args) -> int:
-    from .scene import load_scene
+    from .run.catalog import load_scene
 
     scene = load_scene(args.scene, args.overrides)
     n, m = len(scene.components), len(scene.connections)
@@ -156,7 +155,7 @@ def cmd_validate(args) -> int:
 
 
 def cmd_list(args) -> int:
-    from .scene import load_scene
+    from .run.catalog import load_scene
 
     d = Path(args.dir) if args.dir else REPO / "scenarios"
     if not d.is_dir():
@@ -180,8 +179,8 @@ def cmd_list(args) -> int:
 
 
 def cmd_export_ssp(args) -> int:
-    from .scene import load_scene
-    from .ssp import PARAMETER_SET, export_ssp
+    from .run.catalog import load_scene
+    from .scene.ssp import PARAMETER_SET, export_ssp
 
     scene = load_scene(args.scene, args.overrides)
     out = Path(args.out)
@@ -209,7 +208,7 @@ def cmd_export_ssp(args) -> int:
     print(f"wrote {out}: {n} component{'s' * (n != 1)}, step {scene.master.step:g} s, "
           f"parameter set {PARAMETER_SET!r}")
     if args.container_dir is not None:
-        from .ssp import write_container_description
+        from .scene.ssp import write_container_description
 
         js = write_container_description(scene, args.container_dir, point)
         print(f"wrote {js}: fmucontainer -container {js.name} -fmu-directory {js.parent}")
@@ -223,7 +222,7 @@ def _flag(x) -> str:
 
 
 def cmd_info(args) -> int:
-    from .scene import FmuError, read_fmu, resolve_fmu, var_unit
+    from .engine.description import FmuError, read_fmu, resolve_fmu, var_unit
 
     try:
         path = resolve_fmu(args.fmu, Path.cwd())

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from clockwork import analytic as an
+from clockwork.physics import analytic as an
 
 DEG = math.pi / 180.0
 

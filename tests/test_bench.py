@@ -127,7 +127,7 @@ def test_a_missing_tool_is_a_row(monkeypatch, tmp_path):
 
 def test_ticks_from_a_held_output():
     held = np.array([0.0, 0.0, 1.5, 1.5, 1.5, 3.5, 3.5, 5.5])
-    assert B._ticks(held).tolist() == [1.5, 3.5, 5.5]
+    assert B.tick_times(held).tolist() == [1.5, 3.5, 5.5]
 
 
 def test_cli_bench_quick_calls_the_bench(monkeypatch, tmp_path, capsys):

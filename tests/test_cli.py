@@ -162,7 +162,7 @@ def test_unwritable_output_dir(tmp_path, capsys):
 @pytest.fixture
 def fake_runner(monkeypatch):
     calls = []
-    mod = types.ModuleType("clockwork.runner")
+    mod = types.ModuleType("clockwork.run.scene_run")
 
     def run_scene(scene, out_dir, workers=None, scheduler=None, progress=True):
         calls.append((scene, out_dir, workers, scheduler, progress))
@@ -170,7 +170,7 @@ def fake_runner(monkeypatch):
             raise SimulationError("fmi2DoStep failed", time=0.25, instance="pendulum")
 
     mod.run_scene = run_scene
-    monkeypatch.setitem(sys.modules, "clockwork.runner", mod)
+    monkeypatch.setitem(sys.modules, "clockwork.run.scene_run", mod)
     return calls
 
 
@@ -192,9 +192,9 @@ def test_run_simulation_error_exits_1(tmp_path, capsys, fake_runner):
 
 
 def test_run_real_runner(tmp_path, capsys):
-    runner = pytest.importorskip("clockwork.runner")
+    runner = pytest.importorskip("clockwork.run.scene_run")
     if not hasattr(runner, "run_scene"):
-        pytest.skip("clockwork.runner.run_scene not written yet")
+        pytest.skip("clockwork.run.scene_run.run_scene not written yet")
     f = tmp_path / "tiny.toml"
     f.write_text(TINY.format(fmu="Pendulum"))
     out_dir = tmp_path / "out"
@@ -213,7 +213,7 @@ def test_python_m_clockwork(tmp_path):
 
 
 def test_unwritable_output_dir_simulated(tmp_path, capsys, monkeypatch):
-    from clockwork import results
+    from clockwork.results import files as results
 
     def denied(*args, **kwargs):
         raise PermissionError(13, "Permission denied")

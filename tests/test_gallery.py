@@ -71,7 +71,7 @@ def test_gallery_reports_a_broken_scene_and_goes_on(tmp_path, capsys):
 
 
 def test_gallery_without_quick_runs_in_full(tmp_path):
-    from clockwork.gallery import quick_overrides, run_gallery
+    from clockwork.run.gallery import quick_overrides, run_gallery
 
     scen = tmp_path / "scenarios"
     scen.mkdir()

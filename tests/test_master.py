@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 from scipy.integrate import quad, solve_ivp
 
-from clockwork import analytic, reference
+from clockwork.physics import analytic, reference
 from clockwork.errors import SimulationError
-from clockwork.master import MasterSettings
-from clockwork.steady import Shooter, energy_balance_amplitude, find_steady_state
-from clockwork.system import System
+from clockwork.engine import MasterSettings
+from clockwork.analyses.steady_state import energy_balance_amplitude, find_steady_state
+from clockwork.engine.shooting import Shooter
+from clockwork.engine import System
 
 from cwtest import FMU_DIR
 

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from clockwork import analytic as an
-from clockwork.reference import ClockParams, Vibration, simulate, steady_state
+from clockwork.physics import analytic as an
+from clockwork.physics.reference import ClockParams, Vibration, simulate, steady_state
 
 DEG = math.pi / 180.0
 PHI_R = 2 * DEG

@@ -7,11 +7,11 @@ import os
 import numpy as np
 import pytest
 
-from clockwork import results
+from clockwork.results import files as results
 from clockwork.errors import UsageError
-from clockwork.results import (
+from clockwork.hashing import sha256_file
+from clockwork.results.files import (
     check_output_dir,
-    sha256_file,
     write_csv_atomic,
     write_json_atomic,
     write_text_atomic,

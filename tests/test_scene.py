@@ -13,15 +13,10 @@ import pytest
 
 from cwtest import FMU_DIR, fmu_file
 from clockwork.errors import SceneError
-from clockwork.scene import (
-    ANALYSIS_KEYS,
-    Invalid,
-    load_scene,
-    parse_override,
-    register_analysis,
-    _ANALYSIS_CONVERT,
-)
-from clockwork.units import UnitError, fmt, to_seconds, to_unit, unit_conversions
+from clockwork.analyses.registry import ANALYSIS_KEYS, _ANALYSIS_CONVERT, register_analysis
+from clockwork.run import load_scene
+from clockwork.scene import Invalid, parse_override
+from clockwork.scene.units import UnitError, fmt, to_seconds, to_unit, unit_conversions
 
 DATA = Path(__file__).resolve().parent / "data" / "scenes"
 

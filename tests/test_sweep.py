@@ -11,9 +11,12 @@ from pathlib import Path
 
 import pytest
 
-from clockwork import runner, sweep
-from clockwork.runner import run_scene
-from clockwork.scene import load_scene
+from clockwork.hashing import source_digest
+from clockwork.results import cache
+from clockwork.run import dask as sweep
+from clockwork.run import scene_run as runner
+from clockwork.run import run_scene
+from clockwork.run import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 FMU_DIR = Path(os.environ.get("CW_FMU_DIR", ROOT / "fmus"))
@@ -160,11 +163,11 @@ def test_cache_across_output_dirs(tmp_path, monkeypatch):
 
 def test_cache_off_and_code_namespace(tmp_path, monkeypatch):
     monkeypatch.setenv("CLOCKWORK_CACHE", "off")
-    assert sweep.cache_dir() is None
+    assert cache.cache_dir() is None
     monkeypatch.setenv("CLOCKWORK_CACHE", str(tmp_path))
-    assert sweep.cache_dir() == tmp_path / sweep.code_hash()
-    sweep.cache_store("k", {"error": "x"})
-    assert sweep.cache_load("k") is None  # failures are not cached
+    assert cache.cache_dir() == tmp_path / source_digest()
+    cache.cache_store("k", {"error": "x"})
+    assert cache.cache_load("k") is None  # failures are not cached
 
 
 def _cli(*args):

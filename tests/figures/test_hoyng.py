@@ -4,7 +4,7 @@ Normalized units throughout (L = g = m = 1: omega0 = 1, torque = mu,
 Q = 1/(2 eps), nominal period 2 pi s). Tolerances are stated next to each
 assertion. "Second order" means the size of the terms Hoyng's first-order
 (KBM) equations leave out, (eps + |circular term| + |escapement term|)^2,
-computed per point by the analysis (clockwork.analyses.hoyng._second_order).
+computed per point by the analysis (clockwork.analyses.hoyng.common.second_order).
 """
 
 import json
@@ -15,11 +15,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clockwork import analytic, reference
+from clockwork.physics import analytic, reference
 from clockwork.analyses.hoyng import escapement_noise
 from clockwork.errors import SceneError
-from clockwork.runner import run_point, run_scene
-from clockwork.scene import load_scene
+from clockwork.run import run_point, run_scene
+from clockwork.run import load_scene
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENES = ROOT / "scenarios"
@@ -275,8 +275,8 @@ def test_fig6_replayed_twins_equal_cosimulated_twins():
 
 def test_escapement_noise_replica_is_bit_exact(tmp_path):
     """escapement_noise() against the FMU: drive the escapement's phi through zero crossings."""
-    from clockwork.master import MasterSettings
-    from clockwork.system import System
+    from clockwork.engine import MasterSettings
+    from clockwork.engine import System
 
     sysm = System({"esc": ("GrasshopperEscapement", {"torque": 1.0, "phi_r": 0.03, "noise_rms": 0.3,
                                                      "noise_seed": 7, "noise_start": 0.0})},

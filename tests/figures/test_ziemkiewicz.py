@@ -3,7 +3,7 @@
 Each test runs a few points of a scene in scenarios/ through the same
 analysis code as `clockwork run`, and asserts a number of the paper (with
 the tolerance and its reason next to it), an exact analytic value, or the
-monolithic scipy reference (clockwork.reference). Where our result
+monolithic scipy reference (clockwork.physics.reference). Where our result
 disagrees with the paper, the test pins our number and says so; the scene
 descriptions explain why.
 """
@@ -17,11 +17,12 @@ import numpy as np
 import pytest
 
 from cwtest import FMU_DIR, fmu_file
-from clockwork import analytic, reference
+from clockwork.physics import analytic, reference
 from clockwork.analyses import ziemkiewicz as z
-from clockwork.headlines import HEADLINES, headlines_for
-from clockwork.runner import run_point
-from clockwork.scene import load_scene
+from clockwork.results.plots import ziemkiewicz as zplots
+from clockwork.results.headlines import HEADLINES, headlines_for
+from clockwork.run import run_point
+from clockwork.run import load_scene
 
 SCENES = Path(__file__).resolve().parents[2] / "scenarios"
 DAY = analytic.SECONDS_PER_DAY
@@ -243,9 +244,9 @@ def test_fig5_contour_plot_on_a_small_grid():
     results = [run(sc, **{"escapement.torque": m, "pendulum.Q": q})
                for q in (300.0, 1000.0, 3000.0) for m in (0.0005, 0.002, 0.01)]
     assert results[0]["result"]["stalled"]  # low torque, low Q: no orbit
-    fig = z.plot_contour(sc, results, sc.plots[0])
+    fig = zplots.plot_contour(sc, results, sc.plots[0])
     assert fig is not None and fig.axes[0].collections
-    z._plt.close(fig)
+    zplots.pyplot().close(fig)
 
 
 # -- Fig. 6 ----------------------------------------------------------------------

@@ -3,7 +3,7 @@
 Each test runs a scene of scenarios/ through the analysis code that
 `clockwork run` uses, shortened by overrides, and checks it against the
 paper, a closed form or the monolithic scipy reference
-(clockwork.reference). Eq. (7) as printed is not chaotic in our hands (see
+(clockwork.physics.reference). Eq. (7) as printed is not chaotic in our hands (see
 the scene descriptions of Figs. 9(b) and 10(b)); the tests that pin that
 say so.
 """
@@ -17,10 +17,11 @@ import numpy as np
 import pytest
 
 from cwtest import FMU_DIR, fmu_file
-from clockwork import analytic, reference
-from clockwork.analyses import chaos, run_analysis
-from clockwork.headlines import headlines_for
-from clockwork.scene import load_scene
+from clockwork.physics import analytic, reference
+from clockwork.analyses import run_analysis
+from clockwork.analyses import ziemkiewicz as chaos
+from clockwork.results.headlines import headlines_for
+from clockwork.run import load_scene
 
 SCENES = Path(__file__).resolve().parents[2] / "scenarios"
 DAY = analytic.SECONDS_PER_DAY

@@ -3,7 +3,7 @@
 (A module of its own, not conftest.py: test modules import it by name, and
 tests/conftest.py already owns the name `conftest`.)
 
-Every external tool runs in a subprocess (run_tool.py): a crash in native
+Every external tool runs in a subprocess (clockwork/bench/peer_tool.py): a crash in native
 code (libcosim, ecos) must fail one test, not end pytest.
 """
 
@@ -19,7 +19,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from clockwork.bench import peer_tool
+
 HERE = Path(__file__).resolve().parent
+PEER_TOOL = Path(peer_tool.__file__)
 ROOT = HERE.parents[1]
 FMU_DIR = Path(os.environ.get("CW_FMU_DIR", ROOT / "fmus"))
 SCENES = ["core_grasshopper", "core_grasshopper_drag", "core_vibration"]
@@ -41,7 +44,7 @@ def require(module: str):
 
 @functools.lru_cache(maxsize=None)
 def scene(name: str):
-    from clockwork.scene import load_scene
+    from clockwork.run import load_scene
 
     os.environ["CLOCKWORK_FMU_DIR"] = str(FMU_DIR)
     return load_scene(ROOT / "scenarios" / f"{name}.toml")
@@ -66,7 +69,7 @@ def compared(sc) -> list[str]:
 
 @functools.lru_cache(maxsize=None)
 def exported(name: str, directory: str) -> Path:
-    from clockwork.ssp import export_ssp
+    from clockwork.scene.ssp import export_ssp
 
     out = Path(directory) / f"{name}.ssp"
     export_ssp(scene(name), out)
@@ -77,7 +80,7 @@ def run_tool(tool: str, name: str, directory: str) -> dict[str, np.ndarray]:
     sc = scene(name)
     ssp = exported(name, directory)
     out = Path(directory) / f"{name}.{tool}.npz"
-    cmd = [sys.executable, str(HERE / "run_tool.py"), tool, str(ssp), "--steps", str(steps(sc)),
+    cmd = [sys.executable, str(PEER_TOOL), tool, str(ssp), "--steps", str(steps(sc)),
            "--step", repr(sc.master.step), "--out", str(out), *recorded(sc)]
     env = dict(os.environ, CLOCKWORK_FMU_DIR=str(FMU_DIR))
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=env)

@@ -45,7 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from clockwork.runner import build_system
+from clockwork.analyses.context import build_system
 
 
 @dataclass

@@ -1,6 +1,6 @@
 """clockwork's accurate run of the core scenes, the yardstick of the tool
 tests' second check, against the monolithic scipy solution
-(clockwork.reference: DOP853 with every switch located).
+(clockwork.physics.reference: DOP853 with every switch located).
 
 Its own error must be negligible next to the fixed-step errors it
 measures (0.007 to 0.024 s on the 100th tick): at most 1e-4 s on every
@@ -15,7 +15,7 @@ import pytest
 import prediction
 from interop_common import PERIODS, SCENES, scene
 
-from clockwork import reference
+from clockwork.physics import reference
 
 
 def _value(sc, inst, name):

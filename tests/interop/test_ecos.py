@@ -5,7 +5,7 @@ initial values iterated to consistency in initialization mode, and the
 outputs a connection passes on are the ones read right after each FMU's
 step, so a feedthrough output (escapement and drag torque) reaches the
 pendulum one step late. ecos applies the archive's parameter set only
-when it is named at init (clockwork.ssp.PARAMETER_SET).
+when it is named at init (clockwork.scene.ssp.PARAMETER_SET).
 """
 
 import pytest

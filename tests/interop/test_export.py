@@ -19,7 +19,7 @@ import zipfile
 import pytest
 from lxml import etree
 
-from clockwork.ssp import NS, OMS_NS, OSP_NS, PARAMETER_SET, build_ssp, export_ssp, fmpy_parameter_set
+from clockwork.scene.ssp import NS, OMS_NS, OSP_NS, PARAMETER_SET, build_ssp, export_ssp, fmpy_parameter_set
 from interop_common import ROOT, SCENES, exported, scene
 
 

@@ -5,7 +5,7 @@ Its conventions (reference_loop.TOOL_MODES['fmpy']): time by addition
 connected input, the escapement initializes from phi = w = 0), and
 connections passed on after all FMUs have stepped, so a feedthrough output
 (escapement and drag torque) reaches the pendulum one step late. It reads
-parameters only from the set it is given: clockwork.ssp.fmpy_parameter_set
+parameters only from the set it is given: clockwork.scene.ssp.fmpy_parameter_set
 collects the archive's bindings for it.
 """
 

@@ -13,7 +13,7 @@ import pytest
 import reference_loop
 from interop_common import RELATIVE_TOLERANCE, SCENES, compared, relative_difference, scene, steps
 
-from clockwork.runner import build_system
+from clockwork.analyses.context import build_system
 
 JACOBI_ZOH = {("master", "order"): "jacobi", ("master", "extrapolation"): 0, ("master", "event_location"): False}
 

@@ -1,7 +1,7 @@
 """Extreme parameters of the Pendulum + GrasshopperEscapement clock.
 
 Each case against an independent answer: the monolithic scipy reference
-(clockwork.reference), the exact free period (clockwork.analytic), or the
+(clockwork.physics.reference), the exact free period (clockwork.physics.analytic), or the
 same run at a small step.
 """
 
@@ -13,9 +13,9 @@ import pytest
 
 from stress_support import fmus, size  # noqa: F401 (first: puts benchmarks/ on sys.path)
 import stability as st  # noqa: E402
-from clockwork import analytic, reference  # noqa: E402
+from clockwork.physics import analytic, reference  # noqa: E402
 from clockwork.analyses import run_analysis  # noqa: E402
-from clockwork.scene import load_scene  # noqa: E402
+from clockwork.run import load_scene  # noqa: E402
 
 PHI_R = math.radians(2.0)
 TOLERANCE_S_PER_DAY = 1e-4  # asked of the shooting (tolerance_s_per_day)

@@ -22,7 +22,7 @@ import pytest
 from stress_support import fmus, size  # noqa: F401 (first: puts benchmarks/ on sys.path)
 import stability as st  # noqa: E402
 from clockwork.errors import SimulationError  # noqa: E402
-from clockwork.master import MasterSettings  # noqa: E402
+from clockwork.engine import MasterSettings  # noqa: E402
 
 STEP = 1.0  # s in Hoyng's units, ~6 steps per period
 

@@ -112,7 +112,7 @@ def test_richardson_holds_at_a_step_far_past_the_limit():
 
 
 def _richardson_steps(max_step):
-    from clockwork.master import MasterSettings
+    from clockwork.engine import MasterSettings
 
     settings = MasterSettings(step=0.01, max_step=max_step, richardson=True, richardson_tolerance=1e-4)
     times = []
@@ -131,7 +131,7 @@ def test_richardson_respects_max_step():
 def test_iterations_are_not_ignored_under_richardson():
     """Either the combination works (iterations happen) or it is refused."""
     from clockwork.errors import SceneError
-    from clockwork.master import MasterSettings
+    from clockwork.engine import MasterSettings
 
     outs = []
     for iterations in (0, 5):

@@ -1,0 +1,255 @@
+"""Hoyng Fig. 6: the clock for 110 days with torque noise, co-simulated.
+
+``hoyng_long_run``: Pendulum + GrasshopperEscapement with torque noise, and
+AveragedPendulum twins driven by the escapement's torque_amplitude (the
+same mu0 (1 + delta)). psi_p = 2 pi i at the i-th tick, psi_m the twin's
+phase at that time.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from ctypes import c_double, c_uint
+from array import array
+
+import numpy as np
+
+from ...physics import analytic
+from .. import keys
+from ..context import build_system, experiment
+from ..registry import register
+from .common import TWO_PI, grasshopper_clock, linfit, subscene, twin_values
+
+
+_KEYS = {"sample_every": keys.positive_int, "stationary_start": keys.boolean,
+         "twins": lambda k, v: keys.choice(k, v, ("replay", "cosimulate"))}
+
+
+@register("hoyng_long_run", set(_KEYS), keys.table_converter(_KEYS))
+def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
+    cfg = scene.analysis or {}
+    pend, esc, avgs, params, pp, ep, n = grasshopper_clock(scene, point, "hoyng_long_run")
+    eps, mu0, phi0, w0 = n["eps"], n["mu"], n["phi0"], n["w0"]
+    start, stop = experiment(scene, point)
+    lam0 = analytic.hoyng_stationary_amplitude(mu0, eps, phi0)
+    pt = dict(point)
+    for a in avgs:
+        pt.update(twin_values(a, pp, "GrasshopperEscapement", ep))
+    if cfg.get("stationary_start", True):
+        pt[(pend, "phi_start")] = 0.0
+        pt[(pend, "w_start")] = lam0 * w0
+        for a in avgs:
+            pt[(a, "amplitude_start")] = lam0
+            pt[(a, "phase_start")] = 0.0
+    every = cfg.get("sample_every", 500)
+    replay = cfg.get("twins", "replay") == "replay"
+    noise_on = ep.get("noise_rms", 0.0) > 0 and ep.get("noise_start", 0.0) < stop
+    t_noise = ep.get("noise_start", 0.0) if noise_on else stop
+    torque0 = ep["torque"]
+    record = {pend: ["tick_time"], esc: ["torque_amplitude"]}
+    if replay:
+        # The twins feed nothing back: run them afterwards on the recorded
+        # torque, with communication points where it changed (the same zero-
+        # order hold they would see in the co-simulation), instead of
+        # stepping them through every step and event iteration of the
+        # pendulum (they cost ~40 % of the co-simulation).
+        cosim = subscene(scene, {pend, esc})
+    else:
+        cosim = scene
+        for a in avgs:
+            record[a] = ["phase", "rate"]
+    system = build_system(cosim, pt, record=record)
+    samples = {"tau": [], "psi_p": [], "t_tick": [], **{f"psi_{a}": [] for a in avgs}}
+    noise = {"n": 0, "sum": 0.0, "sum2": 0.0, "head": []}
+    change_t, change_v = array("d"), array("d")  # torque_amplitude: when it changed, to what
+    t_wall, t_cpu = time.perf_counter(), time.process_time()
+    with system:
+        m = system.master
+        P = m.ports[pend]
+        i_tick = P.out_names.index("tick_time")
+        E = m.ports[esc]
+        i_amp = E.out_names.index("torque_amplitude")
+        A = [] if replay else [(m.ports[a].out, m.ports[a].out_names.index("phase"),
+                                m.ports[a].out_names.index("rate")) for a in avgs]
+        pout, eout = P.out, E.out
+        state = [pout[i_tick], 0, eout[i_amp]]  # last tick time, tick count, torque amplitude
+        lists = [samples[f"psi_{a}"] for a in avgs]
+
+        # A twin's rate output already follows a drive set at this point (direct
+        # feedthrough); over the step that ended here it ran at the rate seen
+        # at the previous point.
+        prev_rate = [out[kr] for out, _, kr in A]
+
+        def on_point(master):
+            amp = eout[i_amp]
+            if A:
+                rates = list(prev_rate)
+                for k, (out, _, kr) in enumerate(A):
+                    prev_rate[k] = out[kr]
+            if amp != state[2]:
+                state[2] = amp
+                change_t.append(master.t)
+                change_v.append(amp)
+            tt = pout[i_tick]
+            if tt == state[0]:
+                return
+            state[0] = tt
+            state[1] += 1
+            i = state[1]
+            if master.t >= t_noise:
+                d = amp / torque0 - 1.0
+                noise["n"] += 1
+                noise["sum"] += d
+                noise["sum2"] += d * d
+                if len(noise["head"]) < 8:
+                    noise["head"].append(d)
+            # the twins' phases at the tick: back from this point at the step's rate
+            last_tick[:] = [tt, i] + [out[kp] - w0 * r * (master.t - tt)
+                                      for (out, kp, _), r in zip(A, rates if A else ())]
+            if i % every == 0 or i == 1:
+                _sample()
+
+        def _sample():
+            tt, i, *phases = last_tick
+            samples["tau"].append(w0 * (tt - start))
+            samples["psi_p"].append(TWO_PI * i)
+            samples["t_tick"].append(tt)
+            for lst, ph in zip(lists, phases):
+                lst.append(ph)
+
+        last_tick: list = []
+
+        _run_with_tick_points(m, stop, pout, i_tick, n["T0"], on_point, progress, scene.path.stem)
+        if state[1] % every and state[1] > 1:
+            _sample()
+        stats = vars(m.stats).copy()
+    wall_cosim = time.perf_counter() - t_wall
+    if replay and avgs:
+        for a in avgs:
+            pt[(a, "drive")] = torque0
+        twins = build_system(subscene(scene, set(avgs)), pt, record={a: ["phase"] for a in avgs})
+        with twins:
+            _replay_twins(twins, avgs, samples, change_t, change_v, progress, f"{scene.path.stem} (twins)")
+    wall = time.perf_counter() - t_wall
+    tau = np.asarray(samples["tau"])
+    psi_p = np.asarray(samples["psi_p"])
+    y = psi_p - tau
+    tau_n = w0 * (t_noise - start)
+    res = {"eps": eps, "mu0": mu0, "phi0_rad": phi0, "ticks": state[1],
+           "periods": w0 * (stop - start) / TWO_PI, "noise_start_periods": tau_n / TWO_PI if noise_on else None,
+           "wall_time_run_s": wall, "cpu_time_run_s": time.process_time() - t_cpu,
+           "wall_time_cosimulation_s": wall_cosim, "twins": "replay" if replay else "cosimulated",
+           "torque_changes": len(change_t),
+           "periods_per_s": w0 * (stop - start) / TWO_PI / wall,
+           "rate_eq20": analytic.hoyng_stationary_rate(mu0, eps, phi0),
+           "rate_eq16_bessel": float(analytic.hoyng_rate(lam0, mu0, phi0, bessel=True))}
+    # Skip the amplitude transient (lambda^2 relaxes as exp(-2 eps t)) from the Eq. (19) start.
+    skip = min(3.0 / (2.0 * eps), 0.5 * tau_n) if eps > 0 else 0.1 * tau_n
+    quiet = (tau >= skip) & (tau <= tau_n)
+    a0, b0 = linfit(tau[quiet], y[quiet])
+    res["gain_no_noise"] = b0
+    res["gain_fit_from_periods"] = skip / TWO_PI
+    if noise_on:
+        noisy = tau > tau_n
+        dev = y[noisy] - (a0 + b0 * tau[noisy])
+        span = (tau[-1] - tau_n) / TWO_PI
+        res["noise_rms_measured"] = math.sqrt(noise["sum2"] / noise["n"] - (noise["sum"] / noise["n"]) ** 2) if noise["n"] > 1 else None
+        res["noise_renewals"] = noise["n"]
+        if dev.size:
+            res["rms_deviation_cycles"] = float(np.sqrt(np.mean(dev**2)) / TWO_PI)
+            res["max_deviation_cycles"] = float(np.max(np.abs(dev)) / TWO_PI)
+            res["rms_gain"] = res["rms_deviation_cycles"] / span
+            res["gain_noise"] = linfit(tau[noisy], y[noisy])[1]
+    for a in avgs:
+        d = psi_p - np.asarray(samples[f"psi_{a}"])
+        late = tau >= 0.1 * tau[-1]
+        res[f"psi_diff_slope_{a}"] = linfit(tau[late], d[late])[1]
+        res[f"psi_diff_end_{a}_rad"] = float(d[-1])
+        res[f"circular_{a}"] = int(params[a].get("circular", 1))
+    series = {"tau": tau.tolist(), "periods": (tau / TWO_PI).tolist(),
+              "psi_p_minus_t_cycles": (y / TWO_PI).tolist()}
+    for a in avgs:
+        series[f"psi_p_minus_psi_{a}_cycles"] = ((psi_p - np.asarray(samples[f"psi_{a}"])) / TWO_PI).tolist()
+        series[f"psi_{a}_minus_t_cycles"] = ((np.asarray(samples[f"psi_{a}"]) - tau) / TWO_PI).tolist()
+    return {"kind": "hoyng_long_run", "result": res, "series": series, "statistics": stats,
+            "noise_head": noise["head"]}
+
+
+def _replay_twins(twins, avgs, samples, change_t, change_v, progress, label) -> None:
+    """Step the AveragedPendulum twins through the recorded torque changes,
+    reading their phases at the sampled tick times."""
+    from tqdm import tqdm
+
+    m = twins.master
+    setters = []
+    for a in avgs:
+        inst = twins.instances[a]
+        setters.append((inst, inst.c_setReal, inst.component, (c_uint * 1)(inst.variables["drive"].vr)))
+    value = (c_double * 1)()
+    ports = [(m.ports[a].out, m.ports[a].out_names.index("phase")) for a in avgs]
+    lists = [samples[f"psi_{a}"] for a in avgs]
+    t_samples = samples["t_tick"]
+    n_s, n_c = len(t_samples), len(change_t)
+    i_s = i_c = 0
+    step = m.step
+    with tqdm(total=n_s + n_c, disable=not progress, delay=1.0, desc=label, unit="event") as bar:
+        while i_s < n_s or i_c < n_c:
+            # samples (ticks) come before the change seen at the point after them
+            if i_s < n_s and (i_c >= n_c or t_samples[i_s] <= change_t[i_c]):
+                t = t_samples[i_s]
+                if t > m.t:
+                    step(t - m.t)
+                for (out, kp), lst in zip(ports, lists):
+                    lst.append(out[kp])
+                i_s += 1
+            else:
+                t = change_t[i_c]
+                if t > m.t:
+                    step(t - m.t)
+                value[0] = change_v[i_c]
+                for inst, c_set, comp, vr in setters:
+                    inst.check(c_set(comp, vr, 1, value), "fmi2SetReal (drive)")
+                i_c += 1
+            if (i_s + i_c) % 4096 == 0:
+                bar.update(i_s + i_c - bar.n)
+
+
+def _run_with_tick_points(m, stop, pout, i_tick, T0, on_point, progress, label,
+                          margin=2e-3) -> None:
+    """Run to `stop` with a communication point `margin` s after each upward zero crossing.
+
+    The escapement renews its torque noise at the first communication point
+    after a crossing; Hoyng renews it at the crossing. With the master's
+    large steps the renewal would lag by up to a fifth of a period, and the
+    phase at which the torque changes would then feed a systematic phase
+    drift of the pendulum against the averaged model (1e-7 at a 1.26 s
+    lag). So the next crossing is predicted from the last tick period
+    (torque noise moves it by ~6e-4 s) and a point is put just after it;
+    when the crossing comes late, short steps of `margin` follow until it
+    is seen. The lag is then below ~2 margin (Hoyng's grid: dt = 0.03).
+    """
+    from tqdm import tqdm
+
+    step = m.settings.step
+    eps_t = 1e-12 * max(1.0, abs(stop))
+    last_tick = pout[i_tick]
+    prev_tick = None
+    mark = m.t + T0 + margin  # stationary start at phi = 0: first crossing near T0
+    with tqdm(total=stop - m.t, disable=not progress, delay=1.0, desc=label, unit="s sim",
+              bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]") as bar:
+        t_bar = m.t
+        while m.t < stop - eps_t:
+            target = mark if m.t < mark - eps_t else m.t + margin
+            m.step(min(step, target - m.t, stop - m.t))
+            on_point(m)
+            tt = pout[i_tick]
+            if tt != last_tick:
+                if last_tick > 0:
+                    prev_tick = last_tick
+                last_tick = tt
+                period = tt - prev_tick if prev_tick is not None else T0
+                mark = tt + period + margin
+            if m.t - t_bar > 1e-3 * (stop - t_bar) or m.t >= stop - eps_t:
+                bar.update(m.t - t_bar)
+                t_bar = m.t

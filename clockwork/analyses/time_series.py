@@ -1,0 +1,99 @@
+"""The basic analyses: a run from start to stop.
+
+- ``time_series``: co-simulate from start to stop, record outputs (and tick
+  times) at communication points.
+- ``ticks``: the same, but keep only the pendulum's tick times and rates.
+
+A grasshopper clock whose swing no longer reaches phi_r has stalled: that
+is a result (``"stalled": true``), not an error.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..engine.recording import Recorder
+from .context import build_system, experiment, find_component, parameters
+from .registry import register
+
+
+@register("ticks")
+def ticks(scene, point: dict, progress: bool = False) -> dict:
+    return time_series(scene, point, progress=progress, ticks_only=True)
+
+
+@register("time_series")
+def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = False) -> dict:
+    start, stop = experiment(scene, point)
+    outputs = [] if ticks_only else list(scene.record.outputs)
+    record: dict[str, list[str]] = {}
+    for inst, var in outputs:
+        record.setdefault(inst, []).append(var)
+    tick_inst = scene.record.ticks or (find_component(scene, "Pendulum") if ticks_only else None)
+    if tick_inst:
+        record.setdefault(tick_inst, []).append("tick_time")
+    system = build_system(scene, point, record=record)
+    with system:
+        m = system.master
+        recorder = Recorder(m, outputs, scene.record.interval, tick_inst)
+        recorder.start()
+        run_with_progress(m, stop, recorder, progress, label=scene.path.stem)
+        stats = vars(m.stats).copy()
+        stall = _stall_check(scene, point, system)
+    columns, ticks = recorder.columns, recorder.ticks
+    result: dict = {"t_end_s": stop}
+    if stall is not None:
+        result.update(stall)
+    if ticks:
+        t = np.asarray(ticks)
+        result["ticks"] = len(ticks)
+        if len(t) > 1:
+            periods = np.diff(t)
+            result["mean_period_s"] = float(periods.mean())
+            result["last_period_s"] = float(periods[-1])
+    out = {"kind": "ticks" if ticks_only else "time_series", "result": result, "statistics": stats}
+    if outputs:
+        out["series"] = columns
+    if tick_inst:
+        out["ticks"] = ticks
+    return out
+
+
+def run_with_progress(master, stop: float, on_point, progress: bool, label: str) -> None:
+    from tqdm import tqdm
+
+    span = stop - master.t
+    with tqdm(total=span, disable=not progress, delay=1.0, desc=label, unit="s sim",
+              bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]") as bar:
+        step = master.settings.step
+        # Chunks are whole multiples of the step so that the grid is kept.
+        chunk = step * max(1, round(span / 200.0 / step))
+        t0 = master.t
+        n = 0
+        while master.t < stop - 1e-12 * max(1.0, abs(stop)):
+            n += 1
+            master.run_until(min(stop, t0 + n * chunk), on_point)
+            bar.update(master.t - t0 - bar.n)
+
+
+def _stall_check(scene, point: dict, system) -> dict | None:
+    """A grasshopper clock whose swing ended below phi_r has stalled: a result.
+
+    The relay never switches again, so the pendulum settles; the last
+    turning-point amplitude tells.
+    """
+    pendulum = find_component(scene, "Pendulum")
+    escapement = find_component(scene, "GrasshopperEscapement")
+    if pendulum is None or escapement is None:
+        return None
+    phi_r = parameters(scene, point)[escapement]["phi_r"]
+    amplitude = system.value(pendulum, "amplitude")
+    turns = system.instances[pendulum].get_integer(["turn_count"])[0]
+    stalled = turns == 0 or amplitude <= phi_r
+    out = {"stalled": stalled, "last_amplitude_deg": math.degrees(amplitude)}
+    if stalled:
+        out["reason"] = (f"the swing ({math.degrees(amplitude):.4g} deg at the last turning point) "
+                         f"no longer reaches phi_r = {math.degrees(phi_r):.4g} deg")
+    return out

@@ -1,0 +1,298 @@
+"""Event location: find where an event indicator crosses zero inside a step.
+
+Each escapement declares event indicators: outputs that cross zero exactly
+where its torque switches (modelDescription vendor annotation). After each
+step the master compares their signs at the step's two ends (``scan``).
+When one changed, every FMU is rolled back and the step is shortened to
+land just past the earliest crossing (``locate``):
+
+1. the first trial comes from a cubic Hermite interpolant of the lead
+   indicator, its slopes taken from the output derivatives of the single
+   connected output it depends on (the pendulum's dphi/dt = w);
+2. after each trial, a Newton step from the indicator there, aimed a hair
+   past the root, gives the next trial;
+3. the crossing stays bracketed; Illinois iteration takes over when Newton
+   has nothing to offer, until the bracket is within the time tolerance or
+   the indicator within its own tolerance.
+
+Two crossings inside one step cancel at its ends; ``hidden_crossing``
+finds them from the same interpolant. The interpolation is reliable up to
+about a quarter of the source's oscillation period, which therefore caps
+the step (``remember_sources``).
+"""
+
+from __future__ import annotations
+
+import math
+from ctypes import c_double, c_int, c_uint
+
+from ..errors import SimulationError
+from .events import Illinois, hermite_extremum, hermite_root
+from .fmu import WARNING, Instance
+from .ports import Port, feeds
+
+_ORDER_ONE = (c_int * 1)(1)
+_ORDER_TWO = (c_int * 1)(2)
+
+
+def crossed(z0: float, z1: float) -> bool:
+    return (z0 > 0.0 and z1 <= 0.0) or (z0 < 0.0 and z1 >= 0.0)
+
+
+def scan(z0: list[float], z1: list[float], h: float) -> float:
+    """-1 when an indicator changed sign over the step of h s; else the
+    time, s, until the nearest one would reach zero at its rate over the
+    step, in either direction (a turn-around is also a risk)."""
+    steps = math.inf
+    for a, b in zip(z0, z1):
+        if (a > 0.0 and b <= 0.0) or (a < 0.0 and b >= 0.0):
+            return -1.0
+        dist = abs(b)
+        if dist <= 1e-15:
+            return 0.0
+        change = abs(b - a)
+        if dist < steps * change:
+            steps = dist / change
+    return steps * h
+
+
+class EventLocator:
+    def __init__(self, master, ports: list[Port]):
+        self.master = master
+        self.ports = [p for p in ports if p.z_pos]
+        self.spans = [(p.z_pos[0], p.z_pos[-1] + 1, p.out) for p in self.ports]
+        self.active = bool(self.ports)
+        self.z_start: list[float] = []  # indicators at t+ of the step (after a mode commit)
+        self.z_end: list[float] = []  # indicators at the step's end
+        # Time until the nearest indicator reaches zero at its last rate of
+        # change, s; 0 = unknown (after an event), so the next step checks.
+        self.time_to_zero = 0.0
+        self.sources = self._indicator_sources()
+        self.has_sources = any(x is not None for x in self.sources)
+        self.sample_countdown = 0
+        self.located_from = 0.0  # where the last located step started, s
+        self._rate = (c_double * 1)()  # per locator: masters may run in threads
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the sources' past (a new start, a reset)."""
+        self.sources_prev = None  # [(u, du/dt) or None] per indicator at the last sample
+        self.amplitudes = [(0.0, 0.0)] * len(self.sources)  # slowly forgotten max |u|, max |du/dt|
+        self.z_seen = [None] * len(self.sources)
+        self.step_cap = math.inf  # s
+        self.end_rates = {}  # indicator -> d(source)/dt at the step's end
+        self.stale_sources = False
+
+    def forget_end_rates(self) -> None:
+        if self.end_rates:
+            self.end_rates = {}
+
+    def indicators(self) -> list[float]:
+        if len(self.spans) == 1:
+            a, b, out = self.spans[0]
+            return out[a:b]
+        z = []
+        for a, b, out in self.spans:
+            z += out[a:b]
+        return z
+
+    # -- the sources the indicators follow ---------------------------------
+
+    def _indicator_sources(self) -> list:
+        """Per indicator: (source port, position, instance, vr) of the single
+        connected output it depends on, when that output offers a time
+        derivative and does not itself depend on inputs; else None."""
+        found = []
+        for p in self.ports:
+            for k in p.z_pos:
+                name = p.out_names[k]
+                deps = p.inst.variables[name].dependencies or []
+                info = None
+                if len(deps) == 1 and deps[0] in p.in_names:
+                    k_in = p.in_names.index(deps[0])
+                    for kk, src, j in p.sources:
+                        if kk == k_in:
+                            var = src.inst.variables[src.out_names[j]]
+                            if src.inst.max_output_derivative_order >= 1 and not feeds(src.inst, var.name):
+                                info = (src, j, src.inst, (c_uint * 1)(var.vr))
+                found.append(info)
+        return found
+
+    def output_rate(self, inst: Instance, vr, order: int = 1) -> float | None:
+        out = self._rate
+        orders = _ORDER_ONE if order == 1 else _ORDER_TWO
+        if inst.c_getOutputDerivatives(inst.component, vr, 1, orders, out) > WARNING:
+            return None
+        return out[0]
+
+    def slope_source(self, k: int):
+        """For indicator k: ((u, du/dt) now, source port, position, instance, vr)
+        of its source, when that offers a time derivative; else None."""
+        info = self.sources[k]
+        if info is None:
+            return None
+        src, pos, inst, vr = info
+        rate = self.output_rate(inst, vr)
+        if rate is None:
+            return None
+        return (src.out[pos], rate), src, pos, inst, vr
+
+    def remember_sources(self) -> None:
+        """Values and rates of the indicators' source outputs at this point.
+
+        They also bound the step: the hidden-crossing check interpolates over
+        a step, which is reliable up to about a quarter of the source's
+        oscillation period, estimated as 2 pi max|u| / max|du/dt| over the
+        recent past (slowly forgotten).
+        """
+        mem = []
+        cap = math.inf
+        for k, info in enumerate(self.sources):
+            if info is None:
+                mem.append(None)
+                continue
+            src, pos, inst, vr = info
+            u = src.out[pos]
+            z_now = self.z_end[k] if k < len(self.z_end) else None
+            constant = z_now is not None and z_now == self.z_seen[k]
+            self.z_seen[k] = z_now
+            if constant:
+                # An indicator that did not move says nothing about its
+                # source's time scale, and has no hidden crossing to look for.
+                mem.append((u, None))
+                continue
+            du = self.end_rates.get(k)
+            if du is None:
+                du = self.output_rate(inst, vr)
+            mem.append((u, du))
+            if du is not None:
+                amp_u, amp_du = self.amplitudes[k]
+                amp_u = max(abs(u), 0.999 * amp_u)
+                amp_du = max(abs(du), 0.999 * amp_du)
+                self.amplitudes[k] = (amp_u, amp_du)
+                omega = amp_du / amp_u if amp_u > 0.0 else 0.0
+                # At a turning point |du| says nothing yet; |d2u/dt2| / |u| does.
+                if inst.max_output_derivative_order >= 2 and u != 0.0:
+                    acc = self.output_rate(inst, vr, order=2)
+                    if acc is not None:
+                        omega = max(omega, math.sqrt(abs(acc / u)))
+                if omega > 0.0:
+                    cap = min(cap, 0.2 * 2 * math.pi / omega)
+        self.sources_prev = mem
+        self.step_cap = cap
+        self.end_rates = {}
+
+    def hidden_crossing(self, h: float, z0: list[float], z1: list[float]) -> float | None:
+        """Offset of an indicator's extremum inside the step, when its Hermite
+        interpolant (slopes from the source outputs' derivatives) changes
+        sign there although z has the same sign at both ends; else None."""
+        prev = self.sources_prev
+        if prev is None:
+            return None
+        best = None
+        for k, info in enumerate(self.sources):
+            if info is None or prev[k] is None or prev[k][1] is None:
+                continue
+            src, pos, inst, vr = info
+            u0, du0 = prev[k]
+            u1 = src.out[pos]
+            if u1 == u0 or z0[k] == 0.0:
+                continue
+            ratio = (z1[k] - z0[k]) / (u1 - u0)
+            dz0 = ratio * du0
+            if z0[k] * dz0 >= 0.0:
+                continue  # moving away from zero at the start: no early crossing
+            du1 = self.output_rate(inst, vr)
+            if du1 is None:
+                continue
+            self.end_rates[k] = du1
+            dz1 = ratio * du1
+            if z1[k] * dz1 <= 0.0:
+                continue  # still approaching at the end: no turn inside the step
+            x = hermite_extremum(h, z0[k], dz0, z1[k], dz1)
+            if x is not None and (best is None or x < best):
+                best = x
+        return best
+
+    # -- locating ------------------------------------------------------------
+
+    def locate(self, t: float, h: float, crossings: list[bool], z0: list[float], z1: list[float]) -> float:
+        """Shorten the step from t (a checkpoint) to land just past the
+        earliest crossing; returns the step taken, s."""
+        m = self.master
+        s = m.settings
+        checkpoints = m.checkpoints
+        # The indicator whose linear interpolant crosses first leads.
+        lead = min((k for k, c in enumerate(crossings) if c), key=lambda k: z0[k] / (z0[k] - z1[k]))
+        slope_end = self.slope_source(lead)
+        checkpoints.rollback()
+        first = None
+        newton = None  # (ratio dz/du, instance, vr, indicator) for Newton steps after each trial
+        if slope_end is not None:
+            (u1, du1), src, pos, inst, vr = slope_end
+            u0, du0 = src.out[pos], self.output_rate(inst, vr)
+            if du0 is not None and u1 != u0:
+                ratio = (z1[lead] - z0[lead]) / (u1 - u0)
+                first = hermite_root(h, z0[lead], ratio * du0, z1[lead], ratio * du1)
+                newton = (ratio, inst, vr, lead)
+        search = Illinois(0.0, z0[lead], h, z1[lead])
+        hi, z_hi = h, list(z1)
+        z_lo = list(z0)
+        base = 0.0  # offset from t of the checkpoint the trials start from
+        last = None  # the FMUs stand at the checkpoint after the rollback above
+        # Far from t = 0 a double cannot resolve the tolerance: use a few ulps.
+        time_tol = max(s.event_time_tolerance, 4 * math.ulp(abs(t) + h))
+        while True:
+            if hi - search.lo <= time_tol or abs(z_hi[lead]) <= s.event_indicator_tolerance:
+                break
+            trial, first = (first, None) if first is not None else (search.next(), None)
+            if not (search.lo < trial < hi):
+                trial = 0.5 * (search.lo + hi)
+            # A trial must move the FMUs' clock: at least a few ulps past lo.
+            min_move = 8 * math.ulp(abs(t) + abs(hi) + 1.0)
+            if (t + trial) - (t + search.lo) < min_move:
+                trial = search.lo + min(0.5 * (hi - search.lo), max(min_move, 0.25 * s.event_time_tolerance))
+            if last is not None:
+                checkpoints.rollback()
+            m.advance(m.t, (t + trial) - m.t)
+            m.stats.event_iterations += 1
+            last = trial
+            z = self.z_end
+            if newton is not None and newton[3] == lead:
+                # Newton from this trial, with dz/dt = (dz/du) du/dt, aimed a
+                # hair past the root so that the landing point has crossed.
+                rate = self.output_rate(newton[1], newton[2])
+                if rate:
+                    slope = newton[0] * rate
+                    delta = -z[lead] / slope
+                    past = min(0.25 * s.event_time_tolerance, 0.25 * s.event_indicator_tolerance / abs(slope))
+                    first = trial + delta + math.copysign(past, delta)
+            now = [crossed(a, b) for a, b in zip(self.z_start, z)]
+            if any(now):
+                earlier = [k for k, c in enumerate(now) if c]
+                if lead not in earlier:
+                    # Another indicator crosses first: restart on it.
+                    lead = min(earlier, key=lambda k: z_lo[k] / (z_lo[k] - z[k]))
+                    search = Illinois(search.lo, z_lo[lead], trial, z[lead])
+                    first = None
+                else:
+                    search.update(trial, z[lead], crossed=True)
+                hi, z_hi = trial, list(z)
+            else:
+                search.update(trial, z[lead], crossed=False)
+                # Later trials start here: no need to integrate [t, t + trial] again.
+                z_lo = list(z)
+                checkpoints.mark()
+                base, last = trial, None
+            if search.iterations > 200:
+                raise SimulationError(
+                    f"event location did not converge in (t, t+h) = ({t!r}, {t + h!r}) s", time=t)
+        if last != hi:
+            if last is not None:
+                checkpoints.rollback()
+            m.advance(m.t, (t + hi) - m.t)
+        if base > 0.0:
+            checkpoints.since = []
+        self.located_from = t + base
+        m.stats.events += 1
+        return hi

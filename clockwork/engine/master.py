@@ -1,0 +1,322 @@
+"""The co-simulation master: the stepping loop.
+
+A communication step from t to t + h (``advance``):
+
+1. feedthrough-only instances (escapements, drag) call fmi2DoStep while
+   their inputs still hold the values at t: they commit the discrete mode
+   decided at t; their event indicators are read (z at t+);
+2. dynamic instances (pendulum, vibration, averaged model) step, in
+   Gauss-Seidel order (each sees the newest outputs of those before it) or
+   in Jacobi order (all see the values at t), their inputs given by the
+   coupling (zero-order hold, or polynomials of order 1 or 2);
+3. outputs are updated at t + h in the dependency order of the
+   ModelStructure, which also gives the event indicators z at t + h.
+
+Around it, ``step`` adds what makes the result accurate:
+
+1. the step is capped by the time scale of the event indicators' sources;
+2. a checkpoint is taken when the step may need a rollback (an indicator
+   is near zero, strong coupling, step doubling);
+3. the step is taken: plainly, iterated to a fixed point of the coupling
+   (``coupling.iterate_step``) or by step doubling (``richardson``);
+4. when an indicator changed sign (or two crossings hide inside the step),
+   the step is shortened to land just past the earliest crossing
+   (``location``); a step that was predicted free of events and taken
+   without a checkpoint is first replayed from the last one
+   (``checkpoints``);
+5. the outputs are checked for NaN, infinities and divergence.
+
+``run_until`` steps on the drift-free grid start + k * step.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .checkpoints import Checkpoints
+from .coupling import InputCoupling, iterate_step
+from .fmu import DISCARD, WARNING, Instance, free_all
+from .location import EventLocator, crossed, scan
+from .ports import Port, Ports
+from .richardson import StepDoubling
+from .settings import MasterSettings, Statistics
+from ..errors import SimulationError
+from .wiring import Link, build
+
+
+class Master:
+    MAX_REPLAY_STEPS = 64  # a forced checkpoint after this many steps bounds replay work and memory
+
+    def __init__(self, instances: dict[str, Instance], links: list[Link],
+                 settings: MasterSettings, start_time: float = 0.0,
+                 step_order: list[str] | None = None,
+                 extra_outputs: dict[str, list[str]] | None = None):
+        self.instances = instances
+        self.settings = settings
+        self.wiring = build(instances, links, step_order)
+        settings.check()
+        self.t = start_time  # the current communication point, s
+        self.start_time = start_time
+        self.stats = Statistics()
+        self.ports = Ports(instances, links, self.wiring, extra_outputs, settings.event_location)
+        self.discrete_outputs = self.ports.discrete_outputs
+        self.coupling = InputCoupling(self.ports.dynamic, settings.extrapolation)
+        self.locator = EventLocator(self, self.ports.all)
+        self.checkpoints = Checkpoints(self)
+        self.doubling = StepDoubling(self)
+        self.on_step = None  # optional callback(master) after each accepted step
+        # True right after a discontinuity (the start, an event, a changed
+        # parameter): inputs restart from zero-order hold, the next step
+        # checks its indicators.
+        self.after_event = True
+        self.after_event_step = False  # the step now being taken ended at an event
+        self._needs_rollback = settings.iterations > 0 or settings.richardson
+        self._locating = bool(settings.event_location and self.locator.active)
+        self._extrapolating = bool(settings.extrapolation)
+        self._jacobi = settings.order == "jacobi"
+        self._reset_soft_state()
+
+    # -- initialization --------------------------------------------------
+
+    def initialize(self, parameters: dict[str, dict[str, object]]) -> None:
+        """Set up every instance, resolve the initial outputs, leave init mode."""
+        ports = self.ports
+        for name, inst in self.instances.items():
+            inst.setup(self.start_time, parameters.get(name, {}))
+        # Outputs in initialization mode follow from parameters; two sweeps
+        # settle feedthrough chains of any depth found in these scenes.
+        for _ in range(2):
+            ports.propagate(ports.order, self.t)
+        for inst in self.instances.values():
+            inst.exit_init()
+        ports.propagate(ports.order, self.t)
+        self.t = self.start_time
+        self._reset_soft_state()
+        loc = self.locator
+        loc.z_end = loc.indicators()
+        if loc.has_sources:
+            # The sources' time scale caps the very first step too (a first
+            # step over several crossings would hide them). When the start
+            # says nothing (at rest at zero), the first step is short instead.
+            loc.remember_sources()
+            if loc.step_cap == math.inf:
+                loc.sources_prev = None
+
+    def reinitialize(self, parameters: dict[str, dict[str, object]]) -> None:
+        """fmi2Reset every instance and initialize again (shooting uses this)."""
+        for inst in self.instances.values():
+            inst.reset()
+        self.initialize(parameters)
+
+    def discontinuity(self) -> None:
+        """Tell the master that something changed outside the wiring at this
+        communication point (a tunable parameter, an unconnected input): the
+        input polynomials restart from zero-order hold, finite differences
+        forget the past, and the next step takes a fresh checkpoint so that a
+        replay never reaches back across the change."""
+        self.after_event = True
+        self.locator.time_to_zero = 0.0
+        self.coupling.forget()
+        self.record_history()
+
+    def _reset_soft_state(self) -> None:
+        self.coupling.forget()
+        self.checkpoints.reset()
+        self.after_event = True
+        self.locator.reset()
+        self.record_history()
+
+    def record_history(self) -> None:
+        self.coupling.record(self.t, self.after_event_step or self.after_event)
+
+    # -- the communication step ----------------------------------------
+
+    def advance(self, t: float, h: float, coupling: dict | None = None) -> None:
+        """One communication step from t to t + h of every instance.
+
+        `coupling` (strong coupling): per instance, the inputs at the
+        step's start and at its end from the last iterate.
+        """
+        t_new = t + h
+        ports = self.ports
+        loc = self.locator
+        # 1. Feedthrough-only instances commit the mode decided at t.
+        for p in ports.first:
+            st = p.doStep(p.comp, t, h, 0)
+            if st > WARNING:
+                raise self._step_failure(p, st, t, h)
+            if p.z_pos and self.after_event:
+                # A commit may have switched the mode: read z at t+.
+                p.getReal(p.comp, p.out_vr, p.n_out, p.out)
+        if self._locating:
+            # Without a commit of a new mode, z at t+ is z at t.
+            loc.z_start = loc.indicators() if self.after_event else loc.z_end
+        # 2. Dynamic instances step, their inputs set by the coupling.
+        set_inputs = self.coupling.set_inputs
+        smooth = not self.after_event
+        jacobi = self._jacobi
+        dynamic = ports.dynamic
+        if jacobi:
+            for p in dynamic:
+                if p.n_in:
+                    set_inputs(p, t, h, smooth, coupling.get(p.inst.name) if coupling else None)
+        last = dynamic[-1] if dynamic else None
+        for p in dynamic:
+            if not jacobi and p.n_in:
+                set_inputs(p, t, h, smooth, coupling.get(p.inst.name) if coupling else None)
+            st = p.doStep(p.comp, t, h, 0)
+            if st > WARNING:
+                raise self._step_failure(p, st, t, h)
+            p.read(t_new)
+            if not jacobi and p is not last:
+                # Newest values flow on to the instances stepped later.
+                ports.propagate(ports.first_in_order, t_new)
+        # 3. Outputs at t + h, in dependency order.
+        self.t = t_new
+        for p in ports.final_order:
+            p.pull(t_new)
+        if self._locating:
+            loc.z_end = loc.indicators()
+
+    @staticmethod
+    def _step_failure(p: Port, st: int, t: float, h: float) -> SimulationError:
+        if st == DISCARD:
+            return SimulationError(
+                f"{p.inst.name}: fmi2DoStep from t = {t!r} s with h = {h!r} s was discarded: "
+                f"{p.inst.last_message()}", time=t, instance=p.inst.name)
+        return p.inst.fail(f"fmi2DoStep({t!r}, {h!r})", st, t)
+
+    # -- the accurate step ---------------------------------------------
+
+    def step(self, h: float) -> float:
+        """Advance by at most h (less when an event is located). Returns the step taken, s."""
+        s = self.settings
+        t = self.t
+        loc = self.locator
+        # 1. The indicators' sources cap the step.
+        if loc.has_sources:
+            if loc.sources_prev is None:
+                h *= 1.0 / 64  # no time scale known yet: a short first step
+            elif h > loc.step_cap:
+                h = loc.step_cap
+        self.after_event_step = False
+        # 2. A checkpoint where the step may need a rollback. Could an
+        # indicator reach zero in this step? Conservative: at 4x the last
+        # step's rate of change. A checkpoint also bounds how far back a
+        # replay must go.
+        needs_rollback = self._needs_rollback
+        locating = self._locating
+        near = locating and (self.after_event or loc.time_to_zero <= 4.0 * h)
+        possible = near or (locating and len(self.checkpoints.since) >= self.MAX_REPLAY_STEPS)
+        if near and loc.stale_sources:
+            # The hidden-crossing check needs the sources at the step start.
+            loc.remember_sources()
+            loc.stale_sources = False
+        if possible or needs_rollback:
+            self.checkpoints.take()
+        # 3. The step.
+        if not needs_rollback:
+            self.advance(t, h)
+        elif s.richardson:
+            h = self.doubling.step(t, h)
+        else:
+            iterate_step(self, t, h)
+        taken = h
+        # 4. Events.
+        if locating:
+            taken = self._land_on_events(t, h, near, possible or needs_rollback)
+        if loc.has_sources:
+            # Sources are sampled where a crossing is near, and now and then
+            # to keep the time-scale estimate behind the step cap fresh.
+            loc.sample_countdown -= 1
+            if near or loc.sample_countdown <= 0 or loc.sources_prev is None:
+                loc.remember_sources()
+                loc.sample_countdown = 16
+                loc.stale_sources = False
+            else:
+                loc.stale_sources = True
+        self.after_event = self.after_event_step
+        self.stats.steps += 1
+        # 5. NaN, infinities, divergence.
+        if self.ports.diverged(s.divergence_limit):
+            self.ports.name_divergence(self.t, s.divergence_limit)
+        if self._extrapolating:
+            self.record_history()
+        if self.on_step is not None:
+            self.on_step(self)
+        return taken
+
+    def _land_on_events(self, t: float, h: float, near: bool, checkpointed: bool) -> float:
+        """After the step from t of h s: when an indicator crossed zero, land
+        just past the earliest crossing instead. Returns the step taken, s."""
+        loc = self.locator
+        z0, z1 = loc.z_start, loc.z_end
+        time_to_zero = scan(z0, z1, h)
+        hit = time_to_zero < 0.0
+        if not hit and near and loc.has_sources:
+            hidden = loc.hidden_crossing(h, z0, z1)
+            if hidden is not None:
+                # Two crossings inside one step cancel at its ends; try the
+                # step up to the interpolant's extremum (near: checkpointed).
+                self.checkpoints.rollback()
+                self.advance(t, hidden)
+                self.stats.event_iterations += 1
+                z0, z1 = loc.z_start, loc.z_end
+                time_to_zero = scan(z0, z1, hidden)
+                hit = time_to_zero < 0.0
+                if hit:
+                    h = hidden
+                else:  # the interpolant was wrong: redo the whole step
+                    self.checkpoints.rollback()
+                    self.advance(t, h)
+                    z0, z1 = loc.z_start, loc.z_end
+                    time_to_zero = scan(z0, z1, h)
+        if not hit:
+            loc.time_to_zero = time_to_zero
+            self.checkpoints.since.append(h)
+            return h
+        crossings = [crossed(a, b) for a, b in zip(z0, z1)]
+        z0, z1 = list(z0), list(z1)
+        if not checkpointed:
+            # An event in a step predicted free of them: back to the last
+            # checkpoint, replay to t, and take the step again from there.
+            self.checkpoints.replay_to(t)
+            self.advance(t, h)
+        taken = loc.locate(t, h, crossings, z0, z1)
+        self.after_event_step = True
+        loc.time_to_zero = 0.0
+        self.checkpoints.since.append(self.t - loc.located_from)
+        return taken
+
+    # -- running ----------------------------------------------------------
+
+    def run_until(self, t_stop: float, on_point=None) -> None:
+        """Step to t_stop on the grid start + k*step, plus located events.
+
+        Grid points are computed as start + k*step, never by summing steps,
+        so that time does not drift.
+        """
+        s = self.settings
+        h_nom, t0 = s.step, self.start_time
+        eps = 1e-12 * max(1.0, abs(t_stop))
+        k = math.floor((self.t - t0) / h_nom + 1e-9) + 1
+        step = self.step
+        doubling = self.doubling
+        while self.t < t_stop - eps:
+            grid = t0 + k * h_nom
+            if grid > t_stop:
+                grid = t_stop
+            if s.richardson and doubling.next_step is not None:
+                grid = min(self.t + max(doubling.next_step, s.min_step), t_stop)
+            h = grid - self.t
+            if h <= eps:
+                k += 1
+                continue
+            step(h)
+            if on_point is not None:
+                on_point(self)
+            if self.t >= grid - eps:
+                k += 1
+
+    def terminate(self) -> None:
+        free_all(self.instances)

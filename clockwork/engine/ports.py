@@ -1,0 +1,151 @@
+"""Ports: preallocated ctypes arrays of each instance's connected variables.
+
+A port holds what the master exchanges with one instance on the hot path:
+the value references and values of its connected inputs, of its connected
+or recorded Real outputs and of its event indicators, and the input
+derivatives. All outputs of all instances live in one buffer, so that the
+divergence check is one pass. ``Ports`` also knows the orders in which the
+communication step visits them (from the wiring graph).
+"""
+
+from __future__ import annotations
+
+import math
+from ctypes import c_double, c_int, c_uint
+
+from ..errors import SimulationError
+from .fmu import WARNING, Instance
+from .wiring import Link, Wiring
+
+
+class Port:
+    def __init__(self, inst: Instance, inputs: list[str], outputs: list[str], indicators: list[str]):
+        self.inst = inst
+        self.comp = inst.component
+        # Indicators come last (read twice if also an output), so that the
+        # master takes them all with one slice of `out`.
+        self.out_names = outputs + indicators
+        self.n_out = len(self.out_names)
+        self.out_vr = (c_uint * max(1, self.n_out))(*[inst.variables[n].vr for n in self.out_names])
+        self.out = (c_double * max(1, self.n_out))()  # rebound into the one buffer of all outputs
+        self.z_pos = list(range(len(outputs), self.n_out))
+        self.in_names = inputs
+        self.n_in = len(inputs)
+        self.in_vr = (c_uint * max(1, self.n_in))(*[inst.variables[n].vr for n in inputs])
+        self.inp = (c_double * max(1, self.n_in))()
+        self.der_vr = (c_uint * max(1, 2 * self.n_in))(*([inst.variables[n].vr for n in inputs] * 2))
+        self.der_order = (c_int * max(1, 2 * self.n_in))(*([1] * self.n_in + [2] * self.n_in))
+        self.der = (c_double * max(1, 2 * self.n_in))()
+        # (input position, source port, source output position)
+        self.sources: list[tuple[int, "Port", int]] = []
+        self.out_time = 0.0  # time at which `out` was read, s
+        self.doStep, self.getReal, self.setReal = inst.c_doStep, inst.c_getReal, inst.c_setReal
+        self.sent: list[float] = []  # inputs last given to the FMU (zero-order hold), to skip repeats
+        self.sent_valid = False
+
+    def read(self, t: float) -> None:
+        """Read the outputs at the communication point t."""
+        if self.n_out:
+            st = self.getReal(self.comp, self.out_vr, self.n_out, self.out)
+            if st > WARNING:
+                raise self.inst.fail("fmi2GetReal", st, t)
+        self.out_time = t
+
+    def pull(self, t: float) -> None:
+        """Set the inputs to their sources' outputs, then read the outputs, at t."""
+        if self.n_in:
+            inp = self.inp
+            for k, src, j in self.sources:
+                inp[k] = src.out[j]
+            st = self.setReal(self.comp, self.in_vr, self.n_in, inp)
+            if st > WARNING:
+                raise self.inst.fail("fmi2SetReal of inputs", st, t)
+            self.sent_valid = False
+        self.read(t)
+
+
+def feeds(inst: Instance, name: str) -> bool:
+    """True when output `name` depends directly on inputs (missing information counts as yes)."""
+    v = inst.variables[name]
+    return v.causality == "output" and (v.dependencies is None or len(v.dependencies) > 0)
+
+
+class Ports(dict):
+    """Every instance's port by instance name, the one output buffer, and
+    the orders in which a communication step visits them."""
+
+    def __init__(self, instances: dict[str, Instance], links: list[Link], wiring: Wiring,
+                 extra_outputs: dict[str, list[str]] | None, event_location: bool):
+        super().__init__()
+        inputs: dict[str, list[str]] = {n: [] for n in instances}
+        outputs: dict[str, list[str]] = {n: [] for n in instances}
+        for link in links:
+            inputs[link.dst].append(link.input)
+            if link.output not in outputs[link.src]:
+                outputs[link.src].append(link.output)
+        for link in links:
+            for inst_name, var in ((link.src, link.output), (link.dst, link.input)):
+                if instances[inst_name].variables[var].type != "Real":
+                    raise SimulationError(
+                        f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: only Real "
+                        f"connections are supported, {inst_name}.{var} is "
+                        f"{instances[inst_name].variables[var].type}")
+        # Integer and Boolean outputs are discrete: read on demand, not per step.
+        self.discrete_outputs: dict[str, list[str]] = {n: [] for n in instances}
+        for n, names in (extra_outputs or {}).items():
+            for x in names:
+                if instances[n].variables[x].type != "Real":
+                    self.discrete_outputs[n].append(x)
+                elif x not in outputs[n]:
+                    outputs[n].append(x)
+        for n, inst in instances.items():
+            self[n] = Port(inst, inputs[n], outputs[n], inst.event_indicators if event_location else [])
+        self.buffer = (c_double * sum(max(1, p.n_out) for p in self.values()))()
+        offset = 0
+        for p in self.values():
+            n = max(1, p.n_out)
+            p.out = (c_double * n).from_buffer(self.buffer, offset * 8)
+            offset += n
+        for link in links:
+            dst, src = self[link.dst], self[link.src]
+            dst.sources.append((dst.in_names.index(link.input), src, src.out_names.index(link.output)))
+
+        self.all = list(self.values())
+        self.first = [self[n] for n in wiring.feedthrough_only]  # stepped first: they commit modes
+        self.dynamic = [self[n] for n in wiring.dynamic]
+        self.order = [self[n] for n in wiring.evaluation_order]  # output updates, in dependency order
+        self.first_in_order = [p for p in self.order if p in self.first]
+        # After a step, only feedthrough outputs need an update at t + h;
+        # a dynamic instance's own inputs are set when its next step starts.
+        self.final_order = [
+            p for p in self.order
+            if p in self.first or any(
+                wiring.feedthrough_outputs.get((p.inst.name, n), feeds(p.inst, n)) for n in p.out_names)
+        ]
+
+    def propagate(self, ports: list[Port], t: float) -> None:
+        """Set inputs from their sources and read outputs, in order, at t."""
+        for p in ports:
+            p.pull(t)
+
+    def dynamic_outputs(self) -> list[float]:
+        return [p.out[k] for p in self.dynamic for k in range(p.n_out)]
+
+    def diverged(self, limit: float) -> bool:
+        """One pass over every output: False while all are finite and below `limit`."""
+        return not sum(map(abs, self.buffer)) < limit  # NaN fails too
+
+    def name_divergence(self, t: float, limit: float) -> None:
+        """Raise for the output that failed ``diverged`` (a sum of large but
+        legal outputs can fail it too: then nothing)."""
+        for p in self.all:
+            if sum(map(abs, p.out)) < limit:
+                continue
+            out = p.out
+            for k in range(p.n_out):
+                x = out[k]
+                if not (-limit < x < limit):
+                    what = "is not finite" if not math.isfinite(x) else f"exceeds the divergence limit {limit:g}"
+                    raise SimulationError(
+                        f"{p.inst.name}.{p.out_names[k]} = {x!r} {what} at t = {t!r} s",
+                        time=t, instance=p.inst.name, variable=p.out_names[k])

@@ -1,0 +1,74 @@
+"""Recording: what is kept of a run.
+
+A ``Recorder`` is called at every communication point (``Master.run_until``'s
+``on_point``). It keeps chosen outputs on the grid start + k * interval
+(every grid point when no interval is given; the extra points of located
+events too in that case) and the tick times of one instance (its
+``tick_time`` output, which changes at each upward zero crossing).
+Integer and Boolean outputs are read from the FMU when sampled; Real ones
+come from the master's output buffer.
+"""
+
+from __future__ import annotations
+
+
+class _DiscreteOutput:
+    """An Integer or Boolean output read from the FMU when sampled."""
+
+    def __init__(self, inst, var: str):
+        self.inst, self.var = inst, var
+        self.kind = inst.variables[var].type
+
+    def __getitem__(self, _):
+        return float(self.inst.get_integer([self.var])[0] if self.kind == "Integer"
+                     else self.inst.get_boolean([self.var])[0])
+
+
+class Recorder:
+    def __init__(self, master, outputs: list[tuple[str, str]], interval: float | None = None,
+                 ticks_of: str | None = None):
+        self.master = master
+        self.outputs = list(outputs)
+        self.names = [f"{i}.{v}" for i, v in self.outputs]
+        self.columns: dict[str, list[float]] = {"time": [], **{n: [] for n in self.names}}
+        self.ticks: list[float] = []
+        self._sources = []
+        for i, v in self.outputs:
+            if v in master.discrete_outputs.get(i, []):
+                self._sources.append((_DiscreteOutput(master.instances[i], v), 0))
+            else:
+                port = master.ports[i]
+                self._sources.append((port.out, port.out_names.index(v)))
+        self._tick_port = master.ports[ticks_of] if ticks_of else None
+        self._tick_pos = self._tick_port.out_names.index("tick_time") if ticks_of else 0
+        self._last_tick = self._tick_port.out[self._tick_pos] if self._tick_port else 0.0
+        self._interval = interval
+        self._stride = max(1, round(interval / master.settings.step)) if interval else 1
+        self._k = 0  # grid points seen
+
+    def start(self) -> None:
+        """Record the first row, at the master's current point."""
+        if self.outputs:
+            self._row(self.master.t)
+
+    def _row(self, t: float) -> None:
+        self.columns["time"].append(t)
+        for name, (arr, j) in zip(self.names, self._sources):
+            self.columns[name].append(arr[j])
+
+    def __call__(self, master) -> None:
+        if self._tick_port is not None:
+            tt = self._tick_port.out[self._tick_pos]
+            if tt != self._last_tick and tt > 0:
+                self.ticks.append(tt)
+                self._last_tick = tt
+        if not self.outputs:
+            return
+        k = (master.t - master.start_time) / master.settings.step
+        if abs(k - round(k)) < 1e-6:  # on the grid (events add points off it)
+            self._k += 1
+            if self._k % self._stride:
+                return
+        elif self._interval:
+            return
+        self._row(master.t)

@@ -1,0 +1,46 @@
+"""What a master is asked to do, and what it counts while doing it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..errors import SceneError
+
+
+@dataclass
+class MasterSettings:
+    step: float = 0.01  # nominal communication step, s
+    order: str = "gauss-seidel"  # or "jacobi"
+    extrapolation: int = 0  # order of the input polynomials: 0, 1, 2
+    event_location: bool = True
+    event_time_tolerance: float = 1e-10  # s
+    event_indicator_tolerance: float = 1e-12  # in the indicator's unit (rad)
+    iterations: int = 0  # strong coupling: fixed-point iterations per step (0 = off)
+    iteration_tolerance: float = 1e-10
+    richardson: bool = False
+    richardson_tolerance: float = 1e-8
+    min_step: float = 1e-9  # s
+    max_step: float | None = None  # s; None = step
+    divergence_limit: float = 1e8  # |output| beyond this counts as divergence
+
+    def check(self) -> None:
+        """Refuse combinations the master cannot run (SceneError: bad input)."""
+        if self.order not in ("gauss-seidel", "jacobi"):
+            raise SceneError(f"master.order = {self.order!r}: expected 'gauss-seidel' or 'jacobi'")
+        if self.richardson and self.iterations > 0:
+            raise SceneError("master.richardson and master.iterations cannot be combined: "
+                             "step doubling does not iterate the coupling")
+        if self.extrapolation not in (0, 1, 2):
+            raise SceneError(f"master.extrapolation = {self.extrapolation}: expected 0, 1 or 2")
+
+
+@dataclass
+class Statistics:
+    steps: int = 0
+    events: int = 0
+    event_iterations: int = 0
+    rollbacks: int = 0
+    replays: int = 0
+    states_saved: int = 0
+    rejected: int = 0
+    coupling_iterations: int = 0

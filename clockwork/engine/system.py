@@ -1,0 +1,58 @@
+"""A wired, instantiated system of FMUs: the engine's front door.
+
+Scenes are turned into one by the analyses (clockwork.analyses.context);
+tests, benchmarks and the Python API build one directly:
+``System({"pendulum": ("Pendulum", {...})}, ["pendulum.phi -> escapement.phi", ...],
+MasterSettings(...))``. A model name is looked up in $CLOCKWORK_FMU_DIR
+(else the repository's fmus/); a path ending .fmu is taken as it is.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .description import resolve_fmu
+from .fmu import Instance, free_all
+from .master import Master
+from .settings import MasterSettings
+from .wiring import Link, parse_link
+
+
+class System:
+    def __init__(self, components: dict[str, tuple[str, dict]], connections: list[str],
+                 settings: MasterSettings | None = None, record: dict[str, list[str]] | None = None,
+                 start_time: float = 0.0, model_descriptions: dict | None = None):
+        self.parameters = {name: dict(params) for name, (_, params) in components.items()}
+        self.instances: dict[str, Instance] = {}
+        try:
+            for name, (fmu, _) in components.items():
+                md = (model_descriptions or {}).get(name)
+                inst = Instance(name, resolve_fmu(str(fmu), Path.cwd()), md)
+                inst.instantiate()
+                self.instances[name] = inst
+            links = [parse_link(c) if isinstance(c, str) else Link(*c) for c in connections]
+            self.master = Master(self.instances, links, settings or MasterSettings(),
+                                 start_time=start_time, extra_outputs=record)
+            self.master.initialize(self.parameters)
+        except BaseException:
+            self.free()
+            raise
+
+    def value(self, instance: str, name: str) -> float:
+        """Current value of a Real variable (not on the hot path)."""
+        return self.instances[instance].get_real([name])[0]
+
+    def output(self, instance: str, name: str) -> float:
+        """Cached value of a connected or recorded output at the current point."""
+        port = self.master.ports[instance]
+        return port.out[port.out_names.index(name)]
+
+    def free(self) -> None:
+        free_all(self.instances)
+        self.instances = {}
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.free()

@@ -1,0 +1,8 @@
+"""The papers' equations without co-simulation.
+
+``analytic``: closed-form results (AGM period, circular error, Ziemkiewicz
+App. B, Hoyng's averaged equations). ``reference``: the monolithic
+reference solution of the clock equations with scipy, every switch
+located. Nothing here imports the engine: the two are checked against each
+other.
+"""

@@ -1,0 +1,8 @@
+"""Plots: PNG files of a scene's results. ``registry`` holds the kinds;
+``basic``, ``ziemkiewicz``, ``chaos`` and ``hoyng`` define them. Importing
+this package registers every kind."""
+
+from . import basic, chaos, hoyng, ziemkiewicz  # noqa: F401  (each registers its kinds)
+from .registry import PLOTS, make_plots, register
+
+__all__ = ["PLOTS", "make_plots", "register"]

@@ -1,0 +1,157 @@
+"""The plot-kind registry: PNG plots of a scene's results, in the papers' units.
+
+A plot kind is ``f(scene, results, spec) -> Figure | None`` (None: nothing
+to draw for these results). A module registers it with
+``@register(kind, keys, convert)``, which also tells the scene validator
+the kind's allowed keys (``title`` and ``file`` always) and their
+converter. pyplot is imported on the first plot, not at start-up.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+
+from ...engine.description import var_unit, variables
+from ...scene.kinds import Converter, Invalid
+from ..files import write_bytes_atomic
+
+PLOTS: dict = {}  # kind -> function
+PLOT_KEYS: dict[str, set[str]] = {}  # kind -> allowed keys besides `kind`
+_PLOT_CONVERT: dict[str, Converter] = {}
+
+
+def pyplot():
+    """matplotlib.pyplot on the Agg backend (no display needed)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def check_keys(t: dict, strings=("x", "title"), string_lists=(), booleans=()) -> dict:
+    """The keys every plot kind shares (`title`, `file`, `levels`: contour
+    levels, sorted), the given string keys, string-list keys (a string
+    becomes a one-element list) and true/false keys."""
+    out = dict(t)
+    if "levels" in t:
+        lv = t["levels"]
+        if not (isinstance(lv, list) and lv and all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                    for x in lv)):
+            raise Invalid("levels", "a non-empty list of numbers")
+        out["levels"] = sorted(float(x) for x in lv)
+    for k in booleans:
+        if k in t and not isinstance(t[k], bool):
+            raise Invalid(k, "true or false")
+    for k in strings:
+        if k in t and not isinstance(t[k], str):
+            raise Invalid(k, "a string")
+    for k in string_lists:
+        if k in t:
+            v = t[k]
+            if isinstance(v, str):
+                out[k] = [v]
+            elif isinstance(v, list) and v and all(isinstance(s, str) for s in v):
+                out[k] = list(v)
+            else:
+                raise Invalid(k, "a string or a non-empty list of strings")
+    if "file" in t:
+        f = t["file"]
+        if not isinstance(f, str) or not f or "/" in f or "\\" in f or f.startswith("."):
+            raise Invalid("file", 'a file name without a directory, e.g. "fig.png"')
+    return out
+
+
+def single_run(results: list[dict], key: str = "series") -> dict | None:
+    """The one result of a scene without a sweep, when it holds `key`; else None."""
+    r = results[0] if results else None
+    return r if r and key in r else None
+
+
+def curves(rows: list[dict], key) -> dict:
+    """Sweep rows grouped into curves by key(row), in the order they come."""
+    out: dict = {}
+    for r in rows:
+        out.setdefault(key(r), []).append(r)
+    return out
+
+
+def register(kind: str, keys: set[str] | frozenset[str] = frozenset(), convert: Converter | None = None,
+             run: str | None = None, rows=None):
+    """Register ``f(scene, results, spec) -> Figure | None`` as plot kind `kind`.
+
+    With `run` (a key such as "series"), the kind plots the one result of a
+    scene without a sweep: f gets that result instead of the list, and is
+    not called when the result lacks `run`. With `rows` (a filter of the
+    sweep's results), f gets the rows it keeps, and is not called when
+    there are none.
+    """
+    def wrap(func):
+        if run is not None:
+            def plot_one(scene, results, spec):
+                r = single_run(results, run)
+                return None if r is None else func(scene, r, spec)
+            PLOTS[kind] = plot_one
+        elif rows is not None:
+            def plot_rows(scene, results, spec):
+                kept = rows(results)
+                return func(scene, kept, spec) if kept else None
+            PLOTS[kind] = plot_rows
+        else:
+            PLOTS[kind] = func
+        PLOT_KEYS[kind] = set(keys) | {"title", "file"}
+        if convert is not None:
+            _PLOT_CONVERT[kind] = convert
+        else:
+            _PLOT_CONVERT.pop(kind, None)
+        return func
+
+    return wrap
+
+
+def display(scene, name: str, values):
+    """Values of `instance.variable` in display units: angles in degrees,
+    torques in N.cm; returns (values, axis label)."""
+    if "." not in name:
+        return np.asarray(values, dtype=float), name
+    inst, var = name.split(".", 1)
+    comp = scene.components.get(inst)
+    unit = None
+    if comp is not None:
+        v = variables(comp.model_description).get(var)
+        if v is not None:
+            unit = var_unit(v)
+    values = np.asarray(values, dtype=float)
+    if unit == "rad":
+        return np.degrees(values), f"{name} (deg)"
+    if unit == "rad/s":
+        return np.degrees(values), f"{name} (deg/s)"
+    if unit == "N.m":
+        return values * 100.0, f"{name} (N.cm)"
+    return values, f"{name} ({unit})" if unit else name
+
+
+def save(fig, path: Path) -> None:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    pyplot().close(fig)
+    write_bytes_atomic(path, buf.getvalue())
+
+
+def make_plots(scene, results: list[dict], out: Path) -> list[str]:
+    written = []
+    for k, spec in enumerate(scene.plots):
+        kind = spec["kind"]
+        name = spec.get("file") or f"plot{k + 1}_{kind}.png"
+        fig = PLOTS[kind](scene, results, spec)
+        if fig is None:
+            continue
+        if not fig.axes[0].get_title():
+            fig.axes[0].set_title(spec.get("title", scene.title), fontsize=10)
+        save(fig, out / name)
+        written.append(name)
+    return written

@@ -1,0 +1,60 @@
+"""One sweep point: its content address, and its run through the analysis.
+
+``point_key`` hashes everything that determines a point's result (FMU
+hashes, parameters, connections, master settings, experiment, analysis,
+recorded outputs, the tool's version and code): the name under which the
+point is stored in an output directory and in the cache.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import asdict
+
+from .. import __version__
+from ..analyses import run_analysis
+from ..analyses.context import experiment, master_settings, parameters
+from ..errors import SimulationError
+from ..hashing import source_digest
+
+
+def point_key(scene, point: dict) -> str:
+    """Content address of a sweep point's result."""
+    blob = {
+        "fmus": {n: c.sha256 for n, c in sorted(scene.components.items())},
+        "parameters": {n: dict(p) for n, p in parameters(scene, point).items()},
+        "connections": [list(c) for c in scene.connections],
+        "master": asdict(master_settings(scene, point)),
+        "experiment": experiment(scene, point),
+        "analysis": scene.analysis,
+        "record": [list(scene.record.outputs), scene.record.interval, scene.record.ticks],
+        "version": __version__,
+        "code": source_digest(),
+    }
+    text = json.dumps(blob, sort_keys=True, default=repr)
+    return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+
+def point_label(point: dict) -> dict:
+    """{"instance.variable": value} of a point, as written into results."""
+    return {f"{a}.{b}": v for (a, b), v in point.items()}
+
+
+def run_point(scene, point: dict, progress: bool = False, catch: bool = False) -> dict:
+    """One point: build, analyse, free. Returns a JSON-able dict (series as lists).
+
+    With `catch`, a failed simulation is returned as ``{"point", "error"}``
+    instead of raised: one failed point of a sweep does not stop the others.
+    """
+    t0 = time.perf_counter()
+    try:
+        result = run_analysis(scene, point, progress=progress)
+    except SimulationError as e:
+        if not catch:
+            raise
+        return {"point": point_label(point), "error": str(e)}
+    result["wall_time_s"] = time.perf_counter() - t0
+    result["point"] = point_label(point)
+    return result

@@ -1,0 +1,91 @@
+"""Run a scene: every sweep point through its analysis, then write the results.
+
+Each finished sweep point is written to ``DIR/points/<key>.json`` as soon
+as it completes (``key``: clockwork.run.points.point_key) and into the
+point cache. A rerun into the same directory loads finished points instead
+of recomputing them, so an interrupted sweep resumes without losing or
+repeating work. Points run in this process, in a pool of processes
+(``pool``) or on a Dask cluster (``dask``).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+from .. import __version__
+from ..results.cache import cache_load, cache_store
+from ..results.files import write_json_atomic
+from ..results.report import write_outputs
+from .points import point_key, run_point
+from .pool import default_workers, run_in_pool
+
+
+def run_scene(scene, out_dir, workers: int | None = None, scheduler: str | None = None,
+              progress: bool = True) -> dict:
+    out = Path(out_dir)
+    t_start = time.perf_counter()
+    points = scene.points()
+    sweep = scene.sweep is not None
+    results: list[dict | None] = [None] * len(points)
+    keys = [point_key(scene, p) for p in points]
+    store = out / "points"
+    if sweep:
+        store.mkdir(parents=True, exist_ok=True)
+        for i, k in enumerate(keys):
+            f = store / f"{k}.json"
+            if f.exists():
+                try:
+                    results[i] = json.loads(f.read_text())
+                except json.JSONDecodeError:
+                    results[i] = None  # a torn file from a killed run: recompute
+            if results[i] is None:
+                results[i] = cache_load(k)
+                if results[i] is not None:
+                    write_json_atomic(f, results[i])
+    todo = [i for i, r in enumerate(results) if r is None]
+    reused = len(points) - len(todo)
+
+    def finished(i: int, r: dict) -> None:
+        results[i] = r
+        if sweep:
+            write_json_atomic(store / f"{keys[i]}.json", r)
+            cache_store(keys[i], r)
+
+    if not sweep:
+        finished(0, run_point(scene, points[0], progress=progress))
+    elif todo:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(points), initial=reused, disable=not progress, delay=1.0,
+                   desc=scene.path.stem, unit="point")
+        n_workers = workers or default_workers(len(todo))
+        if scheduler:
+            from .dask import run_on_dask  # distributed is an optional extra: imported only when asked for
+
+            done = run_on_dask(scheduler, scene, [points[i] for i in todo], todo)
+        elif n_workers <= 1:
+            done = ((i, run_point(scene, points[i], catch=True)) for i in todo)
+        else:
+            done = run_in_pool(scene, [points[i] for i in todo], todo, n_workers)
+        for i, r in done:
+            finished(i, r)
+            bar.update()
+        bar.close()
+
+    summary = {
+        "scene": str(scene.path),
+        "title": scene.title,
+        "reproduces": scene.reproduces,
+        "tool": {"name": "clockwork", "version": __version__},
+        "fmus": {n: {"file": str(c.fmu_path), "sha256": c.sha256, "model": c.model_description.modelName}
+                 for n, c in scene.components.items()},
+        "settings": {"master": scene.master.as_dict(), "experiment": asdict(scene.experiment),
+                     "analysis": scene.analysis, "overrides": list(scene.overrides)},
+        "points_total": len(points),
+        "points_reused": reused,
+    }
+    write_outputs(scene, out, results, summary, t_start)
+    return summary

@@ -1,0 +1,182 @@
+"""The checks every section of a scene file shares.
+
+``Ctx`` turns a problem into one ``SceneError`` line naming the file, the
+dotted key (or the ``--set`` argument that put it there) and what was
+expected; the value converters check a TOML value against an FMU variable's
+type, unit and range.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+from pathlib import Path
+
+from ..engine.description import var_limit, var_unit
+from ..engine.description import variables as variables_of
+from ..errors import SceneError
+from .model import Component, show
+from .units import UnitError, fmt, parse_quantity, to_seconds, to_unit
+
+_REF_RE = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\.([A-Za-z_][A-Za-z0-9_.\[\]]*)\s*$")
+TOP_KEYS = ("scene", "components", "connections", "experiment", "master", "record", "analysis", "sweep", "plot")
+
+
+class Ctx:
+    def __init__(self, path: Path, labels: dict[str, str]):
+        self.path = path
+        self.labels = labels  # dotted key -> "--set x.y" for overridden keys
+
+    def key(self, key: str) -> str:
+        return self.labels.get(key, key)
+
+    def fail(self, key: str, detail: str) -> SceneError:
+        return SceneError(detail, self.path, self.key(key))
+
+    def bad(self, key: str, value: object, expected: str) -> SceneError:
+        return SceneError(f"expected {expected}", self.path, f"{self.key(key)} = {show(value)}")
+
+    def check_keys(self, table: dict, allowed, where: str, required=()) -> None:
+        allowed = list(allowed)
+        for k in table:
+            if k not in allowed:
+                full = f"{where}.{k}" if where else k
+                close = difflib.get_close_matches(k, allowed, n=1)
+                hint = f" (did you mean {close[0]}?)" if close else ""
+                extra = ""
+                if k in TOP_KEYS and where:
+                    extra = f"; top-level key `{k}` must come before the first [table] header"
+                allowed_s = ", ".join(sorted(allowed)) if allowed else "none"
+                raise self.fail(full, f"unknown key{hint}; allowed: {allowed_s}{extra}")
+        for k in required:
+            if k not in table:
+                if where:
+                    raise self.fail(f"{where}.{k}", "missing required key")
+                header = "components.<instance>" if k == "components" else k
+                raise self.fail(k, f"missing required table [{header}]")
+
+    def table(self, parent: dict, k: str, where: str, required: bool = False) -> dict | None:
+        full = f"{where}.{k}" if where else k
+        if k not in parent:
+            if required:
+                raise self.fail(full, "missing required table")
+            return None
+        t = parent[k]
+        if not isinstance(t, dict):
+            raise self.bad(full, t, "a table")
+        return t
+
+    def time(self, key: str, value: object) -> float:
+        try:
+            return to_seconds(value)
+        except UnitError as e:
+            raise self.bad(key, value, str(e)) from None
+
+
+def article(word: str) -> str:
+    return "an" if word[:1] in "aeiou" else "a"
+
+
+def names_of(variables: dict, *causalities: str) -> list[str]:
+    return [n for n, v in variables.items() if v.causality in causalities]
+
+
+def lookup(ctx: Ctx, key: str, variables: dict, name: str, instance: str, model: str, want: str):
+    v = variables.get(name)
+    if v is None:
+        close = difflib.get_close_matches(name, list(variables), n=3)
+        hint = f" (did you mean {' or '.join(close)}?)" if close else ""
+        if want == "parameter":
+            pool = names_of(variables, "parameter")
+            listing = f"; parameters: {', '.join(pool)}"
+        else:
+            listing = ""
+        raise ctx.fail(key, f"{instance} ({model}) has no variable {name}{hint}{listing}")
+    return v
+
+
+def convert_value(ctx: Ctx, key: str, value: object, v, md):
+    """A TOML value -> the variable's type and unit, range-checked."""
+    unit = var_unit(v)
+    if v.type == "Real":
+        try:
+            x = to_unit(value, md, unit)
+        except UnitError as e:
+            raise ctx.bad(key, value, str(e)) from None
+    elif v.type in ("Integer", "Enumeration"):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ctx.bad(key, value, "an integer")
+        x = value
+    elif v.type == "Boolean":
+        if not isinstance(value, bool):
+            raise ctx.bad(key, value, "true or false")
+        return value
+    elif v.type == "String":
+        if not isinstance(value, str):
+            raise ctx.bad(key, value, "a string")
+        return value
+    else:
+        raise ctx.fail(key, f"variables of type {v.type} cannot be set")
+    lo, hi = var_limit(v, "min"), var_limit(v, "max")
+    if (lo is not None and x < lo) or (hi is not None and x > hi):
+        u = f" {unit}" if unit else ""
+        if lo is not None and hi is not None:
+            expected = f"a value in [{fmt(lo)}, {fmt(hi)}]{u}"
+        elif lo is not None:
+            expected = f"a value >= {fmt(lo)}{u}"
+        else:
+            expected = f"a value <= {fmt(hi)}{u}"
+        if isinstance(value, str) and parse_quantity(value)[1] not in (None, unit):
+            expected += f" (got {fmt(x)}{u})"
+        raise ctx.bad(key, value, expected)
+    return x
+
+
+def master_value(ctx: Ctx, key: str, value: object):
+    full = f"master.{key}"
+    if key in ("step", "min_step", "max_step", "event_time_tolerance"):
+        x = ctx.time(full, value)
+        if not x > 0:
+            raise ctx.bad(full, value, "a time > 0")
+        return x
+    if key == "order":
+        if value not in ("gauss-seidel", "jacobi"):
+            raise ctx.bad(full, value, '"gauss-seidel" or "jacobi"')
+        return value
+    if key == "extrapolation":
+        if isinstance(value, bool) or value not in (0, 1, 2) or not isinstance(value, int):
+            raise ctx.bad(full, value, "0, 1 or 2 (order of the input extrapolation polynomial)")
+        return value
+    if key in ("event_location", "richardson"):
+        if not isinstance(value, bool):
+            raise ctx.bad(full, value, "true or false")
+        return value
+    if key == "iterations":
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise ctx.bad(full, value, "an integer >= 0 (0 = no fixed-point iteration)")
+        return value
+    # the remaining tolerances are bare positive numbers
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise ctx.bad(full, value, "a number > 0")
+    return float(value)
+
+
+def parse_ref(ctx: Ctx, key: str, ref: object, components: dict[str, Component], what: str):
+    if not isinstance(ref, str) or not _REF_RE.match(ref):
+        raise ctx.bad(key, ref, f'"instance.variable" naming {what}')
+    inst, var = ref.strip().split(".", 1)
+    comp = component(ctx, key, components, inst)
+    v = lookup(ctx, key, variables_of(comp.model_description), var, inst, comp.model_name,
+               want="parameter" if what == "a parameter" else "any")
+    return comp, v
+
+
+def component(ctx: Ctx, key: str, components: dict[str, Component], inst: str) -> Component:
+    """The component named `inst`; else SceneError at `key` with the names there are."""
+    comp = components.get(inst)
+    if comp is None:
+        close = difflib.get_close_matches(inst, list(components), n=1)
+        hint = f" (did you mean {close[0]}?)" if close else ""
+        raise ctx.fail(key, f"no component named {inst}{hint}; components: {', '.join(components)}")
+    return comp

@@ -1,0 +1,345 @@
+"""Scene files: loading and strict validation (format: docs/scenes.md).
+
+``load_scene(path, overrides, kinds)`` reads a TOML scene, applies ``--set``
+overrides, checks every key and value against the FMUs' model descriptions
+and returns a frozen ``Scene`` with all quantities converted to the
+variables' own (SI) units. Every problem raises ``SceneError`` with a
+one-line message naming the file, the dotted key and what was expected.
+The ``[analysis]`` and ``[[plot]]`` tables are checked against ``kinds``,
+which the layers above fill (clockwork.run.load_scene passes them all).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import hashlib
+import os
+import re
+import tomllib
+from pathlib import Path
+
+from ..engine.description import NAME_RE, FmuError, read_fmu, resolve_fmu, var_unit
+from ..engine.description import variables as variables_of
+from ..errors import SceneError
+from .checks import TOP_KEYS, Ctx, article, component, convert_value, lookup, master_value, names_of, parse_ref
+from .kinds import NO_KINDS, Invalid, Kinds
+from .model import (Component, Connection, Experiment, MasterConfig, Record, Scene, consistency)
+from .sweep import parse_sweep
+from .units import fmt
+
+_CONN_RE = re.compile(
+    r"^\s*([A-Za-z_][A-Za-z0-9_]*)\.(\S+)\s*->\s*([A-Za-z_][A-Za-z0-9_]*)\.(\S+)\s*$"
+)
+
+_OVERRIDABLE = ("scene", "experiment", "master", "record", "analysis")
+_MASTER_DEFAULTS = {f.name: f.default for f in dataclasses.fields(MasterConfig)}
+
+
+def parse_override(text: str) -> tuple[str, str, object]:
+    """'a.b=value' -> ('a', 'b', value); the value is TOML if it parses, else a bare string."""
+    if "=" not in text:
+        raise ValueError(f"--set {text}: expected instance.parameter=value (or master.key=value)")
+    lhs, rhs = text.split("=", 1)
+    lhs = lhs.strip()
+    m = re.match(r"^([A-Za-z_][A-Za-z0-9_]*)\.([A-Za-z_][A-Za-z0-9_]*)$", lhs)
+    if not m:
+        raise ValueError(f"--set {text}: expected instance.parameter=value, got the key {lhs!r}")
+    try:
+        value = tomllib.loads("v = " + rhs)["v"]
+    except tomllib.TOMLDecodeError:
+        value = rhs.strip()
+    return m.group(1), m.group(2), value
+
+
+def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS) -> Scene:
+    """Load, override and validate a scene file; raises SceneError."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise SceneError("no such scene file", path) from None
+    except IsADirectoryError:
+        raise SceneError("is a directory, expected a .toml scene file", path) from None
+    except OSError as e:
+        raise SceneError(f"cannot read: {e.strerror}", path) from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise SceneError(f"not UTF-8 text (byte {e.start})", path) from None
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        msg = str(e)
+        m = re.search(r"\(at line (\d+), column (\d+)\)", msg)
+        where = f"line {m.group(1)}" if m else "line ?"
+        if m:
+            msg = msg[: m.start()].strip() + f" at column {m.group(2)}"
+        elif "end of document" in msg:
+            where = f"line {text.count(chr(10)) + 1}"
+        raise SceneError(f"malformed TOML: {msg}", path, where) from None
+
+    labels: dict[str, str] = {}
+    applied = []
+    for text_ov in overrides:
+        try:
+            owner, name, value = parse_override(text_ov)
+        except ValueError as e:
+            raise SceneError(str(e), path) from None
+        applied.append(text_ov)
+        label = f"--set {owner}.{name}"
+        if owner in _OVERRIDABLE:
+            sect = raw.setdefault(owner, {})
+            if not isinstance(sect, dict):
+                raise SceneError(f"[{owner}] is not a table in the file", path, label)
+            sect[name] = value
+            labels[f"{owner}.{name}"] = label
+            continue
+        comps = raw.get("components")
+        if owner in TOP_KEYS:
+            raise SceneError(
+                f"cannot be set from the command line; settable: <instance>.<parameter>, "
+                f"{', '.join(s + '.<key>' for s in _OVERRIDABLE)}", path, label)
+        if not isinstance(comps, dict) or owner not in comps or not isinstance(comps[owner], dict):
+            names = list(comps) if isinstance(comps, dict) else []
+            close = difflib.get_close_matches(owner, names + list(_OVERRIDABLE), n=1)
+            hint = f" (did you mean {close[0]}?)" if close else ""
+            raise SceneError(
+                f"no component named {owner}{hint}; components: {', '.join(names) or 'none'}", path, label)
+        params = comps[owner].setdefault("parameters", {})
+        if not isinstance(params, dict):
+            raise SceneError(f"components.{owner}.parameters is not a table in the file", path, label)
+        params[name] = value
+        labels[f"components.{owner}.parameters.{name}"] = label
+
+    ctx = Ctx(path, labels)
+    return _build(ctx, raw, tuple(applied), hashlib.sha256(data).hexdigest(), kinds)
+
+
+def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: Kinds) -> Scene:
+    ctx.check_keys(raw, TOP_KEYS, "", required=("scene", "components", "experiment"))
+
+    scene_t = ctx.table(raw, "scene", "", required=True)
+    ctx.check_keys(scene_t, ("title", "description", "reproduces"), "scene", required=("title",))
+    for k in ("title", "description", "reproduces"):
+        if k in scene_t and not isinstance(scene_t[k], str):
+            raise ctx.bad(f"scene.{k}", scene_t[k], "a string")
+    if not scene_t["title"].strip():
+        raise ctx.bad("scene.title", scene_t["title"], "a non-empty title")
+
+    components, input_params = _components(ctx, ctx.table(raw, "components", "", required=True))
+    connections = _connections(ctx, raw.get("connections", []), components, input_params)
+    experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
+    master, max_step_given = _master(ctx, ctx.table(raw, "master", "") or {})
+    problem = consistency(master, experiment)
+    if problem:
+        raise ctx.fail(*problem)
+    record = _record(ctx, ctx.table(raw, "record", ""), components)
+    analysis = _analysis(ctx, ctx.table(raw, "analysis", ""), kinds)
+    connected_inputs = {(c.dst_instance, c.dst_var) for c in connections}
+    sweep = parse_sweep(ctx, ctx.table(raw, "sweep", ""), components, connected_inputs)
+    plots = _plots(ctx, raw.get("plot", []), kinds)
+
+    scene = Scene(
+        path=ctx.path,
+        title=scene_t["title"],
+        description=scene_t.get("description", ""),
+        reproduces=scene_t.get("reproduces", ""),
+        components=components,
+        connections=connections,
+        experiment=experiment,
+        master=master,
+        record=record,
+        analysis=analysis,
+        sweep=sweep,
+        plots=plots,
+        overrides=overrides,
+        sha256=digest,
+        max_step_given=max_step_given,
+    )
+    if sweep and any(a.parameter[0] in ("master", "experiment") for a in sweep.axes):
+        for point in sweep.points():
+            try:
+                scene.variant(point)
+            except SceneError as e:
+                raise ctx.fail("sweep", f"a sweep point is inconsistent: {e.key}: {e.detail}") from None
+    return scene
+
+
+def _components(ctx: Ctx, table: dict) -> tuple[dict[str, Component], set]:
+    if not table:
+        raise ctx.fail("components", "expected at least one [components.<instance>] table")
+    out: dict[str, Component] = {}
+    input_params = set()
+    for name, t in table.items():
+        where = f"components.{name}"
+        if not NAME_RE.match(name):
+            raise ctx.fail(where, "expected an instance name matching [A-Za-z_][A-Za-z0-9_]*")
+        if name in TOP_KEYS:
+            raise ctx.fail(where, f"the instance name {name} is reserved (it names a scene section)")
+        if not isinstance(t, dict):
+            raise ctx.bad(where, t, f"a table [components.{name}] with keys fmu, parameters")
+        ctx.check_keys(t, ("fmu", "parameters"), where, required=("fmu",))
+        spec = t["fmu"]
+        if not isinstance(spec, str):
+            raise ctx.bad(f"{where}.fmu", spec, "a model name or a path ending .fmu")
+        try:
+            fpath = resolve_fmu(spec, ctx.path.parent)
+            md, digest, indicators = read_fmu(fpath)
+        except FmuError as e:
+            raise ctx.fail(f"{where}.fmu", str(e)) from None
+        params_t = ctx.table(t, "parameters", where) or {}
+        params = {}
+        variables = variables_of(md)
+        for pname, value in params_t.items():
+            key = f"{where}.parameters.{pname}"
+            v = lookup(ctx, key, variables, pname, name, md.modelName, want="parameter")
+            if v.causality == "input":
+                input_params.add((name, pname, key))
+            elif v.causality != "parameter":
+                raise ctx.fail(
+                    key, f"{md.modelName}.{pname} is {article(v.causality)} {v.causality}, not a parameter; "
+                    f"parameters: {', '.join(names_of(variables, 'parameter'))}")
+            params[pname] = convert_value(ctx, key, value, v, md)
+        out[name] = Component(name, fpath, digest, md, params, indicators)
+    return out, input_params
+
+
+def _connections(ctx: Ctx, conns, components: dict[str, Component], input_params: set) -> tuple[Connection, ...]:
+    if not isinstance(conns, list):
+        raise ctx.bad("connections", conns, 'an array of "src.output -> dst.input" strings')
+    out = []
+    seen: dict[tuple[str, str], int] = {}
+    set_inputs = {(inst, var): key for inst, var, key in input_params}
+    checked = []
+    for i, c in enumerate(conns):
+        key = f"connections[{i}]"
+        if not isinstance(c, str):
+            raise ctx.bad(key, c, 'a string "src.output -> dst.input"')
+        m = _CONN_RE.match(c)
+        if not m:
+            raise ctx.bad(key, c, 'a string "src.output -> dst.input"')
+        si, sv, di, dv = m.groups()
+        ends = []
+        for inst, var in ((si, sv), (di, dv)):
+            comp = component(ctx, key, components, inst)
+            ends.append((comp, lookup(ctx, key, variables_of(comp.model_description), var, inst, comp.model_name,
+                                      want="any")))
+        (sc, s), (dc, d) = ends
+        if s.causality != "output":
+            what = "an input used as a source" if s.causality == "input" else f"{article(s.causality)} {s.causality}"
+            raise ctx.fail(key, f"{si}.{sv} is {what}; expected an output on the left of ->; outputs: "
+                                f"{', '.join(names_of(variables_of(sc.model_description), 'output'))}")
+        if d.causality != "input":
+            what = "an output connected to an output" if d.causality == "output" else f"{article(d.causality)} {d.causality}"
+            raise ctx.fail(key, f"{di}.{dv} is {what}; expected an input on the right of ->; inputs: "
+                                f"{', '.join(names_of(variables_of(dc.model_description), 'input'))}")
+        if (di, dv) in seen:
+            raise ctx.fail(key, f"input {di}.{dv} is connected twice (also by connections[{seen[(di, dv)]}])")
+        if (di, dv) in set_inputs:
+            raise ctx.fail(key, f"input {di}.{dv} is connected and also set in {set_inputs[(di, dv)]}")
+        seen[(di, dv)] = i
+        checked.append((key, si, sv, di, dv, sc, s, dc, d))
+    # Structure first (names, directions, duplicates), then types and units.
+    for key, si, sv, di, dv, sc, s, dc, d in checked:
+        if s.type != d.type:
+            raise ctx.fail(key, f"type mismatch: {si}.{sv} is {s.type}, {di}.{dv} is {d.type}")
+        su, du = var_unit(s), var_unit(d)
+        # Strict by name: the master passes numbers on unconverted, and J into N.m is a modelling slip.
+        if su != du:
+            raise ctx.fail(key, f"unit mismatch: {si}.{sv} is in {su or 'no unit (dimensionless)'}, "
+                                f"{di}.{dv} in {du or 'no unit (dimensionless)'}")
+        out.append(Connection(si, sv, di, dv))
+    return tuple(out)
+
+
+def _experiment(ctx: Ctx, t: dict) -> Experiment:
+    ctx.check_keys(t, ("start", "stop"), "experiment", required=("stop",))
+    start = ctx.time("experiment.start", t.get("start", 0.0))
+    stop = ctx.time("experiment.stop", t["stop"])
+    if not stop > start:
+        raise ctx.bad("experiment.stop", t["stop"], f"a time > experiment.start ({fmt(start)} s)")
+    return Experiment(start, stop)
+
+
+def _master(ctx: Ctx, t: dict) -> tuple[MasterConfig, bool]:
+    ctx.check_keys(t, _MASTER_DEFAULTS, "master")
+    values = dict(_MASTER_DEFAULTS)
+    for k, v in t.items():
+        values[k] = master_value(ctx, k, v)
+    if "max_step" not in t:
+        values["max_step"] = values["step"]
+    return MasterConfig(**values), "max_step" in t
+
+
+def _record(ctx: Ctx, t: dict | None, components: dict[str, Component]) -> Record:
+    t = t or {}
+    ctx.check_keys(t, ("outputs", "interval", "ticks"), "record")
+    if "outputs" in t:
+        refs = t["outputs"]
+        if not isinstance(refs, list):
+            raise ctx.bad("record.outputs", refs, 'an array of "instance.variable" strings')
+        outputs = []
+        for i, ref in enumerate(refs):
+            key = f"record.outputs[{i}]"
+            comp, v = parse_ref(ctx, key, ref, components, "a variable")
+            if v.causality not in ("output", "input", "parameter", "calculatedParameter"):
+                raise ctx.fail(key, f"{ref} is {article(v.causality)} {v.causality} variable; "
+                                    "expected an output, input or parameter")
+            pair = (comp.name, v.name)
+            if pair in outputs:
+                raise ctx.fail(key, f"{ref} is listed twice")
+            outputs.append(pair)
+    else:
+        outputs = [(n, v.name) for n, c in components.items()
+                   for v in c.model_description.modelVariables if v.causality == "output"]
+    interval = None
+    if "interval" in t:
+        interval = ctx.time("record.interval", t["interval"])
+        if not interval > 0:
+            raise ctx.bad("record.interval", t["interval"], "a time > 0")
+    ticks = t.get("ticks")
+    if ticks is not None:
+        if not isinstance(ticks, str) or ticks not in components:
+            raise ctx.bad("record.ticks", ticks, f"the name of a component: {', '.join(components)}")
+        variables = variables_of(components[ticks].model_description)
+        for need in ("tick_time", "tick_count"):
+            if need not in variables or variables[need].causality != "output":
+                raise ctx.bad("record.ticks", ticks, "a component with tick_time and tick_count outputs (a Pendulum)")
+    return Record(tuple(outputs), interval, ticks)
+
+
+def _kind_table(ctx: Ctx, t: dict, where: str, registry: dict, converters: dict) -> dict:
+    if "kind" not in t:
+        raise ctx.fail(f"{where}.kind", f"missing required key; kinds: {', '.join(registry)}")
+    kind = t["kind"]
+    if not isinstance(kind, str) or kind not in registry:
+        close = difflib.get_close_matches(kind, list(registry), n=1) if isinstance(kind, str) else []
+        hint = f" (did you mean {close[0]}?)" if close else ""
+        raise ctx.bad(f"{where}.kind", kind, f"one of {', '.join(registry)}{hint}")
+    ctx.check_keys(t, {"kind"} | registry[kind], where)
+    body = {k: v for k, v in t.items() if k != "kind"}
+    conv = converters.get(kind)
+    if conv is not None:
+        try:
+            body = conv(body)
+        except Invalid as e:
+            raise ctx.bad(f"{where}.{e.key}", t.get(e.key), e.expected) from None
+    return {"kind": kind, **body}
+
+
+def _analysis(ctx: Ctx, t: dict | None, kinds: Kinds) -> dict | None:
+    if t is None:
+        return None
+    return _kind_table(ctx, t, "analysis", kinds.analysis_keys, kinds.analysis_convert)
+
+
+def _plots(ctx: Ctx, plots, kinds: Kinds) -> tuple[dict, ...]:
+    if not isinstance(plots, list):
+        raise ctx.bad("plot", plots, "an array of tables [[plot]]")
+    out = []
+    for i, t in enumerate(plots):
+        if not isinstance(t, dict):
+            raise ctx.bad(f"plot[{i}]", t, "a table [[plot]]")
+        out.append(_kind_table(ctx, t, f"plot[{i}]", kinds.plot_keys, kinds.plot_convert))
+    return tuple(out)

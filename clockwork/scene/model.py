@@ -1,0 +1,194 @@
+"""The validated scene: what a scene file says, in SI units, frozen.
+
+``Scene.variant(point)`` applies a sweep point (or any other set of values)
+and checks that the result is still consistent.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from ..errors import SceneError
+from ..engine.description import variables as variables_of
+from .units import fmt
+
+@dataclass(frozen=True)
+class Component:
+    name: str
+    fmu_path: Path
+    sha256: str
+    model_description: Any  # fmpy.model_description.ModelDescription
+    parameters: dict[str, float | int | bool | str]  # in the variable's unit (SI)
+    event_indicators: tuple[str, ...] = ()  # from the `clockwork` vendor annotation
+
+    @property
+    def model_name(self) -> str:
+        return self.model_description.modelName
+
+    def variable(self, name: str):
+        return variables_of(self.model_description)[name]
+
+
+class Connection(NamedTuple):
+    src_instance: str
+    src_var: str
+    dst_instance: str
+    dst_var: str
+
+    def __str__(self) -> str:
+        return f"{self.src_instance}.{self.src_var} -> {self.dst_instance}.{self.dst_var}"
+
+
+@dataclass(frozen=True)
+class Experiment:
+    start: float  # s
+    stop: float  # s
+
+
+@dataclass(frozen=True)
+class MasterConfig:
+    """Field names match clockwork.master.MasterSettings."""
+
+    step: float = 0.01  # s
+    order: str = "gauss-seidel"
+    extrapolation: int = 0
+    event_location: bool = True
+    event_time_tolerance: float = 1e-10  # s
+    event_indicator_tolerance: float = 1e-12
+    iterations: int = 0
+    iteration_tolerance: float = 1e-10
+    richardson: bool = False
+    richardson_tolerance: float = 1e-8
+    min_step: float = 1e-9  # s
+    max_step: float = 0.01  # s
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class Record:
+    outputs: tuple[tuple[str, str], ...]  # (instance, variable)
+    interval: float | None  # s; None = every communication point
+    ticks: str | None  # instance whose tick_time/tick_count are recorded
+
+
+@dataclass(frozen=True)
+class SweepAxis:
+    parameter: tuple[str, str]  # (instance, variable), or ("master"|"experiment", key)
+    values: tuple  # SI values
+
+
+@dataclass(frozen=True)
+class Sweep:
+    mode: str  # "grid" or "zip"
+    axes: tuple[SweepAxis, ...]
+
+    def points(self) -> list[dict[tuple[str, str], object]]:
+        """The parameter sets of the sweep; grid: first axis varies slowest."""
+        keys = [a.parameter for a in self.axes]
+        if self.mode == "zip":
+            combos = zip(*(a.values for a in self.axes))
+        else:
+            combos = itertools.product(*(a.values for a in self.axes))
+        return [dict(zip(keys, c)) for c in combos]
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        if self.mode == "zip":
+            return (len(self.axes[0].values),)
+        return tuple(len(a.values) for a in self.axes)
+
+
+@dataclass(frozen=True)
+class Scene:
+    path: Path
+    title: str
+    description: str
+    reproduces: str
+    components: dict[str, Component]  # in file order
+    connections: tuple[Connection, ...]
+    experiment: Experiment
+    master: MasterConfig
+    record: Record
+    analysis: dict | None  # {"kind": ..., converted keys}
+    sweep: Sweep | None
+    plots: tuple[dict, ...]
+    overrides: tuple[str, ...] = ()  # the --set arguments applied
+    sha256: str = ""  # of the scene file's bytes
+    max_step_given: bool = field(default=False, repr=False, compare=False)
+
+    def parameters(self) -> dict[str, dict[str, object]]:
+        """{instance: {variable: value}} for every component."""
+        return {n: dict(c.parameters) for n, c in self.components.items()}
+
+    def points(self) -> list[dict[tuple[str, str], object]]:
+        """Sweep points ([{}] without a sweep)."""
+        return self.sweep.points() if self.sweep else [{}]
+
+    def variant(self, values: dict[tuple[str, str], object]) -> "Scene":
+        """A copy with some values replaced (already in SI, e.g. a sweep point).
+
+        Keys are (instance, variable), ("master", key) or ("experiment", key).
+        Raises SceneError when the result is inconsistent (stop <= start...).
+        """
+        comps = dict(self.components)
+        master = dataclasses.asdict(self.master)
+        exp = dataclasses.asdict(self.experiment)
+        for (owner, name), value in values.items():
+            if owner == "master":
+                master[name] = value
+                if name == "step" and not self.max_step_given and ("master", "max_step") not in values:
+                    master["max_step"] = value
+            elif owner == "experiment":
+                exp[name] = value
+            else:
+                c = comps[owner]
+                comps[owner] = dataclasses.replace(c, parameters={**c.parameters, name: value})
+        m = MasterConfig(**master)
+        e = Experiment(**exp)
+        problem = consistency(m, e)
+        if problem:
+            key, detail = problem
+            raise SceneError(detail, self.path, f"{key} (with {_show_point(values)})")
+        return dataclasses.replace(self, components=comps, master=m, experiment=e)
+
+
+def _show_point(values: dict) -> str:
+    return ", ".join(f"{a}.{b} = {show(v)}" for (a, b), v in values.items())
+
+
+def consistency(m: MasterConfig, e: Experiment) -> tuple[str, str] | None:
+    if not e.stop > e.start:
+        return "experiment.stop", f"expected stop > start ({fmt(e.start)} s), got {fmt(e.stop)} s"
+    if m.min_step > m.step:
+        return "master.min_step", f"expected min_step <= step ({fmt(m.step)} s), got {fmt(m.min_step)} s"
+    if m.max_step < m.step:
+        return "master.max_step", f"expected max_step >= step ({fmt(m.step)} s), got {fmt(m.max_step)} s"
+    return None
+
+
+
+def show(value: object, limit: int = 60) -> str:
+    """A value written as in TOML (for messages)."""
+    if isinstance(value, bool):
+        s = "true" if value else "false"
+    elif isinstance(value, str):
+        s = json.dumps(value, ensure_ascii=False)
+    elif isinstance(value, float):
+        s = fmt(value) if math.isfinite(value) else ("nan" if math.isnan(value) else ("inf" if value > 0 else "-inf"))
+    elif isinstance(value, (int,)):
+        s = str(value)
+    elif isinstance(value, list):
+        s = "[" + ", ".join(show(x, limit) for x in value) + "]"
+    elif isinstance(value, dict):
+        s = "{" + ", ".join(f"{k} = {show(x, limit)}" for k, x in value.items()) + "}"
+    else:
+        s = str(value)
+    return s if len(s) <= limit else s[: limit - 3] + "..."

@@ -1,0 +1,124 @@
+"""The [sweep] section: axes over parameters, master settings or the
+experiment, combined as a grid or zipped."""
+
+from __future__ import annotations
+
+import difflib
+
+import numpy as np
+
+from ..errors import SceneError
+from .checks import Ctx, article, convert_value, master_value, parse_ref
+from .model import Component, Sweep, SweepAxis, show
+
+_SWEEPABLE_MASTER = ("step", "min_step", "max_step", "extrapolation", "iterations", "iteration_tolerance",
+                     "event_time_tolerance", "event_indicator_tolerance", "richardson_tolerance",
+                     "order", "event_location", "richardson")
+
+
+def parse_sweep(ctx: Ctx, t: dict | None, components: dict[str, Component], connected: set) -> Sweep | None:
+    if t is None:
+        return None
+    ctx.check_keys(t, ("mode", "axes"), "sweep", required=("axes",))
+    mode = t.get("mode", "grid")
+    if mode not in ("grid", "zip"):
+        raise ctx.bad("sweep.mode", mode, '"grid" or "zip"')
+    axes_t = t["axes"]
+    if not isinstance(axes_t, list) or not axes_t:
+        raise ctx.bad("sweep.axes", axes_t, "a non-empty array of axis tables")
+    axes = []
+    for i, a in enumerate(axes_t):
+        where = f"sweep.axes[{i}]"
+        if not isinstance(a, dict):
+            raise ctx.bad(where, a, "a table { parameter = ..., values = [...] }")
+        ctx.check_keys(a, ("parameter", "values", "start", "stop", "num", "spacing"), where, required=("parameter",))
+        pkey = f"{where}.parameter"
+        ref = a["parameter"]
+        if isinstance(ref, str) and ref.split(".", 1)[0] in ("master", "experiment") and ref.split(".", 1)[0] not in components:
+            owner, name = ref.split(".", 1)
+            allowed = _SWEEPABLE_MASTER if owner == "master" else ("start", "stop")
+            if name not in allowed:
+                close = difflib.get_close_matches(name, allowed, n=1)
+                hint = f" (did you mean {owner}.{close[0]}?)" if close else ""
+                raise ctx.bad(pkey, ref, f"a sweepable {owner} key{hint}: {', '.join(allowed)}")
+            if owner == "master":
+                def convert(k, x, name=name):
+                    return _master_value_at(ctx, k, name, x)
+            else:
+                def convert(k, x):
+                    return ctx.time(k, x)
+            param = (owner, name)
+            var = None
+        else:
+            comp, var = parse_ref(ctx, pkey, ref, components, "a parameter")
+            if var.causality not in ("parameter", "input"):
+                raise ctx.fail(pkey, f"{ref} is {article(var.causality)} {var.causality}, not a parameter")
+            if var.causality == "input" and (comp.name, var.name) in connected:
+                raise ctx.fail(pkey, f"{ref} is a connected input; it cannot be swept")
+            md = comp.model_description
+
+            def convert(k, x, var=var, md=md):
+                return convert_value(ctx, k, x, var, md)
+            param = (comp.name, var.name)
+        if param in [ax.parameter for ax in axes]:
+            raise ctx.fail(pkey, f"{ref} is swept twice")
+        has_values = "values" in a
+        has_range = any(k in a for k in ("start", "stop", "num", "spacing"))
+        if has_values == has_range:
+            raise ctx.fail(where, "expected either values = [...] or start, stop, num (and spacing)")
+        if has_values:
+            vals = a["values"]
+            if not isinstance(vals, list) or not vals:
+                raise ctx.bad(f"{where}.values", vals, "a non-empty array of values")
+            values = tuple(convert(f"{where}.values[{j}]", x) for j, x in enumerate(vals))
+        else:
+            for k in ("start", "stop", "num"):
+                if k not in a:
+                    raise ctx.fail(f"{where}.{k}", "missing required key (with start/stop/num)")
+            num = a["num"]
+            if isinstance(num, bool) or not isinstance(num, int) or num < 1:
+                raise ctx.bad(f"{where}.num", num, "an integer >= 1")
+            spacing = a.get("spacing", "linear")
+            if spacing not in ("linear", "log"):
+                raise ctx.bad(f"{where}.spacing", spacing, '"linear" or "log"')
+            if var is not None and var.type not in ("Real", "Integer"):
+                raise ctx.fail(where, f"{ref} is {var.type}: list its values instead of start/stop/num")
+            lo = _range_end(ctx, f"{where}.start", a["start"], var, convert)
+            hi = _range_end(ctx, f"{where}.stop", a["stop"], var, convert)
+            if spacing == "log" and not (lo > 0 and hi > 0):
+                bad_k = "start" if not lo > 0 else "stop"
+                raise ctx.bad(f"{where}.{bad_k}", a[bad_k], "a value > 0 for log spacing")
+            grid = np.geomspace(lo, hi, num) if spacing == "log" else np.linspace(lo, hi, num)
+            if num == 1:
+                grid = np.array([lo])
+            seq = [float(x) for x in grid]
+            if (var is not None and var.type == "Integer") or param in (("master", "iterations"), ("master", "extrapolation")):
+                ints = [round(x) for x in seq]
+                if any(abs(x - r) > 1e-9 * max(1.0, abs(x)) for x, r in zip(seq, ints)):
+                    raise ctx.fail(where, f"{ref} is an integer but start/stop/num give non-integer values {seq}")
+                seq = ints
+            values = tuple(convert(f"{where}.start", x) for x in seq)
+        axes.append(SweepAxis(param, values))
+    if mode == "zip":
+        n = len(axes[0].values)
+        for i, ax in enumerate(axes):
+            if len(ax.values) != n:
+                raise ctx.fail(f"sweep.axes[{i}]", f"zip mode needs axes of equal length: "
+                                                   f"{len(ax.values)} values here, {n} in sweep.axes[0]")
+    return Sweep(mode, tuple(axes))
+
+
+def _master_value_at(ctx: Ctx, key: str, name: str, value: object):
+    """Like _master_value but errors name `key` (a sweep entry) instead of master.<name>."""
+    try:
+        return master_value(ctx, name, value)
+    except SceneError as e:
+        raise SceneError(e.detail, ctx.path, f"{ctx.key(key)} = {show(value)}") from None
+
+
+def _range_end(ctx: Ctx, key: str, value: object, var, convert) -> float:
+    """A sweep start/stop in the variable's unit (validated against its range)."""
+    x = convert(key, value)
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        raise ctx.bad(key, value, "a number")
+    return float(x)
