@@ -7,12 +7,13 @@ stderr and exit code 2; a failed simulation with one line and exit code 1.
 from __future__ import annotations
 
 import argparse
+import errno
 import sys
 from pathlib import Path
 
 from . import __version__
 from .errors import SceneError, SimulationError, UsageError
-from .paths import REPO
+from .paths import scenarios_dir
 
 
 class _Parser(argparse.ArgumentParser):
@@ -137,12 +138,43 @@ def cmd_run(args) -> int:
     from .run.scene_run import run_scene
 
     summary = run_scene(scene, out, workers=args.workers, scheduler=args.scheduler, progress=not args.no_progress)
-    failed = (summary or {}).get("points_failed", 0)
+    for line in _run_report(scene, out, summary):
+        print(line)
+    failed = summary.get("points_failed", 0)
     if failed:
         # The other points are in the results; the failures are in summary.json.
         raise SimulationError(f"{failed} of {summary['points_total']} sweep points failed "
                               f"(their errors are in {out / 'summary.json'})")
+    if summary.get("plots_failed"):
+        p = summary["plots_failed"][0]
+        raise SimulationError(f"plot {p['file']} ({p['kind']}) failed: {p['error']} "
+                              f"({len(summary['plots_failed'])} plot(s) failed; the data are in {out})")
     return 0
+
+
+def _run_report(scene, out: Path, summary: dict, most: int = 4) -> list[str]:
+    """A few lines on stdout: where the results are, and the headline numbers."""
+    n = summary.get("points_total", 1)
+    what = f"{n} points" if n > 1 else "1 run"
+    if summary.get("points_reused"):
+        what += f", {summary['points_reused']} reused"
+    lines = [f"{scene.path.stem}: {what} in {summary.get('wall_time_s', 0.0):.1f} s -> {out}"]
+    lines.append("  files: " + ", ".join(summary.get("files", [])))
+    result = summary.get("result") or {}
+    if result.get("stalled"):
+        lines.append(f"  stalled: {result.get('reason', 'the clock stopped')}")
+    heads = [h for h in summary.get("headlines", []) if h.get("ours") is not None]
+    for h in heads[:most]:
+        unit = f" {h['unit']}" if h.get("unit") else ""
+        paper = f" (paper: {_flag(h['paper'])})" if h.get("paper") is not None and h.get("comparable", True) else ""
+        lines.append(f"  {h['quantity']}: {_short(h['ours'])}{unit}{paper}")
+    if len(heads) > most:
+        lines.append(f"  ... {len(heads) - most} more headline(s) in {out / 'summary.json'}")
+    return lines
+
+
+def _short(x) -> str:
+    return f"{x:.4g}" if isinstance(x, float) else str(x)
 
 
 def cmd_validate(args) -> int:
@@ -150,14 +182,17 @@ def cmd_validate(args) -> int:
 
     scene = load_scene(args.scene, args.overrides)
     n, m = len(scene.components), len(scene.connections)
-    print(f"ok: {scene.title} ({n} component{'s' * (n != 1)}, {m} connection{'s' * (m != 1)})")
+    points = len(scene.points())
+    extra = f", {points} sweep points" if scene.sweep is not None else ""
+    with_set = f", with --set {' '.join(scene.overrides)}" if scene.overrides else ""
+    print(f"ok: {scene.title} ({n} component{'s' * (n != 1)}, {m} connection{'s' * (m != 1)}{extra}{with_set})")
     return 0
 
 
 def cmd_list(args) -> int:
     from .run.catalog import load_scene
 
-    d = Path(args.dir) if args.dir else REPO / "scenarios"
+    d = Path(args.dir) if args.dir else scenarios_dir()
     if not d.is_dir():
         raise UsageError(f"no such directory: {d}")
     files = sorted(d.glob("*.toml"))
@@ -253,6 +288,10 @@ def cmd_info(args) -> int:
     return 0
 
 
+# The machine failed the run (not the user's input).
+_RUN_FAILURES = (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.ENOMEM)
+
+
 def _error(message: object) -> None:
     text = " ".join(str(message).split())
     print(f"clockwork: error: {text}", file=sys.stderr)
@@ -275,6 +314,11 @@ def main(argv=None) -> int:
     except SimulationError as e:
         _error(e)
         return 1
+    except OSError as e:
+        # Writing results: disk full, permissions, a path below a regular file.
+        where = f"{e.filename}: " if e.filename else ""
+        _error(f"{where}{e.strerror or e}")
+        return 1 if e.errno in _RUN_FAILURES else 2
     except KeyboardInterrupt:
         _error("interrupted")
         return 130

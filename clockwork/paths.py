@@ -8,8 +8,13 @@ finished sweep points (``<code digest>/<key>.json``).
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
+import tempfile
 from pathlib import Path
+
+from .atomic import alive
 
 REPO = Path(__file__).resolve().parents[1]
 _OFF = ("", "0", "off", "no", "false")
@@ -28,7 +33,34 @@ def cache_root() -> Path | None:
     return Path.home() / ".cache" / "clockwork"
 
 
+def scenarios_dir() -> Path:
+    """The scenes that come with clockwork (one per figure of the papers)."""
+    return REPO / "scenarios"
+
+
 def fmu_dir() -> Path:
     """Where model names are looked up: $CLOCKWORK_FMU_DIR, else the repository's fmus/."""
     env = os.environ.get("CLOCKWORK_FMU_DIR")
     return Path(env) if env else REPO / "fmus"
+
+
+_scratch: Path | None = None
+_SCRATCH_PREFIX = "clockwork-"
+
+
+def scratch_dir() -> Path:
+    """This process's folder in the temporary directory, removed at exit.
+
+    Folders that killed processes left behind (their pid is in the name and
+    no longer runs) are removed when the next one is made.
+    """
+    global _scratch
+    if _scratch is None:
+        base = Path(tempfile.gettempdir())
+        for old in base.glob(f"{_SCRATCH_PREFIX}*"):
+            pid = old.name[len(_SCRATCH_PREFIX):].split("-", 1)[0]
+            if pid.isdigit() and int(pid) != os.getpid() and not alive(int(pid)):
+                shutil.rmtree(old, ignore_errors=True)
+        _scratch = Path(tempfile.mkdtemp(prefix=f"{_SCRATCH_PREFIX}{os.getpid()}-"))
+        atexit.register(shutil.rmtree, _scratch, True)
+    return _scratch

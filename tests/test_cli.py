@@ -43,12 +43,13 @@ def assert_one_line_error(rc, err, *needles, code=2):
 def test_validate_ok(capsys):
     rc, out, err = run(capsys, ["validate", GOOD])
     assert rc == 0 and err == ""
-    assert out == "ok: Two pendulums (2 components, 0 connections)\n"
+    assert out == "ok: Two pendulums (2 components, 0 connections, 6 sweep points)\n"
 
 
 def test_validate_with_set(capsys):
     rc, out, _ = run(capsys, ["validate", GOOD, "--set", "pendulum.Q=500", "--set", "master.step=0.02"])
     assert rc == 0 and out.startswith("ok: ")
+    assert out.rstrip().endswith("with --set pendulum.Q=500 master.step=0.02)")  # the ok line names what was set
 
 
 def test_list_marks_broken_scenes(capsys):
@@ -113,6 +114,12 @@ def _wrong_unit(tmp_path):
     return f
 
 
+def _file(tmp_path):
+    f = tmp_path / "afile"
+    f.write_text("x")
+    return f
+
+
 BAD_INPUT = [
     # argv (callables get tmp_path), substrings of the message
     (lambda t: ["validate", DATA / "bad_toml.toml"], ["bad_toml.toml", "line 5", "malformed TOML"]),
@@ -123,7 +130,8 @@ BAD_INPUT = [
     (lambda t: ["validate", _scene_with_fmu(t, b"\x00garbage\xff" * 10)], ["corrupt.toml", "components.pendulum.fmu",
                                                                             "X.fmu is not an FMU"]),
     (lambda t: ["validate", t / "missing.toml"], ["missing.toml", "no such scene file"]),
-    (lambda t: ["run", GOOD, "--out", t / "no" / "such"], [str(Path("no") / "such"), "parent", "does not exist"]),
+    (lambda t: ["run", GOOD, "--out", _file(t) / "below"], ["afile", "is a file, not a directory"]),
+    (lambda t: ["run", GOOD, "--out", ""], ["output directory is empty"]),
     (lambda t: ["validate", GOOD, "--set", "pendulum.phi_start=400 deg"],
      ["good.toml", "--set pendulum.phi_start", "expected a value in [-3.14"]),
     (lambda t: ["validate", GOOD, "--set", "pendulum.phi_strt=1"], ["good.toml", "--set pendulum.phi_strt",
@@ -168,6 +176,7 @@ def fake_runner(monkeypatch):
         calls.append((scene, out_dir, workers, scheduler, progress))
         if scene.components["pendulum"].parameters.get("Q") == 13.0:
             raise SimulationError("fmi2DoStep failed", time=0.25, instance="pendulum")
+        return {"points_total": 1, "files": ["summary.json"], "headlines": []}
 
     mod.run_scene = run_scene
     monkeypatch.setitem(sys.modules, "clockwork.run.scene_run", mod)

@@ -47,8 +47,13 @@ def test_gallery_quick(tmp_path, capsys):
             assert (out / e["scene"] / png).stat().st_size > 10_000
             assert f"![{png}]({e['scene']}/{png})" in index
     assert "appC_rate.png" in g["scenes"][0]["files"] and "fig4_phi.png" in fig4["files"]
-    # headlines side by side: the paper's 3.2e-4 rate after the jump and ours
-    assert "| rate right after the jump | 0.00032 | 0.000322 |" in index
+    # headlines side by side: the paper's 3.2e-4 rate after the jump and ours; the quick run shortened
+    # the experiment, so the paper's value is marked as belonging to the scene as written
+    assert "| rate right after the jump | 0.00032 (scene as written; not comparable) | 0.000322 |" in index
+    jump = next(h for h in s4["headlines"] if h["quantity"] == "rate right after the jump")
+    assert jump["comparable"] is False and "--set experiment.stop=" in jump["note"]
+    appc = json.loads((out / "hoyng_appC" / "summary.json").read_text())["headlines"]
+    assert appc and all("comparable" not in h for h in appc)  # run as written
     assert "| quantity | paper | ours | unit | tolerance | note |" in index
     assert "Wall time" in index and "total wall time" in index
 

@@ -51,13 +51,19 @@ def test_json_sorted_indented_numpy(tmp_path):
     assert text == json.dumps({"a": [0, 1, 2], "b": 0.1, "c": 7, "d": [1, 2]}, sort_keys=True, indent=2) + "\n"
 
 
-@pytest.mark.parametrize("bad", [float("nan"), np.array([1.0, np.inf]), {"x": -np.inf}])
-def test_json_refuses_nan(tmp_path, bad):
+@pytest.mark.parametrize("bad, written", [(float("nan"), None), (np.array([1.0, np.inf]), [1.0, None]),
+                                          ({"x": -np.inf}, {"x": None}), ([np.float32("nan")], [None])])
+def test_json_is_strict_nan_becomes_null(tmp_path, bad, written):
     f = tmp_path / "r.json"
-    write_json_atomic(f, {"ok": 1})
-    with pytest.raises(ValueError, match="NaN/inf refused"):
-        write_json_atomic(f, {"v": bad})
-    assert json.loads(f.read_text()) == {"ok": 1}
+    write_json_atomic(f, {"v": bad})
+    text = f.read_text()
+    for word in ("NaN", "Infinity"):
+        assert word not in text
+
+    def refuse(name):
+        raise ValueError(name)
+
+    assert json.loads(text, parse_constant=refuse) == {"v": written}
     assert leftovers(tmp_path) == []
 
 
@@ -101,11 +107,14 @@ def test_check_output_dir(tmp_path):
     d = tmp_path / "out"
     assert check_output_dir(d) == d and d.is_dir()
     assert check_output_dir(d) == d  # existing is fine
-    with pytest.raises(UsageError, match="parent .* does not exist"):
-        check_output_dir(tmp_path / "no" / "out")
+    assert check_output_dir(tmp_path / "no" / "out").is_dir()  # parents are created
+    with pytest.raises(UsageError, match="empty"):
+        check_output_dir("")
     (tmp_path / "file").write_text("x")
     with pytest.raises(UsageError, match="not a directory"):
         check_output_dir(tmp_path / "file")
+    with pytest.raises(UsageError, match="is a file, not a directory"):
+        check_output_dir(tmp_path / "file" / "below" / "out")
     assert leftovers(d) == []
 
 

@@ -208,7 +208,7 @@ BAD = [
     ("bad_record.toml", "record.outputs[0]", "has no variable phii (did you mean phi"),
     ("bad_sweep_param.toml", "sweep.axes[0].parameter", "has no variable QQ"),
     ("bad_sweep_empty.toml", "sweep.axes[0].values", "non-empty"),
-    ("bad_sweep_num.toml", "sweep.axes[0].num = 0", "an integer >= 1"),
+    ("bad_sweep_num.toml", "sweep.axes[0].num = 0", "an integer from 1 to 1000000"),
     ("bad_sweep_log.toml", "sweep.axes[0].start", "> 0 for log spacing"),
     ("bad_analysis_kind.toml", "analysis.kind", "did you mean steady_state?"),
     ("bad_plot_key.toml", "plot[0].ylabel", "unknown key; allowed: file, kind, title, x, y"),

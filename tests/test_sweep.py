@@ -167,7 +167,7 @@ def test_cache_off_and_code_namespace(tmp_path, monkeypatch):
     monkeypatch.setenv("CLOCKWORK_CACHE", str(tmp_path))
     assert cache.cache_dir() == tmp_path / source_digest()
     cache.cache_store("k", {"error": "x"})
-    assert cache.cache_load("k") is None  # failures are not cached
+    assert cache.cache_load("k", {}, "ticks") is None  # failures are not cached
 
 
 def _cli(*args):

@@ -7,7 +7,6 @@ communication step costs a few ctypes calls and no Python-side allocation.
 
 from __future__ import annotations
 
-import atexit
 import json
 import os
 import shutil
@@ -23,9 +22,10 @@ from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
 from fmpy import calloc, free
 
+from ..atomic import alive
 from ..errors import SceneError, SimulationError
 from ..hashing import sha256_file
-from ..paths import cache_root
+from ..paths import cache_root, scratch_dir
 from .description import read_fmu, var_unit
 
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
@@ -33,7 +33,6 @@ STATUS_NAMES = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
 
 _extract_lock = threading.Lock()
 _extracted: dict[tuple, Path] = {}  # (path, mtime, size) -> unzipped folder
-_private_dir: Path | None = None  # this process's folder when the cache is off
 _MANIFEST = ".clockwork-manifest"
 
 
@@ -44,8 +43,8 @@ def extract(path: Path) -> Path:
     processes and runs: a second run does not pay for the unzip. It is made
     under a temporary name and renamed into place, so that a reader never
     sees half an FMU, and it is checked against its manifest (names and
-    sizes) before reuse. With the cache off (or unwritable), FMUs go to one
-    folder of this process in the temporary directory, removed at exit.
+    sizes) before reuse. With the cache off (or unwritable), FMUs go to the
+    process's scratch folder (clockwork.paths.scratch_dir), removed at exit.
     """
     path = Path(path).resolve()
     st = path.stat()
@@ -56,7 +55,7 @@ def extract(path: Path) -> Path:
             digest = sha256_file(path)
             hit = _extract_cached(path, digest)
             if hit is None:
-                hit = _extract_into(path, _process_dir() / digest)
+                hit = _extract_into(path, scratch_dir() / "fmus" / digest)
             _extracted[key] = hit
         return hit
 
@@ -116,33 +115,13 @@ def _intact(folder: Path) -> bool:
         return False
 
 
-def _process_dir() -> Path:
-    global _private_dir
-    if _private_dir is None:
-        base = Path(tempfile.gettempdir())
-        _remove_stale_parts(base, "clockwork-fmus-", "-")
-        _private_dir = Path(tempfile.mkdtemp(prefix=f"clockwork-fmus-{os.getpid()}-"))
-        atexit.register(shutil.rmtree, _private_dir, True)
-    return _private_dir
-
-
 def _remove_stale_parts(folder: Path, prefix: str, sep: str) -> None:
     """Remove folders that a killed process left behind: `<prefix><pid><sep>...`."""
     for entry in folder.glob(f"{prefix}*"):
         pid = entry.name[len(prefix):].split(sep, 1)[0]
-        if not pid.isdigit() or int(pid) == os.getpid() or _alive(int(pid)):
+        if not pid.isdigit() or int(pid) == os.getpid() or alive(int(pid)):
             continue
         shutil.rmtree(entry, ignore_errors=True)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:
-        return True
-    return True
 
 
 def free_all(instances: dict) -> None:

@@ -1,21 +1,32 @@
-"""The point cache: finished sweep points, shared by output directories and runs.
+"""Finished sweep points: read back only when they are what they claim to be.
 
-Points are kept under the cache root (clockwork.paths.cache_root) as
-``<code digest>/<key>.json``: ``key`` is clockwork.run.points.point_key
-(FMU hashes, parameters, connections, master settings, experiment,
-analysis, recorded outputs, version) and the code digest a hash of the
-clockwork package's source, so that a changed analysis never reuses
-results computed by older code. Points that failed are not cached.
+A point's result is stored twice: in the run's ``points/<key>.json`` (for
+resuming) and in the cache shared by output directories and runs, under
+the cache root (clockwork.paths.cache_root) as ``<code digest>/<key>.json``.
+``key`` is clockwork.run.points.point_key (FMU hashes, parameters,
+connections, master settings, experiment, analysis, recorded outputs,
+version) and the code digest a hash of the clockwork package's source, so
+that a changed analysis never reuses results computed by older code.
+
+What is read back is checked (``check_point``): strict JSON, the shape of a
+result, finite numbers, the same point and analysis kind. A file that fails
+is computed again, with one warning line. Points that failed are neither
+cached nor reused: a rerun tries them again.
 """
 
 from __future__ import annotations
 
 import json
+import math
+import sys
 from pathlib import Path
 
 from ..hashing import source_digest
 from ..paths import cache_root
+from ..atomic import remove_stale_parts
 from .files import write_json_atomic
+
+_SCALARS = (str, int, float, bool, type(None))
 
 
 def cache_dir() -> Path | None:
@@ -24,15 +35,86 @@ def cache_dir() -> Path | None:
     return None if root is None else root / source_digest()
 
 
-def cache_load(key: str) -> dict | None:
-    d = cache_dir()
-    if d is None:
+def check_point(data, label: dict, kind: str) -> str | None:
+    """Why `data` is not a finished result of the point `label` of analysis
+    `kind`, or None when it is one."""
+    if not isinstance(data, dict):
+        return "not a JSON object"
+    if "error" in data:
+        return "a failed point (tried again)"
+    if data.get("point") != label:
+        return "it belongs to another point"
+    if data.get("kind") != kind:
+        return f"it holds a {data.get('kind')!r} result, not {kind!r}"
+    result = data.get("result")
+    if not isinstance(result, dict) or not all(isinstance(v, _SCALARS) for v in result.values()):
+        return "no result table of numbers and text"
+    series = data.get("series", {})
+    if not isinstance(series, dict) or not all(isinstance(c, list) for c in series.values()):
+        return "series that are not columns"
+    if len({len(c) for c in series.values()}) > 1 and kind in ("time_series", "ticks"):
+        return "series columns of different lengths"
+    bad = _first_bad_number(data)
+    if bad is not None:
+        return f"a value that is not a finite number at {bad}"
+    return None
+
+
+def _first_bad_number(x, where: str = "") -> str | None:
+    if isinstance(x, bool) or x is None or isinstance(x, str):
         return None
-    f = d / f"{key}.json"
+    if isinstance(x, (int, float)):
+        return None if math.isfinite(x) else where or "/"
+    if isinstance(x, dict):
+        for k, v in x.items():
+            if not isinstance(k, str):
+                return where or "/"
+            found = _first_bad_number(v, f"{where}/{k}")
+            if found:
+                return found
+        return None
+    if isinstance(x, list):
+        for i, v in enumerate(x):
+            found = _first_bad_number(v, f"{where}[{i}]")
+            if found:
+                return found
+        return None
+    return where or "/"
+
+
+def _reject_constant(name: str):
+    raise ValueError(f"{name} is not JSON")
+
+
+def read_point(path: Path, label: dict, kind: str) -> dict | None:
+    """A stored point's result, or None (missing; or damaged, with one warning line)."""
     try:
-        return json.loads(f.read_text())
-    except (OSError, json.JSONDecodeError):
-        return None  # missing, unreadable or torn: compute
+        text = path.read_text()
+    except FileNotFoundError:
+        return None
+    except OSError as e:
+        _warn(path, f"cannot read it ({e.strerror})")
+        return None
+    try:
+        data = json.loads(text, parse_constant=_reject_constant)
+    except ValueError as e:
+        _warn(path, f"not strict JSON ({' '.join(str(e).split())})")
+        return None
+    problem = check_point(data, label, kind)
+    if problem is not None:
+        if "error" not in data:  # a failed point is retried without a warning: it was reported
+            _warn(path, problem)
+        return None
+    return data
+
+
+def _warn(path: Path, why: str) -> None:
+    print(f"clockwork: warning: {path}: {why}; computing the point again", file=sys.stderr)
+
+
+def cache_load(key: str, label: dict, kind: str) -> dict | None:
+    d = cache_dir()
+    return None if d is None else read_point(d / f"{key}.json", label, kind)
 
 
 def cache_store(key: str, result: dict) -> None:
@@ -41,6 +123,7 @@ def cache_store(key: str, result: dict) -> None:
         return
     try:
         d.mkdir(parents=True, exist_ok=True)
+        remove_stale_parts(d)
         write_json_atomic(d / f"{key}.json", result)
     except OSError:
         pass  # a read-only or full cache never fails a run

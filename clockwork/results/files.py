@@ -1,8 +1,8 @@
-"""Result files, written atomically: readers never see a half-written file.
+"""Result files: strict JSON, exact CSV, and output directories.
 
-Every writer puts the data into a temporary file in the target's directory
-(named .<name>.<random>.part), flushes and fsyncs it, then renames it over
-the target with os.replace, which is atomic on POSIX within a filesystem.
+Every file is written atomically (clockwork.atomic). All JSON is strict:
+NaN and infinities are written as null. CSV floats read back to the same
+double.
 """
 
 from __future__ import annotations
@@ -16,46 +16,8 @@ from typing import Sequence
 
 import numpy as np
 
+from ..atomic import PART, write_text_atomic
 from ..errors import UsageError
-
-
-def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    _fsync_dir(path.parent)
-    return path
-
-
-def _fsync_dir(d: Path) -> None:
-    # Makes the rename itself durable; not possible on every platform.
-    try:
-        fd = os.open(d, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
-def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
-    return write_bytes_atomic(path, text.encode("utf-8"))
-
 
 def _json_default(obj):
     if isinstance(obj, np.ndarray):
@@ -83,27 +45,50 @@ def clean_json(x):
     return x
 
 
+def json_text(obj) -> str:
+    """Strict JSON: sorted keys, indent 2, NaN and infinities as null."""
+    return json.dumps(clean_json(_plain(obj)), sort_keys=True, indent=2, allow_nan=False) + "\n"
+
+
+def _plain(x):
+    """numpy values, paths and sets as JSON's own types (before clean_json sees them)."""
+    if isinstance(x, dict):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if isinstance(x, (np.ndarray, np.generic, Path, set, frozenset)):
+        return _plain(_json_default(x))
+    return x
+
+
 def write_json_atomic(path: str | os.PathLike, obj) -> Path:
-    """Sorted keys, indent 2; NaN and infinities raise ValueError (JSON has none)."""
-    try:
-        text = json.dumps(obj, sort_keys=True, indent=2, allow_nan=False, default=_json_default)
-    except ValueError as e:
-        raise ValueError(f"{path}: {e} (NaN/inf refused in JSON results)") from None
-    return write_text_atomic(path, text + "\n")
+    """Strict JSON (``json_text``), written atomically."""
+    return write_text_atomic(path, json_text(obj))
 
 
 def _column_strings(col) -> list[str]:
-    a = np.asarray(col)
-    if a.ndim != 1:
-        raise ValueError(f"CSV columns must be 1-D, got shape {a.shape}")
-    if a.dtype.kind == "b":
-        return ["1" if x else "0" for x in a.tolist()]
-    if a.dtype.kind in "iu":
-        return [str(x) for x in a.tolist()]
-    if a.dtype.kind == "f":
-        # repr gives the shortest string that reads back to the same double
-        return [repr(x) for x in a.astype(float).tolist()]
-    raise ValueError(f"CSV columns must be numeric, got dtype {a.dtype}")
+    """A column as CSV fields: floats round-trip exact (repr), integers and
+    text as they are, booleans 1/0 (numbers for any CSV reader), missing
+    values empty."""
+    if isinstance(col, np.ndarray):
+        if col.ndim != 1:
+            raise ValueError(f"CSV columns must be 1-D, got shape {col.shape}")
+        col = col.tolist()
+    return [_field(x) for x in col]
+
+
+def _field(x) -> str:
+    if x is None:
+        return ""
+    if isinstance(x, (bool, np.bool_)):
+        return "1" if x else "0"
+    if isinstance(x, (int, np.integer)):
+        return str(int(x))
+    if isinstance(x, (float, np.floating)):
+        return repr(float(x))  # the shortest string that reads back to the same double
+    if isinstance(x, str):
+        return '"' + x.replace('"', '""') + '"' if any(c in x for c in ',"\n\r') else x
+    raise ValueError(f"CSV fields must be numbers, text or booleans, got {type(x).__name__}")
 
 
 def write_csv_atomic(path: str | os.PathLike, header: Sequence[str], columns: Sequence) -> Path:
@@ -124,26 +109,26 @@ def write_csv_atomic(path: str | os.PathLike, header: Sequence[str], columns: Se
 
 
 def check_output_dir(path: str | os.PathLike) -> Path:
-    """Make sure `path` is a writable directory (created if its parent exists)."""
+    """Make sure `path` is a writable directory, creating it and its parents."""
+    if not str(path).strip():
+        raise UsageError("the output directory is empty: give a directory, e.g. --out out/run")
     path = Path(path)
     if path.exists():
         if not path.is_dir():
             raise UsageError(f"output directory {path} exists and is not a directory")
     else:
-        parent = path.parent if str(path.parent) else Path(".")
-        if not parent.is_dir():
-            raise UsageError(f"cannot create output directory {path}: its parent {parent} does not exist")
+        blocker = next((p for p in reversed(path.parents) if p.exists() and not p.is_dir()), None)
+        if blocker is not None:
+            raise UsageError(f"cannot create output directory {path}: {blocker} is a file, not a directory")
         try:
-            path.mkdir()
-        except FileExistsError:
-            pass  # created concurrently
+            path.mkdir(parents=True, exist_ok=True)
         except OSError as e:
-            raise UsageError(f"cannot create output directory {path}: {e.strerror}") from None
+            raise UsageError(f"cannot create output directory {path}: {e.strerror or e}") from None
     # Try it: os.access misjudges some filesystems, and a failed probe is the real answer.
     try:
-        fd, probe = tempfile.mkstemp(prefix=".clockwork-probe.", suffix=".part", dir=path)
+        fd, probe = tempfile.mkstemp(prefix=f".clockwork-probe.{os.getpid()}.", suffix=PART, dir=path)
         os.close(fd)
         os.unlink(probe)
     except OSError as e:
-        raise UsageError(f"output directory {path} is not writable: {e.strerror}") from None
+        raise UsageError(f"output directory {path} is not writable: {e.strerror or e}") from None
     return path

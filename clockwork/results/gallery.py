@@ -48,7 +48,9 @@ def index_markdown(g: dict) -> str:
         if heads:
             lines += ["", "| quantity | paper | ours | unit | tolerance | note |", "|---|---|---|---|---|---|"]
             for h in heads:
-                lines.append(f"| {_fmt(h.get('quantity'))} | {_fmt(h.get('paper'))} | {_fmt(h.get('ours'))} | "
+                paper = _fmt(h.get("paper")) + (" (scene as written; not comparable)"
+                                                 if h.get("comparable") is False else "")
+                lines.append(f"| {_fmt(h.get('quantity'))} | {paper} | {_fmt(h.get('ours'))} | "
                              f"{_fmt(h.get('unit') or '')} | {_fmt(h.get('tolerance'))} | {_fmt(h.get('note') or '')} |")
         for png in e.get("files", []):
             lines += ["", f"![{png}]({e['scene']}/{png})"]

@@ -1,7 +1,15 @@
-"""Write a scene's results: summary.json, CSV files and plots."""
+"""Write a scene's results: summary.json, CSV files and plots.
+
+The files go into one folder (the output directory's staging folder: see
+clockwork.results.outdir). Column order in sweep.csv is fixed by the scene,
+not by the order in which points finished: the sweep's axes as the scene
+lists them, then the result columns by name. A plot that fails does not
+take the data with it: its error is in summary.json (``plots_failed``).
+"""
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 
@@ -11,9 +19,10 @@ from .files import clean_json, write_csv_atomic, write_json_atomic
 from .headlines import headlines_for
 from .plots import make_plots
 
+_SCALARS = (int, float, bool, str, type(None))
+
 
 def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start: float) -> None:
-    out.mkdir(parents=True, exist_ok=True)
     files = []
     if scene.sweep is None:
         r = results[0]
@@ -21,7 +30,9 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
         summary["statistics"] = r.get("statistics", {})
         if "series" in r:
             cols = r["series"]
-            write_csv_atomic(out / "timeseries.csv", list(cols), [np.asarray(v, dtype=float) for v in cols.values()])
+            write_csv_atomic(out / "timeseries.csv", list(cols),
+                             [np.asarray([math.nan if x is None else x for x in v], dtype=float)
+                              for v in cols.values()])
             files.append("timeseries.csv")
         if r.get("ticks"):
             t = np.asarray(r["ticks"], dtype=float)
@@ -30,26 +41,24 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
                              [np.arange(1, len(t) + 1, dtype=float), t, periods])
             files.append("ticks.csv")
     else:
-        points = [r for r in results]
         summary["points"] = [{"point": r.get("point"), **({"error": r["error"]} if "error" in r else {}),
-                              **r.get("result", {})} for r in points]
-        keys = sorted({k for r in points for k in r.get("point", {})})
-        rkeys = []
-        for r in points:
-            for k, v in r.get("result", {}).items():
-                if k not in rkeys and isinstance(v, (int, float, bool, type(None))):
-                    rkeys.append(k)
-        cols = []
-        for k in keys:
-            cols.append(np.array([float(r["point"][k]) for r in points]))
-        for k in rkeys:
-            cols.append(np.array([np.nan if r.get("result", {}).get(k) is None else float(r["result"][k])
-                                  for r in points]))
-        write_csv_atomic(out / "sweep.csv", keys + rkeys, cols)
+                              **r.get("result", {})} for r in results]
+        axes = [f"{a}.{b}" for a, b in (ax.parameter for ax in scene.sweep.axes)]
+        rkeys = sorted({k for r in results for k, v in r.get("result", {}).items() if isinstance(v, _SCALARS)})
+        cols = [[r["point"][k] for r in results] for k in axes]
+        cols += [[_scalar(r.get("result", {}).get(k)) for r in results] for k in rkeys]
+        write_csv_atomic(out / "sweep.csv", axes + rkeys, cols)
         files.append("sweep.csv")
-        summary["points_failed"] = sum(1 for r in points if "error" in r)
-    files += make_plots(scene, results, out)
-    summary["headlines"] = clean_json(headlines_for(scene, summary, results))
+        summary["points_failed"] = sum(1 for r in results if "error" in r)
+    written, failed = make_plots(scene, results, out)
+    files += written
+    if failed:
+        summary["plots_failed"] = failed
+    summary["headlines"] = headlines_for(scene, summary, results)
     summary["files"] = files + ["summary.json"]
     summary["wall_time_s"] = time.perf_counter() - t_start
     write_json_atomic(out / "summary.json", clean_json(summary))
+
+
+def _scalar(v):
+    return None if isinstance(v, float) and not math.isfinite(v) else v

@@ -3,7 +3,8 @@
 ``run_on_dask(address, scene, points, indices)`` ships the scene to the
 workers as data, not as paths: the scene file's text, the ``--set``
 overrides and every FMU's bytes go out once (``client.scatter``, broadcast);
-a worker writes them into a temporary directory named by their hash, loads
+a worker writes them into a folder named by their hash (in the cache, or
+in the process's scratch folder when the cache is off), loads
 the scene from there (model names resolve to the shipped FMUs through
 CLOCKWORK_FMU_DIR, set only while the scene loads; paths ending .fmu are
 rewritten to the shipped files) and runs its points exactly as the local
@@ -17,11 +18,12 @@ import hashlib
 import json
 import os
 import re
-import tempfile
 import threading
 import tomllib
 from pathlib import Path
 
+from ..atomic import write_bytes_atomic, write_text_atomic
+from ..paths import cache_root, scratch_dir
 from .catalog import load_scene
 from .points import point_key, run_point
 
@@ -52,7 +54,10 @@ _SCENES: dict[str, object] = {}
 
 def materialize(b: dict, root: Path | None = None):
     """Write a bundle into `root`/<key>/ (default: the temp dir) and load its scene."""
-    base = Path(root or Path(tempfile.gettempdir()) / f"clockwork-dask-{os.getuid()}") / b["key"]
+    if root is None:
+        cache = cache_root()
+        root = cache / "dask" if cache is not None else scratch_dir() / "dask"
+    base = Path(root) / b["key"]
     hit = _SCENES.get(str(base))
     if hit is not None:
         return hit
@@ -71,14 +76,10 @@ def materialize(b: dict, root: Path | None = None):
         else:
             target = fmu_dir / f"{spec}.fmu"
         if not target.exists() or target.stat().st_size != len(data):
-            tmp = target.with_suffix(f".{threading.get_ident()}.part")
-            tmp.write_bytes(data)
-            os.replace(tmp, target)
+            write_bytes_atomic(target, data)
     scene_file = base / b["name"]
     if not scene_file.exists() or scene_file.read_text() != text:
-        tmp = scene_file.with_suffix(f".{threading.get_ident()}.part")
-        tmp.write_text(text)
-        os.replace(tmp, scene_file)
+        write_text_atomic(scene_file, text)
     # CLOCKWORK_FMU_DIR is process-wide: hold it only while the names resolve.
     with _ENV_LOCK:
         old = os.environ.get("CLOCKWORK_FMU_DIR")

@@ -23,8 +23,8 @@ import time
 import traceback
 from pathlib import Path
 
-from ..errors import SceneError, SimulationError
-from ..paths import REPO
+from ..errors import SceneError, SimulationError, UsageError
+from ..paths import scenarios_dir
 from ..results.files import clean_json, write_json_atomic, write_text_atomic
 from ..results.gallery import index_markdown
 from .catalog import load_scene
@@ -51,10 +51,14 @@ def quick_overrides(scenarios: Path) -> dict[str, list[str]]:
 def run_gallery(out: Path, scenarios: Path | None = None, quick: bool = False, only: list[str] | None = None,
                 workers: int | None = None, progress: bool = True) -> dict:
     out = Path(out)
-    scenarios = Path(scenarios) if scenarios else REPO / "scenarios"
+    scenarios = Path(scenarios) if scenarios else scenarios_dir()
     out.mkdir(parents=True, exist_ok=True)
     files = sorted(scenarios.glob("*.toml"))
     if only:
+        unknown = sorted(set(only) - {f.stem for f in files})
+        if unknown:
+            raise UsageError(f"--only {' '.join(unknown)}: no such scene in {scenarios} "
+                             f"(scenes: {', '.join(f.stem for f in files)})")
         files = [f for f in files if f.stem in only]
     reduced = quick_overrides(scenarios) if quick else {}
     entries = []

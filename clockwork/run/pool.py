@@ -6,13 +6,27 @@ and runs the points it is given; results come back as points finish.
 
 from __future__ import annotations
 
+import ctypes
 import os
+import signal
+import sys
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
 from .catalog import load_scene
 from .points import run_point
 
 _scenes: dict = {}  # per worker process: (path, overrides) -> Scene
+
+
+def _die_with_parent(parent: int) -> None:
+    """A worker must not outlive its parent: when the parent dies (even by
+    SIGKILL) the kernel sends the worker SIGKILL too (Linux prctl)."""
+    if sys.platform.startswith("linux"):
+        libc = ctypes.CDLL(None, use_errno=True)
+        pr_set_pdeathsig = 1
+        libc.prctl(pr_set_pdeathsig, signal.SIGKILL)
+    if os.getppid() != parent:  # the parent died before prctl took effect
+        os._exit(1)
 
 
 def _worker(scene_path: str, overrides: tuple, point_items: list) -> dict:
@@ -31,7 +45,7 @@ def default_workers(n_points: int) -> int:
 
 def run_in_pool(scene, points: list[dict], indices: list[int], workers: int):
     """Run `points` (their sweep `indices`) in `workers` processes; yield (index, result)."""
-    with ProcessPoolExecutor(workers) as pool:
+    with ProcessPoolExecutor(workers, initializer=_die_with_parent, initargs=(os.getpid(),)) as pool:
         futures = {
             pool.submit(_worker, str(scene.path), tuple(scene.overrides),
                         [[list(k), v] for k, v in p.items()]): i

@@ -10,48 +10,49 @@ repeating work. Points run in this process, in a pool of processes
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import asdict
-from pathlib import Path
 
 from .. import __version__
-from ..results.cache import cache_load, cache_store
+from ..results.cache import cache_load, cache_store, read_point
 from ..results.files import write_json_atomic
+from ..results.outdir import OutputDir
 from ..results.report import write_outputs
-from .points import point_key, run_point
+from .points import point_key, point_label, run_point
 from .pool import default_workers, run_in_pool
 
 
 def run_scene(scene, out_dir, workers: int | None = None, scheduler: str | None = None,
               progress: bool = True) -> dict:
-    out = Path(out_dir)
+    """Run every point of `scene` and write its results into `out_dir`
+    (see clockwork.results.outdir for how the directory is kept whole)."""
+    with OutputDir(out_dir) as out:
+        return _run(scene, out, workers, scheduler, progress)
+
+
+def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, progress: bool) -> dict:
     t_start = time.perf_counter()
     points = scene.points()
     sweep = scene.sweep is not None
+    kind = (scene.analysis or {}).get("kind", "time_series")
     results: list[dict | None] = [None] * len(points)
     keys = [point_key(scene, p) for p in points]
-    store = out / "points"
     if sweep:
-        store.mkdir(parents=True, exist_ok=True)
-        for i, k in enumerate(keys):
-            f = store / f"{k}.json"
-            if f.exists():
-                try:
-                    results[i] = json.loads(f.read_text())
-                except json.JSONDecodeError:
-                    results[i] = None  # a torn file from a killed run: recompute
+        out.points.mkdir(exist_ok=True)
+        for i, (k, p) in enumerate(zip(keys, points)):
+            label = point_label(p)
+            results[i] = read_point(out.points / f"{k}.json", label, kind)
             if results[i] is None:
-                results[i] = cache_load(k)
+                results[i] = cache_load(k, label, kind)
                 if results[i] is not None:
-                    write_json_atomic(f, results[i])
+                    write_json_atomic(out.points / f"{k}.json", results[i])
     todo = [i for i, r in enumerate(results) if r is None]
     reused = len(points) - len(todo)
 
     def finished(i: int, r: dict) -> None:
         results[i] = r
         if sweep:
-            write_json_atomic(store / f"{keys[i]}.json", r)
+            write_json_atomic(out.points / f"{keys[i]}.json", r)
             cache_store(keys[i], r)
 
     if not sweep:
@@ -87,5 +88,6 @@ def run_scene(scene, out_dir, workers: int | None = None, scheduler: str | None 
         "points_total": len(points),
         "points_reused": reused,
     }
-    write_outputs(scene, out, results, summary, t_start)
+    write_outputs(scene, out.staging, results, summary, t_start)
+    out.commit()
     return summary

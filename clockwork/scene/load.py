@@ -32,6 +32,7 @@ _CONN_RE = re.compile(
     r"^\s*([A-Za-z_][A-Za-z0-9_]*)\.(\S+)\s*->\s*([A-Za-z_][A-Za-z0-9_]*)\.(\S+)\s*$"
 )
 
+MAX_SCENE_BYTES = 1 << 20  # scene files are a few kB; a larger one is not a scene
 _OVERRIDABLE = ("scene", "experiment", "master", "record", "analysis")
 _MASTER_DEFAULTS = {f.name: f.default for f in dataclasses.fields(MasterConfig)}
 
@@ -49,6 +50,8 @@ def parse_override(text: str) -> tuple[str, str, object]:
         value = tomllib.loads("v = " + rhs)["v"]
     except tomllib.TOMLDecodeError:
         value = rhs.strip()
+    except RecursionError:
+        raise ValueError(f"--set {lhs}: the value is nested deeper than Python can read") from None
     return m.group(1), m.group(2), value
 
 
@@ -56,6 +59,8 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS) -
     """Load, override and validate a scene file; raises SceneError."""
     path = Path(path)
     try:
+        if path.is_file() and path.stat().st_size > MAX_SCENE_BYTES:
+            raise SceneError(f"{path.stat().st_size} bytes: a scene file is at most {MAX_SCENE_BYTES} bytes", path)
         data = path.read_bytes()
     except FileNotFoundError:
         raise SceneError("no such scene file", path) from None
@@ -69,6 +74,8 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS) -
         raise SceneError(f"not UTF-8 text (byte {e.start})", path) from None
     try:
         raw = tomllib.loads(text)
+    except RecursionError:
+        raise SceneError("malformed TOML: arrays or tables nested too deeply", path) from None
     except tomllib.TOMLDecodeError as e:
         msg = str(e)
         m = re.search(r"\(at line (\d+), column (\d+)\)", msg)
@@ -342,4 +349,11 @@ def _plots(ctx: Ctx, plots, kinds: Kinds) -> tuple[dict, ...]:
         if not isinstance(t, dict):
             raise ctx.bad(f"plot[{i}]", t, "a table [[plot]]")
         out.append(_kind_table(ctx, t, f"plot[{i}]", kinds.plot_keys, kinds.plot_convert))
+    files: dict[str, int] = {}
+    for i, spec in enumerate(out):
+        name = spec.get("file") or f"plot{i + 1}_{spec['kind']}.png"
+        if name.lower() in files:
+            raise ctx.fail(f"plot[{i}].file", f"{name} is also the file of plot[{files[name.lower()]}]: "
+                                              "give each plot its own file name")
+        files[name.lower()] = i
     return tuple(out)

@@ -171,6 +171,11 @@ def consistency(m: MasterConfig, e: Experiment) -> tuple[str, str] | None:
         return "master.min_step", f"expected min_step <= step ({fmt(m.step)} s), got {fmt(m.min_step)} s"
     if m.max_step < m.step:
         return "master.max_step", f"expected max_step >= step ({fmt(m.step)} s), got {fmt(m.max_step)} s"
+    # A step below the time resolution at the end would never move the clock.
+    resolution = 64 * math.ulp(max(abs(e.start), abs(e.stop)))
+    if m.step < resolution:
+        return "master.step", (f"expected a step of at least {fmt(resolution)} s: a double cannot tell "
+                               f"{fmt(e.stop)} s from {fmt(e.stop)} s + {fmt(m.step)} s apart well enough")
     return None
 
 

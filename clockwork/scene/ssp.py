@@ -37,13 +37,13 @@ from __future__ import annotations
 import io
 import json
 import re
-import shutil
 import zipfile
 from pathlib import Path
 
 from lxml import etree
 
 from .. import __version__
+from ..atomic import write_bytes_atomic, write_text_atomic
 from ..engine.description import var_unit
 
 NS = {
@@ -208,10 +208,7 @@ def export_ssp(scene, out: str | Path, point: dict | None = None) -> Path:
         z.writestr("SystemStructure.ssd", files.pop("SystemStructure.ssd"))
         for name in sorted(files):
             z.writestr(name, files[name])
-    tmp = out.with_name(out.name + ".part")
-    tmp.write_bytes(buf.getvalue())
-    tmp.replace(out)
-    return out
+    return write_bytes_atomic(out, buf.getvalue())
 
 
 def container_description(scene, point: dict | None = None) -> tuple[dict, dict[str, Path]]:
@@ -258,10 +255,8 @@ def write_container_description(scene, directory: str | Path, point: dict | None
     directory.mkdir(exist_ok=True)
     desc, files = container_description(scene, point)
     for name, src in files.items():
-        shutil.copyfile(src, directory / name)
-    out = directory / (Path(desc["name"]).stem + ".json")
-    out.write_text(json.dumps(desc, indent=2) + "\n")
-    return out
+        write_bytes_atomic(directory / name, Path(src).read_bytes())
+    return write_text_atomic(directory / (Path(desc["name"]).stem + ".json"), json.dumps(desc, indent=2) + "\n")
 
 
 def fmpy_parameter_set(ssp: str | Path):

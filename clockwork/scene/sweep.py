@@ -4,6 +4,7 @@ experiment, combined as a grid or zipped."""
 from __future__ import annotations
 
 import difflib
+import math
 
 import numpy as np
 
@@ -11,6 +12,7 @@ from ..errors import SceneError
 from .checks import Ctx, article, convert_value, master_value, parse_ref
 from .model import Component, Sweep, SweepAxis, show
 
+MAX_POINTS = 1_000_000  # at a millisecond a point, a quarter of an hour; more is a slip
 _SWEEPABLE_MASTER = ("step", "min_step", "max_step", "extrapolation", "iterations", "iteration_tolerance",
                      "event_time_tolerance", "event_indicator_tolerance", "richardson_tolerance",
                      "order", "event_location", "richardson")
@@ -76,8 +78,8 @@ def parse_sweep(ctx: Ctx, t: dict | None, components: dict[str, Component], conn
                 if k not in a:
                     raise ctx.fail(f"{where}.{k}", "missing required key (with start/stop/num)")
             num = a["num"]
-            if isinstance(num, bool) or not isinstance(num, int) or num < 1:
-                raise ctx.bad(f"{where}.num", num, "an integer >= 1")
+            if isinstance(num, bool) or not isinstance(num, int) or not 1 <= num <= MAX_POINTS:
+                raise ctx.bad(f"{where}.num", num, f"an integer from 1 to {MAX_POINTS}")
             spacing = a.get("spacing", "linear")
             if spacing not in ("linear", "log"):
                 raise ctx.bad(f"{where}.spacing", spacing, '"linear" or "log"')
@@ -95,7 +97,9 @@ def parse_sweep(ctx: Ctx, t: dict | None, components: dict[str, Component], conn
             if (var is not None and var.type == "Integer") or param in (("master", "iterations"), ("master", "extrapolation")):
                 ints = [round(x) for x in seq]
                 if any(abs(x - r) > 1e-9 * max(1.0, abs(x)) for x, r in zip(seq, ints)):
-                    raise ctx.fail(where, f"{ref} is an integer but start/stop/num give non-integer values {seq}")
+                    odd = [x for x, r in zip(seq, ints) if abs(x - r) > 1e-9 * max(1.0, abs(x))]
+                    raise ctx.fail(where, f"{ref} is an integer but start/stop/num give non-integer values "
+                                          f"({', '.join(f'{x:g}' for x in odd[:3])}{', ...' if len(odd) > 3 else ''})")
                 seq = ints
             values = tuple(convert(f"{where}.start", x) for x in seq)
         axes.append(SweepAxis(param, values))
@@ -105,6 +109,9 @@ def parse_sweep(ctx: Ctx, t: dict | None, components: dict[str, Component], conn
             if len(ax.values) != n:
                 raise ctx.fail(f"sweep.axes[{i}]", f"zip mode needs axes of equal length: "
                                                    f"{len(ax.values)} values here, {n} in sweep.axes[0]")
+    total = len(axes[0].values) if mode == "zip" else math.prod(len(ax.values) for ax in axes)
+    if total > MAX_POINTS:
+        raise ctx.fail("sweep", f"{total} points: a sweep has at most {MAX_POINTS}")
     return Sweep(mode, tuple(axes))
 
 

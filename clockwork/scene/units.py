@@ -39,7 +39,10 @@ def parse_quantity(value: object) -> tuple[float, str | None]:
     if isinstance(value, bool):
         raise UnitError("a number or a string '<number> <unit>'")
     if isinstance(value, (int, float)):
-        number = float(value)
+        try:
+            number = float(value)
+        except OverflowError:  # an integer with hundreds of digits
+            raise UnitError("a finite number") from None
         unit = None
     elif isinstance(value, str):
         m = _QUANTITY.match(value)
@@ -64,7 +67,10 @@ def _scaled(value: object, units: dict[str, float], what: str, base: str) -> flo
         return number
     if unit not in units:
         raise UnitError(f"{what} unit: one of {', '.join(units)}")
-    return number * units[unit]
+    scaled = number * units[unit]
+    if not math.isfinite(scaled):
+        raise UnitError(f"{what} that is a finite number in {base}")
+    return scaled
 
 
 def to_seconds(value: object) -> float:
@@ -136,4 +142,7 @@ def to_unit(value: object, model_description, unit: str | None) -> float:
     conv = unit_conversions(model_description, unit)
     if given not in conv:
         raise UnitError(f"a unit of {unit}: one of {', '.join(conv)}")
-    return apply_conversion(conv[given], number)
+    x = apply_conversion(conv[given], number)
+    if not math.isfinite(x):
+        raise UnitError(f"a value that is a finite number in {unit}")
+    return x

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from typing import Callable
 
+from ...errors import ClockworkError
+
 HEADLINES: dict[str, Callable] = {}
 
 
@@ -33,11 +35,29 @@ def entry(quantity: str, paper, ours, unit: str = "", tolerance=None, note: str 
     return d
 
 
+def physical_overrides(scene) -> list[str]:
+    """The --set arguments that change the clock or what is measured (a
+    component's parameter, the experiment, the analysis), as opposed to
+    the numerical method (master), the title or the recording."""
+    return [o for o in scene.overrides if o.split("=", 1)[0].strip().split(".")[0] not in ("master", "scene", "record")]
+
+
 def headlines_for(scene, summary: dict, results: list[dict]) -> list[dict]:
+    """The scene's headlines. When --set changed what the paper's numbers
+    depend on, every headline says so and is marked not comparable."""
     func = HEADLINES.get(scene.path.stem)
     if func is None:
         return []
     try:
-        return func(scene, summary, results)
-    except (KeyError, IndexError, TypeError, ValueError) as e:
-        return [{"quantity": "headline", "paper": None, "ours": None, "note": f"not computed: {e}"}]
+        out = func(scene, summary, results)
+    except (KeyError, IndexError, TypeError, ValueError, ClockworkError) as e:
+        return [entry("headline", None, None, note=f"not computed: {' '.join(str(e).split())}")]
+    changed = physical_overrides(scene)
+    if changed:
+        flag = ("scene run with --set " + ", ".join(changed)
+                + ": the paper's value belongs to the scene as written, not to this run")
+        for h in out:
+            if h.get("paper") is not None:
+                h["comparable"] = False
+            h["note"] = f"{h['note']}; {flag}" if h.get("note") else flag
+    return out

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from .registry import check_keys, display, pyplot, register
+from .registry import axis_label, check_keys, display, pyplot, register
 
 
 def _convert(t: dict) -> dict:
@@ -24,10 +24,15 @@ def time_series(scene, r, spec):
     if spec.get("x") and spec["x"] != "time":
         x, xl = display(scene, spec["x"], series[spec["x"]])
     ys = spec.get("y") or [c for c in series if c != "time"]
+    labels = []
     for y in [ys] if isinstance(ys, str) else ys:
         v, label = display(scene, y, series[y])
         ax.plot(x, v, label=label, lw=0.8)
+        labels.append(label)
     ax.set_xlabel(xl)
+    units = {lb[lb.rfind("(") + 1:-1] for lb in labels if lb.endswith(")")}
+    ax.set_ylabel(f"value ({units.pop()})" if len(units) == 1 and len(labels) > 1 else
+                  labels[0] if len(labels) == 1 else "value (units in the legend)")
     ax.legend(loc="best", fontsize=8)
     return fig
 
@@ -46,6 +51,8 @@ def phase_portrait(scene, r, spec):
 
 @register("sweep", {"x", "y"}, _convert)
 def sweep(scene, results, spec):
+    """Result columns against a sweep axis (`x`: an axis "instance.variable" or
+    a result column); text and true/false axes are drawn as categories."""
     rows = [r for r in results if r and "result" in r and not r["result"].get("stalled")]
     if not rows:
         return None
@@ -53,12 +60,23 @@ def sweep(scene, results, spec):
     x_key = spec.get("x", "amplitude_deg")
     ys = spec.get("y") or ["E_T_s_per_day", "E_C_s_per_day", "E_E_s_per_day"]
     ys = [ys] if isinstance(ys, str) else ys
-    rows.sort(key=lambda r: r["result"].get(x_key) or 0.0)
-    x = [r["result"].get(x_key) for r in rows]
+
+    def x_of(r):
+        return r["point"][x_key] if x_key in r.get("point", {}) else r["result"].get(x_key)
+
+    xs = [x_of(r) for r in rows]
+    numeric = all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in xs)
+    if numeric:
+        order = sorted(range(len(rows)), key=lambda i: xs[i])
+        rows = [rows[i] for i in order]
+        xs, xl = display(scene, x_key, [xs[i] for i in order])  # angles in deg, torques in N.cm
+    else:
+        xs, xl = [str(x).lower() if isinstance(x, bool) else str(x) for x in xs], x_key
+    ax.set_xlabel(xl)
     for y in ys:
         vals = [r["result"].get(y) for r in rows]
-        ax.plot(x, [math.nan if v is None else v for v in vals], "o-", ms=3, label=y)
-    ax.set_xlabel(x_key)
+        ax.plot(xs, [math.nan if v is None else v for v in vals], "o-" if numeric else "o", ms=3, label=y)
+    ax.set_ylabel(axis_label(ys))
     ax.axhline(0.0, color="0.7", lw=0.5)
     ax.legend(loc="best", fontsize=8)
     return fig

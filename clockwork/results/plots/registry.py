@@ -16,7 +16,7 @@ import numpy as np
 
 from ...engine.description import var_unit, variables
 from ...scene.kinds import Converter, Invalid
-from ..files import write_bytes_atomic
+from ...atomic import write_bytes_atomic
 
 PLOTS: dict = {}  # kind -> function
 PLOT_KEYS: dict[str, set[str]] = {}  # kind -> allowed keys besides `kind`
@@ -61,8 +61,10 @@ def check_keys(t: dict, strings=("x", "title"), string_lists=(), booleans=()) ->
                 raise Invalid(k, "a string or a non-empty list of strings")
     if "file" in t:
         f = t["file"]
-        if not isinstance(f, str) or not f or "/" in f or "\\" in f or f.startswith("."):
-            raise Invalid("file", 'a file name without a directory, e.g. "fig.png"')
+        # Only .png names: the result files (summary.json, *.csv) cannot be overwritten by a plot.
+        if (not isinstance(f, str) or "/" in f or "\\" in f or f.startswith(".")
+                or not f.lower().endswith(".png") or len(f) <= 4):
+            raise Invalid("file", 'a .png file name without a directory, e.g. "fig.png"')
     return out
 
 
@@ -135,6 +137,25 @@ def display(scene, name: str, values):
     return values, f"{name} ({unit})" if unit else name
 
 
+# Result columns carry their unit in the name's tail.
+_UNIT_SUFFIXES = (("_s_per_day", "s/day"), ("_s_per_year", "s/year"), ("_rad_per_s", "rad/s"),
+                  ("_per_s", "1/s"), ("_deg", "deg"), ("_rad", "rad"), ("_Nm", "N.m"), ("_Ncm", "N.cm"),
+                  ("_s", "s"))
+
+
+def unit_of(column: str) -> str | None:
+    """The unit a result column's name ends with ("E_T_s_per_day" -> "s/day"), or None."""
+    return next((u for suffix, u in _UNIT_SUFFIXES if column.endswith(suffix)), None)
+
+
+def axis_label(columns: list[str]) -> str:
+    """A y-axis label for result columns: their common unit, or the columns' names."""
+    units = {unit_of(c) for c in columns}
+    if len(units) == 1 and None not in units:
+        return f"({units.pop()})" if len(columns) > 1 else f"{columns[0]} ({unit_of(columns[0])})"
+    return ", ".join(columns)
+
+
 def save(fig, path: Path) -> None:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
@@ -142,16 +163,30 @@ def save(fig, path: Path) -> None:
     write_bytes_atomic(path, buf.getvalue())
 
 
-def make_plots(scene, results: list[dict], out: Path) -> list[str]:
-    written = []
+def make_plots(scene, results: list[dict], out: Path) -> tuple[list[str], list[dict]]:
+    """Draw the scene's plots into `out`: (files written, plots that failed).
+
+    A scene run with --set overrides says so under each plot. A plot kind
+    that raises is reported (kind, file, error), not fatal: the data files
+    are written all the same.
+    """
+    written, failed = [], []
     for k, spec in enumerate(scene.plots):
         kind = spec["kind"]
         name = spec.get("file") or f"plot{k + 1}_{kind}.png"
-        fig = PLOTS[kind](scene, results, spec)
-        if fig is None:
+        try:
+            fig = PLOTS[kind](scene, results, spec)
+            if fig is None:
+                continue
+            if not fig.axes[0].get_title() and not fig._suptitle:
+                fig.axes[0].set_title(spec.get("title", scene.title), fontsize=10)
+            if scene.overrides:
+                fig.text(0.01, 0.0, "--set " + "  ".join(scene.overrides), fontsize=7, color="0.35",
+                         va="top")
+            save(fig, out / name)
+        except Exception as e:  # a broken plot kind must not take the results with it
+            pyplot().close("all")
+            failed.append({"file": name, "kind": kind, "error": f"{type(e).__name__}: {' '.join(str(e).split())}"})
             continue
-        if not fig.axes[0].get_title():
-            fig.axes[0].set_title(spec.get("title", scene.title), fontsize=10)
-        save(fig, out / name)
         written.append(name)
-    return written
+    return written, failed

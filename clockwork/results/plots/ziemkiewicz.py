@@ -44,11 +44,6 @@ def _convert_plot(t: dict) -> dict:
     return out
 
 
-def title_of(scene, spec) -> str:
-    t = spec.get("title", scene.title)
-    return t + ("\n[--set " + ", ".join(scene.overrides) + "]" if scene.overrides else "")
-
-
 @register("period_amplitude", {"title", "file"}, _convert_plot)
 def plot_period_amplitude(scene, results, spec):
     rows = sorted(orbit_rows(results), key=lambda r: r["result"]["amplitude_deg"])
@@ -68,7 +63,7 @@ def plot_period_amplitude(scene, results, spec):
     ax.plot(A, T, "o", ms=4, mfc="none", color="C0", label="simulated (FMU ticks)")
     ax.set_ylabel("period T (s)")
     ax.legend(loc="upper left", fontsize=8)
-    ax.set_title(title_of(scene, spec), fontsize=10)
+    ax.set_title(spec.get("title", scene.title), fontsize=10)
     bx.semilogy(A, np.maximum(np.abs(rel), 1e-17), "o", ms=4, mfc="none", color="C0",
                 label="|simulated/AGM - 1|")
     eq2_rel = np.abs(eq2[1:] / agm[1:] - 1.0)
@@ -101,7 +96,7 @@ def plot_rate_errors(scene, results, spec):
     ax.axhline(0.0, color="0.7", lw=0.5)
     ax.set_xlabel("amplitude A (deg)")
     ax.set_ylabel("rate error (s/day, + = clock loses)")
-    ax.set_title(title_of(scene, spec), fontsize=10)
+    ax.set_title(spec.get("title", scene.title), fontsize=10)
     handles, labels = ax.get_legend_handles_labels()
     if spec.get("torque", True):
         tx = ax.twinx()
@@ -148,7 +143,7 @@ def plot_recoil(scene, r, spec):
     tx.set_ylim(-lim, lim)
     alim = 1.3 * np.max(np.abs(phi))
     ax.set_ylim(-alim, alim)
-    ax.set_title(title_of(scene, spec), fontsize=10)
+    ax.set_title(spec.get("title", scene.title), fontsize=10)
     ax.text(0.01, 0.02, "shaded: recoil ($M_F$ opposes the motion); dashed: $\\pm\\alpha_r$",
             transform=ax.transAxes, fontsize=7, color="0.3")
     return fig
@@ -204,7 +199,7 @@ def plot_contour(scene, results, spec):
         ax.legend(loc="upper left", fontsize=8)
     ax.set_xlabel(xl)
     ax.set_ylabel(yl)
-    ax.set_title(title_of(scene, spec), fontsize=10)
+    ax.set_title(spec.get("title", scene.title), fontsize=10)
     return fig
 
 
@@ -243,7 +238,7 @@ def plot_curves(scene, rows, spec):
     ax.set_xlabel("amplitude A (deg)" if xk == "amplitude_deg" else xk)
     ax.set_ylabel(ERROR_LABELS.get(yk, yk) + " (s/day)")
     ax.legend(loc="best", fontsize=7)
-    ax.set_title(title_of(scene, spec), fontsize=10)
+    ax.set_title(spec.get("title", scene.title), fontsize=10)
     return fig
 
 
@@ -266,7 +261,7 @@ def plot_disturbance(scene, r, spec):
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = tx.get_legend_handles_labels()
     ax.legend(h1 + h2, l1 + l2, loc="upper right", fontsize=8)
-    ax.set_title(title_of(scene, spec), fontsize=10)
+    ax.set_title(spec.get("title", scene.title), fontsize=10)
     bx.plot(t, err, color="C2", lw=1.2)
     bx.axvline(tk, color="0.6", ls=":", lw=0.8)
     bx.set_ylabel("time error $\\Sigma(T - T_{stat})$ (s)")

@@ -1,0 +1,92 @@
+"""Files written atomically: readers never see a half-written file.
+
+A writer puts the data into a temporary file in the target's directory
+(named .<name>.<pid>.<random>.part), flushes and fsyncs it, then renames it
+over the target with os.replace, which is atomic on POSIX within a
+filesystem. A process killed in between leaves its .part file; the pid in
+the name tells a later run that nobody is writing it any more
+(``remove_stale_parts``).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+PART = ".part"  # the suffix of a file being written
+
+
+def remove_stale_parts(folder: Path, every: bool = False) -> int:
+    """Remove the .part files in `folder` that no live process is writing
+    (with `every`, all of them: the caller holds the folder). Returns how many."""
+    removed = 0
+    try:
+        entries = list(Path(folder).glob(f".*{PART}"))
+    except OSError:
+        return 0
+    for f in entries:
+        pid = _writer_pid(f.name)
+        if not every and pid is not None and (pid == os.getpid() or alive(pid)):
+            continue
+        try:
+            f.unlink()
+            removed += 1
+        except OSError:
+            pass
+    return removed
+
+
+def _writer_pid(name: str) -> int | None:
+    # .<target name>.<pid>.<random>.part: the pid is the second field from the end
+    fields = name[: -len(PART)].split(".")
+    return int(fields[-2]) if len(fields) >= 3 and fields[-2].isdigit() else None
+
+
+def alive(pid: int) -> bool:
+    """Whether process `pid` runs (owned by anyone)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True  # exists, owned by someone else
+    return True
+
+
+def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=PART, dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    _fsync_dir(path.parent)
+    return path
+
+
+def _fsync_dir(d: Path) -> None:
+    # Makes the rename itself durable; not possible on every platform.
+    try:
+        fd = os.open(d, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
+    return write_bytes_atomic(path, text.encode("utf-8"))
