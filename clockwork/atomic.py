@@ -22,7 +22,8 @@ def remove_stale_parts(folder: Path, every: bool = False) -> int:
     (with `every`, all of them: the caller holds the folder). Returns how many."""
     removed = 0
     try:
-        entries = list(Path(folder).glob(f".*{PART}"))
+        # Under the caller's lock any .part is debris; otherwise only our own hidden ones.
+        entries = list(Path(folder).glob(f"*{PART}" if every else f".*{PART}"))
     except OSError:
         return 0
     for f in entries:

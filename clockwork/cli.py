@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import os
 import sys
 from pathlib import Path
 
@@ -24,13 +25,18 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(f"{sub}: {message}" if sub else message)
 
 
+# More worker processes than this is a typo, not a machine.
+MAX_WORKERS = 1024
+
+
 def _positive_int(text: str) -> int:
+    shown = text if len(text) <= 20 else text[:17] + "..."
     try:
-        n = int(text)
+        n = int(text) if len(text) <= 20 else None
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+        n = None
+    if n is None or not 1 <= n <= MAX_WORKERS:
+        raise argparse.ArgumentTypeError(f"expected a positive integer up to {MAX_WORKERS}, got {shown!r}")
     return n
 
 
@@ -160,13 +166,17 @@ def _run_report(scene, out: Path, summary: dict, most: int = 4) -> list[str]:
         what += f", {summary['points_reused']} reused"
     lines = [f"{scene.path.stem}: {what} in {summary.get('wall_time_s', 0.0):.1f} s -> {out}"]
     lines.append("  files: " + ", ".join(summary.get("files", [])))
+    for p in summary.get("plots_not_drawn", []):
+        lines.append(f"  not drawn: {p['file']} ({p['reason']})")
     result = summary.get("result") or {}
     if result.get("stalled"):
         lines.append(f"  stalled: {result.get('reason', 'the clock stopped')}")
     heads = [h for h in summary.get("headlines", []) if h.get("ours") is not None]
     for h in heads[:most]:
         unit = f" {h['unit']}" if h.get("unit") else ""
-        paper = f" (paper: {_flag(h['paper'])})" if h.get("paper") is not None and h.get("comparable", True) else ""
+        paper = f" (paper: {_flag(h['paper'])})" if h.get("paper") is not None else ""
+        if not h.get("comparable", True):
+            paper = " (--set moved the scene away from the paper's parameters: not comparable)"
         lines.append(f"  {h['quantity']}: {_short(h['ours'])}{unit}{paper}")
     if len(heads) > most:
         lines.append(f"  ... {len(heads) - most} more headline(s) in {out / 'summary.json'}")
@@ -260,7 +270,7 @@ def cmd_info(args) -> int:
     from .engine.description import FmuError, read_fmu, resolve_fmu, var_unit
 
     try:
-        path = resolve_fmu(args.fmu, Path.cwd())
+        path = resolve_fmu(args.fmu)
         md, digest, indicators = read_fmu(path, need_binary=False)
     except FmuError as e:
         raise UsageError(str(e)) from None
@@ -314,6 +324,10 @@ def main(argv=None) -> int:
     except SimulationError as e:
         _error(e)
         return 1
+    except BrokenPipeError:  # e.g. `clockwork list | head`: the reader has what it wanted
+        # Point stdout at /dev/null so the interpreter's final flush stays quiet.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except OSError as e:
         # Writing results: disk full, permissions, a path below a regular file.
         where = f"{e.filename}: " if e.filename else ""
@@ -322,5 +336,4 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         _error("interrupted")
         return 130
-    except BrokenPipeError:  # e.g. `clockwork list | head`
-        return 0
+

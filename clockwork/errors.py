@@ -56,5 +56,11 @@ class SimulationError(ClockworkError):
         super().__init__(prefix + self.message)
 
 
+class ParametersRefused(SimulationError):
+    """An FMU refused the parameter values it was given (setting them, or its
+    cross-parameter checks at the end of initialization): bad input, which the
+    run layer reports against the scene file."""
+
+
 def _one_line(text: str) -> str:
     return " ".join(str(text).split())

@@ -5,6 +5,7 @@ A module with its own name: several test folders have a conftest.py, and
 """
 
 import os
+import textwrap
 from pathlib import Path
 
 import pytest
@@ -19,3 +20,40 @@ def fmu_file(name: str) -> Path:
     if not path.exists():
         pytest.fail(f"{path} is missing: build the FMUs first (cmake --build build)")
     return path
+
+
+# A grasshopper clock a fraction of a second long: `{stop}` in seconds, and
+# `{sweep}` (a [sweep] table, plots...) appended to the scene.
+CLOCK_SCENE = textwrap.dedent("""\
+    connections = [
+      "pendulum.phi -> escapement.phi",
+      "pendulum.w -> escapement.w",
+      "escapement.tau -> pendulum.tau_escapement",
+    ]
+
+    [scene]
+    title = "clock"
+
+    [components.pendulum]
+    fmu = "Pendulum"
+    parameters = {{ Q = 1000, phi_start = "6 deg" }}
+
+    [components.escapement]
+    fmu = "GrasshopperEscapement"
+    parameters = {{ torque = "0.4 N.cm", phi_r = "2 deg" }}
+
+    [experiment]
+    stop = "{stop} s"
+
+    [master]
+    step = "0.01 s"
+    event_location = true
+
+    [record]
+    outputs = ["pendulum.phi"]
+    ticks = "pendulum"
+
+    [analysis]
+    kind = "time_series"
+    {sweep}
+    """)

@@ -88,9 +88,16 @@ def _stall_check(scene, point: dict, system) -> dict | None:
     escapement = find_component(scene, "GrasshopperEscapement")
     if pendulum is None or escapement is None:
         return None
-    phi_r = parameters(scene, point)[escapement]["phi_r"]
+    params = parameters(scene, point)
+    phi_r = params[escapement]["phi_r"]
     amplitude = system.value(pendulum, "amplitude")
     turns = system.instances[pendulum].get_integer(["turn_count"])[0]
+    if turns == 0:
+        # No turning point yet: a stall only if a whole small-swing period went by without one.
+        start, _ = experiment(scene, point)
+        period_s = 2.0 * math.pi * math.sqrt(params[pendulum]["L"] / params[pendulum]["g"])
+        if system.master.t - start < period_s:
+            return {"stalled": False, "last_amplitude_deg": None}
     stalled = turns == 0 or amplitude <= phi_r
     out = {"stalled": stalled, "last_amplitude_deg": math.degrees(amplitude)}
     if stalled:

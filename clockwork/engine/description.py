@@ -48,8 +48,13 @@ def resolve_fmu(spec: str, base_dir: Path | None = None) -> Path:
         if not p.is_absolute():
             p = (base_dir or Path.cwd()) / p
         if not p.is_file():
-            rel = "" if Path(spec).is_absolute() else " (a relative path is taken from the scene file's directory)"
-            raise FmuError(f"no such FMU file: {p}{rel}")
+            if Path(spec).is_absolute():
+                where = ""
+            elif base_dir is None:
+                where = " (a relative path is taken from the current directory)"
+            else:
+                where = f" (a relative path in a scene is taken from the scene file's directory, {base_dir})"
+            raise FmuError(f"no such FMU file: {p}{where}")
         return p
     if not NAME_RE.match(spec):
         raise FmuError("expected a model name (e.g. \"Pendulum\") or a path ending .fmu")

@@ -23,7 +23,7 @@ from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
 from fmpy import calloc, free
 
 from ..atomic import alive
-from ..errors import SceneError, SimulationError
+from ..errors import ParametersRefused, SceneError, SimulationError
 from ..hashing import sha256_file
 from ..paths import cache_root, scratch_dir
 from .description import read_fmu, var_unit
@@ -257,26 +257,29 @@ class Instance:
     def last_message(self) -> str:
         return self.messages[-1][1] if self.messages else ""
 
-    def fail(self, what: str, status: int, time: float | None = None) -> SimulationError:
+    def fail(self, what: str, status: int, time: float | None = None,
+             error: type[SimulationError] = SimulationError) -> SimulationError:
         msg = self.last_message()
         text = f"{self.model_name}: {what} returned {STATUS_NAMES[status]}"
         if msg:
             text += f": {msg}"
-        return SimulationError(text, time=time, instance=self.name)
+        return error(text, time=time, instance=self.name)
 
-    def check(self, status: int, what: str, time: float | None = None) -> None:
+    def check(self, status: int, what: str, time: float | None = None,
+              error: type[SimulationError] = SimulationError) -> None:
         if status > WARNING:
-            raise self.fail(what, status, time)
+            raise self.fail(what, status, time, error)
 
     # -- setup ----------------------------------------------------------
 
     def setup(self, start: float, parameters: dict[str, object]) -> None:
         """fmi2SetupExperiment, parameters, initialization mode."""
         self.check(self.c_setup(self.component, 0, 0.0, start, 0, 0.0), "fmi2SetupExperiment")
-        self.set_values(parameters, "setting parameters")
+        self.set_values(parameters, "setting parameters", ParametersRefused)
         self.check(self.c_enterInit(self.component), "fmi2EnterInitializationMode")
 
-    def set_values(self, values: dict[str, object], what: str = "fmi2Set*") -> None:
+    def set_values(self, values: dict[str, object], what: str = "fmi2Set*",
+                   error: type[SimulationError] = SimulationError) -> None:
         for name, value in values.items():
             v = self.variables[name]
             vr = (c_uint * 1)(v.vr)
@@ -288,10 +291,10 @@ class Instance:
                 st = self.c_setBoolean(self.component, vr, 1, (c_int * 1)(1 if value else 0))
             else:
                 raise SimulationError(f"{self.name}.{name}: type {v.type} is not supported")
-            self.check(st, f"{what} ({name} = {value!r})")
+            self.check(st, f"{what} ({name} = {value!r})", error=error)
 
     def exit_init(self) -> None:
-        self.check(self.c_exitInit(self.component), "fmi2ExitInitializationMode")
+        self.check(self.c_exitInit(self.component), "fmi2ExitInitializationMode", error=ParametersRefused)
 
     def reset(self) -> None:
         self.check(self.c_reset(self.component), "fmi2Reset")

@@ -3,7 +3,8 @@
 Opening it creates the directory with its parents, checks that it is a
 writable directory, and locks it (``flock`` on the directory itself, which
 the system releases when the process dies, however it dies): a second run
-into the same directory is refused instead of mixed in. Under the lock,
+into the same directory is refused instead of mixed in. A directory
+that holds other files and no earlier result is refused. Under the lock,
 what a killed run left behind (.part files, a staging folder) is removed.
 
 A run writes its results into a staging folder inside the directory and
@@ -24,7 +25,7 @@ import shutil
 from pathlib import Path
 
 from ..errors import UsageError
-from ..atomic import remove_stale_parts
+from ..atomic import PART, remove_stale_parts
 from .files import check_output_dir
 
 SUMMARY = "summary.json"
@@ -46,6 +47,7 @@ class OutputDir:
             os.close(fd)
             raise UsageError(f"output directory {self.path} is being written by another clockwork run") from None
         self._lock_fd = fd
+        self._refuse_foreign_files()
         for old in self.path.glob(f"{_STAGING}*"):
             shutil.rmtree(old, ignore_errors=True)
         remove_stale_parts(self.path, every=True)
@@ -59,6 +61,20 @@ class OutputDir:
         if self._lock_fd is not None:
             os.close(self._lock_fd)  # releases the lock
             self._lock_fd = None
+
+    def _refuse_foreign_files(self) -> None:
+        """A directory that holds other files and no earlier result is someone else's."""
+        if (self.path / SUMMARY).exists():
+            return
+        foreign = sorted(p.name for p in self.path.iterdir()
+                         if not (p.name == "points" or p.name.startswith(".") or p.name in RESULT_FILES
+                                 or p.name.endswith(PART)))
+        if foreign:
+            os.close(self._lock_fd)
+            self._lock_fd = None
+            shown = ", ".join(foreign[:3]) + (f" and {len(foreign) - 3} more" if len(foreign) > 3 else "")
+            raise UsageError(f"output directory {self.path} holds {shown} and no clockwork result: "
+                             "give a new or empty directory (a run replaces what it finds there)")
 
     @property
     def points(self) -> Path:

@@ -50,10 +50,12 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
         write_csv_atomic(out / "sweep.csv", axes + rkeys, cols)
         files.append("sweep.csv")
         summary["points_failed"] = sum(1 for r in results if "error" in r)
-    written, failed = make_plots(scene, results, out)
+    written, failed, empty = make_plots(scene, results, out)
     files += written
     if failed:
         summary["plots_failed"] = failed
+    if empty:
+        summary["plots_not_drawn"] = empty
     summary["headlines"] = headlines_for(scene, summary, results)
     summary["files"] = files + ["summary.json"]
     summary["wall_time_s"] = time.perf_counter() - t_start

@@ -14,6 +14,7 @@ import time
 from dataclasses import asdict
 
 from .. import __version__
+from ..errors import ParametersRefused, SceneError
 from ..results.cache import cache_load, cache_store, read_point
 from ..results.files import write_json_atomic
 from ..results.outdir import OutputDir
@@ -56,7 +57,10 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
             cache_store(keys[i], r)
 
     if not sweep:
-        finished(0, run_point(scene, points[0], progress=progress))
+        try:
+            finished(0, run_point(scene, points[0], progress=progress))
+        except ParametersRefused as e:  # the scene's values, not the run, are at fault
+            raise SceneError(e.message, scene.path, f"components.{e.instance}.parameters") from None
     elif todo:
         from tqdm import tqdm
 

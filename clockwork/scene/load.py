@@ -146,6 +146,8 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     connected_inputs = {(c.dst_instance, c.dst_var) for c in connections}
     sweep = parse_sweep(ctx, ctx.table(raw, "sweep", ""), components, connected_inputs)
     plots = _plots(ctx, raw.get("plot", []), kinds)
+    if (analysis or {}).get("kind", "time_series") == "time_series":
+        _check_series_plots(ctx, plots, record)
 
     scene = Scene(
         path=ctx.path,
@@ -339,6 +341,26 @@ def _analysis(ctx: Ctx, t: dict | None, kinds: Kinds) -> dict | None:
     if t is None:
         return None
     return _kind_table(ctx, t, "analysis", kinds.analysis_keys, kinds.analysis_convert)
+
+
+# Plot kinds that draw the recorded outputs of a time_series analysis.
+_SERIES_PLOTS = ("time_series", "phase_portrait")
+
+
+def _check_series_plots(ctx: Ctx, plots: tuple[dict, ...], record: Record) -> None:
+    """A time series can only draw what [record] records: refuse a typo now, not after the run."""
+    recorded = {f"{inst}.{var}" for inst, var in record.outputs}
+    for i, spec in enumerate(plots):
+        if spec["kind"] not in _SERIES_PLOTS:
+            continue
+        for key in ("x", "y"):
+            names = spec.get(key)
+            for name in [names] if isinstance(names, str) else names or []:
+                if name != "time" and name not in recorded:
+                    close = difflib.get_close_matches(name, sorted(recorded), n=1)
+                    hint = f" (did you mean {close[0]}?)" if close else ""
+                    raise ctx.fail(f"plot[{i}].{key}", f"{name} is not recorded{hint}: expected \"time\" or one "
+                                                       f"of record.outputs ({', '.join(sorted(recorded)) or 'none'})")
 
 
 def _plots(ctx: Ctx, plots, kinds: Kinds) -> tuple[dict, ...]:

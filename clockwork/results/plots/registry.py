@@ -163,20 +163,23 @@ def save(fig, path: Path) -> None:
     write_bytes_atomic(path, buf.getvalue())
 
 
-def make_plots(scene, results: list[dict], out: Path) -> tuple[list[str], list[dict]]:
-    """Draw the scene's plots into `out`: (files written, plots that failed).
+def make_plots(scene, results: list[dict], out: Path) -> tuple[list[str], list[dict], list[dict]]:
+    """Draw the scene's plots into `out`: (files written, plots that failed,
+    plots with nothing to draw, e.g. when every sweep point stalled).
 
     A scene run with --set overrides says so under each plot. A plot kind
     that raises is reported (kind, file, error), not fatal: the data files
     are written all the same.
     """
-    written, failed = [], []
+    written, failed, empty = [], [], []
     for k, spec in enumerate(scene.plots):
         kind = spec["kind"]
         name = spec.get("file") or f"plot{k + 1}_{kind}.png"
         try:
             fig = PLOTS[kind](scene, results, spec)
             if fig is None:
+                empty.append({"file": name, "kind": kind,
+                              "reason": "nothing to draw: no point has a result for it (stalled or failed)"})
                 continue
             if not fig.axes[0].get_title() and not fig._suptitle:
                 fig.axes[0].set_title(spec.get("title", scene.title), fontsize=10)
@@ -189,4 +192,4 @@ def make_plots(scene, results: list[dict], out: Path) -> tuple[list[str], list[d
             failed.append({"file": name, "kind": kind, "error": f"{type(e).__name__}: {' '.join(str(e).split())}"})
             continue
         written.append(name)
-    return written, failed
+    return written, failed, empty
