@@ -46,6 +46,8 @@ def test_main_command_on_a_fresh_copy(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["points_total"] == 24 and summary["points_failed"] == 0
     assert all((out / f).is_file() for f in summary["files"])
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
     which = subprocess.run([str(venv / "bin" / "python"), "-c", "import clockwork; print(clockwork.__file__)"],
-                           cwd=tmp_path, env=env, capture_output=True, text=True)
+                           cwd=elsewhere, env=env, capture_output=True, text=True)
     assert str(clone) in which.stdout, which  # the copy's package ran, not this checkout's

@@ -107,6 +107,24 @@ def parameter_set_xml(name: str, parameters: list[tuple[str, str, object]]) -> b
     return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
 
 
+# OMSimulator's own defaults, for a scene whose FMUs take no tolerance parameter.
+_OMS_DEFAULT_TOLERANCE = 1e-4
+
+
+def _tolerances(scene) -> tuple[float, float]:
+    """(relative, absolute) tolerance for the OMSimulator annotation: the
+    tightest `rtol`/`atol` any component is given (or starts with)."""
+    found: dict[str, list[float]] = {"rtol": [], "atol": []}
+    for comp in scene.components.values():
+        starts = {v.name: v.start for v in comp.model_description.modelVariables}
+        for key in found:
+            value = comp.parameters.get(key, starts.get(key))
+            if value is not None:
+                found[key].append(float(value))
+    return (min(found["rtol"], default=_OMS_DEFAULT_TOLERANCE),
+            min(found["atol"], default=_OMS_DEFAULT_TOLERANCE))
+
+
 def build_ssp(scene, point: dict | None = None) -> dict[str, bytes]:
     """The archive's files {path: bytes} for a scene (and a sweep point)."""
     if point:
@@ -171,7 +189,9 @@ def build_ssp(scene, point: dict | None = None) -> dict[str, bytes]:
     annotations = _sub(system, "ssd", "Annotations")
     oms = _sub(annotations, "ssc", "Annotation", type="org.openmodelica")
     info = _sub(_sub(oms, "oms", "Annotations"), "oms", "SimulationInformation")
-    _sub(info, "oms", "FixedStepMaster", description="oms-ma", stepSize=step)
+    rtol, atol = _tolerances(scene)
+    _sub(info, "oms", "FixedStepMaster", description="oms-ma", stepSize=step,
+         absoluteTolerance=_real(atol), relativeTolerance=_real(rtol))
 
     if used_units:
         units = _sub(root, "ssd", "Units")

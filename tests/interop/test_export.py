@@ -74,6 +74,10 @@ def test_vendor_annotations_and_literal_prefixes(name):
     fsm = first.find(f"{{{OMS_NS}}}Annotations/{{{OMS_NS}}}SimulationInformation/{{{OMS_NS}}}FixedStepMaster")
     assert fsm is not None and fsm.prefix == "oms"
     assert fsm.get("description") == "oms-ma" and float(fsm.get("stepSize")) == sc.master.step
+    # The tightest tolerance any component runs with (the core scene sets the pendulum's).
+    rtols = [c.parameters["rtol"] for c in sc.components.values() if "rtol" in c.parameters]
+    assert rtols and float(fsm.get("relativeTolerance")) == min(rtols)
+    assert float(fsm.get("absoluteTolerance")) > 0.0
     osp = root.find(f"ssd:DefaultExperiment/ssd:Annotations/ssc:Annotation/{{{OSP_NS}}}Algorithm/"
                     f"{{{OSP_NS}}}FixedStepAlgorithm", NS)
     assert osp is not None and osp.prefix == "osp" and float(osp.get("baseStepSize")) == sc.master.step
