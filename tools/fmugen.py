@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import math
+import re
 import sys
 import tomllib
 import uuid
@@ -28,6 +29,20 @@ VAR_KEYS = {
     "start", "min", "max", "depends_on", "derivatives", "event_indicator",
     "description",
 }
+MODEL_KEYS = {
+    "name", "description", "author", "version", "callbacks", "real_state",
+    "uint_state",
+}
+# The cw_model callbacks (cw_runtime.h): field name -> (return type, parameters).
+CALLBACKS = {
+    "validate": ("fmi2Status", "cw_instance *inst"),
+    "initialize": ("void", "cw_instance *inst"),
+    "calc_outputs": ("void", "cw_instance *inst"),
+    "do_step": ("fmi2Status", "cw_instance *inst, double t_end"),
+    "commit": ("void", "cw_instance *inst"),
+    "output_derivative": ("int", "cw_instance *inst, unsigned vr, int order, double *value"),
+}
+C_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 GUID_NAMESPACE = uuid.UUID("5d1f7a0e-6c55-4c39-9a43-2f0b7f3c1c0e")
 
 
@@ -70,6 +85,20 @@ def check(t: dict) -> None:
     for key in ("name", "description"):
         if key not in model:
             raise TableError(f"{path}: [model] needs '{key}'")
+    unknown = set(model) - MODEL_KEYS
+    if unknown:
+        raise TableError(f"{path}: [model] has unknown keys {sorted(unknown)}")
+    callbacks = model.get("callbacks", [])
+    bad = [c for c in callbacks if c not in CALLBACKS]
+    if bad or len(set(callbacks)) != len(callbacks):
+        raise TableError(f"{path}: [model] callbacks must be distinct names from {sorted(CALLBACKS)}")
+    slots = model.get("real_state", []) + model.get("uint_state", [])
+    for s in slots:
+        if not isinstance(s, str) or not C_NAME.fullmatch(s):
+            raise TableError(f"{path}: state slot {s!r} is not a C identifier")
+    if len(set(slots)) != len(slots):
+        raise TableError(f"{path}: state slot names repeat")
+    check_model_c(t)
     units = t.get("units", {})
     names, vrs = set(), set()
     variables = t.get("variable", [])
@@ -110,6 +139,58 @@ def check(t: dict) -> None:
                 raise TableError(f"{path}: {v['name']} depends_on {dep!r}, which is not an input")
 
 
+def check_model_c(t: dict) -> None:
+    """model.c must define exactly the callbacks the table names: a missing
+    one would be an undefined static function, an extra one dead code."""
+    source = t["_path"].parent / "model.c"
+    if not source.exists():
+        return
+    text = source.read_text()
+    defined = {
+        name for name in CALLBACKS
+        if re.search(rf"^static\s[^;{{}}=]*\b{name}\s*\([^;]*?\)\s*\{{", text, re.M)
+    }
+    declared = set(t["model"].get("callbacks", []))
+    if defined != declared:
+        raise TableError(
+            f"{t['_path']}: [model] callbacks = {sorted(declared)}, but {source.name} "
+            f"defines {sorted(defined)}"
+        )
+
+
+def generate_model(t: dict) -> list[str]:
+    """The model's cw_model, for model.c alone (guarded: the C test driver and
+    the fuzz harness include cw_vars.h for the table only)."""
+    m = t["model"]
+    real, uint = m.get("real_state", []), m.get("uint_state", [])
+    callbacks = m.get("callbacks", [])
+    lines = ["#ifndef CW_VARS_TABLE_ONLY", ""]
+    if real:
+        lines += [f"enum cw_real_state_slot {{ {', '.join(real)}, CW_N_REAL_STATE }};"]
+    if uint:
+        lines += [f"enum cw_uint_state_slot {{ {', '.join(uint)}, CW_N_UINT_STATE }};"]
+    if real or uint:
+        lines.append("")
+    lines.append("/* Defined in model.c. */")
+    for name in CALLBACKS:
+        if name in callbacks:
+            ret, params = CALLBACKS[name]
+            lines.append(f"static {ret} {name}({params});")
+    lines += [
+        "",
+        "const cw_model CW_MODEL = {",
+        "    .name = CW_MODEL_NAME,",
+        "    .guid = CW_MODEL_GUID,",
+        "    .nvars = CW_NVARS,",
+        "    .vars = CW_VARS,",
+        f"    .n_real_state = {'CW_N_REAL_STATE' if real else 0},",
+        f"    .n_uint_state = {'CW_N_UINT_STATE' if uint else 0},",
+    ]
+    lines += [f"    .{name} = {name if name in callbacks else 'NULL'}," for name in CALLBACKS]
+    lines += ["};", "", "#endif /* CW_VARS_TABLE_ONLY */", ""]
+    return lines
+
+
 def generate_header(t: dict) -> str:
     variables = sorted(t["variable"], key=lambda v: v["vr"])
     nvars = max(v["vr"] for v in variables) + 1
@@ -147,6 +228,9 @@ def generate_header(t: dict) -> str:
         "#define I(name) (inst->i[VR_##name])",
         "#define IN(name, t) cw_input(inst, VR_##name, (t))",
         "",
+    ]
+    lines += generate_model(t)
+    lines += [
         "#endif",
         "",
     ]
