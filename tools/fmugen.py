@@ -26,9 +26,13 @@ TYPES = {"Real", "Integer", "Boolean"}
 BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 VAR_KEYS = {
     "name", "vr", "type", "causality", "variability", "unit", "display_unit",
-    "start", "min", "max", "depends_on", "derivatives", "event_indicator",
-    "description",
+    "start", "min", "max", "depends_on", "initial_depends_on", "derivatives",
+    "event_indicator", "description",
 }
+# FMI 2.0 dependenciesKind values (Sec. 2.2.8). All but "dependent" describe a
+# linear factor and so apply to Real unknowns only; InitialUnknowns use
+# "dependent" alone.
+DEPENDENCY_KINDS = {"dependent", "constant", "fixed", "tunable", "discrete"}
 MODEL_KEYS = {
     "name", "description", "author", "version", "callbacks", "real_state",
     "uint_state",
@@ -133,10 +137,30 @@ def check(t: dict) -> None:
             if not lo <= v["start"] <= hi:
                 raise TableError(f"{where}: start {v['start']} outside [{lo}, {hi}]")
     inputs = {v["name"] for v in variables if v["causality"] == "input"}
+    # Knowns in Initialization Mode: inputs and the variables with
+    # initial="exact", which here are exactly the parameters.
+    exact = inputs | {v["name"] for v in variables if v["causality"] == "parameter"}
     for v in variables:
-        for dep in v.get("depends_on", []):
+        where = f"{path}: {v['name']}"
+        for key in ("depends_on", "initial_depends_on"):
+            if key in v and v["causality"] != "output":
+                raise TableError(f"{where}: {key} is for outputs only")
+        deps = v.get("depends_on", [])
+        if not isinstance(deps, (list, dict)):
+            raise TableError(f"{where}: depends_on must be a list of inputs or a table input = kind")
+        for dep in deps:
             if dep not in inputs:
-                raise TableError(f"{path}: {v['name']} depends_on {dep!r}, which is not an input")
+                raise TableError(f"{where} depends_on {dep!r}, which is not an input")
+        for dep, kind in (deps.items() if isinstance(deps, dict) else []):
+            if kind not in DEPENDENCY_KINDS:
+                raise TableError(f"{where}: dependency kind {kind!r} is not one of {sorted(DEPENDENCY_KINDS)}")
+            if kind != "dependent" and v["type"] != "Real":
+                raise TableError(f"{where}: dependency kind {kind!r} is for Real outputs only")
+        for dep in v.get("initial_depends_on", []):
+            if dep not in exact:
+                raise TableError(
+                    f"{where} initial_depends_on {dep!r}, which is neither an input nor a parameter"
+                )
 
 
 def check_model_c(t: dict) -> None:
@@ -251,6 +275,19 @@ def _unit_xml(name: str, spec: dict) -> list[str]:
     return out
 
 
+def _unknown_xml(index: dict, v: dict, kinds: dict) -> str:
+    """An <Unknown> with its dependencies in ScalarVariable index order, as
+    FMI 2.0 requires."""
+    deps = sorted((index[name], kind) for name, kind in kinds.items())
+    if not deps:
+        return f'      <Unknown index="{index[v["name"]]}" dependencies=""/>'
+    return (
+        f'      <Unknown index="{index[v["name"]]}" '
+        f'dependencies="{" ".join(str(k) for k, _ in deps)}" '
+        f'dependenciesKind="{" ".join(kind for _, kind in deps)}"/>'
+    )
+
+
 def generate_xml(t: dict, sources: list[str]) -> str:
     m = t["model"]
     variables = sorted(t["variable"], key=lambda v: v["vr"])
@@ -342,20 +379,22 @@ def generate_xml(t: dict, sources: list[str]) -> str:
     x.append("  <ModelStructure>")
     outputs = [v for v in variables if v["causality"] == "output"]
     if outputs:
+        # Outputs at communication points: the Knowns are the inputs (the
+        # state is the FMU's own). Initialization Mode: inputs and
+        # parameters, e.g. a state output depends on its start parameter
+        # but on no input, so it closes no algebraic loop.
         x.append("    <Outputs>")
         for v in outputs:
-            deps = [index[d] for d in v.get("depends_on", [])]
-            if deps:
-                x.append(
-                    f'      <Unknown index="{index[v["name"]]}" dependencies="{" ".join(map(str, deps))}" '
-                    f'dependenciesKind="{" ".join(["dependent"] * len(deps))}"/>'
-                )
-            else:
-                x.append(f'      <Unknown index="{index[v["name"]]}" dependencies=""/>')
+            deps = v.get("depends_on", [])
+            kinds = deps if isinstance(deps, dict) else dict.fromkeys(deps, "dependent")
+            x.append(_unknown_xml(index, v, kinds))
         x.append("    </Outputs>")
         x.append("    <InitialUnknowns>")
         for v in outputs:
-            x.append(f'      <Unknown index="{index[v["name"]]}"/>')
+            if "initial_depends_on" in v:
+                x.append(_unknown_xml(index, v, dict.fromkeys(v["initial_depends_on"], "dependent")))
+            else:  # undeclared: depends on every Known
+                x.append(f'      <Unknown index="{index[v["name"]]}"/>')
         x.append("    </InitialUnknowns>")
     x.append("  </ModelStructure>")
     x.append("</fmiModelDescription>")
