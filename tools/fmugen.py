@@ -47,6 +47,9 @@ CALLBACKS = {
     "output_derivative": ("int", "cw_instance *inst, unsigned vr, int order, double *value"),
 }
 C_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+# The project's terms (LICENSE at the repository root), stated in every FMU.
+COPYRIGHT = "Copyright (c) 2026 The clockwork authors"
+LICENSE = "MIT"
 GUID_NAMESPACE = uuid.UUID("5d1f7a0e-6c55-4c39-9a43-2f0b7f3c1c0e")
 
 
@@ -304,6 +307,8 @@ def generate_xml(t: dict, sources: list[str]) -> str:
         f"  description={quoteattr(m['description'])}",
         f"  author={quoteattr(m.get('author', 'clockwork'))}",
         f"  version={quoteattr(m.get('version', '0.1.0'))}",
+        f"  copyright={quoteattr(COPYRIGHT)}",
+        f"  license={quoteattr(LICENSE)}",
         '  generationTool="clockwork tools/fmugen.py"',
         '  variableNamingConvention="structured"',
         '  numberOfEventIndicators="0">',
