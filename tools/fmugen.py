@@ -1,6 +1,9 @@
-"""Generate a model's C variable table and modelDescription.xml from model.toml.
+"""Generate a model's C variable table, modelDescription.xml, documentation and icon from model.toml.
 
 Usage: python fmugen.py MODEL_DIR OUT_DIR [--sources a.c b.c ...]
+
+Writes OUT_DIR/cw_vars.h, modelDescription.xml, documentation/index.html and
+model.png (the last two by fmudoc.py).
 
 The TOML file is the single description of a model's variables; both the C
 side (value-reference enum and the metadata table the runtime checks
@@ -19,6 +22,8 @@ import tomllib
 import uuid
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
+
+import fmudoc
 
 CAUSALITIES = {"parameter", "input", "output", "local"}
 VARIABILITIES = {"fixed", "tunable", "discrete", "continuous"}
@@ -50,6 +55,7 @@ C_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 # The project's terms (LICENSE at the repository root), stated in every FMU.
 COPYRIGHT = "Copyright (c) 2026 The clockwork authors"
 LICENSE = "MIT"
+DOC_KEYS = {"equations", "references", "example", "icon"}
 GUID_NAMESPACE = uuid.UUID("5d1f7a0e-6c55-4c39-9a43-2f0b7f3c1c0e")
 
 
@@ -82,6 +88,9 @@ def load(model_dir: Path) -> dict:
     digest = hashlib.sha256(raw + repr(sorted(table["units"].items())).encode()).hexdigest()
     table["_guid"] = "{" + str(uuid.uuid5(GUID_NAMESPACE, digest)) + "}"
     table["_path"] = path
+    table["_copyright"], table["_license"] = COPYRIGHT, LICENSE
+    refs = model_dir.parent / "references.toml"
+    table["_references"] = tomllib.loads(refs.read_text()) if refs.exists() else {}
     check(table)
     return table
 
@@ -106,6 +115,15 @@ def check(t: dict) -> None:
     if len(set(slots)) != len(slots):
         raise TableError(f"{path}: state slot names repeat")
     check_model_c(t)
+    doc = t.get("documentation", {})
+    unknown = set(doc) - DOC_KEYS
+    if unknown:
+        raise TableError(f"{path}: [documentation] has unknown keys {sorted(unknown)}")
+    for key in doc.get("references", []):
+        if key not in t["_references"]:
+            raise TableError(f"{path}: reference {key!r} is not in references.toml")
+    if doc.get("icon", "pendulum") not in fmudoc.ICONS:
+        raise TableError(f"{path}: icon must be one of {sorted(fmudoc.ICONS)}")
     units = t.get("units", {})
     names, vrs = set(), set()
     variables = t.get("variable", [])
@@ -417,15 +435,18 @@ def main(argv: list[str] | None = None) -> int:
     except TableError as e:
         print(f"fmugen: {e}", file=sys.stderr)
         return 2
-    a.out_dir.mkdir(parents=True, exist_ok=True)
-    for name, text in (
+    (a.out_dir / "documentation").mkdir(parents=True, exist_ok=True)
+    for name, data in (
         ("cw_vars.h", generate_header(t)),
         ("modelDescription.xml", generate_xml(t, a.sources)),
+        ("documentation/index.html", fmudoc.generate_html(t, t["_references"])),
+        ("model.png", fmudoc.generate_png(t.get("documentation", {}).get("icon", "pendulum"))),
     ):
+        data = data.encode() if isinstance(data, str) else data
         target = a.out_dir / name
         # Rewrite only on change so that the build stays incremental.
-        if not target.exists() or target.read_text() != text:
-            target.write_text(text)
+        if not target.exists() or target.read_bytes() != data:
+            target.write_bytes(data)
     return 0
 
 
