@@ -148,3 +148,31 @@ def test_state_outputs_close_no_loop_in_initialization(model):
     for name, deps in outputs.items():
         if not deps and model != "GrasshopperEscapement":
             assert not initial[name] & inputs, name
+
+
+@pytest.mark.parametrize("model", sorted(POINTS))
+def test_linear_dependency_kinds(model):
+    """dependenciesKind other than "dependent" claims a linear factor
+    (FMI 2.0 Sec. 2.2.8): the output's change must scale with the input's."""
+    fmu = fmu_file(model)
+    md, _ = unpack(fmu)
+    linear = [(u.variable.name, d.name) for u in md.outputs
+              for d, kind in zip(u.dependencies or [], u.dependenciesKind or [])
+              if kind != "dependent"]
+    for params, values in POINTS[model]:
+        with Instance(fmu, params, values) as p:
+            saved = p.get_state()
+            for out, known in linear:
+                assert p.set_state(saved) == OK
+                u0 = p.get(known)
+                base = p.get(out)
+                changes = []
+                for du in (1e-3, 2e-3, -5e-3):
+                    assert p.set_state(saved) == OK
+                    assert p.set(**{known: u0 + du}) == OK
+                    changes.append((p.get(out) - base) / du)
+                assert changes[0] != 0.0, (out, known)
+                for c in changes[1:]:
+                    assert c == pytest.approx(changes[0], rel=1e-9, abs=1e-300), (out, known, changes)
+            assert p.set_state(saved) == OK
+            p.free_state(saved)
