@@ -1,6 +1,9 @@
-"""Generate a model's C variable table and modelDescription.xml from model.toml.
+"""Generate a model's C variable table, modelDescription.xml, documentation and icon from model.toml.
 
 Usage: python fmugen.py MODEL_DIR OUT_DIR [--sources a.c b.c ...]
+
+Writes OUT_DIR/cw_vars.h, modelDescription.xml, documentation/index.html and
+model.png (the last two by fmudoc.py).
 
 The TOML file is the single description of a model's variables; both the C
 side (value-reference enum and the metadata table the runtime checks
@@ -13,11 +16,14 @@ from __future__ import annotations
 import argparse
 import hashlib
 import math
+import re
 import sys
 import tomllib
 import uuid
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
+
+import fmudoc
 
 CAUSALITIES = {"parameter", "input", "output", "local"}
 VARIABILITIES = {"fixed", "tunable", "discrete", "continuous"}
@@ -25,9 +31,31 @@ TYPES = {"Real", "Integer", "Boolean"}
 BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 VAR_KEYS = {
     "name", "vr", "type", "causality", "variability", "unit", "display_unit",
-    "start", "min", "max", "depends_on", "derivatives", "event_indicator",
-    "description",
+    "start", "min", "max", "depends_on", "initial_depends_on", "derivatives",
+    "event_indicator", "description",
 }
+# FMI 2.0 dependenciesKind values (Sec. 2.2.8). All but "dependent" describe a
+# linear factor and so apply to Real unknowns only; InitialUnknowns use
+# "dependent" alone.
+DEPENDENCY_KINDS = {"dependent", "constant", "fixed", "tunable", "discrete"}
+MODEL_KEYS = {
+    "name", "description", "author", "version", "callbacks", "real_state",
+    "uint_state",
+}
+# The cw_model callbacks (cw_runtime.h): field name -> (return type, parameters).
+CALLBACKS = {
+    "validate": ("fmi2Status", "cw_instance *inst"),
+    "initialize": ("void", "cw_instance *inst"),
+    "calc_outputs": ("void", "cw_instance *inst"),
+    "do_step": ("fmi2Status", "cw_instance *inst, double t_end"),
+    "commit": ("void", "cw_instance *inst"),
+    "output_derivative": ("int", "cw_instance *inst, unsigned vr, int order, double *value"),
+}
+C_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+# The project's terms (LICENSE at the repository root), stated in every FMU.
+COPYRIGHT = "Copyright (c) 2026 The clockwork authors"
+LICENSE = "MIT"
+DOC_KEYS = {"equations", "references", "example", "icon"}
 GUID_NAMESPACE = uuid.UUID("5d1f7a0e-6c55-4c39-9a43-2f0b7f3c1c0e")
 
 
@@ -60,6 +88,9 @@ def load(model_dir: Path) -> dict:
     digest = hashlib.sha256(raw + repr(sorted(table["units"].items())).encode()).hexdigest()
     table["_guid"] = "{" + str(uuid.uuid5(GUID_NAMESPACE, digest)) + "}"
     table["_path"] = path
+    table["_copyright"], table["_license"] = COPYRIGHT, LICENSE
+    refs = model_dir.parent / "references.toml"
+    table["_references"] = tomllib.loads(refs.read_text()) if refs.exists() else {}
     check(table)
     return table
 
@@ -70,6 +101,29 @@ def check(t: dict) -> None:
     for key in ("name", "description"):
         if key not in model:
             raise TableError(f"{path}: [model] needs '{key}'")
+    unknown = set(model) - MODEL_KEYS
+    if unknown:
+        raise TableError(f"{path}: [model] has unknown keys {sorted(unknown)}")
+    callbacks = model.get("callbacks", [])
+    bad = [c for c in callbacks if c not in CALLBACKS]
+    if bad or len(set(callbacks)) != len(callbacks):
+        raise TableError(f"{path}: [model] callbacks must be distinct names from {sorted(CALLBACKS)}")
+    slots = model.get("real_state", []) + model.get("uint_state", [])
+    for s in slots:
+        if not isinstance(s, str) or not C_NAME.fullmatch(s):
+            raise TableError(f"{path}: state slot {s!r} is not a C identifier")
+    if len(set(slots)) != len(slots):
+        raise TableError(f"{path}: state slot names repeat")
+    check_model_c(t)
+    doc = t.get("documentation", {})
+    unknown = set(doc) - DOC_KEYS
+    if unknown:
+        raise TableError(f"{path}: [documentation] has unknown keys {sorted(unknown)}")
+    for key in doc.get("references", []):
+        if key not in t["_references"]:
+            raise TableError(f"{path}: reference {key!r} is not in references.toml")
+    if doc.get("icon", "pendulum") not in fmudoc.ICONS:
+        raise TableError(f"{path}: icon must be one of {sorted(fmudoc.ICONS)}")
     units = t.get("units", {})
     names, vrs = set(), set()
     variables = t.get("variable", [])
@@ -104,10 +158,82 @@ def check(t: dict) -> None:
             if not lo <= v["start"] <= hi:
                 raise TableError(f"{where}: start {v['start']} outside [{lo}, {hi}]")
     inputs = {v["name"] for v in variables if v["causality"] == "input"}
+    # Knowns in Initialization Mode: inputs and the variables with
+    # initial="exact", which here are exactly the parameters.
+    exact = inputs | {v["name"] for v in variables if v["causality"] == "parameter"}
     for v in variables:
-        for dep in v.get("depends_on", []):
+        where = f"{path}: {v['name']}"
+        for key in ("depends_on", "initial_depends_on"):
+            if key in v and v["causality"] != "output":
+                raise TableError(f"{where}: {key} is for outputs only")
+        deps = v.get("depends_on", [])
+        if not isinstance(deps, (list, dict)):
+            raise TableError(f"{where}: depends_on must be a list of inputs or a table input = kind")
+        for dep in deps:
             if dep not in inputs:
-                raise TableError(f"{path}: {v['name']} depends_on {dep!r}, which is not an input")
+                raise TableError(f"{where} depends_on {dep!r}, which is not an input")
+        for dep, kind in (deps.items() if isinstance(deps, dict) else []):
+            if kind not in DEPENDENCY_KINDS:
+                raise TableError(f"{where}: dependency kind {kind!r} is not one of {sorted(DEPENDENCY_KINDS)}")
+            if kind != "dependent" and v["type"] != "Real":
+                raise TableError(f"{where}: dependency kind {kind!r} is for Real outputs only")
+        for dep in v.get("initial_depends_on", []):
+            if dep not in exact:
+                raise TableError(
+                    f"{where} initial_depends_on {dep!r}, which is neither an input nor a parameter"
+                )
+
+
+def check_model_c(t: dict) -> None:
+    """model.c must define exactly the callbacks the table names: a missing
+    one would be an undefined static function, an extra one dead code."""
+    source = t["_path"].parent / "model.c"
+    if not source.exists():
+        return
+    text = source.read_text()
+    defined = {
+        name for name in CALLBACKS
+        if re.search(rf"^static\s[^;{{}}=]*\b{name}\s*\([^;]*?\)\s*\{{", text, re.M)
+    }
+    declared = set(t["model"].get("callbacks", []))
+    if defined != declared:
+        raise TableError(
+            f"{t['_path']}: [model] callbacks = {sorted(declared)}, but {source.name} "
+            f"defines {sorted(defined)}"
+        )
+
+
+def generate_model(t: dict) -> list[str]:
+    """The model's cw_model, for model.c alone (guarded: the C test driver and
+    the fuzz harness include cw_vars.h for the table only)."""
+    m = t["model"]
+    real, uint = m.get("real_state", []), m.get("uint_state", [])
+    callbacks = m.get("callbacks", [])
+    lines = ["#ifndef CW_VARS_TABLE_ONLY", ""]
+    if real:
+        lines += [f"enum cw_real_state_slot {{ {', '.join(real)}, CW_N_REAL_STATE }};"]
+    if uint:
+        lines += [f"enum cw_uint_state_slot {{ {', '.join(uint)}, CW_N_UINT_STATE }};"]
+    if real or uint:
+        lines.append("")
+    lines.append("/* Defined in model.c. */")
+    for name in CALLBACKS:
+        if name in callbacks:
+            ret, params = CALLBACKS[name]
+            lines.append(f"static {ret} {name}({params});")
+    lines += [
+        "",
+        "const cw_model CW_MODEL = {",
+        "    .name = CW_MODEL_NAME,",
+        "    .guid = CW_MODEL_GUID,",
+        "    .nvars = CW_NVARS,",
+        "    .vars = CW_VARS,",
+        f"    .n_real_state = {'CW_N_REAL_STATE' if real else 0},",
+        f"    .n_uint_state = {'CW_N_UINT_STATE' if uint else 0},",
+    ]
+    lines += [f"    .{name} = {name if name in callbacks else 'NULL'}," for name in CALLBACKS]
+    lines += ["};", "", "#endif /* CW_VARS_TABLE_ONLY */", ""]
+    return lines
 
 
 def generate_header(t: dict) -> str:
@@ -147,6 +273,9 @@ def generate_header(t: dict) -> str:
         "#define I(name) (inst->i[VR_##name])",
         "#define IN(name, t) cw_input(inst, VR_##name, (t))",
         "",
+    ]
+    lines += generate_model(t)
+    lines += [
         "#endif",
         "",
     ]
@@ -167,6 +296,19 @@ def _unit_xml(name: str, spec: dict) -> list[str]:
     return out
 
 
+def _unknown_xml(index: dict, v: dict, kinds: dict) -> str:
+    """An <Unknown> with its dependencies in ScalarVariable index order, as
+    FMI 2.0 requires."""
+    deps = sorted((index[name], kind) for name, kind in kinds.items())
+    if not deps:
+        return f'      <Unknown index="{index[v["name"]]}" dependencies=""/>'
+    return (
+        f'      <Unknown index="{index[v["name"]]}" '
+        f'dependencies="{" ".join(str(k) for k, _ in deps)}" '
+        f'dependenciesKind="{" ".join(kind for _, kind in deps)}"/>'
+    )
+
+
 def generate_xml(t: dict, sources: list[str]) -> str:
     m = t["model"]
     variables = sorted(t["variable"], key=lambda v: v["vr"])
@@ -183,6 +325,8 @@ def generate_xml(t: dict, sources: list[str]) -> str:
         f"  description={quoteattr(m['description'])}",
         f"  author={quoteattr(m.get('author', 'clockwork'))}",
         f"  version={quoteattr(m.get('version', '0.1.0'))}",
+        f"  copyright={quoteattr(COPYRIGHT)}",
+        f"  license={quoteattr(LICENSE)}",
         '  generationTool="clockwork tools/fmugen.py"',
         '  variableNamingConvention="structured"',
         '  numberOfEventIndicators="0">',
@@ -258,20 +402,22 @@ def generate_xml(t: dict, sources: list[str]) -> str:
     x.append("  <ModelStructure>")
     outputs = [v for v in variables if v["causality"] == "output"]
     if outputs:
+        # Outputs at communication points: the Knowns are the inputs (the
+        # state is the FMU's own). Initialization Mode: inputs and
+        # parameters, e.g. a state output depends on its start parameter
+        # but on no input, so it closes no algebraic loop.
         x.append("    <Outputs>")
         for v in outputs:
-            deps = [index[d] for d in v.get("depends_on", [])]
-            if deps:
-                x.append(
-                    f'      <Unknown index="{index[v["name"]]}" dependencies="{" ".join(map(str, deps))}" '
-                    f'dependenciesKind="{" ".join(["dependent"] * len(deps))}"/>'
-                )
-            else:
-                x.append(f'      <Unknown index="{index[v["name"]]}" dependencies=""/>')
+            deps = v.get("depends_on", [])
+            kinds = deps if isinstance(deps, dict) else dict.fromkeys(deps, "dependent")
+            x.append(_unknown_xml(index, v, kinds))
         x.append("    </Outputs>")
         x.append("    <InitialUnknowns>")
         for v in outputs:
-            x.append(f'      <Unknown index="{index[v["name"]]}"/>')
+            if "initial_depends_on" in v:
+                x.append(_unknown_xml(index, v, dict.fromkeys(v["initial_depends_on"], "dependent")))
+            else:  # undeclared: depends on every Known
+                x.append(f'      <Unknown index="{index[v["name"]]}"/>')
         x.append("    </InitialUnknowns>")
     x.append("  </ModelStructure>")
     x.append("</fmiModelDescription>")
@@ -289,15 +435,18 @@ def main(argv: list[str] | None = None) -> int:
     except TableError as e:
         print(f"fmugen: {e}", file=sys.stderr)
         return 2
-    a.out_dir.mkdir(parents=True, exist_ok=True)
-    for name, text in (
+    (a.out_dir / "documentation").mkdir(parents=True, exist_ok=True)
+    for name, data in (
         ("cw_vars.h", generate_header(t)),
         ("modelDescription.xml", generate_xml(t, a.sources)),
+        ("documentation/index.html", fmudoc.generate_html(t, t["_references"])),
+        ("model.png", fmudoc.generate_png(t.get("documentation", {}).get("icon", "pendulum"))),
     ):
+        data = data.encode() if isinstance(data, str) else data
         target = a.out_dir / name
         # Rewrite only on change so that the build stays incremental.
-        if not target.exists() or target.read_text() != text:
-            target.write_text(text)
+        if not target.exists() or target.read_bytes() != data:
+            target.write_bytes(data)
     return 0
 
 

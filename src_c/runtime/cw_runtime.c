@@ -687,6 +687,8 @@ static void encode_state(const cw_instance *inst, unsigned char *buf,
     put_u64(&p, fnv1a(buf, (size_t)(p - buf), FNV_SEED));
 }
 
+/* Check a state buffer and decode it into inst, which is a scratch copy
+ * (see restore_state): the layout, the checksum and every value's range. */
 static fmi2Status decode_state(cw_instance *inst, const unsigned char *buf,
                                size_t size, const char *fn) {
     const cw_model *m = inst->model;
@@ -787,6 +789,77 @@ static fmi2Status decode_state(cw_instance *inst, const unsigned char *buf,
     return fmi2OK;
 }
 
+/* Scratch storage shaped like inst's, so that a state can be decoded and
+ * checked whole before anything of inst changes. */
+static int probe_open(cw_instance *inst, cw_instance *probe) {
+    const cw_model *m = inst->model;
+    const int nv = m->nvars;
+    *probe = *inst;
+    probe->r = alloc(inst, nv, sizeof(double));
+    probe->i = alloc(inst, nv, sizeof(int32_t));
+    probe->in_d1 = alloc(inst, nv, sizeof(double));
+    probe->in_d2 = alloc(inst, nv, sizeof(double));
+    probe->in_tref = alloc(inst, nv, sizeof(double));
+    probe->s = alloc(inst, m->n_real_state, sizeof(double));
+    probe->u = alloc(inst, m->n_uint_state, sizeof(uint64_t));
+    return probe->r && probe->i && probe->in_d1 && probe->in_d2 &&
+           probe->in_tref && probe->s && probe->u;
+}
+
+static void probe_close(cw_instance *inst, cw_instance *probe) {
+    void *blocks[] = {probe->r,     probe->i, probe->in_d1, probe->in_d2,
+                      probe->in_tref, probe->s, probe->u};
+    for (size_t k = 0; k < sizeof blocks / sizeof *blocks; k++)
+        if (blocks[k]) inst->cb.freeMemory(blocks[k]);
+}
+
+/* Decode a state into scratch storage and check it: layout and values
+ * (decode_state), and, for a state saved after initialization, the model's
+ * cross-parameter rules, which fmi2ExitInitializationMode and every change
+ * of a tunable parameter enforce too; a saved state must not smuggle in a
+ * parameter combination that fmi2SetReal would refuse. With `commit`, an
+ * accepted state is copied into inst. A refused state changes no value of
+ * inst, which goes to Error like after any other refused state. */
+static fmi2Status restore_state(cw_instance *inst, const unsigned char *buf,
+                                size_t size, const char *fn, int commit) {
+    const cw_model *m = inst->model;
+    cw_instance probe;
+    fmi2Status st = fmi2Error;
+    if (!probe_open(inst, &probe)) {
+        cw_log(inst, fmi2Error, "logStatusError", "%s: out of memory.", fn);
+    } else {
+        st = decode_state(&probe, buf, size, fn);
+        if (st == fmi2OK && m->validate &&
+            (probe.state & (CW_STEP_COMPLETE | CW_STEP_FAILED | CW_TERMINATED)) &&
+            m->validate(&probe) > fmi2Warning) {
+            cw_log(inst, fmi2Error, "logStatusError",
+                   "%s: the state's parameters break a rule of %s between "
+                   "parameters (see above); the state is refused.",
+                   fn, m->name);
+            st = fmi2Error;
+        }
+    }
+    if (st == fmi2OK && commit) {
+        const size_t nv = (size_t)m->nvars;
+        memcpy(inst->r, probe.r, nv * sizeof(double));
+        memcpy(inst->i, probe.i, nv * sizeof(int32_t));
+        memcpy(inst->in_d1, probe.in_d1, nv * sizeof(double));
+        memcpy(inst->in_d2, probe.in_d2, nv * sizeof(double));
+        memcpy(inst->in_tref, probe.in_tref, nv * sizeof(double));
+        memcpy(inst->s, probe.s, (size_t)m->n_real_state * sizeof(double));
+        memcpy(inst->u, probe.u, (size_t)m->n_uint_state * sizeof(uint64_t));
+        inst->state = probe.state;
+        inst->time = probe.time;
+        inst->outputs_dirty = 1;
+    }
+    probe_close(inst, &probe);
+    if (st != fmi2OK) {
+        inst->state = CW_ERROR;
+        return fmi2Error;
+    }
+    return fmi2OK;
+}
+
 #define STATE_STATES ANY_OPEN_STATE
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
@@ -817,7 +890,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     if (!allowed(inst, "fmi2SetFMUstate", STATE_STATES)) return fmi2Error;
     cw_state_blob *blob = (cw_state_blob *)FMUstate;
     if (!blob) return fail(inst, "fmi2SetFMUstate: FMUstate is NULL.");
-    return decode_state(inst, blob->bytes, blob->size, "fmi2SetFMUstate");
+    return restore_state(inst, blob->bytes, blob->size, "fmi2SetFMUstate", 1);
 }
 
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
@@ -864,48 +937,20 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c,
         return fmi2Error;
     if (!serializedState || !FMUstate)
         return fail(inst, "fmi2DeSerializeFMUstate: NULL argument.");
-    /* Validate by decoding into a scratch instance, so that a corrupt
-     * buffer is refused here rather than at fmi2SetFMUstate. */
+    /* Check it whole now, so that a bad buffer is refused here rather than
+     * at fmi2SetFMUstate. */
     size_t expected = state_size(inst->model);
     if (size != expected)
         return fail(inst,
                     "fmi2DeSerializeFMUstate: %zu bytes given; %s expects %zu.",
                     size, inst->model->name, expected);
+    if (restore_state(inst, (const unsigned char *)serializedState, size,
+                      "fmi2DeSerializeFMUstate", 0) != fmi2OK)
+        return fmi2Error;
     cw_state_blob *blob = inst->cb.allocateMemory(1, sizeof(cw_state_blob) + size);
     if (!blob) return fail(inst, "fmi2DeSerializeFMUstate: out of memory.");
     blob->size = size;
     memcpy(blob->bytes, serializedState, size);
-    cw_instance probe = *inst;
-    int nv = inst->model->nvars;
-    double *r = alloc(inst, nv, sizeof(double));
-    int32_t *iv = alloc(inst, nv, sizeof(int32_t));
-    double *d1 = alloc(inst, nv, sizeof(double));
-    double *d2 = alloc(inst, nv, sizeof(double));
-    double *tr = alloc(inst, nv, sizeof(double));
-    double *s = alloc(inst, inst->model->n_real_state, sizeof(double));
-    uint64_t *u = alloc(inst, inst->model->n_uint_state, sizeof(uint64_t));
-    fmi2Status st = fmi2Error;
-    if (r && iv && d1 && d2 && tr && s && u) {
-        probe.r = r;
-        probe.i = iv;
-        probe.in_d1 = d1;
-        probe.in_d2 = d2;
-        probe.in_tref = tr;
-        probe.s = s;
-        probe.u = u;
-        st = decode_state(&probe, blob->bytes, size, "fmi2DeSerializeFMUstate");
-    } else {
-        cw_log(inst, fmi2Error, "logStatusError",
-               "fmi2DeSerializeFMUstate: out of memory.");
-    }
-    void *scratch[] = {r, iv, d1, d2, tr, s, u};
-    for (size_t k = 0; k < sizeof scratch / sizeof *scratch; k++)
-        if (scratch[k]) inst->cb.freeMemory(scratch[k]);
-    if (st != fmi2OK) {
-        inst->cb.freeMemory(blob);
-        inst->state = CW_ERROR;
-        return fmi2Error;
-    }
     if (*FMUstate) inst->cb.freeMemory(*FMUstate);
     *FMUstate = blob;
     return fmi2OK;

@@ -2,8 +2,9 @@
  *
  * The runtime owns the fmi2 functions, the state machine, argument checks,
  * logging, per-instance storage of variable values and the FMU state
- * serialization. A model supplies its variable table (generated into
- * cw_vars.h from model.toml) and a cw_model with its equations. */
+ * serialization. A model supplies its equations as the static callbacks of
+ * cw_model in model.c; its variable table and its cw_model are generated
+ * into cw_vars.h from model.toml. */
 #ifndef CW_RUNTIME_H
 #define CW_RUNTIME_H
 
@@ -133,7 +134,8 @@ void cw_log(cw_instance *inst, fmi2Status status, const char *category,
 fmi2Status cw_refuse(cw_instance *inst, const char *var, double value,
                      const char *expected);
 
-/* The model's definition, provided by model.c. */
+/* The model's definition: generated into cw_vars.h from model.toml and
+ * compiled with model.c, which defines the callbacks it names. */
 extern const cw_model CW_MODEL;
 
 #endif

@@ -367,3 +367,125 @@ def test_instances_are_freed(fmu):
         grown = _rss_bytes() - before
     # One leaked instance is ~0.5 kB: a leak would show as ~10 MB.
     assert grown < 1 << 20, grown
+
+
+# ---------------------------------------------------------------- states and parameter rules
+
+
+def _fnv1a(data: bytes) -> int:
+    h = 14695981039346656037
+    for b in data:
+        h = ((h ^ b) * 1099511628211) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
+def _patched(md, data: bytes, **changes) -> bytes:
+    """The serialized state with variables (and `machine`) replaced and the
+    checksum redone: a state that passes every layout check
+    (docs/design.md: 32 header bytes, then the variables in table order)."""
+    import struct
+
+    out = bytearray(data)
+    if "machine" in changes:
+        struct.pack_into("<I", out, 20, changes.pop("machine"))
+    off = 32
+    for v in sorted(md.modelVariables, key=lambda v: v.valueReference):
+        if v.name in changes:
+            if v.type == "Real":
+                struct.pack_into("<d", out, off, changes.pop(v.name))
+            else:
+                struct.pack_into("<i", out, off, changes.pop(v.name))
+        if v.type != "Real":
+            off += 4
+        else:
+            off += 32 if v.causality == "input" else 8  # inputs: value, d1, d2, t_ref
+    assert not changes, changes
+    out[-8:] = _fnv1a(bytes(out[:-8])).to_bytes(8, "little")
+    return bytes(out)
+
+
+def _overwrite_state(state, data: bytes):
+    """Put bytes into an FMU state the instance handed out. The runtime keeps
+    a size_t byte count in front of the serialized layout; the bytes there are
+    checked against fmi2SerializeFMUstate first."""
+    offset = ctypes.sizeof(ctypes.c_size_t)
+    assert ctypes.c_size_t.from_address(state.value).value == len(data)
+    ctypes.memmove(state.value + offset, data, len(data))
+
+
+@pytest.fixture(scope="module")
+def chronometer():
+    return fmu_file("ChronometerEscapement")
+
+
+def _chronometer_run(p: Instance, n=5):
+    out = []
+    for k in range(n):
+        p.set(phi=0.01 * k - 0.02, w=0.3)
+        out.append(p.get_many(["tau", "event_indicator_lower", "work_per_period"]))
+        assert p.step(0.001) == OK
+    return out
+
+
+def test_state_breaking_a_parameter_rule_is_refused(chronometer):
+    """alpha_m1 < alpha_m2 is checked by the model at fmi2ExitInitializationMode;
+    a saved state must not bring in alpha_m1 >= alpha_m2 (each value inside
+    its own range) through fmi2DeSerializeFMUstate or fmi2SetFMUstate."""
+    with Instance(chronometer, dict(torque=0.02)) as p:
+        md = p.md
+        _chronometer_run(p, 3)
+        good = p.get_state()
+        data = p.serialize(good)
+        t_good = p.time
+        reference = _chronometer_run(p)
+        bad = _patched(md, data, alpha_m1=0.5)  # alpha_m2 is 0.0349
+
+        # Deserialization refuses it, and says why.
+        p.messages.clear()
+        st, state = p.deserialize(bad)
+        assert st == ERROR and not state.value
+        text = p.log_text()
+        assert "alpha_m1" in text and "fmi2DeSerializeFMUstate" in p.errors()[-1].text, text
+
+        # fmi2SetFMUstate refuses the same bytes put into a state it issued.
+        assert p.set_state(good) == OK
+        p.time = t_good
+        p.advance(0.001, 2)
+        before = p.get_many(["alpha_m1", "alpha_m2", "torque", "tau", "phi"])
+        crafted = p.get_state()
+        assert p.serialize(crafted) != bad
+        _overwrite_state(crafted, bad)
+        p.messages.clear()
+        assert p.set_state(crafted) == ERROR
+        text = p.log_text()
+        assert "alpha_m1" in text and "fmi2SetFMUstate" in p.errors()[-1].text, text
+        assert p.get_many(["alpha_m1", "alpha_m2", "torque", "tau", "phi"]) == before
+
+        # Still usable: a good state restores it, and it runs on as before.
+        assert p.set_state(good) == OK
+        p.time = t_good
+        assert _chronometer_run(p) == reference
+        for s in (good, crafted):
+            assert p.free_state(s) == OK
+
+
+def test_state_rules_apply_after_initialization_only(chronometer):
+    """In Initialization Mode parameters may be inconsistent for a while (set
+    one after the other); a state saved there is restored as it is, and the
+    rule is applied when initialization ends."""
+    p = Instance(chronometer, initialize=False)
+    with p:
+        assert p.setup() == OK and p.enter_init() == OK
+        assert p.set(alpha_m1=0.5) == OK
+        s = p.get_state()
+        data = p.serialize(s)
+        st, restored = p.deserialize(data)
+        assert st == OK
+        assert p.set_state(restored) == OK
+        # The same parameters in a state marked as initialized are refused.
+        st, _ = p.deserialize(_patched(p.md, data, machine=4))
+        assert st == ERROR
+        assert p.set_state(restored) == OK  # back in Initialization Mode
+        assert_refused(p, p.exit_init(), "alpha_m1")
+        for x in (s, restored):
+            p.free_state(x)

@@ -30,8 +30,6 @@
 #include "cw_runtime.h"
 #include "cw_vars.h"
 
-enum { S_LAM2, S_DEV, S_H_NEXT, N_REAL_STATE };
-
 static const double PI = 3.14159265358979323846;
 
 static double omega0(const cw_instance *inst) { return sqrt(R(g) / R(L)); }
@@ -121,18 +119,3 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
     return (fmi2Status)cw_integrate(inst, "AveragedPendulum", rhs, 2, S_LAM2, S_H_NEXT, t_end,
                                     R(rtol), R(atol), R(h_max), names, NULL);
 }
-
-const cw_model CW_MODEL = {
-    .name = CW_MODEL_NAME,
-    .guid = CW_MODEL_GUID,
-    .nvars = CW_NVARS,
-    .vars = CW_VARS,
-    .n_real_state = N_REAL_STATE,
-    .n_uint_state = 0,
-    .validate = NULL, /* every rule is a single-variable range */
-    .initialize = initialize,
-    .calc_outputs = calc_outputs,
-    .do_step = do_step,
-    .commit = NULL,
-    .output_derivative = NULL,
-};

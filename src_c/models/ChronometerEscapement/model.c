@@ -28,18 +28,3 @@ static void calc_outputs(cw_instance *inst) {
     R(event_indicator_turn) = inside ? w : 1.0;
     R(work_per_period) = R(torque) * (R(alpha_m2) - R(alpha_m1));
 }
-
-const cw_model CW_MODEL = {
-    .name = CW_MODEL_NAME,
-    .guid = CW_MODEL_GUID,
-    .nvars = CW_NVARS,
-    .vars = CW_VARS,
-    .n_real_state = 0,
-    .n_uint_state = 0,
-    .validate = validate,
-    .initialize = NULL,
-    .calc_outputs = calc_outputs,
-    .do_step = NULL,
-    .commit = NULL,
-    .output_derivative = NULL,
-};

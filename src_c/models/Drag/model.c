@@ -14,18 +14,3 @@ static void calc_outputs(cw_instance *inst) {
     const double w = IN(w, inst->time);
     R(tau) = -(R(c1) * w + R(c2) * w * fabs(w));
 }
-
-const cw_model CW_MODEL = {
-    .name = CW_MODEL_NAME,
-    .guid = CW_MODEL_GUID,
-    .nvars = CW_NVARS,
-    .vars = CW_VARS,
-    .n_real_state = 0,
-    .n_uint_state = 0,
-    .validate = NULL, /* c1, c2 >= 0 are single-variable ranges */
-    .initialize = NULL,
-    .calc_outputs = calc_outputs,
-    .do_step = NULL,
-    .commit = NULL,
-    .output_derivative = NULL,
-};

@@ -25,9 +25,6 @@
 #include "cw_runtime.h"
 #include "cw_vars.h"
 
-enum { S_MODE, S_PHI, S_DELTA, N_REAL_STATE };
-enum { U_RNG, U_RENEWALS, N_UINT_STATE };
-
 static const double TWO_PI = 6.283185307179586;
 
 /* splitmix64: one 64-bit word of state, every seed is a good seed. */
@@ -135,18 +132,3 @@ static void commit(cw_instance *inst) {
     inst->s[S_DELTA] = p.delta;
     inst->u[U_RNG] = p.rng;
 }
-
-const cw_model CW_MODEL = {
-    .name = CW_MODEL_NAME,
-    .guid = CW_MODEL_GUID,
-    .nvars = CW_NVARS,
-    .vars = CW_VARS,
-    .n_real_state = N_REAL_STATE,
-    .n_uint_state = N_UINT_STATE,
-    .validate = NULL, /* every rule is a single-variable range */
-    .initialize = initialize,
-    .calc_outputs = calc_outputs,
-    .do_step = NULL, /* no dynamics: the runtime advances time */
-    .commit = commit,
-    .output_derivative = NULL,
-};

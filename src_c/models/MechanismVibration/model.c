@@ -13,8 +13,6 @@
 #include "cw_runtime.h"
 #include "cw_vars.h"
 
-enum { S_A2, S_A2DOT, S_H_NEXT, N_REAL_STATE };
-
 static double acceleration(const cw_instance *inst, double t, double a2,
                            double a2dot) {
     const double w0 = R(omega02);
@@ -70,18 +68,3 @@ static int output_derivative(cw_instance *inst, unsigned vr, int order,
     }
     return 0;
 }
-
-const cw_model CW_MODEL = {
-    .name = CW_MODEL_NAME,
-    .guid = CW_MODEL_GUID,
-    .nvars = CW_NVARS,
-    .vars = CW_VARS,
-    .n_real_state = N_REAL_STATE,
-    .n_uint_state = 0,
-    .validate = NULL, /* every rule is a single-variable range */
-    .initialize = initialize,
-    .calc_outputs = calc_outputs,
-    .do_step = do_step,
-    .commit = NULL,
-    .output_derivative = output_derivative,
-};

@@ -11,8 +11,6 @@
 #include "cw_runtime.h"
 #include "cw_vars.h"
 
-enum { S_PHI, S_W, S_H_NEXT, N_REAL_STATE };
-
 static double damping_rate(const cw_instance *inst) {
     return R(Q) > 0 ? sqrt(R(g) / R(L)) / R(Q) : 0.0;
 }
@@ -178,18 +176,3 @@ static int output_derivative(cw_instance *inst, unsigned vr, int order,
     }
     return 0;
 }
-
-const cw_model CW_MODEL = {
-    .name = CW_MODEL_NAME,
-    .guid = CW_MODEL_GUID,
-    .nvars = CW_NVARS,
-    .vars = CW_VARS,
-    .n_real_state = N_REAL_STATE,
-    .n_uint_state = 0,
-    .validate = NULL, /* every rule is a single-variable range */
-    .initialize = initialize,
-    .calc_outputs = calc_outputs,
-    .do_step = do_step,
-    .commit = NULL,
-    .output_derivative = output_derivative,
-};

@@ -1,0 +1,89 @@
+"""tools/fmugen.py: the generated CW_MODEL and ModelStructure, and the table
+errors it refuses before anything is compiled."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+MODELS = ROOT / "src_c" / "models"
+sys.path.insert(0, str(ROOT / "tools"))
+
+import fmugen  # noqa: E402
+
+
+@pytest.fixture
+def drag(tmp_path) -> Path:
+    """A copy of the Drag model folder with the shared tables next to it."""
+    models = tmp_path / "models"
+    shutil.copytree(MODELS / "Drag", models / "Drag")
+    for shared in ("units.toml", "references.toml"):
+        shutil.copy(MODELS / shared, models / shared)
+    return models / "Drag"
+
+
+def _edit(path: Path, old: str, new: str):
+    text = path.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new, 1))
+
+
+def _refused(model_dir: Path, *words: str):
+    with pytest.raises(fmugen.TableError) as e:
+        fmugen.load(model_dir)
+    for w in words:
+        assert w in str(e.value), str(e.value)
+
+
+def test_generated_model_definition(tmp_path):
+    out = tmp_path / "gen"
+    assert fmugen.main([str(MODELS / "GrasshopperEscapement"), str(out)]) == 0
+    header = (out / "cw_vars.h").read_text()
+    block = header[header.index("#ifndef CW_VARS_TABLE_ONLY"):]
+    assert "enum cw_real_state_slot { S_MODE, S_PHI, S_DELTA, CW_N_REAL_STATE };" in block
+    assert "enum cw_uint_state_slot { U_RNG, U_RENEWALS, CW_N_UINT_STATE };" in block
+    assert "static void commit(cw_instance *inst);" in block
+    fields = dict(re.findall(r"^\s+\.(\w+) = (.+),$", block, re.M))
+    assert fields["validate"] == "NULL" and fields["do_step"] == "NULL"
+    assert fields["commit"] == "commit" and fields["n_uint_state"] == "CW_N_UINT_STATE"
+    assert (out / "documentation" / "index.html").exists() and (out / "model.png").exists()
+
+
+def test_callbacks_must_match_model_c(drag):
+    _edit(drag / "model.toml", 'callbacks = ["calc_outputs"]', 'callbacks = ["calc_outputs", "validate"]')
+    _refused(drag, "callbacks", "validate", "defines ['calc_outputs']")
+
+
+def test_callback_names_are_known(drag):
+    _edit(drag / "model.toml", 'callbacks = ["calc_outputs"]', 'callbacks = ["calc_output"]')
+    _refused(drag, "callbacks must be distinct names")
+
+
+def test_dependency_declarations_are_checked(drag):
+    toml = drag / "model.toml"
+    original = toml.read_text()
+    _edit(toml, 'depends_on = ["w"]', 'depends_on = ["c1"]')
+    _refused(drag, "depends_on 'c1'", "not an input")
+    toml.write_text(original)
+    _edit(toml, 'depends_on = ["w"]', 'depends_on = { w = "linear" }')
+    _refused(drag, "dependency kind 'linear'")
+    toml.write_text(original)
+    _edit(toml, 'initial_depends_on = ["c1", "c2", "w"]', 'initial_depends_on = ["c1", "tau"]')
+    _refused(drag, "initial_depends_on 'tau'", "neither an input nor a parameter")
+
+
+def test_dependencies_are_in_index_order(drag, tmp_path):
+    _edit(drag / "model.toml", 'initial_depends_on = ["c1", "c2", "w"]',
+          'initial_depends_on = ["w", "c2", "c1"]')
+    assert fmugen.main([str(drag), str(tmp_path / "gen")]) == 0
+    root = ET.parse(tmp_path / "gen" / "modelDescription.xml").getroot()
+    (unknown,) = root.find("ModelStructure/InitialUnknowns")
+    deps = [int(k) for k in unknown.get("dependencies").split()]
+    assert deps == sorted(deps) and len(deps) == 3
+    assert unknown.get("dependenciesKind") == "dependent dependent dependent"
