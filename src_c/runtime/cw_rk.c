@@ -308,7 +308,7 @@ void cw_rk_init(cw_rk *rk, int n, double rtol, double atol, double h_max) {
 cw_rk_method cw_rk_choose(int integrator, double rtol) {
     if (integrator == CW_RK_DP54 || integrator == CW_RK_DOP853)
         return (cw_rk_method)integrator;
-    return rtol < CW_RK_AUTO_RTOL ? CW_RK_DOP853 : CW_RK_DP54;
+    return rtol <= CW_RK_AUTO_RTOL ? CW_RK_DOP853 : CW_RK_DP54;
 }
 
 void cw_rk_set_method(cw_rk *rk, int integrator) {
