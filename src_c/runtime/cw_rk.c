@@ -284,7 +284,13 @@ static void prepare_dense8(cw_rk *rk) {
 }
 
 static void dense8(const cw_rk *rk, double t, double *x) {
-    if (!rk->dense_ready) prepare_dense8((cw_rk *)rk); /* a cache, built once */
+    if (!rk->dense_ready) {
+        if (!rk->f || rk->n_accepted == 0) { /* no step yet: nothing to build */
+            memcpy(x, rk->x0, sizeof(double) * rk->n);
+            return;
+        }
+        prepare_dense8((cw_rk *)rk); /* a cache, built once per step */
+    }
     double th = rk->h != 0 ? (t - rk->t0) / rk->h : 0.0;
     double th1 = 1.0 - th;
     const double(*r)[CW_RK_MAXN] = rk->rcont;
