@@ -398,6 +398,27 @@ def test_dop853_dense_output_is_order_7(lib, name, make, x0, exact):
     assert 8.3 <= slope(hs_end, end) <= 9.3
 
 
+def test_dop853_agrees_with_scipy(lib):
+    """An independent check of the tableau: one step and its dense output
+    against scipy.integrate.DOP853 (same method, its own coefficients),
+    to rounding."""
+    from scipy.integrate import DOP853
+
+    def f(t, x):
+        return np.array([x[1], -9.81 * math.sin(x[0])])
+
+    x0, h = np.array([1.0, 0.2]), 0.3
+    solver = DOP853(f, 0.0, x0, 10.0, rtol=1e6, atol=1e6, first_step=h)
+    solver.step()
+    assert solver.t == h
+    interp = solver.dense_output()
+    prob = pendulum()
+    rk, x1 = _one_step(lib, prob, list(x0), h, DOP853)
+    assert np.allclose(x1, solver.y, rtol=0, atol=4e-15)
+    for th in (0.1, 0.3, 0.5, 0.7, 0.9):
+        assert np.allclose(_dense(lib, rk, th * h, 2), interp(th * h), rtol=0, atol=4e-15)
+
+
 def test_dop853_dense_output_matches_step_ends(lib):
     """Built on demand with 3 more right-hand sides; it passes through x0
     and x1 with slopes f(x0) and f(x1)."""
