@@ -402,13 +402,13 @@ def test_dop853_agrees_with_scipy(lib):
     """An independent check of the tableau: one step and its dense output
     against scipy.integrate.DOP853 (same method, its own coefficients),
     to rounding."""
-    from scipy.integrate import DOP853
+    from scipy.integrate import DOP853 as ScipyDOP853
 
     def f(t, x):
         return np.array([x[1], -9.81 * math.sin(x[0])])
 
     x0, h = np.array([1.0, 0.2]), 0.3
-    solver = DOP853(f, 0.0, x0, 10.0, rtol=1e6, atol=1e6, first_step=h)
+    solver = ScipyDOP853(f, 0.0, x0, 10.0, rtol=1e6, atol=1e6, first_step=h)
     solver.step()
     assert solver.t == h
     interp = solver.dense_output()
