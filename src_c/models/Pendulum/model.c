@@ -3,8 +3,8 @@
  *   w'   = -(g g_factor / L) sin(phi) - (omega0 / Q) w + tau / (m L^2)
  * Ticks (upward zero crossings) and turning points are located on the
  * dense output of each accepted step, then the tick time is polished with
- * a full step of the same Runge-Kutta pair, so that period measurements do not depend on
- * the communication step. */
+ * a full step of the same Runge-Kutta pair, so that period measurements do
+ * not depend on the communication step. */
 #include <math.h>
 
 #include "cw_rk.h"
