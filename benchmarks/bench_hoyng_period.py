@@ -12,13 +12,23 @@ phi0 = 0.03) on its stationary swing, side by side in one process:
 The difference is the master's own work per period; `clockwork bench`
 measures the whole `hoyng_long_run` analysis on top of it.
 
-    python benchmarks/bench_hoyng_period.py [--periods 2000] [--repeats 3]
+Each is run with each Runge-Kutta pair of the Pendulum (`integrator` 1 =
+Dormand-Prince 5(4), 2 = DOP853; 0 = the FMU's default, chosen by rtol).
+The right-hand-side evaluations per period of case 1 are counted by
+replaying the FMU's do_step with libcw_rk_probe.so (in CW_BUILD_DIR,
+default build/) and the same right-hand side in Python, including the dense
+output and the two polishing steps of each tick; the replay is checked to
+end on the FMU's state bit for bit.
+
+    python benchmarks/bench_hoyng_period.py [--periods 2000] [--repeats 3] [--integrators 1 2]
 """
 
 from __future__ import annotations
 
 import argparse
+import ctypes
 import math
+import os
 import statistics
 import sys
 import time
@@ -26,6 +36,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path[1:1] = [str(ROOT / "tests" / "fmu"), str(ROOT / "tests")]
 
 from clockwork.physics import analytic  # noqa: E402
 from clockwork.engine import MasterSettings  # noqa: E402
@@ -38,10 +49,11 @@ LINKS = ["pendulum.phi -> escapement.phi", "pendulum.w -> escapement.w",
          "escapement.tau -> pendulum.tau_escapement"]
 
 
-def pendulum_alone(periods: int) -> float:
+def pendulum_alone(periods: int, integrator: int = 0) -> float:
     """us per period of the Pendulum FMU's doStep, 7 steps per period."""
     lam = analytic.hoyng_stationary_amplitude(MU0, EPS, PHI0)
-    with System({"pendulum": ("Pendulum", dict(PEND, phi_start=lam))}, [], MasterSettings(step=1.0)) as s:
+    pend = dict(PEND, phi_start=lam, integrator=integrator)
+    with System({"pendulum": ("Pendulum", pend)}, [], MasterSettings(step=1.0)) as s:
         inst = s.instances["pendulum"]
         do_step, comp = inst.c_doStep, inst.component
         h, t = TWO_PI / 7, 0.0
@@ -52,10 +64,51 @@ def pendulum_alone(periods: int) -> float:
         return (time.perf_counter() - t0) / periods * 1e6
 
 
-def bare_master(periods: int) -> tuple[float, dict]:
+def evaluations_alone(periods: int, integrator: int) -> tuple[float, float, bool]:
+    """(right-hand sides, RK steps) per period of case 1, by replay, and
+    whether the replay ends on the FMU's state bit for bit."""
+    import test_rk as rkt
+    from fmu_driver import Instance, find_fmu
+
+    build = Path(os.environ.get("CW_BUILD_DIR", ROOT / "build"))
+    lib = rkt.load_probe(build / "libcw_rk_probe.so")
+    lam = analytic.hoyng_stationary_amplitude(MU0, EPS, PHI0)
+    rtol, atol = PEND["rtol"], PEND["atol"]
+    method = lib.cw_rk_choose(integrator, rtol)
+    gamma = 1.0 / PEND["Q"]  # omega0 / Q with L = g = 1
+    prob = rkt.Problem(2, lambda t, x: [x[1], -(1.0 * 1.0 / 1.0) * math.sin(x[0]) - gamma * x[1] + 0.0])
+    out, xs = rkt.Vec(), rkt.Vec()
+
+    def observe(ctx, rk):  # what Pendulum's observe_step spends
+        r = rk.contents
+        ticked = r.x0[0] < 0.0 <= r.x1[0]
+        turned = (r.x0[1] > 0.0 >= r.x1[1]) or (r.x0[1] < 0.0 <= r.x1[1])
+        if ticked or turned:
+            lib.cw_rk_dense(rk, r.t0 + 0.5 * r.h, out)
+        if ticked:
+            x0 = rkt.Vec(r.x0[0], r.x0[1])
+            for _ in range(2):
+                lib.cw_rk_single_step_with(method, 2, prob.c, None, r.t0, x0, 0.5 * r.h, xs)
+        return 0
+
+    obs = rkt.OBSERVER(observe)
+    h, x, t, h_next, steps = TWO_PI / 7, [lam, 0.0], 0.0, 0.0, 0
+    for k in range(7 * periods):  # as pendulum_alone: from k h to k h + h
+        res, t, x_new, h_next, rk = rkt.advance(lib, prob, x, k * h, k * h + h, rtol, atol, h_next=h_next,
+                                                observer=obs, method=method)
+        assert res == rkt.OK
+        x, steps = list(x_new), steps + rk.n_accepted + rk.n_rejected
+    with Instance(find_fmu("Pendulum"), dict(PEND, phi_start=lam, integrator=integrator)) as p:
+        for k in range(7 * periods):
+            p.step(h, k * h)
+        same = tuple(x) == tuple(p.get_many(["phi", "w"]))
+    return len(prob.times) / periods, steps / periods, same
+
+
+def bare_master(periods: int, integrator: int = 0) -> tuple[float, dict]:
     """us per period of Master.run_until with the scene's settings, and its statistics per period."""
     lam = analytic.hoyng_stationary_amplitude(MU0, EPS, PHI0)
-    with System({"pendulum": ("Pendulum", dict(PEND, phi_start=lam)),
+    with System({"pendulum": ("Pendulum", dict(PEND, phi_start=lam, integrator=integrator)),
                  "escapement": ("GrasshopperEscapement", dict(torque=MU0, phi_r=PHI0))},
                 LINKS, MasterSettings(step=TWO_PI, order="jacobi"), record={"pendulum": ["tick_time"]}) as s:
         m = s.master
@@ -72,16 +125,30 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--periods", type=int, default=2000)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--integrators", type=int, nargs="+", default=[1, 2],
+                    help="Pendulum integrator values (0 auto, 1 DP5(4), 2 DOP853)")
+    ap.add_argument("--count-periods", type=int, default=50, help="periods replayed to count evaluations")
     a = ap.parse_args(argv)
-    alone, master, per = [], [], {}
-    for _ in range(a.repeats):  # interleaved, so that machine noise hits both alike
-        alone.append(pendulum_alone(a.periods))
-        us, per = bare_master(a.periods)
-        master.append(us)
+    names = {0: "auto", 1: "DP5(4)", 2: "DOP853"}
+    alone = {i: [] for i in a.integrators}
+    master = {i: [] for i in a.integrators}
+    per = {}
+    for _ in range(a.repeats):  # interleaved, so that machine noise hits all alike
+        for i in a.integrators:
+            alone[i].append(pendulum_alone(a.periods, i))
+            us, per[i] = bare_master(a.periods, i)
+            master[i].append(us)
     print(f"# Hoyng's clock at point C, {a.periods} periods, median of {a.repeats} (us per period)")
-    print(f"Pendulum FMU alone, 7 steps per period, rtol 1e-10: {statistics.median(alone):.1f}")
-    print(f"Pendulum + GrasshopperEscapement, bare Master.run_until: {statistics.median(master):.1f}")
-    print("per period: " + ", ".join(f"{k} {v:.2f}" for k, v in per.items() if v))
+    for i in a.integrators:
+        rhs, steps, same = evaluations_alone(a.count_periods, i)
+        print(f"## integrator = {i} ({names[i]})")
+        print(f"Pendulum FMU alone, 7 steps per period, rtol 1e-10: {statistics.median(alone[i]):.1f} "
+              f"(all runs: {', '.join(f'{v:.1f}' for v in alone[i])}); "
+              f"{rhs:.1f} right-hand sides and {steps:.1f} RK steps per period "
+              f"(replay == FMU: {'yes' if same else 'NO'})")
+        print(f"Pendulum + GrasshopperEscapement, bare Master.run_until: {statistics.median(master[i]):.1f} "
+              f"(all runs: {', '.join(f'{v:.1f}' for v in master[i])})")
+        print("per period: " + ", ".join(f"{k} {v:.2f}" for k, v in per[i].items() if v))
     return 0
 
 

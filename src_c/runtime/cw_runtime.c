@@ -1228,10 +1228,11 @@ fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s,
 
 int cw_integrate(struct cw_instance *inst, const char *model, cw_rhs f, int n,
                  int first, int h_slot, double t_end, double rtol, double atol,
-                 double h_max, const char *const names[],
+                 double h_max, int integrator, const char *const names[],
                  cw_rk_observer observer) {
     cw_rk rk;
     cw_rk_init(&rk, n, rtol, atol, h_max);
+    cw_rk_set_method(&rk, integrator);
     double x[CW_RK_MAXN];
     for (int k = 0; k < n; k++) x[k] = inst->s[first + k];
     double t = inst->time, h_next = inst->s[h_slot];

@@ -117,5 +117,5 @@ static void calc_outputs(cw_instance *inst) {
 static fmi2Status do_step(cw_instance *inst, double t_end) {
     static const char *const names[] = {"lambda^2", "psi - omega0 t"};
     return (fmi2Status)cw_integrate(inst, "AveragedPendulum", rhs, 2, S_LAM2, S_H_NEXT, t_end,
-                                    R(rtol), R(atol), R(h_max), names, NULL);
+                                    R(rtol), R(atol), R(h_max), I(integrator), names, NULL);
 }

@@ -46,7 +46,7 @@ static void calc_outputs(cw_instance *inst) {
 static fmi2Status do_step(cw_instance *inst, double t_end) {
     static const char *const names[] = {"a2", "a2dot"};
     return (fmi2Status)cw_integrate(inst, "MechanismVibration", rhs, 2, S_A2, S_H_NEXT, t_end,
-                                    R(rtol), R(atol), R(h_max), names, NULL);
+                                    R(rtol), R(atol), R(h_max), I(integrator), names, NULL);
 }
 
 static int output_derivative(cw_instance *inst, unsigned vr, int order,

@@ -3,8 +3,8 @@
  *   w'   = -(g g_factor / L) sin(phi) - (omega0 / Q) w + tau / (m L^2)
  * Ticks (upward zero crossings) and turning points are located on the
  * dense output of each accepted step, then the tick time is polished with
- * a full fifth-order step, so that period measurements do not depend on
- * the communication step. */
+ * a full step of the same Runge-Kutta pair, so that period measurements do
+ * not depend on the communication step. */
 #include <math.h>
 
 #include "cw_rk.h"
@@ -90,7 +90,8 @@ static int observe_step(void *ctx, const cw_rk *rk) {
         /* Polish: integrate exactly to t and take Newton steps on phi. */
         double x[2] = {0.0, rk->x1[1]};
         for (int it = 0; it < 2; it++) {
-            cw_rk_single_step(2, rhs, inst, rk->t0, rk->x0, t - rk->t0, x);
+            cw_rk_single_step_with(rk->method, 2, rhs, inst, rk->t0, rk->x0,
+                                   t - rk->t0, x);
             if (x[1] == 0.0) break;
             double dt = -x[0] / x[1];
             if (!(fabs(dt) < rk->h)) break;
@@ -115,6 +116,7 @@ static int observe_step(void *ctx, const cw_rk *rk) {
 static fmi2Status do_step(cw_instance *inst, double t_end) {
     cw_rk rk;
     cw_rk_init(&rk, 2, R(rtol), R(atol), R(h_max));
+    cw_rk_set_method(&rk, I(integrator));
     double x[2] = {inst->s[S_PHI], inst->s[S_W]};
     double t = inst->time, h_next = inst->s[S_H_NEXT];
     /* Tick outputs are updated by the observer; keep them for a retry. */
