@@ -479,7 +479,8 @@ def free_period(amplitude: float, periods: int = 10, step: float = 0.05, escapem
             if port.out[i] > 0 and (not ticks or port.out[i] != ticks[-1]):
                 ticks.append(port.out[i])
 
-        m.run_until((periods + 0.75) * exact, on_point)
+        # A tick is an upward zero crossing, at (k + 3/4) periods: stop between two of them.
+        m.run_until((periods + 1.0) * exact, on_point)
         events = m.stats.events
         amp_out = s.output("pendulum", "amplitude")
     t = np.asarray(ticks)

@@ -35,7 +35,8 @@ def _e(text) -> str:
     return html.escape(str(text), quote=True)
 
 
-def _num(x) -> str:
+def number_text(x) -> str:
+    """Shortest text that reads back as the same number (a double round-trips)."""
     if isinstance(x, bool):
         return "true" if x else "false"
     if isinstance(x, int):
@@ -61,7 +62,7 @@ def variable_table(variables: list[dict]) -> list[str]:
         unit = v.get("unit", "")
         if "display_unit" in v:
             unit += f" (shown in {v['display_unit']})"
-        start = _num(v["start"]) if v["causality"] in ("parameter", "input") else "calculated"
+        start = number_text(v["start"]) if v["causality"] in ("parameter", "input") else "calculated"
         feed = ", ".join(_deps(v)) if v["causality"] == "output" else ""
         if v["causality"] == "output" and not feed:
             feed = "none"
@@ -69,8 +70,8 @@ def variable_table(variables: list[dict]) -> list[str]:
             f"<tr><td><code>{_e(v['name'])}</code></td><td>{_e(v['causality'])}</td>"
             f"<td>{_e(v['variability'])}</td><td>{_e(v['type'])}</td><td>{_e(unit)}</td>"
             f'<td class="num">{_e(start)}</td>'
-            f'<td class="num">{_e(_num(v["min"])) if "min" in v else ""}</td>'
-            f'<td class="num">{_e(_num(v["max"])) if "max" in v else ""}</td>'
+            f'<td class="num">{_e(number_text(v["min"])) if "min" in v else ""}</td>'
+            f'<td class="num">{_e(number_text(v["max"])) if "max" in v else ""}</td>'
             f"<td>{_e(feed)}</td><td>{_e(v['description'])}</td></tr>"
         )
     out.append("</table>")
@@ -145,8 +146,8 @@ def generate_html(t: dict, references: dict) -> str:
         "<li>Inputs are followed between communication points when their "
         "derivatives are set with fmi2SetRealInputDerivatives (orders 1 and 2).</li>"
         if any(v["causality"] == "input" for v in variables) else "",
-        f"<li>Default experiment: {_num(exp.get('start', 0.0))} s to "
-        f"{_num(exp.get('stop', 10.0))} s, step {_num(exp.get('step', 0.01))} s.</li>",
+        f"<li>Default experiment: {number_text(exp.get('start', 0.0))} s to "
+        f"{number_text(exp.get('stop', 10.0))} s, step {number_text(exp.get('step', 0.01))} s.</li>",
         "</ul>",
     ]
 

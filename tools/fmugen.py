@@ -24,6 +24,7 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import fmudoc
+from fmudoc import number_text as _num
 
 CAUSALITIES = {"parameter", "input", "output", "local"}
 VARIABILITIES = {"fixed", "tunable", "discrete", "continuous"}
@@ -61,16 +62,6 @@ GUID_NAMESPACE = uuid.UUID("5d1f7a0e-6c55-4c39-9a43-2f0b7f3c1c0e")
 
 class TableError(ValueError):
     pass
-
-
-def _num(x: float) -> str:
-    """Shortest repr that round-trips a double."""
-    if isinstance(x, bool):
-        return "true" if x else "false"
-    if isinstance(x, int):
-        return str(x)
-    r = repr(float(x))
-    return r[:-2] if r.endswith(".0") else r
 
 
 def load(model_dir: Path) -> dict:
