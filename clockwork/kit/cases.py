@@ -106,12 +106,13 @@ def _cases() -> list[Case]:
              stop=100.0, grid=0.01, overrides=("experiment.stop=100",),
              tolerances=Tolerances({"pendulum.phi": 1e-7, "pendulum.w": 3e-7}, ticks_s=5e-7, switches_s=5e-6)),
         Case("HoyngTorqueJump", "ssp", str(SCENES / "hoyng_jump.toml"),
-             "Hoyng's torque jump (normalized units: period 2 pi s), 20 nominal periods",
+             "Hoyng's torque jump (normalized units: period 2 pi s), 125.66 s (20 nominal periods)",
              "A time event from outside: the drive doubles at t = 20 pi s (the case's _in.csv steps "
              "escapement.vibration_velocity from 0 to 1, velocity_gain = 1), off the output grid, "
              "on a clock whose escapement torque is small (mu = 2e-5): the rate and amplitude answer "
              "of Hoyng Eqs. (16), (18).",
-             stop=20.0 * HOYNG_T0, grid=0.02, overrides=(f"pendulum.w_start={_hoyng_w_start()!r}",),
+             stop=125.66, grid=0.02,
+             overrides=(f"pendulum.w_start={_hoyng_w_start()!r}", "experiment.stop=125.66"),
              tolerances=Tolerances({"pendulum.phi": 1e-8, "pendulum.w": 1e-8}, ticks_s=5e-7, switches_s=2e-5),
              jump=(10.0 * HOYNG_T0, "escapement.vibration_velocity", 0.0, 1.0)),
         Case("VibratingClock", "ssp", "scenarios/core_vibration.toml",

@@ -97,8 +97,11 @@ def kink(t: np.ndarray, w: np.ndarray, lo: float, hi: float) -> float | None:
     if b <= a:
         return float(grid[k])
     r = minimize_scalar(residual, bounds=(a, b), method="bounded", options={"xatol": 1e-12 * sc})
-    best = r.x if r.fun <= vals[k] else grid[k]
-    return float(best)
+    cands = [(vals[k], grid[k]), (r.fun, r.x)]
+    # A kink on a row (a master that switched at a communication point, or
+    # wrote a row at the located event) is a corner of the residual: try the rows.
+    cands += [(residual(x), x) for x in t[(t >= lo) & (t <= hi)]]
+    return float(min(cands)[1])
 
 
 def switches(t: np.ndarray, signal: np.ndarray, w: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
