@@ -8,7 +8,8 @@ Accepted layouts (one time column, then signals):
 - libcosim: a single file ``Time``/``<slave>.<var>``, or the directory its
   file observer writes (one ``<slave>_<date>.csv`` per slave with
   ``Time``, ``StepCount`` and ``<var> [<ref> <type> <causality>]`` columns);
-- ecos: ``time`` and ``<instance>::<var>`` (``::`` is read as ``.``).
+- ecos: ``time`` and ``<instance>::<var>`` (``::`` is read as ``.``); its CSV
+  writer's ``iterations, time, <inst>::<var>[REAL]`` too.
 
 Names are matched to a case's signals by suffix at a dot: the signal
 ``pendulum.phi`` matches ``pendulum.phi``, ``model.root.pendulum.phi``
@@ -30,6 +31,7 @@ from ..atomic import write_text_atomic
 from ..errors import UsageError
 
 _TIME = ("time", "t")
+_COUNTERS = ("stepcount", "iterations", "step")
 _BRACKET = re.compile(r"\s*\[[^\]]*\]\s*$")  # libcosim's " [0 Real OUT]"
 
 
@@ -111,16 +113,19 @@ def read_result(path: str | Path) -> Result:
 
 
 def _result(source: str, header: list[str], data: np.ndarray, path: Path) -> Result:
-    if header[0].lower() not in _TIME:
+    # The time is the first column, after a counter (ecos: iterations, time, ...).
+    lead = [j for j, h in enumerate(header) if h.lower() in _TIME]
+    if not lead or any(header[j].lower() not in _COUNTERS for j in range(lead[0])):
         raise UsageError(f"{path}: the first column must be the time ('time' or 'Time'), got {header[0]!r}")
     if data.shape[0] < 2:
         raise UsageError(f"{path}: at least two rows are needed")
-    t = data[:, 0]
+    jt = lead[0]
+    t = data[:, jt]
     if not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0):
         raise UsageError(f"{path}: the time column must be finite and non-decreasing")
     cols = {}
-    for j, name in enumerate(header[1:], start=1):
-        if name.lower() == "stepcount":
+    for j, name in enumerate(header):
+        if j == jt or name.lower() in _COUNTERS:
             continue
         cols[name] = data[:, j]
     return Result(source, t, cols)
