@@ -7,9 +7,13 @@ one scipy DOP853 integration at rtol 1e-12 with every escapement switch
 located), never from a co-simulation.
 
 The tolerances (``Tolerances``) were sized by ``benchmarks/regression_kit_table.py
---calibrate``: clockwork's own master (event location on) on each case,
-its worst error times a margin, and checked to fail a master without event
-location; docs/regression-kit.md has the numbers.
+--calibrate``: clockwork's own master (event location on, the scene's
+settings) on each case, its worst error (as written, and from its grid rows
+alone, as a tool that writes only the grid would show it) times 10, rounded
+up to 1, 2 or 5 times a power of ten, at least 1e-9 (the reference is known
+to ~1e-10); the same master without event location, and with a coarse fixed
+step of 5 grid intervals, fails every case with events.
+docs/regression-kit.md has the numbers.
 """
 
 from __future__ import annotations
@@ -84,7 +88,7 @@ def _cases() -> list[Case]:
              "A tool passes if it reproduces phi and w on the 0.01 s grid and the upward zero "
              "crossings of phi (ticks).",
              stop=20.0, grid=0.01,
-             tolerances=Tolerances({"phi": 1e-8, "w": 3e-8}, ticks_s=5e-8),
+             tolerances=Tolerances({"phi": 1e-9, "w": 5e-9}, ticks_s=1e-9),
              phi="phi", w="w", tube_signals=("phi", "w"), switch_signal=None),
         Case("GrasshopperClock", "ssp", "scenarios/core_grasshopper.toml",
              "The grasshopper clock (Pendulum + GrasshopperEscapement), 100 s",
@@ -92,19 +96,19 @@ def _cases() -> list[Case]:
              "where phi crosses the switch angle, not at the next communication point. "
              "A late switch changes the energy per period, hence amplitude and rate.",
              stop=100.0, grid=0.01, overrides=("experiment.stop=100",),
-             tolerances=Tolerances({"pendulum.phi": 1e-7, "pendulum.w": 3e-7}, ticks_s=5e-7, switches_s=5e-6)),
+             tolerances=Tolerances({"pendulum.phi": 1e-9, "pendulum.w": 1e-9}, ticks_s=1e-9, switches_s=1e-5)),
         Case("ChronometerClock", "ssp", str(SCENES / "chronometer.toml"),
              "The chronometer (Pendulum + ChronometerEscapement), 60 s",
              "A torque that switches on at the window's lower edge when moving up, off at the upper "
              "edge: two switches per period, each a discontinuity of the pendulum's acceleration.",
              stop=60.0, grid=0.01,
-             tolerances=Tolerances({"pendulum.phi": 1e-7, "pendulum.w": 3e-7}, ticks_s=5e-7, switches_s=5e-6)),
+             tolerances=Tolerances({"pendulum.phi": 1e-9, "pendulum.w": 1e-9}, ticks_s=1e-9, switches_s=5e-6)),
         Case("DragClock", "ssp", "scenarios/core_grasshopper_drag.toml",
              "The grasshopper clock with air drag (Pendulum + GrasshopperEscapement + Drag), 100 s",
              "A direct-feedthrough element (drag torque -(c1 w + c2 w|w|) from the pendulum's velocity) "
              "in the loop beside the relay: a master must feed it without a step's delay.",
              stop=100.0, grid=0.01, overrides=("experiment.stop=100",),
-             tolerances=Tolerances({"pendulum.phi": 1e-7, "pendulum.w": 3e-7}, ticks_s=5e-7, switches_s=5e-6)),
+             tolerances=Tolerances({"pendulum.phi": 1e-5, "pendulum.w": 5e-5}, ticks_s=2e-5, switches_s=1e-4)),
         Case("HoyngTorqueJump", "ssp", str(SCENES / "hoyng_jump.toml"),
              "Hoyng's torque jump (normalized units: period 2 pi s), 125.66 s (20 nominal periods)",
              "A time event from outside: the drive doubles at t = 20 pi s (the case's _in.csv steps "
@@ -113,7 +117,7 @@ def _cases() -> list[Case]:
              "of Hoyng Eqs. (16), (18).",
              stop=125.66, grid=0.02,
              overrides=(f"pendulum.w_start={_hoyng_w_start()!r}", "experiment.stop=125.66"),
-             tolerances=Tolerances({"pendulum.phi": 1e-8, "pendulum.w": 1e-8}, ticks_s=5e-7, switches_s=2e-5),
+             tolerances=Tolerances({"pendulum.phi": 1e-9, "pendulum.w": 1e-9}, ticks_s=2e-8, switches_s=1e-5),
              jump=(10.0 * HOYNG_T0, "escapement.vibration_velocity", 0.0, 1.0)),
         Case("VibratingClock", "ssp", "scenarios/core_vibration.toml",
              "The clock with a vibrating mechanism (Pendulum + GrasshopperEscapement + MechanismVibration), 16 s",
@@ -124,8 +128,8 @@ def _cases() -> list[Case]:
              "meaningful target and errors are not amplified chaotically.",
              stop=16.0, grid=0.01, overrides=("experiment.stop=16",),
              tube_signals=("pendulum.phi", "pendulum.w", "vibration.a2"),
-             tolerances=Tolerances({"pendulum.phi": 1e-7, "pendulum.w": 3e-7, "vibration.a2": 1e-8},
-                                   ticks_s=5e-7, switches_s=5e-6)),
+             tolerances=Tolerances({"pendulum.phi": 5e-6, "pendulum.w": 1e-5, "vibration.a2": 5e-5},
+                                   ticks_s=5e-6, switches_s=1e-3)),
     ]
 
 
