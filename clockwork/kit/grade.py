@@ -155,12 +155,16 @@ def tube(t, y, t_ref, y_ref, t_start, t_stop, width) -> tuple[int, float, float]
     """fmpy's cross-check band of half-width `width` around the reference
     sampled on its own grid; returns (outliers, worst excess over the band,
     largest |y - y_ref|)."""
-    from fmpy.cross_check import validate_signal
+    import warnings
 
     span = float(np.max(y_ref) - np.min(y_ref))
     dy = width / span if span > 0 else width
-    t_band, y_min, y_max, i_out = validate_signal(t=t, y=y, t_ref=t_ref, y_ref=y_ref, t_start=t_start,
-                                                  t_stop=t_stop, num=len(t_ref), dx=1, dy=dy)
+    with warnings.catch_warnings():  # it imports scipy.ndimage.filters (deprecated)
+        warnings.simplefilter("ignore", DeprecationWarning)
+        from fmpy.cross_check import validate_signal
+
+        t_band, y_min, y_max, i_out = validate_signal(t=t, y=y, t_ref=t_ref, y_ref=y_ref, t_start=t_start,
+                                                      t_stop=t_stop, num=len(t_ref), dx=1, dy=dy)
     lo = np.interp(t, t_band, y_min)
     hi = np.interp(t, t_band, y_max)
     excess = np.maximum(lo - y, y - hi)
