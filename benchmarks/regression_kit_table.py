@@ -110,7 +110,7 @@ def _cell(g) -> str:
         return "error"
     if g.passed:
         return "pass"
-    failed = [c.what.split(" (")[0].replace("tube ", "") for c in g.checks if not c.ok]
+    failed = [c.what.split(" (")[0].replace("tube ", "").split(".")[-1] for c in g.checks if not c.ok]
     return "FAIL (" + ", ".join(failed or ["result"]) + ")"
 
 
@@ -151,13 +151,13 @@ def load_case_scene_step(c) -> float:
 
 def markdown(result: dict, factors: list[float]) -> str:
     rows = result["rows"]
-    cols = ["clockwork"] + [f"{t} {f:g} h" for t in TOOLS for f in factors]
-    lines = ["| case (h) | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    cols = ["clockwork"] + [f"{t} h" if f == 1 else f"{t} {f:g} h" for t in TOOLS for f in factors]
+    lines = ["| case (grid h) | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for c in CASES.values():
         cells = []
         mine = [r for r in rows if r["case"] == c.name]
         cw = next(r for r in mine if r["tool"] == "clockwork")
-        cells.append(f"{cw['cell']} (event location, step {cw['step']:g} s)")
+        cells.append(f"{cw['cell']} ({cw['step']:g} s, events located)")
         for t in TOOLS:
             for f in factors:
                 r = next(r for r in mine if r["tool"] == t and abs(r["step"] - c.grid * f) < 1e-12)

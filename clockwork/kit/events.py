@@ -11,8 +11,12 @@ Delta tau / I). The bracket alone only knows the switch to a row; the kink
 places it between rows: w around the bracket is fitted by least squares
 with a polynomial plus a ramp max(t - t_s, 0) and the t_s of the smallest
 residual is the switch time. On a result sampled every 0.01 s it finds a
-kink to ~1e-8 s (tests/test_kit.py); a master that switches at its next
-communication point shows its kink there.
+kink to ~1e-8 s (tests/test_kit.py), to ~1e-6 s on co-simulated results
+(whose w has small kinks at every communication step) and ~1e-4 s where a
+fast mechanism vibration rides on w; a master that switches at its next
+communication point shows its kink there. A row off the output grid with
+the new torque (a master that wrote a row at its located event) gives the
+switch time directly.
 """
 
 from __future__ import annotations
@@ -104,12 +108,20 @@ def kink(t: np.ndarray, w: np.ndarray, lo: float, hi: float) -> float | None:
     return float(min(cands)[1])
 
 
-def switches(t: np.ndarray, signal: np.ndarray, w: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """Switch times (kink-refined where w allows) and the brackets' widths (s)."""
+def switches(t: np.ndarray, signal: np.ndarray, w: np.ndarray | None,
+             grid: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Switch times and the brackets' widths (s).
+
+    A switch is the time of the first row with the new sign when that row
+    lies off the output `grid` (the tool wrote a row at its event, or steps
+    off the grid and switched there), else the kink of w around the bracket."""
     br = brackets(t, signal)
     times, widths = [], []
     for n, (i, j) in enumerate(br):
         widths.append(t[j] - t[i])
+        if grid is not None and abs(t[j] - round(t[j] / grid) * grid) > 1e-6 * grid:
+            times.append(t[j])
+            continue
         if w is None:
             times.append(0.5 * (t[i] + t[j]))
             continue

@@ -219,7 +219,7 @@ def grade(result: Result, case: CaseData) -> Grade:
         if col is None:
             g.checks.append(Check("switches", tol["switches_s"], math.inf, False, f"{case.switch_signal} missing"))
         else:
-            found, _ = events.switches(t, result.columns[col], w)
+            found, _ = events.switches(t, result.columns[col], w, case.grid)
             m = events.match(found, case.switches, margin, case.stop - margin)
             g.checks.append(_event_check(f"switches ({m['expected']})", tol["switches_s"], m))
     return g
