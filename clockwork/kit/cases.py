@@ -72,7 +72,7 @@ class Case:
     @property
     def signals(self) -> tuple:
         """Columns of the reference CSV."""
-        return self.tube_signals
+        return self.tube_signals + ((self.switch_signal,) if self.switch_signal else ())
 
 
 def _hoyng_w_start() -> float:
@@ -234,13 +234,32 @@ def reference(c: Case, rtol: float = 1e-12, atol: float = 1e-14) -> Reference:
         sel = (t >= bounds[k]) & (t <= bounds[k + 1]) if k == len(segments) - 1 else (t >= bounds[k]) & (t < bounds[k + 1])
         values[sel] = seg.sol(t[sel]).T
     names = {"phi": 0, "w": 1, "a2": 2}
-    columns = {s: values[:, names[s.split(".")[-1]]] for s in c.signals}
+    columns = {s: values[:, names[s.split(".")[-1]]] for s in c.tube_signals}
     ticks = np.concatenate([s.ticks for s in segments])
     switches = np.concatenate([s.switch_times for s in segments])
+    if c.switch_signal:
+        columns[c.switch_signal] = _torque(cp, phi0, w0, switches, t, c, scene)
     notes = []
     if c.kind == "fmu" and cp.escapement == "none":
         notes.append(_agm_note(cp, segments[0]))
     return Reference(t, columns, ticks, switches, notes)
+
+
+def _torque(cp: ClockParams, phi0: float, w0: float, switches: np.ndarray, t: np.ndarray, c: Case,
+            scene) -> np.ndarray:
+    """The escapement torque on the grid (right limits): every switch flips
+    the grasshopper's direction or the chronometer's on/off."""
+    from ..physics.reference import initial_mode
+
+    flips = np.searchsorted(switches, t, side="right") % 2 == 1
+    base = float(scene.components["escapement"].parameters.get("torque", cp.torque))
+    amp = np.full(len(t), base)
+    if c.jump is not None:
+        amp = np.where(t < c.jump[0], base * (1 + abs(c.jump[2])), base * (1 + abs(c.jump[3])))
+    mode = initial_mode(cp, phi0, w0)
+    if cp.escapement == "grasshopper":
+        return np.where(flips, -mode[0], mode[0]) * amp
+    return np.where(flips != bool(mode[0]), amp, 0.0)
 
 
 def _agm_note(cp: ClockParams, res) -> str:

@@ -68,7 +68,7 @@ def _readme(c: Case, meta: dict, notes: list[str]) -> str:
     lines += ["", "## Acceptance", "",
               f"Write the result at the multiples of {c.grid:g} s (extra rows, e.g. at events, are welcome) with "
               "columns named as the reference's (or any name ending with them, e.g. `model.root.pendulum.phi`), "
-              f"then `clockwork compare RESULT.csv {c.name}/`. It passes when"]
+              f"then `clockwork compare RESULT.csv {c.name}/`. It passes when", ""]
     for s, width in tol.tube.items():
         lines.append(f"- every grid row of `{s}` is within {width:g} of the reference (fmpy's cross-check band, "
                      "dx = 1 sample, no outlier allowed);")
@@ -76,7 +76,8 @@ def _readme(c: Case, meta: dict, notes: list[str]) -> str:
                  f"is within {tol.ticks_s:g} s of its expected time;")
     if c.switch_signal:
         lines.append(f"- each of the {meta['events']['count']['switches']} escapement switches (sign changes of "
-                     f"`{c.switch_signal}`, placed by the kink they leave in `{c.w}`) is within "
+                     f"`{c.switch_signal}`: the time of the first row with the new sign when it lies off the grid, "
+                     f"a row written at the event; else placed by the kink the switch leaves in `{c.w}`) is within "
                      f"{tol.switches_s:g} s of its expected time,")
         lines.append("- and no tick or switch is missing or extra.")
     if notes:
