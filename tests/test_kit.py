@@ -67,7 +67,8 @@ def test_export_suite_writes_every_case(suite):
     for name, c in CASES.items():
         d = _case_dir(suite, name)
         model = d / (f"{name}.fmu" if c.kind == "fmu" else f"{name}.ssp")
-        for f in (model, d / f"{name}_ref.csv", d / f"{name}_ref.opt", d / f"{name}_case.json", d / "README.md"):
+        for f in (model, d / f"{name}_ref.csv", d / f"{name}_ref.opt", d / f"{name}_case.json",
+                  d / f"{name}_events.csv", d / "README.md"):
             assert f.is_file(), f
         meta = json.loads((d / f"{name}_case.json").read_text())
         assert meta["events"]["count"]["ticks"] >= 8

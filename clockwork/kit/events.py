@@ -155,8 +155,10 @@ def match(found: np.ndarray, expected: np.ndarray, t_lo: float, t_hi: float) -> 
     else:
         nearest = np.full(len(exp), got[0])
     err = np.abs(nearest - exp)
-    used = len(set(np.round(nearest, 12)))
+    used = set(nearest.tolist())
     inner = got[(got >= t_lo) & (got <= t_hi)]
+    # extra: found inside the window and nearest to no expected event
+    extra = sum(1 for x in inner.tolist() if x not in used)
     return {"expected": int(len(exp)), "found": int(len(inner)), "worst_s": float(err.max()),
             "worst_at_s": float(exp[int(err.argmax())]),
-            "missing": int(len(exp) - used), "extra": max(0, int(len(inner) - len(exp)))}
+            "missing": int(len(exp) - len(used)), "extra": int(extra)}

@@ -5,9 +5,10 @@ Layout (DIR is ``clockwork export-suite DIR``)::
     DIR/README.md, DIR/suite.json
     DIR/fmus/2.0/cs/linux64/clockwork/<version>/<Model>/    single-FMU cases,
         <Model>.fmu  <Model>_ref.csv  <Model>_ref.opt        the FMI cross-check layout
-        [<Model>_in.csv]  <Model>_case.json  README.md       (checked by fmpy.cross_check.validate_vendor_repo)
+        [<Model>_in.csv]  <Model>_events.csv  <Model>_case.json  README.md
+                                                            (checked by fmpy.cross_check.validate_vendor_repo)
     DIR/ssp/<Name>/                                           coupled cases, in the same spirit
-        <Name>.ssp  <Name>_ref.csv  <Name>_ref.opt  [<Name>_in.csv]  <Name>_case.json  README.md
+        <Name>.ssp  <Name>_ref.csv  <Name>_ref.opt  [<Name>_in.csv]  <Name>_events.csv  <Name>_case.json  README.md
 
 ``<Name>_case.json`` holds what ``clockwork compare`` grades with: the
 expected event times (ticks and escapement switches, from the reference),
@@ -61,7 +62,9 @@ def _readme(c: Case, meta: dict, notes: list[str]) -> str:
               "the monolithic scipy DOP853 solution at rtol 1e-12 with every escapement switch located "
               "(`clockwork.physics.reference`), known to about 1e-10.",
               f"- `{c.name}_ref.opt`: StartTime, StopTime, StepSize (the output grid), RelTol.",
-              f"- `{c.name}_case.json`: expected event times, tolerances, signal names (read by `clockwork compare`)."]
+              f"- `{c.name}_events.csv`: the expected event times (`time,event`: tick = upward zero crossing of phi, "
+              "switch = change of the escapement's mode), from the reference.",
+              f"- `{c.name}_case.json`: the same event times, the tolerances, signal names (read by `clockwork compare`)."]
     if c.jump:
         lines.append(f"- `{c.name}_in.csv`: the input `{c.jump[1]}`: {c.jump[2]:g} until t = {c.jump[0]!r} s, "
                      f"then {c.jump[3]:g} (a repeated time row marks the step).")
@@ -118,6 +121,8 @@ def write_case(root: Path, c: Case) -> dict:
         "generated_by": f"clockwork {__version__}",
     }
     write_text_atomic(d / f"{c.name}_case.json", _json(meta))
+    ev = sorted([(float(x), "tick") for x in ref.ticks] + [(float(x), "switch") for x in ref.switches])
+    write_text_atomic(d / f"{c.name}_events.csv", "time,event\n" + "".join(f"{t!r},{k}\n" for t, k in ev))
     write_text_atomic(d / "README.md", _readme(c, meta, ref.notes + list(c.notes)))
     return {"name": c.name, "kind": c.kind, "path": str(d.relative_to(root)), "stop": c.stop, "grid": c.grid,
             "ticks": int(len(ref.ticks)), "switches": int(len(ref.switches)),
