@@ -192,3 +192,31 @@ def test_kink_locator_places_a_switch_between_rows():
     tau = np.where(t < ts, -1.0, 1.0)
     found, _ = events.switches(t, tau, w)
     assert len(found) == 1 and abs(found[0] - ts) < 1e-8
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_clockworks_master_passes_every_case_and_fails_without_event_location(tmp_path, suite, name):
+    from clockwork.kit.grade import compare
+
+    good = run_clockwork(CASES[name], tmp_path / "good.csv")
+    assert compare(good, _case_dir(suite, name)).passed
+    if CASES[name].switch_signal:
+        late = run_clockwork(CASES[name], tmp_path / "late.csv", event_location=False)
+        g = compare(late, _case_dir(suite, name))
+        assert not g.passed and not next(c for c in g.checks if c.what.startswith("switches")).ok
+
+
+def test_fmpy_result_of_the_single_fmu_case_passes_and_json_is_strict(capsys, tmp_path, suite):
+    from fmpy import simulate_fmu
+    from fmpy.util import write_csv as fmpy_write_csv
+
+    d = _case_dir(suite, "Pendulum")
+    res = simulate_fmu(str(d / "Pendulum.fmu"), stop_time=20.0, step_size=0.01, output_interval=0.01,
+                       output=["phi", "w"])
+    out = tmp_path / "Pendulum_out.csv"
+    fmpy_write_csv(str(out), res)
+    rc, text, _ = run(capsys, ["compare", out, d, "--json", tmp_path / "grade.json"])
+    assert rc == 0, text
+    grade = json.loads((tmp_path / "grade.json").read_text(), parse_constant=lambda c: pytest.fail(c))
+    assert grade["passed"] and grade["case"] == "Pendulum"
+    assert not list(tmp_path.glob(".*.part"))
