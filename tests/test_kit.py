@@ -220,3 +220,15 @@ def test_fmpy_result_of_the_single_fmu_case_passes_and_json_is_strict(capsys, tm
     grade = json.loads((tmp_path / "grade.json").read_text(), parse_constant=lambda c: pytest.fail(c))
     assert grade["passed"] and grade["case"] == "Pendulum"
     assert not list(tmp_path.glob(".*.part"))
+
+
+def test_kit_imports_only_layers_below_it():
+    """kit/ sits beside bench/ above run/: it never imports the cli or the bench."""
+    import ast
+
+    kit = Path(__file__).resolve().parents[1] / "clockwork" / "kit"
+    for f in kit.glob("*.py"):
+        for node in ast.walk(ast.parse(f.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level:
+                mod = node.module or ""
+                assert not (node.level >= 2 and mod.split(".")[0] in ("cli", "bench")), (f.name, mod)
