@@ -63,6 +63,7 @@ class Grade:
     unmatched: list = field(default_factory=list)  # result columns no signal of the case matched
     missing: list = field(default_factory=list)  # signals of the case without a column
     problems: list = field(default_factory=list)  # reasons for failing besides the checks
+    missing_why: dict = field(default_factory=dict)
 
     @property
     def passed(self) -> bool:
@@ -81,9 +82,9 @@ class Grade:
     def table(self) -> list[str]:
         lines = [f"case {self.case}: {self.result} ({self.rows} rows, {self.grid_rows} on the output grid)"]
         for name in self.unmatched:
-            lines.append(f"  unmatched column: {name} (no signal of the case ends with it)")
-        for name in self.missing:
-            lines.append(f"  missing signal: {name} (no column ends with '{name}')")
+            lines.append(f"  unmatched column: {name} (not used: it is no signal of the case, or one of several that match one)")
+        for name, why in self.missing_why.items():
+            lines.append(f"  missing signal: {name} ({why})")
         w = max([len(c.what) for c in self.checks] + [5])
         lines.append(f"  {'check':<{w}}  {'tolerance':>10}  {'worst':>10}  verdict")
         for c in self.checks:
@@ -181,6 +182,10 @@ def grade(result: Result, case: CaseData) -> Grade:
     wanted = list(dict.fromkeys(wanted))
     matched = {s: result.match(s) for s in wanted}
     g.missing = [s for s, col in matched.items() if col is None]
+    for s in g.missing:
+        hits = [c for c in result.columns if c.endswith("." + s)]
+        g.missing_why[s] = (f"no column ends with '{s}'" if not hits else
+                            f"ambiguous: {len(hits)} columns end with '.{s}': {', '.join(hits[:4])}")
     used = set(col for col in matched.values() if col)
     g.unmatched = [c for c in result.columns if c not in used]
 
