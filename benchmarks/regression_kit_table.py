@@ -163,7 +163,8 @@ def markdown(result: dict, factors: list[float]) -> str:
                 r = next(r for r in mine if r["tool"] == t and abs(r["step"] - c.grid * f) < 1e-12)
                 cells.append(r["cell"])
         lines.append(f"| {c.name} ({c.grid:g} s) | " + " | ".join(cells) + " |")
-    lines += ["", "Worst errors (tube: largest |y - y_ref| on the grid; ticks, switches: largest |t - t_expected| in s):", "",
+    lines += ["", "Worst errors (tube: largest |y - y_ref| on the grid; ticks, switches: largest "
+              "|t - t_expected| in s):", "",
               "| case | tool | step (s) | " + " | ".join(["phi", "w", "a2", "ticks", "switches"]) + " | verdict |",
               "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:

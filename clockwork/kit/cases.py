@@ -232,7 +232,8 @@ def reference(c: Case, rtol: float = 1e-12, atol: float = 1e-14) -> Reference:
     values = np.empty((len(t), 4 if cp.vibration is not None else 2))
     bounds = [0.0] + ([c.jump[0]] if c.jump else []) + [c.stop]
     for k, seg in enumerate(segments):
-        sel = (t >= bounds[k]) & (t <= bounds[k + 1]) if k == len(segments) - 1 else (t >= bounds[k]) & (t < bounds[k + 1])
+        last = k == len(segments) - 1
+        sel = (t >= bounds[k]) & ((t <= bounds[k + 1]) if last else (t < bounds[k + 1]))
         values[sel] = seg.sol(t[sel]).T
     names = {"phi": 0, "w": 1, "a2": 2}
     columns = {s: values[:, names[s.split(".")[-1]]] for s in c.tube_signals}

@@ -82,7 +82,8 @@ class Grade:
     def table(self) -> list[str]:
         lines = [f"case {self.case}: {self.result} ({self.rows} rows, {self.grid_rows} on the output grid)"]
         for name in self.unmatched:
-            lines.append(f"  unmatched column: {name} (not used: it is no signal of the case, or one of several that match one)")
+            lines.append(f"  unmatched column: {name} (not used: no signal of the case, "
+                         "or one of several columns that match one)")
         for name, why in self.missing_why.items():
             lines.append(f"  missing signal: {name} ({why})")
         w = max([len(c.what) for c in self.checks] + [5])

@@ -64,7 +64,8 @@ def _readme(c: Case, meta: dict, notes: list[str]) -> str:
               f"- `{c.name}_ref.opt`: StartTime, StopTime, StepSize (the output grid), RelTol.",
               f"- `{c.name}_events.csv`: the expected event times (`time,event`: tick = upward zero crossing of phi, "
               "switch = change of the escapement's mode), from the reference.",
-              f"- `{c.name}_case.json`: the same event times, the tolerances, signal names (read by `clockwork compare`)."]
+              f"- `{c.name}_case.json`: the same event times, the tolerances, signal names "
+              "(read by `clockwork compare`)."]
     if c.jump:
         lines.append(f"- `{c.name}_in.csv`: the input `{c.jump[1]}`: {c.jump[2]:g} until t = {c.jump[0]!r} s, "
                      f"then {c.jump[3]:g} (a repeated time row marks the step).")
