@@ -8,7 +8,9 @@ case in clockwork's master (the scene's settings: event location on) and
 in fmpy's SSP runner (``simulate_fmu`` for the single FMU), libcosim and
 ecos (``python -m clockwork.kit.tools``, one subprocess per run) at the
 case's output grid h and at h/10, grades every result with ``clockwork
-compare`` and writes OUT/table.md (and OUT/table.json).
+compare`` and writes OUT/table.md (and OUT/table.json). The single-FMU
+results at h also go into the suite's FMI Cross-Check results tree, which
+``fmpy.cross_check.validate_vendor_repo`` then checks with its own tube.
 
 --calibrate runs only clockwork: its own master with event location on
 (the result as written, and only its rows on the output grid, as a tool
@@ -105,6 +107,34 @@ def _run_tool(tool: str, cdir: Path, h: float, out: Path) -> tuple[Path | None, 
     return out, "", wall
 
 
+def _tool_version(tool: str) -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version({"fmpy": "fmpy", "libcosim": "libcosimpy", "ecos": "ecospy"}[tool])
+    except PackageNotFoundError:
+        return "unknown"
+
+
+def cross_check_result(suite: Path, tool: str, c, result_path: Path, passed: bool) -> Path:
+    """A single-FMU result in the FMI Cross-Check results tree of the suite:
+    results/2.0/cs/linux64/<tool>/<version>/clockwork/<version>/<Model>/<Model>_out.csv
+    (columns: time and the FMU's variable names), `passed` when compare passed."""
+    from clockwork import __version__
+    from clockwork.kit.csvio import write_csv
+
+    res = read_result(result_path)
+    cols = [(s, res.match(s)) for s in c.tube_signals]
+    d = suite / "results" / "2.0" / "cs" / "linux64" / tool / _tool_version(tool) / "clockwork" / __version__ / c.name
+    d.mkdir(parents=True, exist_ok=True)
+    write_csv(d / f"{c.name}_out.csv", ["time"] + [s for s, _ in cols],
+              np.column_stack([res.time] + [res.columns[m] for _, m in cols]))
+    (d / "passed").unlink(missing_ok=True)
+    if passed:
+        (d / "passed").write_text("")
+    return d
+
+
 def _cell(g) -> str:
     if g is None:
         return "error"
@@ -139,8 +169,16 @@ def table(out: Path, factors: list[float]) -> dict:
                 rows.append({"case": c.name, "tool": tool, "step": h, "event_location": False,
                              "grade": g.as_dict() if g else None, "cell": _cell(g) if g else f"error: {err}",
                              "wall_s": wall})
+                if c.kind == "fmu" and fac == 1 and g is not None:
+                    cross_check_result(suite, tool, c, path, g.passed)
                 print(f"{c.name:<18} {tool:<9} h={h:<7g} {rows[-1]['cell']}", flush=True)
-    return {"rows": rows}
+    from fmpy.cross_check.validate_vendor_repo import validate_repo
+
+    fmus, results, problems = validate_repo(str(suite))
+    print(f"validate_vendor_repo({suite}): {fmus} FMU(s), {results} result(s), {len(problems)} problem(s)")
+    for p in problems:
+        print(f"  {p}")
+    return {"rows": rows, "cross_check": {"fmus": fmus, "results": results, "problems": problems}}
 
 
 def load_case_scene_step(c) -> float:
@@ -199,6 +237,11 @@ def main(argv=None) -> int:
     res = table(out, factors)
     (out / "table.json").write_text(json.dumps(res, indent=2, allow_nan=False) + "\n")
     md = markdown(res, factors)
+    xc = res["cross_check"]
+    md += (f"\nThe single-FMU results at h, written into the suite's FMI Cross-Check results tree "
+           f"(`results/2.0/cs/linux64/<tool>/<version>/clockwork/<version>/<Model>/`, `passed` where compare "
+           f"passed): `fmpy.cross_check.validate_vendor_repo` finds {xc['fmus']} FMU(s), {xc['results']} "
+           f"result(s), {len(xc['problems'])} problem(s).\n")
     (out / "table.md").write_text(md)
     print(md)
     return 0

@@ -129,6 +129,7 @@ def run_fmpy(case_dir: Path, h: float, out: Path, native: bool = False) -> None:
 
 
 def run_libcosim(case_dir: Path, h: float, out: Path, native: bool = False) -> None:
+    from libcosimpy.CosimEnums import CosimVariableType
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     from libcosimpy.CosimManipulator import CosimManipulator
@@ -158,13 +159,19 @@ def run_libcosim(case_dir: Path, h: float, out: Path, native: bool = False) -> N
         refs = [ref(*s.split(".", 1)) for s in names]
         obs = CosimObserver.create_last_value()
         ex.add_observer(obs)
+        # The initialized values (t = 0): a time-series observer keeps step 0,
+        # which the last-value observer has overwritten by the time step() returns.
+        first = CosimObserver.create_time_series()
+        ex.add_observer(first)
+        for i, r in refs:
+            first.start_time_series(i, r, CosimVariableType.REAL)
     inp = meta.get("input")
     k_in = int(np.ceil(inp["time"] / h - 1e-9)) if inp else -1
     if inp:
         man = CosimManipulator.create_override()
         ex.add_manipulator(man)
         in_ref = ref(*inp["signal"].split(".", 1))
-    rows = []
+    rows, initial = [], None
     for k in range(n + 1):
         if k == k_in:
             man.slave_real_values(in_ref[0], [in_ref[1]], [float(inp["after"])])
@@ -173,10 +180,17 @@ def run_libcosim(case_dir: Path, h: float, out: Path, native: bool = False) -> N
         if not ex.step():
             raise SystemExit(f"libcosim: step {k + 1} failed")
         if obs is not None:
+            if k == 1:  # the time series hands out step 0's sample after a later step
+                got = [first.time_series_real_samples(i, r, 0, 2) for i, r in refs]
+                if all(len(x[1]) and x[1][0] == 0 for x in got):
+                    initial = [x[2][0] for x in got]
             t = ex.status().current_time * 1e-9
             rows.append([t] + [obs.last_real_values(i, [r])[0] for i, r in refs])
     if obs is not None:
         from .csvio import write_csv
+
+        if initial:
+            rows.insert(0, [0.0] + initial)
 
         write_csv(out, ["Time"] + names, np.array(rows))
 
