@@ -232,3 +232,26 @@ def test_kit_imports_only_layers_below_it():
             if isinstance(node, ast.ImportFrom) and node.level:
                 mod = node.module or ""
                 assert not (node.level >= 2 and mod.split(".")[0] in ("cli", "bench")), (f.name, mod)
+
+
+def test_fmpy_ssp_run_with_the_torque_jump_input_is_graded(tmp_path, suite):
+    """fmpy's SSP runner on the torque-jump case (input through a system
+    connector of a copy of the archive): a fixed-step result, so it fails,
+    on its switches among others, and leaves no temporary files."""
+    import subprocess
+    import sys
+    import tempfile
+
+    from clockwork.kit.grade import compare
+
+    before = set(Path(tempfile.gettempdir()).glob("clockwork-kit-fmpy-*"))
+    out = tmp_path / "hoyng.fmpy.csv"
+    p = subprocess.run([sys.executable, "-m", "clockwork.kit.tools", "fmpy", str(_case_dir(suite, "HoyngTorqueJump")),
+                        "--step", "0.02", "--out", str(out)], capture_output=True, text=True, timeout=600,
+                       cwd=Path(__file__).resolve().parents[1])
+    assert p.returncode == 0, p.stderr[-2000:]
+    g = compare(out, _case_dir(suite, "HoyngTorqueJump"))
+    assert not g.passed and not g.missing
+    checks = {c.what.split(" (")[0]: c for c in g.checks}
+    assert not checks["switches"].ok and checks["switches"].worst > 0.02  # one to two steps late
+    assert set(Path(tempfile.gettempdir()).glob("clockwork-kit-fmpy-*")) == before
