@@ -1,4 +1,5 @@
-"""The `clockwork` command: run, validate, list, info, export-ssp, gallery, bench.
+"""The `clockwork` command: run, validate, list, info, export-ssp, gallery, bench,
+export-suite, compare.
 
 Bad input of any kind ends with one line `clockwork: error: <message>` on
 stderr and exit code 2; a failed simulation with one line and exit code 1.
@@ -98,7 +99,48 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--out", default="out/bench", metavar="DIR", help="output directory [out/bench]")
     b.add_argument("--no-progress", action="store_true", help="no line per row")
     b.set_defaults(func=cmd_bench)
+    k = sub.add_parser("export-suite", help="write the regression kit: cases with references for other FMI tools")
+    k.add_argument("dir", metavar="DIR", help="output directory (created with its parents)")
+    k.add_argument("--only", nargs="+", default=None, metavar="CASE", help="only these cases")
+    k.set_defaults(func=cmd_export_suite)
+
+    c = sub.add_parser("compare", help="grade a tool's result CSV against a regression-kit case")
+    c.add_argument("result", metavar="RESULT.csv", help="a result CSV (fmpy, OMSimulator, libcosim, ecos layouts) "
+                   "or a directory of libcosim per-slave CSVs")
+    c.add_argument("case", metavar="CASE", help="a case directory of `export-suite`, or a case name")
+    c.add_argument("--json", default=None, metavar="FILE", help="also write the grade as JSON")
+    c.set_defaults(func=cmd_compare)
     return p
+
+
+def cmd_export_suite(args) -> int:
+    from .kit.cases import CASES
+    from .kit.suite import export_suite
+    from .results.files import check_output_dir
+
+    for name in args.only or []:
+        if name not in CASES:
+            raise UsageError(f"--only {name}: unknown case (known: {', '.join(CASES)})")
+    out = check_output_dir(args.dir)
+    index = export_suite(out, args.only)
+    for e in index["cases"]:
+        print(f"{e['name']:<18} {e['kind']:<4} {out / e['path']}")
+    print(f"wrote {len(index['cases'])} cases -> {out / 'README.md'}")
+    return 0
+
+
+def cmd_compare(args) -> int:
+    import json
+
+    from .atomic import write_text_atomic
+    from .kit.grade import compare
+
+    g = compare(args.result, args.case)
+    for line in g.table():
+        print(line)
+    if args.json:
+        write_text_atomic(args.json, json.dumps(g.as_dict(), indent=2, allow_nan=False) + "\n")
+    return 0 if g.passed else 1
 
 
 def cmd_bench(args) -> int:
