@@ -182,6 +182,11 @@ def cmd_run(args) -> int:
     from .run.catalog import load_scene
 
     scene = load_scene(args.scene, args.overrides)
+    if args.scheduler:
+        import importlib.util
+
+        if importlib.util.find_spec("distributed") is None:
+            raise UsageError("--scheduler needs Dask, an optional extra: pip install 'clockwork-fmi[dask]'")
     out = check_output_dir(args.out)
     from .run.scene_run import run_scene
 

@@ -1,4 +1,10 @@
-"""Where clockwork keeps things on disk: the cache, and the FMUs it looks up by name.
+"""Where clockwork keeps things on disk: the cache, the FMUs it looks up by
+name and the scenes that come with it.
+
+In a source checkout the FMUs are the ones CMake builds into ``fmus/`` and
+the scenes are ``scenarios/``; an installed wheel carries both as package
+data (``clockwork/data/fmus``, ``clockwork/data/scenarios``), found with
+importlib.resources. ``$CLOCKWORK_FMU_DIR`` overrides where FMUs are looked up.
 
 The cache root is ``$CLOCKWORK_CACHE`` when set (``off``, ``0``, ``no``,
 ``false`` or empty disable it), else ``$XDG_CACHE_HOME/clockwork``, else
@@ -9,6 +15,7 @@ finished sweep points (``<code digest>/<key>.json``).
 from __future__ import annotations
 
 import atexit
+import importlib.resources
 import os
 import shutil
 import tempfile
@@ -33,15 +40,28 @@ def cache_root() -> Path | None:
     return Path.home() / ".cache" / "clockwork"
 
 
+def in_checkout() -> bool:
+    """Whether this package runs from a source checkout (not an installed wheel)."""
+    return (REPO / "src_c" / "models").is_dir() and (REPO / "pyproject.toml").is_file()
+
+
+def _package_data(name: str) -> Path:
+    # A wheel is installed unzipped, so the resource is a real folder.
+    return Path(str(importlib.resources.files(__package__) / "data" / name))
+
+
 def scenarios_dir() -> Path:
     """The scenes that come with clockwork (one per figure of the papers)."""
-    return REPO / "scenarios"
+    return REPO / "scenarios" if in_checkout() else _package_data("scenarios")
 
 
 def fmu_dir() -> Path:
-    """Where model names are looked up: $CLOCKWORK_FMU_DIR, else the repository's fmus/."""
+    """Where model names are looked up: $CLOCKWORK_FMU_DIR, else the
+    checkout's fmus/, else the FMUs installed with the package."""
     env = os.environ.get("CLOCKWORK_FMU_DIR")
-    return Path(env) if env else REPO / "fmus"
+    if env:
+        return Path(env)
+    return REPO / "fmus" if in_checkout() else _package_data("fmus")
 
 
 _scratch: Path | None = None

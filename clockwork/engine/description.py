@@ -16,7 +16,7 @@ from typing import Any
 
 from ..errors import SceneError
 from ..hashing import sha256_file
-from ..paths import REPO, fmu_dir
+from ..paths import REPO, fmu_dir, in_checkout
 
 NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
@@ -65,11 +65,12 @@ def resolve_fmu(spec: str, base_dir: Path | None = None) -> Path:
     known = sorted(q.stem for q in d.glob("*.fmu")) if d.is_dir() else []
     close = difflib.get_close_matches(spec, known, n=1)
     hint = f" (did you mean {close[0]}?)" if close else ""
-    src = f"; there is no src_c/models/{spec} either" if not (REPO / "src_c" / "models" / spec).is_dir() else ""
-    raise FmuError(
-        f"no FMU named {spec}{hint}: looked for {p} (the FMU directory is $CLOCKWORK_FMU_DIR, "
-        f"else <repo>/fmus; build the FMUs with `cmake --build build`{src})"
-    )
+    if in_checkout():
+        src = f"; there is no src_c/models/{spec} either" if not (REPO / "src_c" / "models" / spec).is_dir() else ""
+        where = f"else <repo>/fmus; build the FMUs with `cmake --build build`{src}"
+    else:
+        where = f"else the FMUs installed with clockwork: {', '.join(known) or 'none'}"
+    raise FmuError(f"no FMU named {spec}{hint}: looked for {p} (the FMU directory is $CLOCKWORK_FMU_DIR, {where})")
 
 
 def read_fmu(path: Path, need_binary: bool = True) -> tuple[Any, str, tuple[str, ...]]:

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UsageError
+from ..paths import scenarios_dir
 from ..physics import analytic
 from ..physics.reference import ClockParams, Vibration, simulate
 
@@ -90,7 +91,7 @@ def _cases() -> list[Case]:
              stop=20.0, grid=0.01,
              tolerances=Tolerances({"phi": 1e-9, "w": 5e-9}, ticks_s=1e-9),
              phi="phi", w="w", tube_signals=("phi", "w"), switch_signal=None),
-        Case("GrasshopperClock", "ssp", "scenarios/core_grasshopper.toml",
+        Case("GrasshopperClock", "ssp", "core_grasshopper.toml",
              "The grasshopper clock (Pendulum + GrasshopperEscapement), 100 s",
              "The relay escapement's switches at phi = +-phi_r: a master must switch the torque "
              "where phi crosses the switch angle, not at the next communication point. "
@@ -103,7 +104,7 @@ def _cases() -> list[Case]:
              "edge: two switches per period, each a discontinuity of the pendulum's acceleration.",
              stop=60.0, grid=0.01,
              tolerances=Tolerances({"pendulum.phi": 1e-9, "pendulum.w": 1e-9}, ticks_s=1e-9, switches_s=5e-6)),
-        Case("DragClock", "ssp", "scenarios/core_grasshopper_drag.toml",
+        Case("DragClock", "ssp", "core_grasshopper_drag.toml",
              "The grasshopper clock with air drag (Pendulum + GrasshopperEscapement + Drag), 100 s",
              "A direct-feedthrough element (drag torque -(c1 w + c2 w|w|) from the pendulum's velocity) "
              "in the loop beside the relay: a master must feed it without a step's delay.",
@@ -119,7 +120,7 @@ def _cases() -> list[Case]:
              overrides=(f"pendulum.w_start={_hoyng_w_start()!r}", "experiment.stop=125.66"),
              tolerances=Tolerances({"pendulum.phi": 1e-9, "pendulum.w": 1e-9}, ticks_s=2e-8, switches_s=1e-5),
              jump=(10.0 * HOYNG_T0, "escapement.vibration_velocity", 0.0, 1.0)),
-        Case("VibratingClock", "ssp", "scenarios/core_vibration.toml",
+        Case("VibratingClock", "ssp", "core_vibration.toml",
              "The clock with a vibrating mechanism (Pendulum + GrasshopperEscapement + MechanismVibration), 16 s",
              "Two dynamic FMUs coupled both ways (phi to the mechanism, its torque back), plus the "
              "relay. The horizon, 16 s, is shorter than the Lyapunov time of the two-oscillator "
@@ -143,17 +144,13 @@ def case(name: str) -> Case:
     return CASES[name]
 
 
-def repo_root() -> Path:
-    return HERE.parents[1]
-
-
 def load_case_scene(c: Case, extra: tuple = ()):
     """The case's scene (run layer's loader, every kind registered)."""
     from ..run.catalog import load_scene
 
     path = Path(c.scene)
-    if not path.is_absolute():
-        path = repo_root() / path
+    if not path.is_absolute():  # a scene that comes with clockwork
+        path = scenarios_dir() / path
     return load_scene(path, list(c.overrides) + list(extra))
 
 

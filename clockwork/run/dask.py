@@ -23,6 +23,7 @@ import tomllib
 from pathlib import Path
 
 from ..atomic import write_bytes_atomic, write_text_atomic
+from ..errors import UsageError
 from ..paths import cache_root, scratch_dir
 from .catalog import load_scene
 from .points import point_key, run_point
@@ -108,7 +109,10 @@ def run_on_dask(scheduler_address, scene, points: list[dict], indices: list[int]
     `scheduler_address` is an address ("tcp://host:8786") or a
     distributed.Client.
     """
-    from distributed import Client, as_completed  # the optional extra, imported only when used
+    try:
+        from distributed import Client, as_completed  # the optional extra, imported only when used
+    except ImportError:
+        raise UsageError("--scheduler needs Dask: pip install 'clockwork-fmi[dask]'") from None
 
     own = not isinstance(scheduler_address, Client)
     client = Client(scheduler_address) if own else scheduler_address

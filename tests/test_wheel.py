@@ -1,0 +1,111 @@
+"""The wheel, as a user gets it: built from this checkout, installed into a
+fresh virtual environment outside the checkout, and used from a directory
+that is not the checkout. It must carry the FMUs and the scenes itself.
+
+The venv is empty: pip installs the wheel and its dependencies into it (from
+the index, or pip's cache), as it would for a user; the test checks that the
+package it runs lives in the venv, not in this checkout.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import zipfile
+
+import pytest
+
+from cwtest import ROOT
+
+
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("wheel")
+    dist = tmp / "dist"
+    r = subprocess.run([sys.executable, "-m", "pip", "wheel", str(ROOT), "--no-deps", "-w", str(dist), "-q"],
+                       capture_output=True, text=True, timeout=1200)
+    assert r.returncode == 0, r.stderr[-3000:]
+    (wheel,) = dist.glob("clockwork_fmi-*.whl")
+    venv = tmp / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
+    r = subprocess.run([str(venv / "bin" / "python"), "-m", "pip", "install", "-q", str(wheel)],
+                       capture_output=True, text=True, timeout=1200)
+    assert r.returncode == 0, r.stderr[-3000:]
+    work = tmp / "elsewhere"
+    work.mkdir()
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "CLOCKWORK_FMU_DIR", "VIRTUAL_ENV")}
+    env.update(PATH=f"{venv / 'bin'}{os.pathsep}{env['PATH']}", CLOCKWORK_CACHE=str(tmp / "cache"),
+               MPLBACKEND="Agg")
+
+    def clockwork(*args, check=True):
+        p = subprocess.run([str(venv / "bin" / "clockwork"), *map(str, args)], cwd=work, env=env,
+                           capture_output=True, text=True, timeout=900)
+        if check:
+            assert p.returncode == 0, (args, p.stdout[-2000:], p.stderr[-2000:])
+        return p
+
+    return wheel, venv, work, env, clockwork
+
+
+@pytest.mark.slow
+def test_the_wheel_carries_the_fmus_scenes_and_license(installed):
+    wheel = installed[0]
+    names = zipfile.ZipFile(wheel).namelist()
+    fmus = sorted(n.rsplit("/", 1)[1] for n in names if n.startswith("clockwork/data/fmus/"))
+    assert fmus == sorted(f"{p.name}.fmu" for p in (ROOT / "src_c" / "models").iterdir() if p.is_dir())
+    scenes = {n.rsplit("/", 1)[1] for n in names if n.startswith("clockwork/data/scenarios/")}
+    assert scenes == {p.name for p in (ROOT / "scenarios").iterdir() if p.suffix in (".toml", ".json")}
+    assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
+    meta = zipfile.ZipFile(wheel).read(next(n for n in names if n.endswith(".dist-info/METADATA"))).decode()
+    assert "Name: clockwork-fmi" in meta and "License-Expression: MIT" in meta
+    dask = [ln for ln in meta.splitlines() if ln.startswith("Requires-Dist: dask")]
+    assert dask and all("extra ==" in ln for ln in dask)  # an optional extra, never required
+
+
+@pytest.mark.slow
+def test_the_package_runs_from_the_venv(installed):
+    _, venv, work, env, _ = installed
+    p = subprocess.run([str(venv / "bin" / "python"), "-c", "import clockwork; print(clockwork.__file__)"],
+                       cwd=work, env=env, capture_output=True, text=True)
+    assert p.returncode == 0 and str(venv) in p.stdout, p
+
+
+@pytest.mark.slow
+def test_list_info_run_export_gallery_from_anywhere(installed):
+    _, venv, work, env, clockwork = installed
+    listed = clockwork("list").stdout
+    assert "ziemkiewicz_fig4a.toml" in listed and "core_grasshopper.toml" in listed
+    info = clockwork("info", "Pendulum").stdout
+    assert info.startswith("Pendulum (FMI 2.0 Co-Simulation)") and str(venv) in info
+    clockwork("run", "core_grasshopper", "--out", "run", "--no-progress")
+    summary = json.loads((work / "run" / "summary.json").read_text())
+    assert all((work / "run" / f).is_file() for f in summary["files"])
+    clockwork("export-ssp", "core_grasshopper", "--out", "clock.ssp")
+    assert zipfile.is_zipfile(work / "clock.ssp")
+    clockwork("gallery", "--quick", "--only", "core_grasshopper", "--out", "gallery")
+    assert (work / "gallery" / "index.md").is_file()
+
+
+@pytest.mark.slow
+def test_the_regression_kit_from_the_wheel(installed):
+    _, _, work, _, clockwork = installed
+    clockwork("export-suite", "kit")
+    assert (work / "kit" / "suite.json").is_file()
+
+
+def test_scheduler_without_dask_is_one_line(tmp_path, capsys, monkeypatch):
+    import importlib.util
+
+    from clockwork import cli
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "distributed" else real(name, *a))
+    rc = cli.main(["run", str(ROOT / "scenarios" / "core_grasshopper.toml"), "--out", str(tmp_path / "d"),
+                   "--scheduler", "tcp://127.0.0.1:1"])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1 and "pip install 'clockwork-fmi[dask]'" in err
+    assert not (tmp_path / "d").exists()
