@@ -12,6 +12,10 @@ phi0 = 0.03) on its stationary swing, side by side in one process:
 The difference is the master's own work per period; `clockwork bench`
 measures the whole `hoyng_long_run` analysis on top of it.
 
+3. the yardstick: Hoyng's own method compiled, classical RK4 at dt = 0.03
+   on the whole clock (benchmarks/hoyng_rk4.c, built with the system's C
+   compiler into a temporary folder): the ratios to it are printed.
+
 Each is run with each Runge-Kutta pair of the Pendulum (`integrator` 1 =
 Dormand-Prince 5(4), 2 = DOP853; 0 = the FMU's default, chosen by rtol).
 The right-hand-side evaluations per period of case 1 are counted by
@@ -121,6 +125,33 @@ def bare_master(periods: int, integrator: int = 0) -> tuple[float, dict]:
     return wall / periods * 1e6, per
 
 
+def compiled_rk4(periods: int, dt: float = 0.03) -> float:
+    """us per period of benchmarks/hoyng_rk4.c (built here with cc -O2)."""
+    import shutil
+    import subprocess
+    import tempfile
+
+    cc = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    if cc is None:
+        raise SystemExit("bench_hoyng_period: no C compiler (cc, gcc or clang) for the RK4 yardstick")
+    with tempfile.TemporaryDirectory(prefix="hoyng_rk4.") as tmp:
+        lib_path = Path(tmp) / "hoyng_rk4.so"
+        subprocess.run([cc, "-O2", "-shared", "-fPIC", "-o", str(lib_path), str(ROOT / "benchmarks" / "hoyng_rk4.c"),
+                        "-lm"], check=True)
+        lib = ctypes.CDLL(str(lib_path))
+        lib.hoyng_rk4.restype = ctypes.c_long
+        lib.hoyng_rk4.argtypes = [ctypes.POINTER(ctypes.c_double), ctypes.c_long] + [ctypes.c_double] * 4
+        lam = analytic.hoyng_stationary_amplitude(MU0, EPS, PHI0)
+        state = (ctypes.c_double * 3)(lam, 0.0, -1.0)
+        steps = round(periods * TWO_PI / dt)
+        t0 = time.perf_counter()
+        ticks = lib.hoyng_rk4(state, steps, dt, EPS, MU0, PHI0)
+        wall = time.perf_counter() - t0
+        if abs(ticks - periods) > 1:
+            raise SystemExit(f"bench_hoyng_period: the RK4 clock ticked {ticks} times in {periods} periods")
+        return wall / periods * 1e6
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--periods", type=int, default=2000)
@@ -133,12 +164,17 @@ def main(argv=None) -> int:
     alone = {i: [] for i in a.integrators}
     master = {i: [] for i in a.integrators}
     per = {}
+    rk4 = []
     for _ in range(a.repeats):  # interleaved, so that machine noise hits all alike
+        rk4.append(compiled_rk4(max(a.periods, 20000)))
         for i in a.integrators:
             alone[i].append(pendulum_alone(a.periods, i))
             us, per[i] = bare_master(a.periods, i)
             master[i].append(us)
     print(f"# Hoyng's clock at point C, {a.periods} periods, median of {a.repeats} (us per period)")
+    yard = statistics.median(rk4)
+    print(f"Compiled RK4 of the whole clock, dt = 0.03 (Hoyng's method, {round(TWO_PI / 0.03)} steps per period): "
+          f"{yard:.2f} (all runs: {', '.join(f'{v:.2f}' for v in rk4)})")
     for i in a.integrators:
         rhs, steps, same = evaluations_alone(a.count_periods, i)
         print(f"## integrator = {i} ({names[i]})")
@@ -147,7 +183,9 @@ def main(argv=None) -> int:
               f"{rhs:.1f} right-hand sides and {steps:.1f} RK steps per period "
               f"(replay == FMU: {'yes' if same else 'NO'})")
         print(f"Pendulum + GrasshopperEscapement, bare Master.run_until: {statistics.median(master[i]):.1f} "
-              f"(all runs: {', '.join(f'{v:.1f}' for v in master[i])})")
+              f"(all runs: {', '.join(f'{v:.1f}' for v in master[i])}); "
+              f"{statistics.median(master[i]) / yard:.1f}x the compiled RK4 (FMU alone: "
+              f"{statistics.median(alone[i]) / yard:.1f}x)")
         print("per period: " + ", ".join(f"{k} {v:.2f}" for k, v in per[i].items() if v))
     return 0
 

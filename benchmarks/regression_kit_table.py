@@ -28,6 +28,7 @@ import math
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -93,13 +94,17 @@ def calibrate(out: Path) -> dict:
 
 
 def _run_tool(tool: str, cdir: Path, h: float, out: Path) -> tuple[Path | None, str, float]:
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    # ecos unpacks every SSP into the temporary directory and leaves it there: give each run its own.
+    scratch = tempfile.TemporaryDirectory(prefix="kit_tool.")
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""), TMPDIR=scratch.name)
     t0 = time.perf_counter()
     try:
         p = subprocess.run([sys.executable, "-m", "clockwork.kit.tools", tool, str(cdir), "--step", repr(h),
                             "--out", str(out)], capture_output=True, text=True, timeout=1800, env=env)
     except subprocess.TimeoutExpired:
         return None, "timeout", time.perf_counter() - t0
+    finally:
+        scratch.cleanup()
     wall = time.perf_counter() - t0
     if p.returncode != 0:
         last = (p.stderr.strip().splitlines() or ["?"])[-1]

@@ -296,3 +296,36 @@ def test_an_fmu_failure_is_reported_with_its_own_message():
         sysm.master.run_until(10.0)
     assert e.value.instance == "vibration"
     assert "MechanismVibration" in str(e.value) and "discarded" in str(e.value)
+
+
+def test_output_derivatives_are_asked_for_only_after_initialization(monkeypatch):
+    """fmi2GetRealOutputDerivatives is allowed once initialization is over
+    (FMI 2.0 state machine): the master asks then, and the FMUs answer, so
+    extrapolation uses their derivatives. Asked earlier, the FMU refused and
+    the master fell back to finite differences without a word."""
+    from clockwork.engine import fmu as fmu_module
+
+    asked_in_init = []
+    real = fmu_module.Instance.output_derivatives
+
+    def watched(self, names, order):
+        if not getattr(self, "_initialized_for_test", False):
+            asked_in_init.append((self.name, tuple(names)))
+        return real(self, names, order)
+
+    real_exit = fmu_module.Instance.exit_init
+
+    def exit_init(self):
+        real_exit(self)
+        self._initialized_for_test = True
+
+    monkeypatch.setattr(fmu_module.Instance, "output_derivatives", watched)
+    monkeypatch.setattr(fmu_module.Instance, "exit_init", exit_init)
+    comps = {"pendulum": ("Pendulum", dict(Q=0.0, phi_start=0.1)),
+             "vibration": ("MechanismVibration", dict(kappa=0.0, C1=1.0, C2=1.0))}
+    links = ["pendulum.phi -> vibration.a1", "vibration.tau -> pendulum.tau_coupling"]
+    with System(comps, links, MasterSettings(step=0.01, extrapolation=2, order="jacobi")) as s:
+        assert asked_in_init == []
+        sources = s.master.coupling.derivative_sources
+        assert set(sources) == {("pendulum", 0), ("vibration", 0)}  # both inputs from FMU derivatives
+        s.master.run_until(0.1)

@@ -10,11 +10,13 @@ import signal
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
+from ..paths import scratch_dir
 from ..run.catalog import load_scene
 from ..scene.ssp import export_ssp
 from .config import BenchConfig, PEER_MODULES, ROOT, Row
@@ -94,11 +96,16 @@ def run_peer(cfg: BenchConfig, tool: str, ssp: Path, steps: int, step: float, na
            tool, str(ssp), "--steps", str(steps), "--step", repr(step), "--out", str(out), *names]
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
+    # ecos unpacks each SSP into the temporary directory and leaves it: a folder of our own, removed after.
+    scratch = tempfile.TemporaryDirectory(prefix="peer.", dir=scratch_dir())
+    env["TMPDIR"] = scratch.name
     t0 = time.perf_counter()
     try:
         p = subprocess.run(cmd, capture_output=True, text=True, timeout=cfg.peer_timeout_s, env=env)
     except subprocess.TimeoutExpired:
         return None, math.nan, time.perf_counter() - t0, f"timed out after {cfg.peer_timeout_s:g} s"
+    finally:
+        scratch.cleanup()
     process = time.perf_counter() - t0
     if p.returncode != 0:
         if p.returncode < 0:

@@ -35,10 +35,15 @@ class InputCoupling:
         self.order = extrapolation
         self.dynamic = dynamic
         self.history = {p.inst.name: _History() for p in dynamic}
-        self.derivative_sources = self._derivative_sources() if extrapolation else {}
+        # Filled by find_derivative_sources once the FMUs are initialized:
+        # fmi2GetRealOutputDerivatives is not allowed before that.
+        self.derivative_sources: dict = {}
 
-    def _derivative_sources(self) -> dict:
-        """For each dynamic input: a source offering output derivatives, if any."""
+    def find_derivative_sources(self) -> None:
+        """For each dynamic input: a source offering output derivatives, if any
+        (asked of the FMU itself, after initialization)."""
+        if not self.order:
+            return
         found = {}
         for p in self.dynamic:
             for k, src, j in p.sources:
@@ -52,7 +57,7 @@ class InputCoupling:
                         m = 2 if inst.max_output_derivative_order >= 2 else 1
                         found[(p.inst.name, k)] = (
                             inst, (c_uint * 2)(var.vr, var.vr), (c_int * 2)(1, 2), (c_double * 2)(), m)
-        return found
+        self.derivative_sources = found
 
     def set_inputs(self, p: Port, t: float, h: float, smooth: bool,
                    coupling_end: tuple[list[float], list[float]] | None = None) -> None:

@@ -90,6 +90,7 @@ class Master:
         for inst in self.instances.values():
             inst.exit_init()
         ports.propagate(ports.order, self.t)
+        self.coupling.find_derivative_sources()
         self.t = self.start_time
         self._reset_soft_state()
         loc = self.locator
