@@ -13,7 +13,6 @@ of m g L, switch angle phi0 (= Ziemkiewicz's alpha_r).
 import math
 
 import numpy as np
-from scipy import integrate, special
 
 SECONDS_PER_DAY = 86400.0
 
@@ -117,6 +116,8 @@ def hoyng_circular(lam, bessel=True):
     if not bessel:
         out = -(lam**2) / 16.0
     else:
+        from scipy import special  # start-up: most runs never need a Bessel function
+
         safe = np.where(lam == 0.0, 1.0, lam)
         out = np.where(lam == 0.0, 0.0, special.j1(safe) / safe - 0.5)
     return out[()]
@@ -170,6 +171,8 @@ def hoyng_phase_shift(mu0, mu1, eps, phi0):
             return 0.0
         lam = math.sqrt(2.0 * phi0 / (math.pi * eps) * (mu1 - (mu1 - mu0) * u))
         return (hoyng_rate(lam, mu1, phi0) - rate_b) / (2.0 * eps * u)
+
+    from scipy import integrate  # start-up: only the torque-jump headline needs it
 
     value, _ = integrate.quad(integrand, 0.0, 1.0, epsabs=0.0, epsrel=1e-12, limit=200)
     return value
