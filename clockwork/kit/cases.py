@@ -89,7 +89,7 @@ def _cases() -> list[Case]:
              "A tool passes if it reproduces phi and w on the 0.01 s grid and the upward zero "
              "crossings of phi (ticks).",
              stop=20.0, grid=0.01,
-             tolerances=Tolerances({"phi": 1e-9, "w": 5e-9}, ticks_s=1e-9),
+             tolerances=Tolerances({"phi": 1e-9, "w": 1e-9}, ticks_s=1e-9),
              phi="phi", w="w", tube_signals=("phi", "w"), switch_signal=None),
         Case("GrasshopperClock", "ssp", "core_grasshopper.toml",
              "The grasshopper clock (Pendulum + GrasshopperEscapement), 100 s",
