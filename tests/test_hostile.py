@@ -130,6 +130,14 @@ def nested(depth):
     return "[scene]\ntitle = \"deep\"\n[x]\ny = " + "[" * depth + "]" * depth + "\n"
 
 
+def with_file(name: str, data: bytes, case: str):
+    """`compare` of a result file holding `data` against `case`."""
+    def build(d: Path):
+        (d / name).write_bytes(data)
+        return ["compare", d / name, case]
+    return build
+
+
 def out_below_file(d: Path):
     (d / "afile").write_text("x")
     return ["run", scene(TINY)(d), "--out", d / "afile" / "below", "--no-progress"]
@@ -195,6 +203,13 @@ CASES = [
     Case("gallery unknown figure", gallery_unknown, 2, "no_such_figure"),
     Case("export-ssp below a file", export_ssp_below_file, 2, "afile"),
     Case("export-ssp not .ssp", export_ssp_bad_suffix, 2, "x.zip", ".ssp"),
+    Case("compare missing result", lambda d: ["compare", d / "nope.csv", "GrasshopperClock"], 2, "nope.csv"),
+    Case("compare without a time column", with_file("r.csv", b"a,b\n1,2\n3,4\n", "GrasshopperClock"), 2,
+         "r.csv", "time"),
+    Case("compare unknown case", with_file("r.csv", b"time,phi\n0,0\n1,1\n", "NoSuchCase"), 2, "NoSuchCase"),
+    Case("compare binary result", with_file("r.csv", b"\xff\xfe\x00", "GrasshopperClock"), 2, "r.csv"),
+    Case("export-suite below a file", lambda d: out_below_file(d) and ["export-suite", d / "afile" / "kit"], 2,
+         "afile"),
     # --- the scene file
     Case("missing scene", lambda d: ["validate", d / "missing.toml"], 2, "missing.toml", "no such scene file"),
     Case("scene is a directory", scene_is_dir, 2, "dir.toml"),
