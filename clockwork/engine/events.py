@@ -47,27 +47,44 @@ def _hermite_coefficients(h: float, z0: float, dz0: float, z1: float, dz1: float
     return a, b, c, d
 
 
-def hermite_root(h: float, z0: float, dz0: float, z1: float, dz1: float) -> float | None:
-    """Root in (0, h) of the cubic Hermite interpolant of (z, dz/dt) at 0 and h.
+def _quintic_coefficients(h: float, z0: float, dz0: float, ddz0: float, z1: float, dz1: float, ddz1: float):
+    """p(s) = sum c[k] s^k on s in [0, 1] (s = x/h) matching z, dz/dt and d2z/dt2 at both ends."""
+    c0, c1, c2 = z0, h * dz0, 0.5 * h * h * ddz0
+    a = z1 - (c0 + c1 + c2)
+    b = h * dz1 - (c1 + 2.0 * c2)
+    c = h * h * ddz1 - 2.0 * c2
+    return [c0, c1, c2, 10.0 * a - 4.0 * b + 0.5 * c, -15.0 * a + 7.0 * b - c, 6.0 * a - 3.0 * b + 0.5 * c]
 
-    The first guess of an event search: with the indicator's slopes from the
-    connected outputs' derivatives, it is accurate to O(h^4). Newton's method
-    on the cubic, kept inside the bracket by bisection.
+
+def hermite_root(h: float, z0: float, dz0: float, z1: float, dz1: float,
+                 ddz0: float | None = None, ddz1: float | None = None) -> float | None:
+    """Root in (0, h) of the Hermite interpolant of the indicator over the step.
+
+    The first guess of an event search, with the indicator's derivatives
+    taken from the connected outputs' derivatives: the cubic through (z,
+    dz/dt) at both ends is accurate to O(h^4); given d2z/dt2 at both ends
+    too, the quintic is accurate to O(h^6). Newton's method on the
+    polynomial, kept inside the bracket by bisection.
     """
     if not (z0 * z1 < 0.0 or z1 == 0.0):
         return None
-    a, b, c, d = _hermite_coefficients(h, z0, dz0, z1, dz1)
+    if ddz0 is not None and ddz1 is not None:
+        coef = _quintic_coefficients(h, z0, dz0, ddz0, z1, dz1, ddz1)
+    else:
+        a, b, c, d = _hermite_coefficients(h, z0, dz0, z1, dz1)
+        coef = [d, c, b, a]
+    slope = [k * ck for k, ck in enumerate(coef)][1:]
     lo, hi = 0.0, 1.0
     x = z0 / (z0 - z1) if z0 != z1 else 0.5
     for _ in range(50):
-        f = ((a * x + b) * x + c) * x + d
+        f = _horner(coef, x)
         if f == 0.0:
             break
         if (f > 0.0) == (z0 > 0.0):
             lo = x
         else:
             hi = x
-        df = (3 * a * x + 2 * b) * x + c
+        df = _horner(slope, x)
         x_new = x - f / df if df != 0.0 else 0.5 * (lo + hi)
         if not lo < x_new < hi:
             x_new = 0.5 * (lo + hi)
@@ -76,6 +93,13 @@ def hermite_root(h: float, z0: float, dz0: float, z1: float, dz1: float) -> floa
             break
         x = x_new
     return x * h if 0.0 < x < 1.0 else None
+
+
+def _horner(coef: list[float], x: float) -> float:
+    value = 0.0
+    for ck in reversed(coef):
+        value = value * x + ck
+    return value
 
 
 def hermite_extremum(h: float, z0: float, dz0: float, z1: float, dz1: float) -> float | None:

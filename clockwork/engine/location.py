@@ -6,11 +6,13 @@ step the master compares their signs at the step's two ends (``scan``).
 When one changed, every FMU is rolled back and the step is shortened to
 land just past the earliest crossing (``locate``):
 
-1. the first trial comes from a cubic Hermite interpolant of the lead
-   indicator, its slopes taken from the output derivatives of the single
-   connected output it depends on (the pendulum's dphi/dt = w);
-2. after each trial, a Newton step from the indicator there, aimed a hair
-   past the root, gives the next trial;
+1. the first trial comes from a Hermite interpolant of the lead indicator,
+   its derivatives taken from the output derivatives of the single
+   connected output it depends on (the pendulum's dphi/dt = w): quintic
+   when the source also gives second derivatives, else cubic;
+2. after each trial, a Newton step from the indicator there (second order
+   when the source gives second derivatives), aimed a hair past the root
+   in time, gives the next trial;
 3. the crossing stays bracketed; Illinois iteration takes over when Newton
    has nothing to offer, until the bracket is within the time tolerance or
    the indicator within its own tolerance.
@@ -126,8 +128,9 @@ class EventLocator:
         return out[0]
 
     def slope_source(self, k: int):
-        """For indicator k: ((u, du/dt) now, source port, position, instance, vr)
-        of its source, when that offers a time derivative; else None."""
+        """For indicator k: ((u, du/dt, d2u/dt2 or None) now, source port,
+        position, instance, vr) of its source, when that offers a time
+        derivative; else None."""
         info = self.sources[k]
         if info is None:
             return None
@@ -135,7 +138,8 @@ class EventLocator:
         rate = self.output_rate(inst, vr)
         if rate is None:
             return None
-        return (src.out[pos], rate), src, pos, inst, vr
+        acc = self.output_rate(inst, vr, order=2) if inst.max_output_derivative_order >= 2 else None
+        return (src.out[pos], rate, acc), src, pos, inst, vr
 
     def remember_sources(self) -> None:
         """Values and rates of the indicators' source outputs at this point.
@@ -229,12 +233,16 @@ class EventLocator:
         first = None
         newton = None  # (ratio dz/du, instance, vr, indicator) for Newton steps after each trial
         if slope_end is not None:
-            (u1, du1), src, pos, inst, vr = slope_end
+            (u1, du1, ddu1), src, pos, inst, vr = slope_end
             u0, du0 = src.out[pos], self.output_rate(inst, vr)
+            ddu0 = self.output_rate(inst, vr, order=2) if ddu1 is not None else None
             if du0 is not None and u1 != u0:
+                # The indicator is affine in its source near the crossing: z' = ratio u'.
                 ratio = (z1[lead] - z0[lead]) / (u1 - u0)
-                first = hermite_root(h, z0[lead], ratio * du0, z1[lead], ratio * du1)
-                newton = (ratio, inst, vr, lead)
+                curvature = ddu0 is not None and ddu1 is not None
+                first = hermite_root(h, z0[lead], ratio * du0, z1[lead], ratio * du1,
+                                     ratio * ddu0 if curvature else None, ratio * ddu1 if curvature else None)
+                newton = (ratio, inst, vr, lead, curvature)
         search = Illinois(0.0, z0[lead], h, z1[lead])
         hi, z_hi = h, list(z1)
         z_lo = list(z0)
@@ -259,14 +267,23 @@ class EventLocator:
             last = trial
             z = self.z_end
             if newton is not None and newton[3] == lead:
-                # Newton from this trial, with dz/dt = (dz/du) du/dt, aimed a
-                # hair past the root so that the landing point has crossed.
-                rate = self.output_rate(newton[1], newton[2])
+                # Newton from this trial (second order when the source gives
+                # d2u/dt2), with dz/dt = (dz/du) du/dt, aimed a hair past the
+                # root in time, whichever side of it the trial landed on.
+                ratio, inst, vr, _, curvature = newton
+                rate = self.output_rate(inst, vr)
                 if rate:
-                    slope = newton[0] * rate
+                    slope = ratio * rate
                     delta = -z[lead] / slope
+                    acc = self.output_rate(inst, vr, order=2) if curvature else None
+                    if acc is not None:
+                        # Root of z + z' d + z'' d^2 / 2 nearest to the trial, in a form without cancellation.
+                        bend = ratio * acc
+                        disc = slope * slope - 2.0 * z[lead] * bend
+                        if disc >= 0.0:
+                            delta = -2.0 * z[lead] / (slope + math.copysign(math.sqrt(disc), slope))
                     past = min(0.25 * s.event_time_tolerance, 0.25 * s.event_indicator_tolerance / abs(slope))
-                    first = trial + delta + math.copysign(past, delta)
+                    first = trial + delta + past
             now = [crossed(a, b) for a, b in zip(self.z_start, z)]
             if any(now):
                 earlier = [k for k, c in enumerate(now) if c]
