@@ -20,6 +20,7 @@ import argparse
 import math
 import statistics
 import sys
+import tempfile
 import time
 from ctypes import c_double, c_uint
 from pathlib import Path
@@ -40,12 +41,17 @@ PEND = {"phi_start": math.radians(5.0), "Q": 1000.0}
 ESC = {"torque": 0.004, "phi_r": math.radians(2.0)}
 
 
+# fmpy's extract() leaves its folders behind: unzip under one removed at exit.
+_UNZIP = tempfile.TemporaryDirectory(prefix="bench_master.")
+
+
 def _slaves():
     out = []
     for name, params in (("Pendulum", PEND), ("GrasshopperEscapement", ESC)):
         path = str(fmu_path(name))
         md = read_model_description(path)
-        s = FMU2Slave(guid=md.guid, unzipDirectory=extract(path),
+        unzipped = extract(path, unzipdir=tempfile.mkdtemp(dir=_UNZIP.name))
+        s = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
                       modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
         s.instantiate()
         s.setupExperiment(startTime=0.0)
