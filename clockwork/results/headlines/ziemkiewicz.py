@@ -258,19 +258,26 @@ def _headline_fig5(scene, summary, results):
     return out
 
 
-def _band_width(A, E, band=2.0) -> tuple[float, float, float]:
-    """Widest amplitude interval where E_T stays within a band of `band` s/day."""
+def _band_width(A, E, band=2.0) -> tuple[float, float, float, int]:
+    """Widest amplitude interval where E_T stays within a band of `band` s/day:
+    (width, start, end, how many other disjoint intervals are within 1 % as
+    wide: then where the widest one lies is a near tie, not a plateau)."""
     from scipy.interpolate import PchipInterpolator
 
     a = np.linspace(A[0], A[-1], 4000)
     e = PchipInterpolator(A, E)(a)
-    best, i = (0.0, a[0], a[0]), 0
+    windows, i = [], 0
     for j in range(len(a)):
         while e[i:j + 1].max() - e[i:j + 1].min() > band:
             i += 1
-        if a[j] - a[i] > best[0]:
-            best = (float(a[j] - a[i]), float(a[i]), float(a[j]))
-    return best
+        windows.append((float(a[j] - a[i]), float(a[i]), float(a[j])))
+    best = max(windows, key=lambda w: w[0])
+    rivals = [w for w in windows if w[0] >= 0.99 * best[0] and (w[2] < best[1] or w[1] > best[2])]
+    disjoint, last_end = 0, -math.inf
+    for w in sorted(rivals, key=lambda w: w[1]):
+        if w[1] > last_end:
+            disjoint, last_end = disjoint + 1, w[2]
+    return best + (disjoint,)
 
 
 @headline("ziemkiewicz_fig6")
@@ -312,7 +319,10 @@ def _headline_fig6(scene, summary, results):
             out.append(entry(f"widest A range with E_T within 2 s/day, {PROFILE_NAMES[prof]} torque, c2 = {c2:g}",
                           "wide plateau (paper: with the increasing profile)",
                           f"{w[0]:.2f} deg [{w[1]:.2f}, {w[2]:.2f}]", "",
-                          note=f"without drag: {w0[0]:.2f} deg [{w0[1]:.2f}, {w0[2]:.2f}]"))
+                          note=f"without drag: {w0[0]:.2f} deg [{w0[1]:.2f}, {w0[2]:.2f}]"
+                          + "".join(f"; {name}: {n} other interval(s) within 1 % as wide (no plateau: the "
+                                    "location is a near tie)" for name, n in (("with drag", w[3]),
+                                                                               ("without drag", w0[3])) if n)))
     return out
 
 
