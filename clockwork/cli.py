@@ -187,6 +187,11 @@ def cmd_run(args) -> int:
 
         if importlib.util.find_spec("distributed") is None:
             raise UsageError("--scheduler needs Dask, an optional extra: pip install 'clockwork-fmi[dask]'")
+    if scene.sweep is None and (args.workers or args.scheduler):
+        # Not an error, but not silently dropped either.
+        given = [o for o, v in (("--workers", args.workers), ("--scheduler", args.scheduler)) if v]
+        print(f"clockwork: warning: {' and '.join(given)} {'are' if len(given) > 1 else 'is'} for sweeps; "
+              f"{scene.path.name} is a single run, run in this process", file=sys.stderr)
     out = check_output_dir(args.out)
     from .run.scene_run import run_scene
 

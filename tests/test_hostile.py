@@ -110,6 +110,11 @@ def with_fmu(data: bytes, name="X.fmu"):
     return build
 
 
+def fmu_dir_named_fmu(d: Path):
+    (d / "X.fmu").mkdir()
+    return ["validate", scene(TINY.replace('fmu = "Pendulum"', 'fmu = "X.fmu"'))(d)]
+
+
 def fmu_variant(edit_xml=None, drop=()):
     """Pendulum.fmu with its modelDescription edited or members left out."""
     def build(d: Path):
@@ -214,6 +219,7 @@ CASES = [
     Case("missing scene", lambda d: ["validate", d / "missing.toml"], 2, "missing.toml", "no such scene file"),
     Case("scene is a directory", scene_is_dir, 2, "dir.toml"),
     Case("scene is empty", validate(""), 2, "scene.toml"),
+    Case("scene is an endless device", lambda d: ["validate", "/dev/zero"], 2, "/dev/zero", "at most"),
     Case("scene not UTF-8", validate(b"\xff\xfe[scene]\x00\x81"), 2, "scene.toml"),
     Case("scene malformed TOML", validate("[scene\ntitle = 1"), 2, "scene.toml", "TOML"),
     Case("scene over 1 MiB", validate(TINY + "#" * (1 << 21) + "\n"), 2, "scene.toml", "at most 1048576 bytes"),
@@ -253,6 +259,7 @@ CASES = [
     Case("fmu unknown name", validate(TINY.replace('fmu = "Pendulum"', 'fmu = "Pendulm"')), 2, "scene.toml",
          "components.pendulum.fmu", "Pendulum"),
     Case("fmu garbage", with_fmu(b"\x00garbage\xff" * 10), 2, "scene.toml", "components.pendulum.fmu"),
+    Case("fmu is a directory", fmu_dir_named_fmu, 2, "scene.toml", "components.pendulum.fmu", "is a directory"),
     Case("fmu zip without description", with_fmu(b"PK\x05\x06" + b"\x00" * 18), 2, "scene.toml",
          "components.pendulum.fmu"),
     Case("fmu without binary", fmu_variant(drop=("binaries/",)), 2, "scene.toml", "components.pendulum.fmu"),
@@ -375,3 +382,11 @@ def test_stall_is_a_result(tmp_path, capsys, monkeypatch):
     parsed = json.loads(summary, parse_constant=lambda c: pytest.fail(f"non-strict JSON constant {c}"))
     assert parsed["result"]["stalled"] is True
     assert "stalled: " in out
+
+
+@pytest.mark.parametrize("option", [["--workers", "2"], ["--scheduler", "tcp://127.0.0.1:1"]])
+def test_sweep_options_on_a_single_run_are_not_ignored_silently(hostile_env, capsys, option):
+    rc = cli.main(["run", str(scene(TINY)(hostile_env)), "--out", str(hostile_env / "out"), "--no-progress",
+                   *option])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 0 and len(err) == 1 and err[0].startswith("clockwork: warning: " + option[0]), err

@@ -47,6 +47,8 @@ def resolve_fmu(spec: str, base_dir: Path | None = None) -> Path:
         p = Path(spec).expanduser()
         if not p.is_absolute():
             p = (base_dir or Path.cwd()) / p
+        if p.is_dir():
+            raise FmuError(f"{p} is a directory, not an FMU file (a zip archive)")
         if not p.is_file():
             if Path(spec).is_absolute():
                 where = ""

@@ -59,9 +59,13 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS) -
     """Load, override and validate a scene file; raises SceneError."""
     path = Path(path)
     try:
-        if path.is_file() and path.stat().st_size > MAX_SCENE_BYTES:
-            raise SceneError(f"{path.stat().st_size} bytes: a scene file is at most {MAX_SCENE_BYTES} bytes", path)
-        data = path.read_bytes()
+        # Read at most one byte past the limit: a device or a pipe reports no size.
+        with open(path, "rb") as f:
+            data = f.read(MAX_SCENE_BYTES + 1)
+        if len(data) > MAX_SCENE_BYTES:
+            size = path.stat().st_size if path.is_file() else None
+            raise SceneError(f"{size if size else 'more than ' + str(MAX_SCENE_BYTES)} bytes: "
+                             f"a scene file is at most {MAX_SCENE_BYTES} bytes", path)
     except FileNotFoundError:
         raise SceneError("no such scene file", path) from None
     except IsADirectoryError:
