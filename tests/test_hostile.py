@@ -390,3 +390,16 @@ def test_sweep_options_on_a_single_run_are_not_ignored_silently(hostile_env, cap
                    *option])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 0 and len(err) == 1 and err[0].startswith("clockwork: warning: " + option[0]), err
+
+
+@pytest.mark.parametrize("where", ["a file", "below a file", "/proc"])
+def test_an_unusable_cache_is_one_warning_not_one_per_point(hostile_env, capsys, monkeypatch, where):
+    (hostile_env / "afile").write_text("x")
+    cache = {"a file": hostile_env / "afile", "below a file": hostile_env / "afile" / "sub",
+             "/proc": Path("/proc/clockwork-cache")}[where]
+    monkeypatch.setenv("CLOCKWORK_CACHE", str(cache))
+    rc = cli.main(["run", str(scene(SWEPT)(hostile_env)), "--out", str(hostile_env / "out"), "--no-progress",
+                   "--workers", "1"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 0 and len(err) == 1 and err[0].startswith("clockwork: warning: the point cache"), err
+    assert str(cache) in err[0]

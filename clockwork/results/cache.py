@@ -29,10 +29,31 @@ from .files import write_json_atomic
 _SCALARS = (str, int, float, bool, type(None))
 
 
+# Cache folders found unusable in this process (each reported once).
+_unusable: set[Path] = set()
+
+
 def cache_dir() -> Path | None:
-    """Where points are cached, or None when $CLOCKWORK_CACHE is off/0/empty."""
+    """Where points are cached, or None when $CLOCKWORK_CACHE is off/0/empty
+    or the folder cannot be made (said once, then the run goes on without it)."""
     root = cache_root()
-    return None if root is None else root / source_digest()
+    if root is None:
+        return None
+    d = root / source_digest()
+    if d in _unusable:
+        return None
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        _give_up(d, e)
+        return None
+    return d
+
+
+def _give_up(d: Path, e: OSError) -> None:
+    _unusable.add(d)
+    print(f"clockwork: warning: the point cache {d} cannot be used ({e.strerror or e}): running without it "
+          "(set CLOCKWORK_CACHE to a writable folder, or to off)", file=sys.stderr)
 
 
 def check_point(data, label: dict, kind: str) -> str | None:
@@ -122,8 +143,7 @@ def cache_store(key: str, result: dict) -> None:
     if d is None or "error" in result:
         return
     try:
-        d.mkdir(parents=True, exist_ok=True)
         remove_stale_parts(d)
         write_json_atomic(d / f"{key}.json", result)
-    except OSError:
-        pass  # a read-only or full cache never fails a run
+    except OSError as e:
+        _give_up(d, e)  # a read-only or full cache never fails a run
