@@ -57,3 +57,23 @@ CLOCK_SCENE = textwrap.dedent("""\
     kind = "time_series"
     {sweep}
     """)
+
+
+def run_cli(capsys, argv):
+    """clockwork's CLI in this process: (exit code, stdout, stderr)."""
+    from clockwork import cli
+
+    rc = cli.main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def assert_one_line_error(rc, err, *needles, code=2):
+    """Exit `code` and exactly one stderr line "clockwork: error: ..." holding every needle."""
+    assert rc == code, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("clockwork: error: "), err
+    assert "Traceback" not in err
+    for n in needles:
+        assert n in lines[0], (n, lines[0])

@@ -8,8 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from cwtest import FMU_DIR, fmu_file
-from clockwork import cli
+from cwtest import FMU_DIR, assert_one_line_error, fmu_file, run_cli
 from clockwork.errors import SimulationError
 
 DATA = Path(__file__).resolve().parent / "data" / "scenes"
@@ -24,20 +23,7 @@ def _fmu_dir(monkeypatch):
     monkeypatch.setenv("CLOCKWORK_FMU_DIR", str(FMU_DIR))
 
 
-def run(capsys, argv):
-    rc = cli.main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return rc, out, err
-
-
-def assert_one_line_error(rc, err, *needles, code=2):
-    assert rc == code, err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith("clockwork: error: "), err
-    assert "Traceback" not in err
-    for n in needles:
-        assert n in lines[0], (n, lines[0])
+run = run_cli
 
 
 def test_validate_ok(capsys):

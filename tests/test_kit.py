@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cwtest import FMU_DIR, fmu_file
+from cwtest import FMU_DIR, assert_one_line_error, fmu_file, run_cli
 from clockwork import __version__, cli
 from clockwork.kit import events
 from clockwork.kit.cases import CASES
@@ -21,19 +21,7 @@ def _fmu_dir(monkeypatch):
     monkeypatch.setenv("CLOCKWORK_FMU_DIR", str(FMU_DIR))
 
 
-def run(capsys, argv):
-    rc = cli.main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return rc, out, err
-
-
-def assert_one_line_error(rc, err, *needles, code=2):
-    assert rc == code, err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("clockwork: error: "), err
-    assert "Traceback" not in err
-    for n in needles:
-        assert n in lines[0], (n, lines[0])
+run = run_cli
 
 
 @pytest.fixture(scope="module")
