@@ -183,10 +183,9 @@ def cmd_run(args) -> int:
 
     scene = load_scene(args.scene, args.overrides)
     if args.scheduler:
-        import importlib.util
+        from .run.dask import require_dask
 
-        if importlib.util.find_spec("distributed") is None:
-            raise UsageError("--scheduler needs Dask, an optional extra: pip install 'clockwork-fmi[dask]'")
+        require_dask()  # before the output directory is made
     if scene.sweep is None and (args.workers or args.scheduler):
         # Not an error, but not silently dropped either.
         given = [o for o, v in (("--workers", args.workers), ("--scheduler", args.scheduler)) if v]

@@ -29,7 +29,9 @@ from .files import write_json_atomic
 _SCALARS = (str, int, float, bool, type(None))
 
 
-# Cache folders found unusable in this process (each reported once).
+# Cache folders made (or found unusable, and reported once) in this process:
+# one mkdir per process, not one per point.
+_ready: set[Path] = set()
 _unusable: set[Path] = set()
 
 
@@ -40,6 +42,8 @@ def cache_dir() -> Path | None:
     if root is None:
         return None
     d = root / source_digest()
+    if d in _ready:
+        return d
     if d in _unusable:
         return None
     try:
@@ -47,10 +51,12 @@ def cache_dir() -> Path | None:
     except OSError as e:
         _give_up(d, e)
         return None
+    _ready.add(d)
     return d
 
 
 def _give_up(d: Path, e: OSError) -> None:
+    _ready.discard(d)
     _unusable.add(d)
     print(f"clockwork: warning: the point cache {d} cannot be used ({e.strerror or e}): running without it "
           "(set CLOCKWORK_CACHE to a writable folder, or to off)", file=sys.stderr)

@@ -103,16 +103,22 @@ def _dask_point(b: dict, point_items: list) -> dict:
     return run_point(scene, point, catch=True)
 
 
+def require_dask() -> None:
+    """Refuse --scheduler in one line when the optional Dask extra is not installed."""
+    import importlib.util
+
+    if importlib.util.find_spec("distributed") is None:
+        raise UsageError("--scheduler needs Dask, an optional extra: pip install 'clockwork-fmi[dask]'")
+
+
 def run_on_dask(scheduler_address, scene, points: list[dict], indices: list[int]):
     """Run `points` (with their sweep `indices`) on a Dask cluster; yield (index, result) as they finish.
 
     `scheduler_address` is an address ("tcp://host:8786") or a
     distributed.Client.
     """
-    try:
-        from distributed import Client, as_completed  # the optional extra, imported only when used
-    except ImportError:
-        raise UsageError("--scheduler needs Dask: pip install 'clockwork-fmi[dask]'") from None
+    require_dask()
+    from distributed import Client, as_completed  # the optional extra, imported only when used
 
     own = not isinstance(scheduler_address, Client)
     client = Client(scheduler_address) if own else scheduler_address
