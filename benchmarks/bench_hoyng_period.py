@@ -5,9 +5,10 @@ phi0 = 0.03) on its stationary swing, side by side in one process:
 
 1. the Pendulum FMU alone, doStep in a loop with 7 steps per period: the
    FMU's own integration work at the scene's rtol 1e-10;
-2. Pendulum + GrasshopperEscapement under a bare ``Master.run_until`` with
-   the scene's settings (Jacobi, 2 pi step, switches located), with the
-   master's statistics per period.
+2. Pendulum + GrasshopperEscapement under a bare ``run_until`` with the
+   scene's settings (Jacobi, 2 pi step, switches located), with the
+   master's statistics per period, on each engine (master.engine =
+   "python", the reference loop, and "compiled", the C stepping core).
 
 The difference is the master's own work per period; `clockwork bench`
 measures the whole `hoyng_long_run` analysis on top of it.
@@ -24,7 +25,11 @@ default build/) and the same right-hand side in Python, including the dense
 output and the two polishing steps of each tick; the replay is checked to
 end on the FMU's state bit for bit.
 
+4. the whole hoyng_fig6 scene's analysis in this process, on each engine
+   (the Python engine for a fifth of the periods: it is slower).
+
     python benchmarks/bench_hoyng_period.py [--periods 2000] [--repeats 3] [--integrators 1 2]
+                                            [--scene-periods 20000]
 """
 
 from __future__ import annotations
@@ -47,6 +52,7 @@ from clockwork.engine import MasterSettings  # noqa: E402
 from clockwork.engine import System  # noqa: E402
 
 TWO_PI = 2.0 * math.pi
+ENGINES = ("python", "compiled")
 EPS, MU0, PHI0 = 1.167245e-4, 1.5e-5, 0.03
 PEND = dict(L=1.0, g=1.0, m=1.0, Q=1.0 / (2.0 * EPS), rtol=1e-10, atol=1e-12)
 LINKS = ["pendulum.phi -> escapement.phi", "pendulum.w -> escapement.w",
@@ -109,12 +115,13 @@ def evaluations_alone(periods: int, integrator: int) -> tuple[float, float, bool
     return len(prob.times) / periods, steps / periods, same
 
 
-def bare_master(periods: int, integrator: int = 0) -> tuple[float, dict]:
-    """us per period of Master.run_until with the scene's settings, and its statistics per period."""
+def bare_master(periods: int, integrator: int = 0, engine: str = "compiled") -> tuple[float, dict]:
+    """us per period of Master.run_until with the scene's settings on the
+    given engine (master.engine), and its statistics per period."""
     lam = analytic.hoyng_stationary_amplitude(MU0, EPS, PHI0)
     with System({"pendulum": ("Pendulum", dict(PEND, phi_start=lam, integrator=integrator)),
                  "escapement": ("GrasshopperEscapement", dict(torque=MU0, phi_r=PHI0))},
-                LINKS, MasterSettings(step=TWO_PI, order="jacobi"), record={"pendulum": ["tick_time"]}) as s:
+                LINKS, MasterSettings(step=TWO_PI, order="jacobi", engine=engine), record={"pendulum": ["tick_time"]}) as s:
         m = s.master
         m.run_until(50 * TWO_PI)  # past the first steps
         before = dict(vars(m.stats))
@@ -122,7 +129,22 @@ def bare_master(periods: int, integrator: int = 0) -> tuple[float, dict]:
         m.run_until(m.t + periods * TWO_PI)
         wall = time.perf_counter() - t0
         per = {k: (v - before[k]) / periods for k, v in vars(m.stats).items()}
+        per["outputs"] = [s.output("pendulum", "tick_time")]
     return wall / periods * 1e6, per
+
+
+def full_scene(periods: int, engine: str) -> tuple[float, float]:
+    """us per period of the whole hoyng_fig6 scene's analysis (hoyng_long_run:
+    the co-simulation with its tick points and torque noise from the start,
+    then the AveragedPendulum twins replayed), run in this process on the
+    given engine: (co-simulation alone, the whole analysis)."""
+    from clockwork.analyses.registry import run_analysis
+    from clockwork.run.catalog import load_scene
+
+    scene = load_scene("hoyng_fig6", [f"experiment.stop={periods * TWO_PI!r}", "escapement.noise_start=0",
+                                      f"master.engine={engine}"])
+    res = run_analysis(scene, {})["result"]
+    return res["wall_time_cosimulation_s"] / periods * 1e6, res["wall_time_run_s"] / periods * 1e6
 
 
 def compiled_rk4(periods: int, dt: float = 0.03) -> float:
@@ -159,22 +181,36 @@ def main(argv=None) -> int:
     ap.add_argument("--integrators", type=int, nargs="+", default=[1, 2],
                     help="Pendulum integrator values (0 auto, 1 DP5(4), 2 DOP853)")
     ap.add_argument("--count-periods", type=int, default=50, help="periods replayed to count evaluations")
+    ap.add_argument("--scene-periods", type=int, default=20000,
+                    help="periods of the whole hoyng_fig6 scene per run (0: skip it)")
     a = ap.parse_args(argv)
     names = {0: "auto", 1: "DP5(4)", 2: "DOP853"}
     alone = {i: [] for i in a.integrators}
-    master = {i: [] for i in a.integrators}
+    master = {(i, e): [] for i in a.integrators for e in ENGINES}
     per = {}
     rk4 = []
+    scene = {e: [] for e in ENGINES}
     for _ in range(a.repeats):  # interleaved, so that machine noise hits all alike
         rk4.append(compiled_rk4(max(a.periods, 20000)))
+        if a.scene_periods:
+            for e in ENGINES:
+                scene[e].append(full_scene(a.scene_periods if e == "compiled" else max(1, a.scene_periods // 5), e))
         for i in a.integrators:
             alone[i].append(pendulum_alone(a.periods, i))
-            us, per[i] = bare_master(a.periods, i)
-            master[i].append(us)
+            for e in ENGINES:
+                us, per[i, e] = bare_master(a.periods, i, e)
+                master[i, e].append(us)
     print(f"# Hoyng's clock at point C, {a.periods} periods, median of {a.repeats} (us per period)")
     yard = statistics.median(rk4)
     print(f"Compiled RK4 of the whole clock, dt = 0.03 (Hoyng's method, {round(TWO_PI / 0.03)} steps per period): "
           f"{yard:.2f} (all runs: {', '.join(f'{v:.2f}' for v in rk4)})")
+    for e in ENGINES if a.scene_periods else ():
+        cosim = statistics.median(c for c, _ in scene[e])
+        whole = statistics.median(w for _, w in scene[e])
+        print(f"Whole hoyng_fig6 scene (hoyng_long_run, noise from the start), engine {e}: co-simulation {cosim:.1f} "
+              f"({cosim / yard:.1f}x the RK4), whole analysis {whole:.1f} ({whole / yard:.1f}x; all runs: "
+              f"{', '.join(f'{w:.1f}' for _, w in scene[e])}); 110 days (4.84e6 periods) in about "
+              f"{whole * 4.84e6 / 1e6:.0f} s")
     for i in a.integrators:
         rhs, steps, same = evaluations_alone(a.count_periods, i)
         print(f"## integrator = {i} ({names[i]})")
@@ -182,11 +218,16 @@ def main(argv=None) -> int:
               f"(all runs: {', '.join(f'{v:.1f}' for v in alone[i])}); "
               f"{rhs:.1f} right-hand sides and {steps:.1f} RK steps per period "
               f"(replay == FMU: {'yes' if same else 'NO'})")
-        print(f"Pendulum + GrasshopperEscapement, bare Master.run_until: {statistics.median(master[i]):.1f} "
-              f"(all runs: {', '.join(f'{v:.1f}' for v in master[i])}); "
-              f"{statistics.median(master[i]) / yard:.1f}x the compiled RK4 (FMU alone: "
-              f"{statistics.median(alone[i]) / yard:.1f}x)")
-        print("per period: " + ", ".join(f"{k} {v:.2f}" for k, v in per[i].items() if v))
+        for e in ENGINES:
+            us = statistics.median(master[i, e])
+            print(f"Pendulum + GrasshopperEscapement, bare run_until, engine {e}: {us:.1f} "
+                  f"(all runs: {', '.join(f'{v:.1f}' for v in master[i, e])}); "
+                  f"{us / yard:.1f}x the compiled RK4 (FMU alone: {statistics.median(alone[i]) / yard:.1f}x)")
+        same = per[i, "python"] == per[i, "compiled"]
+        print("per period: " + ", ".join(f"{k} {v:.2f}" for k, v in per[i, "compiled"].items()
+                                         if k != "outputs" and v)
+              + f"; python and compiled engines agree on every statistic and the last tick bit for bit: "
+              f"{'yes' if same else 'NO'}")
     return 0
 
 

@@ -6,10 +6,14 @@ three ways, side by side in one process, and prints medians of R repeats:
 1. fmpy's convenience calls (FMU2Slave.doStep/getReal/setReal);
 2. raw ctypes calls with preallocated arrays and no logic beyond the data
    flow: the floor for any Python master on these FMUs;
-3. clockwork's Master (event location off, then on).
+3. the same calls from C (benchmarks/raw_fmi_loop.c, built here with the
+   system's C compiler): the floor for any master, the FMUs' own work;
+4. clockwork's master on each engine (master.engine = "python", the
+   reference loop, and "compiled", the C stepping core), event location
+   off, then on.
 
-The time spent inside the FMUs is the same in all three; the difference
-between (3) and (2) is what the master's own logic costs.
+The time spent inside the FMUs is the same in all; the difference between
+a master and the C floor is what the master's own logic costs.
 
     python benchmarks/bench_master.py [--steps 20000] [--repeats 7]
 """
@@ -120,9 +124,40 @@ def raw_ctypes(steps: int, h: float) -> float:
     return dt
 
 
-def clockwork_master(steps: int, h: float, events: bool) -> float:
+def raw_c(steps: int, h: float) -> float:
+    import ctypes
+    import shutil
+    import subprocess
+
+    cc = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    if cc is None:
+        raise SystemExit("bench_master: no C compiler (cc, gcc or clang) for the C floor")
+    lib_path = Path(_UNZIP.name) / "raw_fmi_loop.so"
+    if not lib_path.exists():
+        subprocess.run([cc, "-O2", "-shared", "-fPIC", "-o", str(lib_path),
+                        str(ROOT / "benchmarks" / "raw_fmi_loop.c")], check=True)
+    lib = ctypes.CDLL(str(lib_path))
+    (p, pv), (e, ev) = _slaves()
+    fn = lambda dll, name: ctypes.cast(getattr(dll, name), ctypes.c_void_p)  # noqa: E731
+    args = [ctypes.c_void_p(p.component), ctypes.c_void_p(e.component),
+            fn(p.dll, "fmi2DoStep"), fn(e.dll, "fmi2DoStep"), fn(p.dll, "fmi2GetReal"), fn(p.dll, "fmi2SetReal"),
+            fn(e.dll, "fmi2GetReal"), fn(e.dll, "fmi2SetReal"),
+            (c_uint * 2)(pv["phi"], pv["w"]), (c_uint * 1)(pv["tau_escapement"]),
+            (c_uint * 2)(ev["phi"], ev["w"]), (c_uint * 1)(ev["tau"]), ctypes.c_long(steps), c_double(h)]
+    t0 = time.perf_counter()
+    rc = lib.raw_fmi_loop(*args)
+    dt = time.perf_counter() - t0
+    if rc:
+        raise SystemExit("bench_master: an FMU refused a call in the C floor loop")
+    for s in (p, e):
+        s.terminate()
+        s.freeInstance()
+    return dt
+
+
+def clockwork_master(steps: int, h: float, events: bool, engine: str) -> float:
     with System({"pendulum": ("Pendulum", PEND), "escapement": ("GrasshopperEscapement", ESC)}, LINKS,
-                MasterSettings(step=h, event_location=events)) as s:
+                MasterSettings(step=h, event_location=events, engine=engine)) as s:
         t0 = time.perf_counter()
         s.master.run_until(steps * h)
         dt = time.perf_counter() - t0
@@ -139,20 +174,23 @@ def main(argv=None) -> int:
     runs = {
         "fmpy FMU2Slave calls": lambda: fmpy_convenience(a.steps, a.step_size),
         "raw ctypes (floor)": lambda: raw_ctypes(a.steps, a.step_size),
-        "clockwork Master, events off": lambda: clockwork_master(a.steps, a.step_size, False),
-        "clockwork Master, events on": lambda: clockwork_master(a.steps, a.step_size, True),
+        "raw C calls (floor)": lambda: raw_c(a.steps, a.step_size),
+        **{f"clockwork {e} engine, events {'on' if ev else 'off'}":
+           (lambda e=e, ev=ev: clockwork_master(a.steps, a.step_size, ev, e))
+           for e in ("python", "compiled") for ev in (False, True)},
     }
     samples = {k: [] for k in runs}
     for _ in range(a.repeats):  # interleaved, so that machine noise hits all alike
         for k, f in runs.items():
             samples[k].append(f() / a.steps * 1e6)
     floor = statistics.median(samples["raw ctypes (floor)"])
+    c_floor = statistics.median(samples["raw C calls (floor)"])
     print(f"# {a.steps} steps of {a.step_size} s, 2 FMUs, median of {a.repeats} (us)")
-    print("| configuration | per step | per FMU-step | above raw ctypes, per FMU-step |")
-    print("|---|---|---|---|")
+    print("| configuration | per step | per FMU-step | above raw ctypes, per FMU-step | above raw C, per FMU-step |")
+    print("|---|---|---|---|---|")
     for k, v in samples.items():
         med = statistics.median(v)
-        print(f"| {k} | {med:.2f} | {med / 2:.2f} | {(med - floor) / 2:+.2f} |")
+        print(f"| {k} | {med:.2f} | {med / 2:.2f} | {(med - floor) / 2:+.2f} | {(med - c_floor) / 2:+.2f} |")
     return 0
 
 

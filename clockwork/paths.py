@@ -64,6 +64,13 @@ def fmu_dir() -> Path:
     return REPO / "fmus" if in_checkout() else _package_data("fmus")
 
 
+def core_library() -> Path:
+    """The master's compiled stepping core: the checkout's lib/ (built by
+    CMake with the FMUs), else the copy installed with the package."""
+    name = "libcw_master.so"
+    return REPO / "lib" / name if in_checkout() else _package_data("lib") / name
+
+
 _scratch: Path | None = None
 _SCRATCH_PREFIX = "clockwork-"
 

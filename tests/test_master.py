@@ -1,5 +1,6 @@
 """The co-simulation master against the monolithic reference and theory."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -26,6 +27,20 @@ PEND = {"L": 1.0, "m": 1.0, "g": 9.81, "Q": 1000.0}
 @pytest.fixture(autouse=True)
 def _fmus(monkeypatch):
     monkeypatch.setenv("CLOCKWORK_FMU_DIR", str(FMU_DIR))
+
+
+@pytest.fixture(autouse=True, params=["python", "compiled"])
+def engine(request, monkeypatch):
+    """Every test here on both engines: the Python reference loop and the
+    compiled core (where the core does not reach, the Python master runs)."""
+    from clockwork.engine import compiled, system
+
+    def make(instances, links, settings, *args, **kw):
+        wanted = request.param if request.param == "python" or not compiled.unsupported(settings) else "auto"
+        return compiled.make_master(instances, links, dataclasses.replace(settings, engine=wanted), *args, **kw)
+
+    monkeypatch.setattr(system, "make_master", make)
+    return request.param
 
 
 def grasshopper(torque, phi_r_deg=2.0, Q=1000.0, step=0.5, **pend):

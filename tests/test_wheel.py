@@ -60,6 +60,7 @@ def test_the_wheel_carries_the_fmus_scenes_and_license(installed):
     scenes = {n.rsplit("/", 1)[1] for n in names if n.startswith("clockwork/data/scenarios/")}
     assert scenes == {p.name for p in (ROOT / "scenarios").iterdir() if p.suffix in (".toml", ".json")}
     assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
+    assert "clockwork/data/lib/libcw_master.so" in names  # the master's compiled core
     meta = zipfile.ZipFile(wheel).read(next(n for n in names if n.endswith(".dist-info/METADATA"))).decode()
     assert "Name: clockwork-fmi" in meta and "License-Expression: MIT" in meta
     dask = [ln for ln in meta.splitlines() if ln.startswith("Requires-Dist: dask")]
@@ -81,8 +82,9 @@ def test_list_info_run_export_gallery_from_anywhere(installed):
     assert "ziemkiewicz_fig4a.toml" in listed and "core_grasshopper.toml" in listed
     info = clockwork("info", "Pendulum").stdout
     assert info.startswith("Pendulum (FMI 2.0 Co-Simulation)") and str(venv) in info
-    clockwork("run", "core_grasshopper", "--out", "run", "--no-progress")
+    clockwork("run", "core_grasshopper", "--out", "run", "--no-progress", "--set", "master.engine=compiled")
     summary = json.loads((work / "run" / "summary.json").read_text())
+    assert summary["settings"]["master"]["engine"] == "compiled"
     assert all((work / "run" / f).is_file() for f in summary["files"])
     clockwork("export-ssp", "core_grasshopper", "--out", "clock.ssp")
     assert zipfile.is_zipfile(work / "clock.ssp")

@@ -7,6 +7,7 @@ communication step costs a few ctypes calls and no Python-side allocation.
 
 from __future__ import annotations
 
+import ctypes
 import json
 import os
 import shutil
@@ -196,8 +197,10 @@ class Instance:
 
         self._callbacks = fmi2CallbackFunctions()
         self._callbacks.logger = fmi2CallbackLoggerTYPE(logger)
-        self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        # libc's own calloc and free, cast rather than wrapped: a wrapper
+        # would be a Python callback on every allocation inside the FMU.
+        self._callbacks.allocateMemory = ctypes.cast(calloc, fmi2CallbackAllocateMemoryTYPE)
+        self._callbacks.freeMemory = ctypes.cast(free, fmi2CallbackFreeMemoryTYPE)
         try:
             self._slave.instantiate(callbacks=self._callbacks)
         except Exception as e:

@@ -92,6 +92,11 @@ class Master:
         ports.propagate(ports.order, self.t)
         self.coupling.find_derivative_sources()
         self.t = self.start_time
+        self._start()
+
+    def _start(self) -> None:
+        """The master's own state at the start: the past forgotten, the
+        indicators read, their sources sampled."""
         self._reset_soft_state()
         loc = self.locator
         loc.z_end = loc.indicators()
@@ -318,6 +323,30 @@ class Master:
                 on_point(self)
             if self.t >= grid - eps:
                 k += 1
+
+    def run_watch(self, t_stop: float, mark: float, margin: float,
+                  watched: list[tuple[Port, int]], remember: list[tuple[Port, int]] = ()) -> list[float]:
+        """Step toward t_stop until one of the `watched` outputs ((port,
+        position in its outputs) pairs) changes.
+
+        Steps are at most settings.step long and land on `mark` while it
+        lies ahead; after it they are `margin` s long (a communication point
+        just after an expected event). Returns the values of the `remember`
+        outputs at the point before the last one. Returning at a point where
+        nothing changed (t_stop, a divergence check) is allowed: callers
+        look at the outputs themselves.
+        """
+        eps = 1e-12 * max(1.0, abs(t_stop))
+        seen = [p.out[j] for p, j in watched]
+        before = [p.out[j] for p, j in remember]
+        max_step = self.settings.step
+        while self.t < t_stop - eps:
+            before = [p.out[j] for p, j in remember]
+            target = mark if self.t < mark - eps else self.t + margin
+            self.step(min(max_step, target - self.t, t_stop - self.t))
+            if any(p.out[j] != x for (p, j), x in zip(watched, seen)):
+                break
+        return before
 
     def terminate(self) -> None:
         free_all(self.instances)

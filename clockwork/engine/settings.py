@@ -7,6 +7,9 @@ from dataclasses import dataclass
 from ..errors import SceneError
 
 
+ENGINES = ("auto", "python", "compiled")
+
+
 @dataclass
 class MasterSettings:
     step: float = 0.01  # nominal communication step, s
@@ -22,6 +25,9 @@ class MasterSettings:
     min_step: float = 1e-9  # s
     max_step: float | None = None  # s; None = step
     divergence_limit: float = 1e8  # |output| beyond this counts as divergence
+    # "compiled": the C stepping core (engine/compiled.py); "python": the
+    # reference loop in master.py; "auto": compiled where it covers the settings.
+    engine: str = "auto"
 
     def check(self) -> None:
         """Refuse combinations the master cannot run (SceneError: bad input)."""
@@ -30,6 +36,8 @@ class MasterSettings:
         if self.richardson and self.iterations > 0:
             raise SceneError("master.richardson and master.iterations cannot be combined: "
                              "step doubling does not iterate the coupling")
+        if self.engine not in ENGINES:
+            raise SceneError(f"master.engine = {self.engine!r}: expected one of {', '.join(map(repr, ENGINES))}")
         if self.extrapolation not in (0, 1, 2):
             raise SceneError(f"master.extrapolation = {self.extrapolation}: expected 0, 1 or 2")
 

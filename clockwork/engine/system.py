@@ -13,7 +13,7 @@ from pathlib import Path
 
 from .description import resolve_fmu
 from .fmu import Instance, free_all
-from .master import Master
+from .compiled import make_master
 from .settings import MasterSettings
 from .wiring import Link, parse_link
 
@@ -31,7 +31,7 @@ class System:
                 inst.instantiate()
                 self.instances[name] = inst
             links = [parse_link(c) if isinstance(c, str) else Link(*c) for c in connections]
-            self.master = Master(self.instances, links, settings or MasterSettings(),
+            self.master = make_master(self.instances, links, settings or MasterSettings(),
                                  start_time=start_time, extra_outputs=record)
             self.master.initialize(self.parameters)
         except BaseException:

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from ..engine.description import var_limit, var_unit
 from ..engine.description import variables as variables_of
+from ..engine.settings import ENGINES
 from ..errors import SceneError
 from .model import Component, show
 from .units import UnitError, fmt, parse_quantity, to_seconds, to_unit
@@ -143,6 +144,10 @@ def master_value(ctx: Ctx, key: str, value: object):
     if key == "order":
         if value not in ("gauss-seidel", "jacobi"):
             raise ctx.bad(full, value, '"gauss-seidel" or "jacobi"')
+        return value
+    if key == "engine":
+        if value not in ENGINES:
+            raise ctx.bad(full, value, '"auto", "python" or "compiled"')
         return value
     if key == "extrapolation":
         if isinstance(value, bool) or value not in (0, 1, 2) or not isinstance(value, int):

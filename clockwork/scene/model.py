@@ -67,6 +67,7 @@ class MasterConfig:
     richardson_tolerance: float = 1e-8
     min_step: float = 1e-9  # s
     max_step: float = 0.01  # s
+    engine: str = "auto"  # "auto", "python" or "compiled"
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)

@@ -78,15 +78,12 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
 
         # A twin's rate output already follows a drive set at this point (direct
         # feedthrough); over the step that ended here it ran at the rate seen
-        # at the previous point.
-        prev_rate = [out[kr] for out, _, kr in A]
+        # at the previous point: the master remembers those.
+        watched = [(P, i_tick), (E, i_amp)]
+        remember = [] if replay else [(m.ports[a], m.ports[a].out_names.index("rate")) for a in avgs]
 
-        def on_point(master):
+        def on_point(master, rates):
             amp = eout[i_amp]
-            if A:
-                rates = list(prev_rate)
-                for k, (out, _, kr) in enumerate(A):
-                    prev_rate[k] = out[kr]
             if amp != state[2]:
                 state[2] = amp
                 change_t.append(master.t)
@@ -120,7 +117,8 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
 
         last_tick: list = []
 
-        _run_with_tick_points(m, stop, pout, i_tick, n["T0"], on_point, progress, scene.path.stem)
+        _run_with_tick_points(m, stop, pout, i_tick, watched, remember, n["T0"], on_point, progress,
+                              scene.path.stem)
         if state[1] % every and state[1] > 1:
             _sample()
         stats = vars(m.stats).copy()
@@ -215,7 +213,7 @@ def _replay_twins(twins, avgs, samples, change_t, change_v, progress, label) -> 
                 bar.update(i_s + i_c - bar.n)
 
 
-def _run_with_tick_points(m, stop, pout, i_tick, T0, on_point, progress, label,
+def _run_with_tick_points(m, stop, pout, i_tick, watched, remember, T0, on_point, progress, label,
                           margin=2e-3) -> None:
     """Run to `stop` with a communication point `margin` s after each upward zero crossing.
 
@@ -228,10 +226,13 @@ def _run_with_tick_points(m, stop, pout, i_tick, T0, on_point, progress, label,
     (torque noise moves it by ~6e-4 s) and a point is put just after it;
     when the crossing comes late, short steps of `margin` follow until it
     is seen. The lag is then below ~2 margin (Hoyng's grid: dt = 0.03).
+
+    The master steps until a `watched` output changes (the tick, the
+    torque amplitude): ``on_point(master, rates)`` runs there, with the
+    `remember` outputs at the point before.
     """
     from tqdm import tqdm
 
-    step = m.settings.step
     eps_t = 1e-12 * max(1.0, abs(stop))
     last_tick = pout[i_tick]
     prev_tick = None
@@ -240,9 +241,7 @@ def _run_with_tick_points(m, stop, pout, i_tick, T0, on_point, progress, label,
               bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]") as bar:
         t_bar = m.t
         while m.t < stop - eps_t:
-            target = mark if m.t < mark - eps_t else m.t + margin
-            m.step(min(step, target - m.t, stop - m.t))
-            on_point(m)
+            on_point(m, m.run_watch(stop, mark, margin, watched, remember))
             tt = pout[i_tick]
             if tt != last_tick:
                 if last_tick > 0:

@@ -1,0 +1,425 @@
+"""The compiled stepping core: the master's loop in C, the same bits.
+
+``CompiledMaster`` is a ``Master`` whose ``step`` and ``run_until`` run in
+src_c/master/cw_master.c, a line-for-line twin of master.py with
+coupling.py, location.py, checkpoints.py and recording.py. It calls each
+FMU's fmi2 functions through the pointers of the library fmpy loaded, so
+it steps any FMI 2.0 Co-Simulation FMU. Loading, initialization, the
+wiring and everything a scene or an analysis asks for stay in Python: the
+core gets the ports' preallocated arrays and runs as many steps as it can
+before Python is needed again (the stop time, a full recording buffer, an
+output to name for diverging).
+
+``make_master`` chooses: ``master.engine = "python"`` is the reference
+loop, ``"compiled"`` the core (bad input when it cannot serve the
+settings), ``"auto"`` the core where it can, else Python. The core does
+not do strong coupling (``master.iterations``) or step doubling
+(``master.richardson``).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import threading
+from ctypes import POINTER, Structure, byref, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
+
+from ..errors import SceneError, SimulationError
+from ..paths import core_library
+from .fmu import Instance
+from .master import Master
+from .recording import Recorder, _DiscreteOutput
+from .settings import MasterSettings, Statistics
+from .wiring import Link
+
+HISTORY = 3  # input history for divided differences (HISTORY in cw_master.c)
+ROWS_PER_CALL = 4096  # recording buffer, rows
+MAX_SINCE = 256  # steps kept since a checkpoint (the master forces one after 64)
+
+_DONE, _BUFFER_FULL, _CHECK_DIVERGENCE, _WATCHED = 0, 1, 2, 3
+_ERR_FMI, _ERR_NO_CHECKPOINT, _ERR_REPLAY, _ERR_LOCATE, _ERR_CAPACITY = -1, -2, -3, -4, -5
+_CALLS = ["fmi2DoStep", "fmi2GetReal", "fmi2SetReal of inputs", "fmi2SetRealInputDerivatives",
+          "fmi2GetFMUstate", "fmi2SetFMUstate"]
+
+
+def _fields(pointers: list[str], doubles: list[str], longs: list[str], ints: list[str]):
+    return ([(n, c_void_p) for n in pointers] + [(n, c_double) for n in doubles]
+            + [(n, c_longlong) for n in longs] + [(n, c_int) for n in ints])
+
+
+class _Strict(Structure):
+    """A struct that refuses a field name it does not have (ctypes would
+    silently add a Python attribute, and C would never see the value)."""
+
+    def __setattr__(self, name, value):
+        if not name.startswith("_") and name not in self._names:
+            raise AttributeError(f"{type(self).__name__} has no field {name}")
+        super().__setattr__(name, value)
+
+
+class _Port(_Strict):
+    _fields_ = _fields(
+        ["comp", "doStep", "getReal", "setReal", "setInputDerivatives", "getOutputDerivatives",
+         "getState", "setState", "state", "out_vr", "out", "in_vr", "inp", "der_vr", "der_order",
+         "der", "src_port", "src_pos", "sent", "dsrc_port", "dsrc_vr", "dsrc_m", "hist_t",
+         "hist_v", "snap_hist_t", "snap_hist_v"],
+        ["out_time"], [],
+        ["n_out", "n_in", "n_z", "max_output_derivative_order", "sent_valid", "hist_n",
+         "snap_hist_n", "pad_"])
+
+
+class _Master(_Strict):
+    _fields_ = _fields(
+        ["ports", "first", "dynamic", "first_in_order", "final_order", "buffer", "z_port", "z_pos",
+         "z_start", "z_end", "zs_port", "zs_pos", "zs_vr", "prev_kind", "prev_u", "prev_du",
+         "amp_u", "amp_du", "z_seen", "end_rate_set", "end_rate", "snap_z_end", "since"],
+        ["t", "start_time", "step", "event_time_tolerance", "event_indicator_tolerance",
+         "divergence_limit", "time_to_zero", "step_cap", "located_from", "snap_t",
+         "snap_time_to_zero", "err_t", "err_h"],
+        ["steps", "events", "event_iterations", "rollbacks", "replays", "states_saved"],
+        ["n_ports", "n_first", "n_dynamic", "n_first_in_order", "n_final", "n_buffer", "n_z",
+         "cap_since", "jacobi", "extrapolation", "locating", "has_sources", "after_event",
+         "after_event_step", "sample_countdown", "prev_valid", "stale_sources", "snap_valid",
+         "snap_after_event", "n_since", "max_replay_steps", "diverged", "err_port", "err_call", "err_status"])
+
+
+class _Recorder(_Strict):
+    _fields_ = _fields(
+        ["col_port", "col_pos", "rows", "ticks"], ["last_tick"], ["grid_seen", "grid_k"],
+        ["n_cols", "capacity", "n_rows", "tick_capacity", "n_ticks", "stride", "tick_port",
+         "tick_pos", "has_interval", "pad_"])
+
+
+for _struct in (_Port, _Master, _Recorder):
+    _struct._names = frozenset(n for n, _ in _struct._fields_)
+
+_lib = None
+_lib_error: str | None = None
+_lib_lock = threading.Lock()
+
+
+def load_core():
+    """The core library (ctypes), or None with the reason in ``core_problem()``."""
+    global _lib, _lib_error
+    with _lib_lock:
+        if _lib is None and _lib_error is None:
+            path = core_library()
+            try:
+                lib = ctypes.CDLL(str(path))
+            except OSError as e:
+                _lib_error = f"the compiled core {path} cannot be loaded ({e}); build it with tools/setup.sh"
+                return None
+            for name, struct in (("port", _Port), ("master", _Master), ("recorder", _Recorder)):
+                size = getattr(lib, f"cw_sizeof_{name}")
+                size.restype = c_size_t
+                if size() != ctypes.sizeof(struct):
+                    _lib_error = f"{path} was built from another version of the core ({name} layout differs)"
+                    return None
+            lib.cw_step.argtypes = [POINTER(_Master), c_double, POINTER(c_double)]
+            lib.cw_step.restype = c_int
+            lib.cw_run_until.argtypes = [POINTER(_Master), c_double, POINTER(_Recorder)]
+            lib.cw_run_until.restype = c_int
+            lib.cw_start.argtypes = [POINTER(_Master)]
+            lib.cw_start.restype = None
+            lib.cw_run_watch.argtypes = ([POINTER(_Master)] + [c_double] * 4
+                                         + [c_int, c_void_p, c_void_p] * 2 + [c_void_p])
+            lib.cw_run_watch.restype = c_int
+            lib.cw_discontinuity.argtypes = [POINTER(_Master)]
+            lib.cw_discontinuity.restype = None
+            _lib = lib
+        return _lib
+
+
+def core_problem() -> str | None:
+    load_core()
+    return _lib_error
+
+
+def unsupported(settings: MasterSettings) -> str | None:
+    """Why the core cannot run these settings, or None."""
+    if settings.iterations > 0:
+        return "the compiled core does not iterate the coupling (master.iterations > 0)"
+    if settings.richardson:
+        return "the compiled core does not do step doubling (master.richardson = true)"
+    return None
+
+
+def make_master(instances: dict[str, Instance], links: list[Link], settings: MasterSettings,
+                start_time: float = 0.0, step_order: list[str] | None = None,
+                extra_outputs: dict[str, list[str]] | None = None) -> Master:
+    """The master that ``settings.engine`` asks for (see the module's docstring)."""
+    settings.check()
+    if settings.engine != "python":
+        reason = unsupported(settings) or core_problem()
+        if reason is None:
+            return CompiledMaster(instances, links, settings, start_time, step_order, extra_outputs)
+        if settings.engine == "compiled":
+            raise SceneError(f"master.engine = 'compiled': {reason} (use 'auto' or 'python')")
+    return Master(instances, links, settings, start_time, step_order, extra_outputs)
+
+
+def _array(ctype, values, n: int | None = None):
+    values = list(values)
+    return (ctype * max(1, n if n is not None else len(values)))(*values)
+
+
+def _fn(dll, name: str) -> int:
+    return ctypes.cast(getattr(dll, name), c_void_p).value
+
+
+class CompiledMaster(Master):
+    """``Master`` with ``step`` and ``run_until`` in the compiled core."""
+
+    engine = "compiled"
+
+    def __init__(self, instances, links, settings, start_time=0.0, step_order=None, extra_outputs=None):
+        self._lib = load_core()
+        super().__init__(instances, links, settings, start_time, step_order, extra_outputs)
+        self._build()
+
+    # The master's state lives in the C struct; before it exists (inside
+    # Master.__init__) these go to the instance dict.
+    @property
+    def t(self) -> float:
+        core = self.__dict__.get("_core")
+        return self.__dict__["_t_before_core"] if core is None else core.t
+
+    @t.setter
+    def t(self, value: float) -> None:
+        core = self.__dict__.get("_core")
+        if core is None:
+            self.__dict__["_t_before_core"] = value
+        else:
+            core.t = value
+
+    @property
+    def MAX_REPLAY_STEPS(self) -> int:  # noqa: N802 (Master's class constant, per instance here)
+        return self._core.max_replay_steps
+
+    @MAX_REPLAY_STEPS.setter
+    def MAX_REPLAY_STEPS(self, value: int) -> None:  # noqa: N802
+        self._core.max_replay_steps = value
+
+    @property
+    def stats(self) -> Statistics:
+        c = self._core
+        return Statistics(steps=c.steps, events=c.events, event_iterations=c.event_iterations,
+                          rollbacks=c.rollbacks, replays=c.replays, states_saved=c.states_saved)
+
+    @stats.setter
+    def stats(self, value: Statistics) -> None:
+        core = self.__dict__.get("_core")
+        if core is not None:
+            for name in ("steps", "events", "event_iterations", "rollbacks", "replays", "states_saved"):
+                setattr(core, name, getattr(value, name))
+
+    def _build(self) -> None:
+        """Hand the ports' arrays to a C master struct (kept alive here)."""
+        keep = self._keep = []
+
+        def ref(obj) -> int:
+            keep.append(obj)
+            return ctypes.addressof(obj)
+
+        ports = self.ports
+        index = {id(p): i for i, p in enumerate(ports.all)}
+        cports = (_Port * len(ports.all))()
+        for i, p in enumerate(ports.all):
+            inst, c = p.inst, cports[i]
+            dll = inst._slave.dll
+            c.comp = inst.component
+            c.doStep, c.getReal, c.setReal = (_fn(dll, "fmi2DoStep"), _fn(dll, "fmi2GetReal"),
+                                              _fn(dll, "fmi2SetReal"))
+            c.setInputDerivatives = _fn(dll, "fmi2SetRealInputDerivatives")
+            c.getOutputDerivatives = _fn(dll, "fmi2GetRealOutputDerivatives")
+            c.getState, c.setState = _fn(dll, "fmi2GetFMUstate"), _fn(dll, "fmi2SetFMUstate")
+            c.state = ctypes.addressof(inst._state)
+            c.out_vr, c.out = ref(p.out_vr), ctypes.addressof(p.out)
+            c.in_vr, c.inp = ref(p.in_vr), ref(p.inp)
+            c.der_vr, c.der_order, c.der = ref(p.der_vr), ref(p.der_order), ref(p.der)
+            if any(k != pos for pos, (k, _, _) in enumerate(p.sources)):
+                raise SimulationError(f"{inst.name}: an input is connected twice")
+            c.src_port = ref(_array(c_int, (index[id(src)] for _, src, _ in p.sources)))
+            c.src_pos = ref(_array(c_int, (j for _, _, j in p.sources)))
+            c.sent = ref(_array(c_double, [], p.n_in))
+            for name in ("hist_t", "snap_hist_t"):
+                setattr(c, name, ref(_array(c_double, [], HISTORY + 1)))
+            for name in ("hist_v", "snap_hist_v"):
+                setattr(c, name, ref(_array(c_double, [], (HISTORY + 1) * p.n_in)))
+            c.n_out, c.n_in, c.n_z = p.n_out, p.n_in, len(p.z_pos)
+            c.max_output_derivative_order = inst.max_output_derivative_order
+        self._cports = cports
+        loc = self.locator
+        z_port, z_pos = [], []
+        for p in loc.ports:
+            z_port += [index[id(p)]] * len(p.z_pos)
+            z_pos += p.z_pos
+        zs = [(index[id(info[0])], info[1], info[3][0]) if info is not None else (-1, 0, 0)
+              for info in loc.sources]
+        nz = len(z_port)
+        m = self._core = _Master()
+        m.ports = ctypes.addressof(cports)
+        for name, count, order in (("first", "n_first", ports.first), ("dynamic", "n_dynamic", ports.dynamic),
+                                   ("first_in_order", "n_first_in_order", ports.first_in_order),
+                                   ("final_order", "n_final", ports.final_order)):
+            setattr(m, name, ref(_array(c_int, (index[id(p)] for p in order))))
+            setattr(m, count, len(order))
+        m.buffer, m.n_buffer = ctypes.addressof(ports.buffer), len(ports.buffer)
+        m.z_port, m.z_pos = ref(_array(c_int, z_port)), ref(_array(c_int, z_pos))
+        m.zs_port, m.zs_pos = ref(_array(c_int, (a for a, _, _ in zs))), ref(_array(c_int, (b for _, b, _ in zs)))
+        m.zs_vr = ref(_array(c_uint, (v for _, _, v in zs)))
+        for name in ("z_start", "z_end", "prev_u", "prev_du", "amp_u", "amp_du", "z_seen", "end_rate",
+                     "snap_z_end"):
+            setattr(m, name, ref(_array(c_double, [], nz)))
+        m.prev_kind, m.end_rate_set = ref(_array(c_int, [], nz)), ref(_array(c_int, [], nz))
+        m.since, m.cap_since = ref(_array(c_double, [], MAX_SINCE)), MAX_SINCE
+        m.n_ports, m.n_z = len(ports.all), nz
+        s = self.settings
+        m.t = self.__dict__.pop("_t_before_core", self.start_time)
+        m.start_time, m.step = self.start_time, s.step
+        m.event_time_tolerance, m.event_indicator_tolerance = s.event_time_tolerance, s.event_indicator_tolerance
+        m.divergence_limit = s.divergence_limit
+        m.jacobi, m.extrapolation = int(self._jacobi), int(s.extrapolation)
+        m.locating, m.has_sources = int(self._locating), int(loc.has_sources)
+        m.after_event = 1
+        m.max_replay_steps = Master.MAX_REPLAY_STEPS
+        self._core_ptr = byref(m)
+        self._taken = c_double()
+        self._taken_ptr = byref(self._taken)
+        self._watch_args = {}
+        self._empty_recorder = _Recorder(grid_k=-1, tick_port=-1, capacity=1, tick_capacity=1, stride=1)
+
+    # -- the soft state, in C --------------------------------------------------
+
+    def _start(self) -> None:
+        # The derivative sources are known only now (after initialization).
+        by_inst = {id(p.inst): i for i, p in enumerate(self.ports.all)}
+        found = self.coupling.derivative_sources
+        for i, p in enumerate(self.ports.all):
+            c = self._cports[i]
+            dport, dvr, dm = [], [], []
+            for k in range(p.n_in):
+                d = found.get((p.inst.name, k))
+                dport.append(by_inst[id(d[0])] if d is not None else -1)
+                dvr += [d[1][0], d[1][1]] if d is not None else [0, 0]
+                dm.append(d[4] if d is not None else 0)
+            c.dsrc_port = self._ref(_array(c_int, dport))
+            c.dsrc_vr = self._ref(_array(c_uint, dvr))
+            c.dsrc_m = self._ref(_array(c_int, dm))
+            c.out_time = p.out_time
+            c.sent_valid = 0
+        self._lib.cw_start(self._core_ptr)
+
+    def _ref(self, obj) -> int:
+        self._keep.append(obj)
+        return ctypes.addressof(obj)
+
+    def discontinuity(self) -> None:
+        self._lib.cw_discontinuity(self._core_ptr)
+
+    def record_history(self) -> None:
+        # Only Master.__init__ calls this here, before the core exists;
+        # cw_start and the core keep the history from then on.
+        if self.__dict__.get("_core") is None:
+            super().record_history()
+
+    # -- stepping ----------------------------------------------------------------
+
+    def step(self, h: float) -> float:
+        rc = self._lib.cw_step(self._core_ptr, h, self._taken_ptr)
+        if rc:
+            self._handle(rc)
+        if self.on_step is not None:
+            self.on_step(self)
+        return self._taken.value
+
+    def run_until(self, t_stop: float, on_point=None) -> None:
+        native = on_point is None or (type(on_point) is Recorder and on_point.master is self
+                                      and not any(isinstance(a, _DiscreteOutput) for a, _ in on_point._sources))
+        if self.on_step is not None or not native:
+            return super().run_until(t_stop, on_point)  # the Python loop over compiled steps
+        rec, columns = (self._empty_recorder, None) if on_point is None else self._native(on_point)
+        rec.grid_k = -1
+        rec.n_rows = rec.n_ticks = 0
+        while True:
+            rc = self._lib.cw_run_until(self._core_ptr, t_stop, byref(rec))
+            if columns is not None:
+                self._drain(on_point, rec, columns)
+            if rc == _DONE:
+                return
+            if rc != _BUFFER_FULL:
+                self._handle(rc)
+
+    def run_watch(self, t_stop, mark, margin, watched, remember=()):
+        if self.on_step is not None:
+            return super().run_watch(t_stop, mark, margin, watched, remember)
+        # Callers pass the same lists again and again: keyed by identity
+        # (the lists are kept, so that an id cannot be reused), checked by content.
+        key = (id(watched), id(remember))
+        args = self._watch_args.get(key)
+        if args is None or args[-2] != (list(watched), list(remember)):
+            index = {id(p): i for i, p in enumerate(self.ports.all)}
+            arrays = [_array(c_int, (index[id(p)] for p, _ in watched)), _array(c_int, (j for _, j in watched)),
+                      _array(c_int, (index[id(p)] for p, _ in remember)), _array(c_int, (j for _, j in remember)),
+                      _array(c_double, [], len(remember))]
+            self._keep.append(arrays)
+            a = [ctypes.addressof(x) for x in arrays]
+            args = self._watch_args[key] = (len(watched), a[0], a[1], len(remember), a[2], a[3], a[4], arrays[4],
+                                            (list(watched), list(remember)), (watched, remember))
+        n_w, w_port, w_pos, n_r, r_port, r_pos, before_addr, before, _, _ = args
+        rc = self._lib.cw_run_watch(self._core_ptr, t_stop, mark, margin, self.settings.step,
+                                    n_w, w_port, w_pos, n_r, r_port, r_pos, before_addr)
+        if rc not in (_DONE, _WATCHED):
+            self._handle(rc)
+        return before[:n_r]
+
+    def _native(self, recorder: Recorder):
+        index = {id(p.out): i for i, p in enumerate(self.ports.all)}
+        ports = [index[id(arr)] for arr, _ in recorder._sources]
+        rows = (c_double * (ROWS_PER_CALL * (len(ports) + 1)))()
+        ticks = (c_double * ROWS_PER_CALL)()
+        rec = _Recorder(col_port=self._ref(_array(c_int, ports)),
+                        col_pos=self._ref(_array(c_int, (j for _, j in recorder._sources))),
+                        rows=ctypes.addressof(rows), ticks=ctypes.addressof(ticks),
+                        n_cols=len(ports), capacity=ROWS_PER_CALL, tick_capacity=ROWS_PER_CALL,
+                        stride=recorder._stride, has_interval=int(bool(recorder._interval)),
+                        tick_port=-1 if recorder._tick_port is None else self.ports.all.index(recorder._tick_port),
+                        tick_pos=recorder._tick_pos)
+        rec._buffers = (rows, ticks)
+        rec.last_tick = recorder._last_tick
+        rec.grid_seen = recorder._k
+        return rec, [recorder.columns["time"]] + [recorder.columns[n] for n in recorder.names]
+
+    @staticmethod
+    def _drain(recorder: Recorder, rec: _Recorder, columns: list[list[float]]) -> None:
+        rows, ticks = rec._buffers
+        width = len(columns)
+        flat = rows[:rec.n_rows * width]
+        for c, col in enumerate(columns):
+            col.extend(flat[c::width])
+        recorder.ticks.extend(ticks[:rec.n_ticks])
+        recorder._last_tick = rec.last_tick
+        recorder._k = rec.grid_seen
+        rec.n_rows = rec.n_ticks = 0
+
+    def _handle(self, rc: int) -> None:
+        """Raise the error the Python master would raise (or name a divergence)."""
+        m = self._core
+        if rc == _CHECK_DIVERGENCE:
+            self.ports.name_divergence(m.t, self.settings.divergence_limit)
+            return
+        if rc == _ERR_FMI:
+            p = self.ports.all[m.err_port]
+            if m.err_call == 0:
+                raise self._step_failure(p, m.err_status, m.err_t, m.err_h)
+            raise p.inst.fail(_CALLS[m.err_call], m.err_status, m.err_t)
+        t = m.err_t
+        if rc == _ERR_NO_CHECKPOINT:
+            raise SimulationError(
+                f"an event indicator changed sign at t = {t!r} s in a step without a checkpoint", time=t)
+        if rc == _ERR_REPLAY:
+            raise SimulationError(f"replay ended at t = {m.err_h!r} s instead of {t!r} s", time=t)
+        if rc == _ERR_LOCATE:
+            raise SimulationError(
+                f"event location did not converge in (t, t+h) = ({t!r}, {t + m.err_h!r}) s", time=t)
+        raise SimulationError(f"the compiled core stopped with code {rc} at t = {m.t!r} s", time=m.t)
+

@@ -1,0 +1,1143 @@
+/* The compiled stepping core of the co-simulation master.
+ *
+ * The same algorithm as clockwork/engine/master.py (with coupling.py,
+ * location.py, events.py, checkpoints.py and recording.py), operation for
+ * operation, so that the two paths give the same bits: the Python master is
+ * the readable reference, this is its fast twin. Every FMU is called
+ * through the fmi2 function pointers that fmpy's loaded library exposes, so
+ * any FMI 2.0 Co-Simulation FMU works, not only ours.
+ *
+ * Python owns every array (ctypes), fills the structs below and calls
+ * cw_step or cw_run_until. Python floats are IEEE doubles and this file is
+ * built with -ffp-contract=off, so each expression here is evaluated as in
+ * Python when written in the same order; py_min/py_max keep Python's
+ * min()/max() (the first argument wins ties and NaN comparisons).
+ *
+ * Not covered (the Python master serves them): strong coupling
+ * (master.iterations > 0) and step doubling (master.richardson).
+ */
+
+#include <math.h>
+#include <stddef.h>
+#include <string.h>
+
+#define CW_EXPORT __attribute__((visibility("default")))
+
+typedef int (*cw_doStep_t)(void *, double, double, int);
+typedef int (*cw_getReal_t)(void *, const unsigned *, size_t, double *);
+typedef int (*cw_setReal_t)(void *, const unsigned *, size_t, const double *);
+typedef int (*cw_setDer_t)(void *, const unsigned *, size_t, const int *, const double *);
+typedef int (*cw_getDer_t)(void *, const unsigned *, size_t, const int *, double *);
+typedef int (*cw_getState_t)(void *, void **);
+typedef int (*cw_setState_t)(void *, void *);
+
+enum { FMI_OK = 0, FMI_WARNING = 1 };
+
+/* Return codes (the Python side turns errors into SimulationError). */
+enum {
+    CW_DONE = 0,
+    CW_BUFFER_FULL = 1,     /* recording buffers full: drain and call again */
+    CW_CHECK_DIVERGENCE = 2,/* an output is not finite or too large: Python names it */
+    CW_WATCHED = 3,         /* a watched output changed (cw_run_watch) */
+    CW_ERR_FMI = -1,        /* an fmi2 call failed: err_port, err_call, err_status */
+    CW_ERR_NO_CHECKPOINT = -2,
+    CW_ERR_REPLAY = -3,
+    CW_ERR_LOCATE = -4,
+    CW_ERR_CAPACITY = -5,
+};
+
+/* Which call failed (err_call). */
+enum {
+    CALL_DO_STEP = 0, CALL_GET_REAL, CALL_SET_INPUTS, CALL_SET_INPUT_DERIVATIVES,
+    CALL_GET_STATE, CALL_SET_STATE,
+};
+
+#define HISTORY 3  /* input history kept for divided differences */
+
+typedef struct {
+    void *comp;
+    cw_doStep_t doStep;
+    cw_getReal_t getReal;
+    cw_setReal_t setReal;
+    cw_setDer_t setInputDerivatives;
+    cw_getDer_t getOutputDerivatives;
+    cw_getState_t getState;
+    cw_setState_t setState;
+    void **state;             /* the instance's one saved FMU state (freed by Python) */
+    const unsigned *out_vr;   /* connected and recorded outputs, then indicators */
+    double *out;              /* a slice of the master's one output buffer */
+    const unsigned *in_vr;
+    double *inp;
+    const unsigned *der_vr;   /* inputs twice: first and second derivatives */
+    const int *der_order;
+    double *der;
+    const int *src_port;      /* per input: the port and output position it comes from */
+    const int *src_pos;
+    double *sent;             /* inputs last given to the FMU (zero-order hold) */
+    const int *dsrc_port;     /* per input: the port offering output derivatives, or -1 */
+    const unsigned *dsrc_vr;  /* per input: (vr, vr) of that output */
+    const int *dsrc_m;        /* per input: highest derivative order offered (1 or 2) */
+    double *hist_t;           /* HISTORY + 1 times of the input history, s */
+    double *hist_v;           /* (HISTORY + 1) * n_in source values */
+    double *snap_hist_t;      /* the history at the checkpoint */
+    double *snap_hist_v;
+    double out_time;          /* when `out` was read, s */
+    int n_out, n_in, n_z;
+    int max_output_derivative_order;
+    int sent_valid;
+    int hist_n, snap_hist_n;
+    int pad_;
+} cw_port;
+
+typedef struct {
+    cw_port *ports;
+    const int *first;          /* feedthrough-only ports, stepped first */
+    const int *dynamic;        /* dynamic ports, in step order */
+    const int *first_in_order; /* feedthrough-only ports in dependency order */
+    const int *final_order;    /* ports updated at t + h, in dependency order */
+    double *buffer;            /* every output of every port */
+    const int *z_port;         /* per indicator: its port and output position */
+    const int *z_pos;
+    double *z_start, *z_end;   /* indicators at t+ of the step and at its end */
+    const int *zs_port;        /* per indicator: the source port of its single input, or -1 */
+    const int *zs_pos;
+    const unsigned *zs_vr;
+    int *prev_kind;            /* sources at the last sample: 0 none, 1 (u, None), 2 (u, du) */
+    double *prev_u, *prev_du;
+    double *amp_u, *amp_du;    /* slowly forgotten max |u|, max |du/dt| */
+    double *z_seen;            /* NaN = not seen */
+    int *end_rate_set;
+    double *end_rate;          /* d(source)/dt at the step's end */
+    double *snap_z_end;
+    double *since;             /* steps taken since the checkpoint, s */
+    double t, start_time, step;
+    double event_time_tolerance, event_indicator_tolerance, divergence_limit;
+    double time_to_zero, step_cap, located_from;
+    double snap_t, snap_time_to_zero;
+    double err_t, err_h;
+    long long steps, events, event_iterations, rollbacks, replays, states_saved;
+    int n_ports, n_first, n_dynamic, n_first_in_order, n_final, n_buffer, n_z, cap_since;
+    int jacobi, extrapolation, locating, has_sources;
+    int after_event, after_event_step, sample_countdown, prev_valid, stale_sources;
+    int snap_valid, snap_after_event, n_since;
+    int max_replay_steps;      /* a checkpoint after this many steps bounds replay work */
+    int diverged;
+    int err_port, err_call, err_status;
+} cw_master;
+
+typedef struct {
+    const int *col_port;  /* per recorded column: port and output position */
+    const int *col_pos;
+    double *rows;         /* capacity rows of (time, columns...) */
+    double *ticks;
+    double last_tick;
+    long long grid_seen;  /* grid points seen (the stride counts them) */
+    long long grid_k;     /* run_until's next grid index; -1: compute it */
+    int n_cols, capacity, n_rows, tick_capacity, n_ticks, stride, tick_port, tick_pos;
+    int has_interval, pad_;
+} cw_recorder;
+
+CW_EXPORT size_t cw_sizeof_port(void) { return sizeof(cw_port); }
+CW_EXPORT size_t cw_sizeof_master(void) { return sizeof(cw_master); }
+CW_EXPORT size_t cw_sizeof_recorder(void) { return sizeof(cw_recorder); }
+
+static double py_min(double a, double b) { return b < a ? b : a; }
+static double py_max(double a, double b) { return b > a ? b : a; }
+
+static double ulp(double x)  /* math.ulp for finite x >= 0 */
+{
+    return nextafter(x, INFINITY) - x;
+}
+
+static int crossed(double z0, double z1)
+{
+    return (z0 > 0.0 && z1 <= 0.0) || (z0 < 0.0 && z1 >= 0.0);
+}
+
+static int fail(cw_master *m, int port, int call, int status, double t, double h)
+{
+    m->err_port = port;
+    m->err_call = call;
+    m->err_status = status;
+    m->err_t = t;
+    m->err_h = h;
+    return CW_ERR_FMI;
+}
+
+#define TRY(x) do { int rc_ = (x); if (rc_ < 0) return rc_; } while (0)
+
+/* -- ports ------------------------------------------------------------- */
+
+static int port_read(cw_master *m, int i, double t)
+{
+    cw_port *p = &m->ports[i];
+    if (p->n_out) {
+        int st = p->getReal(p->comp, p->out_vr, (size_t)p->n_out, p->out);
+        if (st > FMI_WARNING)
+            return fail(m, i, CALL_GET_REAL, st, t, 0.0);
+    }
+    p->out_time = t;
+    return 0;
+}
+
+static int port_pull(cw_master *m, int i, double t)
+{
+    cw_port *p = &m->ports[i];
+    if (p->n_in) {
+        for (int k = 0; k < p->n_in; k++)
+            p->inp[k] = m->ports[p->src_port[k]].out[p->src_pos[k]];
+        int st = p->setReal(p->comp, p->in_vr, (size_t)p->n_in, p->inp);
+        if (st > FMI_WARNING)
+            return fail(m, i, CALL_SET_INPUTS, st, t, 0.0);
+        p->sent_valid = 0;
+    }
+    return port_read(m, i, t);
+}
+
+static int propagate(cw_master *m, const int *order, int n, double t)
+{
+    for (int a = 0; a < n; a++)
+        TRY(port_pull(m, order[a], t));
+    return 0;
+}
+
+static void indicators(cw_master *m, double *z)
+{
+    for (int k = 0; k < m->n_z; k++)
+        z[k] = m->ports[m->z_port[k]].out[m->z_pos[k]];
+}
+
+/* -- coupling ------------------------------------------------------------- */
+
+static void history_forget(cw_master *m)
+{
+    for (int a = 0; a < m->n_dynamic; a++)
+        m->ports[m->dynamic[a]].hist_n = 0;
+}
+
+static void record_history(cw_master *m)
+{
+    if (!m->extrapolation)
+        return;
+    if (m->after_event_step || m->after_event)
+        history_forget(m);
+    for (int a = 0; a < m->n_dynamic; a++) {
+        cw_port *p = &m->ports[m->dynamic[a]];
+        if (!p->n_in)
+            continue;
+        int n = p->hist_n;
+        p->hist_t[n] = m->t;
+        for (int k = 0; k < p->n_in; k++)
+            p->hist_v[n * p->n_in + k] = m->ports[p->src_port[k]].out[p->src_pos[k]];
+        n++;
+        if (n > HISTORY) {
+            memmove(p->hist_t, p->hist_t + 1, (size_t)(n - 1) * sizeof(double));
+            memmove(p->hist_v, p->hist_v + p->n_in, (size_t)((n - 1) * p->n_in) * sizeof(double));
+            n--;
+        }
+        p->hist_n = n;
+    }
+}
+
+/* Fill p->inp (values at t) and p->der (derivatives at t) from the sources. */
+static void extrapolate(cw_master *m, cw_port *p, double t)
+{
+    int order = m->extrapolation;
+    int n = p->n_in;
+    for (int k = 0; k < n; k++) {
+        cw_port *src = &m->ports[p->src_port[k]];
+        double ta = src->out_time, ua = src->out[p->src_pos[k]];
+        double d1 = 0.0, d2 = 0.0;
+        if (p->dsrc_port[k] >= 0) {
+            cw_port *ds = &m->ports[p->dsrc_port[k]];
+            static const int orders[2] = {1, 2};
+            double got[2];
+            int mm = p->dsrc_m[k] < order ? p->dsrc_m[k] : order;
+            if (ds->getOutputDerivatives(ds->comp, &p->dsrc_vr[2 * k], (size_t)mm, orders, got) <= FMI_WARNING) {
+                d1 = got[0];
+                d2 = mm == 2 ? got[1] : 0.0;
+            }
+        } else {
+            /* Divided differences through the history and the current value. */
+            double pt[HISTORY + 1], pu[HISTORY + 1];
+            int np = 0;
+            for (int a = 0; a < p->hist_n; a++)
+                if (p->hist_t[a] < ta - 1e-15) {
+                    pt[np] = p->hist_t[a];
+                    pu[np] = p->hist_v[a * n + k];
+                    np++;
+                }
+            int keep = np < order ? np : order;
+            int from = np - keep;
+            for (int a = 0; a < keep; a++) {
+                pt[a] = pt[from + a];
+                pu[a] = pu[from + a];
+            }
+            np = keep;
+            pt[np] = ta;
+            pu[np] = ua;
+            np++;
+            if (np >= 2) {
+                double t1 = pt[np - 2], u1 = pu[np - 2], t2 = pt[np - 1], u2 = pu[np - 1];
+                d1 = (u2 - u1) / (t2 - t1);
+                if (order >= 2 && np >= 3) {
+                    double t0 = pt[np - 3], u0 = pu[np - 3];
+                    double d0 = (u1 - u0) / (t1 - t0);
+                    d2 = 2.0 * (d1 - d0) / (t2 - t0);
+                    d1 += 0.5 * d2 * (t2 - t1);
+                }
+            }
+        }
+        double dt = t - ta;
+        p->inp[k] = ua + dt * (d1 + 0.5 * dt * d2);
+        p->der[k] = d1 + d2 * dt;
+        p->der[n + k] = d2;
+    }
+}
+
+/* Inputs of a dynamic instance for the step from t (coupling.set_inputs). */
+static int set_inputs(cw_master *m, int i, double t, double h, int smooth)
+{
+    cw_port *p = &m->ports[i];
+    int n = p->n_in;
+    for (int k = 0; k < n; k++)
+        p->inp[k] = m->ports[p->src_port[k]].out[p->src_pos[k]];
+    int polynomial = m->extrapolation && smooth;
+    if (polynomial) {
+        extrapolate(m, p, t);
+    } else if (p->sent_valid) {
+        int same = 1;
+        for (int k = 0; k < n; k++)
+            if (!(p->sent[k] == p->inp[k])) {
+                same = 0;
+                break;
+            }
+        if (same)
+            return 0;  /* held value unchanged: the FMU already has it */
+    }
+    int st = p->setReal(p->comp, p->in_vr, (size_t)n, p->inp);
+    if (st > FMI_WARNING)
+        return fail(m, i, CALL_SET_INPUTS, st, t, h);
+    memcpy(p->sent, p->inp, (size_t)n * sizeof(double));
+    p->sent_valid = !polynomial;
+    if (polynomial) {
+        size_t nd = (size_t)n * (m->extrapolation >= 2 ? 2 : 1);
+        st = p->setInputDerivatives(p->comp, p->der_vr, nd, p->der_order, p->der);
+        if (st > FMI_WARNING)
+            return fail(m, i, CALL_SET_INPUT_DERIVATIVES, st, t, h);
+    }
+    return 0;
+}
+
+/* -- the communication step (Master.advance) --------------------------------- */
+
+static int advance(cw_master *m, double t, double h)
+{
+    double t_new = t + h;
+    /* 1. Feedthrough-only instances commit the mode decided at t. */
+    for (int a = 0; a < m->n_first; a++) {
+        cw_port *p = &m->ports[m->first[a]];
+        int st = p->doStep(p->comp, t, h, 0);
+        if (st > FMI_WARNING)
+            return fail(m, m->first[a], CALL_DO_STEP, st, t, h);
+        if (p->n_z && m->after_event)  /* a commit may have switched the mode: z at t+ */
+            p->getReal(p->comp, p->out_vr, (size_t)p->n_out, p->out);
+    }
+    if (m->locating) {
+        if (m->after_event)
+            indicators(m, m->z_start);
+        else
+            memcpy(m->z_start, m->z_end, (size_t)m->n_z * sizeof(double));
+    }
+    /* 2. Dynamic instances step, their inputs set by the coupling. */
+    int smooth = !m->after_event;
+    if (m->jacobi)
+        for (int a = 0; a < m->n_dynamic; a++)
+            if (m->ports[m->dynamic[a]].n_in)
+                TRY(set_inputs(m, m->dynamic[a], t, h, smooth));
+    for (int a = 0; a < m->n_dynamic; a++) {
+        int i = m->dynamic[a];
+        cw_port *p = &m->ports[i];
+        if (!m->jacobi && p->n_in)
+            TRY(set_inputs(m, i, t, h, smooth));
+        int st = p->doStep(p->comp, t, h, 0);
+        if (st > FMI_WARNING)
+            return fail(m, i, CALL_DO_STEP, st, t, h);
+        TRY(port_read(m, i, t_new));
+        if (!m->jacobi && a != m->n_dynamic - 1)  /* newest values flow on */
+            TRY(propagate(m, m->first_in_order, m->n_first_in_order, t_new));
+    }
+    /* 3. Outputs at t + h, in dependency order. */
+    m->t = t_new;
+    TRY(propagate(m, m->final_order, m->n_final, t_new));
+    if (m->locating)
+        indicators(m, m->z_end);
+    return 0;
+}
+
+/* -- checkpoints ------------------------------------------------------------- */
+
+/* The input history into the checkpoint (save) or back from it. */
+static void copy_history(cw_master *m, int save)
+{
+    for (int a = 0; a < m->n_dynamic; a++) {
+        cw_port *p = &m->ports[m->dynamic[a]];
+        int n = save ? p->hist_n : p->snap_hist_n;
+        size_t nt = (size_t)n * sizeof(double), nv = (size_t)(n * p->n_in) * sizeof(double);
+        if (save) {
+            memcpy(p->snap_hist_t, p->hist_t, nt);
+            memcpy(p->snap_hist_v, p->hist_v, nv);
+            p->snap_hist_n = n;
+        } else {
+            memcpy(p->hist_t, p->snap_hist_t, nt);
+            memcpy(p->hist_v, p->snap_hist_v, nv);
+            p->hist_n = n;
+        }
+    }
+}
+
+static int checkpoint_mark(cw_master *m)
+{
+    for (int i = 0; i < m->n_ports; i++) {
+        cw_port *p = &m->ports[i];
+        int st = p->getState(p->comp, p->state);
+        if (st > FMI_WARNING)
+            return fail(m, i, CALL_GET_STATE, st, m->t, 0.0);
+    }
+    m->states_saved++;
+    memcpy(m->snap_z_end, m->z_end, (size_t)m->n_z * sizeof(double));
+    m->snap_t = m->t;
+    copy_history(m, 1);
+    m->snap_after_event = m->after_event;
+    m->snap_time_to_zero = m->time_to_zero;
+    m->snap_valid = 1;
+    return 0;
+}
+
+static int checkpoint_take(cw_master *m)
+{
+    TRY(checkpoint_mark(m));
+    m->n_since = 0;
+    return 0;
+}
+
+static int restore_states(cw_master *m)
+{
+    for (int i = 0; i < m->n_ports; i++) {
+        cw_port *p = &m->ports[i];
+        int st = p->setState(p->comp, *p->state);
+        if (st > FMI_WARNING)
+            return fail(m, i, CALL_SET_STATE, st, m->t, 0.0);
+        p->sent_valid = 0;
+    }
+    for (int k = 0; k < m->n_z; k++)
+        m->end_rate_set[k] = 0;
+    m->rollbacks++;
+    return 0;
+}
+
+static int restore_soft_state(cw_master *m)
+{
+    memcpy(m->z_end, m->snap_z_end, (size_t)m->n_z * sizeof(double));
+    m->t = m->snap_t;
+    copy_history(m, 0);
+    m->after_event = m->snap_after_event;
+    m->time_to_zero = m->snap_time_to_zero;
+    /* The FMU states hold their inputs; only the cached outputs are stale. */
+    for (int i = 0; i < m->n_ports; i++)
+        TRY(port_read(m, i, m->t));
+    return 0;
+}
+
+static int rollback(cw_master *m)
+{
+    TRY(restore_states(m));
+    return restore_soft_state(m);
+}
+
+static int since_append(cw_master *m, double h)
+{
+    if (m->n_since >= m->cap_since)
+        return CW_ERR_CAPACITY;
+    m->since[m->n_since++] = h;
+    return 0;
+}
+
+/* An event in a step predicted free of them: back to the checkpoint, redo
+ * the steps since then, and take a checkpoint at t. */
+static int replay_to(cw_master *m, double t)
+{
+    m->replays++;
+    if (!m->snap_valid) {
+        m->err_t = t;
+        return CW_ERR_NO_CHECKPOINT;
+    }
+    TRY(restore_states(m));
+    int n = m->n_since;
+    TRY(restore_soft_state(m));
+    for (int a = 0; a < n; a++) {
+        TRY(advance(m, m->t, m->since[a]));
+        record_history(m);
+    }
+    if (fabs(m->t - t) > 1e-9 * py_max(1.0, fabs(t))) {
+        m->err_t = t;
+        m->err_h = m->t;
+        return CW_ERR_REPLAY;
+    }
+    m->t = t;
+    return checkpoint_take(m);
+}
+
+/* -- event location: polynomials (events.py) ------------------------------------- */
+
+static void hermite_coefficients(double h, double z0, double dz0, double z1, double dz1,
+                                 double *a, double *b, double *c, double *d)
+{
+    *c = h * dz0;
+    *d = z0;
+    *a = 2 * z0 - 2 * z1 + h * dz0 + h * dz1;
+    *b = -3 * z0 + 3 * z1 - 2 * h * dz0 - h * dz1;
+}
+
+static double horner(const double *coef, int n, double x)
+{
+    double value = 0.0;
+    for (int k = n - 1; k >= 0; k--)
+        value = value * x + coef[k];
+    return value;
+}
+
+/* Root in (0, h) of the indicator's Hermite interpolant, or NAN. */
+static double hermite_root(double h, double z0, double dz0, double z1, double dz1,
+                           int curvature, double ddz0, double ddz1)
+{
+    if (!(z0 * z1 < 0.0 || z1 == 0.0))
+        return NAN;
+    double coef[6];
+    int n;
+    if (curvature) {
+        double c0 = z0, c1 = h * dz0, c2 = 0.5 * h * h * ddz0;
+        double a = z1 - (c0 + c1 + c2);
+        double b = h * dz1 - (c1 + 2.0 * c2);
+        double c = h * h * ddz1 - 2.0 * c2;
+        coef[0] = c0;
+        coef[1] = c1;
+        coef[2] = c2;
+        coef[3] = 10.0 * a - 4.0 * b + 0.5 * c;
+        coef[4] = -15.0 * a + 7.0 * b - c;
+        coef[5] = 6.0 * a - 3.0 * b + 0.5 * c;
+        n = 6;
+    } else {
+        hermite_coefficients(h, z0, dz0, z1, dz1, &coef[3], &coef[2], &coef[1], &coef[0]);
+        n = 4;
+    }
+    double slope[5];
+    for (int k = 1; k < n; k++)
+        slope[k - 1] = (double)k * coef[k];
+    double lo = 0.0, hi = 1.0;
+    double x = z0 != z1 ? z0 / (z0 - z1) : 0.5;
+    for (int it = 0; it < 50; it++) {
+        double f = horner(coef, n, x);
+        if (f == 0.0)
+            break;
+        if ((f > 0.0) == (z0 > 0.0))
+            lo = x;
+        else
+            hi = x;
+        double df = horner(slope, n - 1, x);
+        double x_new = df != 0.0 ? x - f / df : 0.5 * (lo + hi);
+        if (!(lo < x_new && x_new < hi))
+            x_new = 0.5 * (lo + hi);
+        if (fabs(x_new - x) < 1e-15) {
+            x = x_new;
+            break;
+        }
+        x = x_new;
+    }
+    return (0.0 < x && x < 1.0) ? x * h : NAN;
+}
+
+/* Where in (0, h) the cubic interpolant reaches the other sign, or NAN. */
+static double hermite_extremum(double h, double z0, double dz0, double z1, double dz1)
+{
+    double a, b, c, d;
+    hermite_coefficients(h, z0, dz0, z1, dz1, &a, &b, &c, &d);
+    double roots[2];
+    int n = 0;
+    if (fabs(a) < 1e-300) {
+        if (b != 0) {
+            roots[0] = -c / (2 * b);
+            n = 1;
+        }
+    } else {
+        double disc = b * b - 3 * a * c;
+        if (disc >= 0) {
+            double r = pow(disc, 0.5);  /* as Python's disc ** 0.5 */
+            roots[0] = (-b - r) / (3 * a);
+            roots[1] = (-b + r) / (3 * a);
+            n = 2;
+            if (roots[1] < roots[0]) {
+                double s = roots[0];
+                roots[0] = roots[1];
+                roots[1] = s;
+            }
+        }
+    }
+    for (int k = 0; k < n; k++) {
+        double sx = roots[k];
+        if (0.0 < sx && sx < 1.0) {
+            double val = ((a * sx + b) * sx + c) * sx + d;
+            if ((val > 0) != (z0 > 0) || val == 0.0)
+                return sx * h;
+        }
+    }
+    return NAN;
+}
+
+/* -- event location: the locator (location.py) ----------------------------------- */
+
+/* -1 when an indicator changed sign over the step; else the time until the
+ * nearest one would reach zero at its rate over the step, s. */
+static double scan(const double *z0, const double *z1, int n, double h)
+{
+    double steps = INFINITY;
+    for (int k = 0; k < n; k++) {
+        double a = z0[k], b = z1[k];
+        if ((a > 0.0 && b <= 0.0) || (a < 0.0 && b >= 0.0))
+            return -1.0;
+        double dist = fabs(b);
+        if (dist <= 1e-15)
+            return 0.0;
+        double change = fabs(b - a);
+        if (dist < steps * change)
+            steps = dist / change;
+    }
+    return steps * h;
+}
+
+/* d^order u/dt^order of indicator k's source output; 0 when refused. */
+static int output_rate(cw_master *m, int k, int order, double *rate)
+{
+    cw_port *src = &m->ports[m->zs_port[k]];
+    int orders[1] = {order};
+    return src->getOutputDerivatives(src->comp, &m->zs_vr[k], 1, orders, rate) <= FMI_WARNING;
+}
+
+static void remember_sources(cw_master *m)
+{
+    double cap = INFINITY;
+    for (int k = 0; k < m->n_z; k++) {
+        if (m->zs_port[k] < 0) {
+            m->prev_kind[k] = 0;
+            continue;
+        }
+        cw_port *src = &m->ports[m->zs_port[k]];
+        double u = src->out[m->zs_pos[k]];
+        double z_now = m->z_end[k];
+        int constant = z_now == m->z_seen[k];
+        m->z_seen[k] = z_now;
+        m->prev_u[k] = u;
+        if (constant) {
+            /* An indicator that did not move says nothing about its source's time scale. */
+            m->prev_kind[k] = 1;
+            continue;
+        }
+        double du;
+        int have_du = 1;
+        if (m->end_rate_set[k])
+            du = m->end_rate[k];
+        else
+            have_du = output_rate(m, k, 1, &du);
+        m->prev_kind[k] = have_du ? 2 : 1;
+        m->prev_du[k] = du;
+        if (have_du) {
+            double amp_u = py_max(fabs(u), 0.999 * m->amp_u[k]);
+            double amp_du = py_max(fabs(du), 0.999 * m->amp_du[k]);
+            m->amp_u[k] = amp_u;
+            m->amp_du[k] = amp_du;
+            double omega = amp_u > 0.0 ? amp_du / amp_u : 0.0;
+            if (src->max_output_derivative_order >= 2 && u != 0.0) {
+                double acc;
+                if (output_rate(m, k, 2, &acc))
+                    omega = py_max(omega, sqrt(fabs(acc / u)));
+            }
+            if (omega > 0.0)
+                cap = py_min(cap, 0.2 * 2 * M_PI / omega);
+        }
+    }
+    m->prev_valid = 1;
+    m->step_cap = cap;
+    for (int k = 0; k < m->n_z; k++)
+        m->end_rate_set[k] = 0;
+}
+
+/* Offset of an indicator's extremum inside the step where its interpolant
+ * changes sign although z has one sign at both ends, or NAN. */
+static double hidden_crossing(cw_master *m, double h, const double *z0, const double *z1)
+{
+    if (!m->prev_valid)
+        return NAN;
+    double best = NAN;
+    for (int k = 0; k < m->n_z; k++) {
+        if (m->zs_port[k] < 0 || m->prev_kind[k] != 2)
+            continue;
+        double u0 = m->prev_u[k], du0 = m->prev_du[k];
+        double u1 = m->ports[m->zs_port[k]].out[m->zs_pos[k]];
+        if (u1 == u0 || z0[k] == 0.0)
+            continue;
+        double ratio = (z1[k] - z0[k]) / (u1 - u0);
+        double dz0 = ratio * du0;
+        if (z0[k] * dz0 >= 0.0)
+            continue;  /* moving away from zero at the start */
+        double du1;
+        if (!output_rate(m, k, 1, &du1))
+            continue;
+        m->end_rate[k] = du1;
+        m->end_rate_set[k] = 1;
+        double dz1 = ratio * du1;
+        if (z1[k] * dz1 <= 0.0)
+            continue;  /* still approaching at the end */
+        double x = hermite_extremum(h, z0[k], dz0, z1[k], dz1);
+        if (!isnan(x) && (isnan(best) || x < best))
+            best = x;
+    }
+    return best;
+}
+
+typedef struct {
+    double lo, z_lo, hi, z_hi;
+    int kept, iterations;
+} illinois;
+
+static double illinois_next(const illinois *s)
+{
+    double dz = s->z_lo - s->z_hi;
+    if (dz == 0.0)
+        return 0.5 * (s->lo + s->hi);
+    return (s->z_lo * s->hi - s->z_hi * s->lo) / dz;
+}
+
+static void illinois_update(illinois *s, double x, double z, int was_crossed)
+{
+    s->iterations++;
+    if (was_crossed) {
+        s->hi = x;
+        s->z_hi = z;
+        if (s->kept == 1)
+            s->z_lo *= 0.5;
+        s->kept = 1;
+    } else {
+        s->lo = x;
+        s->z_lo = z;
+        if (s->kept == -1)
+            s->z_hi *= 0.5;
+        s->kept = -1;
+    }
+}
+
+static illinois illinois_new(double lo, double z_lo, double hi, double z_hi)
+{
+    illinois s = {lo, z_lo, hi, z_hi, 0, 0};
+    return s;
+}
+
+/* The indicator among the crossing ones whose linear interpolant crosses first. */
+static int earliest(const int *crossing, const double *z0, const double *z1, int n)
+{
+    int lead = -1;
+    double best = 0.0;
+    for (int k = 0; k < n; k++) {
+        if (!crossing[k])
+            continue;
+        double x = z0[k] / (z0[k] - z1[k]);
+        if (lead < 0 || x < best) {
+            lead = k;
+            best = x;
+        }
+    }
+    return lead;
+}
+
+/* Shorten the step from t (a checkpoint) to land just past the earliest
+ * crossing (EventLocator.locate); *taken gets the step, s. */
+static int locate(cw_master *m, double t, double h, const int *crossings, const double *z0,
+                  const double *z1, double *taken)
+{
+    int nz = m->n_z;
+    int lead = earliest(crossings, z0, z1, nz);
+    /* The source's slope at the step's end, before the rollback. */
+    int have_slope = 0, have_dd1 = 0;
+    double u1 = 0.0, du1 = 0.0, ddu1 = 0.0;
+    if (m->zs_port[lead] >= 0 && output_rate(m, lead, 1, &du1)) {
+        have_slope = 1;
+        u1 = m->ports[m->zs_port[lead]].out[m->zs_pos[lead]];
+        if (m->ports[m->zs_port[lead]].max_output_derivative_order >= 2)
+            have_dd1 = output_rate(m, lead, 2, &ddu1);
+    }
+    TRY(rollback(m));
+    double first = 0.0;
+    int have_first = 0;  /* a trial proposed by the interpolant or by Newton (may be NaN) */
+    int newton = 0, newton_lead = -1, curvature = 0;
+    double ratio = 0.0;
+    if (have_slope) {
+        double u0 = m->ports[m->zs_port[lead]].out[m->zs_pos[lead]];
+        double du0, ddu0 = 0.0;
+        int have_du0 = output_rate(m, lead, 1, &du0);
+        int have_dd0 = have_dd1 ? output_rate(m, lead, 2, &ddu0) : 0;
+        if (have_du0 && u1 != u0) {
+            /* The indicator is affine in its source near the crossing: z' = ratio u'. */
+            ratio = (z1[lead] - z0[lead]) / (u1 - u0);
+            curvature = have_dd0 && have_dd1;
+            first = hermite_root(h, z0[lead], ratio * du0, z1[lead], ratio * du1, curvature,
+                                 curvature ? ratio * ddu0 : 0.0, curvature ? ratio * ddu1 : 0.0);
+            have_first = !isnan(first);  /* NaN: no root in the step */
+            newton = 1;
+            newton_lead = lead;
+        }
+    }
+    illinois search = illinois_new(0.0, z0[lead], h, z1[lead]);
+    double hi = h;
+    double z_hi[nz > 0 ? nz : 1], z_lo[nz > 0 ? nz : 1];
+    int now[nz > 0 ? nz : 1];
+    memcpy(z_hi, z1, (size_t)nz * sizeof(double));
+    memcpy(z_lo, z0, (size_t)nz * sizeof(double));
+    double base = 0.0;
+    int have_last = 0;  /* the FMUs stand at the checkpoint after the rollback */
+    double last = 0.0;
+    /* Far from t = 0 a double cannot resolve the tolerance: use a few ulps. */
+    double time_tol = py_max(m->event_time_tolerance, 4 * ulp(fabs(t) + h));
+    for (;;) {
+        if (hi - search.lo <= time_tol || fabs(z_hi[lead]) <= m->event_indicator_tolerance)
+            break;
+        double trial;
+        if (have_first) {
+            trial = first;
+            have_first = 0;
+        } else {
+            trial = illinois_next(&search);
+        }
+        if (!(search.lo < trial && trial < hi))
+            trial = 0.5 * (search.lo + hi);
+        /* A trial must move the FMUs' clock: at least a few ulps past lo. */
+        double min_move = 8 * ulp(fabs(t) + fabs(hi) + 1.0);
+        if ((t + trial) - (t + search.lo) < min_move)
+            trial = search.lo + py_min(0.5 * (hi - search.lo),
+                                       py_max(min_move, 0.25 * m->event_time_tolerance));
+        if (have_last)
+            TRY(rollback(m));
+        TRY(advance(m, m->t, (t + trial) - m->t));
+        m->event_iterations++;
+        have_last = 1;
+        last = trial;
+        const double *z = m->z_end;
+        if (newton && newton_lead == lead) {
+            /* Newton from this trial, aimed a hair past the root in time. */
+            double rate;
+            if (output_rate(m, lead, 1, &rate) && rate != 0.0) {
+                double slope = ratio * rate;
+                double delta = -z[lead] / slope;
+                double acc;
+                if (curvature && output_rate(m, lead, 2, &acc)) {
+                    double bend = ratio * acc;
+                    double disc = slope * slope - 2.0 * z[lead] * bend;
+                    if (disc >= 0.0)
+                        delta = -2.0 * z[lead] / (slope + copysign(sqrt(disc), slope));
+                }
+                double past = py_min(0.25 * m->event_time_tolerance,
+                                     0.25 * m->event_indicator_tolerance / fabs(slope));
+                first = trial + delta + past;
+                have_first = 1;
+            }
+        }
+        int any = 0;
+        for (int k = 0; k < nz; k++) {
+            now[k] = crossed(m->z_start[k], z[k]);
+            any |= now[k];
+        }
+        if (any) {
+            if (!now[lead]) {
+                /* Another indicator crosses first: restart on it. */
+                lead = earliest(now, z_lo, z, nz);
+                search = illinois_new(search.lo, z_lo[lead], trial, z[lead]);
+                have_first = 0;
+            } else {
+                illinois_update(&search, trial, z[lead], 1);
+            }
+            hi = trial;
+            memcpy(z_hi, z, (size_t)nz * sizeof(double));
+        } else {
+            illinois_update(&search, trial, z[lead], 0);
+            /* Later trials start here: no need to integrate [t, t + trial] again. */
+            memcpy(z_lo, z, (size_t)nz * sizeof(double));
+            TRY(checkpoint_mark(m));
+            base = trial;
+            have_last = 0;
+        }
+        if (search.iterations > 200) {
+            m->err_t = t;
+            m->err_h = h;
+            return CW_ERR_LOCATE;
+        }
+    }
+    if (!have_last || last != hi) {
+        if (have_last)
+            TRY(rollback(m));
+        TRY(advance(m, m->t, (t + hi) - m->t));
+    }
+    if (base > 0.0)
+        m->n_since = 0;
+    m->located_from = t + base;
+    m->events++;
+    *taken = hi;
+    return 0;
+}
+
+/* After the step from t of h s: when an indicator crossed zero, land just
+ * past the earliest crossing instead (Master._land_on_events). */
+static int land_on_events(cw_master *m, double t, double h, int near, int checkpointed, double *taken)
+{
+    int nz = m->n_z;
+    double z0[nz > 0 ? nz : 1], z1[nz > 0 ? nz : 1];
+    int crossings[nz > 0 ? nz : 1];
+    memcpy(z0, m->z_start, (size_t)nz * sizeof(double));
+    memcpy(z1, m->z_end, (size_t)nz * sizeof(double));
+    double time_to_zero = scan(z0, z1, nz, h);
+    int hit = time_to_zero < 0.0;
+    if (!hit && near && m->has_sources) {
+        double hidden = hidden_crossing(m, h, z0, z1);
+        if (!isnan(hidden)) {
+            /* Two crossings inside one step cancel at its ends: try the
+             * step up to the interpolant's extremum. */
+            TRY(rollback(m));
+            TRY(advance(m, t, hidden));
+            m->event_iterations++;
+            memcpy(z0, m->z_start, (size_t)nz * sizeof(double));
+            memcpy(z1, m->z_end, (size_t)nz * sizeof(double));
+            time_to_zero = scan(z0, z1, nz, hidden);
+            hit = time_to_zero < 0.0;
+            if (hit) {
+                h = hidden;
+            } else {  /* the interpolant was wrong: redo the whole step */
+                TRY(rollback(m));
+                TRY(advance(m, t, h));
+                memcpy(z0, m->z_start, (size_t)nz * sizeof(double));
+                memcpy(z1, m->z_end, (size_t)nz * sizeof(double));
+                time_to_zero = scan(z0, z1, nz, h);
+            }
+        }
+    }
+    if (!hit) {
+        m->time_to_zero = time_to_zero;
+        TRY(since_append(m, h));
+        *taken = h;
+        return 0;
+    }
+    for (int k = 0; k < nz; k++)
+        crossings[k] = crossed(z0[k], z1[k]);
+    if (!checkpointed) {
+        /* An event in a step predicted free of them: replay from the checkpoint. */
+        TRY(replay_to(m, t));
+        TRY(advance(m, t, h));
+    }
+    TRY(locate(m, t, h, crossings, z0, z1, taken));
+    m->after_event_step = 1;
+    m->time_to_zero = 0.0;
+    return since_append(m, m->t - m->located_from);
+}
+
+/* -- the accurate step (Master.step) ------------------------------------------------ */
+
+static int diverged(const cw_master *m)
+{
+    double s = 0.0;
+    for (int i = 0; i < m->n_buffer; i++)
+        s += fabs(m->buffer[i]);
+    return !(s < m->divergence_limit);  /* NaN fails too */
+}
+
+static int step(cw_master *m, double h, double *taken_out)
+{
+    double t = m->t;
+    /* 1. The indicators' sources cap the step. */
+    if (m->has_sources) {
+        if (!m->prev_valid)
+            h *= 1.0 / 64;  /* no time scale known yet: a short first step */
+        else if (h > m->step_cap)
+            h = m->step_cap;
+    }
+    m->after_event_step = 0;
+    /* 2. A checkpoint where the step may need a rollback. */
+    int locating = m->locating;
+    int near = locating && (m->after_event || m->time_to_zero <= 4.0 * h);
+    int possible = near || (locating && m->n_since >= m->max_replay_steps);
+    if (near && m->stale_sources) {
+        remember_sources(m);  /* the hidden-crossing check needs them at the step start */
+        m->stale_sources = 0;
+    }
+    if (possible)
+        TRY(checkpoint_take(m));
+    /* 3. The step. */
+    TRY(advance(m, t, h));
+    double taken = h;
+    /* 4. Events. */
+    if (locating)
+        TRY(land_on_events(m, t, h, near, possible, &taken));
+    if (m->has_sources) {
+        m->sample_countdown--;
+        if (near || m->sample_countdown <= 0 || !m->prev_valid) {
+            remember_sources(m);
+            m->sample_countdown = 16;
+            m->stale_sources = 0;
+        } else {
+            m->stale_sources = 1;
+        }
+    }
+    m->after_event = m->after_event_step;
+    m->steps++;
+    /* 5. NaN, infinities, divergence: Python names the output. */
+    m->diverged = diverged(m);
+    if (m->extrapolation)
+        record_history(m);
+    *taken_out = taken;
+    return m->diverged ? CW_CHECK_DIVERGENCE : CW_DONE;
+}
+
+/* -- the entry points ------------------------------------------------------------------ */
+
+CW_EXPORT int cw_step(cw_master *m, double h, double *taken)
+{
+    return step(m, h, taken);
+}
+
+/* The master's soft state at a new start (after initialization): the
+ * history and the checkpoint forgotten, the indicators read, the sources
+ * sampled. */
+CW_EXPORT void cw_start(cw_master *m)
+{
+    history_forget(m);
+    m->snap_valid = 0;
+    m->n_since = 0;
+    m->after_event = 1;
+    m->prev_valid = 0;
+    for (int k = 0; k < m->n_z; k++) {
+        m->amp_u[k] = 0.0;
+        m->amp_du[k] = 0.0;
+        m->z_seen[k] = NAN;
+        m->end_rate_set[k] = 0;
+    }
+    m->step_cap = INFINITY;
+    m->stale_sources = 0;
+    /* As in Python: the time to the next zero and the sampling countdown
+     * carry over a reset; after_event makes the next step check anyway. */
+    record_history(m);
+    indicators(m, m->z_end);
+    if (m->has_sources) {
+        remember_sources(m);
+        if (m->step_cap == INFINITY)
+            m->prev_valid = 0;
+    }
+}
+
+/* Something changed outside the wiring (Master.discontinuity). */
+CW_EXPORT void cw_discontinuity(cw_master *m)
+{
+    m->after_event = 1;
+    m->time_to_zero = 0.0;
+    history_forget(m);
+    record_history(m);
+}
+
+static void record_point(cw_master *m, cw_recorder *r)
+{
+    if (r->tick_port >= 0) {
+        double tt = m->ports[r->tick_port].out[r->tick_pos];
+        if (tt != r->last_tick && tt > 0) {
+            r->ticks[r->n_ticks++] = tt;
+            r->last_tick = tt;
+        }
+    }
+    if (!r->n_cols)
+        return;
+    double k = (m->t - m->start_time) / m->step;
+    if (fabs(k - nearbyint(k)) < 1e-6) {  /* on the grid (events add points off it) */
+        r->grid_seen++;
+        if (r->grid_seen % r->stride)
+            return;
+    } else if (r->has_interval) {
+        return;
+    }
+    double *row = &r->rows[(size_t)r->n_rows * (size_t)(r->n_cols + 1)];
+    row[0] = m->t;
+    for (int c = 0; c < r->n_cols; c++)
+        row[c + 1] = m->ports[r->col_port[c]].out[r->col_pos[c]];
+    r->n_rows++;
+}
+
+/* Step to t_stop on the grid start + k * step, plus located events
+ * (Master.run_until), recording into r when given. Returns CW_BUFFER_FULL
+ * or CW_CHECK_DIVERGENCE to be called again, r->grid_k keeping the place. */
+CW_EXPORT int cw_run_until(cw_master *m, double t_stop, cw_recorder *r)
+{
+    double h_nom = m->step, t0 = m->start_time;
+    double eps = 1e-12 * py_max(1.0, fabs(t_stop));
+    long long k = r && r->grid_k >= 0 ? r->grid_k : (long long)floor((m->t - t0) / h_nom + 1e-9) + 1;
+    while (m->t < t_stop - eps) {
+        if (r && (r->n_rows >= r->capacity || r->n_ticks >= r->tick_capacity)) {
+            r->grid_k = k;
+            return CW_BUFFER_FULL;
+        }
+        double grid = t0 + (double)k * h_nom;
+        if (grid > t_stop)
+            grid = t_stop;
+        double h = grid - m->t;
+        if (h <= eps) {
+            k++;
+            continue;
+        }
+        double taken;
+        int rc = step(m, h, &taken);
+        if (rc < 0)
+            return rc;
+        if (r)
+            record_point(m, r);
+        if (m->t >= grid - eps)
+            k++;
+        if (rc == CW_CHECK_DIVERGENCE) {
+            if (r)
+                r->grid_k = k;
+            return rc;
+        }
+    }
+    if (r)
+        r->grid_k = -1;
+    return CW_DONE;
+}
+
+/* Step toward t_stop with steps of at most max_step, landing on `mark`
+ * while it lies ahead and taking steps of `margin` after it, until one of
+ * the watched outputs changes (Master.run_watch). `previous` gets the
+ * values of the `n_prev` outputs at the point before the last one. */
+CW_EXPORT int cw_run_watch(cw_master *m, double t_stop, double mark, double margin, double max_step,
+                           int n_watch, const int *watch_port, const int *watch_pos,
+                           int n_prev, const int *prev_port, const int *prev_pos, double *previous)
+{
+    double eps = 1e-12 * py_max(1.0, fabs(t_stop));
+    double seen[n_watch > 0 ? n_watch : 1];
+    for (int k = 0; k < n_watch; k++)
+        seen[k] = m->ports[watch_port[k]].out[watch_pos[k]];
+    while (m->t < t_stop - eps) {
+        for (int k = 0; k < n_prev; k++)
+            previous[k] = m->ports[prev_port[k]].out[prev_pos[k]];
+        double target = m->t < mark - eps ? mark : m->t + margin;
+        double taken;
+        int rc = step(m, py_min(py_min(max_step, target - m->t), t_stop - m->t), &taken);
+        if (rc)
+            return rc;
+        for (int k = 0; k < n_watch; k++) {
+            double now = m->ports[watch_port[k]].out[watch_pos[k]];
+            if (now != seen[k])  /* NaN counts as a change, as in Python */
+                return CW_WATCHED;
+        }
+    }
+    return CW_DONE;
+}
