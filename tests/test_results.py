@@ -146,3 +146,25 @@ def test_check_output_dir_permission_errors_simulated(tmp_path, monkeypatch):
     monkeypatch.setattr(type(d), "mkdir", denied)
     with pytest.raises(UsageError, match=r"cannot create output directory .*sub: Permission denied"):
         check_output_dir(d / "sub")
+
+
+@pytest.mark.parametrize("shape", ["random", "increasing", "steps", "two points"])
+def test_pchip_is_scipys_pchip(shape):
+    """The headlines' own PCHIP (no scipy.interpolate at start-up) against
+    scipy's PchipInterpolator: flat pieces, extrema, two points, and the
+    end pieces continued outside the nodes."""
+    from scipy.interpolate import PchipInterpolator
+
+    from clockwork.results.headlines.pchip import pchip
+
+    rng = np.random.default_rng(7)
+    for _ in range(40):
+        n = 2 if shape == "two points" else int(rng.integers(3, 25))
+        x = np.cumsum(rng.uniform(0.01, 2.0, n))
+        y = {"random": rng.normal(size=n), "increasing": np.cumsum(rng.uniform(0, 1, n)),
+             "steps": np.round(rng.normal(size=n)), "two points": rng.normal(size=n)}[shape]
+        at = np.linspace(x[0] - 0.5, x[-1] + 0.5, 301)
+        want = PchipInterpolator(x, y)(at)
+        got = pchip(x, y, at)
+        assert np.max(np.abs(got - want) / (1.0 + np.abs(want))) < 1e-13
+        assert pchip(x, y, float(x[1])) == pytest.approx(y[1], rel=1e-15, abs=1e-15)

@@ -16,6 +16,7 @@ from ...analyses.context import find_component, parameters
 from ...analyses.ziemkiewicz.clock import DAY, DEG, PROFILE_NAMES, Clock, orbit_rows
 from ...errors import SimulationError
 from ...physics import analytic
+from .pchip import pchip
 from .registry import entry, headline
 
 
@@ -25,13 +26,11 @@ def _sorted_rows(results, x="amplitude_deg"):
 
 def _interp(rows, y: str, x0: float, x: str = "amplitude_deg") -> float | None:
     """y at x0 by monotone cubic interpolation over the sweep; None outside it."""
-    from scipy.interpolate import PchipInterpolator
-
     pts = [(r["result"][x], r["result"][y]) for r in rows if r["result"].get(y) is not None]
     if len(pts) < 2 or not pts[0][0] <= x0 <= pts[-1][0]:
         return None
     xs, ys = map(np.asarray, zip(*pts))
-    return float(PchipInterpolator(xs, ys)(x0))
+    return pchip(xs, ys, x0)
 
 
 def _minimum(rows, y: str = "E_T_s_per_day", x: str = "amplitude_deg") -> tuple[float, float] | None:
@@ -262,10 +261,8 @@ def _band_width(A, E, band=2.0) -> tuple[float, float, float, int]:
     """Widest amplitude interval where E_T stays within a band of `band` s/day:
     (width, start, end, how many other disjoint intervals are within 1 % as
     wide: then where the widest one lies is a near tie, not a plateau)."""
-    from scipy.interpolate import PchipInterpolator
-
     a = np.linspace(A[0], A[-1], 4000)
-    e = PchipInterpolator(A, E)(a)
+    e = pchip(A, E, a)
     windows, i = [], 0
     for j in range(len(a)):
         while e[i:j + 1].max() - e[i:j + 1].min() > band:
