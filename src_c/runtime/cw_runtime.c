@@ -268,7 +268,7 @@ void fmi2FreeInstance(fmi2Component c) {
     fmi2CallbackFreeMemory freeMemory = inst->cb.freeMemory;
     void *blocks[] = {inst->r,     inst->i,       inst->in_d1, inst->in_d2,
                       inst->in_tref, inst->s,     inst->u,
-                      inst->instance_name};
+                      inst->instance_name, inst->scratch};
     for (size_t k = 0; k < sizeof blocks / sizeof *blocks; k++)
         if (blocks[k]) freeMemory(blocks[k]);
     freeMemory(inst);
@@ -793,24 +793,22 @@ static fmi2Status decode_state(cw_instance *inst, const unsigned char *buf,
  * checked whole before anything of inst changes. */
 static int probe_open(cw_instance *inst, cw_instance *probe) {
     const cw_model *m = inst->model;
-    const int nv = m->nvars;
+    const size_t nv = (size_t)m->nvars;
+    /* One block: the doubles and words first, the 4-byte integers last. */
+    const size_t words = 4 * nv + (size_t)m->n_real_state + (size_t)m->n_uint_state;
+    if (!inst->scratch)
+        inst->scratch = alloc(inst, 1, words * 8 + (nv ? nv : 1) * sizeof(int32_t));
+    if (!inst->scratch) return 0;
+    double *d = (double *)inst->scratch;
     *probe = *inst;
-    probe->r = alloc(inst, nv, sizeof(double));
-    probe->i = alloc(inst, nv, sizeof(int32_t));
-    probe->in_d1 = alloc(inst, nv, sizeof(double));
-    probe->in_d2 = alloc(inst, nv, sizeof(double));
-    probe->in_tref = alloc(inst, nv, sizeof(double));
-    probe->s = alloc(inst, m->n_real_state, sizeof(double));
-    probe->u = alloc(inst, m->n_uint_state, sizeof(uint64_t));
-    return probe->r && probe->i && probe->in_d1 && probe->in_d2 &&
-           probe->in_tref && probe->s && probe->u;
-}
-
-static void probe_close(cw_instance *inst, cw_instance *probe) {
-    void *blocks[] = {probe->r,     probe->i, probe->in_d1, probe->in_d2,
-                      probe->in_tref, probe->s, probe->u};
-    for (size_t k = 0; k < sizeof blocks / sizeof *blocks; k++)
-        if (blocks[k]) inst->cb.freeMemory(blocks[k]);
+    probe->r = d;
+    probe->in_d1 = d + nv;
+    probe->in_d2 = d + 2 * nv;
+    probe->in_tref = d + 3 * nv;
+    probe->s = d + 4 * nv;
+    probe->u = (uint64_t *)(d + 4 * nv + (size_t)m->n_real_state);
+    probe->i = (int32_t *)(d + words);
+    return 1;
 }
 
 /* Decode a state into scratch storage and check it: layout and values
@@ -852,7 +850,6 @@ static fmi2Status restore_state(cw_instance *inst, const unsigned char *buf,
         inst->time = probe.time;
         inst->outputs_dirty = 1;
     }
-    probe_close(inst, &probe);
     if (st != fmi2OK) {
         inst->state = CW_ERROR;
         return fmi2Error;

@@ -114,6 +114,10 @@ typedef struct cw_instance {
 
     int outputs_dirty;
     int in_callback_error; /* set by cw_fail from model code */
+
+    /* Where fmi2SetFMUstate decodes a state before accepting it: made on
+     * the first restore and kept, so that a rollback allocates nothing. */
+    void *scratch;
 } cw_instance;
 
 /* Value of input `vr` at time t, following the input derivatives. */
