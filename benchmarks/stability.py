@@ -48,6 +48,7 @@ from clockwork.engine import MasterSettings  # noqa: E402
 from clockwork.analyses.steady_state import energy_balance_amplitude, find_steady_state
 from clockwork.engine.shooting import Shooter  # noqa: E402
 from clockwork.engine import System  # noqa: E402
+from clockwork.engine.recording import Recorder  # noqa: E402
 
 G = 9.81  # m/s^2
 OMEGA01 = math.sqrt(G)  # rad/s, pendulum of L = 1 m
@@ -638,23 +639,15 @@ def drift_run(periods: int, start_time: float = 0.0, step: float = 1.0, W: float
     with clock_system(dict(pend, phi_start=0.0, w_start=W), esc, hoyng_settings(step, t_end),
                       start_time=start_time, record=("tick_time",)) as s:
         m = s.master
-        port = m.ports["pendulum"]
-        i = port.out_names.index("tick_time")
-        last = 0.0
-
-        def on_point(master) -> None:
-            nonlocal n, last
-            tt = port.out[i]
-            if tt != last and n < len(ticks):
-                ticks[n] = tt
-                n += 1
-                last = tt
-
+        # Ticks only: the compiled core records them without calling back.
+        recorder = Recorder(m, [], ticks_of="pendulum")
         chunk = 1000 * ref.period
         while m.t < t_end - 1e-9:
-            m.run_until(min(t_end, m.t + chunk), on_point)
+            m.run_until(min(t_end, m.t + chunk), recorder)
             if progress:
-                progress(n, periods)
+                progress(min(len(recorder.ticks), periods), periods)
+        n = min(len(recorder.ticks), len(ticks))
+        ticks[:n] = recorder.ticks[:n]
         stats = vars(m.stats).copy()
     wall = time.perf_counter() - wall
     # Tick 0 is the start itself (phi = 0 crossing from below is not seen

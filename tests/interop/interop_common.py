@@ -12,6 +12,7 @@ from __future__ import annotations
 import functools
 import importlib
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -135,3 +136,27 @@ def check_tool(tool: str, name: str, directory: str) -> None:
           f"{r['worst_amplitude_excess_rad']:.3g} rad (#{r['worst_amplitude_at']})")
     assert r["worst_tick_excess_s"] <= 0.0, r
     assert r["worst_amplitude_excess_rad"] <= 0.0, r
+
+
+def console_tool(name: str) -> str:
+    """A console script of an installed package: on PATH or beside this Python."""
+    exe = shutil.which(name) or str(Path(sys.executable).parent / name)
+    if not Path(exe).exists():
+        pytest.fail(f"{name} not found next to {sys.executable} nor on PATH")
+    return exe
+
+
+def fmutool_container(name: str, out: Path) -> Path:
+    """fmu-manipulation-toolbox's container FMU of a scene, built by
+    `fmucontainer` from what `clockwork export-ssp --container-dir` writes."""
+    require("fmu_manipulation_toolbox")
+    cdir = out / "container"
+    p = subprocess.run([sys.executable, "-m", "clockwork", "export-ssp", f"scenarios/{name}.toml",
+                        "--out", str(out / f"{name}.ssp"), "--container-dir", str(cdir)],
+                       capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert p.returncode == 0, p.stdout + p.stderr
+    p = subprocess.run([console_tool("fmucontainer"), "-container", f"{name}.json", "-fmu-directory", str(cdir)],
+                       capture_output=True, text=True, timeout=300)
+    fmu = cdir / f"{name}.fmu"
+    assert p.returncode == 0 and fmu.exists(), p.stdout + p.stderr
+    return fmu

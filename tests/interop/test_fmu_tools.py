@@ -10,26 +10,18 @@ checker and its container builder.
   consistent start): relative difference <= 1e-9.
 """
 
-import shutil
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import reference_loop
-from interop_common import FMU_DIR, RELATIVE_TOLERANCE, ROOT, relative_difference, require, scene
+from interop_common import (FMU_DIR, RELATIVE_TOLERANCE, console_tool, fmutool_container, relative_difference,
+                             require, scene)
 
 MODELS = ["Pendulum", "GrasshopperEscapement", "ChronometerEscapement", "Drag", "MechanismVibration",
           "AveragedPendulum"]
-
-
-def _tool(name: str) -> str:
-    exe = shutil.which(name) or str(Path(sys.executable).parent / name)
-    if not Path(exe).exists():
-        pytest.fail(f"{name} not found next to {sys.executable} nor on PATH")
-    return exe
 
 
 @pytest.mark.parametrize("model", MODELS)
@@ -44,7 +36,7 @@ def test_fmpy_validate(model):
 def test_fmutool_check(model):
     require("fmu_manipulation_toolbox")
     fmu = FMU_DIR / f"{model}.fmu"
-    p = subprocess.run([_tool("fmutool"), "-input", str(fmu), "-check"], capture_output=True, text=True,
+    p = subprocess.run([console_tool("fmutool"), "-input", str(fmu), "-check"], capture_output=True, text=True,
                        timeout=120)
     text = p.stdout + p.stderr
     assert p.returncode == 0, text
@@ -54,17 +46,8 @@ def test_fmutool_check(model):
 
 
 def test_container_from_scene_runs_under_fmpy_simulate(tmp_path):
-    require("fmu_manipulation_toolbox")
     name = "core_grasshopper_drag"
-    cdir = tmp_path / "container"
-    p = subprocess.run([sys.executable, "-m", "clockwork", "export-ssp", f"scenarios/{name}.toml",
-                        "--out", str(tmp_path / f"{name}.ssp"), "--container-dir", str(cdir)],
-                       capture_output=True, text=True, timeout=120, cwd=ROOT)
-    assert p.returncode == 0, p.stdout + p.stderr
-    p = subprocess.run([_tool("fmucontainer"), "-container", f"{name}.json", "-fmu-directory", str(cdir)],
-                       capture_output=True, text=True, timeout=300)
-    fmu = cdir / f"{name}.fmu"
-    assert p.returncode == 0 and fmu.exists(), p.stdout + p.stderr
+    fmu = fmutool_container(name, tmp_path)
     p = subprocess.run([sys.executable, "-m", "fmpy", "validate", str(fmu)],
                        capture_output=True, text=True, timeout=120)
     assert "No problems found." in p.stdout, p.stdout + p.stderr
