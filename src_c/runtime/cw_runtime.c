@@ -14,7 +14,7 @@
 #include <string.h>
 
 #define STATE_MAGIC 0x31535743u /* "CWS1" little endian */
-#define STATE_LAYOUT_VERSION 1u
+#define STATE_LAYOUT_VERSION 2u  /* 2: the checksum runs over 64-bit words */
 
 #define ANY_OPEN_STATE                                                      \
     (CW_INSTANTIATED | CW_INIT_MODE | CW_STEP_COMPLETE | CW_STEP_FAILED |   \
@@ -615,6 +615,26 @@ static uint64_t fnv1a(const unsigned char *p, size_t n, uint64_t h) {
 }
 #define FNV_SEED 14695981039346656037ULL
 
+/* The state's checksum: FNV-1a over little-endian 64-bit words, the tail
+ * byte by byte. One multiplication per 8 bytes instead of per byte: a
+ * rollback checks it on every fmi2SetFMUstate. Each step is a bijection of
+ * the running hash, so any one changed word changes the result. */
+static uint64_t state_checksum(const unsigned char *p, size_t n) {
+    uint64_t h = FNV_SEED;
+    size_t k = 0;
+    for (; k + 8 <= n; k += 8) {
+        uint64_t w = 0;
+        for (int b = 0; b < 8; b++) w |= (uint64_t)p[k + b] << (8 * b);
+        h ^= w;
+        h *= 1099511628211ULL;
+    }
+    for (; k < n; k++) {
+        h ^= p[k];
+        h *= 1099511628211ULL;
+    }
+    return h;
+}
+
 static size_t state_size(const cw_model *m) {
     size_t n = 4 + 4 + 8 + 4 + 4 + 8;
     for (int k = 0; k < m->nvars; k++) {
@@ -684,7 +704,7 @@ static void encode_state(const cw_instance *inst, unsigned char *buf,
     for (int k = 0; k < m->n_real_state; k++) put_f64(&p, inst->s[k]);
     put_u32(&p, (uint32_t)m->n_uint_state);
     for (int k = 0; k < m->n_uint_state; k++) put_u64(&p, inst->u[k]);
-    put_u64(&p, fnv1a(buf, (size_t)(p - buf), FNV_SEED));
+    put_u64(&p, state_checksum(buf, (size_t)(p - buf)));
 }
 
 /* Check a state buffer and decode it into inst, which is a scratch copy
@@ -715,7 +735,7 @@ static fmi2Status decode_state(cw_instance *inst, const unsigned char *buf,
                     fn, stored_size, expected);
     const unsigned char *end = buf + size - 8;
     const unsigned char *q = end;
-    if (get_u64(&q) != fnv1a(buf, size - 8, FNV_SEED))
+    if (get_u64(&q) != state_checksum(buf, size - 8))
         return fail(inst, "%s: the state is corrupt (checksum mismatch).", fn);
 
     /* Decode into scratch space first: a refused state changes nothing. */

@@ -196,9 +196,18 @@ static int h_same_values(const h_values *a, const h_values *b) {
 /* The serialized state layout of docs/design.md, for crafting buffers
  * whose checksum is valid but whose content is not. */
 
-static uint64_t h_fnv1a(const unsigned char *p, size_t n) {
+/* The state's checksum (layout version 2): FNV-1a over little-endian
+ * 64-bit words, the tail byte by byte. */
+static uint64_t h_state_checksum(const unsigned char *p, size_t n) {
     uint64_t h = 14695981039346656037ULL;
-    for (size_t k = 0; k < n; k++) {
+    size_t k = 0;
+    for (; k + 8 <= n; k += 8) {
+        uint64_t w = 0;
+        for (int b = 0; b < 8; b++) w |= (uint64_t)p[k + b] << (8 * b);
+        h ^= w;
+        h *= 1099511628211ULL;
+    }
+    for (; k < n; k++) {
         h ^= p[k];
         h *= 1099511628211ULL;
     }
@@ -220,7 +229,7 @@ static void h_put_u32(unsigned char *p, uint32_t x) {
 }
 
 static void h_fix_checksum(unsigned char *buf, size_t size) {
-    if (size >= 8) h_put_u64(buf + size - 8, h_fnv1a(buf, size - 8));
+    if (size >= 8) h_put_u64(buf + size - 8, h_state_checksum(buf, size - 8));
 }
 
 /* Byte offset of variable vr's value in a serialized state. */

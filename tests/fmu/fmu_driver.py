@@ -40,6 +40,26 @@ STATUS_NAMES = {OK: "OK", WARNING: "Warning", DISCARD: "Discard", ERROR: "Error"
 ROOT = Path(__file__).resolve().parents[2]
 
 
+def guid_hash(data: bytes) -> int:
+    """FNV-1a, byte by byte: the state header's hash of the model GUID."""
+    h = 14695981039346656037
+    for b in data:
+        h = ((h ^ b) * 1099511628211) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
+def state_checksum(data: bytes) -> int:
+    """The state's last 8 bytes (layout version 2): FNV-1a over
+    little-endian 64-bit words, the tail byte by byte."""
+    h = 14695981039346656037
+    whole = len(data) - len(data) % 8
+    for k in range(0, whole, 8):
+        h = ((h ^ int.from_bytes(data[k:k + 8], "little")) * 1099511628211) & 0xFFFFFFFFFFFFFFFF
+    for b in data[whole:]:
+        h = ((h ^ b) * 1099511628211) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
 def find_fmu(name: str) -> Path:
     """<CW_FMU_DIR or fmus/>/<name>.fmu."""
     path = Path(os.environ.get("CW_FMU_DIR", ROOT / "fmus")) / f"{name}.fmu"

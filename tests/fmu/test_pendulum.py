@@ -25,7 +25,7 @@ import pytest
 from scipy.special import ellipj, ellipk
 
 from cwtest import FMU_DIR, fmu_file
-from fmu_driver import ERROR, OK, Instance, unpack
+from fmu_driver import ERROR, OK, Instance, guid_hash, state_checksum, unpack
 
 G = 9.81
 OMEGA0 = math.sqrt(G / 1.0)
@@ -307,16 +307,10 @@ def test_serialized_state_continues_in_fresh_instance(fmu):
     assert first == second
 
 
-def _fnv1a(data: bytes) -> int:
-    h = 14695981039346656037
-    for b in data:
-        h = ((h ^ b) * 1099511628211) & 0xFFFFFFFFFFFFFFFF
-    return h
-
 
 def test_serialized_layout_is_the_documented_one(fmu):
     """docs/design.md: header, variables in table order, input derivatives,
-    model state, FNV-1a checksum; all little endian."""
+    model state, word-wise FNV-1a checksum; all little endian."""
     import struct
 
     md, _ = unpack(fmu)
@@ -324,9 +318,9 @@ def test_serialized_layout_is_the_documented_one(fmu):
         state = p.get_state()
         data = p.serialize(state)
         p.free_state(state)
-        magic, version, guid_hash, size, machine = struct.unpack_from("<4sIQII", data, 0)
-        assert (magic, version, size, machine) == (b"CWS1", 1, len(data), 4)
-        assert guid_hash == _fnv1a(md.guid.encode())
+        magic, version, guid_digest, size, machine = struct.unpack_from("<4sIQII", data, 0)
+        assert (magic, version, size, machine) == (b"CWS1", 2, len(data), 4)
+        assert guid_digest == guid_hash(md.guid.encode())
         off = 24
         (t,) = struct.unpack_from("<d", data, off)
         assert t == p.time
@@ -348,7 +342,7 @@ def test_serialized_layout_is_the_documented_one(fmu):
         (n_uint,) = struct.unpack_from("<I", data, off)
         off += 4 + 8 * n_uint
         assert off + 8 == len(data)
-        assert struct.unpack_from("<Q", data, off)[0] == _fnv1a(data[:off])
+        assert struct.unpack_from("<Q", data, off)[0] == state_checksum(data[:off])
 
 
 def _refused(q: Instance, data: bytes, reason: str | None = None):
@@ -399,8 +393,8 @@ def test_bad_serialized_states_are_refused(fmu):
             _refused(q, bytes(bad))
         # A state of another model: same layout, another GUID, valid checksum.
         other = bytearray(data)
-        other[8:16] = (_fnv1a(b"{another-model}")).to_bytes(8, "little")
-        other[-8:] = _fnv1a(bytes(other[:-8])).to_bytes(8, "little")
+        other[8:16] = (guid_hash(b"{another-model}")).to_bytes(8, "little")
+        other[-8:] = state_checksum(bytes(other[:-8])).to_bytes(8, "little")
         _refused(q, bytes(other), "another model")
         for name, blob in _other_models():
             _refused(q, blob)

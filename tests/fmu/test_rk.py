@@ -626,7 +626,7 @@ def test_integrator_travels_with_the_fmu_state():
     import struct
 
     from cwtest import fmu_file
-    from fmu_driver import ERROR, Instance
+    from fmu_driver import ERROR, Instance, state_checksum
 
     fmu = fmu_file("Pendulum")
     params = dict(Q=300.0, phi_start=0.4, rtol=1e-9, atol=1e-12, integrator=DOP853)
@@ -667,15 +667,9 @@ def test_integrator_travels_with_the_fmu_state():
         assert struct.unpack_from("<i", data, off)[0] == DOP853
         bad = bytearray(data)
         bad[off:off + 4] = struct.pack("<i", 3)
-        bad[-8:] = _fnv1a(bytes(bad[:-8])).to_bytes(8, "little")
+        bad[-8:] = state_checksum(bytes(bad[:-8])).to_bytes(8, "little")
         q.messages.clear()
         st, state = q.deserialize(bytes(bad))
         assert st == ERROR and not state.value
         assert "integrator = 3 is outside" in q.errors()[-1].text, q.log_text()
 
-
-def _fnv1a(data: bytes) -> int:
-    h = 14695981039346656037
-    for b in data:
-        h = ((h ^ b) * 1099511628211) & 0xFFFFFFFFFFFFFFFF
-    return h

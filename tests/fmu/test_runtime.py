@@ -10,7 +10,7 @@ import re
 import pytest
 
 from cwtest import fmu_file
-from fmu_driver import DISCARD, ERROR, OK, FmuError, Instance, unpack
+from fmu_driver import DISCARD, ERROR, OK, FmuError, Instance, state_checksum, unpack
 
 NUMBER = re.compile(r"[-+]?(?:nan|inf|(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)", re.I)
 
@@ -372,12 +372,6 @@ def test_instances_are_freed(fmu):
 # ---------------------------------------------------------------- states and parameter rules
 
 
-def _fnv1a(data: bytes) -> int:
-    h = 14695981039346656037
-    for b in data:
-        h = ((h ^ b) * 1099511628211) & 0xFFFFFFFFFFFFFFFF
-    return h
-
 
 def _patched(md, data: bytes, **changes) -> bytes:
     """The serialized state with variables (and `machine`) replaced and the
@@ -400,7 +394,7 @@ def _patched(md, data: bytes, **changes) -> bytes:
         else:
             off += 32 if v.causality == "input" else 8  # inputs: value, d1, d2, t_ref
     assert not changes, changes
-    out[-8:] = _fnv1a(bytes(out[:-8])).to_bytes(8, "little")
+    out[-8:] = state_checksum(bytes(out[:-8])).to_bytes(8, "little")
     return bytes(out)
 
 
