@@ -65,8 +65,12 @@ def fmu_dir() -> Path:
 
 
 def core_library() -> Path:
-    """The master's compiled stepping core: the checkout's lib/ (built by
-    CMake with the FMUs), else the copy installed with the package."""
+    """The master's compiled stepping core: $CLOCKWORK_CORE_LIB (the
+    sanitizer build's copy, for instance), else the checkout's lib/ (built
+    by CMake with the FMUs), else the copy installed with the package."""
+    env = os.environ.get("CLOCKWORK_CORE_LIB")
+    if env:
+        return Path(env)
     name = "libcw_master.so"
     return REPO / "lib" / name if in_checkout() else _package_data("lib") / name
 
