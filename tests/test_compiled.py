@@ -238,10 +238,29 @@ def test_a_bad_engine_is_bad_input(capsys, tmp_path, value, needle):
     assert not (tmp_path / "o").exists()
 
 
-def test_compiled_with_strong_coupling_is_bad_input(capsys, tmp_path):
+@pytest.mark.parametrize("settings, needle", [
+    (["master.iterations=2"], "does not iterate the coupling"),
+    (["master.richardson=true"], "does not do step doubling"),
+])
+def test_compiled_where_the_core_does_not_reach_is_bad_input(capsys, tmp_path, settings, needle):
+    sets = [a for s in ["master.engine=compiled", *settings] for a in ("--set", s)]
+    rc, _, err = run_cli(capsys, ["run", "core_grasshopper", "--out", tmp_path / "o", *sets])
+    assert_one_line_error(rc, err, "core_grasshopper.toml", "master.engine", needle)
+    assert not (tmp_path / "o").exists()
+
+
+def test_compiled_without_the_core_library_is_bad_input_and_auto_runs(capsys, tmp_path, monkeypatch):
+    monkeypatch.setattr(compiled, "_lib", None)
+    monkeypatch.setattr(compiled, "_lib_error", None)
+    monkeypatch.setenv("CLOCKWORK_CORE_LIB", str(tmp_path / "missing" / "libcw_master.so"))
+    monkeypatch.setenv("CLOCKWORK_CACHE", "off")
     rc, _, err = run_cli(capsys, ["run", "core_grasshopper", "--out", tmp_path / "o",
-                                  "--set", "master.engine=compiled", "--set", "master.iterations=2"])
-    assert_one_line_error(rc, err, "master.engine = 'compiled'", "master.iterations")
+                                  "--set", "master.engine=compiled"])
+    assert_one_line_error(rc, err, "core_grasshopper.toml", "master.engine", "cannot be loaded",
+                          "tools/setup.sh")
+    rc, _, err = run_cli(capsys, ["run", "core_grasshopper", "--out", tmp_path / "auto", "--no-progress"])
+    assert rc == 0, err
+    assert (tmp_path / "auto" / "timeseries.csv").is_file()
 
 
 def _summary(path):

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from ..errors import SceneError
+from ..engine import compiled
 from ..engine.description import variables as variables_of
 from .units import fmt
 
@@ -172,6 +173,11 @@ def consistency(m: MasterConfig, e: Experiment) -> tuple[str, str] | None:
         return "master.min_step", f"expected min_step <= step ({fmt(m.step)} s), got {fmt(m.min_step)} s"
     if m.max_step < m.step:
         return "master.max_step", f"expected max_step >= step ({fmt(m.step)} s), got {fmt(m.max_step)} s"
+    if m.engine == "compiled":
+        # Asked for by name: where the core cannot serve, say so before the run.
+        reason = compiled.unsupported(m) or compiled.core_problem()
+        if reason:
+            return "master.engine", f'expected "auto" or "python" here: {reason}'
     # A step below the time resolution at the end would never move the clock.
     resolution = 64 * math.ulp(max(abs(e.start), abs(e.stop)))
     if m.step < resolution:
