@@ -33,7 +33,7 @@ class Checkpoints:
         """Save the FMU states and the soft state (the replay list is left alone)."""
         m = self.master
         for p in m.ports.all:
-            p.inst.save_state()
+            p.inst.save_state(m.t)
         m.stats.states_saved += 1
         loc = m.locator
         self.snapshot = (loc.z_end, m.t, m.coupling.snapshot(), m.after_event, loc.time_to_zero)
@@ -46,7 +46,7 @@ class Checkpoints:
     def restore_states(self) -> None:
         m = self.master
         for p in m.ports.all:
-            p.inst.restore_state()
+            p.inst.restore_state(m.t)
             p.sent_valid = False
         m.locator.forget_end_rates()
         m.stats.rollbacks += 1

@@ -300,7 +300,9 @@ class Instance:
         self.check(self.c_exitInit(self.component), "fmi2ExitInitializationMode", error=ParametersRefused)
 
     def reset(self) -> None:
+        """fmi2Reset: back to the state right after instantiation."""
         self.check(self.c_reset(self.component), "fmi2Reset")
+        del self.messages[:]  # an error after the reset must not quote one from before
 
     # -- convenience getters (not on the hot path) ----------------------
 
@@ -338,9 +340,9 @@ class Instance:
 
     # -- FMU state ------------------------------------------------------
 
-    def save_state(self) -> None:
-        """Overwrite this instance's one saved state (no allocation growth)."""
-        self.check(self.c_getState(self.component, byref(self._state)), "fmi2GetFMUstate")
+    def save_state(self, t: float | None = None) -> None:
+        """Overwrite this instance's one saved state (no allocation growth); t (s) names the point in errors."""
+        self.check(self.c_getState(self.component, byref(self._state)), "fmi2GetFMUstate", t)
 
-    def restore_state(self) -> None:
-        self.check(self.c_setState(self.component, self._state), "fmi2SetFMUstate")
+    def restore_state(self, t: float | None = None) -> None:
+        self.check(self.c_setState(self.component, self._state), "fmi2SetFMUstate", t)

@@ -142,7 +142,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     connections = _connections(ctx, raw.get("connections", []), components, input_params)
     experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
     master, max_step_given = _master(ctx, ctx.table(raw, "master", "") or {})
-    problem = consistency(master, experiment)
+    problem = consistency(master, experiment, components)
     if problem:
         raise ctx.fail(*problem)
     record = _record(ctx, ctx.table(raw, "record", ""), components)

@@ -155,7 +155,7 @@ class Scene:
                 comps[owner] = dataclasses.replace(c, parameters={**c.parameters, name: value})
         m = MasterConfig(**master)
         e = Experiment(**exp)
-        problem = consistency(m, e)
+        problem = consistency(m, e, comps)
         if problem:
             key, detail = problem
             raise SceneError(detail, self.path, f"{key} (with {_show_point(values)})")
@@ -166,7 +166,9 @@ def _show_point(values: dict) -> str:
     return ", ".join(f"{a}.{b} = {show(v)}" for (a, b), v in values.items())
 
 
-def consistency(m: MasterConfig, e: Experiment) -> tuple[str, str] | None:
+def consistency(m: MasterConfig, e: Experiment, components: dict[str, Component]) -> tuple[str, str] | None:
+    """The first problem of these settings with each other and with the
+    components, as (key, what was expected), or None."""
     if not e.stop > e.start:
         return "experiment.stop", f"expected stop > start ({fmt(e.start)} s), got {fmt(e.stop)} s"
     if m.min_step > m.step:
@@ -178,6 +180,9 @@ def consistency(m: MasterConfig, e: Experiment) -> tuple[str, str] | None:
         reason = compiled.unsupported(m) or compiled.core_problem()
         if reason:
             return "master.engine", f'expected "auto" or "python" here: {reason}'
+    problem = rollback_problem(m, components)
+    if problem:
+        return problem
     # A step below the time resolution at the end would never move the clock.
     resolution = 64 * math.ulp(max(abs(e.start), abs(e.stop)))
     if m.step < resolution:
@@ -185,6 +190,26 @@ def consistency(m: MasterConfig, e: Experiment) -> tuple[str, str] | None:
                                f"{fmt(e.stop)} s from {fmt(e.stop)} s + {fmt(m.step)} s apart well enough")
     return None
 
+
+
+def rollback_problem(m: MasterConfig, components: dict[str, Component]) -> tuple[str, str] | None:
+    """Locating events, iterating the coupling and step doubling take every
+    FMU back to a saved state (fmi2GetFMUstate/fmi2SetFMUstate): an FMU that
+    does not declare canGetAndSetFMUstate would fail at its first rollback."""
+    if m.iterations > 0:
+        key, value, why = "master.iterations", "0", "iterating the coupling"
+    elif m.richardson:
+        key, value, why = "master.richardson", "false", "step doubling"
+    elif m.event_location and any(c.event_indicators for c in components.values()):
+        key, value, why = "master.event_location", "false", "locating events"
+    else:
+        return None
+    for c in components.values():
+        if not c.model_description.coSimulation.canGetAndSetFMUstate:
+            return key, (f"expected {value} here: components.{c.name} ({c.fmu_path.name}) cannot save and "
+                         f"restore its state (its modelDescription.xml does not declare canGetAndSetFMUstate), "
+                         f"and {why} rolls every FMU back")
+    return None
 
 
 def show(value: object, limit: int = 60) -> str:
