@@ -175,7 +175,8 @@ def _cli(*args):
 
 
 def test_sigkill_resume_and_uninterrupted_equal(tmp_path):
-    scene = make_scene(tmp_path / "scene", num=8, stop=40.0)
+    # Points long enough (~0.1 s each) that the kill lands halfway through the sweep.
+    scene = make_scene(tmp_path / "scene", num=8, stop=4000.0)
     env = dict(os.environ, CLOCKWORK_FMU_DIR=str(FMU_DIR), CLOCKWORK_CACHE="off")
     out = tmp_path / "killed"
     proc = subprocess.Popen(_cli("run", scene, "--out", out, "--workers", 1, "--no-progress"),

@@ -4,10 +4,16 @@
 (``Parameters``: the scene's value, else the FMU's start value, in the
 variable's own SI unit). ``build_system`` wires and instantiates the FMUs
 with them; ``master_settings`` and ``experiment`` apply a point's master
-and experiment values.
+and experiment values. Inside ``reusing_systems()`` (a sweep's points in
+one process), ``build_system`` hands a finished point's instances to the
+next point of the same structure: fmi2Reset and new parameters instead of
+loading and instantiating every FMU again.
 """
 
 from __future__ import annotations
+
+from contextlib import contextmanager
+from contextvars import ContextVar
 
 from ..engine.description import var_unit, variables
 from ..engine.settings import MasterSettings
@@ -97,10 +103,69 @@ def parameters(scene, point: dict | None = None) -> dict[str, Parameters]:
     return {n: Parameters(values, scene.components[n].model_description, n) for n, values in params.items()}
 
 
+class _IdleSystem:
+    """The one system kept between points, with what it was built from."""
+
+    def __init__(self):
+        self.key: tuple | None = None
+        self.system: System | None = None
+
+    def take(self, key: tuple) -> System | None:
+        if self.system is None or self.key != key:
+            return None
+        system, self.system, self.key = self.system, None, None
+        return system
+
+    def keep(self, key: tuple, system: System) -> None:
+        self.close()  # one idle system: a sweep over structure does not pile them up
+        self.key, self.system = key, system
+
+    def close(self) -> None:
+        if self.system is not None:
+            self.system.free()
+        self.key = self.system = None
+
+
+_idle: ContextVar[_IdleSystem | None] = ContextVar("clockwork_idle_system", default=None)
+
+
+@contextmanager
+def reusing_systems():
+    """Within this block, build_system reuses the instances of the last
+    point that finished cleanly when the next point has the same FMUs,
+    connections, master settings, start time and recorded outputs."""
+    idle = _IdleSystem()
+    token = _idle.set(idle)
+    try:
+        yield
+    finally:
+        _idle.reset(token)
+        idle.close()
+
+
 def build_system(scene, point: dict | None = None, record: dict[str, list[str]] | None = None) -> System:
     params = parameters(scene, point)
     start, _ = experiment(scene, point)
+    settings = master_settings(scene, point)
+    idle = _idle.get()
+    key = None
+    if idle is not None:
+        key = (tuple((n, str(c.fmu_path), c.sha256) for n, c in scene.components.items()),
+               tuple(scene.connections), repr(settings), start,
+               tuple(sorted((k, tuple(v)) for k, v in (record or {}).items())))
+        system = idle.take(key)
+        if system is not None:
+            try:
+                system.restart(params)
+            except BaseException:
+                system.free()
+                raise
+            system.release = lambda s: idle.keep(key, s)
+            return system
     components = {n: (str(c.fmu_path), params[n]) for n, c in scene.components.items()}
     mds = {n: c.model_description for n, c in scene.components.items()}
-    return System(components, [tuple(c) for c in scene.connections], master_settings(scene, point),
-                  record=record, start_time=start, model_descriptions=mds)
+    system = System(components, [tuple(c) for c in scene.connections], settings,
+                    record=record, start_time=start, model_descriptions=mds)
+    if idle is not None:
+        system.release = lambda s: idle.keep(key, s)
+    return system

@@ -127,6 +127,13 @@ class Master:
             inst.reset()
         self.initialize(parameters)
 
+    def restart(self, parameters: dict[str, dict[str, object]]) -> None:
+        """A new run on the same instances: reinitialize, with the counts
+        and the per-step callback of the last run forgotten."""
+        self.on_step = None
+        self.stats = Statistics()
+        self.reinitialize(parameters)
+
     def discontinuity(self) -> None:
         """Tell the master that something changed outside the wiring at this
         communication point (a tunable parameter, an unconnected input): the

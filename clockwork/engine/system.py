@@ -24,6 +24,9 @@ class System:
                  start_time: float = 0.0, model_descriptions: dict | None = None):
         self.parameters = {name: dict(params) for name, (_, params) in components.items()}
         self.instances: dict[str, Instance] = {}
+        # On a clean exit of a `with` block, hand the system to this callable
+        # instead of freeing it (analyses.context.reusing_systems).
+        self.release = None
         try:
             for name, (fmu, _) in components.items():
                 md = (model_descriptions or {}).get(name)
@@ -37,6 +40,14 @@ class System:
         except BaseException:
             self.free()
             raise
+
+    def restart(self, parameters: dict[str, dict[str, object]]) -> None:
+        """Start again from `parameters` on the same instances and wiring:
+        fmi2Reset every FMU, initialize again, statistics from zero. The
+        same bits as a new System with these parameters, without loading and
+        instantiating the FMUs again."""
+        self.parameters = {name: dict(p) for name, p in parameters.items()}
+        self.master.restart(self.parameters)
 
     def value(self, instance: str, name: str) -> float:
         """Current value of a Real variable (not on the hot path)."""
@@ -54,5 +65,9 @@ class System:
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
-        self.free()
+    def __exit__(self, exc_type, exc, tb):
+        release, self.release = self.release, None
+        if release is not None and exc_type is None and self.instances:
+            release(self)
+        else:
+            self.free()

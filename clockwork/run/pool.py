@@ -6,27 +6,33 @@ and runs the points it is given; results come back as points finish.
 
 from __future__ import annotations
 
+import atexit
 import ctypes
 import os
 import signal
 import sys
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
+from ..analyses.context import reusing_systems
 from .catalog import load_scene
 from .points import run_point
 
 _scenes: dict = {}  # per worker process: (path, overrides) -> Scene
 
 
-def _die_with_parent(parent: int) -> None:
+def _start_worker(parent: int) -> None:
     """A worker must not outlive its parent: when the parent dies (even by
-    SIGKILL) the kernel sends the worker SIGKILL too (Linux prctl)."""
+    SIGKILL) the kernel sends the worker SIGKILL too (Linux prctl). Its
+    points share their FMU instances for the worker's whole life."""
     if sys.platform.startswith("linux"):
         libc = ctypes.CDLL(None, use_errno=True)
         pr_set_pdeathsig = 1
         libc.prctl(pr_set_pdeathsig, signal.SIGKILL)
     if os.getppid() != parent:  # the parent died before prctl took effect
         os._exit(1)
+    reuse = reusing_systems()
+    reuse.__enter__()
+    atexit.register(reuse.__exit__, None, None, None)
 
 
 def _worker(scene_path: str, overrides: tuple, point_items: list) -> dict:
@@ -45,7 +51,7 @@ def default_workers(n_points: int) -> int:
 
 def run_in_pool(scene, points: list[dict], indices: list[int], workers: int):
     """Run `points` (their sweep `indices`) in `workers` processes; yield (index, result)."""
-    with ProcessPoolExecutor(workers, initializer=_die_with_parent, initargs=(os.getpid(),)) as pool:
+    with ProcessPoolExecutor(workers, initializer=_start_worker, initargs=(os.getpid(),)) as pool:
         futures = {
             pool.submit(_worker, str(scene.path), tuple(scene.overrides),
                         [[list(k), v] for k, v in p.items()]): i

@@ -14,6 +14,7 @@ import time
 from dataclasses import asdict
 
 from .. import __version__
+from ..analyses.context import reusing_systems
 from ..errors import ParametersRefused, SceneError
 from ..results.cache import cache_load, cache_store, read_point
 from ..results.files import write_json_atomic
@@ -75,9 +76,10 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
             done = ((i, run_point(scene, points[i], catch=True)) for i in todo)
         else:
             done = run_in_pool(scene, [points[i] for i in todo], todo, n_workers)
-        for i, r in done:
-            finished(i, r)
-            bar.update()
+        with reusing_systems():  # points in this process share their FMU instances
+            for i, r in done:
+                finished(i, r)
+                bar.update()
         bar.close()
 
     summary = {
