@@ -1,5 +1,5 @@
 """python -m clockwork"""
 
-from .cli import main
+from .cli import console
 
-raise SystemExit(main())
+raise SystemExit(console())

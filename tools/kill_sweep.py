@@ -54,7 +54,7 @@ def main() -> int:
         tmp = Path(tmp)
         env = dict(os.environ, CLOCKWORK_CACHE="off", PYTHONPATH=str(ROOT))
         cmd = [sys.executable, "-m", "clockwork", "run", args.scene, "--no-progress", "--workers", str(args.workers)]
-        orphans = 0
+        orphans = landed = 0
         out = tmp / "killed"
         for k in range(args.kills):
             proc = subprocess.Popen(cmd + ["--out", str(out)], env=env, stdout=subprocess.DEVNULL,
@@ -66,6 +66,7 @@ def main() -> int:
                 time.sleep(0.01)
             if proc.poll() is None:
                 proc.send_signal(signal.SIGKILL)
+                landed += 1
             proc.wait()
             deadline = time.monotonic() + 10
             while any(running(p) for p in kids) and time.monotonic() < deadline:
@@ -77,7 +78,8 @@ def main() -> int:
         same = r.returncode == c.returncode == 0 and (
             (out / "sweep.csv").read_bytes() == (clean / "sweep.csv").read_bytes())
         parts = sorted(str(p.relative_to(out)) for p in out.rglob("*.part"))
-        print(f"kills: {args.kills}; orphan processes: {orphans}; .part files left: {len(parts)}; "
+        print(f"kills: {landed} of {args.kills} runs (the others finished first); orphan processes: {orphans}; "
+              f".part files left: {len(parts)}; "
               f"sweep.csv byte-identical to an uninterrupted run: {'yes' if same else 'NO'}")
         if not same:
             print(r.stderr, c.stderr, file=sys.stderr)

@@ -4,6 +4,10 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
 "$PY" -m pip install --quiet --disable-pip-version-check -e ".[test,interop]"
+# Bytecode, as pip writes it for an installed wheel: an editable install
+# leaves it to the first import, which never writes it where
+# PYTHONDONTWRITEBYTECODE is set, and every start-up then compiles the package.
+"$PY" -m compileall -q clockwork > /dev/null
 # ecospy's native library links against oneTBB (Debian: libtbb12).
 libs=$(ldconfig -p 2>/dev/null || /sbin/ldconfig -p 2>/dev/null || true)
 if ! grep -q 'libtbb\.so\.12' <<< "$libs"; then

@@ -5,6 +5,7 @@ clockwork.results.outdir). Column order in sweep.csv is fixed by the scene,
 not by the order in which points finished: the sweep's axes as the scene
 lists them, then the result columns by name. A plot that fails does not
 take the data with it: its error is in summary.json (``plots_failed``).
+The plots may be drawn by a second process meanwhile (plots.background).
 """
 
 from __future__ import annotations
@@ -17,12 +18,17 @@ import numpy as np
 
 from .files import clean_json, write_csv_atomic, write_json_atomic
 from .headlines import headlines_for
-from .plots import make_plots
+from .plots import Plotter
 
 _SCALARS = (int, float, bool, str, type(None))
 
 
-def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start: float) -> None:
+def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start: float,
+                  plotter: Plotter | None = None) -> None:
+    """Everything into `out`; the plots by `plotter` (a plot process the run
+    started early), else in this process."""
+    plotter = plotter or Plotter(scene)
+    plotter.submit(results, out)  # drawn meanwhile, where a plot process runs
     files = []
     if scene.sweep is None:
         r = results[0]
@@ -50,7 +56,7 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
         write_csv_atomic(out / "sweep.csv", axes + rkeys, cols)
         files.append("sweep.csv")
         summary["points_failed"] = sum(1 for r in results if "error" in r)
-    written, failed, empty = make_plots(scene, results, out)
+    written, failed, empty = plotter.collect()
     files += written
     if failed:
         summary["plots_failed"] = failed

@@ -7,13 +7,11 @@ and runs the points it is given; results come back as points finish.
 from __future__ import annotations
 
 import atexit
-import ctypes
 import os
-import signal
-import sys
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
 from ..analyses.context import reusing_systems
+from ..processes import die_with_parent
 from .catalog import load_scene
 from .points import run_point
 
@@ -24,12 +22,7 @@ def _start_worker(parent: int) -> None:
     """A worker must not outlive its parent: when the parent dies (even by
     SIGKILL) the kernel sends the worker SIGKILL too (Linux prctl). Its
     points share their FMU instances for the worker's whole life."""
-    if sys.platform.startswith("linux"):
-        libc = ctypes.CDLL(None, use_errno=True)
-        pr_set_pdeathsig = 1
-        libc.prctl(pr_set_pdeathsig, signal.SIGKILL)
-    if os.getppid() != parent:  # the parent died before prctl took effect
-        os._exit(1)
+    die_with_parent(parent)
     reuse = reusing_systems()
     reuse.__enter__()
     atexit.register(reuse.__exit__, None, None, None)

@@ -19,6 +19,7 @@ from ..errors import ParametersRefused, SceneError
 from ..results.cache import cache_load, cache_store, read_point
 from ..results.files import write_json_atomic
 from ..results.outdir import OutputDir
+from ..results.plots import Plotter
 from ..results.report import write_outputs
 from .points import point_key, point_label, run_point
 from .pool import default_workers, run_in_pool
@@ -28,12 +29,15 @@ def run_scene(scene, out_dir, workers: int | None = None, scheduler: str | None 
               progress: bool = True) -> dict:
     """Run every point of `scene` and write its results into `out_dir`
     (see clockwork.results.outdir for how the directory is kept whole)."""
-    with OutputDir(out_dir) as out:
-        return _run(scene, out, workers, scheduler, progress)
-
-
-def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, progress: bool) -> dict:
     t_start = time.perf_counter()
+    # The plot process starts first: it imports matplotlib while the points run,
+    # and it must not inherit the output directory's lock.
+    with Plotter.start(scene) as plotter, OutputDir(out_dir) as out:
+        return _run(scene, out, workers, scheduler, progress, plotter, t_start)
+
+
+def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, progress: bool,
+         plotter: Plotter, t_start: float) -> dict:
     points = scene.points()
     sweep = scene.sweep is not None
     kind = (scene.analysis or {}).get("kind", "time_series")
@@ -94,6 +98,6 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
         "points_total": len(points),
         "points_reused": reused,
     }
-    write_outputs(scene, out.staging, results, summary, t_start)
+    write_outputs(scene, out.staging, results, summary, t_start, plotter)
     out.commit()
     return summary

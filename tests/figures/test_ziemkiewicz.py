@@ -246,7 +246,6 @@ def test_fig5_contour_plot_on_a_small_grid():
     assert results[0]["result"]["stalled"]  # low torque, low Q: no orbit
     fig = zplots.plot_contour(sc, results, sc.plots[0])
     assert fig is not None and fig.axes[0].collections
-    zplots.pyplot().close(fig)
 
 
 # -- Fig. 6 ----------------------------------------------------------------------

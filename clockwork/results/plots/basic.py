@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from .registry import axis_label, check_keys, display, pyplot, register
+from .registry import axis_label, check_keys, display, register, subplots
 
 
 def _convert(t: dict) -> dict:
@@ -19,7 +19,7 @@ def _convert(t: dict) -> dict:
 @register("time_series", {"x", "y"}, _convert, run="series")
 def time_series(scene, r, spec):
     series = r["series"]
-    fig, ax = pyplot().subplots(figsize=(7, 4))
+    fig, ax = subplots(figsize=(7, 4))
     x, xl = np.asarray(series["time"]), "time (s)"
     if spec.get("x") and spec["x"] != "time":
         x, xl = display(scene, spec["x"], series[spec["x"]])
@@ -40,7 +40,7 @@ def time_series(scene, r, spec):
 @register("phase_portrait", {"x", "y"}, _convert, run="series")
 def phase_portrait(scene, r, spec):
     series = r["series"]
-    fig, ax = pyplot().subplots(figsize=(5, 5))
+    fig, ax = subplots(figsize=(5, 5))
     xv, xl = display(scene, spec["x"], series[spec["x"]])
     yv, yl = display(scene, spec["y"], series[spec["y"]])
     ax.plot(xv, yv, lw=0.5)
@@ -56,7 +56,7 @@ def sweep(scene, results, spec):
     rows = [r for r in results if r and "result" in r and not r["result"].get("stalled")]
     if not rows:
         return None
-    fig, ax = pyplot().subplots(figsize=(7, 4))
+    fig, ax = subplots(figsize=(7, 4))
     x_key = spec.get("x", "amplitude_deg")
     ys = spec.get("y") or ["E_T_s_per_day", "E_C_s_per_day", "E_E_s_per_day"]
     ys = [ys] if isinstance(ys, str) else ys

@@ -13,7 +13,7 @@ import numpy as np
 from ...analyses import keys
 from ...analyses.context import find_component, parameters
 from ...scene.kinds import Invalid
-from .registry import check_keys, display, pyplot, register
+from .registry import check_keys, display, register, subplots
 
 
 def _plot_keys(t: dict) -> dict:
@@ -39,7 +39,7 @@ def plot_phase_space(scene, r, spec):
         sel = (t >= a) & (t <= b)
     x, xl = display(scene, spec["x"], np.asarray(s[spec["x"]])[sel])
     y, yl = display(scene, spec["y"], np.asarray(s[spec["y"]])[sel])
-    fig, ax = pyplot().subplots(figsize=(6, 5.5))
+    fig, ax = subplots(figsize=(6, 5.5))
     from matplotlib.collections import LineCollection
 
     pts = np.column_stack([x, y])
@@ -76,7 +76,7 @@ def plot_vibration_time(scene, r, spec):
     if spec.get("window"):
         a, b = spec["window"]
         sel = (t >= a) & (t <= b)
-    fig, ax = pyplot().subplots(figsize=(9, 4))
+    fig, ax = subplots(figsize=(9, 4))
     ax.plot(t[sel], np.degrees(np.asarray(s[f"{vib}.a2"])[sel]), color="C0", lw=0.8,
             label="$\\alpha_2$ (vibration)")
     ax.plot(t[sel], np.degrees(np.asarray(s[f"{pend}.phi"])[sel]) * r["result"]["forced_gain_linear"],
@@ -99,7 +99,7 @@ def plot_poincare(scene, results, spec):
     rows = [r for r in results if r and "series" in r and r["series"].get("a2")]
     if not rows:
         return None
-    fig, axes = pyplot().subplots(1, len(rows), figsize=(5 * len(rows), 4.6), squeeze=False)
+    fig, axes = subplots(1, len(rows), figsize=(5 * len(rows), 4.6), squeeze=False)
     for ax, r in zip(axes[0], rows):
         s, res = r["series"], r["result"]
         ax.plot(np.degrees(s["a2"]), np.degrees(s["a2dot"]), ".", ms=2.5, color="C0")
@@ -116,7 +116,7 @@ def plot_poincare(scene, results, spec):
 def plot_rate_error(scene, r, spec):
     s = r["series"]
     t = np.asarray(s["time"])
-    fig, ax = pyplot().subplots(figsize=(9, 4.5))
+    fig, ax = subplots(figsize=(9, 4.5))
     ax.plot(t, s["momentary_s_per_day"], color="C0", lw=0.8, label="momentary error (per period)")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("momentary rate error (s/day)", color="C0")
@@ -138,7 +138,7 @@ def plot_lyapunov(scene, results, spec):
     rows = [r for r in results if r and "series" in r]
     if not rows:
         return None
-    fig, (ax, bx) = pyplot().subplots(2, 1, figsize=(8, 7), sharex=True)
+    fig, (ax, bx) = subplots(2, 1, figsize=(8, 7), sharex=True)
     for k, r in enumerate(rows):
         s, res = r["series"], r["result"]
         t = np.asarray(s["time"])
@@ -173,7 +173,7 @@ def plot_lyapunov(scene, results, spec):
 def plot_step_accuracy(scene, r, spec):
     s, res = r["series"], r["result"]
     h = np.asarray(s["h_s"])
-    fig, ax = pyplot().subplots(figsize=(11, 5.5))
+    fig, ax = subplots(figsize=(11, 5.5))
     floor = 1e-16  # exact to round-off: drawn at the floor
 
     def draw(col, fmt, label, **kw):

@@ -13,7 +13,7 @@ import numpy as np
 from ...analyses import keys
 from ...analyses.context import find_component, parameters
 from ...analyses.hoyng.common import DAY, TWO_PI, hoyng_components, stationary_rows
-from .registry import check_keys, curves, pyplot, register
+from .registry import check_keys, curves, register, subplots
 
 
 def _convert_plot(t: dict) -> dict:
@@ -38,7 +38,7 @@ def plot_rate_map(scene, results, spec):
     E, M = np.meshgrid(np.linspace(eps_max / 400, eps_max, 300), np.linspace(mu_max / 400, mu_max, 300))
     x = 2.0 * M / (math.pi * E * phi0) - 1.0
     Z = np.where(x >= 0, -M * phi0 / (8 * math.pi * E) + E * np.sqrt(np.maximum(x, 0)), np.nan) * DAY
-    fig, ax = pyplot().subplots(figsize=(7, 5.5))
+    fig, ax = subplots(figsize=(7, 5.5))
     levels = spec.get("levels", [-40, -30, -20, -10, -5, 0, 5, 10, 15, 20])
     neg = [lv for lv in levels if lv != 0]
     cs = ax.contour(E, M, Z, levels=neg, colors="k", linewidths=0.8)
@@ -77,7 +77,7 @@ def plot_comparison(scene, rows, spec):
     xk, gk = spec.get("x", "eps"), spec.get("group")
     theory = spec.get("theory", "rate_theory")
     groups = curves([r["result"] for r in rows], lambda res: res.get(gk) if gk else None)
-    fig, (ax, bx) = pyplot().subplots(2, 1, figsize=(7, 6.5), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    fig, (ax, bx) = subplots(2, 1, figsize=(7, 6.5), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     for k, (g, rs) in enumerate(sorted(groups.items(), key=lambda kv: (kv[0] is None, kv[0] or 0))):
         rs = sorted(rs, key=lambda r: r[xk])
         x = np.array([r[xk] for r in rs])
@@ -118,7 +118,7 @@ def plot_phi(scene, r, spec):
     w0 = math.sqrt(parameters(scene)[find_component(scene, "Pendulum")]["g"] /
                    parameters(scene)[find_component(scene, "Pendulum")]["L"])
     res = r["result"]
-    fig, (ax, bx) = pyplot().subplots(2, 1, figsize=(7, 5.5))
+    fig, (ax, bx) = subplots(2, 1, figsize=(7, 5.5))
     per = w0 * t / TWO_PI
     ax.plot(per, phi, "k-", lw=0.3)
     ax.axvline(res["jump_at_periods"], color="C3", ls=":", lw=0.8)
@@ -140,7 +140,7 @@ def plot_jump(scene, r, spec):
     """Fig. 5: rate (Eq. 22) and amplitude after the torque jump, with Eqs. (16), (18)."""
     s = r["series"]
     per, rate = np.asarray(s["periods"]), np.asarray(s["rate"])
-    fig, (ax, bx) = pyplot().subplots(2, 1, figsize=(7, 6.5), sharex=True)
+    fig, (ax, bx) = subplots(2, 1, figsize=(7, 6.5), sharex=True)
     ax.plot(per, rate, "k-", lw=0.8, label="co-simulation, Eq. (22)")
     k = np.linspace(0, len(per) - 1, 25).astype(int)
     ax.plot(per[k], np.asarray(s["rate_eq16_eq18"])[k], "D", ms=4, mfc="none", color="C3",
@@ -169,7 +169,7 @@ def plot_long_run(scene, r, spec):
     diffs = [k for k in s if k.startswith("psi_p_minus_psi_")]
     model = [k for k in s if k.startswith("psi_") and k.endswith("_minus_t_cycles") and k != "psi_p_minus_t_cycles"]
     nrows = 2 if diffs else 1
-    fig, axes = pyplot().subplots(nrows, 1, figsize=(7, 3.2 * nrows + 0.5), sharex=True, squeeze=False)
+    fig, axes = subplots(nrows, 1, figsize=(7, 3.2 * nrows + 0.5), sharex=True, squeeze=False)
     ax = axes[0][0]
     if "psi_p_minus_t_cycles" in s:
         ax.plot(per, s["psi_p_minus_t_cycles"], "k-", lw=0.6, label="$\\psi_p - t$ (co-simulated pendulum)")

@@ -4,7 +4,8 @@ A plot kind is ``f(scene, results, spec) -> Figure | None`` (None: nothing
 to draw for these results). A module registers it with
 ``@register(kind, keys, convert)``, which also tells the scene validator
 the kind's allowed keys (``title`` and ``file`` always) and their
-converter. pyplot is imported on the first plot, not at start-up.
+converter. matplotlib is imported on the first plot, not at start-up, and
+plots are drawn on ``matplotlib.figure.Figure`` without pyplot.
 """
 
 from __future__ import annotations
@@ -23,14 +24,21 @@ PLOT_KEYS: dict[str, set[str]] = {}  # kind -> allowed keys besides `kind`
 _PLOT_CONVERT: dict[str, Converter] = {}
 
 
-def pyplot():
-    """matplotlib.pyplot on the Agg backend (no display needed)."""
-    import matplotlib
+def load_matplotlib() -> None:
+    """Import what drawing a PNG needs (a third of a second: done once, on
+    the first plot, or ahead of time by the plot process)."""
+    import matplotlib.figure  # noqa: F401
+    from matplotlib.backends import backend_agg  # noqa: F401
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    return plt
+def subplots(*args, figsize: tuple[float, float], **kwargs):
+    """A new figure and its axes, as ``pyplot.subplots`` takes them, without
+    pyplot: no global list of figures to close, and no backend switched
+    under the feet of a program that imports clockwork."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(*args, **kwargs)
 
 
 def check_keys(t: dict, strings=("x", "title"), string_lists=(), booleans=()) -> dict:
@@ -159,37 +167,45 @@ def axis_label(columns: list[str]) -> str:
 def save(fig, path: Path) -> None:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
-    pyplot().close(fig)
     write_bytes_atomic(path, buf.getvalue())
+
+
+def draw_plot(scene, results: list[dict], out: Path, k: int) -> tuple[str, object]:
+    """Plot k of the scene into `out`: ("written", file name), ("failed",
+    {file, kind, error}) or ("empty", {file, kind, reason}).
+
+    A scene run with --set overrides says so under the plot. A plot kind
+    that raises is reported, not fatal: the data files are written all the
+    same.
+    """
+    spec = scene.plots[k]
+    kind = spec["kind"]
+    name = spec.get("file") or f"plot{k + 1}_{kind}.png"
+    try:
+        fig = PLOTS[kind](scene, results, spec)
+        if fig is None:
+            return "empty", {"file": name, "kind": kind,
+                             "reason": "nothing to draw: no point has a result for it (stalled or failed)"}
+        if not fig.axes[0].get_title() and not fig._suptitle:
+            fig.axes[0].set_title(spec.get("title", scene.title), fontsize=10)
+        if scene.overrides:
+            fig.text(0.01, 0.0, "--set " + "  ".join(scene.overrides), fontsize=7, color="0.35", va="top")
+        save(fig, out / name)
+    except Exception as e:  # a broken plot kind must not take the results with it
+        return "failed", {"file": name, "kind": kind, "error": f"{type(e).__name__}: {' '.join(str(e).split())}"}
+    return "written", name
+
+
+def gather(outcomes: list[tuple[str, object]]) -> tuple[list[str], list[dict], list[dict]]:
+    """Outcomes of draw_plot, in the scene's plot order, as (files written,
+    plots that failed, plots with nothing to draw)."""
+    written = [x for what, x in outcomes if what == "written"]
+    failed = [x for what, x in outcomes if what == "failed"]
+    empty = [x for what, x in outcomes if what == "empty"]
+    return written, failed, empty
 
 
 def make_plots(scene, results: list[dict], out: Path) -> tuple[list[str], list[dict], list[dict]]:
     """Draw the scene's plots into `out`: (files written, plots that failed,
-    plots with nothing to draw, e.g. when every sweep point stalled).
-
-    A scene run with --set overrides says so under each plot. A plot kind
-    that raises is reported (kind, file, error), not fatal: the data files
-    are written all the same.
-    """
-    written, failed, empty = [], [], []
-    for k, spec in enumerate(scene.plots):
-        kind = spec["kind"]
-        name = spec.get("file") or f"plot{k + 1}_{kind}.png"
-        try:
-            fig = PLOTS[kind](scene, results, spec)
-            if fig is None:
-                empty.append({"file": name, "kind": kind,
-                              "reason": "nothing to draw: no point has a result for it (stalled or failed)"})
-                continue
-            if not fig.axes[0].get_title() and not fig._suptitle:
-                fig.axes[0].set_title(spec.get("title", scene.title), fontsize=10)
-            if scene.overrides:
-                fig.text(0.01, 0.0, "--set " + "  ".join(scene.overrides), fontsize=7, color="0.35",
-                         va="top")
-            save(fig, out / name)
-        except Exception as e:  # a broken plot kind must not take the results with it
-            pyplot().close("all")
-            failed.append({"file": name, "kind": kind, "error": f"{type(e).__name__}: {' '.join(str(e).split())}"})
-            continue
-        written.append(name)
-    return written, failed, empty
+    plots with nothing to draw, e.g. when every sweep point stalled)."""
+    return gather([draw_plot(scene, results, out, k) for k in range(len(scene.plots))])

@@ -18,7 +18,7 @@ from ...analyses.context import ESCAPEMENTS, find_component, parameters
 from ...analyses.ziemkiewicz.clock import DEG, PROFILE_NAMES, orbit_rows
 from ...physics import analytic
 from ...scene.kinds import Invalid
-from .registry import check_keys, curves, display, pyplot, register
+from .registry import check_keys, curves, display, register, subplots
 
 
 ERROR_LABELS = {
@@ -57,7 +57,7 @@ def plot_period_amplitude(scene, results, spec):
     a = np.linspace(0.0, A.max() * 1.02, 400)
     agm = np.array([analytic.exact_period(x * DEG, pp["L"], pp["g"]) for x in a])
     eq2 = np.array([analytic.series_period(x * DEG, pp["L"], pp["g"], terms=1) for x in a])
-    fig, (ax, bx) = pyplot().subplots(2, 1, figsize=(7, 6), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    fig, (ax, bx) = subplots(2, 1, figsize=(7, 6), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     ax.plot(a, agm, "k-", lw=1.2, label="AGM (exact)")
     ax.plot(a, eq2, "r-", lw=1.0, label="Eq. (2), first order")
     ax.plot(A, T, "o", ms=4, mfc="none", color="C0", label="simulated (FMU ticks)")
@@ -82,7 +82,7 @@ def plot_rate_errors(scene, results, spec):
     if not rows:
         return None
     A = [r["result"]["amplitude_deg"] for r in rows]
-    fig, ax = pyplot().subplots(figsize=(7, 4.5))
+    fig, ax = subplots(figsize=(7, 4.5))
     ys = spec.get("y") or ["E_T_s_per_day", "E_C_s_per_day", "E_E_s_per_day"]
     blues = ["#08306b", "#2171b5", "#6baed6", "#9ecae1"]
     for k, y in enumerate(ys):
@@ -124,7 +124,7 @@ def plot_recoil(scene, r, spec):
     phi = np.degrees(np.asarray(s[f"{pend}.phi"]))
     tau = 100.0 * np.asarray(s[f"{esc}.tau"])
     rec = np.asarray(s["recoil"]) > 0.5
-    fig, ax = pyplot().subplots(figsize=(8, 4))
+    fig, ax = subplots(figsize=(8, 4))
     # Shade each run of recoil samples.
     edges = np.flatnonzero(np.diff(np.concatenate([[0], rec.astype(int), [0]])))
     for a, b in zip(edges[::2], edges[1::2]):
@@ -174,7 +174,7 @@ def plot_contour(scene, results, spec):
     X, xl = display(scene, xk, xs)
     Y, yl = display(scene, yk, ys)
     xl, yl = (AXIS_LABELS.get(k.split(".")[-1], lab) for k, lab in ((xk, xl), (yk, yl)))
-    fig, ax = pyplot().subplots(figsize=(7, 5.5))
+    fig, ax = subplots(figsize=(7, 5.5))
     finite = Z[np.isfinite(Z)]
     if finite.size == 0:
         return None
@@ -211,7 +211,7 @@ def plot_curves(scene, rows, spec):
     group = spec.get("group") or []
     dashed_key = spec.get("dashed_if")
     by_group = curves(rows, lambda r: tuple(r["point"].get(g) for g in group))
-    fig, ax = pyplot().subplots(figsize=(7.5, 5))
+    fig, ax = subplots(figsize=(7.5, 5))
     colours = {}
     for key in sorted(by_group, key=lambda k: tuple(0 if v is None else v for v in k)):
         pts = sorted(by_group[key], key=lambda r: r["result"][xk])
@@ -251,7 +251,7 @@ def plot_disturbance(scene, r, spec):
     dA = np.asarray(s["dA_deg"])
     err = np.asarray(s["time_error_s"])
     tk = r["result"]["kick_start_s"]
-    fig, (ax, bx) = pyplot().subplots(2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [3, 2]})
+    fig, (ax, bx) = subplots(2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [3, 2]})
     ax.plot(t, rel, color="C0", lw=1.0, label="period: $T/T_{stat} - 1$")
     ax.set_ylabel("momentary period change (%)", color="C0")
     ax.axvline(tk, color="0.6", ls=":", lw=0.8)

@@ -1,0 +1,67 @@
+"""Ziemkiewicz Fig. 4(a) as a whole process: `clockwork run` against a
+SciPy-only script doing the same figure (benchmarks/fig4a_scipy.py).
+
+Both run as fresh processes of this interpreter, one after the other in
+pairs (clockwork, script, clockwork, script, ...), each into a new output
+directory, the point cache off. A pair's ratio is taken within the pair,
+so that a machine whose speed drifts moves both sides alike; the median
+ratio is the figure to quote. One pair first as a warm-up (file caches).
+
+    python benchmarks/bench_fig4a_process.py --pairs 7
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+
+def timed(command: list[str], env: dict) -> float:
+    """Wall time of a whole process, s (it must succeed)."""
+    t0 = time.perf_counter()
+    r = subprocess.run(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    wall = time.perf_counter() - t0
+    if r.returncode != 0:
+        raise SystemExit(f"{' '.join(command)} failed ({r.returncode}): {r.stderr.strip()}")
+    return wall
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--pairs", type=int, default=7, help="counted pairs (default 7)")
+    args = ap.parse_args()
+    env = dict(os.environ, CLOCKWORK_CACHE="off")
+    scratch = Path(tempfile.mkdtemp(prefix="fig4a-process."))
+    try:
+        def clockwork(k):
+            return [sys.executable, "-m", "clockwork", "run", "ziemkiewicz_fig4a", "--out",
+                    str(scratch / f"clockwork{k}"), "--no-progress"]
+
+        def script(k):
+            return [sys.executable, str(HERE / "fig4a_scipy.py"), "--out", str(scratch / f"scipy{k}")]
+
+        rows = []
+        for k in range(args.pairs + 1):
+            a, b = timed(clockwork(k), env), timed(script(k), env)
+            if k:
+                rows.append((a, b, a / b))
+                print(f"pair {k}: clockwork {a:.3f} s, script {b:.3f} s, ratio {a / b:.3f}", flush=True)
+        med = [statistics.median(x) for x in zip(*rows)]
+        print(f"median of {len(rows)} pairs: clockwork {med[0]:.3f} s, script {med[1]:.3f} s, "
+              f"ratio {med[2]:.3f} (range {min(r[2] for r in rows):.3f} to {max(r[2] for r in rows):.3f})")
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

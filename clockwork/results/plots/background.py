@@ -1,0 +1,263 @@
+"""A scene's plots drawn by a second process that starts before the points run.
+
+Importing matplotlib takes about a third of a second, longer than all 24
+operating points of Ziemkiewicz Fig. 4(a), and each PNG takes about a
+tenth more. ``Plotter.start(scene)`` forks a child that imports matplotlib
+while this process loads the FMUs and runs the points. ``submit(results,
+out)`` hands it the results; it draws every plot into `out` (each file
+written atomically; several plots in parallel, one process per core, all
+sharing the imported matplotlib) while this process writes the CSV files,
+and
+``collect()`` gives what ``make_plots`` would have returned here: (files
+written, plots that failed, plots with nothing to draw). The results and
+the summary do not depend on where the plots were drawn.
+
+The plots are drawn in this process instead when forking is not safe or
+gains nothing: outside Linux, with other threads running, with matplotlib
+already imported (the gallery after its first scene, the tests), or when
+the scene has no plots. A child that dies without an answer is reported
+on stderr and the plots are drawn here.
+
+The child ignores SIGINT (an interrupted run is the parent's to report),
+dies with its parent (Linux prctl), never runs the parent's atexit
+handlers (it leaves by os._exit), and is reaped by ``close``.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import signal
+import sys
+import threading
+from pathlib import Path
+
+from ...atomic import remove_stale_parts
+from ...processes import die_with_parent
+from .registry import draw_plot, gather, load_matplotlib, make_plots
+
+
+class Plotter:
+    """Draws in this process (the fallback, and the interface)."""
+
+    def __init__(self, scene):
+        self.scene = scene
+        self._job: tuple | None = None
+
+    @staticmethod
+    def start(scene) -> "Plotter":
+        if scene.plots and _fork_is_worthwhile():
+            try:
+                return _PlotProcess(scene)
+            except OSError:  # no more processes or pipes: draw here
+                pass
+        return Plotter(scene)
+
+    def submit(self, results: list[dict], out: Path) -> None:
+        """The results to draw, into the folder `out`."""
+        self._job = (results, out)
+
+    def collect(self) -> tuple[list[str], list[dict], list[dict]]:
+        """(files written, plots that failed, plots with nothing to draw), as make_plots."""
+        results, out = self._job
+        return make_plots(self.scene, results, out)
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self) -> "Plotter":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def _fork_is_worthwhile() -> bool:
+    return (sys.platform.startswith("linux") and hasattr(os, "fork")
+            and "matplotlib.figure" not in sys.modules and threading.active_count() == 1)
+
+
+class _PlotProcess(Plotter):
+    def __init__(self, scene):
+        super().__init__(scene)
+        job_r, job_w = os.pipe()
+        answer_r, answer_w = os.pipe()
+        for stream in (sys.stdout, sys.stderr):  # else the child would write their buffers again
+            stream.flush()
+        parent = os.getpid()
+        try:
+            pid = os.fork()
+        except OSError:
+            for fd in (job_r, job_w, answer_r, answer_w):
+                os.close(fd)
+            raise
+        if pid == 0:
+            os.close(job_w)
+            os.close(answer_r)
+            _child(scene, parent, job_r, answer_w)  # never returns
+        os.close(job_r)
+        os.close(answer_w)
+        self.pid: int | None = pid
+        self._job_fd: int | None = job_w
+        self._answer_fd: int | None = answer_r
+
+    def submit(self, results, out):
+        super().submit(results, out)
+        try:
+            fd, self._job_fd = self._job_fd, None
+            _write_all(fd, pickle.dumps((results, str(out)), protocol=pickle.HIGHEST_PROTOCOL))
+        except OSError:
+            pass  # the child is gone: collect says so and draws here
+
+    def collect(self):
+        answer = None
+        try:
+            fd, self._answer_fd = self._answer_fd, None
+            data = _read_all(fd)
+            answer = pickle.loads(data) if data else None
+        except (OSError, pickle.UnpicklingError, EOFError):
+            answer = None
+        status = self._reap()
+        if isinstance(answer, tuple) and len(answer) == 3:
+            return answer
+        why = (answer[1] if isinstance(answer, list) and len(answer) == 2 and answer[0] == "crashed"
+               else _exit_reason(status))
+        print(f"clockwork: warning: the plot process ended without drawing ({why}); drawing here",
+              file=sys.stderr)
+        remove_stale_parts(Path(self._job[1]))  # a file it was writing when it died
+        return super().collect()
+
+    def close(self) -> None:
+        for name in ("_job_fd", "_answer_fd"):
+            fd = getattr(self, name)
+            if fd is not None:
+                os.close(fd)
+                setattr(self, name, None)
+        if self.pid is not None:
+            try:
+                os.kill(self.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            self._reap()
+
+    def _reap(self) -> int | None:
+        pid, self.pid = self.pid, None
+        if pid is None:
+            return None
+        while True:
+            try:
+                return os.waitpid(pid, 0)[1]
+            except InterruptedError:
+                continue
+            except ChildProcessError:
+                return None
+
+
+def _exit_reason(status: int | None) -> str:
+    if status is None:
+        return "no exit status"
+    if os.WIFSIGNALED(status):
+        return f"killed by {signal.Signals(os.WTERMSIG(status)).name}"
+    return f"exit status {os.WEXITSTATUS(status)}"
+
+
+def _child(scene, parent: int, job_fd: int, answer_fd: int) -> None:
+    """The plot process: import matplotlib, wait for the results, draw, answer."""
+    code = 0
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        die_with_parent(parent)
+        try:
+            load_matplotlib()  # the slow part, done while the parent computes
+        except Exception:
+            pass  # draw_plot reports it for each plot, as in the parent
+        job = _read_all(job_fd)
+        if job:  # else the parent gave up
+            results, out = pickle.loads(job)
+            answer = gather(_draw_in_parallel(scene, results, Path(out), answer_fd))
+            _write_all(answer_fd, pickle.dumps(answer, protocol=pickle.HIGHEST_PROTOCOL))
+    except BaseException as e:  # noqa: BLE001 (the parent gets it; nothing may escape a forked child)
+        code = 1
+        try:
+            _write_all(answer_fd, pickle.dumps(["crashed", f"{type(e).__name__}: {e}"]))
+        except BaseException:  # noqa: BLE001
+            pass
+    finally:
+        os._exit(code)
+
+
+def _draw_in_parallel(scene, results: list[dict], out: Path, answer_fd: int) -> list[tuple[str, object]]:
+    """Every plot's outcome (registry.draw_plot), in order: the plots dealt
+    round-robin to this process and to forked helpers, one per core. The
+    helpers share the imported matplotlib; a helper that fails has its
+    plots drawn here."""
+    n = len(scene.plots)
+    ways = max(1, min(n, os.cpu_count() or 1))
+    helpers = []
+    for i in range(1, ways):
+        plots = list(range(i, n, ways))
+        try:
+            helpers.append((plots, _start_helper(scene, results, out, plots, answer_fd)))
+        except OSError:
+            helpers.append((plots, None))
+    outcomes = {k: draw_plot(scene, results, out, k) for k in range(0, n, ways)}
+    for plots, helper in helpers:
+        got = _helper_outcomes(*helper) if helper else None
+        if got is None or sorted(got) != plots:
+            remove_stale_parts(out)  # what it was writing when it died
+            got = {k: draw_plot(scene, results, out, k) for k in plots}
+        outcomes.update(got)
+    return [outcomes[k] for k in range(n)]
+
+
+def _start_helper(scene, results, out: Path, plots: list[int], answer_fd: int) -> tuple[int, int]:
+    """Fork a process that draws `plots`; (its pid, the pipe it answers on)."""
+    read_fd, write_fd = os.pipe()
+    parent = os.getpid()
+    try:
+        pid = os.fork()
+    except OSError:
+        os.close(read_fd)
+        os.close(write_fd)
+        raise
+    if pid == 0:
+        code = 0
+        try:
+            os.close(read_fd)
+            os.close(answer_fd)  # the main process reads to its end: only the plot process holds it
+            die_with_parent(parent)
+            got = {k: draw_plot(scene, results, out, k) for k in plots}
+            _write_all(write_fd, pickle.dumps(got, protocol=pickle.HIGHEST_PROTOCOL))
+        except BaseException:  # noqa: BLE001 (the plot process draws them instead)
+            code = 1
+        finally:
+            os._exit(code)
+    os.close(write_fd)
+    return pid, read_fd
+
+
+def _helper_outcomes(pid: int, read_fd: int) -> dict | None:
+    try:
+        data = _read_all(read_fd)
+        got = pickle.loads(data) if data else None
+    except (OSError, pickle.UnpicklingError, EOFError):
+        got = None
+    while True:
+        try:
+            os.waitpid(pid, 0)
+            break
+        except InterruptedError:
+            continue
+        except ChildProcessError:
+            break
+    return got if isinstance(got, dict) else None
+
+
+def _read_all(fd: int) -> bytes:
+    with os.fdopen(fd, "rb") as f:
+        return f.read()
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    with os.fdopen(fd, "wb") as f:
+        f.write(data)

@@ -1,0 +1,189 @@
+"""The plot process (clockwork.results.plots.background).
+
+A run forks a child that imports matplotlib while the points run and draws
+the plots, several at once. It must draw exactly what this process would
+draw, survive its own death (the plots are then drawn here, with one
+warning), and never outlive or confuse an interrupted run. These run in
+fresh interpreters: the test process itself has matplotlib loaded, where
+the plots are drawn in-process.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from cwtest import CLOCK_SCENE, FMU_DIR, ROOT, fmu_file
+
+sys.path.insert(0, str(ROOT / "tools"))
+from kill_sweep import descendants, running  # noqa: E402
+
+# A sweep with five plots, more than there are cores: the plot process deals
+# them round-robin to itself and its helpers. "boom" (raises) and "blank"
+# (nothing to draw) are plot kinds the driver registers.
+SCENE = CLOCK_SCENE.format(stop=3, sweep=textwrap.dedent("""\
+    [sweep]
+    axes = [{ parameter = "escapement.torque", values = ["0.3 N.cm", "0.4 N.cm", "0.5 N.cm"] }]
+    [[plot]]
+    kind = "sweep"
+    x = "escapement.torque"
+    y = "amplitude_deg"
+    file = "a.png"
+    [[plot]]
+    kind = "boom"
+    file = "b.png"
+    [[plot]]
+    kind = "sweep"
+    x = "escapement.torque"
+    y = ["period_s"]
+    file = "c.png"
+    [[plot]]
+    kind = "blank"
+    file = "d.png"
+    [[plot]]
+    kind = "sweep"
+    x = "escapement.torque"
+    y = "amplitude_deg"
+    file = "e.png"
+    """))
+
+# Draws the scene's plots twice: by the plot process into DIR/forked, then in
+# this process into DIR/here; prints both outcomes. SABOTAGE names which
+# process of the plot process's family kills itself when it starts drawing.
+DRIVER = textwrap.dedent("""\
+    import json, os, signal, sys
+    from pathlib import Path
+    from clockwork.results.plots import Plotter, background, register, registry
+    from clockwork.run.catalog import load_scene
+    from clockwork.run.points import run_point
+
+    @register("boom")
+    def boom(scene, results, spec):
+        raise ValueError("a broken plot kind")
+
+    @register("blank")
+    def blank(scene, results, spec):
+        return None
+
+    scene = load_scene(sys.argv[1])
+    out = Path(sys.argv[2])
+    main = os.getpid()
+    sabotage = os.environ.get("SABOTAGE")
+    draw = background.draw_plot
+
+    def sabotaged(scene, results, out, k):
+        child = os.getppid() == main
+        if (sabotage == "child" and child) or (sabotage == "helper" and os.getpid() != main and not child):
+            os.kill(os.getpid(), signal.SIGKILL)
+        return draw(scene, results, out, k)
+
+    background.draw_plot = sabotaged
+    assert "matplotlib.figure" not in sys.modules
+    (out / "forked").mkdir()
+    with Plotter.start(scene) as plotter:  # first, as a run does: it imports matplotlib meanwhile
+        forked_by = type(plotter).__name__
+        results = [run_point(scene, p) for p in scene.points()]
+        plotter.submit(results, out / "forked")
+        forked = plotter.collect()
+    (out / "here").mkdir()
+    here = registry.make_plots(scene, results, out / "here")
+    print(json.dumps({"by": forked_by, "forked": forked, "here": here}))
+    """)
+
+
+def _drive(tmp_path: Path, sabotage: str | None = None):
+    scene = tmp_path / "plots.toml"
+    scene.write_text(SCENE)
+    driver = tmp_path / "driver.py"
+    driver.write_text(DRIVER)
+    env = dict(os.environ, CLOCKWORK_FMU_DIR=str(FMU_DIR), PYTHONPATH=str(ROOT), CLOCKWORK_CACHE="off")
+    env.pop("SABOTAGE", None)
+    if sabotage:
+        env["SABOTAGE"] = sabotage
+    r = subprocess.run([sys.executable, str(driver), str(scene), str(tmp_path)], env=env,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout.strip().splitlines()[-1]), r.stderr
+
+
+@pytest.fixture(autouse=True)
+def _fmus():
+    fmu_file("Pendulum")
+
+
+def _files(d: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(d.iterdir())}
+
+
+def test_the_plot_process_draws_what_this_process_draws(tmp_path):
+    got, err = _drive(tmp_path)
+    assert got["by"] == "_PlotProcess"
+    assert got["forked"] == got["here"]
+    written, failed, empty = got["forked"]
+    assert written == ["a.png", "c.png", "e.png"]
+    assert [f["file"] for f in failed] == ["b.png"] and "a broken plot kind" in failed[0]["error"]
+    assert [e["file"] for e in empty] == ["d.png"]
+    assert _files(tmp_path / "forked") == _files(tmp_path / "here")  # the same PNG bytes, nothing else
+    assert err == ""
+
+
+@pytest.mark.parametrize("who", ["child", "helper"])
+def test_a_plot_process_that_dies_leaves_the_plots_to_this_process(tmp_path, who):
+    got, err = _drive(tmp_path, sabotage=who)
+    assert got["forked"] == got["here"]
+    assert _files(tmp_path / "forked") == _files(tmp_path / "here")
+    lines = err.strip().splitlines()
+    if who == "child":
+        assert len(lines) == 1 and "plot process ended without drawing (killed by SIGKILL)" in lines[0], err
+    else:  # the child draws the helper's plots itself, quietly: nothing was lost
+        assert err == ""
+
+
+def test_an_interrupted_run_leaves_no_plot_process_and_one_line(tmp_path):
+    """Ctrl-C at a terminal signals the whole process group: the run says
+    "interrupted" once, the plot process says nothing, and nobody stays."""
+    scene = tmp_path / "long.toml"
+    scene.write_text(CLOCK_SCENE.format(stop=400, sweep=textwrap.dedent("""\
+        [sweep]
+        axes = [{ parameter = "escapement.torque", start = "0.3 N.cm", stop = "0.5 N.cm", num = 40 }]
+        [[plot]]
+        kind = "sweep"
+        x = "escapement.torque"
+        y = "amplitude_deg"
+        """)))
+    env = dict(os.environ, CLOCKWORK_FMU_DIR=str(FMU_DIR), PYTHONPATH=str(ROOT), CLOCKWORK_CACHE="off")
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "clockwork", "run", str(scene), "--out", str(out),
+                             "--workers", "1", "--no-progress"], env=env, start_new_session=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    family: set[int] = set()
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            family |= descendants(proc.pid)
+            if family and (out / "points").is_dir() and any((out / "points").glob("*.json")):
+                break
+            assert proc.poll() is None, proc.communicate()
+            time.sleep(0.01)
+        assert family, "no plot process was started"
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines() == ["clockwork: error: interrupted"], err
+    deadline = time.monotonic() + 10
+    while any(running(p) for p in family) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not [p for p in family if running(p)], "a plot process outlived the interrupted run"
+    assert not (out / "summary.json").exists() and not list(out.glob("*.png"))
+    assert not [p for p in out.rglob("*") if p.name.endswith(".part") or p.name.startswith(".staging")]
