@@ -25,6 +25,7 @@ handlers (it leaves by os._exit), and is reaped by ``close``.
 
 from __future__ import annotations
 
+import gc
 import os
 import pickle
 import signal
@@ -167,10 +168,16 @@ def _child(scene, parent: int, job_fd: int, answer_fd: int) -> None:
     try:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         die_with_parent(parent)
+        # The slow part, done while the parent computes. The collector would
+        # walk the growing heap again and again during the import (a tenth of
+        # its time); frozen afterwards, those objects stay out of later walks.
+        gc.disable()
         try:
-            load_matplotlib()  # the slow part, done while the parent computes
+            load_matplotlib()
         except Exception:
             pass  # draw_plot reports it for each plot, as in the parent
+        gc.freeze()
+        gc.enable()
         job = _read_all(job_fd)
         if job:  # else the parent gave up
             results, out = pickle.loads(job)
