@@ -8,6 +8,7 @@ so that a machine whose speed drifts moves both sides alike; the median
 ratio is the figure to quote. One pair first as a warm-up (file caches).
 
     python benchmarks/bench_fig4a_process.py --pairs 7
+    python benchmarks/bench_fig4a_process.py --timeline   # where one clockwork run's time goes
 """
 
 from __future__ import annotations
@@ -35,13 +36,64 @@ def timed(command: list[str], env: dict) -> float:
     return wall
 
 
+# One `clockwork run` with timestamps (s since the interpreter started) at the
+# points that matter: the plot process's fork, the results handed to it,
+# matplotlib loaded there, each plot drawn, the plots collected, the end.
+TIMELINE = r"""
+import os, sys, time
+def since_start():
+    stat = open(f"/proc/{os.getpid()}/stat").read().rsplit(")", 1)[1].split()
+    return time.clock_gettime(time.CLOCK_BOOTTIME) - int(stat[19]) / os.sysconf("SC_CLK_TCK")
+start = time.clock_gettime(time.CLOCK_BOOTTIME) - since_start()
+def mark(what):
+    print(f"{time.clock_gettime(time.CLOCK_BOOTTIME) - start:6.3f} s  pid {os.getpid()}  {what}", file=sys.stderr)
+mark("interpreter started, timeline script running")
+import numpy; mark("numpy imported")
+import fmpy; mark("fmpy imported")
+from clockwork import cli
+from clockwork.run import catalog; mark("clockwork imported")
+from clockwork.results.plots import background
+def wrap(owner, name, before=None, after=None):
+    f = getattr(owner, name)
+    def w(*a, **k):
+        before and mark(before(*a))
+        r = f(*a, **k)
+        after and mark(after(*a))
+        return r
+    setattr(owner, name, w)
+wrap(catalog, "load_scene", after=lambda *a: "scene loaded")
+wrap(background._PlotProcess, "__init__", before=lambda *a: "plot process forks")
+wrap(background._PlotProcess, "submit", before=lambda *a: "points done: results handed to the plot process")
+wrap(background._PlotProcess, "collect", after=lambda *a: "plots collected")
+wrap(background, "load_matplotlib", after=lambda *a: "matplotlib loaded (plot process)")
+wrap(background, "draw_plot", after=lambda *a: f"plot {a[3]} drawn")
+code = cli.console()
+mark("main() returned")
+sys.exit(code)
+"""
+
+
+def timeline(env: dict, out: Path) -> None:
+    command = [sys.executable, "-c", TIMELINE, "run", "ziemkiewicz_fig4a", "--out", str(out), "--no-progress"]
+    r = subprocess.run(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    print(r.stderr, end="")
+    if r.returncode != 0:
+        raise SystemExit(f"the run failed ({r.returncode})")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--pairs", type=int, default=7, help="counted pairs (default 7)")
+    ap.add_argument("--timeline", action="store_true", help="one clockwork run with timestamps instead")
     args = ap.parse_args()
     env = dict(os.environ, CLOCKWORK_CACHE="off")
     scratch = Path(tempfile.mkdtemp(prefix="fig4a-process."))
     try:
+        if args.timeline:
+            timed([sys.executable, "-m", "clockwork", "run", "ziemkiewicz_fig4a", "--out", str(scratch / "warm"),
+                   "--no-progress"], env)
+            timeline(env, scratch / "timeline")
+            return 0
         def clockwork(k):
             return [sys.executable, "-m", "clockwork", "run", "ziemkiewicz_fig4a", "--out",
                     str(scratch / f"clockwork{k}"), "--no-progress"]

@@ -11,7 +11,7 @@ returns to where it started. It writes the same rate errors as the scene
 (E_T, E_C by the AGM, E_E) to a CSV and a PNG.
 
     python benchmarks/fig4a_scipy.py --out out/fig4a_scipy
-    farm-bench --vs ...   (see docs/benchmarks.md for the paired command)
+    python benchmarks/bench_fig4a_process.py --pairs 9   # the two side by side (docs/benchmarks.md)
 """
 
 from __future__ import annotations

@@ -187,3 +187,19 @@ def test_an_interrupted_run_leaves_no_plot_process_and_one_line(tmp_path):
     assert not [p for p in family if running(p)], "a plot process outlived the interrupted run"
     assert not (out / "summary.json").exists() and not list(out.glob("*.png"))
     assert not [p for p in out.rglob("*") if p.name.endswith(".part") or p.name.startswith(".staging")]
+
+
+def test_a_sweep_on_worker_processes_hands_its_plots_over(tmp_path):
+    """Pool workers are forked after the plot process and hold copies of its
+    pipes: the hand-over must not wait for them (messages carry their length)."""
+    scene = tmp_path / "plots.toml"
+    scene.write_text(SCENE.replace('kind = "boom"', 'kind = "sweep"\nx = "escapement.torque"\ny = "period_s"')
+                     .replace('kind = "blank"', 'kind = "sweep"\nx = "escapement.torque"\ny = "period_s"'))
+    env = dict(os.environ, CLOCKWORK_FMU_DIR=str(FMU_DIR), PYTHONPATH=str(ROOT), CLOCKWORK_CACHE="off")
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "clockwork", "run", str(scene), "--out", str(out), "--workers", "2",
+                        "--no-progress"], env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and r.stderr == "", r.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["files"] == ["sweep.csv", "a.png", "b.png", "c.png", "d.png", "e.png", "summary.json"]
+    assert all((out / f).stat().st_size > 1000 for f in summary["files"] if f.endswith(".png"))

@@ -29,6 +29,7 @@ import gc
 import os
 import pickle
 import signal
+import struct
 import sys
 import threading
 from pathlib import Path
@@ -260,11 +261,27 @@ def _helper_outcomes(pid: int, read_fd: int) -> dict | None:
     return got if isinstance(got, dict) else None
 
 
+# Messages carry their length: a pipe's end of file would also wait for
+# every copy of its writing end, and a process forked later (a pool worker)
+# holds copies until it exits.
+_LENGTH = struct.Struct("<Q")
+
+
 def _read_all(fd: int) -> bytes:
+    """One message from `fd` (empty when the writer closed it without one); closes fd."""
     with os.fdopen(fd, "rb") as f:
-        return f.read()
+        head = f.read(_LENGTH.size)
+        if len(head) < _LENGTH.size:
+            return b""
+        (n,) = _LENGTH.unpack(head)
+        data = f.read(n)
+        if len(data) < n:
+            raise EOFError(f"a message of {n} bytes ended after {len(data)}")
+        return data
 
 
 def _write_all(fd: int, data: bytes) -> None:
+    """One message to `fd`; closes fd."""
     with os.fdopen(fd, "wb") as f:
+        f.write(_LENGTH.pack(len(data)))
         f.write(data)
