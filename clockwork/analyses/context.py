@@ -148,7 +148,7 @@ def build_system(scene, point: dict | None = None, record: dict[str, list[str]] 
     start, _ = experiment(scene, point)
     settings = master_settings(scene, point)
     idle = _idle.get()
-    key = None
+    system = None
     if idle is not None:
         key = (tuple((n, str(c.fmu_path), c.sha256) for n, c in scene.components.items()),
                tuple(scene.connections), repr(settings), start,
@@ -160,8 +160,14 @@ def build_system(scene, point: dict | None = None, record: dict[str, list[str]] 
             except BaseException:
                 system.free()
                 raise
-            system.release = lambda s: idle.keep(key, s)
-            return system
+    if system is None:
+        components = {n: (str(c.fmu_path), params[n]) for n, c in scene.components.items()}
+        mds = {n: c.model_description for n, c in scene.components.items()}
+        system = System(components, [tuple(c) for c in scene.connections], settings,
+                        record=record, start_time=start, model_descriptions=mds)
+    if idle is not None:
+        system.release = lambda s: idle.keep(key, s)
+    return system
     components = {n: (str(c.fmu_path), params[n]) for n, c in scene.components.items()}
     mds = {n: c.model_description for n, c in scene.components.items()}
     system = System(components, [tuple(c) for c in scene.connections], settings,

@@ -39,7 +39,7 @@ from .fmu import DISCARD, WARNING, Instance, free_all
 from .location import EventLocator, crossed, scan
 from .ports import Port, Ports
 from .richardson import StepDoubling
-from .settings import MasterSettings, Statistics
+from .settings import MasterSettings, Statistics, rollback_need
 from ..errors import SceneError, SimulationError
 from .wiring import Link, build
 
@@ -74,20 +74,20 @@ class Master:
         self._locating = bool(settings.event_location and self.locator.active)
         self._extrapolating = bool(settings.extrapolation)
         self._jacobi = settings.order == "jacobi"
-        if self._locating or self._needs_rollback:
-            self._check_rollback()
+        self._check_rollback()
         self._reset_soft_state()
 
     def _check_rollback(self) -> None:
         """A rollback needs every FMU's state: refuse before the first step."""
-        s = self.settings
-        why = ("master.iterations" if s.iterations > 0 else "master.richardson" if s.richardson
-               else "master.event_location")
+        need = rollback_need(self.settings, self.locator.active)
+        if need is None:
+            return
+        key, why = need
         for inst in self.instances.values():
             if not inst.can_get_set_state:
-                raise SceneError(f"{why}: {inst.name} ({inst.path.name}) cannot save and restore its state "
+                raise SceneError(f"{key}: {inst.name} ({inst.path.name}) cannot save and restore its state "
                                  f"(its modelDescription.xml does not declare canGetAndSetFMUstate), "
-                                 f"and {why.split('.')[1]} needs a rollback of every FMU")
+                                 f"and {why} rolls every FMU back")
 
     # -- initialization --------------------------------------------------
 

@@ -42,6 +42,20 @@ class MasterSettings:
             raise SceneError(f"master.extrapolation = {self.extrapolation}: expected 0, 1 or 2")
 
 
+def rollback_need(settings, indicators: bool) -> tuple[str, str] | None:
+    """(key, what needs it) when these settings take every FMU back to a
+    saved state (fmi2GetFMUstate/fmi2SetFMUstate), else None. `settings`:
+    anything with MasterSettings' field names; `indicators`: whether any
+    FMU declares event indicators."""
+    if settings.iterations > 0:
+        return "master.iterations", "iterating the coupling"
+    if settings.richardson:
+        return "master.richardson", "step doubling"
+    if settings.event_location and indicators:
+        return "master.event_location", "locating events"
+    return None
+
+
 @dataclass
 class Statistics:
     steps: int = 0

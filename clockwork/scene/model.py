@@ -17,6 +17,7 @@ from typing import Any, NamedTuple
 from ..errors import SceneError
 from ..engine import compiled
 from ..engine.description import variables as variables_of
+from ..engine.settings import rollback_need
 from .units import fmt
 
 @dataclass(frozen=True)
@@ -193,22 +194,17 @@ def consistency(m: MasterConfig, e: Experiment, components: dict[str, Component]
 
 
 def rollback_problem(m: MasterConfig, components: dict[str, Component]) -> tuple[str, str] | None:
-    """Locating events, iterating the coupling and step doubling take every
-    FMU back to a saved state (fmi2GetFMUstate/fmi2SetFMUstate): an FMU that
-    does not declare canGetAndSetFMUstate would fail at its first rollback."""
-    if m.iterations > 0:
-        key, value, why = "master.iterations", "0", "iterating the coupling"
-    elif m.richardson:
-        key, value, why = "master.richardson", "false", "step doubling"
-    elif m.event_location and any(c.event_indicators for c in components.values()):
-        key, value, why = "master.event_location", "false", "locating events"
-    else:
+    """An FMU that does not declare canGetAndSetFMUstate, where the settings
+    roll every FMU back: it would fail at its first rollback."""
+    need = rollback_need(m, any(c.event_indicators for c in components.values()))
+    if need is None:
         return None
+    key, why = need
     for c in components.values():
         if not c.model_description.coSimulation.canGetAndSetFMUstate:
-            return key, (f"expected {value} here: components.{c.name} ({c.fmu_path.name}) cannot save and "
-                         f"restore its state (its modelDescription.xml does not declare canGetAndSetFMUstate), "
-                         f"and {why} rolls every FMU back")
+            return key, (f"expected {'0' if key == 'master.iterations' else 'false'} here: components.{c.name} "
+                         f"({c.fmu_path.name}) cannot save and restore its state (its modelDescription.xml "
+                         f"does not declare canGetAndSetFMUstate), and {why} rolls every FMU back")
     return None
 
 

@@ -628,11 +628,7 @@ static uint64_t state_checksum(const unsigned char *p, size_t n) {
         h ^= w;
         h *= 1099511628211ULL;
     }
-    for (; k < n; k++) {
-        h ^= p[k];
-        h *= 1099511628211ULL;
-    }
-    return h;
+    return fnv1a(p + k, n - k, h);
 }
 
 static size_t state_size(const cw_model *m) {
