@@ -168,10 +168,3 @@ def build_system(scene, point: dict | None = None, record: dict[str, list[str]] 
     if idle is not None:
         system.release = lambda s: idle.keep(key, s)
     return system
-    components = {n: (str(c.fmu_path), params[n]) for n, c in scene.components.items()}
-    mds = {n: c.model_description for n, c in scene.components.items()}
-    system = System(components, [tuple(c) for c in scene.connections], settings,
-                    record=record, start_time=start, model_descriptions=mds)
-    if idle is not None:
-        system.release = lambda s: idle.keep(key, s)
-    return system
