@@ -144,15 +144,16 @@ class _PlotProcess(Plotter):
 
     def _reap(self) -> int | None:
         pid, self.pid = self.pid, None
-        if pid is None:
-            return None
-        while True:
-            try:
-                return os.waitpid(pid, 0)[1]
-            except InterruptedError:
-                continue
-            except ChildProcessError:
-                return None
+        return None if pid is None else _wait(pid)
+
+
+def _wait(pid: int) -> int | None:
+    """The exit status of child `pid`, once it has ended (os.waitpid retries
+    after a signal itself), or None when it was already reaped."""
+    try:
+        return os.waitpid(pid, 0)[1]
+    except ChildProcessError:
+        return None
 
 
 def _exit_reason(status: int | None) -> str:
@@ -250,14 +251,7 @@ def _helper_outcomes(pid: int, read_fd: int) -> dict | None:
         got = pickle.loads(data) if data else None
     except (OSError, pickle.UnpicklingError, EOFError):
         got = None
-    while True:
-        try:
-            os.waitpid(pid, 0)
-            break
-        except InterruptedError:
-            continue
-        except ChildProcessError:
-            break
+    _wait(pid)
     return got if isinstance(got, dict) else None
 
 
