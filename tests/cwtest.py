@@ -15,6 +15,20 @@ FMU_DIR = Path(os.environ.get("CW_FMU_DIR", ROOT / "fmus"))
 BUILD_DIR = Path(os.environ.get("CW_BUILD_DIR", ROOT / "build"))
 
 
+# FMUs built for the tests only (tests/models, by CMake into build/test-fmus).
+TEST_FMU_DIR = Path(os.environ.get("CW_TEST_FMU_DIR", BUILD_DIR / "test-fmus"))
+
+
+def test_fmu(name: str) -> Path:
+    path = TEST_FMU_DIR / f"{name}.fmu"
+    if not path.exists():
+        pytest.fail(f"{path} is missing: build the test FMUs first (cmake --build build)")
+    return path
+
+
+test_fmu.__test__ = False  # a helper, not a test
+
+
 def fmu_file(name: str) -> Path:
     path = FMU_DIR / f"{name}.fmu"
     if not path.exists():

@@ -9,17 +9,18 @@ messages, and the extrapolation order an FMU accepts.
 
 from __future__ import annotations
 
-import math
+import json
 
 import pytest
 
 from clockwork.engine import MasterSettings, System
+from clockwork.engine.fmu import direct_feedthrough
 from clockwork.engine.names import instance_name_problem, split_ref
 from clockwork.engine.wiring import Link, parse_link
 from clockwork.errors import SceneError
 from clockwork.scene import load_scene
 from clockwork.scene.units import link_conversion
-from cwtest import run_cli
+from cwtest import assert_one_line_error, run_cli, test_fmu
 
 ENGINES = ("python", "compiled")
 
@@ -134,3 +135,378 @@ def test_a_scene_with_such_names_loads_sets_and_runs(capsys, tmp_path, a, b):
     assert code == 0, err
     header = (tmp_path / "out" / "timeseries.csv").read_text().splitlines()[0]
     assert header.split(",") == ["time", f"{a}.phi", f"{b}.tau"]
+
+
+# -- the test FMUs (tests/models, built into build/test-fmus) -----------------
+
+def _types(**params):
+    return (str(test_fmu("TestTypes")), params)
+
+
+def _scene(tmp_path, text: str, name: str = "s.toml"):
+    f = tmp_path / name
+    f.write_text(text.replace("{types}", str(test_fmu("TestTypes"))).replace("{stair}", str(test_fmu("TestStair")))
+                 .replace("{decay}", str(test_fmu("TestDecay"))))
+    return f
+
+
+def _run(capsys, tmp_path, scene, *extra, engine="auto"):
+    out = tmp_path / f"out_{engine}"
+    rc, stdout, err = run_cli(capsys, ["run", scene, "--out", out, "--no-progress",
+                                       "--set", f"master.engine={engine}", *extra])
+    return rc, out, err
+
+
+def _csv(out):
+    lines = (out / "timeseries.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    return {h: [row.split(",")[k] for row in lines[1:]] for k, h in enumerate(header)}
+
+
+# 1. Direct feedthrough only through dependencies on inputs.
+
+def test_feedthrough_counts_dependencies_on_inputs_only():
+    import fmpy
+
+    md = fmpy.read_model_description(str(test_fmu("TestTypes")))
+    deps = direct_feedthrough(md)
+    inputs = {v.name for v in md.modelVariables if v.causality == "input"}
+    assert all(set(d) <= inputs for d in deps.values())
+    raw = {u.variable.name: [d.name for d in u.dependencies] for u in md.outputs}
+    assert raw["y_state"] == ["x"] and deps["y_state"] == []  # a state: not feedthrough
+    assert deps["y_real"] == ["u_real"]
+    # A missing dependencies attribute means every input.
+    for u in md.outputs:
+        u.dependencies = None
+    assert all(sorted(d) == sorted(inputs) for d in direct_feedthrough(md).values())
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_outputs_on_states_close_no_algebraic_loop(engine):
+    # As emachine and edrive in OMSimulator's dcmotor: a feedthrough output
+    # one way, an output of a state the other way.
+    links = ["a.y_real -> b.u_real", "b.y_state -> a.u_real"]
+    runs = []
+    for e in ENGINES:
+        with System({"a": _types(p_real=1.0), "b": _types(p_real=2.0)}, links,
+                    MasterSettings(step=0.1, engine=e)) as s:
+            s.master.run_until(1.0)
+            runs.append((s.value("a", "x"), s.value("b", "x"), s.master.stats))
+    assert runs[0] == runs[1]
+    assert runs[0][1] > 1.0  # b integrates 1 + its own state
+    # Through feedthrough outputs it is a loop, and refused.
+    with pytest.raises(SceneError, match="algebraic loop"):
+        System({"a": _types(), "b": _types()}, ["a.y_real -> b.u_real", "b.y_real -> a.u_real"],
+               MasterSettings(step=0.1, engine=engine))
+
+
+# 2. Every variable type: parameters, recording, connections, checks at validation.
+
+TYPES_SCENE = """
+connections = ["a.y_int -> b.u_int", "a.y_bool -> b.u_bool", "a.y_enum -> b.u_enum", "a.y_real -> b.u_real"]
+[scene]
+title = "types"
+[components.a]
+fmu = "{types}"
+parameters = { p_int = 5, p_bool = true, p_enum = "high", p_real = 0.5 }
+[components.b]
+fmu = "{types}"
+parameters = { p_int = -1, p_enum = 1 }
+[experiment]
+stop = 0.3
+[master]
+step = 0.1
+"""
+
+
+@pytest.mark.parametrize("engine", ["auto", "python"])
+def test_every_type_is_set_recorded_and_connected(capsys, tmp_path, engine):
+    rc, out, err = _run(capsys, tmp_path, _scene(tmp_path, TYPES_SCENE), engine=engine)
+    assert rc == 0, err
+    cols = _csv(out)
+    # Recorded through the right fmi2Get* (Enumeration through fmi2GetInteger).
+    assert set(cols["a.y_enum"]) == {"3.0"} and set(cols["b.y_enum"]) == {"3.0"}
+    assert set(cols["a.y_int"]) == {"5.0"} and set(cols["b.y_int"]) == {"4.0"}
+    assert set(cols["a.y_bool"]) == {"1.0"} and set(cols["b.y_bool"]) == {"1.0"}
+    assert set(cols["b.y_real"]) == {"1.5"}  # gain.k p_real + u_real = 1 + 0.5
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["result"]["engine"] == "python"
+    if engine == "auto":  # the core passes Real values only: Python, and why
+        assert "Real connections only" in summary["result"]["engine_reason"]
+
+
+def test_compiled_asked_for_discrete_links_is_refused_at_validation(capsys, tmp_path):
+    f = _scene(tmp_path, TYPES_SCENE)
+    rc, _, err = run_cli(capsys, ["validate", f, "--set", "master.engine=compiled"])
+    assert_one_line_error(rc, err, str(f), "master.engine", "Real connections only")
+
+
+@pytest.mark.parametrize("link, detail", [
+    ("a.y_int -> b.u_bool", "type mismatch: a.y_int is Integer, b.u_bool is Boolean"),
+    ("a.y_enum -> b.u_int", "type mismatch: a.y_enum is Enumeration, b.u_int is Integer"),
+    ("a.y_real -> b.u_enum", "type mismatch: a.y_real is Real, b.u_enum is Enumeration"),
+])
+def test_a_connection_of_two_types_is_refused_at_validation(capsys, tmp_path, link, detail):
+    f = _scene(tmp_path, TYPES_SCENE.replace(TYPES_SCENE.splitlines()[1], f'connections = ["{link}"]'))
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, str(f), "connections[0]", detail)
+
+
+@pytest.mark.parametrize("setting, expected", [
+    ("a.p_int=1.5", "an integer"), ("a.p_bool=1", "true or false"), ("a.p_enum=\"max\"", "off, low, high"),
+    ("a.p_enum=7", "[1, 3]"), ("a.p_real=true", "a number"),
+])
+def test_a_parameter_of_the_wrong_type_is_refused_at_validation(capsys, tmp_path, setting, expected):
+    f = _scene(tmp_path, TYPES_SCENE)
+    rc, _, err = run_cli(capsys, ["validate", f, "--set", setting])
+    assert_one_line_error(rc, err, str(f), setting.split("=")[0], expected)
+
+
+class _TextInstance:
+    """An instance whose variables are of every type (as Reference-FMUs' Feedthrough)."""
+
+    def __init__(self):
+        from clockwork.engine.fmu import Variable
+
+        self.variables = {n: Variable(n, k, t, "output", "discrete", None, [])
+                          for k, (n, t) in enumerate([("s", "String"), ("e", "Enumeration"), ("b", "Boolean")])}
+        self.calls = []
+
+    def get_values(self, names):
+        self.calls.append(names)
+        return [{"s": 'say "hi", then', "e": 3, "b": True}[n] for n in names]
+
+
+def test_strings_are_recorded_as_text_and_enumerations_as_numbers():
+    from clockwork.engine.fmu import Instance
+    from clockwork.engine.recording import _DiscreteOutput
+
+    inst = _TextInstance()
+    assert [_DiscreteOutput(inst, n)[0] for n in ("s", "e", "b")] == ['say "hi", then', 3.0, 1.0]
+    # get_values sends each type to its own fmi2Get*.
+    calls = []
+    fake = type("F", (), {"variables": inst.variables})()
+    for kind in ("real", "integer", "boolean", "string"):
+        setattr(fake, f"get_{kind}", lambda names, kind=kind: calls.append((kind, names)) or [0])
+    Instance.get_values(fake, ["s", "e", "b"])
+    assert calls == [("string", ["s"]), ("integer", ["e"]), ("boolean", ["b"])]
+
+
+# 3. An FMU that ends the simulation.
+
+STAIR_SCENE = """
+[scene]
+title = "stair"
+[components.s]
+fmu = "{stair}"
+parameters = { end_time = 2.55 }
+[experiment]
+stop = 10
+[master]
+step = 0.1
+"""
+
+
+def test_an_fmu_that_ends_the_simulation_is_a_clean_end(capsys, tmp_path):
+    outs = {}
+    for engine in ENGINES:
+        rc, out, err = _run(capsys, tmp_path, _scene(tmp_path, STAIR_SCENE), engine=engine)
+        assert rc == 0, err
+        outs[engine] = out
+        cols = _csv(out)
+        assert cols["time"][-1] == "2.5" and cols["s.counter"][-1] == "2.0"
+        result = json.loads((out / "summary.json").read_text())["result"]
+        assert result["ended"]["instance"] == "s"
+        assert result["ended"]["last_point_s"] == 2.5 and result["t_end_s"] == 2.5
+    assert (outs["python"] / "timeseries.csv").read_bytes() == (outs["compiled"] / "timeseries.csv").read_bytes()
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("extra, needle", [
+    (["--set", "s.terminate=false"], "s: the stair ends at t = 2.55 s; the step to 2.6 s is refused."),
+    (["--set", "s.terminate=false", "--set", "s.quiet=true"], "(the FMU logged no message)"),
+])
+def test_a_discard_that_is_no_end_fails_with_the_fmus_message(capsys, tmp_path, engine, extra, needle):
+    rc, out, err = _run(capsys, tmp_path, _scene(tmp_path, STAIR_SCENE), *extra, engine=engine)
+    assert_one_line_error(rc, err, "discarded", needle, code=1)
+    assert not (out / "timeseries.csv").exists()
+
+
+# 4. The DefaultExperiment tolerance, and master.tolerance.
+
+DECAY_SCENE = """
+[scene]
+title = "decay"
+[components.d]
+fmu = "{decay}"
+[experiment]
+stop = 1
+[master]
+step = 0.5
+[record]
+outputs = ["d.x"]
+"""
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("extra, tolerance", [([], 1e-3), (["--set", "master.tolerance=1e-4"], 1e-4)])
+def test_the_tolerance_reaches_fmi2SetupExperiment(capsys, tmp_path, engine, extra, tolerance):
+    rc, out, err = _run(capsys, tmp_path, _scene(tmp_path, DECAY_SCENE), *extra, engine=engine)
+    assert rc == 0, err
+    x1 = float(_csv(out)["d.x"][-1])
+    # TestDecay takes Euler steps as long as the tolerance (1e-2 when none is given).
+    steps = round(1.0 / tolerance)
+    assert x1 == pytest.approx((1.0 - tolerance) ** steps, rel=1e-9)
+    assert x1 != pytest.approx((1.0 - 1e-2) ** 100, rel=1e-6)
+
+
+def test_a_bad_tolerance_is_refused(capsys, tmp_path):
+    f = _scene(tmp_path, DECAY_SCENE)
+    for value in ("0", "-1e-3", "true", '"tight"'):
+        rc, _, err = run_cli(capsys, ["validate", f, "--set", f"master.tolerance={value}"])
+        assert_one_line_error(rc, err, str(f), "master.tolerance", "a relative tolerance > 0")
+
+
+# 5. Units: a dimensionless output into an input with a unit; conversion.
+
+UNITS_SCENE = """
+connections = ["d.x -> a.u_real", "a.y_real -> b.u_mm", "a.y_k -> b.u_k"]
+[scene]
+title = "units"
+[components.d]
+fmu = "{decay}"
+[components.a]
+fmu = "{types}"
+parameters = { p_real = "250 mm" }
+[components.b]
+fmu = "{types}"
+[experiment]
+stop = 0.3
+[master]
+step = 0.1
+[record]
+outputs = ["a.y_real", "b.y_mm", "b.y_k"]
+"""
+
+
+def test_a_dimensionless_output_may_feed_an_input_with_a_unit_and_validate_says_so(capsys, tmp_path):
+    f = _scene(tmp_path, UNITS_SCENE)
+    rc, out, err = run_cli(capsys, ["validate", f])
+    assert rc == 0, err
+    notes = [line for line in out.splitlines() if line.startswith("note: ")]
+    assert notes == ["note: connections[0]: d.x is in no unit, a.u_real in m: the value passes unconverted"]
+    assert out.splitlines()[-1].startswith("ok: ")
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_convertible_units_are_converted_and_spellings_meet(capsys, tmp_path, engine):
+    f = _scene(tmp_path, UNITS_SCENE)
+    scene = load_scene(f)
+    assert tuple(scene.connections[1][4:]) == (1000.0, 0.0)  # m -> mm
+    assert tuple(scene.connections[2][4:]) == (1.0, 0.0)  # N.m/A -> Nm/A: the same unit
+    rc, out, err = _run(capsys, tmp_path, f, engine=engine)
+    assert rc == 0, err
+    cols = _csv(out)
+    assert [float(x) for x in cols["b.y_mm"]] == [1000.0 * float(y) for y in cols["a.y_real"]]
+    assert float(cols["b.y_mm"][0]) == pytest.approx(250.0 + 1000.0 * 1.0)
+
+
+def test_units_of_different_dimensions_are_refused(capsys, tmp_path):
+    f = _scene(tmp_path, UNITS_SCENE.replace('"a.y_k -> b.u_k"', '"a.y_real -> b.u_k"'))
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, str(f), "connections[2]", "unit mismatch: a.y_real is in m, b.u_k in Nm/A")
+
+
+# 6. --set of a dotted parameter name; der(x) recorded; dotted instance names.
+
+NAMES_SCENE = """
+connections = ["sub.a.y_real -> sub.u_real"]
+[scene]
+title = "dotted"
+[components."sub.a"]
+fmu = "{types}"
+[components.sub]
+fmu = "{types}"
+[experiment]
+stop = 0.3
+[master]
+step = 0.1
+[record]
+outputs = ["sub.a.y_real", "sub.der(x)", "sub.x"]
+"""
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_dotted_parameters_are_set_and_der_x_is_recorded(capsys, tmp_path, engine):
+    f = _scene(tmp_path, NAMES_SCENE)
+    rc, out, err = _run(capsys, tmp_path, f, "--set", "sub.a.gain.k=-0.4", "--set", "sub.gain.k=3",
+                        engine=engine)
+    assert rc == 0, err
+    cols = _csv(out)
+    assert set(cols["sub.a.y_real"]) == {"-0.4"}  # gain.k * p_real with p_real = 1
+    assert set(cols["sub.der(x)"]) == {"-0.4"}  # dx/dt = u_real
+    assert float(cols["sub.x"][-1]) == pytest.approx(-0.4 * 0.3)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["result"]["engine"] == ("python" if engine == "python" else "compiled")
+
+
+# 7. FMU log messages: the printf format with its arguments.
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_fmu_log_messages_are_formatted(engine):
+    with System({"s": (str(test_fmu("TestStair")), {"end_time": 9.0})}, [],
+                MasterSettings(step=0.25, engine=engine), record={"s": ["counter"]}) as s:
+        s.master.run_until(2.0)
+        texts = [m for _, m in s.instances["s"].messages]
+    assert texts == ["s reached level 1 at t = 1 s", "s reached level 2 at t = 2 s"]
+
+
+def test_a_message_without_the_formatting_library_is_the_raw_format(monkeypatch):
+    # Without lib/libcw_master.so the Python engine hands on the FMU's format as it is.
+    from clockwork.engine import fmu
+
+    monkeypatch.setattr(fmu, "_formatter", [None])
+    with System({"s": (str(test_fmu("TestStair")), {"end_time": 9.0})}, [],
+                MasterSettings(step=0.5, engine="python")) as s:
+        s.master.run_until(1.0)
+        assert [m for _, m in s.instances["s"].messages] == ["%s reached level %d at t = %g s"]
+
+
+# 8. The extrapolation order an FMU accepts.
+
+PENDULUM = ("Pendulum", dict(Q=1000.0, phi_start=0.1))
+
+
+@pytest.mark.parametrize("extrapolation", [1, 2])
+def test_an_fmu_that_cannot_interpolate_inputs_gets_zero_order_hold(capsys, extrapolation):
+    results = []
+    for order, engine in ((0, "python"), (extrapolation, "python"), (extrapolation, "compiled")):
+        with System({"p": PENDULUM, "d": (str(test_fmu("TestDecay")), {})}, ["p.phi -> d.v"],
+                    MasterSettings(step=0.05, extrapolation=order, event_location=False, engine=engine)) as s:
+            s.master.run_until(1.0)
+            results.append(s.value("d", "x"))
+            notes = list(s.master.notes)
+        assert notes == ([] if order == 0 else [
+            "d cannot interpolate its inputs (canInterpolateInputs is false): zero-order hold for it instead "
+            f"of master.extrapolation = {extrapolation}"])
+    assert results[0] == results[1] == results[2]
+    assert capsys.readouterr().err.count("clockwork: warning: d cannot interpolate") == 2
+
+
+def test_an_fmu_that_refuses_order_2_gets_order_1_said_once(capsys):
+    runs = []
+    for engine in ENGINES:
+        with System({"p": PENDULUM, "t": _types()}, ["p.phi -> t.u_real"],
+                    MasterSettings(step=0.05, extrapolation=2, event_location=False, engine=engine)) as s:
+            s.master.run_until(1.0)
+            runs.append((s.value("t", "x"), s.value("t", "u_rate"), list(s.master.notes)))
+    assert runs[0] == runs[1]
+    x, rate, notes = runs[0]
+    assert rate != 0.0  # slopes still reach it (order 1)
+    assert notes == ["t refused input derivatives of order 2 (fmi2SetRealInputDerivatives): order 1 from t = 0.05 s on"]
+    assert capsys.readouterr().err.count("clockwork: warning: t refused input derivatives of order 2") == 2
+    # The same as asking for order 1 from the start, after the first smooth step.
+    with System({"p": PENDULUM, "t": _types()}, ["p.phi -> t.u_real"],
+                MasterSettings(step=0.05, extrapolation=1, event_location=False, engine="python")) as s:
+        s.master.run_until(1.0)
+        assert s.value("t", "x") == x

@@ -313,7 +313,12 @@ class Instance:
     # -- status handling ------------------------------------------------
 
     def last_message(self) -> str:
-        return self.messages[-1][1] if self.messages else ""
+        """The FMU's last message that reports a failure (status Discard or
+        worse): an earlier warning or remark does not explain a failure."""
+        for status, text in reversed(self.messages):
+            if status >= DISCARD and text:
+                return text
+        return ""
 
     def fail(self, what: str, status: int, time: float | None = None,
              error: type[SimulationError] = SimulationError) -> SimulationError:

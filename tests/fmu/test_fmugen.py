@@ -69,7 +69,7 @@ def test_dependency_declarations_are_checked(drag):
     toml = drag / "model.toml"
     original = toml.read_text()
     _edit(toml, 'depends_on = ["w"]', 'depends_on = ["c1"]')
-    _refused(drag, "depends_on 'c1'", "not an input")
+    _refused(drag, "depends_on 'c1'", "neither an input nor a state")
     toml.write_text(original)
     _edit(toml, 'depends_on = ["w"]', 'depends_on = { w = "linear" }')
     _refused(drag, "dependency kind 'linear'")
@@ -87,3 +87,45 @@ def test_dependencies_are_in_index_order(drag, tmp_path):
     deps = [int(k) for k in unknown.get("dependencies").split()]
     assert deps == sorted(deps) and len(deps) == 3
     assert unknown.get("dependenciesKind") == "dependent dependent dependent"
+
+
+def test_enumerations_states_and_fmi_names(drag, tmp_path):
+    """Enumeration variables with their TypeDefinitions, a declared state
+    (derivative_of) that an output may depend on, and FMI names that are
+    not C identifiers."""
+    _edit(drag / "model.toml", "[experiment]", '[types.Mode]\nitems = ["a", "b"]\n\n[experiment]')
+    _edit(drag / "model.toml", "step = 0.01", "step = 0.01\ntolerance = 1e-5")
+    with open(drag / "model.toml", "a") as f:
+        f.write('\n[[variable]]\nname = "mode"\nvr = 30\ntype = "Enumeration"\ndeclared_type = "Mode"\n'
+                'causality = "parameter"\nvariability = "fixed"\nstart = 2\ndescription = "m"\n'
+                '\n[[variable]]\nname = "q"\nvr = 31\ntype = "Real"\ncausality = "local"\n'
+                'variability = "continuous"\ndescription = "state"\n'
+                '\n[[variable]]\nname = "der(q)"\nvr = 32\ntype = "Real"\ncausality = "local"\n'
+                'variability = "continuous"\nderivative_of = "q"\ndescription = "rate"\n'
+                '\n[[variable]]\nname = "out.q"\nvr = 33\ntype = "Real"\ncausality = "output"\n'
+                'variability = "continuous"\ndepends_on = ["q"]\ndescription = "q"\n')
+    assert fmugen.main([str(drag), str(tmp_path / "gen")]) == 0
+    header = (tmp_path / "gen" / "cw_vars.h").read_text()
+    assert "VR_der_q_ = 32," in header and "VR_out_q = 33," in header
+    assert '[30] = {"mode", 30, CW_INTEGER,' in header
+    root = ET.parse(tmp_path / "gen" / "modelDescription.xml").getroot()
+    assert [i.get("name") for i in root.iter("Item")] == ["a", "b"]
+    assert root.find("DefaultExperiment").get("tolerance") == "1e-05"
+    index = {v.get("name"): k + 1 for k, v in enumerate(root.iter("ScalarVariable"))}
+    assert root.find("ModelVariables")[index["der(q)"] - 1].find("Real").get("derivative") == str(index["q"])
+    (der,) = root.find("ModelStructure/Derivatives")
+    assert der.get("index") == str(index["der(q)"])
+    outputs = {u.get("index"): u.get("dependencies") for u in root.find("ModelStructure/Outputs")}
+    assert outputs[str(index["out.q"])] == str(index["q"])
+    initial = [int(u.get("index")) for u in root.find("ModelStructure/InitialUnknowns")]
+    assert initial == sorted(initial) and index["q"] in initial and index["der(q)"] in initial
+
+
+def test_enumeration_and_state_declarations_are_checked(drag):
+    toml = drag / "model.toml"
+    original = toml.read_text()
+    _edit(toml, 'name = "c1"\nvr = 0\ntype = "Real"', 'name = "c1"\nvr = 0\ntype = "Enumeration"')
+    _refused(drag, "declared_type")
+    toml.write_text(original)
+    _edit(toml, 'name = "c1"\nvr = 0\ntype = "Real"', 'name = "c1"\nvr = 0\ntype = "Real"\nderivative_of = "w"')
+    _refused(drag, "derivative_of is for Real local variables")

@@ -8,7 +8,7 @@
 
 static void calc_outputs(cw_instance *inst) {
     const double t = inst->time;
-    R(y_real) = R(p_real) + IN(u_real, t);
+    R(y_real) = R(gain_k) * R(p_real) + IN(u_real, t);
     I(y_int) = I(p_int) + I(u_int);
     I(y_bool) = (I(p_bool) != 0) != (I(u_bool) != 0);
     I(y_enum) = I(p_enum) > I(u_enum) ? I(p_enum) : I(u_enum);
