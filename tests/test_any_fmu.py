@@ -510,3 +510,14 @@ def test_an_fmu_that_refuses_order_2_gets_order_1_said_once(capsys):
                 MasterSettings(step=0.05, extrapolation=1, event_location=False, engine="python")) as s:
         s.master.run_until(1.0)
         assert s.value("t", "x") == x
+
+
+def test_a_discrete_link_from_an_output_without_feedthrough(capsys):
+    # The destination may be set before its source was first read (the
+    # feedthrough order says nothing about them): it starts from zero, as
+    # a Real input does, and follows from the first read on.
+    with System({"t": _types(p_int=10), "s": (str(test_fmu("TestStair")), {"end_time": 9.0})},
+                ["s.counter -> t.u_int"], MasterSettings(step=0.25)) as s:
+        assert s.master.engine == "python" and "Real connections only" in s.master.engine_reason
+        s.master.run_until(2.0)
+        assert s.instances["t"].get_integer(["y_int"]) == [12]

@@ -145,6 +145,8 @@ class Ports(dict):
             dst, src = self[link.dst], self[link.src]
             if link.output not in src.dout_names:
                 src.dout_names.append(link.output)
+                # Until the source is first read, as a Real output's buffer: zero (or empty text).
+                src.dout.append("" if src.inst.variables[link.output].type == "String" else 0)
             dst.din_names.append(link.input)
             dst.din_sources.append((src, src.dout_names.index(link.output)))
             dst.has_inputs = True
