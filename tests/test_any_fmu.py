@@ -254,7 +254,7 @@ def test_a_connection_of_two_types_is_refused_at_validation(capsys, tmp_path, li
 
 @pytest.mark.parametrize("setting, expected", [
     ("a.p_int=1.5", "an integer"), ("a.p_bool=1", "true or false"), ("a.p_enum=\"max\"", "off, low, high"),
-    ("a.p_enum=7", "[1, 3]"), ("a.p_real=true", "a number"),
+    ("a.p_enum=7", "1 (off), 2 (low), 3 (high)"), ("a.p_enum=0", "an item of Mode"), ("a.p_real=true", "a number"),
 ])
 def test_a_parameter_of_the_wrong_type_is_refused_at_validation(capsys, tmp_path, setting, expected):
     f = _scene(tmp_path, TYPES_SCENE)

@@ -114,6 +114,10 @@ def convert_value(ctx: Ctx, key: str, value: object, v, md):
         if isinstance(value, bool) or not isinstance(value, int):
             raise ctx.bad(key, value, "an integer" + (" or an item name" if v.type == "Enumeration" else ""))
         x = value
+        items = {int(i.value): i.name for i in getattr(v.declaredType, "items", None) or []}
+        if v.type == "Enumeration" and items and x not in items:
+            raise ctx.bad(key, value, f"the value of an item of {v.declaredType.name}: "
+                                      f"{', '.join(f'{k} ({n})' for k, n in items.items())}")
     elif v.type == "Boolean":
         if not isinstance(value, bool):
             raise ctx.bad(key, value, "true or false")
