@@ -18,6 +18,7 @@ from clockwork.engine.fmu import direct_feedthrough
 from clockwork.engine.names import instance_name_problem, split_ref
 from clockwork.engine.wiring import Link, parse_link
 from clockwork.errors import SceneError
+from clockwork.run.catalog import load_scene as load_with_kinds
 from clockwork.scene import load_scene
 from clockwork.scene.units import link_conversion
 from cwtest import assert_one_line_error, run_cli, test_fmu
@@ -119,6 +120,10 @@ fmu = "Drag"
 stop = 0.1
 [record]
 outputs = ["{a}.phi", "{b}.tau"]
+[[plot]]
+kind = "time_series"
+x = "time"
+y = "{a}.phi"
 """
 
 
@@ -126,7 +131,7 @@ outputs = ["{a}.phi", "{b}.tau"]
 def test_a_scene_with_such_names_loads_sets_and_runs(capsys, tmp_path, a, b):
     f = tmp_path / "names.toml"
     f.write_text(SCENE.format(a=a, b=b))
-    scene = load_scene(f, [f"{a}.Q=700", f"{b}.c1=1e-3"])
+    scene = load_with_kinds(f, [f"{a}.Q=700", f"{b}.c1=1e-3"])
     assert scene.components[a].parameters["Q"] == 700.0
     assert scene.components[b].parameters["c1"] == 1e-3
     assert [tuple(c[:4]) for c in scene.connections] == [(a, "w", b, "w"), (b, "tau", a, "tau_drag")]
@@ -135,6 +140,11 @@ def test_a_scene_with_such_names_loads_sets_and_runs(capsys, tmp_path, a, b):
     assert code == 0, err
     header = (tmp_path / "out" / "timeseries.csv").read_text().splitlines()[0]
     assert header.split(",") == ["time", f"{a}.phi", f"{b}.tau"]
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert "plot1_time_series.png" in summary["files"] and not summary.get("plots_failed")
+    # The plot reads the variable's unit through the same split: rad shown in degrees.
+    from clockwork.results.plots.registry import display
+    assert display(scene, f"{a}.phi", [0.0])[1] == f"{a}.phi (deg)"
 
 
 # -- the test FMUs (tests/models, built into build/test-fmus) -----------------

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ...engine.description import var_unit, variables
+from ...engine.names import split_ref
 from ...scene.kinds import Converter, Invalid
 from ...atomic import write_bytes_atomic
 
@@ -126,15 +127,12 @@ def register(kind: str, keys: set[str] | frozenset[str] = frozenset(), convert: 
 def display(scene, name: str, values):
     """Values of `instance.variable` in display units: angles in degrees,
     torques in N.cm; returns (values, axis label)."""
-    if "." not in name:
+    split = split_ref(name, {n: variables(c.model_description) for n, c in scene.components.items()})
+    if split is None:
         return np.asarray(values, dtype=float), name
-    inst, var = name.split(".", 1)
-    comp = scene.components.get(inst)
-    unit = None
-    if comp is not None:
-        v = variables(comp.model_description).get(var)
-        if v is not None:
-            unit = var_unit(v)
+    inst, var = split
+    v = variables(scene.components[inst].model_description).get(var)
+    unit = var_unit(v) if v is not None else None
     values = np.asarray(values, dtype=float)
     if unit == "rad":
         return np.degrees(values), f"{name} (deg)"
