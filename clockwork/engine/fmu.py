@@ -37,7 +37,13 @@ NO_MESSAGE = "(the FMU logged no message)"
 
 class Terminated(SimulationError):
     """An FMU ended the simulation (fmi2Discard with fmi2Terminated, FMI 2.0
-    4.2.3): a clean end, the results up to `time` stand."""
+    4.2.3): a clean end, the results up to `time` (the last communication
+    point) stand; `fmu_time` is the FMU's fmi2LastSuccessfulTime, s."""
+
+    def __init__(self, message: str, time: float | None = None, instance: str | None = None,
+                 fmu_time: float | None = None):
+        super().__init__(message, time=time, instance=instance)
+        self.fmu_time = fmu_time
 
 
 # What the compiled core's formatting logger (cw_logger) hands on: the

@@ -219,10 +219,8 @@ class Master:
         if st == DISCARD and p.inst.terminated():
             end = p.inst.last_successful_time()
             end = t if end is None else end
-            error = Terminated(f"{p.inst.name} ended the simulation at t = {end!r} s, in the step from "
-                               f"t = {t!r} s; results until {t!r} s", time=t, instance=p.inst.name)
-            error.fmu_time = end  # the FMU's fmi2LastSuccessfulTime, s
-            return error
+            return Terminated(f"{p.inst.name} ended the simulation at t = {end!r} s, in the step from "
+                              f"t = {t!r} s; results until {t!r} s", time=t, instance=p.inst.name, fmu_time=end)
         if st == DISCARD:
             return SimulationError(
                 f"{p.inst.name}: fmi2DoStep from t = {t!r} s with h = {h!r} s was discarded: "
