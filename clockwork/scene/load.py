@@ -16,6 +16,7 @@ import difflib
 import hashlib
 import os
 import re
+import sys
 import tomllib
 from pathlib import Path
 
@@ -25,6 +26,7 @@ from ..errors import SceneError
 from .checks import TOP_KEYS, Ctx, article, component, convert_value, lookup, master_value, names_of, parse_ref
 from .kinds import NO_KINDS, Invalid, Kinds
 from .model import (Component, Connection, Experiment, MasterConfig, Record, Scene, consistency)
+from .ssp.read import read_ssp
 from .sweep import parse_sweep
 from .units import fmt
 
@@ -46,18 +48,23 @@ def parse_override(text: str) -> tuple[str, str, object]:
     m = re.match(r"^([A-Za-z_][A-Za-z0-9_]*)\.([A-Za-z_][A-Za-z0-9_]*)$", lhs)
     if not m:
         raise ValueError(f"--set {text}: expected instance.parameter=value, got the key {lhs!r}")
+    return m.group(1), m.group(2), _override_value(lhs, rhs)
+
+
+def _override_value(lhs: str, rhs: str) -> object:
     try:
-        value = tomllib.loads("v = " + rhs)["v"]
+        return tomllib.loads("v = " + rhs)["v"]
     except tomllib.TOMLDecodeError:
-        value = rhs.strip()
+        return rhs.strip()
     except RecursionError:
         raise ValueError(f"--set {lhs}: the value is nested deeper than Python can read") from None
-    return m.group(1), m.group(2), value
 
 
 def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS) -> Scene:
-    """Load, override and validate a scene file; raises SceneError."""
+    """Load, override and validate a scene file (or an .ssp/.ssd); raises SceneError."""
     path = Path(path)
+    if path.suffix.lower() in (".ssp", ".ssd"):
+        return _load_ssp(path, overrides, kinds)
     try:
         # Read at most one byte past the limit: a device or a pipe reports no size.
         with open(path, "rb") as f:
@@ -127,8 +134,62 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS) -
     return _build(ctx, raw, tuple(applied), hashlib.sha256(data).hexdigest(), kinds)
 
 
-def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: Kinds) -> Scene:
-    ctx.check_keys(raw, TOP_KEYS, "", required=("scene", "components", "experiment"))
+def _load_ssp(path: Path, overrides, kinds: Kinds) -> Scene:
+    """An SSP archive or SSD file through the same checks as a scene file:
+    the SSP gives the components and connections, its default experiment,
+    annotations and --set the other sections (docs/scenes.md, "SSP and SSD")."""
+    ssp = read_ssp(path)
+    for w in ssp.warnings:
+        print(f"clockwork: warning: {w}", file=sys.stderr)
+    raw = {"scene": {"title": ssp.name, "description": ssp.description}, **ssp.sections}
+    components = dict(ssp.components)
+    connected = {(c.dst_instance, c.dst_var) for c in ssp.connections}
+    labels: dict[str, str] = {}
+    applied = []
+    for text in overrides:
+        if "=" not in text:
+            raise SceneError(f"--set {text}: expected instance.parameter=value (or master.key=value)", path)
+        lhs, rhs = (x.strip() for x in text.split("=", 1))
+        try:
+            value = _override_value(lhs, rhs)
+        except ValueError as e:
+            raise SceneError(str(e), path) from None
+        applied.append(text)
+        label = f"--set {lhs}"
+        owner, _, name = lhs.partition(".")
+        if owner in _OVERRIDABLE and re.match(r"^[A-Za-z_][A-Za-z0-9_]*$", name):
+            raw.setdefault(owner, {})[name] = value
+            labels[f"{owner}.{name}"] = label
+            continue
+        # instance names may hold dots: the longest one that prefixes the key
+        inst = max((n for n in components if lhs.startswith(n + ".")), key=len, default=None)
+        if inst is None:
+            close = difflib.get_close_matches(owner, list(components) + list(_OVERRIDABLE), n=1)
+            hint = f" (did you mean {close[0]}?)" if close else ""
+            raise SceneError(f"no component named {owner}{hint}; components: {', '.join(components)}", path, label)
+        comp, var = components[inst], lhs[len(inst) + 1:]
+        ctx = Ctx(path, {})
+        v = lookup(ctx, label, variables_of(comp.model_description), var, inst, comp.model_name, want="parameter")
+        if v.causality not in ("parameter", "input") or (inst, var) in connected:
+            what = "a connected input" if v.causality == "input" else f"{article(v.causality)} {v.causality}"
+            raise SceneError(f"{inst}.{var} is {what}; expected a parameter or an unconnected input", path, label)
+        value = convert_value(ctx, label, value, v, comp.model_description)
+        components[inst] = dataclasses.replace(comp, parameters={**comp.parameters, var: value})
+    if "stop" not in raw.get("experiment", {}):
+        raise SceneError("missing: the SSD has no ssd:DefaultExperiment stopTime; expected one, or "
+                         "--set experiment.stop=<time>", path, "ssd:DefaultExperiment stopTime")
+    outputs = raw.get("record", {}).get("outputs")
+    if isinstance(outputs, list) and outputs and all(isinstance(o, str) for o in outputs):
+        raw["plot"] = [{"kind": "time_series", "x": "time", "y": outputs, "title": ssp.name, "file": "outputs.png"}]
+    raw["analysis"] = {"kind": "time_series"}
+    ctx = Ctx(path, labels)
+    return _build(ctx, raw, tuple(applied), ssp.sha256, kinds, (components, ssp.connections))
+
+
+def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: Kinds,
+           prebuilt: tuple | None = None) -> Scene:
+    if prebuilt is None:
+        ctx.check_keys(raw, TOP_KEYS, "", required=("scene", "components", "experiment"))
 
     scene_t = ctx.table(raw, "scene", "", required=True)
     ctx.check_keys(scene_t, ("title", "description", "reproduces"), "scene", required=("title",))
@@ -138,8 +199,11 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     if not scene_t["title"].strip():
         raise ctx.bad("scene.title", scene_t["title"], "a non-empty title")
 
-    components, input_params = _components(ctx, ctx.table(raw, "components", "", required=True))
-    connections = _connections(ctx, raw.get("connections", []), components, input_params)
+    if prebuilt is None:
+        components, input_params = _components(ctx, ctx.table(raw, "components", "", required=True))
+        connections = _connections(ctx, raw.get("connections", []), components, input_params)
+    else:
+        components, connections = prebuilt
     experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
     master, max_step_given = _master(ctx, ctx.table(raw, "master", "") or {})
     problem = consistency(master, experiment, components)
