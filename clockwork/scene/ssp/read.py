@@ -430,7 +430,11 @@ class _Reader:
                 if kind in ("input", "output") and v.causality != kind:
                     raise doc.fail(c, f"expected kind={v.causality!r}: {md.modelName}.{name} is "
                                       f"{'an' if v.causality[0] in 'aeiou' else 'a'} {v.causality}", "kind")
-                if unit is None and v.type == "Real":
+                if v.type == "Real" and var_unit(v) is not None:
+                    # the FMU's unit is what its numbers are in
+                    if unit is not None and _conversion(unit, var_unit(v), self.units, _fmu_units(md)) != (1.0, 0.0):
+                        self.warn(doc.label, doc.key(c, "name"), f"the connector is in {unit}, "
+                                  f"{md.modelName}.{name} in {var_unit(v)}; the FMU's unit is used")
                     unit = var_unit(v)
                 ctype = v.type
             out[name] = _Connector(name, kind, ctype, unit, c)
