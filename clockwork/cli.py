@@ -247,6 +247,8 @@ def cmd_validate(args) -> int:
     points = len(scene.points())
     extra = f", {points} sweep points" if scene.sweep is not None else ""
     with_set = f", with --set {' '.join(scene.overrides)}" if scene.overrides else ""
+    for note in scene.notes:
+        print(f"note: {note}")
     print(f"ok: {scene.title} ({n} component{'s' * (n != 1)}, {m} connection{'s' * (m != 1)}{extra}{with_set})")
     return 0
 

@@ -162,8 +162,8 @@ def test_valid_connections_with_drag(tmp_path):
                  '[scene]\ntitle = "t"\n[components.pendulum]\nfmu = "Pendulum"\n'
                  '[components.drag]\nfmu = "Drag"\n[experiment]\nstop = 1\n')
     s = load_scene(f)
-    assert s.connections == (("pendulum", "w", "drag", "w"), ("drag", "tau", "pendulum", "tau_drag"))
-    src, src_var, dst, dst_var = s.connections[1]
+    assert s.connections == (("pendulum", "w", "drag", "w", 1.0, 0.0), ("drag", "tau", "pendulum", "tau_drag", 1.0, 0.0))
+    src, src_var, dst, dst_var = s.connections[1][:4]
     assert (src, dst_var) == ("drag", "tau_drag")
 
 
@@ -231,8 +231,8 @@ def test_bad_scene(name, key, expected):
 
 
 @pytest.mark.parametrize("text, key, expected", [
-    ('[scene]\ntitle = "t"\n[components.1p]\nfmu = "Pendulum"\n[experiment]\nstop = 1\n',
-     "components.1p", "[A-Za-z_]"),
+    ('[scene]\ntitle = "t"\n[components."p/q"]\nfmu = "Pendulum"\n[experiment]\nstop = 1\n',
+     "components.p/q", "without '/'"),
     ('[scene]\ntitle = "t"\n[components.master]\nfmu = "Pendulum"\n[experiment]\nstop = 1\n',
      "components.master", "reserved"),
     ('[scene]\ntitle = "t"\n[components.p]\nfmu = "Pendulum"\nparameters = { tick_count = 1.5 }\n'

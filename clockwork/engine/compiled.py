@@ -61,10 +61,10 @@ class _Port(_Strict):
         ["comp", "doStep", "getReal", "setReal", "setInputDerivatives", "getOutputDerivatives",
          "getState", "setState", "state", "out_vr", "out", "in_vr", "inp", "der_vr", "der_order",
          "der", "src_port", "src_pos", "sent", "dsrc_port", "dsrc_vr", "dsrc_m", "hist_t",
-         "hist_v", "snap_hist_t", "snap_hist_v"],
+         "hist_v", "snap_hist_t", "snap_hist_v", "scaled", "in_factor", "in_offset"],
         ["out_time"], [],
         ["n_out", "n_in", "n_z", "max_output_derivative_order", "sent_valid", "hist_n",
-         "snap_hist_n", "pad_"])
+         "snap_hist_n", "n_scaled"])
 
 
 class _Master(_Strict):
@@ -245,6 +245,10 @@ class CompiledMaster(Master):
                 setattr(c, name, ref(_array(c_double, [], HISTORY + 1)))
             for name in ("hist_v", "snap_hist_v"):
                 setattr(c, name, ref(_array(c_double, [], (HISTORY + 1) * p.n_in)))
+            c.scaled = ref(_array(c_int, (k for k, _, _ in p.scale)))
+            c.in_factor = ref(_array(c_double, (f for _, f, _ in p.scale)))
+            c.in_offset = ref(_array(c_double, (o for _, _, o in p.scale)))
+            c.n_scaled = len(p.scale)
             c.n_out, c.n_in, c.n_z = p.n_out, p.n_in, len(p.z_pos)
             c.max_output_derivative_order = inst.max_output_derivative_order
         self._cports = cports

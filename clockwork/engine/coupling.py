@@ -73,9 +73,16 @@ class InputCoupling:
             starts, coupling_end = coupling_end
             for k in range(p.n_in):
                 inp[k] = starts[k]
+            if p.scale:
+                coupling_end = list(coupling_end)
+                for k, f, o in p.scale:
+                    inp[k] = f * inp[k] + o
+                    coupling_end[k] = f * coupling_end[k] + o
         else:
             for k, src, j in p.sources:
                 inp[k] = src.out[j]
+            for k, f, o in p.scale:
+                inp[k] = f * inp[k] + o
         polynomial = bool(self.order) and smooth and coupling_end is None
         if polynomial:
             self._extrapolate(p, t)
@@ -133,6 +140,10 @@ class InputCoupling:
             p.inp[k] = ua + dt * (d1 + 0.5 * dt * d2)
             p.der[k] = d1 + d2 * dt
             p.der[n + k] = d2
+        for k, f, o in p.scale:
+            p.inp[k] = f * p.inp[k] + o
+            p.der[k] = f * p.der[k]
+            p.der[n + k] = f * p.der[n + k]
 
     def forget(self) -> None:
         for hist in self.history.values():

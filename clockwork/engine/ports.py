@@ -38,6 +38,8 @@ class Port:
         self.der = (c_double * max(1, 2 * self.n_in))()
         # (input position, source port, source output position)
         self.sources: list[tuple[int, "Port", int]] = []
+        # (input position, factor, offset) of the inputs whose link is not the identity
+        self.scale: list[tuple[int, float, float]] = []
         self.out_time = 0.0  # time at which `out` was read, s
         self.doStep, self.getReal, self.setReal = inst.c_doStep, inst.c_getReal, inst.c_setReal
         self.sent: list[float] = []  # inputs last given to the FMU (zero-order hold), to skip repeats
@@ -57,6 +59,8 @@ class Port:
             inp = self.inp
             for k, src, j in self.sources:
                 inp[k] = src.out[j]
+            for k, f, o in self.scale:
+                inp[k] = f * inp[k] + o
             st = self.setReal(self.comp, self.in_vr, self.n_in, inp)
             if st > WARNING:
                 raise self.inst.fail("fmi2SetReal of inputs", st, t)
@@ -108,7 +112,10 @@ class Ports(dict):
             offset += n
         for link in links:
             dst, src = self[link.dst], self[link.src]
-            dst.sources.append((dst.in_names.index(link.input), src, src.out_names.index(link.output)))
+            k = dst.in_names.index(link.input)
+            dst.sources.append((k, src, src.out_names.index(link.output)))
+            if not link.identity:
+                dst.scale.append((k, float(link.factor), float(link.offset)))
 
         self.all = list(self.values())
         self.first = [self[n] for n in wiring.feedthrough_only]  # stepped first: they commit modes

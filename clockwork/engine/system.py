@@ -33,7 +33,9 @@ class System:
                 inst = Instance(name, resolve_fmu(str(fmu), Path.cwd()), md)
                 inst.instantiate()
                 self.instances[name] = inst
-            links = [parse_link(c) if isinstance(c, str) else Link(*c) for c in connections]
+            known = {n: inst.variables for n, inst in self.instances.items()}
+            links = [parse_link(c, known) if isinstance(c, str) else c if isinstance(c, Link) else Link(*c)
+                     for c in connections]
             self.master = make_master(self.instances, links, settings or MasterSettings(),
                                  start_time=start_time, extra_outputs=record)
             self.master.initialize(self.parameters)

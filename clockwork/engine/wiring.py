@@ -11,29 +11,45 @@ communication point in dependency order.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from ..errors import SceneError
 from .fmu import Instance
+from .names import split_link, split_ref
 
 
 @dataclass(frozen=True)
 class Link:
+    """The input receives factor * output + offset (a Real link's linear
+    transformation or unit conversion; the identity is never computed)."""
+
     src: str
     output: str
     dst: str
     input: str
+    factor: float = 1.0
+    offset: float = 0.0
+
+    @property
+    def identity(self) -> bool:
+        return self.factor == 1.0 and self.offset == 0.0
 
 
-def parse_link(text: str) -> Link:
-    """'src.output -> dst.input' as a Link."""
-    try:
-        src, dst = (s.strip() for s in text.split("->"))
-        a, b = src.split(".", 1)
-        c, d = dst.split(".", 1)
-    except ValueError:
-        raise SceneError(f"connection {text!r}: expected 'instance.output -> instance.input'") from None
+def parse_link(text: str, instances: Mapping[str, object] | None = None) -> Link:
+    """'src.output -> dst.input' as a Link; instance names are matched
+    against `instances` (names -> variables), longest first (engine.names)."""
+    ends = split_link(text)
+    refs = [split_ref(e, instances) if instances is not None else _first_dot(e) for e in ends or ()]
+    if ends is None or None in refs:
+        raise SceneError(f"connection {text!r}: expected 'instance.output -> instance.input'")
+    (a, b), (c, d) = refs
     return Link(a, b, c, d)
+
+
+def _first_dot(ref: str) -> tuple[str, str] | None:
+    a, dot, b = ref.partition(".")
+    return (a, b) if dot and a and b else None
 
 
 @dataclass

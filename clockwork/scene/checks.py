@@ -10,17 +10,16 @@ from __future__ import annotations
 
 import difflib
 import math
-import re
 from pathlib import Path
 
 from ..engine.description import var_limit, var_unit
 from ..engine.description import variables as variables_of
+from ..engine.names import split_ref
 from ..engine.settings import ENGINES
 from ..errors import SceneError
 from .model import Component, show
 from .units import UnitError, fmt, parse_quantity, to_seconds, to_unit
 
-_REF_RE = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\.([A-Za-z_][A-Za-z0-9_.\[\]]*)\s*$")
 TOP_KEYS = ("scene", "components", "connections", "experiment", "master", "record", "analysis", "sweep", "plot")
 
 
@@ -168,9 +167,13 @@ def master_value(ctx: Ctx, key: str, value: object):
 
 
 def parse_ref(ctx: Ctx, key: str, ref: object, components: dict[str, Component], what: str):
-    if not isinstance(ref, str) or not _REF_RE.match(ref):
+    split = split_ref(ref, {n: variables_of(c.model_description) for n, c in components.items()}) \
+        if isinstance(ref, str) else None
+    if split is None:
+        if isinstance(ref, str) and "." in ref.strip():
+            component(ctx, key, components, ref.strip().partition(".")[0])  # no such component: name them
         raise ctx.bad(key, ref, f'"instance.variable" naming {what}')
-    inst, var = ref.strip().split(".", 1)
+    inst, var = split
     comp = component(ctx, key, components, inst)
     v = lookup(ctx, key, variables_of(comp.model_description), var, inst, comp.model_name,
                want="parameter" if what == "a parameter" else "any")

@@ -20,35 +20,41 @@ import sys
 import tomllib
 from pathlib import Path
 
-from ..engine.description import NAME_RE, FmuError, read_fmu, resolve_fmu, var_unit
+from ..engine.description import FmuError, read_fmu, resolve_fmu, var_unit
 from ..engine.description import variables as variables_of
+from ..engine.names import instance_name_problem, split_link, split_ref
 from ..errors import SceneError
 from .checks import TOP_KEYS, Ctx, article, component, convert_value, lookup, master_value, names_of, parse_ref
 from .kinds import NO_KINDS, Invalid, Kinds
 from .model import (Component, Connection, Experiment, MasterConfig, Record, Scene, consistency)
 from .ssp.read import read_ssp
 from .sweep import parse_sweep
-from .units import fmt
-
-_CONN_RE = re.compile(
-    r"^\s*([A-Za-z_][A-Za-z0-9_]*)\.(\S+)\s*->\s*([A-Za-z_][A-Za-z0-9_]*)\.(\S+)\s*$"
-)
+from .units import fmt, link_conversion
 
 MAX_SCENE_BYTES = 1 << 20  # scene files are a few kB; a larger one is not a scene
 _OVERRIDABLE = ("scene", "experiment", "master", "record", "analysis")
 _MASTER_DEFAULTS = {f.name: f.default for f in dataclasses.fields(MasterConfig)}
 
 
-def parse_override(text: str) -> tuple[str, str, object]:
-    """'a.b=value' -> ('a', 'b', value); the value is TOML if it parses, else a bare string."""
+def parse_override(text: str, instances=()) -> tuple[str, str, object]:
+    """'a.b=value' -> ('a', 'b', value); the value is TOML if it parses, else a bare string.
+
+    The key is split against the scene's sections and the `instances`
+    named (longest first, engine.names), so that `sub.comp.MLoad.k` is
+    the parameter MLoad.k of the instance sub.comp; without a match, at
+    the first dot."""
     if "=" not in text:
         raise ValueError(f"--set {text}: expected instance.parameter=value (or master.key=value)")
     lhs, rhs = text.split("=", 1)
     lhs = lhs.strip()
-    m = re.match(r"^([A-Za-z_][A-Za-z0-9_]*)\.([A-Za-z_][A-Za-z0-9_]*)$", lhs)
-    if not m:
+    owner = lhs.partition(".")[0]
+    split = None if owner in _OVERRIDABLE else split_ref(lhs, list(instances))
+    if split is None:
+        head, dot, tail = lhs.partition(".")
+        split = (head, tail) if dot and head and tail and not tail.endswith(".") else None
+    if split is None or not re.fullmatch(r"[^\s=]+(?:\s*[^\s=]+)*", lhs):
         raise ValueError(f"--set {text}: expected instance.parameter=value, got the key {lhs!r}")
-    return m.group(1), m.group(2), _override_value(lhs, rhs)
+    return split[0], split[1], _override_value(lhs, rhs)
 
 
 def _override_value(lhs: str, rhs: str) -> object:
@@ -99,9 +105,11 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS) -
 
     labels: dict[str, str] = {}
     applied = []
+    comps_raw = raw.get("components")
+    instance_names = list(comps_raw) if isinstance(comps_raw, dict) else []
     for text_ov in overrides:
         try:
-            owner, name, value = parse_override(text_ov)
+            owner, name, value = parse_override(text_ov, instance_names)
         except ValueError as e:
             raise SceneError(str(e), path) from None
         applied.append(text_ov)
@@ -147,27 +155,22 @@ def _load_ssp(path: Path, overrides, kinds: Kinds) -> Scene:
     labels: dict[str, str] = {}
     applied = []
     for text in overrides:
-        if "=" not in text:
-            raise SceneError(f"--set {text}: expected instance.parameter=value (or master.key=value)", path)
-        lhs, rhs = (x.strip() for x in text.split("=", 1))
         try:
-            value = _override_value(lhs, rhs)
+            owner, name, value = parse_override(text, components)
         except ValueError as e:
             raise SceneError(str(e), path) from None
         applied.append(text)
-        label = f"--set {lhs}"
-        owner, _, name = lhs.partition(".")
-        if owner in _OVERRIDABLE and re.match(r"^[A-Za-z_][A-Za-z0-9_]*$", name):
+        label = f"--set {owner}.{name}"
+        if owner in _OVERRIDABLE:
             raw.setdefault(owner, {})[name] = value
             labels[f"{owner}.{name}"] = label
             continue
-        # instance names may hold dots: the longest one that prefixes the key
-        inst = max((n for n in components if lhs.startswith(n + ".")), key=len, default=None)
-        if inst is None:
+        if owner not in components:
             close = difflib.get_close_matches(owner, list(components) + list(_OVERRIDABLE), n=1)
             hint = f" (did you mean {close[0]}?)" if close else ""
             raise SceneError(f"no component named {owner}{hint}; components: {', '.join(components)}", path, label)
-        comp, var = components[inst], lhs[len(inst) + 1:]
+        inst = owner
+        comp, var = components[inst], name
         ctx = Ctx(path, {})
         v = lookup(ctx, label, variables_of(comp.model_description), var, inst, comp.model_name, want="parameter")
         if v.causality not in ("parameter", "input") or (inst, var) in connected:
@@ -201,9 +204,10 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
 
     if prebuilt is None:
         components, input_params = _components(ctx, ctx.table(raw, "components", "", required=True))
-        connections = _connections(ctx, raw.get("connections", []), components, input_params)
+        connections, notes = _connections(ctx, raw.get("connections", []), components, input_params)
     else:
         components, connections = prebuilt
+        notes = ()
     experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
     master, max_step_given = _master(ctx, ctx.table(raw, "master", "") or {})
     problem = consistency(master, experiment, components)
@@ -233,6 +237,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
         overrides=overrides,
         sha256=digest,
         max_step_given=max_step_given,
+        notes=notes,
     )
     if sweep and any(a.parameter[0] in ("master", "experiment") for a in sweep.axes):
         for point in sweep.points():
@@ -250,8 +255,9 @@ def _components(ctx: Ctx, table: dict) -> tuple[dict[str, Component], set]:
     input_params = set()
     for name, t in table.items():
         where = f"components.{name}"
-        if not NAME_RE.match(name):
-            raise ctx.fail(where, "expected an instance name matching [A-Za-z_][A-Za-z0-9_]*")
+        problem = instance_name_problem(name)
+        if problem:
+            raise ctx.fail(where, problem)
         if name in TOP_KEYS:
             raise ctx.fail(where, f"the instance name {name} is reserved (it names a scene section)")
         if not isinstance(t, dict):
@@ -282,7 +288,8 @@ def _components(ctx: Ctx, table: dict) -> tuple[dict[str, Component], set]:
     return out, input_params
 
 
-def _connections(ctx: Ctx, conns, components: dict[str, Component], input_params: set) -> tuple[Connection, ...]:
+def _connections(ctx: Ctx, conns, components: dict[str, Component],
+                 input_params: set) -> tuple[tuple[Connection, ...], tuple[str, ...]]:
     if not isinstance(conns, list):
         raise ctx.bad("connections", conns, 'an array of "src.output -> dst.input" strings')
     out = []
@@ -293,12 +300,20 @@ def _connections(ctx: Ctx, conns, components: dict[str, Component], input_params
         key = f"connections[{i}]"
         if not isinstance(c, str):
             raise ctx.bad(key, c, 'a string "src.output -> dst.input"')
-        m = _CONN_RE.match(c)
-        if not m:
+        ends_text = split_link(c)
+        if ends_text is None:
             raise ctx.bad(key, c, 'a string "src.output -> dst.input"')
-        si, sv, di, dv = m.groups()
+        refs = []
+        for ref in ends_text:
+            split = split_ref(ref, {n: variables_of(comp.model_description) for n, comp in components.items()})
+            if split is None:
+                inst = ref.partition(".")[0]
+                component(ctx, key, components, inst if "." in ref else ref)  # names the components
+                raise ctx.bad(key, c, 'a string "src.output -> dst.input"')
+            refs.append(split)
+        (si, sv), (di, dv) = refs
         ends = []
-        for inst, var in ((si, sv), (di, dv)):
+        for inst, var in refs:
             comp = component(ctx, key, components, inst)
             ends.append((comp, lookup(ctx, key, variables_of(comp.model_description), var, inst, comp.model_name,
                                       want="any")))
@@ -318,16 +333,25 @@ def _connections(ctx: Ctx, conns, components: dict[str, Component], input_params
         seen[(di, dv)] = i
         checked.append((key, si, sv, di, dv, sc, s, dc, d))
     # Structure first (names, directions, duplicates), then types and units.
+    notes = []
     for key, si, sv, di, dv, sc, s, dc, d in checked:
         if s.type != d.type:
             raise ctx.fail(key, f"type mismatch: {si}.{sv} is {s.type}, {di}.{dv} is {d.type}")
         su, du = var_unit(s), var_unit(d)
-        # Strict by name: the master passes numbers on unconverted, and J into N.m is a modelling slip.
-        if su != du:
-            raise ctx.fail(key, f"unit mismatch: {si}.{sv} is in {su or 'no unit (dimensionless)'}, "
-                                f"{di}.{dv} in {du or 'no unit (dimensionless)'}")
-        out.append(Connection(si, sv, di, dv))
-    return tuple(out)
+        factor, offset = 1.0, 0.0
+        if su != du and (su is None or du is None):
+            # Most tools export signals without units; the number passes on as it is.
+            notes.append(f"{key}: {si}.{sv} is in {su or 'no unit'}, {di}.{dv} in {du or 'no unit'}: "
+                         f"the value passes unconverted")
+        elif su != du:
+            # Converted where both FMUs define the units on the same SI base unit.
+            conversion = link_conversion(sc.model_description, su, dc.model_description, du)
+            if conversion is None:
+                raise ctx.fail(key, f"unit mismatch: {si}.{sv} is in {su}, {di}.{dv} in {du}, and their "
+                                    f"UnitDefinitions do not give both the same SI base unit")
+            factor, offset = conversion
+        out.append(Connection(si, sv, di, dv, factor, offset))
+    return tuple(out), tuple(notes)
 
 
 def _experiment(ctx: Ctx, t: dict) -> Experiment:
@@ -360,9 +384,9 @@ def _record(ctx: Ctx, t: dict | None, components: dict[str, Component]) -> Recor
         for i, ref in enumerate(refs):
             key = f"record.outputs[{i}]"
             comp, v = parse_ref(ctx, key, ref, components, "a variable")
-            if v.causality not in ("output", "input", "parameter", "calculatedParameter"):
+            if v.causality not in ("output", "input", "parameter", "calculatedParameter", "local"):
                 raise ctx.fail(key, f"{ref} is {article(v.causality)} {v.causality} variable; "
-                                    "expected an output, input or parameter")
+                                    "expected an output, input, parameter or local variable (such as der(x))")
             pair = (comp.name, v.name)
             if pair in outputs:
                 raise ctx.fail(key, f"{ref} is listed twice")

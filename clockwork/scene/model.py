@@ -38,10 +38,15 @@ class Component:
 
 
 class Connection(NamedTuple):
+    """The input receives factor * output + offset (engine.wiring.Link's
+    fields, in order): a linear transformation or a unit conversion."""
+
     src_instance: str
     src_var: str
     dst_instance: str
     dst_var: str
+    factor: float = 1.0
+    offset: float = 0.0
 
     def __str__(self) -> str:
         return f"{self.src_instance}.{self.src_var} -> {self.dst_instance}.{self.dst_var}"
@@ -126,6 +131,7 @@ class Scene:
     overrides: tuple[str, ...] = ()  # the --set arguments applied
     sha256: str = ""  # of the scene file's bytes
     max_step_given: bool = field(default=False, repr=False, compare=False)
+    notes: tuple[str, ...] = field(default=(), repr=False, compare=False)  # what `validate` says beside "ok"
 
     def parameters(self) -> dict[str, dict[str, object]]:
         """{instance: {variable: value}} for every component."""

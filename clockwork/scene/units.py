@@ -146,3 +146,21 @@ def to_unit(value: object, model_description, unit: str | None) -> float:
     if not math.isfinite(x):
         raise UnitError(f"a value that is a finite number in {unit}")
     return x
+
+
+def link_conversion(src_md, src_unit: str, dst_md, dst_unit: str) -> tuple[float, float] | None:
+    """(factor, offset) that turns a value in `src_unit` (declared by the
+    FMU `src_md`) into `dst_unit` (declared by `dst_md`): each unit's
+    BaseUnit in its own FMU's UnitDefinitions gives its SI exponents,
+    factor and offset, so spellings such as "Nm/A" and "N.m/A" meet. None
+    when either unit is undefined there or their exponents differ."""
+    if src_unit == dst_unit:
+        return 1.0, 0.0
+    defs = [{u.name: u for u in getattr(md, "unitDefinitions", None) or []} for md in (src_md, dst_md)]
+    su, du = defs[0].get(src_unit), defs[1].get(dst_unit)
+    sb, db = (_base(u) if u is not None else None for u in (su, du))
+    if sb is None or db is None or sb[0] != db[0]:
+        return None
+    (_, fs, os_), (_, fd, od) = sb, db
+    # value_SI = fs * x + os_;  y = (value_SI - od) / fd
+    return fs / fd, (os_ - od) / fd

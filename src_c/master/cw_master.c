@@ -81,12 +81,15 @@ typedef struct {
     double *hist_v;           /* (HISTORY + 1) * n_in source values */
     double *snap_hist_t;      /* the history at the checkpoint */
     double *snap_hist_v;
+    const int *scaled;        /* inputs whose link is not the identity: factor * output + offset */
+    const double *in_factor;  /* per scaled input */
+    const double *in_offset;
     double out_time;          /* when `out` was read, s */
     int n_out, n_in, n_z;
     int max_output_derivative_order;
     int sent_valid;
     int hist_n, snap_hist_n;
-    int pad_;
+    int n_scaled;
 } cw_port;
 
 typedef struct {
@@ -180,12 +183,22 @@ static int port_read(cw_master *m, int i, double t)
     return 0;
 }
 
+/* The links' linear transformations (Port.scale); the identity is skipped. */
+static void scale_inputs(cw_port *p)
+{
+    for (int a = 0; a < p->n_scaled; a++) {
+        int k = p->scaled[a];
+        p->inp[k] = p->in_factor[a] * p->inp[k] + p->in_offset[a];
+    }
+}
+
 static int port_pull(cw_master *m, int i, double t)
 {
     cw_port *p = &m->ports[i];
     if (p->n_in) {
         for (int k = 0; k < p->n_in; k++)
             p->inp[k] = m->ports[p->src_port[k]].out[p->src_pos[k]];
+        scale_inputs(p);
         int st = p->setReal(p->comp, p->in_vr, (size_t)p->n_in, p->inp);
         if (st > FMI_WARNING)
             return fail(m, i, CALL_SET_INPUTS, st, t, 0.0);
@@ -293,6 +306,13 @@ static void extrapolate(cw_master *m, cw_port *p, double t)
         p->der[k] = d1 + d2 * dt;
         p->der[n + k] = d2;
     }
+    for (int a = 0; a < p->n_scaled; a++) {
+        int k = p->scaled[a];
+        double f = p->in_factor[a];
+        p->inp[k] = f * p->inp[k] + p->in_offset[a];
+        p->der[k] = f * p->der[k];
+        p->der[n + k] = f * p->der[n + k];
+    }
 }
 
 /* Inputs of a dynamic instance for the step from t (coupling.set_inputs). */
@@ -302,6 +322,7 @@ static int set_inputs(cw_master *m, int i, double t, double h, int smooth)
     int n = p->n_in;
     for (int k = 0; k < n; k++)
         p->inp[k] = m->ports[p->src_port[k]].out[p->src_pos[k]];
+    scale_inputs(p);
     int polynomial = m->extrapolation && smooth;
     if (polynomial) {
         extrapolate(m, p, t);
