@@ -92,7 +92,7 @@ class _Doc:
 
     def key(self, el, attr: str | None = None) -> str:
         ns, _, local = el.tag[1:].partition("}") if el.tag.startswith("{") else ("", "", el.tag)
-        tag = f"{_PREFIX.get(ns, '?')}:{local}" if ns else local
+        tag = f"{_PREFIX[ns]}:{local}" if ns in _PREFIX else local
         name = el.get("name")
         what = f"{tag} {name!r}" if name is not None and attr != "name" else tag
         if attr is not None:
