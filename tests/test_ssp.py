@@ -317,3 +317,27 @@ def test_build_ssp_writes_clockwork_annotation():
     files = build_ssp(load_scene("core_grasshopper"))
     ssd = files["SystemStructure.ssd"].decode()
     assert 'type="clockwork"' in ssd and "cw:Master" in ssd and 'name="pendulum.phi"' in ssd
+
+
+def test_system_bindings_reach_components_by_name_and_through_connectors(tmp_path):
+    """A system binding by hierarchical name beats the component's own; a
+    value bound to a system connector reaches the input it feeds."""
+    d = fixture_dir(tmp_path, "flat10")
+    _edit('<ssd:Connector name="drive" kind="output"><ssc:Real unit="N.cm"/></ssd:Connector>',
+          '<ssd:Connector name="drive" kind="output"><ssc:Real unit="N.cm"/></ssd:Connector>'
+          '<ssd:Connector name="gravity" kind="parameter"><ssc:Real/></ssd:Connector>')(d)
+    _edit('<ssd:Connector name="tau_escapement" kind="input"><ssc:Real unit="N.m"/></ssd:Connector>',
+          '<ssd:Connector name="tau_escapement" kind="input"><ssc:Real unit="N.m"/></ssd:Connector>'
+          '<ssd:Connector name="g_factor" kind="input"><ssc:Real/></ssd:Connector>')(d)
+    _edit("<ssd:Connections>", '<ssd:Connections><ssd:Connection startConnector="gravity" '
+          'endElement="pendulum" endConnector="g_factor"/>')(d)
+    _edit("<ssd:Elements>", '<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>'
+          '<ssv:ParameterSet version="1.0" name="top"><ssv:Parameters>'
+          '<ssv:Parameter name="gravity"><ssv:Real value="2"/></ssv:Parameter>'
+          '<ssv:Parameter name="pendulum.Q"><ssv:Real value="250"/></ssv:Parameter>'
+          '</ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues></ssd:ParameterBinding>'
+          '</ssd:ParameterBindings><ssd:Elements>')(d)
+    s = load_scene(d / "SystemStructure.ssd")
+    assert s.components["pendulum"].parameters["Q"] == 250.0
+    assert s.components["pendulum"].parameters["g_factor"] == 2.0
+    assert not any(c.dst_var == "g_factor" for c in s.connections)

@@ -219,7 +219,8 @@ def _setting(value) -> str:
 def _clockwork_annotation(annotations, scene) -> None:
     """The master settings and what to record, for clockwork to run the SSP
     back exactly as the scene (clockwork.scene.ssp.read)."""
-    cw = _sub(annotations, "ssc", "Annotation", type=CW_ANNOTATION)
+    # one child element: the schema allows a single element in an ssc:Annotation
+    cw = _sub(_sub(annotations, "ssc", "Annotation", type=CW_ANNOTATION), "cw", "Settings")
     master = _sub(cw, "cw", "Master")
     for k, v in scene.master.as_dict().items():
         if k == "max_step" and not scene.max_step_given:

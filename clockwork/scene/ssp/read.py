@@ -884,7 +884,7 @@ class _Reader:
                 out["tolerance"] = _number(doc, fixed, "relativeTolerance")
         cw = self._annotation(system, CW_ANNOTATION)
         if cw is not None:
-            m = cw.find(f"{{{CW_NS}}}Master")
+            m = cw.find(f"{{{CW_NS}}}Settings/{{{CW_NS}}}Master")
             for k, text in (m.attrib.items() if m is not None else []):
                 if k not in _MASTER_FIELDS:
                     raise doc.fail(m, f"unknown master setting; allowed: {', '.join(_MASTER_FIELDS)}", k)
@@ -893,7 +893,7 @@ class _Reader:
 
     def _record(self, doc: _Doc, system) -> dict:
         cw = self._annotation(system, CW_ANNOTATION)
-        r = cw.find(f"{{{CW_NS}}}Record") if cw is not None else None
+        r = cw.find(f"{{{CW_NS}}}Settings/{{{CW_NS}}}Record") if cw is not None else None
         if r is None:
             return {}
         out: dict = {}
