@@ -289,6 +289,10 @@ BAD_ARCHIVES = {
         DATA / "flat10" / "SystemStructure.ssd").read_text().replace("resources/Pendulum.fmu", "../Pendulum.fmu")}),
         ["source", "leaves it"]),
     "empty ssd": (lambda t: _zip_with(t, {"SystemStructure.ssd": ""}), ["malformed XML"]),
+    "no component": (lambda t: _zip_with(t, {"SystemStructure.ssd": (
+        '<ssd:SystemStructureDescription version="2.0" name="x" '
+        'xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"><ssd:System name="root"/>'
+        '</ssd:SystemStructureDescription>')}), ["ssd:System 'root'", "at least one ssd:Component"]),
     "not an ssd": (lambda t: _zip_with(t, {"SystemStructure.ssd": "<html/>"}),
                    ["ssd:SystemStructureDescription"]),
 }

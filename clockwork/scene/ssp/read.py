@@ -374,6 +374,8 @@ class _Reader:
         if system is None:
             raise doc.fail(root, "expected an ssd:System element")
         top = self._system(doc, system, "")
+        if not self.instances:
+            raise doc.fail(system, "expected at least one ssd:Component (an FMU) in the system or its sub-systems")
         self._connections(top)
         links, fed = self._flatten()
         values = self._bindings(top)
@@ -415,7 +417,7 @@ class _Reader:
                 ns, _, local = child.tag[1:].partition("}")
                 if ns == NS["ssc"] and local in _TYPES:
                     ctype = _FMI_TYPE[local]
-                    unit = child.get("unit") if ctype == "Real" else None
+                    unit = (child.get("unit") or None) if ctype == "Real" else None  # unit="" is no unit
                 elif ns == NS["ssc"] and local in ("Binary", "Clock"):
                     raise doc.fail(child, f"not supported: {local} connectors (FMI 2.0 has no such type)")
             if c.find(q("ssc", "Dimension")) is not None or c.find(q("ssd", "Dimension")) is not None:
@@ -496,7 +498,8 @@ class _Reader:
         return node
 
     def _end(self, system: _Element, doc: _Doc, el, which: str) -> tuple[tuple, _Connector]:
-        elem_name, conn_name = el.get(f"{which}Element"), el.get(f"{which}Connector")
+        # an empty element name (OMSimulator writes one) is the system's own connector
+        elem_name, conn_name = el.get(f"{which}Element") or None, el.get(f"{which}Connector")
         if conn_name is None:
             raise doc.fail(el, "missing required attribute", f"{which}Connector")
         if elem_name is None:
@@ -735,9 +738,8 @@ class _Reader:
                 value = _bool(doc, t, "value")
             else:
                 value = text
-            unit = t.get("unit") if kind == "Real" else None
-            if unit is not None and unit not in units:
-                raise doc.fail(t, f"the unit {unit} has no definition in ssv:Units or ssd:Units", "unit")
+            # a unit without a definition is refused where it needs converting (_conversion)
+            unit = (t.get("unit") or None) if kind == "Real" else None
             out.append((name, (value, kind, unit, doc.label, doc.key(p), units)))
         return out
 
