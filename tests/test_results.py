@@ -91,9 +91,12 @@ def test_csv_checks(tmp_path):
         write_csv_atomic(f, ["a", "b"], [np.zeros(3), np.zeros(4)])
     with pytest.raises(ValueError, match="2 header names for 1 columns"):
         write_csv_atomic(f, ["a", "b"], [np.zeros(3)])
-    with pytest.raises(ValueError, match="comma"):
-        write_csv_atomic(f, ["a,b"], [np.zeros(3)])
+    with pytest.raises(ValueError, match="newline"):
+        write_csv_atomic(f, ["a\nb"], [np.zeros(3)])
     assert not f.exists()
+    # FMI names may hold commas and quotes (a[1,2]): quoted as CSV fields.
+    write_csv_atomic(f, ["time", "x.a[1,2]", 'x."q"'], [np.zeros(1), np.ones(1), ["a,b"]])
+    assert f.read_text() == 'time,"x.a[1,2]","x.""q"""\n0.0,1.0,"a,b"\n'
 
 
 def test_sha256_file(tmp_path):

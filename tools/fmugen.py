@@ -28,12 +28,12 @@ from fmudoc import number_text as _num
 
 CAUSALITIES = {"parameter", "input", "output", "local"}
 VARIABILITIES = {"fixed", "tunable", "discrete", "continuous"}
-TYPES = {"Real", "Integer", "Boolean"}
+TYPES = {"Real", "Integer", "Boolean", "Enumeration"}  # Enumeration: stored as an Integer
 BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 VAR_KEYS = {
     "name", "vr", "type", "causality", "variability", "unit", "display_unit",
     "start", "min", "max", "depends_on", "initial_depends_on", "derivatives",
-    "event_indicator", "description",
+    "event_indicator", "description", "declared_type", "derivative_of",
 }
 # FMI 2.0 dependenciesKind values (Sec. 2.2.8). All but "dependent" describe a
 # linear factor and so apply to Real unknowns only; InitialUnknowns use
@@ -41,7 +41,7 @@ VAR_KEYS = {
 DEPENDENCY_KINDS = {"dependent", "constant", "fixed", "tunable", "discrete"}
 MODEL_KEYS = {
     "name", "description", "author", "version", "callbacks", "real_state",
-    "uint_state",
+    "uint_state", "interpolates_inputs", "max_input_order",
 }
 # The cw_model callbacks (cw_runtime.h): field name -> (return type, parameters).
 CALLBACKS = {
@@ -53,10 +53,17 @@ CALLBACKS = {
     "output_derivative": ("int", "cw_instance *inst, unsigned vr, int order, double *value"),
 }
 C_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def c_name(name: str) -> str:
+    """The C identifier of a variable: FMI names such as der(x) or a[1] made
+    into der_x_, a_1_ (identifiers stay as they are)."""
+    return re.sub(r"\W", "_", name)
 # The project's terms (LICENSE at the repository root), stated in every FMU.
 COPYRIGHT = "Copyright (c) 2026 The clockwork authors"
 LICENSE = "MIT"
 DOC_KEYS = {"equations", "references", "example", "icon"}
+C_TYPES = {"Real": "REAL", "Integer": "INTEGER", "Boolean": "BOOLEAN", "Enumeration": "INTEGER"}
 GUID_NAMESPACE = uuid.UUID("5d1f7a0e-6c55-4c39-9a43-2f0b7f3c1c0e")
 
 
@@ -148,6 +155,19 @@ def check(t: dict) -> None:
             lo, hi = v.get("min", -math.inf), v.get("max", math.inf)
             if not lo <= v["start"] <= hi:
                 raise TableError(f"{where}: start {v['start']} outside [{lo}, {hi}]")
+        if (v["type"] == "Enumeration") != ("declared_type" in v):
+            raise TableError(f"{where}: declared_type names the [types.<Name>] of an Enumeration, and only of one")
+        if "declared_type" in v and not t.get("types", {}).get(v["declared_type"], {}).get("items"):
+            raise TableError(f"{where}: declared_type {v['declared_type']!r} has no [types.<Name>] items")
+        if "derivative_of" in v and not (v["type"] == "Real" and v["causality"] == "local"):
+            raise TableError(f"{where}: derivative_of is for Real local variables (a state's derivative)")
+    if len({c_name(v["name"]) for v in variables}) != len(variables):
+        raise TableError(f"{path}: two variable names give the same C name")
+    states = {v["derivative_of"] for v in variables if "derivative_of" in v}
+    by_name = {v["name"]: v for v in variables}
+    for x in states:
+        if x not in by_name or by_name[x]["type"] != "Real" or by_name[x]["variability"] != "continuous":
+            raise TableError(f"{path}: derivative_of {x!r} must name a continuous Real variable (the state)")
     inputs = {v["name"] for v in variables if v["causality"] == "input"}
     # Knowns in Initialization Mode: inputs and the variables with
     # initial="exact", which here are exactly the parameters.
@@ -155,14 +175,15 @@ def check(t: dict) -> None:
     for v in variables:
         where = f"{path}: {v['name']}"
         for key in ("depends_on", "initial_depends_on"):
-            if key in v and v["causality"] != "output":
-                raise TableError(f"{where}: {key} is for outputs only")
+            if key in v and v["causality"] != "output" and "derivative_of" not in v:
+                raise TableError(f"{where}: {key} is for outputs and state derivatives only")
         deps = v.get("depends_on", [])
         if not isinstance(deps, (list, dict)):
             raise TableError(f"{where}: depends_on must be a list of inputs or a table input = kind")
         for dep in deps:
-            if dep not in inputs:
-                raise TableError(f"{where} depends_on {dep!r}, which is not an input")
+            # Knowns of an output at a communication point: inputs and states (FMI 2.0, 3.3.2).
+            if dep not in inputs and dep not in states:
+                raise TableError(f"{where} depends_on {dep!r}, which is neither an input nor a state")
         for dep, kind in (deps.items() if isinstance(deps, dict) else []):
             if kind not in DEPENDENCY_KINDS:
                 raise TableError(f"{where}: dependency kind {kind!r} is not one of {sorted(DEPENDENCY_KINDS)}")
@@ -223,6 +244,8 @@ def generate_model(t: dict) -> list[str]:
         f"    .n_uint_state = {'CW_N_UINT_STATE' if uint else 0},",
     ]
     lines += [f"    .{name} = {name if name in callbacks else 'NULL'}," for name in CALLBACKS]
+    if "max_input_order" in m:
+        lines.append(f"    .max_input_order = {int(m['max_input_order'])},")
     lines += ["};", "", "#endif /* CW_VARS_TABLE_ONLY */", ""]
     return lines
 
@@ -243,7 +266,7 @@ def generate_header(t: dict) -> str:
         "",
         "enum cw_value_reference {",
     ]
-    lines += [f"    VR_{v['name']} = {v['vr']}," for v in variables]
+    lines += [f"    VR_{c_name(v['name'])} = {v['vr']}," for v in variables]
     lines += ["};", "", "static const cw_var_info CW_VARS[CW_NVARS] = {"]
     for v in variables:
         def bound(key, default):
@@ -252,7 +275,7 @@ def generate_header(t: dict) -> str:
         if isinstance(start, bool):
             start = int(start)
         lines.append(
-            f'    [{v["vr"]}] = {{"{v["name"]}", {v["vr"]}, CW_{v["type"].upper()}, '
+            f'    [{v["vr"]}] = {{"{v["name"]}", {v["vr"]}, CW_{C_TYPES[v["type"]]}, '
             f'CW_{v["causality"].upper()}, CW_{v["variability"].upper()}, '
             f'{_num(start)}, {bound("min", "-HUGE_VAL")}, {bound("max", "HUGE_VAL")}, '
             f'{int(v.get("derivatives", 0))}, {int(bool(v.get("event_indicator", False)))}}},'
@@ -325,7 +348,7 @@ def generate_xml(t: dict, sources: list[str]) -> str:
         f"    modelIdentifier={quoteattr(m['name'])}",
         '    needsExecutionTool="false"',
         '    canHandleVariableCommunicationStepSize="true"',
-        f'    canInterpolateInputs="{"true" if has_inputs else "false"}"',
+        f'    canInterpolateInputs="{"true" if m.get("interpolates_inputs", has_inputs) else "false"}"',
         f'    maxOutputDerivativeOrder="{max_order}"',
         '    canRunAsynchronuously="false"',
         '    canBeInstantiatedOnlyOncePerProcess="false"',
@@ -345,6 +368,15 @@ def generate_xml(t: dict, sources: list[str]) -> str:
         for name, spec in units.items():
             x += _unit_xml(name, spec)
         x.append("  </UnitDefinitions>")
+    used_types = sorted({v["declared_type"] for v in variables if "declared_type" in v})
+    if used_types:
+        x.append("  <TypeDefinitions>")
+        for name in used_types:
+            x += [f"    <SimpleType name={quoteattr(name)}>", "      <Enumeration>"]
+            x += [f"        <Item name={quoteattr(item)} value=\"{k + 1}\"/>"
+                  for k, item in enumerate(t["types"][name]["items"])]
+            x += ["      </Enumeration>", "    </SimpleType>"]
+        x.append("  </TypeDefinitions>")
     x += [
         "  <LogCategories>",
         '    <Category name="logEvents" description="Located crossings and mode switches"/>',
@@ -355,7 +387,9 @@ def generate_xml(t: dict, sources: list[str]) -> str:
         '    <Category name="logAll"/>',
         "  </LogCategories>",
         f'  <DefaultExperiment startTime="{_num(exp.get("start", 0.0))}" '
-        f'stopTime="{_num(exp.get("stop", 10.0))}" stepSize="{_num(exp.get("step", 0.01))}"/>',
+        f'stopTime="{_num(exp.get("stop", 10.0))}"'
+        + (f' tolerance="{_num(exp["tolerance"])}"' if "tolerance" in exp else "")
+        + f' stepSize="{_num(exp.get("step", 0.01))}"/>',
     ]
     indicators = [v["name"] for v in variables if v.get("event_indicator")]
     if indicators:
@@ -376,6 +410,10 @@ def generate_xml(t: dict, sources: list[str]) -> str:
         x.append(f"    <!-- index {k + 1} -->")
         x.append(f"    <ScalarVariable {' '.join(attrs)}>")
         tattrs = []
+        if "declared_type" in v:
+            tattrs.append(f"declaredType={quoteattr(v['declared_type'])}")
+        if "derivative_of" in v:
+            tattrs.append(f'derivative="{index[v["derivative_of"]]}"')
         if v["type"] == "Real":
             if "unit" in v:
                 tattrs.append(f"unit={quoteattr(v['unit'])}")
@@ -392,19 +430,30 @@ def generate_xml(t: dict, sources: list[str]) -> str:
     x.append("  </ModelVariables>")
     x.append("  <ModelStructure>")
     outputs = [v for v in variables if v["causality"] == "output"]
+    derivatives = [v for v in variables if "derivative_of" in v]
+    states = {v["derivative_of"] for v in derivatives}
     if outputs:
         # Outputs at communication points: the Knowns are the inputs (the
-        # state is the FMU's own). Initialization Mode: inputs and
-        # parameters, e.g. a state output depends on its start parameter
-        # but on no input, so it closes no algebraic loop.
+        # state is the FMU's own, or a declared state). Initialization Mode:
+        # inputs and parameters, e.g. a state output depends on its start
+        # parameter but on no input, so it closes no algebraic loop.
         x.append("    <Outputs>")
         for v in outputs:
             deps = v.get("depends_on", [])
             kinds = deps if isinstance(deps, dict) else dict.fromkeys(deps, "dependent")
             x.append(_unknown_xml(index, v, kinds))
         x.append("    </Outputs>")
+    if derivatives:
+        x.append("    <Derivatives>")
+        for v in derivatives:
+            deps = v.get("depends_on", [])
+            x.append(_unknown_xml(index, v, deps if isinstance(deps, dict) else dict.fromkeys(deps, "dependent")))
+        x.append("    </Derivatives>")
+    # Declared states and their derivatives are initial unknowns too (FMI 2.0, 3.3.2).
+    initial = [v for v in variables if v["causality"] == "output" or "derivative_of" in v or v["name"] in states]
+    if initial:
         x.append("    <InitialUnknowns>")
-        for v in outputs:
+        for v in initial:
             if "initial_depends_on" in v:
                 x.append(_unknown_xml(index, v, dict.fromkeys(v["initial_depends_on"], "dependent")))
             else:  # undeclared: depends on every Known

@@ -41,9 +41,18 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
         recorder.start()
         run_with_progress(m, stop, recorder, progress, label=scene.path.stem)
         stats = vars(m.stats).copy()
-        stall = _stall_check(scene, point, system)
+        stall = _stall_check(scene, point, system) if m.ended is None else None
+        ended, t_end = m.ended, m.t
+        engine = {"engine": m.engine, **({"engine_reason": m.engine_reason} if m.engine_reason else {})}
+        notes = list(m.notes)
     columns, ticks = recorder.columns, recorder.ticks
-    result: dict = {"t_end_s": stop}
+    result: dict = {"t_end_s": t_end if ended is not None else stop, **engine}
+    if ended is not None:
+        # An FMU ended the simulation: a clean end, with the results up to then.
+        result["ended"] = {"instance": ended.instance, "time_s": ended.fmu_time, "last_point_s": ended.time,
+                           "message": ended.message}
+    if notes:
+        result["notes"] = notes
     if stall is not None:
         result.update(stall)
     if ticks:
@@ -72,7 +81,7 @@ def run_with_progress(master, stop: float, on_point, progress: bool, label: str)
         chunk = step * max(1, round(span / 200.0 / step))
         t0 = master.t
         n = 0
-        while master.t < stop - 1e-12 * max(1.0, abs(stop)):
+        while master.t < stop - 1e-12 * max(1.0, abs(stop)) and master.ended is None:
             n += 1
             master.run_until(min(stop, t0 + n * chunk), on_point)
             bar.update(master.t - t0 - bar.n)

@@ -27,6 +27,7 @@ from ..errors import SceneError, SimulationError
 from ..paths import core_library
 from .fmu import Instance
 from .master import Master
+from .ports import link_type
 from .recording import Recorder, _DiscreteOutput
 from .settings import MasterSettings, Statistics
 from .wiring import Link
@@ -62,9 +63,9 @@ class _Port(_Strict):
          "getState", "setState", "state", "out_vr", "out", "in_vr", "inp", "der_vr", "der_order",
          "der", "src_port", "src_pos", "sent", "dsrc_port", "dsrc_vr", "dsrc_m", "hist_t",
          "hist_v", "snap_hist_t", "snap_hist_v", "scaled", "in_factor", "in_offset"],
-        ["out_time"], [],
+        ["out_time", "lowered_at"], [],
         ["n_out", "n_in", "n_z", "max_output_derivative_order", "sent_valid", "hist_n",
-         "snap_hist_n", "n_scaled"])
+         "snap_hist_n", "n_scaled", "ext_order", "pad_"])
 
 
 class _Master(_Strict):
@@ -79,7 +80,8 @@ class _Master(_Strict):
         ["n_ports", "n_first", "n_dynamic", "n_first_in_order", "n_final", "n_buffer", "n_z",
          "cap_since", "jacobi", "extrapolation", "locating", "has_sources", "after_event",
          "after_event_step", "sample_countdown", "prev_valid", "stale_sources", "snap_valid",
-         "snap_after_event", "n_since", "max_replay_steps", "diverged", "err_port", "err_call", "err_status"])
+         "snap_after_event", "n_since", "max_replay_steps", "diverged", "err_port", "err_call", "err_status",
+         "orders_lowered"])
 
 
 class _Recorder(_Strict):
@@ -143,18 +145,31 @@ def unsupported(settings: MasterSettings) -> str | None:
     return None
 
 
+def unsupported_links(types) -> str | None:
+    """Why the core cannot pass these links on, or None. `types`: (link
+    text, FMI type) pairs; the core passes Real values only."""
+    for text, kind in types:
+        if kind != "Real":
+            return f"the compiled core passes Real connections only ({text} is {kind})"
+    return None
+
+
 def make_master(instances: dict[str, Instance], links: list[Link], settings: MasterSettings,
                 start_time: float = 0.0, step_order: list[str] | None = None,
                 extra_outputs: dict[str, list[str]] | None = None) -> Master:
     """The master that ``settings.engine`` asks for (see the module's docstring)."""
     settings.check()
+    reason = None
     if settings.engine != "python":
-        reason = unsupported(settings) or core_problem()
+        types = [(f"{k.src}.{k.output} -> {k.dst}.{k.input}", link_type(instances, k)) for k in links]
+        reason = unsupported(settings) or unsupported_links(types) or core_problem()
         if reason is None:
             return CompiledMaster(instances, links, settings, start_time, step_order, extra_outputs)
         if settings.engine == "compiled":
             raise SceneError(f"master.engine = 'compiled': {reason} (use 'auto' or 'python')")
-    return Master(instances, links, settings, start_time, step_order, extra_outputs)
+    master = Master(instances, links, settings, start_time, step_order, extra_outputs)
+    master.engine_reason = reason
+    return master
 
 
 def _array(ctype, values, n: int | None = None):
@@ -249,6 +264,7 @@ class CompiledMaster(Master):
             c.in_factor = ref(_array(c_double, (f for _, f, _ in p.scale)))
             c.in_offset = ref(_array(c_double, (o for _, _, o in p.scale)))
             c.n_scaled = len(p.scale)
+            c.ext_order = p.ext_order
             c.n_out, c.n_in, c.n_z = p.n_out, p.n_in, len(p.z_pos)
             c.max_output_derivative_order = inst.max_output_derivative_order
         self._cports = cports
@@ -328,24 +344,37 @@ class CompiledMaster(Master):
 
     # -- stepping ----------------------------------------------------------------
 
+    def _orders_lowered(self) -> None:
+        """Say what the core lowered, as coupling.set_inputs does."""
+        self._core.orders_lowered = 0
+        for p, c in zip(self.ports.all, self._cports):
+            for k in range(p.ext_order, c.ext_order, -1):
+                self.coupling.note(f"{p.inst.name} refused input derivatives of order {k} "
+                                   f"(fmi2SetRealInputDerivatives): order {k - 1} from t = {c.lowered_at!r} s on")
+            p.ext_order = c.ext_order
+
     def step(self, h: float) -> float:
         rc = self._lib.cw_step(self._core_ptr, h, self._taken_ptr)
+        if self._core.orders_lowered:
+            self._orders_lowered()
         if rc:
             self._handle(rc)
         if self.on_step is not None:
             self.on_step(self)
         return self._taken.value
 
-    def run_until(self, t_stop: float, on_point=None) -> None:
+    def _run_until(self, t_stop: float, on_point=None) -> None:
         native = on_point is None or (type(on_point) is Recorder and on_point.master is self
                                       and not any(isinstance(a, _DiscreteOutput) for a, _ in on_point._sources))
         if self.on_step is not None or not native:
-            return super().run_until(t_stop, on_point)  # the Python loop over compiled steps
+            return super()._run_until(t_stop, on_point)  # the Python loop over compiled steps
         rec, columns = (self._empty_recorder, None) if on_point is None else self._native(on_point)
         rec.grid_k = -1
         rec.n_rows = rec.n_ticks = 0
         while True:
             rc = self._lib.cw_run_until(self._core_ptr, t_stop, byref(rec))
+            if self._core.orders_lowered:
+                self._orders_lowered()
             if columns is not None:
                 self._drain(on_point, rec, columns)
             if rc == _DONE:
@@ -372,6 +401,8 @@ class CompiledMaster(Master):
         n_w, w_port, w_pos, n_r, r_port, r_pos, before_addr, before, _, _ = args
         rc = self._lib.cw_run_watch(self._core_ptr, t_stop, mark, margin, self.settings.step,
                                     n_w, w_port, w_pos, n_r, r_port, r_pos, before_addr)
+        if self._core.orders_lowered:
+            self._orders_lowered()
         if rc not in (_DONE, _WATCHED):
             self._handle(rc)
         return before[:n_r]

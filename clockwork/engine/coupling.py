@@ -15,11 +15,15 @@ end, to a fixed point.
 
 from __future__ import annotations
 
+import sys
 from ctypes import c_double, c_int, c_uint
 from dataclasses import dataclass, field
 
 from .fmu import WARNING
 from .ports import Port
+
+# FMI 2.0 has no attribute for the highest input derivative an FMU takes:
+# one that refuses order 2 at run time gets order 1, then 0 (zero-order hold).
 
 
 @dataclass
@@ -38,6 +42,18 @@ class InputCoupling:
         # Filled by find_derivative_sources once the FMUs are initialized:
         # fmi2GetRealOutputDerivatives is not allowed before that.
         self.derivative_sources: dict = {}
+        self.notes: list[str] = []  # orders lowered, said once each
+        for p in dynamic:
+            # fmi2SetRealInputDerivatives "has an effect" only where canInterpolateInputs.
+            p.ext_order = extrapolation if p.inst.can_interpolate_inputs else 0
+            if extrapolation and p.n_in and not p.inst.can_interpolate_inputs:
+                self.note(f"{p.inst.name} cannot interpolate its inputs (canInterpolateInputs is false): "
+                          f"zero-order hold for it instead of master.extrapolation = {extrapolation}")
+
+    def note(self, text: str) -> None:
+        if text not in self.notes:
+            self.notes.append(text)
+            print(f"clockwork: warning: {text}", file=sys.stderr)
 
     def find_derivative_sources(self) -> None:
         """For each dynamic input: a source offering output derivatives, if any
@@ -68,6 +84,10 @@ class InputCoupling:
         which makes it an interpolation over the step. `smooth` is False
         right after a discontinuity: then zero-order hold.
         """
+        if p.din_names:
+            p.set_discrete()
+        if not p.n_in:
+            return
         inp = p.inp
         if coupling_end is not None:
             starts, coupling_end = coupling_end
@@ -83,7 +103,7 @@ class InputCoupling:
                 inp[k] = src.out[j]
             for k, f, o in p.scale:
                 inp[k] = f * inp[k] + o
-        polynomial = bool(self.order) and smooth and coupling_end is None
+        polynomial = bool(p.ext_order) and smooth and coupling_end is None
         if polynomial:
             self._extrapolate(p, t)
         elif coupling_end is None and p.sent_valid and p.sent == inp[:p.n_in]:
@@ -95,23 +115,34 @@ class InputCoupling:
         p.sent_valid = not polynomial and coupling_end is None
         if coupling_end is not None:
             # Strong coupling: interpolate linearly towards the last iterate.
-            for k in range(p.n_in):
-                p.der[k] = (coupling_end[k] - inp[k]) / h
-                p.der[p.n_in + k] = 0.0
-            self._set_derivatives(p, t, 1)
-        elif polynomial:
-            self._set_derivatives(p, t, self.order)
+            if p.inst.can_interpolate_inputs:
+                for k in range(p.n_in):
+                    p.der[k] = (coupling_end[k] - inp[k]) / h
+                    p.der[p.n_in + k] = 0.0
+                self._set_derivatives(p, t, 1)
+        elif polynomial and not self._set_derivatives(p, t, p.ext_order, refusable=True):
+            # Refused: one order lower, from the same sources, and never again this order.
+            p.ext_order -= 1
+            self.note(f"{p.inst.name} refused input derivatives of order {p.ext_order + 1} "
+                      f"(fmi2SetRealInputDerivatives): order {p.ext_order} from t = {t!r} s on")
+            self.set_inputs(p, t, h, smooth)
 
     @staticmethod
-    def _set_derivatives(p: Port, t: float, order: int) -> None:
+    def _set_derivatives(p: Port, t: float, order: int, refusable: bool = False) -> bool:
+        """False when the FMU refused them and `refusable` (its messages are dropped)."""
         n = p.n_in * (2 if order >= 2 else 1)
+        keep = len(p.inst.messages)
         st = p.inst.c_setInputDerivatives(p.comp, p.der_vr, n, p.der_order, p.der)
         if st > WARNING:
+            if refusable and st < 4:  # not after fmi2Fatal
+                del p.inst.messages[keep:]
+                return False
             raise p.inst.fail("fmi2SetRealInputDerivatives", st, t)
+        return True
 
     def _extrapolate(self, p: Port, t: float) -> None:
         """Fill p.inp (values at t) and p.der (derivatives at t) from the sources."""
-        order = self.order
+        order = p.ext_order
         hist = self.history[p.inst.name]
         n = p.n_in
         for k, (_, src, j) in enumerate(p.sources):

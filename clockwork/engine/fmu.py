@@ -15,7 +15,7 @@ import sys
 import tempfile
 import threading
 import zipfile
-from ctypes import POINTER, byref, c_double, c_int, c_size_t, c_uint, c_void_p
+from ctypes import CFUNCTYPE, POINTER, byref, c_char_p, c_double, c_int, c_size_t, c_uint, c_void_p
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,11 +26,39 @@ from fmpy import calloc, free
 from ..atomic import alive
 from ..errors import ParametersRefused, SceneError, SimulationError
 from ..hashing import sha256_file
-from ..paths import cache_root, scratch_dir
+from ..paths import cache_root, core_library, scratch_dir
 from .description import read_fmu, var_unit
 
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
 STATUS_NAMES = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
+LAST_SUCCESSFUL_TIME, TERMINATED = 2, 3  # fmi2StatusKind
+NO_MESSAGE = "(the FMU logged no message)"
+
+
+class Terminated(SimulationError):
+    """An FMU ended the simulation (fmi2Discard with fmi2Terminated, FMI 2.0
+    4.2.3): a clean end, the results up to `time` stand."""
+
+
+# What the compiled core's formatting logger (cw_logger) hands on: the
+# instance name, the status, the category and the formatted text.
+_SINK = CFUNCTYPE(None, c_char_p, c_int, c_char_p, c_char_p)
+_formatter: list = []  # [cw_logger as an fmi2 logger, or None]
+_formatter_lock = threading.Lock()
+
+
+def formatting_logger():
+    """The core library's cw_logger, which formats an FMU's printf-style
+    message with its arguments (ctypes cannot reach C varargs), or None
+    when the library is not built: then messages are the raw format."""
+    with _formatter_lock:
+        if not _formatter:
+            try:
+                lib = ctypes.CDLL(str(core_library()))
+                _formatter.append(ctypes.cast(lib.cw_logger, fmi2CallbackLoggerTYPE))
+            except (OSError, AttributeError):
+                _formatter.append(None)
+        return _formatter[0]
 
 _extract_lock = threading.Lock()
 _extracted: dict[tuple, Path] = {}  # (path, mtime, size) -> unzipped folder
@@ -142,7 +170,22 @@ class Variable:
     causality: str
     variability: str
     unit: str | None
-    dependencies: list[str] | None  # direct feedthrough inputs (outputs only)
+    dependencies: list[str] | None  # the inputs an output depends on directly (outputs only; else None)
+
+
+def direct_feedthrough(md) -> dict[str, list[str]]:
+    """{output: the inputs it depends on directly}, from the ModelStructure.
+
+    Only a dependency on a variable of causality "input" is direct
+    feedthrough: outputs that depend on states, parameters or locals only
+    (a Dymola motor's current, a pendulum's angle) are known at the
+    communication point without their inputs. A missing `dependencies`
+    attribute means "depends on all knowns" (FMI 2.0, 3.3.2), hence on every
+    input. Every dependenciesKind is a dependency, so the kinds do not matter.
+    """
+    inputs = [v.name for v in md.modelVariables if v.causality == "input"]
+    return {u.variable.name: list(inputs) if u.dependencies is None
+            else [d.name for d in u.dependencies if d.causality == "input"] for u in md.outputs}
 
 
 class Instance:
@@ -156,11 +199,7 @@ class Instance:
         self.model_name = self.md.modelName
         self.variables: dict[str, Variable] = {}
         by_index = list(self.md.modelVariables)
-        deps: dict[str, list[str]] = {}
-        for u in self.md.outputs:
-            deps[u.variable.name] = (
-                None if u.dependencies is None else [d.name for d in u.dependencies]
-            )
+        deps = direct_feedthrough(self.md)
         for v in by_index:
             self.variables[v.name] = Variable(
                 v.name, v.valueReference, v.type, v.causality, v.variability,
@@ -171,6 +210,9 @@ class Instance:
         self.max_output_derivative_order = int(cs.maxOutputDerivativeOrder or 0)
         self.can_interpolate_inputs = bool(cs.canInterpolateInputs)
         self.can_get_set_state = bool(cs.canGetAndSetFMUstate)
+        experiment = self.md.defaultExperiment
+        tol = getattr(experiment, "tolerance", None) if experiment is not None else None
+        self.default_tolerance = float(tol) if tol not in (None, "") else None
         self.event_indicators = list(described[2])
         self.messages: list[tuple[int, str]] = []
         self._slave = None
@@ -191,12 +233,21 @@ class Instance:
             raise SceneError(f"{self.path}: cannot load the FMU's binary for this platform: {e}") from None
         messages = self.messages
 
-        def logger(env, instance_name, status, category, message):
-            messages.append((status, message.decode("utf-8", "replace")))
+        def keep(status, message):
+            messages.append((status, message.decode("utf-8", "replace") if message else ""))
             del messages[:-50]
 
         self._callbacks = fmi2CallbackFunctions()
-        self._callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+        formatter = formatting_logger()
+        if formatter is not None:
+            # cw_logger formats and hands the text to this instance's sink,
+            # which it finds in the componentEnvironment: no global state.
+            self._sink = _SINK(lambda instance, status, category, text: keep(status, text))
+            self._callbacks.logger = formatter
+            self._callbacks.componentEnvironment = ctypes.cast(self._sink, c_void_p)
+        else:
+            self._callbacks.logger = fmi2CallbackLoggerTYPE(
+                lambda env, instance, status, category, message: keep(status, message))
         # libc's own calloc and free, cast rather than wrapped: a wrapper
         # would be a Python callback on every allocation inside the FMU.
         self._callbacks.allocateMemory = ctypes.cast(calloc, fmi2CallbackAllocateMemoryTYPE)
@@ -230,6 +281,10 @@ class Instance:
         self.c_setInteger = fn("fmi2SetInteger", comp, POINTER(c_uint), c_size_t, POINTER(c_int))
         self.c_setBoolean = fn("fmi2SetBoolean", comp, POINTER(c_uint), c_size_t, POINTER(c_int))
         self.c_getBoolean = fn("fmi2GetBoolean", comp, POINTER(c_uint), c_size_t, POINTER(c_int))
+        self.c_getString = fn("fmi2GetString", comp, POINTER(c_uint), c_size_t, POINTER(c_char_p))
+        self.c_setString = fn("fmi2SetString", comp, POINTER(c_uint), c_size_t, POINTER(c_char_p))
+        self.c_getBooleanStatus = fn("fmi2GetBooleanStatus", comp, c_int, POINTER(c_int))
+        self.c_getRealStatus = fn("fmi2GetRealStatus", comp, c_int, POINTER(c_double))
         self.c_setInputDerivatives = fn(
             "fmi2SetRealInputDerivatives", comp, POINTER(c_uint), c_size_t, POINTER(c_int), POINTER(c_double)
         )
@@ -262,11 +317,28 @@ class Instance:
 
     def fail(self, what: str, status: int, time: float | None = None,
              error: type[SimulationError] = SimulationError) -> SimulationError:
-        msg = self.last_message()
-        text = f"{self.model_name}: {what} returned {STATUS_NAMES[status]}"
-        if msg:
-            text += f": {msg}"
+        name = STATUS_NAMES[status] if 0 <= status < len(STATUS_NAMES) else f"status {status}"
+        text = f"{self.model_name}: {what} returned {name}: {self.last_message() or NO_MESSAGE}"
         return error(text, time=time, instance=self.name)
+
+    def terminated(self) -> bool:
+        """fmi2GetBooleanStatus(fmi2Terminated): the FMU wants the simulation
+        to end (asked after a discarded step; an FMU that cannot say, says no)."""
+        value = c_int(0)
+        keep = len(self.messages)
+        if self.c_getBooleanStatus(self.component, TERMINATED, byref(value)) > WARNING:
+            del self.messages[keep:]  # not providing the status is no error
+            return False
+        return bool(value.value)
+
+    def last_successful_time(self) -> float | None:
+        """fmi2GetRealStatus(fmi2LastSuccessfulTime), s, or None."""
+        value = c_double(0.0)
+        keep = len(self.messages)
+        if self.c_getRealStatus(self.component, LAST_SUCCESSFUL_TIME, byref(value)) > WARNING:
+            del self.messages[keep:]
+            return None
+        return value.value
 
     def check(self, status: int, what: str, time: float | None = None,
               error: type[SimulationError] = SimulationError) -> None:
@@ -275,9 +347,15 @@ class Instance:
 
     # -- setup ----------------------------------------------------------
 
-    def setup(self, start: float, parameters: dict[str, object]) -> None:
-        """fmi2SetupExperiment, parameters, initialization mode."""
-        self.check(self.c_setup(self.component, 0, 0.0, start, 0, 0.0), "fmi2SetupExperiment")
+    def setup(self, start: float, parameters: dict[str, object], tolerance: float | None = None) -> None:
+        """fmi2SetupExperiment (with the relative tolerance when one is
+        given: the scene's, else the FMU's DefaultExperiment's), parameters,
+        initialization mode."""
+        if tolerance is None:
+            tolerance = self.default_tolerance
+        defined = tolerance is not None
+        self.check(self.c_setup(self.component, int(defined), float(tolerance) if defined else 0.0, start, 0, 0.0),
+                   "fmi2SetupExperiment")
         self.set_values(parameters, "setting parameters", ParametersRefused)
         self.check(self.c_enterInit(self.component), "fmi2EnterInitializationMode")
 
@@ -288,10 +366,12 @@ class Instance:
             vr = (c_uint * 1)(v.vr)
             if v.type == "Real":
                 st = self.c_setReal(self.component, vr, 1, (c_double * 1)(float(value)))
-            elif v.type == "Integer":
+            elif v.type in ("Integer", "Enumeration"):
                 st = self.c_setInteger(self.component, vr, 1, (c_int * 1)(int(value)))
             elif v.type == "Boolean":
                 st = self.c_setBoolean(self.component, vr, 1, (c_int * 1)(1 if value else 0))
+            elif v.type == "String":
+                st = self.c_setString(self.component, vr, 1, (c_char_p * 1)(str(value).encode("utf-8")))
             else:
                 raise SimulationError(f"{self.name}.{name}: type {v.type} is not supported")
             self.check(st, f"{what} ({name} = {value!r})", error=error)
@@ -317,6 +397,19 @@ class Instance:
         out = (c_int * len(names))()
         self.check(self.c_getInteger(self.component, vrs, len(names), out), "fmi2GetInteger")
         return list(out)
+
+    def get_string(self, names: list[str]) -> list[str]:
+        vrs = (c_uint * len(names))(*[self.variables[n].vr for n in names])
+        out = (c_char_p * len(names))()
+        self.check(self.c_getString(self.component, vrs, len(names), out), "fmi2GetString")
+        return [(x or b"").decode("utf-8", "replace") for x in out]
+
+    def get_values(self, names: list[str]) -> list:
+        """Values of any type, each through the fmi2Get* of its type
+        (Enumeration through fmi2GetInteger); not on the hot path."""
+        getters = {"Real": self.get_real, "Integer": self.get_integer, "Enumeration": self.get_integer,
+                   "Boolean": self.get_boolean, "String": self.get_string}
+        return [getters[self.variables[n].type]([n])[0] for n in names]
 
     def get_boolean(self, names: list[str]) -> list[bool]:
         vrs = (c_uint * len(names))(*[self.variables[n].vr for n in names])

@@ -35,7 +35,7 @@ import math
 
 from .checkpoints import Checkpoints
 from .coupling import InputCoupling, iterate_step
-from .fmu import DISCARD, WARNING, Instance, free_all
+from .fmu import DISCARD, NO_MESSAGE, WARNING, Instance, Terminated, free_all
 from .location import EventLocator, crossed, scan
 from .ports import Port, Ports
 from .richardson import StepDoubling
@@ -46,6 +46,7 @@ from .wiring import Link, build
 
 class Master:
     MAX_REPLAY_STEPS = 64  # a forced checkpoint after this many steps bounds replay work and memory
+    engine = "python"
 
     def __init__(self, instances: dict[str, Instance], links: list[Link],
                  settings: MasterSettings, start_time: float = 0.0,
@@ -76,6 +77,13 @@ class Master:
         self._jacobi = settings.order == "jacobi"
         self._check_rollback()
         self._reset_soft_state()
+        self.engine_reason: str | None = None  # why "auto" chose this engine, when not the core
+        self.ended: Terminated | None = None  # an FMU ended the simulation (a clean end)
+
+    @property
+    def notes(self) -> list[str]:
+        """What the master changed of the settings, said once each (e.g. a lowered extrapolation order)."""
+        return self.coupling.notes
 
     def _check_rollback(self) -> None:
         """A rollback needs every FMU's state: refuse before the first step."""
@@ -94,8 +102,9 @@ class Master:
     def initialize(self, parameters: dict[str, dict[str, object]]) -> None:
         """Set up every instance, resolve the initial outputs, leave init mode."""
         ports = self.ports
+        self.ended = None
         for name, inst in self.instances.items():
-            inst.setup(self.start_time, parameters.get(name, {}))
+            inst.setup(self.start_time, parameters.get(name, {}), self.settings.tolerance)
         # Outputs in initialization mode follow from parameters; two sweeps
         # settle feedthrough chains of any depth found in these scenes.
         for _ in range(2):
@@ -184,11 +193,11 @@ class Master:
         dynamic = ports.dynamic
         if jacobi:
             for p in dynamic:
-                if p.n_in:
+                if p.has_inputs:
                     set_inputs(p, t, h, smooth, coupling.get(p.inst.name) if coupling else None)
         last = dynamic[-1] if dynamic else None
         for p in dynamic:
-            if not jacobi and p.n_in:
+            if not jacobi and p.has_inputs:
                 set_inputs(p, t, h, smooth, coupling.get(p.inst.name) if coupling else None)
             st = p.doStep(p.comp, t, h, 0)
             if st > WARNING:
@@ -206,10 +215,18 @@ class Master:
 
     @staticmethod
     def _step_failure(p: Port, st: int, t: float, h: float) -> SimulationError:
+        """The error for a failed fmi2DoStep; Terminated where the FMU ended the simulation."""
+        if st == DISCARD and p.inst.terminated():
+            end = p.inst.last_successful_time()
+            end = t if end is None else end
+            error = Terminated(f"{p.inst.name} ended the simulation at t = {end!r} s, in the step from "
+                               f"t = {t!r} s; results until {t!r} s", time=t, instance=p.inst.name)
+            error.fmu_time = end  # the FMU's fmi2LastSuccessfulTime, s
+            return error
         if st == DISCARD:
             return SimulationError(
                 f"{p.inst.name}: fmi2DoStep from t = {t!r} s with h = {h!r} s was discarded: "
-                f"{p.inst.last_message()}", time=t, instance=p.inst.name)
+                f"{p.inst.last_message() or NO_MESSAGE}", time=t, instance=p.inst.name)
         return p.inst.fail(f"fmi2DoStep({t!r}, {h!r})", st, t)
 
     # -- the accurate step ---------------------------------------------
@@ -320,8 +337,18 @@ class Master:
         """Step to t_stop on the grid start + k*step, plus located events.
 
         Grid points are computed as start + k*step, never by summing steps,
-        so that time does not drift.
+        so that time does not drift. An FMU that ends the simulation ends
+        the run cleanly at the last communication point: ``ended`` says
+        when and which, and later calls return at once.
         """
+        if self.ended is not None:
+            return
+        try:
+            self._run_until(t_stop, on_point)
+        except Terminated as e:
+            self.ended = e
+
+    def _run_until(self, t_stop: float, on_point=None) -> None:
         s = self.settings
         h_nom, t0 = s.step, self.start_time
         eps = 1e-12 * max(1.0, abs(t_stop))

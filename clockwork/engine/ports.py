@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from ctypes import c_double, c_int, c_uint
 
-from ..errors import SimulationError
+from ..errors import SceneError, SimulationError
 from .fmu import WARNING, Instance
 from .wiring import Link, Wiring
 
@@ -44,6 +44,17 @@ class Port:
         self.doStep, self.getReal, self.setReal = inst.c_doStep, inst.c_getReal, inst.c_setReal
         self.sent: list[float] = []  # inputs last given to the FMU (zero-order hold), to skip repeats
         self.sent_valid = False
+        # Integer, Boolean, Enumeration and String links: the connected
+        # outputs' values as read at out_time, and per discrete input its
+        # source (port, position in that port's `dout`).
+        self.dout_names: list[str] = []
+        self.dout: list = []
+        self.din_names: list[str] = []
+        self.din_sources: list[tuple["Port", int]] = []
+        self.has_inputs = self.n_in > 0  # Real or discrete
+        # Order of the input polynomials this FMU gets (master.extrapolation,
+        # 0 where it cannot interpolate inputs; lowered where it refuses one).
+        self.ext_order = 0
 
     def read(self, t: float) -> None:
         """Read the outputs at the communication point t."""
@@ -51,10 +62,19 @@ class Port:
             st = self.getReal(self.comp, self.out_vr, self.n_out, self.out)
             if st > WARNING:
                 raise self.inst.fail("fmi2GetReal", st, t)
+        if self.dout_names:
+            self.dout = self.inst.get_values(self.dout_names)
         self.out_time = t
+
+    def set_discrete(self) -> None:
+        """Set the discrete inputs to their sources' values (Python engine only)."""
+        self.inst.set_values({n: src.dout[j] for n, (src, j) in zip(self.din_names, self.din_sources)},
+                             "fmi2Set* of inputs")
 
     def pull(self, t: float) -> None:
         """Set the inputs to their sources' outputs, then read the outputs, at t."""
+        if self.din_names:
+            self.set_discrete()
         if self.n_in:
             inp = self.inp
             for k, src, j in self.sources:
@@ -66,6 +86,16 @@ class Port:
                 raise self.inst.fail("fmi2SetReal of inputs", st, t)
             self.sent_valid = False
         self.read(t)
+
+
+def link_type(instances: dict[str, Instance], link: Link) -> str:
+    """The FMI type of a link's two ends; SceneError (bad input) where they differ."""
+    a = instances[link.src].variables[link.output].type
+    b = instances[link.dst].variables[link.input].type
+    if a != b:
+        raise SceneError(f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: type mismatch, "
+                         f"{link.src}.{link.output} is {a}, {link.dst}.{link.input} is {b}")
+    return a
 
 
 def feeds(inst: Instance, name: str) -> bool:
@@ -83,17 +113,18 @@ class Ports(dict):
         super().__init__()
         inputs: dict[str, list[str]] = {n: [] for n in instances}
         outputs: dict[str, list[str]] = {n: [] for n in instances}
+        real_links, discrete_links = [], []
+        for link in links:
+            kind = link_type(instances, link)
+            if kind != "Real" and not link.identity:
+                raise SceneError(f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: a linear "
+                                 f"transformation needs Real variables, these are {kind}")
+            (real_links if kind == "Real" else discrete_links).append(link)
+        links = real_links
         for link in links:
             inputs[link.dst].append(link.input)
             if link.output not in outputs[link.src]:
                 outputs[link.src].append(link.output)
-        for link in links:
-            for inst_name, var in ((link.src, link.output), (link.dst, link.input)):
-                if instances[inst_name].variables[var].type != "Real":
-                    raise SimulationError(
-                        f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: only Real "
-                        f"connections are supported, {inst_name}.{var} is "
-                        f"{instances[inst_name].variables[var].type}")
         # Integer and Boolean outputs are discrete: read on demand, not per step.
         self.discrete_outputs: dict[str, list[str]] = {n: [] for n in instances}
         for n, names in (extra_outputs or {}).items():
@@ -110,6 +141,14 @@ class Ports(dict):
             n = max(1, p.n_out)
             p.out = (c_double * n).from_buffer(self.buffer, offset * 8)
             offset += n
+        for link in discrete_links:
+            dst, src = self[link.dst], self[link.src]
+            if link.output not in src.dout_names:
+                src.dout_names.append(link.output)
+            dst.din_names.append(link.input)
+            dst.din_sources.append((src, src.dout_names.index(link.output)))
+            dst.has_inputs = True
+        self.has_discrete_links = bool(discrete_links)
         for link in links:
             dst, src = self[link.dst], self[link.src]
             k = dst.in_names.index(link.input)

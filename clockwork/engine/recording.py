@@ -5,23 +5,25 @@ A ``Recorder`` is called at every communication point (``Master.run_until``'s
 (every grid point when no interval is given; the extra points of located
 events too in that case) and the tick times of one instance (its
 ``tick_time`` output, which changes at each upward zero crossing).
-Integer and Boolean outputs are read from the FMU when sampled; Real ones
-come from the master's output buffer.
+Variables of the other types are read from the FMU when sampled (String
+as text); Real ones come from the master's output buffer.
 """
 
 from __future__ import annotations
 
 
 class _DiscreteOutput:
-    """An Integer or Boolean output read from the FMU when sampled."""
+    """A variable that is not Real, read from the FMU when sampled through
+    the fmi2Get* of its type: Integer, Enumeration (fmi2GetInteger) and
+    Boolean as numbers, String as text."""
 
     def __init__(self, inst, var: str):
         self.inst, self.var = inst, var
         self.kind = inst.variables[var].type
 
     def __getitem__(self, _):
-        return float(self.inst.get_integer([self.var])[0] if self.kind == "Integer"
-                     else self.inst.get_boolean([self.var])[0])
+        value = self.inst.get_values([self.var])[0]
+        return value if self.kind == "String" else float(value)
 
 
 class Recorder:

@@ -28,6 +28,9 @@ class MasterSettings:
     # "compiled": the C stepping core (engine/compiled.py); "python": the
     # reference loop in master.py; "auto": compiled where it covers the settings.
     engine: str = "auto"
+    # Relative tolerance passed to every FMU's fmi2SetupExperiment; None:
+    # each FMU's DefaultExperiment tolerance, where it declares one.
+    tolerance: float | None = None
 
     def check(self) -> None:
         """Refuse combinations the master cannot run (SceneError: bad input)."""
@@ -38,6 +41,8 @@ class MasterSettings:
                              "step doubling does not iterate the coupling")
         if self.engine not in ENGINES:
             raise SceneError(f"master.engine = {self.engine!r}: expected one of {', '.join(map(repr, ENGINES))}")
+        if self.tolerance is not None and not (isinstance(self.tolerance, (int, float)) and self.tolerance > 0):
+            raise SceneError(f"master.tolerance = {self.tolerance!r}: expected a number > 0")
         if self.extrapolation not in (0, 1, 2):
             raise SceneError(f"master.extrapolation = {self.extrapolation}: expected 0, 1 or 2")
 

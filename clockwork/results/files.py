@@ -97,13 +97,13 @@ def write_csv_atomic(path: str | os.PathLike, header: Sequence[str], columns: Se
     if len(header) != len(columns):
         raise ValueError(f"{path}: {len(header)} header names for {len(columns)} columns")
     for h in header:
-        if any(c in h for c in ',"\n\r'):
-            raise ValueError(f"{path}: header name {h!r} contains a comma, quote or newline")
+        if any(c in h for c in "\n\r"):
+            raise ValueError(f"{path}: header name {h!r} contains a newline")
     cols = [_column_strings(c) for c in columns]
     lengths = {len(c) for c in cols}
     if len(lengths) > 1:
         raise ValueError(f"{path}: columns of different lengths {sorted(lengths)}")
-    lines = [",".join(header)]
+    lines = [",".join(_field(h) for h in header)]  # FMI names such as a[1,2] are quoted
     lines += [",".join(row) for row in zip(*cols)]
     return write_text_atomic(path, "\n".join(lines) + "\n")
 

@@ -37,7 +37,8 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
         if "series" in r:
             cols = r["series"]
             write_csv_atomic(out / "timeseries.csv", list(cols),
-                             [np.asarray([math.nan if x is None else x for x in v], dtype=float)
+                             [list(v) if any(isinstance(x, str) for x in v)  # a String variable: text
+                              else np.asarray([math.nan if x is None else x for x in v], dtype=float)
                               for v in cols.values()])
             files.append("timeseries.csv")
         if r.get("ticks"):

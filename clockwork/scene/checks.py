@@ -104,9 +104,15 @@ def convert_value(ctx: Ctx, key: str, value: object, v, md):
             x = to_unit(value, md, unit)
         except UnitError as e:
             raise ctx.bad(key, value, str(e)) from None
+    elif v.type == "Enumeration" and isinstance(value, str):
+        items = {i.name: int(i.value) for i in getattr(v.declaredType, "items", None) or []}
+        if value not in items:
+            raise ctx.bad(key, value, f"an integer or one of the items of {v.declaredType.name}: "
+                                      f"{', '.join(items) or 'none'}")
+        x = items[value]
     elif v.type in ("Integer", "Enumeration"):
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ctx.bad(key, value, "an integer")
+            raise ctx.bad(key, value, "an integer" + (" or an item name" if v.type == "Enumeration" else ""))
         x = value
     elif v.type == "Boolean":
         if not isinstance(value, bool):
@@ -156,6 +162,10 @@ def master_value(ctx: Ctx, key: str, value: object):
         if not isinstance(value, bool):
             raise ctx.bad(full, value, "true or false")
         return value
+    if key == "tolerance":
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+            raise ctx.bad(full, value, "a relative tolerance > 0 (given to every FMU's fmi2SetupExperiment)")
+        return float(value)
     if key == "iterations":
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
             raise ctx.bad(full, value, "an integer >= 0 (0 = no fixed-point iteration)")

@@ -20,6 +20,7 @@ import sys
 import tomllib
 from pathlib import Path
 
+from ..engine import compiled
 from ..engine.description import FmuError, read_fmu, resolve_fmu, var_unit
 from ..engine.description import variables as variables_of
 from ..engine.names import instance_name_problem, split_link, split_ref
@@ -213,6 +214,12 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     problem = consistency(master, experiment, components)
     if problem:
         raise ctx.fail(*problem)
+    if master.engine == "compiled":
+        # Asked for by name: links the core cannot pass on are refused now, not at run time.
+        reason = compiled.unsupported_links(
+            (str(c), components[c.src_instance].variable(c.src_var).type) for c in connections)
+        if reason:
+            raise ctx.fail("master.engine", f'expected "auto" or "python" here: {reason}')
     record = _record(ctx, ctx.table(raw, "record", ""), components)
     analysis = _analysis(ctx, ctx.table(raw, "analysis", ""), kinds)
     connected_inputs = {(c.dst_instance, c.dst_var) for c in connections}

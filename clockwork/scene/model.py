@@ -75,6 +75,7 @@ class MasterConfig:
     min_step: float = 1e-9  # s
     max_step: float = 0.01  # s
     engine: str = "auto"  # "auto", "python" or "compiled"
+    tolerance: float | None = None  # relative, for fmi2SetupExperiment; None: each FMU's DefaultExperiment's
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)

@@ -18,7 +18,10 @@
  */
 
 #include <math.h>
+#include <stdarg.h>
 #include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #define CW_EXPORT __attribute__((visibility("default")))
@@ -31,7 +34,7 @@ typedef int (*cw_getDer_t)(void *, const unsigned *, size_t, const int *, double
 typedef int (*cw_getState_t)(void *, void **);
 typedef int (*cw_setState_t)(void *, void *);
 
-enum { FMI_OK = 0, FMI_WARNING = 1 };
+enum { FMI_OK = 0, FMI_WARNING = 1, FMI_DISCARD = 2, FMI_ERROR = 3, FMI_FATAL = 4 };
 
 /* Return codes (the Python side turns errors into SimulationError). */
 enum {
@@ -85,11 +88,14 @@ typedef struct {
     const double *in_factor;  /* per scaled input */
     const double *in_offset;
     double out_time;          /* when `out` was read, s */
+    double lowered_at;        /* when ext_order was last lowered, s */
     int n_out, n_in, n_z;
     int max_output_derivative_order;
     int sent_valid;
     int hist_n, snap_hist_n;
     int n_scaled;
+    int ext_order;            /* order of this FMU's input polynomials (lowered where refused) */
+    int pad_;
 } cw_port;
 
 typedef struct {
@@ -126,6 +132,7 @@ typedef struct {
     int max_replay_steps;      /* a checkpoint after this many steps bounds replay work */
     int diverged;
     int err_port, err_call, err_status;
+    int orders_lowered;        /* a port's ext_order was lowered: Python says so */
 } cw_master;
 
 typedef struct {
@@ -255,7 +262,7 @@ static void record_history(cw_master *m)
 /* Fill p->inp (values at t) and p->der (derivatives at t) from the sources. */
 static void extrapolate(cw_master *m, cw_port *p, double t)
 {
-    int order = m->extrapolation;
+    int order = p->ext_order;
     int n = p->n_in;
     for (int k = 0; k < n; k++) {
         cw_port *src = &m->ports[p->src_port[k]];
@@ -320,10 +327,11 @@ static int set_inputs(cw_master *m, int i, double t, double h, int smooth)
 {
     cw_port *p = &m->ports[i];
     int n = p->n_in;
+again:
     for (int k = 0; k < n; k++)
         p->inp[k] = m->ports[p->src_port[k]].out[p->src_pos[k]];
     scale_inputs(p);
-    int polynomial = m->extrapolation && smooth;
+    int polynomial = p->ext_order && smooth;
     if (polynomial) {
         extrapolate(m, p, t);
     } else if (p->sent_valid) {
@@ -342,10 +350,17 @@ static int set_inputs(cw_master *m, int i, double t, double h, int smooth)
     memcpy(p->sent, p->inp, (size_t)n * sizeof(double));
     p->sent_valid = !polynomial;
     if (polynomial) {
-        size_t nd = (size_t)n * (m->extrapolation >= 2 ? 2 : 1);
+        size_t nd = (size_t)n * (p->ext_order >= 2 ? 2 : 1);
         st = p->setInputDerivatives(p->comp, p->der_vr, nd, p->der_order, p->der);
-        if (st > FMI_WARNING)
-            return fail(m, i, CALL_SET_INPUT_DERIVATIVES, st, t, h);
+        if (st > FMI_WARNING) {
+            if (st >= FMI_FATAL)
+                return fail(m, i, CALL_SET_INPUT_DERIVATIVES, st, t, h);
+            /* Refused: one order lower, from the same sources, and never again this order. */
+            p->ext_order--;
+            p->lowered_at = t;
+            m->orders_lowered = 1;
+            goto again;
+        }
     }
     return 0;
 }
@@ -1161,4 +1176,48 @@ CW_EXPORT int cw_run_watch(cw_master *m, double t_stop, double mark, double marg
         }
     }
     return CW_DONE;
+}
+
+/* -- FMU log messages ------------------------------------------------------------------ */
+
+/* What cw_logger hands the formatted message to: the instance's own sink,
+ * passed to the FMU as its componentEnvironment (one per instance, no
+ * global state). */
+typedef void (*cw_log_sink_t)(const char *instance, int status, const char *category, const char *text);
+
+/* The fmi2CallbackLogger of every instance: an FMU's message is a printf
+ * format with arguments (FMI 2.0, 2.1.5), which ctypes cannot reach. */
+CW_EXPORT void cw_logger(void *env, const char *instance, int status, const char *category,
+                         const char *message, ...)
+{
+    cw_log_sink_t sink = (cw_log_sink_t)env;
+    if (!sink)
+        return;
+    if (!message) {
+        sink(instance, status, category, "");
+        return;
+    }
+    char small[1024];
+    va_list ap;
+    va_start(ap, message);
+    int n = vsnprintf(small, sizeof small, message, ap);
+    va_end(ap);
+    if (n < 0) {  /* a broken format: hand on the format itself */
+        sink(instance, status, category, message);
+        return;
+    }
+    if ((size_t)n < sizeof small) {
+        sink(instance, status, category, small);
+        return;
+    }
+    char *big = malloc((size_t)n + 1);
+    if (!big) {
+        sink(instance, status, category, small);  /* truncated rather than lost */
+        return;
+    }
+    va_start(ap, message);
+    vsnprintf(big, (size_t)n + 1, message, ap);
+    va_end(ap);
+    sink(instance, status, category, big);
+    free(big);
 }

@@ -136,6 +136,7 @@ static void set_start_values(cw_instance *inst) {
     inst->stop_time = 0.0;
     inst->stop_time_defined = 0;
     inst->outputs_dirty = 1;
+    inst->terminate_requested = 0;
 }
 
 static void refresh_outputs(cw_instance *inst) {
@@ -282,9 +283,11 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
                                fmi2Boolean stopTimeDefined,
                                fmi2Real stopTime) {
     cw_instance *inst = (cw_instance *)c;
-    (void)toleranceDefined;
-    (void)tolerance; /* tolerances are parameters of each model */
     if (!allowed(inst, "fmi2SetupExperiment", CW_INSTANTIATED)) return fmi2Error;
+    /* Kept for models that integrate to it; the clock's models take their
+     * tolerances as parameters. */
+    inst->tolerance_defined = toleranceDefined ? 1 : 0;
+    inst->tolerance = toleranceDefined ? tolerance : 0.0;
     if (!isfinite(startTime))
         return fail(inst, "fmi2SetupExperiment: startTime = %g must be finite.",
                     startTime);
@@ -1015,11 +1018,12 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component c,
                    (unsigned)vr[k], inst->model->name);
             return fmi2Error;
         }
-        if (order[k] < 1 || order[k] > 2) {
+        const int max_order = inst->model->max_input_order ? inst->model->max_input_order : 2;
+        if (order[k] < 1 || order[k] > max_order) {
             cw_log(inst, fmi2Error, "logStatusError",
                    "fmi2SetRealInputDerivatives: order %d for %s; expected 1 "
-                   "or 2.",
-                   (int)order[k], v->name);
+                   "to %d.",
+                   (int)order[k], v->name, max_order);
             return fmi2Error;
         }
         if (!isfinite(value[k])) {
@@ -1220,11 +1224,20 @@ fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s,
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s,
                                 fmi2Boolean *value) {
     cw_instance *inst = (cw_instance *)c;
-    (void)s;
-    (void)value;
-    if (!inst) return fmi2Error;
+    if (!allowed(inst, "fmi2GetBooleanStatus",
+                 CW_STEP_COMPLETE | CW_STEP_FAILED | CW_TERMINATED))
+        return fmi2Error;
+    if (!value) {
+        cw_log(inst, fmi2Error, "logStatusError",
+               "fmi2GetBooleanStatus: value is NULL.");
+        return fmi2Error;
+    }
+    if (s == fmi2Terminated) {
+        *value = inst->terminate_requested ? fmi2True : fmi2False;
+        return fmi2OK;
+    }
     cw_log(inst, fmi2Error, "logStatusError",
-           "fmi2GetBooleanStatus: no Boolean status is provided.");
+           "fmi2GetBooleanStatus: status kind %d is not provided.", (int)s);
     return fmi2Error;
 }
 

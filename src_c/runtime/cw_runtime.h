@@ -89,6 +89,10 @@ typedef struct {
      * 0 when unavailable (may be NULL). */
     int (*output_derivative)(struct cw_instance *inst, unsigned vr, int order,
                              double *value);
+
+    /* Highest order of input derivatives fmi2SetRealInputDerivatives takes;
+     * 0 (the default) means 2. */
+    int max_input_order;
 } cw_model;
 
 typedef struct cw_instance {
@@ -118,6 +122,13 @@ typedef struct cw_instance {
     /* Where fmi2SetFMUstate decodes a state before accepting it: made on
      * the first restore and kept, so that a rollback allocates nothing. */
     void *scratch;
+
+    /* From fmi2SetupExperiment: the environment's relative tolerance. */
+    double tolerance;
+    int tolerance_defined;
+    /* Set by a model whose do_step returns fmi2Discard to end the
+     * simulation: fmi2GetBooleanStatus(fmi2Terminated) says so. */
+    int terminate_requested;
 } cw_instance;
 
 /* Value of input `vr` at time t, following the input derivatives. */
