@@ -223,8 +223,8 @@ def _clockwork_annotation(annotations, scene) -> None:
     cw = _sub(_sub(annotations, "ssc", "Annotation", type=CW_ANNOTATION), "cw", "Settings")
     master = _sub(cw, "cw", "Master")
     for k, v in scene.master.as_dict().items():
-        if k == "max_step" and not scene.max_step_given:
-            continue  # follows the step, also under --set master.step
+        if (k == "max_step" and not scene.max_step_given) or v is None:
+            continue  # max_step follows the step, also under --set master.step; None is the default
         master.set(k, _setting(v))
     record = _sub(cw, "cw", "Record")
     if scene.record.interval is not None:

@@ -886,6 +886,7 @@ class _Reader:
                 out["tolerance"] = _number(doc, fixed, "relativeTolerance")
         cw = self._annotation(system, CW_ANNOTATION)
         if cw is not None:
+            out = {}  # clockwork's own settings are complete: OMSimulator's do not mix in
             m = cw.find(f"{{{CW_NS}}}Settings/{{{CW_NS}}}Master")
             for k, text in (m.attrib.items() if m is not None else []):
                 if k not in _MASTER_FIELDS:
