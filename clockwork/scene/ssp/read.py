@@ -611,8 +611,8 @@ class _Reader:
 
     def _chain(self, chain, src_var, dst_var) -> tuple[float, float]:
         """The factor and offset of a chain of connections in data-flow order."""
-        if src_var is not None and src_var.type != dst_var.type and not (
-                {src_var.type, dst_var.type} <= {"Integer", "Enumeration"}):
+        # strict, as the engine's links are (an Integer into an Enumeration is refused too)
+        if src_var is not None and src_var.type != dst_var.type:
             e = chain[-1][0]
             raise e.doc.fail(e.el, f"type mismatch: the source is {src_var.type}, the input {dst_var.type}")
         factor, offset = 1.0, 0.0
