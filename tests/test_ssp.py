@@ -245,6 +245,15 @@ BAD_SSD = {
     "Model Exchange only": (_me_only, ["source", "Model Exchange only"]),
     "no stop time": (_edit('<ssd:DefaultExperiment startTime="0" stopTime="20"/>', ""),
                      ["DefaultExperiment", "--set experiment.stop"]),
+    "parameters inside the FMU": (_edit('source="resources/escapement.ssv"',
+                                        'source="resources/escapement.ssv" sourceBase="component"'),
+                                  ["sourceBase", "not supported"]),
+    "binary connector": (_edit('<ssd:Connector name="w" kind="input"><ssc:Real unit="rad/s"/>',
+                               '<ssd:Connector name="w" kind="input"><ssc:Binary/>'), ["ssc:Binary", "not supported"]),
+    "two values for the source and inline": (_edit('<ssd:ParameterBinding source="resources/escapement.ssv"/>',
+                                                   '<ssd:ParameterBinding source="resources/escapement.ssv">'
+                                                   '<ssd:ParameterValues/></ssd:ParameterBinding>'),
+                                             ["either a source or ssd:ParameterValues"]),
     "array connection": (_edit('endConnector="tau_escapement"', 'endConnector="tau_escapement" endIndices="1"'),
                          ["endIndices", "not supported"]),
 }
