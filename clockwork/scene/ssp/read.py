@@ -367,9 +367,6 @@ class _Reader:
         if version not in VERSIONS:
             raise doc.fail(root, f"expected the SSP version {' or '.join(VERSIONS)}", "version")
         self.units = _units(doc, root.find(q("ssd", "Units")))
-        for tag in ("Enumerations", "SignalDictionaries"):
-            if root.find(q("ssd", tag)) is not None and tag == "SignalDictionaries":
-                raise doc.fail(root.find(q("ssd", tag)), "not supported: signal dictionaries")
         system = root.find(q("ssd", "System"))
         if system is None:
             raise doc.fail(root, "expected an ssd:System element")
@@ -382,16 +379,11 @@ class _Reader:
         components = self._components(values, fed)
         connections = []
         for (inst, var), (src, factor, offset) in links.items():
-            kw = {} if (factor, offset) == (1.0, 0.0) else {"factor": factor, "offset": offset}
-            if kw and "factor" not in Connection._fields:
-                raise SceneError("a connection with a unit conversion or a linear transformation needs link "
-                                 "transforms in the engine (not in this build)", self.path, f"{inst}.{var}")
-            connections.append(Connection(src[0], src[1], inst, var, **kw))
+            connections.append(Connection(src[0], src[1], inst, var, factor, offset))
         sections = {"experiment": self._experiment(doc, root), "master": self._master(doc, system),
                     "record": self._record(doc, system)}
         if "outputs" not in sections["record"]:
             sections["record"]["outputs"] = self._default_record()
-        self.store.close()
         digest = hashlib.sha256(self.path.read_bytes()).hexdigest()
         return SspScene(root.get("name") or self.path.stem, system.get("description") or "", components,
                         tuple(connections), sections, digest, self.warnings)
