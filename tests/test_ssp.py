@@ -354,3 +354,13 @@ def test_system_bindings_reach_components_by_name_and_through_connectors(tmp_pat
     assert s.components["pendulum"].parameters["Q"] == 250.0
     assert s.components["pendulum"].parameters["g_factor"] == 2.0
     assert not any(c.dst_var == "g_factor" for c in s.connections)
+
+
+def test_a_system_connector_records_the_output_it_passes_on(tmp_path):
+    d = fixture_dir(tmp_path, "nested")
+    s = load_scene(d / "SystemStructure.ssd", ['record.outputs=["movement.phi", "escapement.tau"]'])
+    assert s.record.outputs == (("movement.pendulum", "phi"), ("escapement", "tau"))
+    # flat10's "drive" converts units: it is not an alias, so it is no variable either
+    d = fixture_dir(tmp_path, "flat10")
+    with pytest.raises(Exception, match="record.outputs"):
+        load_scene(d / "SystemStructure.ssd", ['record.outputs=["drive"]'])

@@ -183,6 +183,9 @@ def _load_ssp(path: Path, overrides, kinds: Kinds) -> Scene:
         raise SceneError("missing: the SSD has no ssd:DefaultExperiment stopTime; expected one, or "
                          "--set experiment.stop=<time>", path, "ssd:DefaultExperiment stopTime")
     outputs = raw.get("record", {}).get("outputs")
+    if isinstance(outputs, list) and all(isinstance(o, str) for o in outputs):
+        # a system connector records the component output it passes on
+        outputs = raw["record"]["outputs"] = [ssp.aliases.get(o, o) for o in outputs]
     if isinstance(outputs, list) and outputs and all(isinstance(o, str) for o in outputs):
         raw["plot"] = [{"kind": "time_series", "x": "time", "y": outputs, "title": ssp.name, "file": "outputs.png"}]
     raw["analysis"] = {"kind": "time_series"}

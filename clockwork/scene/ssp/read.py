@@ -77,6 +77,7 @@ class SspScene:
     sections: dict  # "experiment", "master", "record" tables, as a TOML scene would hold them
     sha256: str
     warnings: list[str] = field(default_factory=list)
+    aliases: dict[str, str] = field(default_factory=dict)  # system connector -> "instance.output" it passes on
 
 
 # ---------------------------------------------------------------- files
@@ -386,7 +387,7 @@ class _Reader:
             sections["record"]["outputs"] = self._default_record()
         digest = hashlib.sha256(self.path.read_bytes()).hexdigest()
         return SspScene(root.get("name") or self.path.stem, system.get("description") or "", components,
-                        tuple(connections), sections, digest, self.warnings)
+                        tuple(connections), sections, digest, self.warnings, self.aliases)
 
     def _connectors(self, doc: _Doc, el, md=None) -> dict[str, _Connector]:
         out: dict[str, _Connector] = {}
@@ -565,25 +566,13 @@ class _Reader:
             adj.setdefault(e.a, []).append((e, e.b))
             adj.setdefault(e.b, []).append((e, e.a))
         links, fed = {}, {}
+        self.aliases = {}
         for node in adj:
+            if node[0] == "s":
+                self._alias(node, adj)
             if self._role(node) != "sink":
                 continue
-            found = []  # (source node, [(edge, upstream node, downstream node)] in data-flow order)
-
-            def walk(cur, chain, seen):
-                for e, other in adj.get(cur, []):
-                    if other in seen:
-                        continue
-                    role = self._role(other)
-                    step = [(e, other, cur)] + chain
-                    if role == "source":
-                        found.append((other, step))
-                    elif role == "through":
-                        before = len(found)
-                        walk(other, step, seen | {other})
-                        if len(found) == before:
-                            found.append((other, step))  # a system connector with nothing upstream
-            walk(node, [], {node})
+            found = self._walk(node, adj)
             sources = [f for f in found if f[0][0] == "c"]
             if len(sources) > 1:
                 names = " and ".join(f"{s[1]}.{s[2]}" for s, _ in sources)
@@ -600,6 +589,43 @@ class _Reader:
                 # fed only by system connectors: they may carry a parameter value
                 fed[(node[1], node[2])] = [(s, chain) for s, chain in found]
         return links, fed
+
+    def _walk(self, node: tuple, adj: dict) -> list:
+        """What feeds `node`: [(source node, [(edge, upstream, downstream)] in data-flow order)],
+        a component output, or a system connector with nothing upstream."""
+        found = []
+
+        def walk(cur, chain, seen):
+            for e, other in adj.get(cur, []):
+                if other in seen:
+                    continue
+                role = self._role(other)
+                step = [(e, other, cur)] + chain
+                if role == "source":
+                    found.append((other, step))
+                elif role == "through":
+                    before = len(found)
+                    walk(other, step, seen | {other})
+                    if len(found) == before:
+                        found.append((other, step))
+        walk(node, [], {node})
+        return found
+
+    def _alias(self, node: tuple, adj: dict) -> None:
+        """A system connector that passes one component output on unchanged
+        can be recorded by its name ("wB", "sub.w"): it records that output."""
+        sources = [f for f in self._walk(node, adj) if f[0][0] == "c"]
+        if len(sources) != 1:
+            return
+        src, chain = sources[0]
+        try:
+            var = self._var(src)
+            if self._chain(chain, var, var) != (1.0, 0.0):
+                return
+        except SceneError:
+            return
+        name = f"{node[1]}.{node[2]}" if node[1] else node[2]
+        self.aliases[name] = f"{src[1]}.{src[2]}"
 
     def _chain(self, chain, src_var, dst_var) -> tuple[float, float]:
         """The factor and offset of a chain of connections in data-flow order."""
