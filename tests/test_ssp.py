@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cwtest import ROOT, assert_one_line_error, fmu_file, run_cli
+from cwtest import BUILD_DIR, ROOT, assert_one_line_error, fmu_file, run_cli
 
 from clockwork.run.catalog import load_scene
 from clockwork.scene.ssp import build_ssp, export_ssp
@@ -364,3 +364,31 @@ def test_a_system_connector_records_the_output_it_passes_on(tmp_path):
     d = fixture_dir(tmp_path, "flat10")
     with pytest.raises(Exception, match="record.outputs"):
         load_scene(d / "SystemStructure.ssd", ['record.outputs=["drive"]'])
+
+
+def test_types_fixture_links_every_type_with_units_and_transformations(tmp_path, capsys):
+    """TestTypes (fmugen, build/test-fmus): Integer, Boolean and Enumeration
+    links, m into mm from the FMU's units, factor and offset, parameters of
+    every type (one in mm, one an enumeration item)."""
+    fmu = BUILD_DIR / "test-fmus" / "TestTypes.fmu"
+    if not fmu.is_file():
+        pytest.fail(f"{fmu} is missing: build the test FMUs first (cmake --build build)")
+    d = tmp_path / "types"
+    shutil.copytree(DATA / "types", d)
+    shutil.copy(fmu, d / "resources" / "TestTypes.fmu")
+    s = load_scene(d / "SystemStructure.ssd")
+    assert s.components["a"].parameters == {"p_real": 1.5, "p_int": 5, "p_bool": True, "p_enum": 3}
+    factors = {c.dst_var: (c.factor, c.offset) for c in s.connections}
+    assert factors == {"u_mm": (1000.0, 0.0), "u_real": (2.0, 0.5), "u_int": (1.0, 0.0), "u_bool": (1.0, 0.0),
+                       "u_enum": (1.0, 0.0)}
+    record = 'record.outputs=["a.y_real", "b.y_mm", "b.y_real", "b.y_int", "b.y_bool", "b.y_enum"]'
+    for engine in ("python", "auto"):  # the compiled core passes Real links only: auto falls back
+        out = tmp_path / engine
+        run_ok(capsys, d / "SystemStructure.ssd", "--out", out, "--set", record, "--set", f'master.engine="{engine}"')
+        last = {k: v[-1] for k, v in series(out).items()}
+        assert last["a.y_real"] == 1.5
+        assert last["b.y_mm"] == 1500.0  # 1.5 m in mm
+        assert last["b.y_real"] == 0.25 + 2 * 1.5 + 0.5
+        assert last["b.y_int"] == -3 + 5
+        assert last["b.y_bool"] == 1.0  # false xor true
+        assert last["b.y_enum"] == 3.0  # max(off, high)
