@@ -51,6 +51,7 @@ from .common import CW_ANNOTATION, CW_NS, NS, OMS_NS, VERSIONS, XmlError, parse_
 
 SSD_NAME = "SystemStructure.ssd"
 MAX_XML_BYTES = 16 << 20  # an SSD, SSV or SSM of more is not a description
+MAX_FMU_BYTES = 2 << 30  # read into memory once, to hash and copy it
 FMU_TYPE = "application/x-fmu-sharedlibrary"
 PSET_TYPE = "application/x-ssp-parameter-set"
 PMAP_TYPE = "application/x-ssp-parameter-mapping"
@@ -75,7 +76,7 @@ class SspScene:
     components: dict[str, Component]
     connections: tuple[Connection, ...]
     sections: dict  # "experiment", "master", "record" tables, as a TOML scene would hold them
-    sha256: str
+    sha256: str  # of the archive; of an .ssd and the .ssv/.ssm files it reads
     warnings: list[str] = field(default_factory=list)
     aliases: dict[str, str] = field(default_factory=dict)  # system connector -> "instance.output" it passes on
 
@@ -111,6 +112,7 @@ class _Store:
     def __init__(self, path: Path):
         self.path = path
         self.zip: zipfile.ZipFile | None = None
+        self.digest = hashlib.sha256()  # of the archive, or of the SSD and every file it reads
         if path.suffix.lower() == ".ssp":
             if not zipfile.is_zipfile(path):
                 raise SceneError("expected an SSP archive: a zip file with SystemStructure.ssd at its root; "
@@ -176,6 +178,7 @@ class _Store:
             raise SceneError(f"cannot read: {e.strerror}", where) from None
         if len(data) > MAX_XML_BYTES:
             raise SceneError(f"more than {MAX_XML_BYTES} bytes: not an SSP XML file", where)
+        self.digest.update(f"{where}\0{len(data)}\0".encode() + data)
         return data
 
     def doc(self, where: str | Path, root_tag: str) -> _Doc:
@@ -199,7 +202,14 @@ class _Store:
         copied once per content into the cache (the scratch folder without one)."""
         if self.zip is None:
             return Path(where)
-        data = self.zip.read(where)
+        size = self.zip.getinfo(where).file_size
+        if size > MAX_FMU_BYTES:
+            raise SceneError(f"{size} bytes unpacked: an FMU in an SSP archive is at most {MAX_FMU_BYTES} bytes here",
+                             self.label(where))
+        try:
+            data = self.zip.read(where)
+        except (zipfile.BadZipFile, OSError, ValueError) as e:
+            raise SceneError(f"unreadable archive entry: {e}", self.label(where)) from None
         digest = hashlib.sha256(data).hexdigest()
         for root in (cache_root(), None):
             folder = (root / "ssp-fmus") if root is not None else (scratch_dir() / "ssp-fmus")
@@ -385,7 +395,10 @@ class _Reader:
                     "record": self._record(doc, system)}
         if "outputs" not in sections["record"]:
             sections["record"]["outputs"] = self._default_record()
-        digest = hashlib.sha256(self.path.read_bytes()).hexdigest()
+        if self.store.zip is not None:
+            digest = hashlib.sha256(self.path.read_bytes()).hexdigest()
+        else:
+            digest = self.store.digest.hexdigest()
         return SspScene(root.get("name") or self.path.stem, system.get("description") or "", components,
                         tuple(connections), sections, digest, self.warnings, self.aliases)
 
