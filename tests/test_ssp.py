@@ -297,6 +297,7 @@ BAD_ARCHIVES = {
     "source leaving the archive": (lambda t: _zip_with(t, {"SystemStructure.ssd": (
         DATA / "flat10" / "SystemStructure.ssd").read_text().replace("resources/Pendulum.fmu", "../Pendulum.fmu")}),
         ["source", "leaves it"]),
+    "no such file": (lambda t: t / "x.ssp", ["no such file"]),
     "empty ssd": (lambda t: _zip_with(t, {"SystemStructure.ssd": ""}), ["malformed XML"]),
     "no component": (lambda t: _zip_with(t, {"SystemStructure.ssd": (
         '<ssd:SystemStructureDescription version="2.0" name="x" '
