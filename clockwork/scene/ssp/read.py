@@ -32,31 +32,20 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import math
-import posixpath
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from urllib.parse import unquote, urlsplit
 
-from ...atomic import write_bytes_atomic
 from ...engine.description import FmuError, read_fmu, var_unit
 from ...engine.description import variables as variables_of
 from ...errors import SceneError
-from ...paths import cache_root, scratch_dir
 from ..checks import Ctx, convert_value
 from ..model import Component, Connection, MasterConfig
-from ..units import fmt
-from .common import CW_ANNOTATION, CW_NS, NS, OMS_NS, VERSIONS, XmlError, parse_xml, q
+from .common import CW_ANNOTATION, CW_NS, NS, OMS_NS, VERSIONS, q
+from .documents import SSD_NAME, Doc, Store, boolean, conversion, fmu_units, number, unit_table
 
-SSD_NAME = "SystemStructure.ssd"
-MAX_XML_BYTES = 16 << 20  # an SSD, SSV or SSM of more is not a description
-MAX_FMU_BYTES = 2 << 30  # read into memory once, to hash and copy it
 FMU_TYPE = "application/x-fmu-sharedlibrary"
 PSET_TYPE = "application/x-ssp-parameter-set"
 PMAP_TYPE = "application/x-ssp-parameter-mapping"
-_PREFIX = {v: k for k, v in NS.items()}
-_EXPONENTS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 _REALS = ("Real", "Float64", "Float32")
 _INTEGERS = ("Integer", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")
 _TYPES = _REALS + _INTEGERS + ("Boolean", "String", "Enumeration")
@@ -81,238 +70,6 @@ class SspScene:
     aliases: dict[str, str] = field(default_factory=dict)  # system connector -> "instance.output" it passes on
 
 
-# ---------------------------------------------------------------- files
-
-
-class _Doc:
-    """One XML file of the SSP: where it is (for messages and relative URIs) and its root."""
-
-    def __init__(self, label: str, base: str | Path, root):
-        self.label = label
-        self.base = base  # folder of the file: a posix path in the archive, or a Path
-        self.root = root
-
-    def key(self, el, attr: str | None = None) -> str:
-        ns, _, local = el.tag[1:].partition("}") if el.tag.startswith("{") else ("", "", el.tag)
-        tag = f"{_PREFIX[ns]}:{local}" if ns in _PREFIX else local
-        name = el.get("name")
-        what = f"{tag} {name!r}" if name is not None and attr != "name" else tag
-        if attr is not None:
-            value = el.get(attr)
-            what += f" {attr}" if value is None else f" {attr}={value!r}"
-        return f"line {el.sourceline}: {what}"
-
-    def fail(self, el, detail: str, attr: str | None = None) -> SceneError:
-        return SceneError(detail, self.label, self.key(el, attr))
-
-
-class _Store:
-    """The files of an .ssp archive, or the directory of an .ssd file."""
-
-    def __init__(self, path: Path):
-        self.path = path
-        self.zip: zipfile.ZipFile | None = None
-        self.digest = hashlib.sha256()  # of the archive, or of the SSD and every file it reads
-        if path.suffix.lower() == ".ssp":
-            if not zipfile.is_zipfile(path):
-                raise SceneError("expected an SSP archive: a zip file with SystemStructure.ssd at its root; "
-                                 "this is not a zip file", path)
-            try:
-                self.zip = zipfile.ZipFile(path)
-                names = self.zip.namelist()
-            except (zipfile.BadZipFile, OSError, ValueError) as e:
-                raise SceneError(f"expected an SSP archive: unreadable zip file ({e})", path) from None
-            for name in names:
-                parts = name.split("/")
-                if "\\" in name or name.startswith("/") or ".." in parts or (parts and ":" in parts[0]):
-                    raise SceneError("expected a relative path inside the archive (no '..', no absolute path, "
-                                     "no backslash)", path, f"archive entry {name!r}")
-            self.members = set(names)
-            if SSD_NAME not in self.members:
-                raise SceneError(f"expected {SSD_NAME} at the root of the archive; entries: "
-                                 f"{', '.join(sorted(self.members)[:8]) or 'none'}", path)
-
-    def close(self) -> None:
-        if self.zip is not None:
-            self.zip.close()
-
-    def label(self, member: str) -> str:
-        return f"{self.path}/{member}" if self.zip is not None else member
-
-    def resolve(self, doc: _Doc, el, attr: str) -> str | Path:
-        """The file an element's URI attribute names, relative to the document that holds it."""
-        uri = el.get(attr)
-        parts = urlsplit(uri)
-        if parts.scheme not in ("", "file") or parts.netloc or parts.query or parts.fragment or not parts.path:
-            raise doc.fail(el, "expected a relative path (a URI without scheme, host, query or fragment)", attr)
-        rel = unquote(parts.path)
-        if self.zip is not None:
-            if rel.startswith("/") or parts.scheme:
-                raise doc.fail(el, "expected a path inside the archive, relative to the SSD", attr)
-            member = posixpath.normpath(posixpath.join(doc.base, rel))
-            if member == ".." or member.startswith("../"):
-                raise doc.fail(el, "expected a path inside the archive: this one leaves it", attr)
-            if member not in self.members:
-                raise doc.fail(el, f"no such file in the archive ({member})", attr)
-            return member
-        p = Path(rel)
-        p = p if p.is_absolute() else Path(doc.base) / p
-        if not p.is_file():
-            raise doc.fail(el, f"no such file: {p}", attr)
-        return p
-
-    def read(self, where: str | Path) -> bytes:
-        if self.zip is not None:
-            info = self.zip.getinfo(where)
-            if info.file_size > MAX_XML_BYTES:
-                raise SceneError(f"{info.file_size} bytes: an SSP XML file is at most {MAX_XML_BYTES} bytes",
-                                 self.label(where))
-            try:
-                return self.zip.read(where)
-            except (zipfile.BadZipFile, OSError, ValueError) as e:
-                raise SceneError(f"unreadable archive entry: {e}", self.label(where)) from None
-        try:
-            with open(where, "rb") as f:
-                data = f.read(MAX_XML_BYTES + 1)
-        except OSError as e:
-            raise SceneError(f"cannot read: {e.strerror}", where) from None
-        if len(data) > MAX_XML_BYTES:
-            raise SceneError(f"more than {MAX_XML_BYTES} bytes: not an SSP XML file", where)
-        self.digest.update(f"{where}\0{len(data)}\0".encode() + data)
-        return data
-
-    def doc(self, where: str | Path, root_tag: str) -> _Doc:
-        label = self.label(where) if self.zip is not None else str(where)
-        base = posixpath.dirname(where) if self.zip is not None else Path(where).parent
-        try:
-            root = parse_xml(self.read(where))
-        except XmlError as e:
-            raise SceneError(str(e), label) from None
-        doc = _Doc(label, base, root)
-        prefix, local = root_tag.split(":")
-        if root.tag != q(prefix, local):
-            ns, _, got = root.tag[1:].partition("}") if root.tag.startswith("{") else ("", "", root.tag)
-            if got == local:
-                raise doc.fail(root, f"expected the namespace {NS[prefix]}, got {ns or 'none'}")
-            raise doc.fail(root, f"expected the root element {root_tag} (namespace {NS[prefix]})")
-        return doc
-
-    def fmu(self, where: str | Path) -> Path:
-        """A path to the FMU: the file beside the SSD, or the archive's entry
-        copied once per content into the cache (the scratch folder without one)."""
-        if self.zip is None:
-            return Path(where)
-        size = self.zip.getinfo(where).file_size
-        if size > MAX_FMU_BYTES:
-            raise SceneError(f"{size} bytes unpacked: an FMU in an SSP archive is at most {MAX_FMU_BYTES} bytes here",
-                             self.label(where))
-        try:
-            data = self.zip.read(where)
-        except (zipfile.BadZipFile, OSError, ValueError) as e:
-            raise SceneError(f"unreadable archive entry: {e}", self.label(where)) from None
-        digest = hashlib.sha256(data).hexdigest()
-        for root in (cache_root(), None):
-            folder = (root / "ssp-fmus") if root is not None else (scratch_dir() / "ssp-fmus")
-            target = folder / f"{digest}.fmu"
-            try:
-                if not (target.is_file() and target.stat().st_size == len(data)):
-                    folder.mkdir(parents=True, exist_ok=True)
-                    write_bytes_atomic(target, data)
-                return target
-            except OSError:
-                if root is None:
-                    raise
-        raise AssertionError("unreachable")
-
-
-# ---------------------------------------------------------------- units
-
-
-@dataclass(frozen=True)
-class _Unit:
-    exponents: tuple[int, ...]
-    factor: float
-    offset: float
-
-
-def _units(doc: _Doc, parent) -> dict[str, _Unit]:
-    out = {}
-    if parent is None:
-        return out
-    for u in parent.iterfind(q("ssc", "Unit")):
-        name = u.get("name")
-        if not name:
-            raise doc.fail(u, "expected a name", "name")
-        base = u.find(q("ssc", "BaseUnit"))
-        if base is None:
-            raise doc.fail(u, "expected an ssc:BaseUnit child")
-        exps = []
-        for k in _EXPONENTS:
-            try:
-                exps.append(int(base.get(k, "0")))
-            except ValueError:
-                raise doc.fail(base, "expected an integer exponent", k) from None
-        out[name] = _Unit(tuple(exps), _number(doc, base, "factor", 1.0), _number(doc, base, "offset", 0.0))
-    return out
-
-
-def _fmu_units(md) -> dict[str, _Unit]:
-    out = {}
-    for u in getattr(md, "unitDefinitions", None) or []:
-        b = u.baseUnit
-        if b is None:
-            out[u.name] = _Unit((0,) * len(_EXPONENTS), 1.0, 0.0)
-        else:
-            out[u.name] = _Unit(tuple(int(getattr(b, k, 0) or 0) for k in _EXPONENTS), float(b.factor),
-                                float(b.offset))
-    return out
-
-
-def _conversion(src: str | None, dst: str | None, *tables: dict[str, _Unit]) -> tuple[float, float] | str:
-    """(factor, offset) taking a value in `src` to `dst`, or what is missing (a string)."""
-    if src is None or dst is None or src == dst:
-        return 1.0, 0.0  # a dimensionless side is taken as it is
-    defs = []
-    for name in (src, dst):
-        d = next((t[name] for t in tables if name in t), None)
-        if d is None:
-            return f"the unit {name} has no definition (ssd:Units, the parameter set's ssv:Units or the FMU's)"
-        defs.append(d)
-    a, b = defs
-    if a.exponents != b.exponents:
-        return f"{src} cannot be converted to {dst} (different base units)"
-    if a.factor == b.factor and a.offset == b.offset:
-        return 1.0, 0.0
-    # base = factor * value + offset on each side
-    return a.factor / b.factor, (a.offset - b.offset) / b.factor
-
-
-def _number(doc: _Doc, el, attr: str, default: float | None = None) -> float:
-    text = el.get(attr)
-    if text is None:
-        if default is None:
-            raise doc.fail(el, "missing required attribute; expected a number", attr)
-        return default
-    try:
-        x = float(text)
-    except ValueError:
-        raise doc.fail(el, "expected a number", attr) from None
-    if not math.isfinite(x):
-        raise doc.fail(el, "expected a finite number", attr)
-    return x
-
-
-def _bool(doc: _Doc, el, attr: str, default: bool = False) -> bool:
-    text = el.get(attr)
-    if text is None:
-        return default
-    if text.strip() in ("true", "1"):
-        return True
-    if text.strip() in ("false", "0"):
-        return False
-    raise doc.fail(el, "expected true or false", attr)
-
-
 # ---------------------------------------------------------------- structure
 
 
@@ -330,7 +87,7 @@ class _Element:
     name: str  # as in the SSD
     path: str  # hierarchical: "" for the top-level system, "sub", "sub.comp"
     is_system: bool
-    doc: _Doc
+    doc: Doc
     el: object
     connectors: dict[str, _Connector]
     children: dict[str, "_Element"] = field(default_factory=dict)
@@ -348,16 +105,16 @@ class _Edge:
     factor: float
     offset: float
     suppress: bool
-    doc: _Doc
+    doc: Doc
     el: object
 
 
 class _Reader:
     def __init__(self, path: Path):
         self.path = path
-        self.store = _Store(path)
+        self.store = Store(path)
         self.warnings: list[str] = []
-        self.units: dict[str, _Unit] = {}
+        self.units: dict[str, Unit] = {}
         self.instances: dict[str, _Element] = {}
         self.systems: dict[str, _Element] = {}
         self.edges: list[_Edge] = []
@@ -377,7 +134,7 @@ class _Reader:
         version = root.get("version")
         if version not in VERSIONS:
             raise doc.fail(root, f"expected the SSP version {' or '.join(VERSIONS)}", "version")
-        self.units = _units(doc, root.find(q("ssd", "Units")))
+        self.units = unit_table(doc, root.find(q("ssd", "Units")))
         system = root.find(q("ssd", "System"))
         if system is None:
             raise doc.fail(root, "expected an ssd:System element")
@@ -402,7 +159,7 @@ class _Reader:
         return SspScene(root.get("name") or self.path.stem, system.get("description") or "", components,
                         tuple(connections), sections, digest, self.warnings, self.aliases)
 
-    def _connectors(self, doc: _Doc, el, md=None) -> dict[str, _Connector]:
+    def _connectors(self, doc: Doc, el, md=None) -> dict[str, _Connector]:
         out: dict[str, _Connector] = {}
         holder = el.find(q("ssd", "Connectors"))
         if holder is None:
@@ -440,7 +197,7 @@ class _Reader:
                                       f"{'an' if v.causality[0] in 'aeiou' else 'a'} {v.causality}", "kind")
                 if v.type == "Real" and var_unit(v) is not None:
                     # the FMU's unit is what its numbers are in
-                    if unit is not None and _conversion(unit, var_unit(v), self.units, _fmu_units(md)) != (1.0, 0.0):
+                    if unit is not None and conversion(unit, var_unit(v), self.units, fmu_units(md)) != (1.0, 0.0):
                         self.warn(doc.label, doc.key(c, "name"), f"the connector is in {unit}, "
                                   f"{md.modelName}.{name} in {var_unit(v)}; the FMU's unit is used")
                     unit = var_unit(v)
@@ -448,7 +205,7 @@ class _Reader:
             out[name] = _Connector(name, kind, ctype, unit, c)
         return out
 
-    def _system(self, doc: _Doc, el, path: str) -> _Element:
+    def _system(self, doc: Doc, el, path: str) -> _Element:
         node = _Element(el.get("name") or "", path, True, doc, el, self._connectors(doc, el))
         self.systems[path] = node
         if el.find(q("ssd", "SignalDictionaries")) is not None:
@@ -471,7 +228,7 @@ class _Reader:
                 node.children[name] = self._component(doc, child, sub)
         return node
 
-    def _component(self, doc: _Doc, el, path: str) -> _Element:
+    def _component(self, doc: Doc, el, path: str) -> _Element:
         ctype = el.get("type", FMU_TYPE)
         if ctype in ("application/x-ssp-definition", "application/x-ssp-package"):
             raise doc.fail(el, "not supported: a component that references another SSD or SSP; "
@@ -503,7 +260,7 @@ class _Reader:
         self.instances[path] = node
         return node
 
-    def _end(self, system: _Element, doc: _Doc, el, which: str) -> tuple[tuple, _Connector]:
+    def _end(self, system: _Element, doc: Doc, el, which: str) -> tuple[tuple, _Connector]:
         # an empty element name (OMSimulator writes one) is the system's own connector
         elem_name, conn_name = el.get(f"{which}Element") or None, el.get(f"{which}Connector")
         if conn_name is None:
@@ -539,12 +296,12 @@ class _Reader:
             for child in el:
                 ns, _, local = child.tag[1:].partition("}")
                 if local == "LinearTransformation" and ns == NS["ssc"]:
-                    factor = _number(doc, child, "factor", 1.0)
-                    offset = _number(doc, child, "offset", 0.0)
+                    factor = number(doc, child, "factor", 1.0)
+                    offset = number(doc, child, "offset", 0.0)
                 elif local.endswith("MappingTransformation"):
                     raise doc.fail(child, "not supported: mapping transformations on connections; "
                                           "expected ssc:LinearTransformation")
-            self.edges.append(_Edge(a, b, factor, offset, _bool(doc, el, "suppressUnitConversion"), doc, el))
+            self.edges.append(_Edge(a, b, factor, offset, boolean(doc, el, "suppressUnitConversion"), doc, el))
         for child in system.children.values():
             if child.is_system:
                 self._connections(child)
@@ -650,8 +407,8 @@ class _Reader:
         for e, up, down in chain:
             f, o = 1.0, 0.0
             if not e.suppress:
-                tables = [self.units] + [_fmu_units(self.instances[n[1]].md) for n in (up, down) if n[0] == "c"]
-                conv = _conversion(self._unit(up), self._unit(down), *tables)
+                tables = [self.units] + [fmu_units(self.instances[n[1]].md) for n in (up, down) if n[0] == "c"]
+                conv = conversion(self._unit(up), self._unit(down), *tables)
                 if isinstance(conv, str):
                     raise e.doc.fail(e.el, f"expected convertible units: {conv}")
                 f, o = conv
@@ -733,10 +490,10 @@ class _Reader:
             out += [(prefix + name, v) for name, v in params]
         return out
 
-    def _parameter_set(self, doc: _Doc, pset) -> list[tuple[str, tuple]]:
+    def _parameter_set(self, doc: Doc, pset) -> list[tuple[str, tuple]]:
         if pset.get("version") is not None and pset.get("version") not in VERSIONS:
             raise doc.fail(pset, f"expected the SSP version {' or '.join(VERSIONS)}", "version")
-        units = {**self.units, **_units(doc, pset.find(q("ssv", "Units")))}
+        units = {**self.units, **unit_table(doc, pset.find(q("ssv", "Units")))}
         out = []
         holder = pset.find(q("ssv", "Parameters"))
         for p in (holder if holder is not None else []):
@@ -759,22 +516,22 @@ class _Reader:
                 raise doc.fail(t, "missing required attribute", "value")
             kind = _FMI_TYPE[local]
             if kind == "Real":
-                value: object = _number(doc, t, "value")
+                value: object = number(doc, t, "value")
             elif kind == "Integer":
                 try:
                     value = int(text)
                 except ValueError:
                     raise doc.fail(t, "expected an integer", "value") from None
             elif kind == "Boolean":
-                value = _bool(doc, t, "value")
+                value = boolean(doc, t, "value")
             else:
                 value = text
-            # a unit without a definition is refused where it needs converting (_conversion)
+            # a unit without a definition is refused where it needs converting (conversion)
             unit = (t.get("unit") or None) if kind == "Real" else None
             out.append((name, (value, kind, unit, doc.label, doc.key(p), units)))
         return out
 
-    def _mapped(self, doc: _Doc, mapping, params, elem) -> list[tuple[str, tuple]]:
+    def _mapped(self, doc: Doc, mapping, params, elem) -> list[tuple[str, tuple]]:
         if mapping.get("type", PMAP_TYPE) != PMAP_TYPE:
             raise doc.fail(mapping, f"expected type {PMAP_TYPE}", "type")
         if mapping.get("sourceBase", "SSD") != "SSD":
@@ -800,12 +557,12 @@ class _Reader:
                 self.warn(mdoc.label, mdoc.key(m, "source"), f"the parameter set has no {src}; entry not applied")
                 continue
             value, kind, unit, label, key, units = by_name[src]
-            suppress = _bool(mdoc, m, "suppressUnitConversion")
+            suppress = boolean(mdoc, m, "suppressUnitConversion")
             transform = None
             for child in m:
                 local = child.tag.partition("}")[2]
                 if local == "LinearTransformation":
-                    transform = (_number(mdoc, child, "factor", 1.0), _number(mdoc, child, "offset", 0.0))
+                    transform = (number(mdoc, child, "factor", 1.0), number(mdoc, child, "offset", 0.0))
                 elif local.endswith("Transformation"):
                     raise mdoc.fail(child, "not supported: mapping transformations other than ssc:LinearTransformation")
             if transform is not None:
@@ -872,13 +629,13 @@ class _Reader:
                                  label, key)
             value = items[value]
         if kind == "Real":
-            value = self._real(v, var_unit(variable), (_fmu_units(elem.md),))
+            value = self._real(v, var_unit(variable), (fmu_units(elem.md),))
         return convert_value(ctx, f"{key} ({elem.path}.{variable.name})", value, variable, elem.md)
 
     def _real(self, v: tuple, unit: str | None, tables: tuple) -> float:
         """A Real parameter value in `unit`, then through its mapping's linear transformation."""
         value = v[0]
-        conv = _conversion(v[2], unit, v[5], self.units, *tables)
+        conv = conversion(v[2], unit, v[5], self.units, *tables)
         if isinstance(conv, str):
             raise SceneError(f"expected convertible units: {conv}", v[3], v[4])
         if conv != (1.0, 0.0):
@@ -889,14 +646,14 @@ class _Reader:
 
     # -- settings
 
-    def _experiment(self, doc: _Doc, root) -> dict:
+    def _experiment(self, doc: Doc, root) -> dict:
         exp = root.find(q("ssd", "DefaultExperiment"))
         out = {}
         if exp is not None:
             if exp.get("startTime") is not None:
-                out["start"] = _number(doc, exp, "startTime")
+                out["start"] = number(doc, exp, "startTime")
             if exp.get("stopTime") is not None:
-                out["stop"] = _number(doc, exp, "stopTime")
+                out["stop"] = number(doc, exp, "stopTime")
         return out
 
     def _annotation(self, system, kind: str):
@@ -906,15 +663,15 @@ class _Reader:
                 return a
         return None
 
-    def _master(self, doc: _Doc, system) -> dict:
+    def _master(self, doc: Doc, system) -> dict:
         out: dict = {}
         oms = self._annotation(system, "org.openmodelica")
         if oms is not None:
             fixed = oms.find(f"{{{OMS_NS}}}Annotations/{{{OMS_NS}}}SimulationInformation/{{{OMS_NS}}}FixedStepMaster")
             if fixed is not None and fixed.get("stepSize") is not None:
-                out["step"] = _number(doc, fixed, "stepSize")
+                out["step"] = number(doc, fixed, "stepSize")
             if fixed is not None and fixed.get("relativeTolerance") is not None and "tolerance" in _MASTER_FIELDS:
-                out["tolerance"] = _number(doc, fixed, "relativeTolerance")
+                out["tolerance"] = number(doc, fixed, "relativeTolerance")
         cw = self._annotation(system, CW_ANNOTATION)
         if cw is not None:
             out = {}  # clockwork's own settings are complete: OMSimulator's do not mix in
@@ -925,7 +682,7 @@ class _Reader:
                 out[k] = _typed(text)
         return out
 
-    def _record(self, doc: _Doc, system) -> dict:
+    def _record(self, doc: Doc, system) -> dict:
         cw = self._annotation(system, CW_ANNOTATION)
         r = cw.find(f"{{{CW_NS}}}Settings/{{{CW_NS}}}Record") if cw is not None else None
         if r is None:
