@@ -432,3 +432,10 @@ def test_random_edits_give_a_scene_or_one_line(tmp_path, capsys):
             outcomes["refused"] += 1
     capsys.readouterr()  # the warnings of edits that load
     assert outcomes["refused"] > 20 and outcomes["loaded"] > 5, outcomes
+
+
+def test_set_chooses_another_analysis_for_an_ssp(tmp_path):
+    d = fixture_dir(tmp_path, "flat10")
+    s = load_scene(d / "SystemStructure.ssd", ['analysis.kind="ticks"'])
+    assert s.analysis == {"kind": "ticks"} and s.plots == ()
+    assert load_scene(d / "SystemStructure.ssd").analysis == {"kind": "time_series"}

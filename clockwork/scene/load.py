@@ -186,9 +186,10 @@ def _load_ssp(path: Path, overrides, kinds: Kinds) -> Scene:
     if isinstance(outputs, list) and all(isinstance(o, str) for o in outputs):
         # a system connector records the component output it passes on
         outputs = raw["record"]["outputs"] = [ssp.aliases.get(o, o) for o in outputs]
-    if isinstance(outputs, list) and outputs and all(isinstance(o, str) for o in outputs):
+    raw.setdefault("analysis", {"kind": "time_series"})  # --set analysis.kind=... may choose another
+    series = isinstance(raw["analysis"], dict) and raw["analysis"].get("kind") == "time_series"
+    if series and isinstance(outputs, list) and outputs and all(isinstance(o, str) for o in outputs):
         raw["plot"] = [{"kind": "time_series", "x": "time", "y": outputs, "title": ssp.name, "file": "outputs.png"}]
-    raw["analysis"] = {"kind": "time_series"}
     ctx = Ctx(path, labels)
     return _build(ctx, raw, tuple(applied), ssp.sha256, kinds, (components, ssp.connections))
 
