@@ -53,7 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
                              'escapement.torque="0.4 N.cm", master.step=0.01 (repeatable)')
 
     r = sub.add_parser("run", help="run a scene and write its results")
-    r.add_argument("scene", metavar="SCENE.toml")
+    r.add_argument("scene", metavar="SCENE.toml|X.ssp|X.ssd")
     r.add_argument("--out", required=True, metavar="DIR", help="output directory (created if its parent exists)")
     add_set(r)
     r.add_argument("--workers", type=_positive_int, default=None, metavar="N",
@@ -62,8 +62,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     r.set_defaults(func=cmd_run)
 
-    v = sub.add_parser("validate", help="check a scene file without running it")
-    v.add_argument("scene", metavar="SCENE.toml")
+    v = sub.add_parser("validate", help="check a scene file (or an .ssp/.ssd) without running it")
+    v.add_argument("scene", metavar="SCENE.toml|X.ssp|X.ssd")
     add_set(v)
     v.set_defaults(func=cmd_validate)
 
@@ -71,8 +71,9 @@ def build_parser() -> argparse.ArgumentParser:
     ls.add_argument("dir", nargs="?", default=None, metavar="DIR", help="default: the repository's scenarios/")
     ls.set_defaults(func=cmd_list)
 
-    i = sub.add_parser("info", help="describe an FMU: capabilities, variables, event indicators")
-    i.add_argument("fmu", metavar="X.fmu|MODEL")
+    i = sub.add_parser("info", help="describe an FMU (capabilities, variables, event indicators) or an SSP "
+                                    "(the flattened system)")
+    i.add_argument("fmu", metavar="X.fmu|MODEL|X.ssp|X.ssd")
     i.set_defaults(func=cmd_info)
 
     e = sub.add_parser("export-ssp", help="write a scene as an SSP 1.0 archive for other FMI tools")
@@ -320,9 +321,44 @@ def _flag(x) -> str:
     return "-" if x is None else str(x)
 
 
+def _link(c) -> str:
+    """A connection with its transformation, as `info` shows it."""
+    if (c.factor, c.offset) == (1.0, 0.0):
+        return str(c)
+    return f"{c} (x {c.factor:g}{f' + {c.offset:g}' if c.offset else ''})"
+
+
+def _info_ssp(path: str) -> int:
+    """`info` on an .ssp/.ssd: the flattened system as clockwork runs it."""
+    from .run.catalog import load_scene
+
+    scene = load_scene(path)
+    n, m = len(scene.components), len(scene.connections)
+    print(f"{scene.title} (SSP: {n} component{'s' * (n != 1)}, {m} connection{'s' * (m != 1)})")
+    print(f"  file         {scene.path}")
+    print(f"  sha256       {scene.sha256}")
+    print("components:")
+    width = max(len(c) for c in scene.components)
+    for name, c in scene.components.items():
+        params = ", ".join(f"{k} = {v!r}" for k, v in c.parameters.items())
+        print(f"  {name:<{width}}  {c.model_name}  {c.fmu_path}")
+        if params:
+            print(f"  {'':<{width}}  parameters: {params}")
+    print("connections:")
+    for c in scene.connections:
+        print(f"  {_link(c)}")
+    print(f"experiment: start {scene.experiment.start:g} s, stop {scene.experiment.stop:g} s")
+    print("master: " + ", ".join(f"{k} = {v}" for k, v in scene.master.as_dict().items()))
+    interval = f", every {scene.record.interval:g} s" if scene.record.interval else ""
+    print(f"record{interval}: " + ", ".join(f"{i}.{v}" for i, v in scene.record.outputs))
+    return 0
+
+
 def cmd_info(args) -> int:
     from .engine.description import FmuError, read_fmu, resolve_fmu, var_unit
 
+    if Path(args.fmu).suffix.lower() in (".ssp", ".ssd"):
+        return _info_ssp(args.fmu)
     try:
         path = resolve_fmu(args.fmu)
         md, digest, indicators = read_fmu(path, need_binary=False)

@@ -16,6 +16,7 @@ import difflib
 import hashlib
 import os
 import re
+import sys
 import tomllib
 from pathlib import Path
 
@@ -27,6 +28,7 @@ from ..errors import SceneError
 from .checks import TOP_KEYS, Ctx, article, component, convert_value, lookup, master_value, names_of, parse_ref
 from .kinds import NO_KINDS, Invalid, Kinds
 from .model import (Component, Connection, Experiment, MasterConfig, Record, Scene, consistency)
+from .ssp.read import read_ssp
 from .sweep import parse_sweep
 from .units import fmt, link_conversion
 
@@ -53,18 +55,23 @@ def parse_override(text: str, instances=()) -> tuple[str, str, object]:
         split = (head, tail) if dot and head and tail and not tail.endswith(".") else None
     if split is None or not re.fullmatch(r"[^\s=]+(?:\s*[^\s=]+)*", lhs):
         raise ValueError(f"--set {text}: expected instance.parameter=value, got the key {lhs!r}")
+    return split[0], split[1], _override_value(lhs, rhs)
+
+
+def _override_value(lhs: str, rhs: str) -> object:
     try:
-        value = tomllib.loads("v = " + rhs)["v"]
+        return tomllib.loads("v = " + rhs)["v"]
     except tomllib.TOMLDecodeError:
-        value = rhs.strip()
+        return rhs.strip()
     except RecursionError:
         raise ValueError(f"--set {lhs}: the value is nested deeper than Python can read") from None
-    return split[0], split[1], value
 
 
 def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS) -> Scene:
-    """Load, override and validate a scene file; raises SceneError."""
+    """Load, override and validate a scene file (or an .ssp/.ssd); raises SceneError."""
     path = Path(path)
+    if path.suffix.lower() in (".ssp", ".ssd"):
+        return _load_ssp(path, overrides, kinds)
     try:
         # Read at most one byte past the limit: a device or a pipe reports no size.
         with open(path, "rb") as f:
@@ -136,8 +143,61 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS) -
     return _build(ctx, raw, tuple(applied), hashlib.sha256(data).hexdigest(), kinds)
 
 
-def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: Kinds) -> Scene:
-    ctx.check_keys(raw, TOP_KEYS, "", required=("scene", "components", "experiment"))
+def _load_ssp(path: Path, overrides, kinds: Kinds) -> Scene:
+    """An SSP archive or SSD file through the same checks as a scene file:
+    the SSP gives the components and connections, its default experiment,
+    annotations and --set the other sections (docs/scenes.md, "SSP and SSD")."""
+    ssp = read_ssp(path)
+    for w in ssp.warnings:
+        print(f"clockwork: warning: {w}", file=sys.stderr)
+    raw = {"scene": {"title": ssp.name, "description": ssp.description}, **ssp.sections}
+    components = dict(ssp.components)
+    connected = {(c.dst_instance, c.dst_var) for c in ssp.connections}
+    labels: dict[str, str] = {}
+    applied = []
+    for text in overrides:
+        try:
+            owner, name, value = parse_override(text, components)
+        except ValueError as e:
+            raise SceneError(str(e), path) from None
+        applied.append(text)
+        label = f"--set {owner}.{name}"
+        if owner in _OVERRIDABLE:
+            raw.setdefault(owner, {})[name] = value
+            labels[f"{owner}.{name}"] = label
+            continue
+        if owner not in components:
+            close = difflib.get_close_matches(owner, list(components) + list(_OVERRIDABLE), n=1)
+            hint = f" (did you mean {close[0]}?)" if close else ""
+            raise SceneError(f"no component named {owner}{hint}; components: {', '.join(components)}", path, label)
+        inst = owner
+        comp, var = components[inst], name
+        ctx = Ctx(path, {})
+        v = lookup(ctx, label, variables_of(comp.model_description), var, inst, comp.model_name, want="parameter")
+        if v.causality not in ("parameter", "input") or (inst, var) in connected:
+            what = "a connected input" if v.causality == "input" else f"{article(v.causality)} {v.causality}"
+            raise SceneError(f"{inst}.{var} is {what}; expected a parameter or an unconnected input", path, label)
+        value = convert_value(ctx, label, value, v, comp.model_description)
+        components[inst] = dataclasses.replace(comp, parameters={**comp.parameters, var: value})
+    if "stop" not in raw.get("experiment", {}):
+        raise SceneError("missing: the SSD has no ssd:DefaultExperiment stopTime; expected one, or "
+                         "--set experiment.stop=<time>", path, "ssd:DefaultExperiment stopTime")
+    outputs = raw.get("record", {}).get("outputs")
+    if isinstance(outputs, list) and all(isinstance(o, str) for o in outputs):
+        # a system connector records the component output it passes on
+        outputs = raw["record"]["outputs"] = [ssp.aliases.get(o, o) for o in outputs]
+    raw.setdefault("analysis", {"kind": "time_series"})  # --set analysis.kind=... may choose another
+    series = isinstance(raw["analysis"], dict) and raw["analysis"].get("kind") == "time_series"
+    if series and isinstance(outputs, list) and outputs and all(isinstance(o, str) for o in outputs):
+        raw["plot"] = [{"kind": "time_series", "x": "time", "y": outputs, "title": ssp.name, "file": "outputs.png"}]
+    ctx = Ctx(path, labels)
+    return _build(ctx, raw, tuple(applied), ssp.sha256, kinds, (components, ssp.connections))
+
+
+def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: Kinds,
+           prebuilt: tuple | None = None) -> Scene:
+    if prebuilt is None:
+        ctx.check_keys(raw, TOP_KEYS, "", required=("scene", "components", "experiment"))
 
     scene_t = ctx.table(raw, "scene", "", required=True)
     ctx.check_keys(scene_t, ("title", "description", "reproduces"), "scene", required=("title",))
@@ -147,8 +207,12 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     if not scene_t["title"].strip():
         raise ctx.bad("scene.title", scene_t["title"], "a non-empty title")
 
-    components, input_params = _components(ctx, ctx.table(raw, "components", "", required=True))
-    connections, notes = _connections(ctx, raw.get("connections", []), components, input_params)
+    if prebuilt is None:
+        components, input_params = _components(ctx, ctx.table(raw, "components", "", required=True))
+        connections, notes = _connections(ctx, raw.get("connections", []), components, input_params)
+    else:
+        components, connections = prebuilt
+        notes = ()
     experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
     master, max_step_given = _master(ctx, ctx.table(raw, "master", "") or {})
     problem = consistency(master, experiment, components)

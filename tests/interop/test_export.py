@@ -67,7 +67,7 @@ def test_vendor_annotations_and_literal_prefixes(name):
     files = build_ssp(sc)
     root = etree.fromstring(files["SystemStructure.ssd"])
     assert root.prefix == "ssd" and root.get("version") == "1.0"
-    assert {root.nsmap[k] for k in ("ssd", "ssc", "ssv")} == set(NS.values())
+    assert {root.nsmap[k] for k in ("ssd", "ssc", "ssv")} == {NS[k] for k in ("ssd", "ssc", "ssv")}
     system = root.find("ssd:System", NS)
     first = system.find("ssd:Annotations", NS)[0]
     assert first.tag == f"{{{NS['ssc']}}}Annotation" and first.get("type") == "org.openmodelica"

@@ -42,25 +42,15 @@ from pathlib import Path
 
 from lxml import etree
 
-from .. import __version__
-from ..atomic import write_bytes_atomic, write_text_atomic
-from ..engine.description import var_unit
+from ... import __version__
+from ...atomic import write_bytes_atomic, write_text_atomic
+from ...engine.description import var_unit
+from .common import CW_ANNOTATION, CW_NS, NS, OMS_NS, OSP_NS, q as _q
 
-NS = {
-    "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
-    "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
-    "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
-}
-OMS_NS = "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd"
-OSP_NS = "http://opensimulationplatform.com/SSP/OSPAnnotations"
+_WRITTEN = ("ssd", "ssc", "ssv")  # the namespaces an exported SSD declares
 PARAMETER_SET = "clockwork"
 FMU_TYPE = "application/x-fmu-sharedlibrary"
 _BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
-
-
-def _q(prefix: str, tag: str) -> str:
-    ns = {"oms": OMS_NS, "osp": OSP_NS}.get(prefix) or NS[prefix]
-    return f"{{{ns}}}{tag}"
 
 
 def _sub(parent, prefix: str, tag: str, **attrs):
@@ -145,7 +135,7 @@ def build_ssp(scene, point: dict | None = None) -> dict[str, bytes]:
 
     connected_inputs = {(c.dst_instance, c.dst_var) for c in scene.connections}
     root = etree.Element(_q("ssd", "SystemStructureDescription"),
-                         nsmap={**NS, "oms": OMS_NS, "osp": OSP_NS})
+                         nsmap={**{k: NS[k] for k in _WRITTEN}, "oms": OMS_NS, "osp": OSP_NS, "cw": CW_NS})
     root.set("version", "1.0")
     root.set("name", _identifier(scene.path.stem))
     root.set("generationTool", f"clockwork {__version__}")
@@ -192,6 +182,7 @@ def build_ssp(scene, point: dict | None = None) -> dict[str, bytes]:
     rtol, atol = _tolerances(scene)
     _sub(info, "oms", "FixedStepMaster", description="oms-ma", stepSize=step,
          absoluteTolerance=_real(atol), relativeTolerance=_real(rtol))
+    _clockwork_annotation(annotations, scene)
 
     if used_units:
         units = _sub(root, "ssd", "Units")
@@ -217,6 +208,31 @@ def build_ssp(scene, point: dict | None = None) -> dict[str, bytes]:
     files["SystemStructure.ssd"] = etree.tostring(root, xml_declaration=True, encoding="UTF-8",
                                                   pretty_print=True)
     return files
+
+
+def _setting(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return _real(value) if isinstance(value, float) else str(value)
+
+
+def _clockwork_annotation(annotations, scene) -> None:
+    """The master settings and what to record, for clockwork to run the SSP
+    back exactly as the scene (clockwork.scene.ssp.read)."""
+    # one child element: the schema allows a single element in an ssc:Annotation
+    cw = _sub(_sub(annotations, "ssc", "Annotation", type=CW_ANNOTATION), "cw", "Settings")
+    master = _sub(cw, "cw", "Master")
+    for k, v in scene.master.as_dict().items():
+        if (k == "max_step" and not scene.max_step_given) or v is None:
+            continue  # max_step follows the step, also under --set master.step; None is the default
+        master.set(k, _setting(v))
+    record = _sub(cw, "cw", "Record")
+    if scene.record.interval is not None:
+        record.set("interval", _real(scene.record.interval))
+    if scene.record.ticks is not None:
+        record.set("ticks", scene.record.ticks)
+    for inst, var in scene.record.outputs:
+        _sub(record, "cw", "Output", name=f"{inst}.{var}")
 
 
 def export_ssp(scene, out: str | Path, point: dict | None = None) -> Path:

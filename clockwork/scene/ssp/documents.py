@@ -1,0 +1,252 @@
+"""The files of an SSP, read safely: an archive's entries or the files beside
+an .ssd (relative URIs resolved, zip slip refused), each XML document with
+what its errors need (file, line, element, attribute), and the units and
+attribute values the documents hold.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import posixpath
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from urllib.parse import unquote, urlsplit
+
+from ...atomic import write_bytes_atomic
+from ...errors import SceneError
+from ...paths import cache_root, scratch_dir
+from .common import NS, XmlError, parse_xml, q
+
+SSD_NAME = "SystemStructure.ssd"
+MAX_XML_BYTES = 16 << 20  # an SSD, SSV or SSM of more is not a description
+MAX_FMU_BYTES = 2 << 30  # read into memory once, to hash and copy it
+_PREFIX = {v: k for k, v in NS.items()}
+_EXPONENTS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+
+
+class Doc:
+    """One XML file of the SSP: where it is (for messages and relative URIs) and its root."""
+
+    def __init__(self, label: str, base: str | Path, root):
+        self.label = label
+        self.base = base  # folder of the file: a posix path in the archive, or a Path
+        self.root = root
+
+    def key(self, el, attr: str | None = None) -> str:
+        ns, _, local = el.tag[1:].partition("}") if el.tag.startswith("{") else ("", "", el.tag)
+        tag = f"{_PREFIX[ns]}:{local}" if ns in _PREFIX else local
+        name = el.get("name")
+        what = f"{tag} {name!r}" if name is not None and attr != "name" else tag
+        if attr is not None:
+            value = el.get(attr)
+            what += f" {attr}" if value is None else f" {attr}={value!r}"
+        return f"line {el.sourceline}: {what}"
+
+    def fail(self, el, detail: str, attr: str | None = None) -> SceneError:
+        return SceneError(detail, self.label, self.key(el, attr))
+
+
+class Store:
+    """The files of an .ssp archive, or the directory of an .ssd file."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.zip: zipfile.ZipFile | None = None
+        self.digest = hashlib.sha256()  # of the archive, or of the SSD and every file it reads
+        if path.suffix.lower() == ".ssp":
+            if not zipfile.is_zipfile(path):
+                raise SceneError("expected an SSP archive: a zip file with SystemStructure.ssd at its root; "
+                                 "this is not a zip file", path)
+            try:
+                self.zip = zipfile.ZipFile(path)
+                names = self.zip.namelist()
+            except (zipfile.BadZipFile, OSError, ValueError) as e:
+                raise SceneError(f"expected an SSP archive: unreadable zip file ({e})", path) from None
+            for name in names:
+                parts = name.split("/")
+                if "\\" in name or name.startswith("/") or ".." in parts or (parts and ":" in parts[0]):
+                    raise SceneError("expected a relative path inside the archive (no '..', no absolute path, "
+                                     "no backslash)", path, f"archive entry {name!r}")
+            self.members = set(names)
+            if SSD_NAME not in self.members:
+                raise SceneError(f"expected {SSD_NAME} at the root of the archive; entries: "
+                                 f"{', '.join(sorted(self.members)[:8]) or 'none'}", path)
+
+    def close(self) -> None:
+        if self.zip is not None:
+            self.zip.close()
+
+    def label(self, member: str) -> str:
+        return f"{self.path}/{member}" if self.zip is not None else member
+
+    def resolve(self, doc: Doc, el, attr: str) -> str | Path:
+        """The file an element's URI attribute names, relative to the document that holds it."""
+        uri = el.get(attr)
+        parts = urlsplit(uri)
+        if parts.scheme not in ("", "file") or parts.netloc or parts.query or parts.fragment or not parts.path:
+            raise doc.fail(el, "expected a relative path (a URI without scheme, host, query or fragment)", attr)
+        rel = unquote(parts.path)
+        if self.zip is not None:
+            if rel.startswith("/") or parts.scheme:
+                raise doc.fail(el, "expected a path inside the archive, relative to the SSD", attr)
+            member = posixpath.normpath(posixpath.join(doc.base, rel))
+            if member == ".." or member.startswith("../"):
+                raise doc.fail(el, "expected a path inside the archive: this one leaves it", attr)
+            if member not in self.members:
+                raise doc.fail(el, f"no such file in the archive ({member})", attr)
+            return member
+        p = Path(rel)
+        p = p if p.is_absolute() else Path(doc.base) / p
+        if not p.is_file():
+            raise doc.fail(el, f"no such file: {p}", attr)
+        return p
+
+    def read(self, where: str | Path) -> bytes:
+        if self.zip is not None:
+            info = self.zip.getinfo(where)
+            if info.file_size > MAX_XML_BYTES:
+                raise SceneError(f"{info.file_size} bytes: an SSP XML file is at most {MAX_XML_BYTES} bytes",
+                                 self.label(where))
+            try:
+                return self.zip.read(where)
+            except (zipfile.BadZipFile, OSError, ValueError) as e:
+                raise SceneError(f"unreadable archive entry: {e}", self.label(where)) from None
+        try:
+            with open(where, "rb") as f:
+                data = f.read(MAX_XML_BYTES + 1)
+        except OSError as e:
+            raise SceneError(f"cannot read: {e.strerror}", where) from None
+        if len(data) > MAX_XML_BYTES:
+            raise SceneError(f"more than {MAX_XML_BYTES} bytes: not an SSP XML file", where)
+        self.digest.update(f"{where}\0{len(data)}\0".encode() + data)
+        return data
+
+    def doc(self, where: str | Path, root_tag: str) -> Doc:
+        label = self.label(where) if self.zip is not None else str(where)
+        base = posixpath.dirname(where) if self.zip is not None else Path(where).parent
+        try:
+            root = parse_xml(self.read(where))
+        except XmlError as e:
+            raise SceneError(str(e), label) from None
+        doc = Doc(label, base, root)
+        prefix, local = root_tag.split(":")
+        if root.tag != q(prefix, local):
+            ns, _, got = root.tag[1:].partition("}") if root.tag.startswith("{") else ("", "", root.tag)
+            if got == local:
+                raise doc.fail(root, f"expected the namespace {NS[prefix]}, got {ns or 'none'}")
+            raise doc.fail(root, f"expected the root element {root_tag} (namespace {NS[prefix]})")
+        return doc
+
+    def fmu(self, where: str | Path) -> Path:
+        """A path to the FMU: the file beside the SSD, or the archive's entry
+        copied once per content into the cache (the scratch folder without one)."""
+        if self.zip is None:
+            return Path(where)
+        size = self.zip.getinfo(where).file_size
+        if size > MAX_FMU_BYTES:
+            raise SceneError(f"{size} bytes unpacked: an FMU in an SSP archive is at most {MAX_FMU_BYTES} bytes here",
+                             self.label(where))
+        try:
+            data = self.zip.read(where)
+        except (zipfile.BadZipFile, OSError, ValueError) as e:
+            raise SceneError(f"unreadable archive entry: {e}", self.label(where)) from None
+        digest = hashlib.sha256(data).hexdigest()
+        for root in (cache_root(), None):
+            folder = (root / "ssp-fmus") if root is not None else (scratch_dir() / "ssp-fmus")
+            target = folder / f"{digest}.fmu"
+            try:
+                if not (target.is_file() and target.stat().st_size == len(data)):
+                    folder.mkdir(parents=True, exist_ok=True)
+                    write_bytes_atomic(target, data)
+                return target
+            except OSError:
+                if root is None:
+                    raise
+        raise AssertionError("unreachable")
+
+
+@dataclass(frozen=True)
+class Unit:
+    exponents: tuple[int, ...]
+    factor: float
+    offset: float
+
+
+def unit_table(doc: Doc, parent) -> dict[str, Unit]:
+    out = {}
+    if parent is None:
+        return out
+    for u in parent.iterfind(q("ssc", "Unit")):
+        name = u.get("name")
+        if not name:
+            raise doc.fail(u, "expected a name", "name")
+        base = u.find(q("ssc", "BaseUnit"))
+        if base is None:
+            raise doc.fail(u, "expected an ssc:BaseUnit child")
+        exps = []
+        for k in _EXPONENTS:
+            try:
+                exps.append(int(base.get(k, "0")))
+            except ValueError:
+                raise doc.fail(base, "expected an integer exponent", k) from None
+        out[name] = Unit(tuple(exps), number(doc, base, "factor", 1.0), number(doc, base, "offset", 0.0))
+    return out
+
+
+def fmu_units(md) -> dict[str, Unit]:
+    out = {}
+    for u in getattr(md, "unitDefinitions", None) or []:
+        b = u.baseUnit
+        if b is None:
+            out[u.name] = Unit((0,) * len(_EXPONENTS), 1.0, 0.0)
+        else:
+            out[u.name] = Unit(tuple(int(getattr(b, k, 0) or 0) for k in _EXPONENTS), float(b.factor),
+                                float(b.offset))
+    return out
+
+
+def conversion(src: str | None, dst: str | None, *tables: dict[str, Unit]) -> tuple[float, float] | str:
+    """(factor, offset) taking a value in `src` to `dst`, or what is missing (a string)."""
+    if src is None or dst is None or src == dst:
+        return 1.0, 0.0  # a dimensionless side is taken as it is
+    defs = []
+    for name in (src, dst):
+        d = next((t[name] for t in tables if name in t), None)
+        if d is None:
+            return f"the unit {name} has no definition (ssd:Units, the parameter set's ssv:Units or the FMU's)"
+        defs.append(d)
+    a, b = defs
+    if a.exponents != b.exponents:
+        return f"{src} cannot be converted to {dst} (different base units)"
+    if a.factor == b.factor and a.offset == b.offset:
+        return 1.0, 0.0
+    # base = factor * value + offset on each side
+    return a.factor / b.factor, (a.offset - b.offset) / b.factor
+
+
+def number(doc: Doc, el, attr: str, default: float | None = None) -> float:
+    text = el.get(attr)
+    if text is None:
+        if default is None:
+            raise doc.fail(el, "missing required attribute; expected a number", attr)
+        return default
+    try:
+        x = float(text)
+    except ValueError:
+        raise doc.fail(el, "expected a number", attr) from None
+    if not math.isfinite(x):
+        raise doc.fail(el, "expected a finite number", attr)
+    return x
+
+
+def boolean(doc: Doc, el, attr: str, default: bool = False) -> bool:
+    text = el.get(attr)
+    if text is None:
+        return default
+    if text.strip() in ("true", "1"):
+        return True
+    if text.strip() in ("false", "0"):
+        return False
+    raise doc.fail(el, "expected true or false", attr)
