@@ -1,6 +1,12 @@
-/* Pendulum: Ziemkiewicz Eq. (A2) with a sum of torque inputs.
+/* Pendulum: Ziemkiewicz Eq. (A2) with a sum of torque inputs, in air.
  *   phi' = w
- *   w'   = -(g g_factor / L) sin(phi) - (omega0 / Q) w + tau / (m L^2)
+ *   w'   = -(g g_factor / L_T) (m - m_b) / (m + m_a) sin(phi)
+ *          - (omega0 / Q) w + tau / ((m + m_a) L_T^2)
+ * with the buoyant mass m_b = rho V and the added mass of the entrained air
+ * m_a = rho V k + V c_bl sqrt(2 mu rho / omega0) / R (Nelson and Olsson
+ * 1986; Stokes 1851), V = m / rho_bob, and the length L_T = L (1 + alpha
+ * (T - T_ref)). With rho_air = 0 and alpha = 0 (the defaults) every factor
+ * is exactly 1 and the equation is Eq. (A2) bit for bit.
  * Ticks (upward zero crossings) and turning points are located on the
  * dense output of each accepted step, then the tick time is polished with
  * a full step of the same Runge-Kutta pair, so that period measurements do
@@ -20,10 +26,39 @@ static double torque(const cw_instance *inst, double t) {
            IN(tau_external, t);
 }
 
+/* The pendulum's factors at time t: the length at the rod's temperature,
+ * the mass that gravity pulls (bob minus buoyancy) and the mass that moves
+ * (bob plus entrained air). Inputs outside their ranges (an extrapolation
+ * may leave them) are clamped to the physical ones. */
+typedef struct {
+    double length, heavy_mass, inertial_mass;
+} air_factors;
+
+static air_factors factors(const cw_instance *inst, double t) {
+    const double rho = fmax(IN(rho_air, t), 0.0);
+    const double mu = fmax(IN(mu_air, t), 0.0);
+    const double volume = R(m) / R(bob_density);
+    double added = rho * R(added_mass_coefficient);
+    if (R(bob_radius) > 0) {
+        /* rho delta with delta = sqrt(2 mu / (rho omega0)): finite at rho = 0. */
+        const double omega0 = sqrt(R(g) / R(L));
+        added += R(boundary_layer_coefficient) * sqrt(2.0 * mu * rho / omega0) /
+                 R(bob_radius);
+    }
+    air_factors f;
+    f.length = R(L) * (1.0 + R(alpha) * (IN(temperature, t) - R(T_ref)));
+    f.heavy_mass = R(m) - rho * volume;
+    f.inertial_mass = R(m) + added * volume;
+    return f;
+}
+
 static double acceleration(const cw_instance *inst, double t, double phi,
                            double w) {
-    const double inertia = R(m) * R(L) * R(L);
-    return -(R(g) * IN(g_factor, t) / R(L)) * sin(phi) -
+    const air_factors f = factors(inst, t);
+    const double inertia = f.inertial_mass * f.length * f.length;
+    return -(R(g) * IN(g_factor, t) * (f.heavy_mass / f.inertial_mass) /
+             f.length) *
+               sin(phi) -
            damping_rate(inst) * w + torque(inst, t) / inertia;
 }
 
@@ -164,14 +199,18 @@ static int output_derivative(cw_instance *inst, unsigned vr, int order,
             return 1;
         }
         if (order == 2) {
-            /* da/dt, including the inputs' own first derivatives. */
-            const double inertia = R(m) * R(L) * R(L);
+            /* da/dt, including the torques' and g_factor's own first
+             * derivatives; the air and the temperature change so slowly
+             * (weather: hours) that their rates are left out. */
+            const air_factors f = factors(inst, t);
+            const double inertia = f.inertial_mass * f.length * f.length;
             double dtau = cw_input_rate(inst, VR_tau_escapement, t) +
                           cw_input_rate(inst, VR_tau_drag, t) +
                           cw_input_rate(inst, VR_tau_coupling, t) +
                           cw_input_rate(inst, VR_tau_external, t);
             double gf = IN(g_factor, t), dgf = cw_input_rate(inst, VR_g_factor, t);
-            *value = -(R(g) / R(L)) * (gf * cos(phi) * w + dgf * sin(phi)) -
+            *value = -(R(g) * (f.heavy_mass / f.inertial_mass) / f.length) *
+                         (gf * cos(phi) * w + dgf * sin(phi)) -
                      damping_rate(inst) * a + dtau / inertia;
             return 1;
         }
