@@ -98,7 +98,7 @@ class _Rates:
 
 
 def rate(ss: SteadyState) -> float:
-    """s/day, positive: the clock gains."""
+    """1 - T/T0 = -E_T in s/day, positive: the clock gains."""
     return -ss.E_T * DAY
 
 
@@ -109,13 +109,13 @@ def _system(scene, point, clock: Clock, air: str):
 
 def _closed_form_barometric(pp, rho: tuple[float, float, float], mu: tuple[float, float, float],
                             rate0: float, delta_hpa: float) -> float:
-    """s/day per hPa from buoyancy and added mass alone, the arc held:
-    rate = (1 + rate_vac) / f(rho) - 1 with f the period factor, so the
-    difference of two rates is (1 + rate0) f(rho0) (1/f(rho+) - 1/f(rho-))."""
+    """s/day per hPa from buoyancy and added mass alone, the arc held: with
+    T = T_vac f(rho), the rate 1 - T/T0 changes by -(T_vac/T0) df, and
+    T_vac/T0 = (1 - rate0) / f(rho0)."""
     omega0 = math.sqrt(pp["g"] / pp["L"])
     f = [airphys.period_factor(r, m, pp["m"], pp["bob_density"], pp["added_mass_coefficient"], pp["bob_radius"],
                                pp["boundary_layer_coefficient"], omega0) for r, m in zip(rho, mu)]
-    return (1.0 + rate0 / DAY) * f[1] * (1.0 / f[2] - 1.0 / f[0]) * DAY / (2.0 * delta_hpa)
+    return (1.0 - rate0 / DAY) / f[1] * (f[0] - f[2]) * DAY / (2.0 * delta_hpa)
 
 
 def barometric_point(scene, point: dict, clock: Clock, rates: _Rates, air: str, delta_hpa: float) -> dict:
@@ -133,6 +133,8 @@ def barometric_point(scene, point: dict, clock: Clock, rates: _Rates, air: str, 
         "arc_s_per_day_per_hPa": coefficient - buoyancy,
         "amplitude_deg_per_hPa": math.degrees(hi.amplitude - lo.amplitude) / (2.0 * delta_hpa),
         "density_kg_per_m3": rho0,
+        "density_minus_kg_per_m3": rho_lo,  # at pressure_hPa - delta_hPa
+        "density_plus_kg_per_m3": rho_hi,
         "viscosity_Pa_s": mu0,
         "pressure_hPa": p0 / HPA,
         "delta_hPa": delta_hpa,
@@ -294,8 +296,8 @@ class _Surface:
 def _accumulated(rate_s_per_day: np.ndarray, regulated_s_per_day: float, dt: np.ndarray) -> np.ndarray:
     """Clock error (s, positive: ahead) at each sample, the rates held over
     each interval: the clock regulated to keep time at `regulated_s_per_day`
-    runs T_reg / T - 1 = (1 + r/DAY) / (1 + r_reg/DAY) - 1 fast."""
-    fast = (1.0 + rate_s_per_day / DAY) / (1.0 + regulated_s_per_day / DAY) - 1.0
+    runs T_reg / T - 1 fast, with T = T0 (1 - r/DAY)."""
+    fast = (1.0 - regulated_s_per_day / DAY) / (1.0 - rate_s_per_day / DAY) - 1.0
     return np.concatenate([[0.0], np.cumsum(fast[:-1] * dt)])
 
 
@@ -398,7 +400,7 @@ def _year(scene, point, cfg, clock, rates, air, weather, series, torque) -> dict
         f = np.array([airphys.period_factor(rho, mu, pp["m"], pp["bob_density"], pp["added_mass_coefficient"],
                                             pp["bob_radius"], pp["boundary_layer_coefficient"], omega0)
                       for rho, mu in zip(surface("density", p, T), surface("viscosity", p, T))])
-        vacuum_ss = (1.0 + r / DAY) * f - 1.0
+        vacuum_ss = 1.0 - (1.0 - r / DAY) / f  # the rate 1 - T_vac/T0 of the same arc in vacuum
         vacuum = np.empty_like(vacuum_ss)
         vacuum[0] = vacuum_ss[0]
         decay = np.exp(-dt / relax)
@@ -408,7 +410,7 @@ def _year(scene, point, cfg, clock, rates, air, weather, series, torque) -> dict
             mean_over_step[k] = vacuum_ss[k] + gap * relax * (1.0 - decay[k]) / dt[k]
             vacuum[k + 1] = vacuum_ss[k] + gap * decay[k]
         mean_over_step[-1] = vacuum_ss[-1]
-        lagged = _accumulated(((1.0 + mean_over_step) / f - 1.0) * DAY, regulated, dt)
+        lagged = _accumulated((1.0 - (1.0 - mean_over_step) * f) * DAY, regulated, dt)
         series[f"error_{name}_s"] = error
         series[f"rate_{name}_s_per_day"] = r - regulated
         out.update({
