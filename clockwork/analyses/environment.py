@@ -37,6 +37,7 @@ from ..engine.shooting import Shooter
 from ..errors import SimulationError
 from ..physics import air as airphys
 from ..physics import analytic
+from ..scene.kinds import Invalid
 from . import keys
 from .context import build_system, find_component
 from .registry import register
@@ -346,7 +347,15 @@ def _cosimulate(scene, point, clock: Clock, rates: _Rates, air: str, weather: di
     return ticks * regulated_period - (last - t0), last - t0, ticks
 
 
-_YEAR_KEYS = dict(_COMMON, delta_hPa=keys.positive_number, days=keys.positive_number, seed=keys.nonnegative_int,
+def _days(key: str, v) -> float:
+    """A positive number of days, at most ten years (an hourly series)."""
+    days = keys.positive_number(key, v)
+    if days > 3660:
+        raise Invalid(key, "a number of days in (0, 3660]")
+    return days
+
+
+_YEAR_KEYS = dict(_COMMON, delta_hPa=keys.positive_number, days=_days, seed=keys.nonnegative_int,
                   check_hours=keys.nonnegative_int, grid_hPa=keys.positive_number, grid_K=keys.positive_number,
                   seasonal_hPa=keys.nonnegative_number, synoptic_hPa=keys.nonnegative_number,
                   seasonal_K=keys.nonnegative_number, synoptic_K=keys.nonnegative_number)
@@ -438,6 +447,6 @@ def _year(scene, point, cfg, clock, rates, air, weather, series, torque) -> dict
     out["days"] = float(t[-1] / DAY)
     out["pressure_rms_hPa"] = float(np.std(series["pressure_hPa"]))
     out["temperature_rms_K"] = float(np.std(series["temperature_C"]))
-    series["time"] = t / DAY
+    series["day"] = t / DAY
     return {"kind": "weather_year", "result": out, "series": {k: list(map(float, v)) for k, v in series.items()},
             "statistics": stats}

@@ -36,6 +36,7 @@ from pathlib import Path
 import pytest
 
 from cwtest import FMU_DIR, fmu_file
+from clockwork.errors import SceneError
 from clockwork.physics import air as airphys
 from clockwork.results.headlines import HEADLINES, headlines_for
 from clockwork.results.headlines.environment import compensating_arc
@@ -83,6 +84,25 @@ def test_scene_loads_with_headlines(stem):
     sc = scene(stem)
     assert sc.path.stem in HEADLINES
     assert "Air" in {c.model_description.modelName for c in sc.components.values()}
+
+
+@pytest.mark.parametrize("stem, override", [
+    ("air_barometric_ziemkiewicz", "analysis.delta_hPa=0"),
+    ("air_barometric_ziemkiewicz", "analysis.delta_K=2"),
+    ("air_thermal", "analysis.delta_K=-1"),
+    ("air_thermal", "analysis.tolerance_s_per_day=0"),
+    ("air_weather_year", "analysis.days=0"),
+    ("air_weather_year", "analysis.days=1e6"),
+    ("air_weather_year", "analysis.check_hours=1.5"),
+    ("air_weather_year", "analysis.seed=-1"),
+    ("air_weather_year", "analysis.grid_K=nan"),
+    ("air_weather_year", "analysis.synoptic_hPa=-3"),
+    ("air_weather_year", "air.humidity=2"),
+])
+def test_bad_analysis_values_are_refused(stem, override):
+    with pytest.raises(SceneError) as e:
+        scene(stem, override)
+    assert override.split("=")[0] in str(e.value)
 
 
 @pytest.mark.parametrize("torque_ncm", [0.1, 0.5])
@@ -167,4 +187,4 @@ def test_weather_year_averaged_model_against_cosimulation():
         assert 100 < res[f"{name}_relaxation_time_s"] < 1000  # Q/omega0 = 319 s without the air's damping
     # The compensating arc keeps the clock steadier.
     assert res["compensating_rate_rms_s_per_day"] < 0.5 * res["scene_rate_rms_s_per_day"]
-    assert len(r["series"]["time"]) == 30 * 24 + 1
+    assert len(r["series"]["time"]) == 30 * 24 + 1 and r["series"]["day"][-1] == 30.0
