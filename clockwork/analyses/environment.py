@@ -74,7 +74,6 @@ class _Rates:
         self.shooter = Shooter(system.master, clock.params, clock.pendulum, clock.params[clock.pendulum],
                                max_period_factor=float(cfg.get("max_periods", 3)))
         self.guess = clock.guess
-        self.T0 = self.shooter.T0
         self.base: dict[tuple[str, str], float] = {}  # changes every steady state gets
 
     def parameters(self, changes: dict[tuple[str, str], float]) -> dict[str, dict]:
@@ -119,7 +118,7 @@ def _closed_form_barometric(pp, rho: tuple[float, float, float], mu: tuple[float
     return (1.0 - rate0 / DAY) / f[1] * (f[0] - f[2]) * DAY / (2.0 * delta_hpa)
 
 
-def barometric_point(scene, point: dict, clock: Clock, rates: _Rates, air: str, delta_hpa: float) -> dict:
+def barometric_point(clock: Clock, rates: _Rates, air: str, delta_hpa: float) -> dict:
     p0 = clock.params[air]["pressure"]
     states = [rates.at({(air, "pressure"): p0 + k * delta_hpa * HPA}) for k in (-1, 0, 1)]
     (lo, rho_lo, mu_lo), (mid, rho0, mu0), (hi, rho_hi, mu_hi) = states
@@ -155,7 +154,7 @@ def barometric_coefficient(scene, point: dict, progress: bool = False) -> dict:
     with _system(scene, point, clock, air) as system:
         rates = _Rates(scene, clock, system, air)
         try:
-            out = barometric_point(scene, point, clock, rates, air, cfg.get("delta_hPa", 10.0))
+            out = barometric_point(clock, rates, air, cfg.get("delta_hPa", 10.0))
         except Stalled as e:
             out = e.state.as_dict()
         stats = rates.statistics()
@@ -218,7 +217,8 @@ def _compensating_torque(clock: Clock, rates: _Rates, air: str, delta_hpa: float
     """The escapement torque (N.m) at which the barometric coefficient is
     zero: a bracket by doubling or halving from `torque`, then Illinois
     steps on log(torque) until the coefficient is below 1e-6 s/day per hPa
-    (or the bracket below 1e-9 relative). Also the coefficients computed."""
+    (or the bracket below 1e-9 relative). Returns the torque and how many
+    coefficients it took (two steady states each)."""
     p0 = clock.params[air]["pressure"]
     esc = clock.escapement
     count = [0]
@@ -320,7 +320,7 @@ def _relaxation_time(rates: _Rates, clock: Clock, torque: float, centre: SteadyS
     return centre.period * pp["m"] * pp["g"] * pp["L"] * centre.amplitude * dA_dtau / (4.0 * phi_r)
 
 
-def _cosimulate(scene, point, clock: Clock, rates: _Rates, air: str, weather: dict, hours: int,
+def _cosimulate(clock: Clock, rates: _Rates, air: str, weather: dict, hours: int,
                 regulated_period: float) -> tuple[float, float, int]:
     """Run the clock through the first `hours` of the weather, each hour's
     pressure and temperature held (set on the unconnected inputs), from the
@@ -379,15 +379,15 @@ def weather_year(scene, point: dict, progress: bool = False) -> dict:
     with _system(scene, point, clock, air) as system:
         rates = _Rates(scene, clock, system, air)
         try:
-            return _year(scene, point, cfg, clock, rates, air, weather, series, torque)
+            return _year(cfg, clock, rates, air, weather, series, torque)
         except Stalled as e:
             raise SimulationError(f"weather_year: the clock stalls ({e.state.reason})") from None
 
 
-def _year(scene, point, cfg, clock, rates, air, weather, series, torque) -> dict:
+def _year(cfg, clock: Clock, rates: _Rates, air: str, weather: dict, series: dict, torque: float) -> dict:
     t = weather["time"]
     dt = np.diff(t)
-    check_hours = min(cfg.get("check_hours", 24), len(t) - 1)
+    check_hours = min(cfg.get("check_hours", 3), len(t) - 1)
     out = {}
     compensating, evaluations = _compensating_torque(clock, rates, air, cfg.get("delta_hPa", 10.0), torque)
     out["compensating_search_evaluations"] = evaluations
@@ -433,7 +433,7 @@ def _year(scene, point, cfg, clock, rates, air, weather, series, torque) -> dict
             f"{name}_surface_fit_rms_s_per_day": surface.residual,
         })
         if check_hours > 0:
-            cosim, elapsed, ticks = _cosimulate(scene, point, clock, rates, air, weather, check_hours,
+            cosim, elapsed, ticks = _cosimulate(clock, rates, air, weather, check_hours,
                                                 centre.period)
             out.update({
                 f"{name}_check_hours": check_hours,
