@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-SECONDS_PER_DAY = 86400.0
+from .analytic import SECONDS_PER_DAY
 PA_PER_HPA = 100.0
 PA_PER_INHG = 3386.389  # one conventional inch of mercury (0 degC, standard gravity)
 
@@ -33,8 +33,8 @@ PA_PER_INHG = 3386.389  # one conventional inch of mercury (0 degC, standard gra
 MATTHYS_S_PER_DAY_PER_INHG = (0.2, 0.4)
 TRINITY_S_PER_DAY_PER_HPA = -8.6e-3
 
-# Expansion coefficients of the rod (1/K): Matthys (2004), tables of
-# pendulum-rod materials.
+# Expansion coefficients of the rod (1/K): typical handbook values for
+# carbon steel and Invar 36.
 ALPHA_STEEL = 11.5e-6
 ALPHA_INVAR = 1.2e-6
 
