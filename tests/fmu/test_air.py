@@ -2,7 +2,7 @@
 against their closed forms.
 
 Air: CIPM-2007 density (Picard et al., Metrologia 45, 149 (2008)) and
-Sutherland's viscosity with White's constants. Pendulum: a free, undamped
+Sutherland's viscosity with the usual constants for air. Pendulum: a free, undamped
 pendulum in still air swings with the period of the vacuum scaled by
 sqrt((m + m_a)/(m - rho V)) (buoyancy and added mass, Nelson and Olsson
 1986) and by sqrt(1 + alpha dT) (the rod), exactly: the equation is the

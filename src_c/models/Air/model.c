@@ -10,18 +10,18 @@
 static const double GAS_CONSTANT = 8.314472;      /* J/(mol K), CIPM-2007 */
 static const double MOLAR_MASS_VAPOUR = 18.01528e-3; /* kg/mol */
 
-/* Saturation vapour pressure over water, Pa (CIPM-2007 Eq. A1.1). */
+/* Saturation vapour pressure over water, Pa (CIPM-2007). */
 static double saturation_vapour_pressure(double T) {
     return exp(1.2378847e-5 * T * T - 1.9121316e-2 * T + 33.93711047 -
                6.3431645e3 / T);
 }
 
-/* Enhancement factor f(p, t) (Eq. A1.2), t in degrees Celsius. */
+/* Enhancement factor f(p, t) (CIPM-2007), t in degrees Celsius. */
 static double enhancement_factor(double p, double t) {
     return 1.00062 + 3.14e-8 * p + 5.6e-7 * t * t;
 }
 
-/* Compressibility factor Z (Eq. A1.4). */
+/* Compressibility factor Z (CIPM-2007). */
 static double compressibility(double p, double T, double xv) {
     const double t = T - 273.15;
     const double a = 1.58123e-6 - 2.9331e-8 * t + 1.1043e-10 * t * t;
