@@ -212,7 +212,6 @@ def thermal_coefficient(scene, point: dict, progress: bool = False) -> dict:
 # ------------------------------------------------------------ a year of weather
 
 
-
 def _compensating_torque(clock: Clock, rates: _Rates, air: str, delta_hpa: float, torque: float) -> tuple[float, int]:
     """The escapement torque (N.m) at which the barometric coefficient is
     zero: a bracket by doubling or halving from `torque`, then Illinois
