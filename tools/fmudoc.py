@@ -315,8 +315,19 @@ def _averaged(c: _Canvas):
     c.polyline(pts, 2.5, INK)
 
 
+def _air(c: _Canvas):
+    # A thermometer beside three streams of air.
+    c.rounded_rect(88, 18, 102, 96, 7, (255, 255, 255, 255))
+    c.line(95, 30, 95, 96, 5.0, (190, 60, 50, 255))
+    c.disk(95, 102, 11.0, (190, 60, 50, 255))
+    c.ring(95, 102, 11.0, 2.0, INK)
+    for k, y in enumerate((36.0, 62.0, 88.0)):
+        pts = [(14 + x, y + 5.0 * math.sin(0.3 * x + k)) for x in range(0, 62, 2)]
+        c.polyline(pts, 3.0, AIR)
+
+
 ICONS = {"pendulum": _pendulum, "escapement": _gear, "drag": _drag,
-         "vibration": _spring, "averaged": _averaged}
+         "vibration": _spring, "averaged": _averaged, "air": _air}
 
 
 def generate_png(kind: str, size: int = 128) -> bytes:

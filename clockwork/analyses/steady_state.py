@@ -36,6 +36,7 @@ class SteadyState:
     rate_change: float = math.nan  # last change of T/T0 between iterates
     tolerance: float = math.nan  # asked-for tolerance on E_T (dimensionless)
     reason: str = ""
+    speed: float = math.nan  # rad/s, the orbit's speed on the section (phi = 0, upward)
 
     def as_dict(self) -> dict:
         d = {
@@ -109,6 +110,7 @@ def find_steady_state(shooter: Shooter, amplitude_guess: float, phi_r: float | N
         stalled=False, amplitude=amplitude, amplitude_right=a_right, amplitude_left=a_left,
         period=T, E_T=E_T, E_C=E_C, E_E=E_T - E_C, iterations=iterations,
         residual=abs(orbit.W_end - orbit.W), rate_change=orbit.rate_change, tolerance=tolerance,
+        speed=orbit.W,
     )
 
 
@@ -116,13 +118,25 @@ _KEYS = {"tolerance_s_per_day": keys.positive_number, "max_periods": keys.positi
          "measure_periods": keys.positive_int, "amplitude_guess": keys.angle}
 
 
-@register("steady_state", {"tolerance_s_per_day", "max_periods", "measure_periods", "amplitude_guess"},
-          keys.table_converter(_KEYS))
-def steady_state(scene, point: dict, progress: bool = False) -> dict:
+@dataclass
+class Clock:
+    """A scene's clock at a sweep point, as the steady-state analyses see it."""
+
+    pendulum: str
+    escapement: str | None
+    escapement_model: str | None
+    params: dict  # {instance: Parameters}
+    min_amplitude: float | None  # rad: a swing must exceed it (phi_r, alpha_m2)
+    guess: float | None  # rad, the first amplitude guess
+    tolerance: float  # relative, on the period
+
+
+def clock_at(scene, point: dict, analysis: str) -> Clock:
+    """The pendulum, escapement, parameters, amplitude guess and tolerance."""
     cfg = scene.analysis or {}
     pendulum = find_component(scene, "Pendulum")
     if pendulum is None:
-        raise SimulationError("the steady_state analysis needs a Pendulum component")
+        raise SimulationError(f"the {analysis} analysis needs a Pendulum component")
     escapement = find_component(scene, ESCAPEMENTS)
     params = parameters(scene, point)
     pp = params[pendulum]
@@ -135,8 +149,20 @@ def steady_state(scene, point: dict, progress: bool = False) -> dict:
         a_min = max(esc["alpha_m2"], 0.0)
     guess = cfg.get("amplitude_guess") or energy_balance_amplitude(pp, esc_model, esc)
     if guess is None:
-        raise SimulationError("steady_state: give analysis.amplitude_guess (no energy balance for this escapement)")
+        raise SimulationError(f"{analysis}: give analysis.amplitude_guess (no energy balance for this escapement)")
     tolerance = cfg.get("tolerance_s_per_day", 1e-3) / analytic.SECONDS_PER_DAY
+    return Clock(pendulum, escapement, esc_model, params, a_min, guess, tolerance)
+
+
+@register("steady_state", {"tolerance_s_per_day", "max_periods", "measure_periods", "amplitude_guess"},
+          keys.table_converter(_KEYS))
+def steady_state(scene, point: dict, progress: bool = False) -> dict:
+    cfg = scene.analysis or {}
+    clock = clock_at(scene, point, "steady_state")
+    pendulum, escapement, esc_model, params = clock.pendulum, clock.escapement, clock.escapement_model, clock.params
+    pp = params[pendulum]
+    esc = params.get(escapement, {})
+    guess, tolerance = clock.guess, clock.tolerance
     system = build_system(scene, point, record={pendulum: ["tick_time", "tick_w", "amplitude"]})
     with system:
         shooter = Shooter(system.master, params, pendulum, pp,
@@ -144,7 +170,7 @@ def steady_state(scene, point: dict, progress: bool = False) -> dict:
         if guess <= 0:
             result = None
         else:
-            result = find_steady_state(shooter, guess, a_min, tolerance=tolerance)
+            result = find_steady_state(shooter, guess, clock.min_amplitude, tolerance=tolerance)
         stats = vars(system.master.stats).copy()
     if result is None:
         result = SteadyState(stalled=True, tolerance=tolerance, reason="no driving torque")

@@ -29,8 +29,12 @@ POINTS = {
     "Pendulum": [
         ({}, {"tau_external": 0.01}),
         ({"phi_start": -0.3, "w_start": 0.5, "Q": 50.0}, {"tau_drag": -0.02, "g_factor": 1.2}),
+        ({"phi_start": 0.2, "w_start": 0.3, "bob_radius": 0.03, "alpha": 1e-5, "bob_density": 2000.0},
+         {"tau_external": 0.01, "rho_air": 1.2, "mu_air": 1.8e-5, "temperature": 300.0}),
     ],
-    "Drag": [({"c1": 0.01, "c2": 0.02}, {"w": 0.3})],
+    "Drag": [({"c1": 0.01, "c2": 0.02}, {"w": 0.3}),
+             ({"bob_radius": 0.03}, {"w": 0.3, "rho_air": 1.2, "mu_air": 1.8e-5})],
+    "Air": [({}, {}), ({"x_CO2": 0.0005}, {"pressure": 95000.0, "temperature": 300.0, "humidity": 0.8})],
     "ChronometerEscapement": [({}, {"phi": 0.0, "w": 0.2})],
     "GrasshopperEscapement": [
         ({}, {}),

@@ -17,7 +17,7 @@ import pytest
 from cwtest import fmu_file
 from fmu_driver import unpack
 
-MODELS = ["AveragedPendulum", "ChronometerEscapement", "Drag", "GrasshopperEscapement",
+MODELS = ["Air", "AveragedPendulum", "ChronometerEscapement", "Drag", "GrasshopperEscapement",
           "MechanismVibration", "Pendulum"]
 VOID = {"meta", "br", "hr", "img", "link", "input", "wbr", "col", "area", "base", "source"}
 

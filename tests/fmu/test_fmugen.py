@@ -68,25 +68,25 @@ def test_callback_names_are_known(drag):
 def test_dependency_declarations_are_checked(drag):
     toml = drag / "model.toml"
     original = toml.read_text()
-    _edit(toml, 'depends_on = ["w"]', 'depends_on = ["c1"]')
+    _edit(toml, 'depends_on = ["w", "rho_air", "mu_air"]', 'depends_on = ["c1"]')
     _refused(drag, "depends_on 'c1'", "neither an input nor a state")
     toml.write_text(original)
-    _edit(toml, 'depends_on = ["w"]', 'depends_on = { w = "linear" }')
+    _edit(toml, 'depends_on = ["w", "rho_air", "mu_air"]', 'depends_on = { w = "linear" }')
     _refused(drag, "dependency kind 'linear'")
     toml.write_text(original)
-    _edit(toml, 'initial_depends_on = ["c1", "c2", "w"]', 'initial_depends_on = ["c1", "tau"]')
+    _edit(toml, 'initial_depends_on = ["c1", "c2", "bob_radius", "arm", "drag_coefficient", "omega", "w", "rho_air", "mu_air"]', 'initial_depends_on = ["c1", "tau"]')
     _refused(drag, "initial_depends_on 'tau'", "neither an input nor a parameter")
 
 
 def test_dependencies_are_in_index_order(drag, tmp_path):
-    _edit(drag / "model.toml", 'initial_depends_on = ["c1", "c2", "w"]',
-          'initial_depends_on = ["w", "c2", "c1"]')
+    _edit(drag / "model.toml", 'initial_depends_on = ["c1", "c2", "bob_radius", "arm", "drag_coefficient", "omega", "w", "rho_air", "mu_air"]',
+          'initial_depends_on = ["mu_air", "w", "c2", "c1"]')
     assert fmugen.main([str(drag), str(tmp_path / "gen")]) == 0
     root = ET.parse(tmp_path / "gen" / "modelDescription.xml").getroot()
     (unknown,) = root.find("ModelStructure/InitialUnknowns")
     deps = [int(k) for k in unknown.get("dependencies").split()]
-    assert deps == sorted(deps) and len(deps) == 3
-    assert unknown.get("dependenciesKind") == "dependent dependent dependent"
+    assert deps == sorted(deps) and len(deps) == 4
+    assert unknown.get("dependenciesKind") == "dependent dependent dependent dependent"
 
 
 def test_enumerations_states_and_fmi_names(drag, tmp_path):

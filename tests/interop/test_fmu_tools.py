@@ -21,7 +21,7 @@ from interop_common import (FMU_DIR, RELATIVE_TOLERANCE, console_tool, fmutool_c
                              require, scene)
 
 MODELS = ["Pendulum", "GrasshopperEscapement", "ChronometerEscapement", "Drag", "MechanismVibration",
-          "AveragedPendulum"]
+          "AveragedPendulum", "Air"]
 
 
 @pytest.mark.parametrize("model", MODELS)

@@ -1,6 +1,12 @@
-/* Pendulum: Ziemkiewicz Eq. (A2) with a sum of torque inputs.
+/* Pendulum: Ziemkiewicz Eq. (A2) with a sum of torque inputs, in air.
  *   phi' = w
- *   w'   = -(g g_factor / L) sin(phi) - (omega0 / Q) w + tau / (m L^2)
+ *   w'   = -(g g_factor / L_T) (m - m_b) / (m + m_a) sin(phi)
+ *          - (omega0 / Q) w + tau / ((m + m_a) L_T^2)
+ * with the buoyant mass m_b = rho V and the added mass of the entrained air
+ * m_a = rho V k + V c_bl sqrt(2 mu rho / omega0) / R (Nelson and Olsson
+ * 1986; Stokes 1851), V = m / rho_bob, and the length L_T = L (1 + alpha
+ * (T - T_ref)). With rho_air = 0 and alpha = 0 (the defaults) every factor
+ * is exactly 1 and the equation is Eq. (A2) bit for bit.
  * Ticks (upward zero crossings) and turning points are located on the
  * dense output of each accepted step, then the tick time is polished with
  * a full step of the same Runge-Kutta pair, so that period measurements do
@@ -20,17 +26,71 @@ static double torque(const cw_instance *inst, double t) {
            IN(tau_external, t);
 }
 
-static double acceleration(const cw_instance *inst, double t, double phi,
-                           double w) {
-    const double inertia = R(m) * R(L) * R(L);
-    return -(R(g) * IN(g_factor, t) / R(L)) * sin(phi) -
+/* The pendulum's factors at time t: the length at the rod's temperature,
+ * the mass that gravity pulls (bob minus buoyancy) and the mass that moves
+ * (bob plus entrained air). Inputs outside their ranges (an extrapolation
+ * may leave them) are clamped to the physical ones. */
+typedef struct {
+    double length, inertial_mass;
+    double weight_ratio; /* (m - m_b) / (m + m_a): gravity's share */
+} air_factors;
+
+static air_factors factors(const cw_instance *inst, double t) {
+    const double rho = fmax(IN(rho_air, t), 0.0);
+    const double mu = fmax(IN(mu_air, t), 0.0);
+    const double volume = R(m) / R(bob_density);
+    double added = rho * R(added_mass_coefficient);
+    if (R(bob_radius) > 0) {
+        /* rho delta with delta = sqrt(2 mu / (rho omega0)): finite at rho = 0. */
+        const double omega0 = sqrt(R(g) / R(L));
+        added += R(boundary_layer_coefficient) * sqrt(2.0 * mu * rho / omega0) /
+                 R(bob_radius);
+    }
+    air_factors f;
+    f.length = R(L) * (1.0 + R(alpha) * (IN(temperature, t) - R(T_ref)));
+    f.inertial_mass = R(m) + added * volume;
+    f.weight_ratio = (R(m) - rho * volume) / f.inertial_mass;
+    return f;
+}
+
+/* The air and the temperature hold still over a step unless the master
+ * gave their inputs derivatives: then the factors are computed once. */
+static int air_is_steady(const cw_instance *inst) {
+    static const unsigned vrs[] = {VR_rho_air, VR_mu_air, VR_temperature};
+    for (int k = 0; k < 3; k++)
+        if (inst->in_d1[vrs[k]] != 0.0 || inst->in_d2[vrs[k]] != 0.0) return 0;
+    return 1;
+}
+
+static double accelerate(const cw_instance *inst, const air_factors *f,
+                         double t, double phi, double w) {
+    const double inertia = f->inertial_mass * f->length * f->length;
+    return -(R(g) * IN(g_factor, t) * f->weight_ratio / f->length) * sin(phi) -
            damping_rate(inst) * w + torque(inst, t) / inertia;
 }
 
+static double acceleration(const cw_instance *inst, double t, double phi,
+                           double w) {
+    const air_factors f = factors(inst, t);
+    return accelerate(inst, &f, t, phi, w);
+}
+
+/* What the right-hand side needs over one fmi2DoStep. */
+typedef struct {
+    cw_instance *inst;
+    int steady;       /* factors fixed over the step */
+    air_factors fixed;
+} step_context;
+
 static void rhs(void *ctx, double t, const double *x, double *dx) {
-    const cw_instance *inst = ctx;
+    const step_context *c = ctx;
     dx[0] = x[1];
-    dx[1] = acceleration(inst, t, x[0], x[1]);
+    if (c->steady) {
+        dx[1] = accelerate(c->inst, &c->fixed, t, x[0], x[1]);
+    } else {
+        const air_factors f = factors(c->inst, t);
+        dx[1] = accelerate(c->inst, &f, t, x[0], x[1]);
+    }
 }
 
 static void initialize(cw_instance *inst) {
@@ -82,7 +142,7 @@ static double dense_root(const cw_rk *rk, int c) {
 }
 
 static int observe_step(void *ctx, const cw_rk *rk) {
-    cw_instance *inst = ctx;
+    cw_instance *inst = ((step_context *)ctx)->inst;
     const double phi0 = rk->x0[0], phi1 = rk->x1[0];
     const double w0 = rk->x0[1], w1 = rk->x1[1];
     if (phi0 < 0.0 && phi1 >= 0.0) {
@@ -90,7 +150,7 @@ static int observe_step(void *ctx, const cw_rk *rk) {
         /* Polish: integrate exactly to t and take Newton steps on phi. */
         double x[2] = {0.0, rk->x1[1]};
         for (int it = 0; it < 2; it++) {
-            cw_rk_single_step_with(rk->method, 2, rhs, inst, rk->t0, rk->x0,
+            cw_rk_single_step_with(rk->method, 2, rhs, ctx, rk->t0, rk->x0,
                                    t - rk->t0, x);
             if (x[1] == 0.0) break;
             double dt = -x[0] / x[1];
@@ -119,13 +179,14 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
     cw_rk_set_method(&rk, I(integrator));
     double x[2] = {inst->s[S_PHI], inst->s[S_W]};
     double t = inst->time, h_next = inst->s[S_H_NEXT];
+    step_context ctx = {inst, air_is_steady(inst), factors(inst, t)};
     /* Tick outputs are updated by the observer; keep them for a retry. */
     const int ticks = I(tick_count), turns = I(turn_count);
     const double tick_w = R(tick_w);
     const double tick_time = R(tick_time), period = R(period),
                  amplitude = R(amplitude);
     cw_rk_result res =
-        cw_rk_advance(&rk, rhs, inst, &t, t_end, x, &h_next, observe_step, inst);
+        cw_rk_advance(&rk, rhs, &ctx, &t, t_end, x, &h_next, observe_step, &ctx);
     if (res != CW_RK_OK || !isfinite(x[0]) || !isfinite(x[1])) {
         I(tick_count) = ticks;
         I(turn_count) = turns;
@@ -164,14 +225,18 @@ static int output_derivative(cw_instance *inst, unsigned vr, int order,
             return 1;
         }
         if (order == 2) {
-            /* da/dt, including the inputs' own first derivatives. */
-            const double inertia = R(m) * R(L) * R(L);
+            /* da/dt, including the torques' and g_factor's own first
+             * derivatives; the air and the temperature change so slowly
+             * (weather: hours) that their rates are left out. */
+            const air_factors f = factors(inst, t);
+            const double inertia = f.inertial_mass * f.length * f.length;
             double dtau = cw_input_rate(inst, VR_tau_escapement, t) +
                           cw_input_rate(inst, VR_tau_drag, t) +
                           cw_input_rate(inst, VR_tau_coupling, t) +
                           cw_input_rate(inst, VR_tau_external, t);
             double gf = IN(g_factor, t), dgf = cw_input_rate(inst, VR_g_factor, t);
-            *value = -(R(g) / R(L)) * (gf * cos(phi) * w + dgf * sin(phi)) -
+            *value = -(R(g) * f.weight_ratio / f.length) *
+                         (gf * cos(phi) * w + dgf * sin(phi)) -
                      damping_rate(inst) * a + dtau / inertia;
             return 1;
         }
