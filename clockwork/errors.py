@@ -56,6 +56,11 @@ class SimulationError(ClockworkError):
         super().__init__(prefix + self.message)
 
 
+class SimulationEnded(SimulationError):
+    """An FMU asked to end the simulation (FMI 3.0 terminateSimulation) at
+    `time` (s): a run that ends there, not a failure of the master."""
+
+
 class ParametersRefused(SimulationError):
     """An FMU refused the parameter values it was given (setting them, or its
     cross-parameter checks at the end of initialization): bad input, which the

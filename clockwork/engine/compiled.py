@@ -26,6 +26,7 @@ from ctypes import POINTER, Structure, byref, c_double, c_int, c_longlong, c_siz
 from ..errors import SceneError, SimulationError
 from ..paths import core_library
 from .fmu import Instance
+from .fmu3 import _Events
 from .master import Master
 from .recording import Recorder, _DiscreteOutput
 from .settings import MasterSettings, Statistics
@@ -79,7 +80,8 @@ class _Master(_Strict):
         ["n_ports", "n_first", "n_dynamic", "n_first_in_order", "n_final", "n_buffer", "n_z",
          "cap_since", "jacobi", "extrapolation", "locating", "has_sources", "after_event",
          "after_event_step", "sample_countdown", "prev_valid", "stale_sources", "snap_valid",
-         "snap_after_event", "n_since", "max_replay_steps", "diverged", "err_port", "err_call", "err_status"])
+         "snap_after_event", "n_since", "max_replay_steps", "diverged", "err_port", "err_call", "err_status"]
+    ) + [("n_fmi3", c_int), ("fmi3", c_void_p)]  # FMI 3.0 adapters (fmu3._Events), whose time events cap the step
 
 
 class _Recorder(_Strict):
@@ -108,7 +110,7 @@ def load_core():
             except OSError as e:
                 _lib_error = f"the compiled core {path} cannot be loaded ({e}); build it with tools/setup.sh"
                 return None
-            for name, struct in (("port", _Port), ("master", _Master), ("recorder", _Recorder)):
+            for name, struct in (("port", _Port), ("master", _Master), ("recorder", _Recorder), ("fmi3", _Events)):
                 size = getattr(lib, f"cw_sizeof_{name}")
                 size.restype = c_size_t
                 if size() != ctypes.sizeof(struct):
@@ -155,6 +157,14 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
         if settings.engine == "compiled":
             raise SceneError(f"master.engine = 'compiled': {reason} (use 'auto' or 'python')")
     return Master(instances, links, settings, start_time, step_order, extra_outputs)
+
+
+_CALL_FIELDS = ("doStep", "getReal", "setReal", "setInputDerivatives", "getOutputDerivatives",
+                "getState", "setState")
+_FMI2_NAMES = ("DoStep", "GetReal", "SetReal", "SetRealInputDerivatives", "GetRealOutputDerivatives",
+               "GetFMUstate", "SetFMUstate")
+_ADAPTER_NAMES = ("doStep", "getReal", "setReal", "setInputDerivatives", "getOutputDerivatives",
+                  "getState", "setState")
 
 
 def _array(ctype, values, n: int | None = None):
@@ -225,13 +235,15 @@ class CompiledMaster(Master):
         cports = (_Port * len(ports.all))()
         for i, p in enumerate(ports.all):
             inst, c = p.inst, cports[i]
-            dll = inst._slave.dll
-            c.comp = inst.component
-            c.doStep, c.getReal, c.setReal = (_fn(dll, "fmi2DoStep"), _fn(dll, "fmi2GetReal"),
-                                              _fn(dll, "fmi2SetReal"))
-            c.setInputDerivatives = _fn(dll, "fmi2SetRealInputDerivatives")
-            c.getOutputDerivatives = _fn(dll, "fmi2GetRealOutputDerivatives")
-            c.getState, c.setState = _fn(dll, "fmi2GetFMUstate"), _fn(dll, "fmi2SetFMUstate")
+            if inst.fmi_version == 3:
+                # The core's FMI 3.0 adapter (cw3_*), on the instance's shared adapter state.
+                dll, prefix, names = self._lib, "cw3_", _ADAPTER_NAMES
+                c.comp = ctypes.addressof(inst.events)
+            else:
+                dll, prefix, names = inst._slave.dll, "fmi2", _FMI2_NAMES
+                c.comp = inst.component
+            for field, name in zip(_CALL_FIELDS, names):
+                setattr(c, field, _fn(dll, prefix + name))
             c.state = ctypes.addressof(inst._state)
             c.out_vr, c.out = ref(p.out_vr), ctypes.addressof(p.out)
             c.in_vr, c.inp = ref(p.in_vr), ref(p.inp)
@@ -273,6 +285,8 @@ class CompiledMaster(Master):
         m.prev_kind, m.end_rate_set = ref(_array(c_int, [], nz)), ref(_array(c_int, [], nz))
         m.since, m.cap_since = ref(_array(c_double, [], MAX_SINCE)), MAX_SINCE
         m.n_ports, m.n_z = len(ports.all), nz
+        fmi3 = [ctypes.addressof(ev) for ev in self.fmi3_events]
+        m.fmi3, m.n_fmi3 = ref(_array(c_void_p, fmi3)), len(fmi3)
         s = self.settings
         m.t = self.__dict__.pop("_t_before_core", self.start_time)
         m.start_time, m.step = self.start_time, s.step

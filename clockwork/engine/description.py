@@ -2,7 +2,12 @@
 
 ``resolve_fmu`` finds an FMU by model name or path, ``read_fmu`` reads its
 model description (cached by path, modification time and size) and checks
-that it is an FMI 2.0 Co-Simulation FMU with a binary for this platform.
+that it is an FMI 2.0 or 3.0 Co-Simulation FMU with a binary for this
+platform. An FMI 3.0 description is seen through FMI 2.0's type names
+(Float64 is "Real", Int32 "Integer"), so that the layers above read both
+alike; ``fmi_version`` tells them apart. FMI 3.0 features the master does
+not serve (clocks, arrays, scheduled execution only) are refused here with
+one line naming the FMU and the feature.
 """
 
 from __future__ import annotations
@@ -101,8 +106,10 @@ def read_fmu(path: Path, need_binary: bool = True) -> tuple[Any, str, tuple[str,
             md = fmpy.read_model_description(str(path), validate=False)
         except Exception as e:  # fmpy raises bare Exceptions and lxml errors
             raise FmuError(f"{path}: unreadable modelDescription.xml: {e}") from None
-        if md.fmiVersion != "2.0":
-            raise FmuError(f"{path}: expected an FMI 2.0 FMU, found FMI {md.fmiVersion}")
+        if md.fmiVersion not in ("2.0", "3.0"):
+            raise FmuError(f"{path}: expected an FMI 2.0 or 3.0 FMU, found FMI {md.fmiVersion}")
+        if md.fmiVersion == "3.0":
+            _check_fmi3(path, md)
         if md.coSimulation is None:
             raise FmuError(f"{path}: expected a Co-Simulation FMU (no <CoSimulation> element)")
         indicators = event_indicator_names(xml)
@@ -115,6 +122,32 @@ def read_fmu(path: Path, need_binary: bool = True) -> tuple[Any, str, tuple[str,
     if need_binary and not has_binary:
         raise FmuError(f"{path} has no binary for this platform ({binary}); rebuild it with `cmake --build build`")
     return md, digest, indicators
+
+
+# FMI 3.0 types the master exchanges, under the FMI 2.0 names the layers use.
+_FMI3_AS_FMI2 = {"Float64": "Real", "Int32": "Integer", "Boolean": "Boolean", "String": "String",
+                 "Enumeration": "Enumeration"}
+
+
+def _check_fmi3(path: Path, md) -> None:
+    """Refuse what the master does not serve; rename the types it does."""
+    clocks = [v.name for v in md.modelVariables if v.type == "Clock"]
+    if clocks:
+        raise FmuError(f"{path}: {md.modelName} uses clocks ({', '.join(clocks[:3])}"
+                       f"{', ...' if len(clocks) > 3 else ''}), which the master does not support")
+    if md.coSimulation is None and getattr(md, "scheduledExecution", None) is not None:
+        raise FmuError(f"{path}: {md.modelName} is a Scheduled Execution FMU, which the master does not support")
+    arrays = [v.name for v in md.modelVariables if v.dimensions]
+    if arrays:
+        raise FmuError(f"{path}: {md.modelName} has array variables ({', '.join(arrays[:3])}), "
+                       f"which the master does not support")
+    for v in md.modelVariables:
+        v.type = _FMI3_AS_FMI2.get(v.type, v.type)
+
+
+def fmi_version(md) -> int:
+    """2 or 3: the major FMI version of a model description."""
+    return 3 if md.fmiVersion == "3.0" else 2
 
 
 def event_indicators(path: Path) -> tuple[str, ...]:

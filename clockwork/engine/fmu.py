@@ -148,6 +148,8 @@ class Variable:
 class Instance:
     """An instantiated FMU with fast access to its fmi2 functions."""
 
+    fmi_version = 2  # fmu3.Instance3 says 3
+
     def __init__(self, name: str, path: Path, model_description=None):
         self.name = name
         self.path = Path(path)

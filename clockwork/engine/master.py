@@ -40,7 +40,7 @@ from .location import EventLocator, crossed, scan
 from .ports import Port, Ports
 from .richardson import StepDoubling
 from .settings import MasterSettings, Statistics, rollback_need
-from ..errors import SceneError, SimulationError
+from ..errors import SceneError, SimulationEnded, SimulationError
 from .wiring import Link, build
 
 
@@ -75,6 +75,10 @@ class Master:
         self._extrapolating = bool(settings.extrapolation)
         self._jacobi = settings.order == "jacobi"
         self._check_rollback()
+        self._check_fmi3()
+        # FMI 3.0 instances' announced time events (fmu3._Events): a
+        # communication point lands on each.
+        self.fmi3_events = [p.inst.events for p in self.ports.all if p.inst.fmi_version == 3]
         self._reset_soft_state()
 
     def _check_rollback(self) -> None:
@@ -88,6 +92,18 @@ class Master:
                 raise SceneError(f"{key}: {inst.name} ({inst.path.name}) cannot save and restore its state "
                                  f"(its modelDescription.xml does not declare canGetAndSetFMUstate), "
                                  f"and {why} rolls every FMU back")
+
+    def _check_fmi3(self) -> None:
+        """FMI 3.0 Co-Simulation takes no input derivatives: refuse
+        extrapolated inputs into an FMI 3.0 instance before the first step."""
+        if not self.settings.extrapolation:
+            return
+        for p in self.ports.dynamic:
+            if p.n_in and p.inst.fmi_version == 3:
+                raise SceneError(
+                    f"master.extrapolation = {self.settings.extrapolation}: {p.inst.name} ({p.inst.path.name}) "
+                    f"is an FMI 3.0 FMU, whose Co-Simulation interface takes no input derivatives; "
+                    f"use master.extrapolation = 0 or an FMI 2.0 build")
 
     # -- initialization --------------------------------------------------
 
@@ -206,6 +222,11 @@ class Master:
 
     @staticmethod
     def _step_failure(p: Port, st: int, t: float, h: float) -> SimulationError:
+        events = getattr(p.inst, "events", None)
+        if st == DISCARD and events is not None and events.terminated:
+            return SimulationEnded(
+                f"{p.inst.name} ({p.inst.model_name}) ended the simulation (terminateSimulation) at "
+                f"t = {events.end_time!r} s", time=events.end_time, instance=p.inst.name)
         if st == DISCARD:
             return SimulationError(
                 f"{p.inst.name}: fmi2DoStep from t = {t!r} s with h = {h!r} s was discarded: "
@@ -219,6 +240,10 @@ class Master:
         s = self.settings
         t = self.t
         loc = self.locator
+        # 0. An FMI 3.0 instance's announced time event caps the step.
+        for ev in self.fmi3_events:
+            if t < ev.next_event_time < t + h:
+                h = ev.next_event_time - t
         # 1. The indicators' sources cap the step.
         if loc.has_sources:
             if loc.sources_prev is None:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from .description import resolve_fmu
 from .fmu import Instance, free_all
+from .fmu3 import make_instance
 from .compiled import make_master
 from .settings import MasterSettings
 from .wiring import Link, parse_link
@@ -30,7 +31,7 @@ class System:
         try:
             for name, (fmu, _) in components.items():
                 md = (model_descriptions or {}).get(name)
-                inst = Instance(name, resolve_fmu(str(fmu), Path.cwd()), md)
+                inst = make_instance(name, resolve_fmu(str(fmu), Path.cwd()), md)
                 inst.instantiate()
                 self.instances[name] = inst
             links = [parse_link(c) if isinstance(c, str) else Link(*c) for c in connections]
