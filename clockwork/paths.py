@@ -55,13 +55,16 @@ def scenarios_dir() -> Path:
     return REPO / "scenarios" if in_checkout() else _package_data("scenarios")
 
 
-def fmu_dir() -> Path:
+def fmu_dir(fmi_version: int = 2) -> Path:
     """Where model names are looked up: $CLOCKWORK_FMU_DIR, else the
-    checkout's fmus/, else the FMUs installed with the package."""
+    checkout's fmus/, else the FMUs installed with the package; the FMI 3.0
+    builds in its subfolder fmi3/."""
     env = os.environ.get("CLOCKWORK_FMU_DIR")
     if env:
-        return Path(env)
-    return REPO / "fmus" if in_checkout() else _package_data("fmus")
+        base = Path(env)
+    else:
+        base = REPO / "fmus" if in_checkout() else _package_data("fmus")
+    return base / "fmi3" if fmi_version == 3 else base
 
 
 def core_library() -> Path:

@@ -46,8 +46,10 @@ class FmuError(SceneError):
     """A missing or unusable FMU (bad input); str() is the reason."""
 
 
-def resolve_fmu(spec: str, base_dir: Path | None = None) -> Path:
-    """A model name -> <fmu_dir>/<name>.fmu; a path ending .fmu -> relative to base_dir."""
+def resolve_fmu(spec: str, base_dir: Path | None = None, fmi_version: int = 2) -> Path:
+    """A model name -> <fmu_dir>/<name>.fmu (the FMI 3.0 build in its fmi3/
+    subfolder when fmi_version is 3); a path ending .fmu -> relative to
+    base_dir, whatever its version."""
     if spec.endswith(".fmu"):
         p = Path(spec).expanduser()
         if not p.is_absolute():
@@ -65,19 +67,21 @@ def resolve_fmu(spec: str, base_dir: Path | None = None) -> Path:
         return p
     if not NAME_RE.match(spec):
         raise FmuError("expected a model name (e.g. \"Pendulum\") or a path ending .fmu")
-    d = fmu_dir()
+    d = fmu_dir(fmi_version)
     p = d / f"{spec}.fmu"
     if p.is_file():
         return p
     known = sorted(q.stem for q in d.glob("*.fmu")) if d.is_dir() else []
     close = difflib.get_close_matches(spec, known, n=1)
     hint = f" (did you mean {close[0]}?)" if close else ""
+    sub = "/fmi3" if fmi_version == 3 else ""
     if in_checkout():
         src = f"; there is no src_c/models/{spec} either" if not (REPO / "src_c" / "models" / spec).is_dir() else ""
-        where = f"else <repo>/fmus; build the FMUs with `cmake --build build`{src}"
+        where = f"else <repo>/fmus{sub}; build the FMUs with `cmake --build build`{src}"
     else:
         where = f"else the FMUs installed with clockwork: {', '.join(known) or 'none'}"
-    raise FmuError(f"no FMU named {spec}{hint}: looked for {p} (the FMU directory is $CLOCKWORK_FMU_DIR, {where})")
+    raise FmuError(f"no FMU named {spec}{hint}: looked for {p} (the FMU directory is $CLOCKWORK_FMU_DIR{sub}, "
+                   f"{where})")
 
 
 def read_fmu(path: Path, need_binary: bool = True) -> tuple[Any, str, tuple[str, ...]]:

@@ -28,6 +28,9 @@ class MasterSettings:
     # "compiled": the C stepping core (engine/compiled.py); "python": the
     # reference loop in master.py; "auto": compiled where it covers the settings.
     engine: str = "auto"
+    # Which build of the bundled FMUs a model name loads: 2 (fmus/) or 3
+    # (fmus/fmi3/); a path to an .fmu file is whatever it is.
+    fmi_version: int = 2
 
     def check(self) -> None:
         """Refuse combinations the master cannot run (SceneError: bad input)."""
@@ -38,6 +41,8 @@ class MasterSettings:
                              "step doubling does not iterate the coupling")
         if self.engine not in ENGINES:
             raise SceneError(f"master.engine = {self.engine!r}: expected one of {', '.join(map(repr, ENGINES))}")
+        if self.fmi_version not in (2, 3):
+            raise SceneError(f"master.fmi_version = {self.fmi_version!r}: expected 2 or 3")
         if self.extrapolation not in (0, 1, 2):
             raise SceneError(f"master.extrapolation = {self.extrapolation}: expected 0, 1 or 2")
 

@@ -28,14 +28,15 @@ class System:
         # On a clean exit of a `with` block, hand the system to this callable
         # instead of freeing it (analyses.context.reusing_systems).
         self.release = None
+        settings = settings or MasterSettings()
         try:
             for name, (fmu, _) in components.items():
                 md = (model_descriptions or {}).get(name)
-                inst = make_instance(name, resolve_fmu(str(fmu), Path.cwd()), md)
+                inst = make_instance(name, resolve_fmu(str(fmu), Path.cwd(), settings.fmi_version), md)
                 inst.instantiate()
                 self.instances[name] = inst
             links = [parse_link(c) if isinstance(c, str) else Link(*c) for c in connections]
-            self.master = make_master(self.instances, links, settings or MasterSettings(),
+            self.master = make_master(self.instances, links, settings,
                                  start_time=start_time, extra_outputs=record)
             self.master.initialize(self.parameters)
         except BaseException:

@@ -138,10 +138,13 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     if not scene_t["title"].strip():
         raise ctx.bad("scene.title", scene_t["title"], "a non-empty title")
 
-    components, input_params = _components(ctx, ctx.table(raw, "components", "", required=True))
+    # The FMI version picks the build that model names load: known first.
+    master_t = ctx.table(raw, "master", "") or {}
+    fmi_version = master_value(ctx, "fmi_version", master_t["fmi_version"]) if "fmi_version" in master_t else 2
+    components, input_params = _components(ctx, ctx.table(raw, "components", "", required=True), fmi_version)
     connections = _connections(ctx, raw.get("connections", []), components, input_params)
     experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
-    master, max_step_given = _master(ctx, ctx.table(raw, "master", "") or {})
+    master, max_step_given = _master(ctx, master_t)
     problem = consistency(master, experiment, components)
     if problem:
         raise ctx.fail(*problem)
@@ -179,7 +182,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     return scene
 
 
-def _components(ctx: Ctx, table: dict) -> tuple[dict[str, Component], set]:
+def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, Component], set]:
     if not table:
         raise ctx.fail("components", "expected at least one [components.<instance>] table")
     out: dict[str, Component] = {}
@@ -197,7 +200,7 @@ def _components(ctx: Ctx, table: dict) -> tuple[dict[str, Component], set]:
         if not isinstance(spec, str):
             raise ctx.bad(f"{where}.fmu", spec, "a model name or a path ending .fmu")
         try:
-            fpath = resolve_fmu(spec, ctx.path.parent)
+            fpath = resolve_fmu(spec, ctx.path.parent, fmi_version)
             md, digest, indicators = read_fmu(fpath)
         except FmuError as e:
             raise ctx.fail(f"{where}.fmu", str(e)) from None

@@ -70,6 +70,7 @@ class MasterConfig:
     min_step: float = 1e-9  # s
     max_step: float = 0.01  # s
     engine: str = "auto"  # "auto", "python" or "compiled"
+    fmi_version: int = 2  # which build of the bundled FMUs model names load: 2 or 3
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
