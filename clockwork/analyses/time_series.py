@@ -5,7 +5,9 @@
 - ``ticks``: the same, but keep only the pendulum's tick times and rates.
 
 A grasshopper clock whose swing no longer reaches phi_r has stalled: that
-is a result (``"stalled": true``), not an error.
+is a result (``"stalled": true``), not an error. Nor is an FMU that ends the
+simulation (FMI 3.0 terminateSimulation): the run stops there, what was
+recorded is kept, and the result says when and which FMU (``"ended_by"``).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import math
 import numpy as np
 
 from ..engine.recording import Recorder
+from ..errors import SimulationEnded
 from .context import build_system, experiment, find_component, parameters
 from .registry import register
 
@@ -39,11 +42,19 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
         m = system.master
         recorder = Recorder(m, outputs, scene.record.interval, tick_inst)
         recorder.start()
-        run_with_progress(m, stop, recorder, progress, label=scene.path.stem)
+        ended = None
+        try:
+            run_with_progress(m, stop, recorder, progress, label=scene.path.stem)
+        except SimulationEnded as e:
+            # The run ends at the last communication point every FMU reached.
+            ended = {"time_s": e.time, "instance": e.instance, "message": e.message, "last_point_s": m.t}
         stats = vars(m.stats).copy()
-        stall = _stall_check(scene, point, system)
+        stall = _stall_check(scene, point, system) if ended is None else None
     columns, ticks = recorder.columns, recorder.ticks
     result: dict = {"t_end_s": stop}
+    if ended is not None:
+        result["t_end_s"] = ended.pop("last_point_s")
+        result["ended_by"] = ended
     if stall is not None:
         result.update(stall)
     if ticks:

@@ -118,7 +118,9 @@ def read_fmu(path: Path, need_binary: bool = True) -> tuple[Any, str, tuple[str,
             raise FmuError(f"{path}: expected a Co-Simulation FMU (no <CoSimulation> element)")
         indicators = event_indicator_names(xml)
         digest = sha256_file(path)
-        binary = f"binaries/{fmpy.platform}/{md.coSimulation.modelIdentifier}{fmpy.sharedLibraryExtension}"
+        # FMI 3.0 names binary folders by platform tuple (x86_64-linux), FMI 2.0 by platform (linux64).
+        platform = fmpy.platform_tuple if md.fmiVersion == "3.0" else fmpy.platform
+        binary = f"binaries/{platform}/{md.coSimulation.modelIdentifier}{fmpy.sharedLibraryExtension}"
         hit = (md, digest, indicators, binary in names, binary)
         _MD_CACHE.clear() if len(_MD_CACHE) > 256 else None
         _MD_CACHE[key] = hit

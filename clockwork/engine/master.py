@@ -225,8 +225,8 @@ class Master:
         events = getattr(p.inst, "events", None)
         if st == DISCARD and events is not None and events.terminated:
             return SimulationEnded(
-                f"{p.inst.name} ({p.inst.model_name}) ended the simulation (terminateSimulation) at "
-                f"t = {events.end_time!r} s", time=events.end_time, instance=p.inst.name)
+                f"{p.inst.model_name} ended the simulation (terminateSimulation)",
+                time=events.end_time, instance=p.inst.name)
         if st == DISCARD:
             return SimulationError(
                 f"{p.inst.name}: fmi2DoStep from t = {t!r} s with h = {h!r} s was discarded: "
