@@ -98,12 +98,16 @@ def test_next_event_time_lands_a_communication_point(fmus, engine):
 
 
 @pytest.mark.parametrize("engine", ENGINES)
-def test_terminate_simulation_ends_the_run_where_the_fmu_says(fmus, engine):
-    cols, _, _, ended = run(fmus["early"], {"v0": 1.0, "period": 0.25, "n_stop": 5}, 10.0, 0.1, engine)
+@pytest.mark.parametrize("fmu, last_point", [("early", 1.25), ("inside", 1.2)])
+def test_terminate_simulation_ends_the_run_where_the_fmu_says(fmus, engine, fmu, last_point):
+    """The 5th time event (1.25 s) ends the run. In event mode it is a
+    communication point and the step to it stands; handled inside a step
+    (1.2 -> 1.3 s) that step is not taken, and the run ends at 1.2 s."""
+    cols, _, _, ended = run(fmus[fmu], {"v0": 1.0, "period": 0.25, "n_stop": 5}, 10.0, 0.1, engine)
     assert isinstance(ended, SimulationEnded)
     assert ended.instance == "b" and abs(ended.time - 1.25) < 1e-12
     assert "terminateSimulation" in str(ended)
-    assert cols["time"][-1] < 1.25 + 1e-12  # what was recorded before the end is kept
+    assert abs(cols["time"][-1] - last_point) < 1e-12  # what was recorded before the end is kept
 
 
 @pytest.mark.parametrize("engine", ENGINES)
@@ -236,7 +240,8 @@ def test_an_fmu_ending_the_run_is_a_result(fmus, tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     text = json.dumps(summary)
     assert '"ended_by"' in text and "terminateSimulation" in text
-    assert (out / "timeseries.csv").read_text().splitlines()[-1].startswith("0.7")
+    assert summary["result"]["t_end_s"] == 0.75 and summary["result"]["ended_by"]["instance"] == "b"
+    assert (out / "timeseries.csv").read_text().splitlines()[-1].startswith("0.75,")
 
 
 FMI3_DIR = FMU_DIR / "fmi3"

@@ -36,7 +36,7 @@ HISTORY = 3  # input history for divided differences (HISTORY in cw_master.c)
 ROWS_PER_CALL = 4096  # recording buffer, rows
 MAX_SINCE = 256  # steps kept since a checkpoint (the master forces one after 64)
 
-_DONE, _BUFFER_FULL, _CHECK_DIVERGENCE, _WATCHED = 0, 1, 2, 3
+_DONE, _BUFFER_FULL, _CHECK_DIVERGENCE, _WATCHED, _ENDED = 0, 1, 2, 3, 4
 _ERR_FMI, _ERR_NO_CHECKPOINT, _ERR_REPLAY, _ERR_LOCATE, _ERR_CAPACITY = -1, -2, -3, -4, -5
 _CALLS = ["fmi2DoStep", "fmi2GetReal", "fmi2SetReal of inputs", "fmi2SetRealInputDerivatives",
           "fmi2GetFMUstate", "fmi2SetFMUstate"]
@@ -421,6 +421,8 @@ class CompiledMaster(Master):
         if rc == _CHECK_DIVERGENCE:
             self.ports.name_divergence(m.t, self.settings.divergence_limit)
             return
+        if rc == _ENDED:
+            raise self.ended()
         if rc == _ERR_FMI:
             p = self.ports.all[m.err_port]
             if m.err_call == 0:

@@ -18,9 +18,11 @@ need not know the version. Behind them it speaks FMI 3.0 and does what FMI
   ``discreteStatesNeedUpdate`` is false, and fmi3EnterStepMode; the
   ``nextEventTime`` it announces is kept in ``events.next_event_time``,
   where the master caps its step so that a communication point lands on it;
-- ``terminateSimulation`` makes ``c_doStep`` return Discard with
-  ``events.terminated`` set and ``events.end_time`` the time the FMU
-  reached: the master ends the run there (``SimulationEnded``).
+- ``terminateSimulation`` sets ``events.terminated`` and ``events.end_time``
+  (the time the FMU reached): when the FMU finished the step, the step
+  stands and the master ends the run before the next one; when it stopped
+  short, ``c_doStep`` returns Discard and the step is not taken. Either way
+  the master raises ``SimulationEnded``.
 
 The adapter's state lives in a ctypes struct (``_Events``) that the
 compiled core's own adapter (the fmi3 section of src_c/master/cw_master.c)
@@ -251,10 +253,14 @@ class Instance3(Instance):
                 if st > WARNING:
                     return st
                 worst = max(worst, st)
+            if term.value:
+                reached = last.value  # where the FMU stopped, early return or not
             if term.value or ev.terminated:
+                # A whole step is kept (the master ends the run at its next
+                # step); one the FMU stopped short of is discarded.
                 ev.terminated = 1
                 ev.end_time = reached
-                return DISCARD
+                return worst if reached >= end else DISCARD
             if not early.value or reached >= end:
                 return worst
             ev.early_returns += 1

@@ -221,12 +221,21 @@ class Master:
             loc.z_end = loc.indicators()
 
     @staticmethod
+    def _ended(p: Port) -> SimulationEnded:
+        return SimulationEnded(f"{p.inst.model_name} ended the simulation (terminateSimulation)",
+                               time=p.inst.events.end_time, instance=p.inst.name)
+
+    def ended(self) -> SimulationEnded | None:
+        """The end an FMI 3.0 instance asked for in a step it finished, else None."""
+        for p in self.ports.all:
+            if p.inst.fmi_version == 3 and p.inst.events.terminated:
+                return self._ended(p)
+        return None
+
+    @staticmethod
     def _step_failure(p: Port, st: int, t: float, h: float) -> SimulationError:
-        events = getattr(p.inst, "events", None)
-        if st == DISCARD and events is not None and events.terminated:
-            return SimulationEnded(
-                f"{p.inst.model_name} ended the simulation (terminateSimulation)",
-                time=events.end_time, instance=p.inst.name)
+        if st == DISCARD and p.inst.fmi_version == 3 and p.inst.events.terminated:
+            return Master._ended(p)
         if st == DISCARD:
             return SimulationError(
                 f"{p.inst.name}: fmi2DoStep from t = {t!r} s with h = {h!r} s was discarded: "
@@ -240,7 +249,11 @@ class Master:
         s = self.settings
         t = self.t
         loc = self.locator
-        # 0. An FMI 3.0 instance's announced time event caps the step.
+        # 0. An FMI 3.0 instance that asked to end the simulation ends it
+        # here; its announced time event caps the step.
+        for ev in self.fmi3_events:
+            if ev.terminated:
+                raise self.ended()
         for ev in self.fmi3_events:
             if t < ev.next_event_time < t + h:
                 h = ev.next_event_time - t

@@ -45,6 +45,7 @@ enum {
     CW_BUFFER_FULL = 1,     /* recording buffers full: drain and call again */
     CW_CHECK_DIVERGENCE = 2,/* an output is not finite or too large: Python names it */
     CW_WATCHED = 3,         /* a watched output changed (cw_run_watch) */
+    CW_ENDED = 4,           /* an FMI 3.0 instance asked to end the simulation (terminateSimulation) */
     CW_ERR_FMI = -1,        /* an fmi2 call failed: err_port, err_call, err_status */
     CW_ERR_NO_CHECKPOINT = -2,
     CW_ERR_REPLAY = -3,
@@ -964,11 +965,16 @@ static int diverged(const cw_master *m)
 }
 
 static double fmi3_next_event_time(const struct cw_fmi3 *a);
+static int fmi3_terminated(const struct cw_fmi3 *a);
 
 static int step(cw_master *m, double h, double *taken_out)
 {
     double t = m->t;
-    /* 0. An FMI 3.0 instance's announced time event caps the step. */
+    /* 0. An FMI 3.0 instance that asked to end the simulation ends it here;
+     * its announced time event caps the step. */
+    for (int i = 0; i < m->n_fmi3; i++)
+        if (fmi3_terminated(m->fmi3[i]))
+            return CW_ENDED;
     for (int i = 0; i < m->n_fmi3; i++) {
         double te = fmi3_next_event_time(m->fmi3[i]);
         if (t < te && te < t + h)
@@ -1112,7 +1118,7 @@ CW_EXPORT int cw_run_until(cw_master *m, double t_stop, cw_recorder *r)
         }
         double taken;
         int rc = step(m, h, &taken);
-        if (rc < 0)
+        if (rc < 0 || rc == CW_ENDED)
             return rc;
         if (r)
             record_point(m, r);
@@ -1204,6 +1210,7 @@ typedef struct cw_fmi3 {
 CW_EXPORT size_t cw_sizeof_fmi3(void) { return sizeof(cw_fmi3); }
 
 static double fmi3_next_event_time(const cw_fmi3 *a) { return a->next_event_time; }
+static int fmi3_terminated(const cw_fmi3 *a) { return a->terminated; }
 
 static int fmi3_settle(cw_fmi3 *a)
 {
@@ -1267,10 +1274,13 @@ CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
                 return st;
             worst = st > worst ? st : worst;
         }
+        if (term)
+            reached = last;  /* where the FMU stopped, early return or not */
         if (term || a->terminated) {
+            /* A whole step is kept; one the FMU stopped short of is discarded. */
             a->terminated = 1;
             a->end_time = reached;
-            return FMI_DISCARD;
+            return reached >= end ? worst : FMI_DISCARD;
         }
         if (!early || reached >= end)
             return worst;
