@@ -103,6 +103,8 @@ def build_parser() -> argparse.ArgumentParser:
     k = sub.add_parser("export-suite", help="write the regression kit: cases with references for other FMI tools")
     k.add_argument("dir", metavar="DIR", help="output directory (created with its parents)")
     k.add_argument("--only", nargs="+", default=None, metavar="CASE", help="only these cases")
+    k.add_argument("--fmi-version", type=int, choices=(2, 3), default=2,
+                   help="write the cases with the FMI 2.0 (default) or FMI 3.0 build of the FMUs")
     k.set_defaults(func=cmd_export_suite)
 
     c = sub.add_parser("compare", help="grade a tool's result CSV against a regression-kit case")
@@ -123,7 +125,7 @@ def cmd_export_suite(args) -> int:
         if name not in CASES:
             raise UsageError(f"--only {name}: unknown case (known: {', '.join(CASES)})")
     out = check_output_dir(args.dir)
-    index = export_suite(out, args.only)
+    index = export_suite(out, args.only, args.fmi_version)
     for e in index["cases"]:
         print(f"{e['name']:<18} {e['kind']:<4} {out / e['path']}")
     print(f"wrote {len(index['cases'])} cases -> {out / 'README.md'}")

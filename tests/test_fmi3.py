@@ -270,3 +270,17 @@ def test_bundled_clock_fmi3_matches_fmi2(engine):
     assert len(t2) == len(t3) > 5
     assert max(abs(a - b) for a, b in zip(t2, t3)) < 1e-10
     assert max(abs(a - b) for a, b in zip(c2["pendulum.phi"], c3["pendulum.phi"])) < 1e-12
+
+
+@needs_fmi3_build
+def test_export_suite_writes_fmi3_cases(tmp_path, monkeypatch):
+    """export-suite --fmi-version 3 writes the single-FMU case with the FMI
+    3.0 build, in the cross-check tree's FMI 3.0 branch."""
+    from clockwork import __version__, cli
+    monkeypatch.setenv("CLOCKWORK_FMU_DIR", str(FMU_DIR))
+    out = tmp_path / "kit"
+    assert cli.main(["export-suite", str(out), "--only", "Pendulum", "--fmi-version", "3"]) == 0
+    fmu = out / "fmus" / "3.0" / "cs" / "x86_64-linux" / "clockwork" / __version__ / "Pendulum" / "Pendulum.fmu"
+    with zipfile.ZipFile(fmu) as z:
+        assert b'fmiVersion="3.0"' in z.read("modelDescription.xml")
+        assert "extra/org.fmi-standard.fmi-ls-ref/Pendulum_ref.csv" in z.namelist()
