@@ -343,6 +343,10 @@ fmi2Status cw_core_get_real(cw_instance *inst, const char *fn,
     if (!outputs_finite(inst, fn)) return fmi2Error;
     for (size_t k = 0; k < nvr; k++) {
         const cw_var_info *v = var(inst, vr[k]);
+        if (!v && inst->api[3] == '3' && vr[k] == (unsigned)inst->model->nvars) {
+            value[k] = inst->time; /* FMI 3.0's independent variable */
+            continue;
+        }
         if (!v || v->type != CW_REAL) {
             cw_log(inst, fmi2Error, "logStatusError",
                    "%s: %u is not the value reference of a %s variable of %s.",
