@@ -62,7 +62,7 @@ for m in "${MODELS[@]}"; do
   gen="$OUT/gen/$m"
   "$PY" tools/fmugen.py "src_c/models/$m" "$gen" --sources cw_runtime.c cw_rk.c model.c > /dev/null
   "$CC" "${FLAGS[@]}" -I"$gen" -Isrc_c/runtime -I"$FMI" -Itests/c \
-        fuzz/fuzz_fmu.c src_c/runtime/cw_runtime.c src_c/runtime/cw_rk.c \
+        fuzz/fuzz_fmu.c src_c/runtime/cw_runtime.c src_c/runtime/cw_fmi2.c src_c/runtime/cw_rk.c \
         "src_c/models/$m/model.c" -lm -o "$OUT/fuzz_$m"
   corpus="$OUT/corpus/$m"
   [ "$FRESH" -eq 1 ] && rm -rf "$corpus"
