@@ -27,15 +27,18 @@ NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
 def event_indicator_names(xml: bytes) -> tuple[str, ...]:
-    """Outputs that a modelDescription.xml declares as event indicators (vendor annotation)."""
+    """Outputs that a modelDescription.xml declares as event indicators
+    (vendor annotation: FMI 2.0's VendorAnnotations/Tool, FMI 3.0's
+    Annotations/Annotation, named clockwork)."""
     try:
         root = ET.fromstring(xml)
     except ET.ParseError:
         return ()
     names = []
-    for tool in root.iterfind("VendorAnnotations/Tool"):
-        if tool.get("name") == "clockwork":
-            names += [i.get("name") for i in tool.iterfind("EventIndicators/Indicator") if i.get("name")]
+    tools = [t for t in root.iterfind("VendorAnnotations/Tool") if t.get("name") == "clockwork"]
+    tools += [t for t in root.iterfind("Annotations/Annotation") if t.get("type") == "clockwork"]
+    for tool in tools:
+        names += [i.get("name") for i in tool.iterfind("EventIndicators/Indicator") if i.get("name")]
     return tuple(names)
 
 
