@@ -252,24 +252,33 @@ needs_fmi3_build = pytest.mark.skipif(
 
 @needs_fmi3_build
 @pytest.mark.parametrize("engine", ENGINES)
-def test_bundled_clock_fmi3_matches_fmi2(engine):
+@pytest.mark.parametrize("early_return", [True, False])
+def test_bundled_clock_fmi3_matches_fmi2(engine, early_return):
     """The grasshopper clock on the FMI 3.0 build agrees with the FMI 2.0
-    build to 1e-12, its ticks to 1e-10 s, in both engines."""
+    build to 1e-12, its ticks to 1e-10 s, in both engines, with the same
+    switches located. With early return the Pendulum stops at each tick and
+    turning point and its integrator starts again there; without it, it
+    handles them inside fmi3DoStep as the FMI 2.0 build does: the same bits."""
     def go(version):
         with System({"pendulum": ("Pendulum", {"Q": 1000.0, "phi_start": 0.1}),
                      "escapement": ("GrasshopperEscapement", {})},
                     ["pendulum.phi -> escapement.phi", "pendulum.w -> escapement.w",
                      "escapement.tau -> pendulum.tau_escapement"],
-                    MasterSettings(step=0.05, engine=engine, fmi_version=version),
+                    MasterSettings(step=0.05, engine=engine, fmi_version=version, early_return=early_return),
                     record={"pendulum": ["phi", "tick_time"]}) as s:
             rec = Recorder(s.master, [("pendulum", "phi")], ticks_of="pendulum")
             rec.start()
             s.master.run_until(20.0, rec)
-            return rec.columns, rec.ticks
-    (c2, t2), (c3, t3) = go(2), go(3)
-    assert len(t2) == len(t3) > 5
+            early = s.instances["pendulum"].events.early_returns if version == 3 else 0
+            return rec.columns, rec.ticks, s.master.stats.events, early
+    (c2, t2, e2, _), (c3, t3, e3, early) = go(2), go(3)
+    assert len(t2) == len(t3) > 5 and e2 == e3 >= 2 * len(t3)  # two switches per tick
     assert max(abs(a - b) for a, b in zip(t2, t3)) < 1e-10
     assert max(abs(a - b) for a, b in zip(c2["pendulum.phi"], c3["pendulum.phi"])) < 1e-12
+    if early_return:
+        assert early >= 2 * len(t3)  # at least each tick and turning point
+    else:
+        assert early == 0 and (c2, t2) == (c3, t3)
 
 
 @needs_fmi3_build

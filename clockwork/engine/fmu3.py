@@ -8,7 +8,7 @@ need not know the version. Behind them it speaks FMI 3.0 and does what FMI
 
 - the instance is created with ``eventModeUsed`` when the FMU declares
   ``hasEventMode`` and with ``earlyReturnAllowed`` when it declares
-  ``mightReturnEarlyFromDoStep``;
+  ``mightReturnEarlyFromDoStep`` (unless ``master.early_return`` is false);
 - ``c_doStep`` calls fmi3DoStep; when the FMU returns early at one of its
   own events (``earlyReturn``, ``lastSuccessfulTime``) the event is handled
   there, exactly, and the step goes on from that time to the communication
@@ -80,11 +80,11 @@ class Instance3(Instance):
 
     fmi_version = 3
 
-    def __init__(self, name, path, model_description=None):
+    def __init__(self, name, path, model_description=None, early_return: bool = True):
         super().__init__(name, path, model_description)
         cs = self.md.coSimulation
         self.event_mode_used = bool(cs.hasEventMode)
-        self.early_return_allowed = bool(cs.mightReturnEarlyFromDoStep)
+        self.early_return_allowed = bool(cs.mightReturnEarlyFromDoStep) and early_return
         self.can_interpolate_inputs = False  # FMI 3.0 CS has no input derivatives
         self.events = _Events(next_event_time=math.inf, saved_next_event_time=math.inf, end_time=math.nan,
                               event_mode_used=int(self.event_mode_used))
@@ -305,7 +305,11 @@ class Instance3(Instance):
         return super().fail(what.replace("fmi2", "fmi3"), status, time, error or SimulationError)
 
 
-def make_instance(name, path, model_description=None) -> Instance:
-    """An ``Instance`` or ``Instance3``, as the FMU's modelDescription says."""
+def make_instance(name, path, model_description=None, early_return: bool = True) -> Instance:
+    """An ``Instance`` or ``Instance3`` (early return allowed where it
+    declares it, unless `early_return` is false), as the FMU's
+    modelDescription says."""
     md = model_description or read_fmu(path, need_binary=False)[0]
-    return (Instance3 if fmi_version(md) == 3 else Instance)(name, path, md)
+    if fmi_version(md) == 3:
+        return Instance3(name, path, md, early_return)
+    return Instance(name, path, md)

@@ -31,6 +31,10 @@ class MasterSettings:
     # Which build of the bundled FMUs a model name loads: 2 (fmus/) or 3
     # (fmus/fmi3/); a path to an .fmu file is whatever it is.
     fmi_version: int = 2
+    # FMI 3.0 instances that declare mightReturnEarlyFromDoStep are allowed
+    # to return early at their own events (handled there in event mode);
+    # false: they handle them inside fmi3DoStep, as an FMI 2.0 FMU does.
+    early_return: bool = True
 
     def check(self) -> None:
         """Refuse combinations the master cannot run (SceneError: bad input)."""

@@ -32,7 +32,8 @@ class System:
         try:
             for name, (fmu, _) in components.items():
                 md = (model_descriptions or {}).get(name)
-                inst = make_instance(name, resolve_fmu(str(fmu), Path.cwd(), settings.fmi_version), md)
+                inst = make_instance(name, resolve_fmu(str(fmu), Path.cwd(), settings.fmi_version), md,
+                                     settings.early_return)
                 inst.instantiate()
                 self.instances[name] = inst
             links = [parse_link(c) if isinstance(c, str) else Link(*c) for c in connections]

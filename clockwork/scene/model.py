@@ -71,6 +71,7 @@ class MasterConfig:
     max_step: float = 0.01  # s
     engine: str = "auto"  # "auto", "python" or "compiled"
     fmi_version: int = 2  # which build of the bundled FMUs model names load: 2 or 3
+    early_return: bool = True  # FMI 3.0 FMUs may return early from fmi3DoStep at their own events
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
