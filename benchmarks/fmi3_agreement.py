@@ -34,7 +34,8 @@ from clockwork.run.gallery import quick_overrides  # noqa: E402
 from clockwork.run.scene_run import run_scene  # noqa: E402
 
 SKIP_KEYS = {"settings", "wall_time_s", "wall_s", "sha256", "fmus", "version", "tool", "generated_by",
-             "timing", "elapsed_s", "overrides", "scene_sha256", "statistics"}
+             "timing", "elapsed_s", "overrides", "scene_sha256", "statistics",
+             "headlines"}  # the headlines repeat results beside the papers, and some are speeds
 
 
 def _is_event_key(key: str) -> bool:

@@ -158,10 +158,24 @@ def test_mixed_fmi2_and_fmi3(fmus, engine, fmu_dir):
     assert cols["b.x"][-1] > 0.02  # the input did arrive
 
 
-def test_extrapolated_inputs_into_fmi3_are_refused(fmus, fmu_dir):
-    with pytest.raises(SceneError, match="FMI 3.0 FMU, whose Co-Simulation interface takes no input derivatives"):
+@pytest.mark.parametrize("key, value", [("extrapolation", 1), ("iterations", 2)])
+def test_polynomial_inputs_into_fmi3_are_refused(fmus, fmu_dir, tmp_path, key, value):
+    """FMI 3.0 CS has no input derivatives: extrapolation and strong coupling
+    into an FMI 3.0 FMU are refused by the engine and, in a scene, in one
+    line naming the file and the key."""
+    with pytest.raises(SceneError, match=f"master.{key} = {value}: b .* FMI 3.0 FMU, whose Co-Simulation "
+                                         "interface takes no input derivatives"):
         System({"pendulum": (str(fmu_dir / "Pendulum.fmu"), {}), "b": (str(fmus["early"]), {})},
-               ["pendulum.phi -> b.u"], MasterSettings(step=0.01, extrapolation=1))
+               ["pendulum.phi -> b.u"], MasterSettings(step=0.01, **{key: value}))
+    scene = tmp_path / "s.toml"
+    scene.write_text(f'connections = ["a.x -> b.u"]\n[scene]\ntitle = "t"\n'
+                     f'[components.a]\nfmu = "{fmus["early"]}"\n'
+                     f'[components.b]\nfmu = "{fmus["early"]}"\n[experiment]\nstop = 1\n'
+                     f'[master]\n{key} = {value}\n')
+    p = subprocess.run([sys.executable, "-m", "clockwork", "validate", str(scene)], capture_output=True, text=True)
+    assert p.returncode == 2
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"{scene}: master.{key}: b (Early.fmu) is an FMI 3.0 FMU" in lines[0], p.stderr
 
 
 def _description_only(tmp_path, name, body, version="3.0", cs=True):

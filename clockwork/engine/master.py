@@ -94,16 +94,21 @@ class Master:
                                  f"and {why} rolls every FMU back")
 
     def _check_fmi3(self) -> None:
-        """FMI 3.0 Co-Simulation takes no input derivatives: refuse
-        extrapolated inputs into an FMI 3.0 instance before the first step."""
-        if not self.settings.extrapolation:
+        """FMI 3.0 Co-Simulation takes no input derivatives: refuse inputs
+        given as polynomials (extrapolation, or strong coupling's lines
+        between iterates) into an FMI 3.0 instance before the first step."""
+        s = self.settings
+        if s.extrapolation:
+            key, value, fix = "master.extrapolation", s.extrapolation, "master.extrapolation = 0"
+        elif s.iterations > 0:
+            key, value, fix = "master.iterations", s.iterations, "master.iterations = 0"
+        else:
             return
         for p in self.ports.dynamic:
             if p.n_in and p.inst.fmi_version == 3:
                 raise SceneError(
-                    f"master.extrapolation = {self.settings.extrapolation}: {p.inst.name} ({p.inst.path.name}) "
-                    f"is an FMI 3.0 FMU, whose Co-Simulation interface takes no input derivatives; "
-                    f"use master.extrapolation = 0 or an FMI 2.0 build")
+                    f"{key} = {value}: {p.inst.name} ({p.inst.path.name}) is an FMI 3.0 FMU, whose "
+                    f"Co-Simulation interface takes no input derivatives; use {fix} or an FMI 2.0 build")
 
     # -- initialization --------------------------------------------------
 

@@ -145,7 +145,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     connections = _connections(ctx, raw.get("connections", []), components, input_params)
     experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
     master, max_step_given = _master(ctx, master_t)
-    problem = consistency(master, experiment, components)
+    problem = consistency(master, experiment, components) or _fmi3_inputs(master, components, connections)
     if problem:
         raise ctx.fail(*problem)
     record = _record(ctx, ctx.table(raw, "record", ""), components)
@@ -276,6 +276,25 @@ def _experiment(ctx: Ctx, t: dict) -> Experiment:
     if not stop > start:
         raise ctx.bad("experiment.stop", t["stop"], f"a time > experiment.start ({fmt(start)} s)")
     return Experiment(start, stop)
+
+
+def _fmi3_inputs(m: MasterConfig, components: dict[str, Component], connections) -> tuple[str, str] | None:
+    """FMI 3.0 Co-Simulation takes no input derivatives: inputs given as
+    polynomials (extrapolation, strong coupling) cannot reach an FMI 3.0
+    FMU with dynamics (an output that does not depend on inputs). The
+    engine checks the exact rule again when it wires the FMUs."""
+    key = "extrapolation" if m.extrapolation else "iterations" if m.iterations > 0 else None
+    if key is None:
+        return None
+    for c in connections:
+        comp = components[c.dst_instance]
+        md = comp.model_description
+        dynamic = any(o.dependencies is not None and not o.dependencies for o in md.outputs)
+        if md.fmiVersion == "3.0" and dynamic:
+            return (f"master.{key}", f"{c.dst_instance} ({comp.fmu_path.name}) is an FMI 3.0 FMU with dynamics, "
+                    f"whose Co-Simulation interface takes no input derivatives: {key} needs them for "
+                    f"{c.dst_instance}.{c.dst_var}; use master.{key} = 0 or an FMI 2.0 build")
+    return None
 
 
 def _master(ctx: Ctx, t: dict) -> tuple[MasterConfig, bool]:
