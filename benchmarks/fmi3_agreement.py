@@ -48,7 +48,8 @@ def walk(a, b, path, out):
     if isinstance(a, dict) and isinstance(b, dict):
         for k in a.keys() & b.keys():
             # Wall times, rates of work and iteration counts are not results.
-            if k not in SKIP_KEYS and "wall" not in k and not k.endswith("per_s") and "iterations" not in k:
+            if (k not in SKIP_KEYS and "wall" not in k and "cpu_time" not in k and not k.endswith("per_s")
+                    and "iterations" not in k):
                 walk(a[k], b[k], f"{path}.{k}", out)
     elif isinstance(a, list) and isinstance(b, list):
         if len(a) != len(b):
