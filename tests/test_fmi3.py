@@ -12,6 +12,7 @@ where they exist.
 
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 import sys
@@ -241,7 +242,6 @@ def test_fmi_version_picks_the_build_of_a_model_name(fmus, tmp_path, monkeypatch
 
 
 def test_an_fmu_ending_the_run_is_a_result(fmus, tmp_path):
-    import json
     import os
     scene = tmp_path / "s.toml"
     scene.write_text(f'[scene]\ntitle = "t"\n[components.b]\nfmu = "{fmus["early"]}"\n'
@@ -307,3 +307,38 @@ def test_export_suite_writes_fmi3_cases(tmp_path, monkeypatch):
     with zipfile.ZipFile(fmu) as z:
         assert b'fmiVersion="3.0"' in z.read("modelDescription.xml")
         assert "extra/org.fmi-standard.fmi-ls-ref/Pendulum_ref.csv" in z.namelist()
+
+
+@needs_fmi3_build
+@pytest.mark.parametrize("engine", ENGINES)
+def test_bundled_mixed_scene_fmi3_pendulum_fmi2_escapement(engine, tmp_path):
+    """A scene mixing the FMI 3.0 Pendulum (a path) with the FMI 2.0
+    escapement (a model name) runs like the all-FMI 2.0 scene: bit for bit
+    without early return, to 1e-12 with it; and --set master.fmi_version=3
+    flips the escapement's build too."""
+    import os
+    from cwtest import CLOCK_SCENE
+    base = CLOCK_SCENE.format(stop=3.0, sweep="")
+    mixed = base.replace('fmu = "Pendulum"', f'fmu = "{FMI3_DIR / "Pendulum.fmu"}"')
+    assert mixed != base
+    outs = {}
+    for label, text, sets in (("fmi2", base, []), ("mixed", mixed, ["master.early_return=false"]),
+                              ("mixed_er", mixed, []), ("fmi3", base, ["master.fmi_version=3"])):
+        scene = tmp_path / f"{label}.toml"
+        scene.write_text(text)
+        args = [sys.executable, "-m", "clockwork", "run", str(scene), "--out", str(tmp_path / label), "--no-progress",
+                "--set", f"master.engine={engine}"]
+        for s in sets:
+            args += ["--set", s]
+        p = subprocess.run(args, capture_output=True, text=True, env={**os.environ, "CLOCKWORK_CACHE": "off"})
+        assert p.returncode == 0, p.stderr
+        outs[label] = ((tmp_path / label / "timeseries.csv").read_text(),
+                       json.loads((tmp_path / label / "summary.json").read_text()))
+    assert outs["mixed"][0] == outs["fmi2"][0]
+    assert outs["fmi3"][1]["settings"]["master"]["fmi_version"] == 3
+    rows = [[float(x) for x in line.split(",")] for line in outs["mixed_er"][0].splitlines()[1:]]
+    ref = [[float(x) for x in line.split(",")] for line in outs["fmi2"][0].splitlines()[1:]]
+    assert len(rows) == len(ref)
+    assert max(abs(a - b) for r, q in zip(rows, ref) for a, b in zip(r, q)) < 1e-12
+    assert outs["fmi3"][0].splitlines()[0] == outs["fmi2"][0].splitlines()[0]
+    assert len(outs["fmi3"][0].splitlines()) == len(outs["fmi2"][0].splitlines())

@@ -160,7 +160,11 @@ def _readme(c: Case, meta: dict, notes: list[str]) -> str:
 def write_case(root: Path, c: Case, fmi_version: int = 2) -> dict:
     d = case_dir(root, c, fmi_version)
     d.mkdir(parents=True, exist_ok=True)
-    scene = load_case_scene(c, (f"master.fmi_version={fmi_version}",) if fmi_version != 2 else ())
+    # A case is its FMUs, connections, parameters and step; how clockwork's
+    # master would feed inputs is not part of it, and FMI 3.0 has no input
+    # derivatives for extrapolation or strong coupling.
+    fmi3 = ("master.fmi_version=3", "master.extrapolation=0", "master.iterations=0")
+    scene = load_case_scene(c, fmi3 if fmi_version == 3 else ())
     ref = reference(c)
     data = np.column_stack([ref.time] + [ref.columns[s] for s in c.signals])
     write_csv(d / f"{c.name}_ref.csv", ["time"] + list(c.signals), data)
