@@ -22,7 +22,9 @@ NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
 def event_indicator_names(xml: bytes) -> tuple[str, ...]:
-    """Outputs that a modelDescription.xml declares as event indicators (vendor annotation)."""
+    """Outputs that a modelDescription.xml declares as event indicators (the
+    annotation clockwork: FMI 2.0's VendorAnnotations/Tool, FMI 3.0's
+    Annotations/Annotation)."""
     try:
         root = ET.fromstring(xml)
     except ET.ParseError:
@@ -31,6 +33,9 @@ def event_indicator_names(xml: bytes) -> tuple[str, ...]:
     for tool in root.iterfind("VendorAnnotations/Tool"):
         if tool.get("name") == "clockwork":
             names += [i.get("name") for i in tool.iterfind("EventIndicators/Indicator") if i.get("name")]
+    for note in root.iterfind("Annotations/Annotation"):
+        if note.get("type") == "clockwork":
+            names += [i.get("name") for i in note.iterfind("EventIndicators/Indicator") if i.get("name")]
     return tuple(names)
 
 
@@ -75,8 +80,10 @@ def resolve_fmu(spec: str, base_dir: Path | None = None) -> Path:
     raise FmuError(f"no FMU named {spec}{hint}: looked for {p} (the FMU directory is $CLOCKWORK_FMU_DIR, {where})")
 
 
-def read_fmu(path: Path, need_binary: bool = True) -> tuple[Any, str, tuple[str, ...]]:
-    """(model description, sha256, event indicators) of an FMU, cached by (path, mtime, size)."""
+def read_fmu(path: Path, need_binary: bool = True,
+             versions: tuple[str, ...] = ("2.0",)) -> tuple[Any, str, tuple[str, ...]]:
+    """(model description, sha256, event indicators) of an FMU, cached by
+    (path, mtime, size); its FMI version must be one of `versions`."""
     import fmpy
 
     path = Path(path).resolve()
@@ -101,17 +108,18 @@ def read_fmu(path: Path, need_binary: bool = True) -> tuple[Any, str, tuple[str,
             md = fmpy.read_model_description(str(path), validate=False)
         except Exception as e:  # fmpy raises bare Exceptions and lxml errors
             raise FmuError(f"{path}: unreadable modelDescription.xml: {e}") from None
-        if md.fmiVersion != "2.0":
-            raise FmuError(f"{path}: expected an FMI 2.0 FMU, found FMI {md.fmiVersion}")
         if md.coSimulation is None:
             raise FmuError(f"{path}: expected a Co-Simulation FMU (no <CoSimulation> element)")
         indicators = event_indicator_names(xml)
         digest = sha256_file(path)
-        binary = f"binaries/{fmpy.platform}/{md.coSimulation.modelIdentifier}{fmpy.sharedLibraryExtension}"
+        platform = fmpy.platform_tuple if md.fmiVersion.startswith("3.") else fmpy.platform
+        binary = f"binaries/{platform}/{md.coSimulation.modelIdentifier}{fmpy.sharedLibraryExtension}"
         hit = (md, digest, indicators, binary in names, binary)
         _MD_CACHE.clear() if len(_MD_CACHE) > 256 else None
         _MD_CACHE[key] = hit
     md, digest, indicators, has_binary, binary = hit
+    if md.fmiVersion not in versions:
+        raise FmuError(f"{path}: expected an FMI {' or '.join(versions)} FMU, found FMI {md.fmiVersion}")
     if need_binary and not has_binary:
         raise FmuError(f"{path} has no binary for this platform ({binary}); rebuild it with `cmake --build build`")
     return md, digest, indicators
