@@ -27,7 +27,7 @@ from fmu_driver import DISCARD, ERROR, OK, WARNING, FmuError, Instance
 MODELS = ["Pendulum", "GrasshopperEscapement", "ChronometerEscapement", "Drag",
           "MechanismVibration", "AveragedPendulum"]
 # The models whose events are their own (docs/design.md, "Early return").
-EARLY_RETURN = {"Pendulum"}
+EARLY_RETURN = {"Pendulum", "AveragedPendulum"}
 
 
 def signal(name: str, t: float, k: int) -> float:
@@ -107,9 +107,10 @@ def test_fmpy_simulates_with_event_mode_and_early_return(model):
     assert result["time"][-1] == pytest.approx(4.0)
     for name in result.dtype.names:
         assert np.all(np.isfinite(result[name].astype(float))), name
-    # Early returns add communication points only for the models whose events are their own.
+    # Early returns add communication points only for the models whose events are
+    # their own (the Pendulum ticks and turns within 4 s; AveragedPendulum does not stall).
     regular = np.isclose(result["time"] / 0.05, np.round(result["time"] / 0.05), rtol=0, atol=1e-9)
-    assert (not regular.all()) == (model in EARLY_RETURN)
+    assert regular.all() == (model != "Pendulum")
 
 
 # ---------------------------------------------------------------- driven runs
@@ -435,3 +436,28 @@ def test_without_event_mode_an_early_return_asks_for_no_event_mode():
         r = p.step(0.9)
         assert r.status == OK and r.early_return and not r.event_handling_needed
         assert p.get("tick_time") == r.last_successful_time == p.time
+
+
+def test_early_return_at_the_stall():
+    """AveragedPendulum's stall is its own event: with drive 0 the amplitude
+    decays as lambda^2 = lambda0^2 exp(-omega0 t / Q), and fmi3DoStep ends
+    where lambda = phi_r, with `stalled` true there and lambda = phi_r exactly."""
+    lam0, q, phi_r = 0.1, 50.0, 0.03
+    omega0 = math.sqrt(9.81)
+    t_stall = math.log(lam0 ** 2 / phi_r ** 2) * q / omega0
+    with Instance3(find_fmu3("AveragedPendulum"), params={"amplitude_start": lam0, "Q": q, "phi_r": phi_r},
+                   event_mode=True, early_return=True) as p:
+        returns = []
+        while p.time < 100.0:
+            r = p.step(1.0)
+            p.check(r.status, "fmi3DoStep")
+            if r.early_return:
+                returns.append(r.last_successful_time)
+                assert r.event_handling_needed and p.get_many(["amplitude", "stalled"]) == [phi_r, True]
+                assert p.raw.fmi3EnterEventMode(p.c) == OK
+                p.settle()
+            else:
+                assert p.get("stalled") == (p.time > t_stall)
+        # One stall; its time to the integrator's tolerance: an error rtol in
+        # lambda^2 moves it by rtol Q / omega0.
+        assert len(returns) == 1 and abs(returns[0] - t_stall) < 1e-10 * q / omega0
