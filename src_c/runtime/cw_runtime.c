@@ -113,8 +113,8 @@ void cw_return_early(cw_instance *inst, double t) {
     inst->early_time = t;
 }
 
-static const cw_var_info *var(cw_instance *inst, fmi2ValueReference vr) {
-    if (vr >= (fmi2ValueReference)inst->model->nvars) return NULL;
+static const cw_var_info *var(cw_instance *inst, unsigned vr) {
+    if (vr >= (unsigned)inst->model->nvars) return NULL;
     const cw_var_info *v = &inst->model->vars[vr];
     return v->name ? v : NULL;
 }
