@@ -485,7 +485,7 @@ def test_the_sources_build_with_fmi3_headers_only(tmp_path):
     files = [str(sources / f.get("name")) for f in build.iter("SourceFile")]
     lib = tmp_path / "Pendulum.so"
     cc = os.environ.get("CC", "cc")
-    r = subprocess.run([cc, "-std=c99", "-shared", "-fPIC", "-O1", f"-I{sources}", f"-I{headers}", *files,
+    r = subprocess.run([cc, "-std=c99", "-shared", "-fPIC", "-O0", f"-I{sources}", f"-I{headers}", *files,
                         "-lm", "-o", str(lib)], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     version = ctypes.CDLL(str(lib)).fmi3GetVersion
