@@ -69,8 +69,7 @@ fuzz_one() {
   local gen="$OUT/gen/$m" name="$m" harness=fuzz/fuzz_fmu.c
   [ "$face" = 3 ] && name="${m}_fmi3" && harness=fuzz/fuzz_fmu3.c
   "$CC" "${FLAGS[@]}" -I"$gen" -Isrc_c/runtime -I"$FMI" -Itests/c \
-        "$harness" src_c/runtime/cw_runtime.c "src_c/runtime/cw_fmi$face.c" src_c/runtime/cw_rk.c \
-        "src_c/models/$m/model.c" -lm -o "$OUT/fuzz_$name"
+        "$harness" "src_c/runtime/cw_fmi$face.c" "$OUT/obj/$m"/*.o -lm -o "$OUT/fuzz_$name"
   local corpus="$OUT/corpus/$name"
   [ "$FRESH" -eq 1 ] && rm -rf "$corpus"
   mkdir -p "$corpus"
@@ -103,6 +102,12 @@ fuzz_one() {
 
 for m in "${MODELS[@]}"; do
   "$PY" tools/fmugen.py "src_c/models/$m" "$OUT/gen/$m" --sources cw_runtime.c cw_fmi2.c cw_rk.c model.c > /dev/null
+  # The core, the integrators and the model, compiled once for both harnesses.
+  rm -rf "$OUT/obj/$m" && mkdir -p "$OUT/obj/$m"
+  for src in src_c/runtime/cw_runtime.c src_c/runtime/cw_rk.c "src_c/models/$m/model.c"; do
+    "$CC" "${FLAGS[@]}" -c -I"$OUT/gen/$m" -Isrc_c/runtime -I"$FMI" "$src" \
+          -o "$OUT/obj/$m/$(basename "$src" .c).o"
+  done
   fuzz_one "$m" 2 "$RUNS"
   if [ "$RUNS" -ge 0 ]; then fuzz_one "$m" 3 $(( RUNS / 4 )); else fuzz_one "$m" 3 -1; fi
 done
