@@ -128,12 +128,18 @@ def test_fmpy_simulates_with_event_mode_and_early_return(model):
 
 # ---------------------------------------------------------------- driven runs
 
+# Parameters that make a driven run exercise more: the escapement's noise
+# (renewed at upward zero crossings, from its RNG state).
+DRIVEN_PARAMS = {"GrasshopperEscapement": {"noise_rms": 0.2, "noise_seed": 7}}
+
+
 def driven_run(model: str, fmi: int, steps: int = 400, h: float = 0.01, event_mode: bool = False):
     """Every output after every step, the inputs held over each step."""
+    params = DRIVEN_PARAMS.get(model)
     if fmi == 2:
-        inst = Instance(fmu_file(model))
+        inst = Instance(fmu_file(model), params=params)
     else:
-        inst = Instance3(find_fmu3(model), event_mode=event_mode)
+        inst = Instance3(find_fmu3(model), params=params, event_mode=event_mode)
     with inst as p:
         ins, outs = inputs_of(p.md), outputs_of(p.md)
         rows = []
