@@ -31,6 +31,27 @@ p.meta { color: #555; margin-top: 0; }
 """
 
 
+# The FMI 2.0 functions a model's own prose names, and their FMI 3.0 names.
+FMI3_NAMES = {"fmi2DoStep": "fmi3DoStep", "fmi2ExitInitializationMode": "fmi3ExitInitializationMode",
+              "fmi2GetFMUstate": "fmi3GetFMUState", "fmi2SetFMUstate": "fmi3SetFMUState"}
+
+
+def fmi3_prose(t: dict) -> dict:
+    """The table with the FMI 2.0 function names in its descriptions and
+    equations replaced by FMI 3.0's, for the FMI 3.0 build's texts."""
+    def convert(x):
+        if isinstance(x, str):
+            for a, b in FMI3_NAMES.items():
+                x = x.replace(a, b)
+            return x
+        if isinstance(x, dict):
+            return {k: v if k.startswith("_") else convert(v) for k, v in x.items()}
+        if isinstance(x, list):
+            return [convert(v) for v in x]
+        return x
+    return convert(t)
+
+
 def _e(text) -> str:
     return html.escape(str(text), quote=True)
 

@@ -583,6 +583,7 @@ def main(argv: list[str] | None = None) -> int:
     except TableError as e:
         print(f"fmugen: {e}", file=sys.stderr)
         return 2
+    t3 = fmudoc.fmi3_prose(t)
     (a.out_dir / "documentation").mkdir(parents=True, exist_ok=True)
     (a.out_dir / "fmi3" / "documentation").mkdir(parents=True, exist_ok=True)
     for name, data in (
@@ -590,9 +591,9 @@ def main(argv: list[str] | None = None) -> int:
         ("modelDescription.xml", generate_xml(t, a.sources)),
         ("documentation/index.html", fmudoc.generate_html(t, t["_references"])),
         ("model.png", fmudoc.generate_png(t.get("documentation", {}).get("icon", "pendulum"))),
-        ("fmi3/modelDescription.xml", generate_xml3(t)),
-        ("fmi3/buildDescription.xml", generate_build_description(t, sources3)),
-        ("fmi3/documentation/index.html", fmudoc.generate_html(t, t["_references"], fmi_version=3)),
+        ("fmi3/modelDescription.xml", generate_xml3(t3)),
+        ("fmi3/buildDescription.xml", generate_build_description(t3, sources3)),
+        ("fmi3/documentation/index.html", fmudoc.generate_html(t3, t["_references"], fmi_version=3)),
     ):
         data = data.encode() if isinstance(data, str) else data
         target = a.out_dir / name

@@ -27,9 +27,9 @@ NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
 def event_indicator_names(xml: bytes) -> tuple[str, ...]:
-    """Outputs that a modelDescription.xml declares as event indicators
-    (vendor annotation: FMI 2.0's VendorAnnotations/Tool, FMI 3.0's
-    Annotations/Annotation, named clockwork)."""
+    """Outputs that a modelDescription.xml declares as event indicators (the
+    annotation clockwork: FMI 2.0's VendorAnnotations/Tool, FMI 3.0's
+    Annotations/Annotation)."""
     try:
         root = ET.fromstring(xml)
     except ET.ParseError:
@@ -87,8 +87,10 @@ def resolve_fmu(spec: str, base_dir: Path | None = None, fmi_version: int = 2) -
                    f"{where})")
 
 
-def read_fmu(path: Path, need_binary: bool = True) -> tuple[Any, str, tuple[str, ...]]:
-    """(model description, sha256, event indicators) of an FMU, cached by (path, mtime, size)."""
+def read_fmu(path: Path, need_binary: bool = True,
+             versions: tuple[str, ...] = ("2.0", "3.0")) -> tuple[Any, str, tuple[str, ...]]:
+    """(model description, sha256, event indicators) of an FMU, cached by
+    (path, mtime, size); its FMI version must be one of `versions`."""
     import fmpy
 
     path = Path(path).resolve()
@@ -128,6 +130,8 @@ def read_fmu(path: Path, need_binary: bool = True) -> tuple[Any, str, tuple[str,
         _MD_CACHE.clear() if len(_MD_CACHE) > 256 else None
         _MD_CACHE[key] = hit
     md, digest, indicators, has_binary, binary = hit
+    if md.fmiVersion not in versions:
+        raise FmuError(f"{path}: expected an FMI {' or '.join(versions)} FMU, found FMI {md.fmiVersion}")
     if need_binary and not has_binary:
         raise FmuError(f"{path} has no binary for this platform ({binary}); rebuild it with `cmake --build build`")
     return md, digest, indicators
@@ -152,6 +156,14 @@ def _check_fmi3(path: Path, md) -> None:
                        f"which the master does not support")
     for v in md.modelVariables:
         v.type = _FMI3_AS_FMI2.get(v.type, v.type)
+
+
+def type_name(md, v) -> str:
+    """A variable's type as its modelDescription.xml names it (Float64, not
+    Real, in an FMI 3.0 FMU)."""
+    if md.fmiVersion == "3.0":
+        return {fmi2: fmi3 for fmi3, fmi2 in _FMI3_AS_FMI2.items()}.get(v.type, v.type)
+    return v.type
 
 
 def fmi_version(md) -> int:

@@ -1,7 +1,7 @@
 /* The FMI 2.0 Co-Simulation face of the runtime: the fmi2 functions, each a
  * thin call into the core (cw_runtime.c) under its own name. */
+#include "fmi2Functions.h" /* first: cw_runtime.h takes fmi2Status from it */
 #include "cw_core.h"
-#include "fmi2Functions.h"
 
 #include <string.h>
 

@@ -113,8 +113,8 @@ void cw_return_early(cw_instance *inst, double t) {
     inst->early_time = t;
 }
 
-static const cw_var_info *var(cw_instance *inst, fmi2ValueReference vr) {
-    if (vr >= (fmi2ValueReference)inst->model->nvars) return NULL;
+static const cw_var_info *var(cw_instance *inst, unsigned vr) {
+    if (vr >= (unsigned)inst->model->nvars) return NULL;
     const cw_var_info *v = &inst->model->vars[vr];
     return v->name ? v : NULL;
 }
@@ -1084,10 +1084,59 @@ fmi2Status cw_core_do_step(cw_instance *inst, const char *fn, double tc,
     return fmi2Error;
 }
 
-int cw_integrate(struct cw_instance *inst, const char *model, cw_rhs f, int n,
-                 int first, int h_slot, double t_end, double rtol, double atol,
-                 double h_max, int integrator, const char *const names[],
-                 cw_rk_observer observer) {
+/* What cw_integrate_to_event's observer watches for. */
+typedef struct {
+    struct cw_instance *inst;
+    cw_rhs f;
+    cw_event_fn g;
+    cw_settle_fn settle;
+    double t_start, t_end; /* the communication step */
+    int stopped;
+    double t_event, x_event[CW_RK_MAXN];
+} event_watch;
+
+/* The root of g on the dense output of the last accepted step (Illinois). */
+static double event_root(const event_watch *w, const cw_rk *rk) {
+    double a = rk->t0, b = rk->t0 + rk->h, x[CW_RK_MAXN];
+    double fa = w->g(w->inst, rk->x0), fb = w->g(w->inst, rk->x1);
+    int side = 0;
+    for (int it = 0; it < 200; it++) {
+        double t = (fa * b - fb * a) / (fa - fb);
+        if (!(t > a && t < b)) t = 0.5 * (a + b);
+        cw_rk_dense(rk, t, x);
+        const double ft = w->g(w->inst, x);
+        if (ft == 0.0 || b - a <= 4e-16 * fmax(1.0, fabs(t))) return t;
+        if ((ft > 0) == (fa > 0)) {
+            a = t, fa = ft;
+            if (side == -1) fb *= 0.5;
+            side = -1;
+        } else {
+            b = t, fb = ft;
+            if (side == 1) fa *= 0.5;
+            side = 1;
+        }
+    }
+    return 0.5 * (a + b);
+}
+
+static int watch_events(void *ctx, const cw_rk *rk) {
+    event_watch *w = ctx;
+    if ((w->g(w->inst, rk->x0) > 0) == (w->g(w->inst, rk->x1) > 0)) return 0;
+    const double t = event_root(w, rk);
+    if (!(t > w->t_start && t < w->t_end)) return 0;
+    cw_rk_single_step_with(rk->method, rk->n, w->f, w->inst, rk->t0, rk->x0,
+                           t - rk->t0, w->x_event);
+    w->settle(w->inst, w->x_event);
+    w->stopped = 1;
+    w->t_event = t;
+    return 1;
+}
+
+static int integrate(struct cw_instance *inst, const char *model, cw_rhs f,
+                     int n, int first, int h_slot, double t_end, double rtol,
+                     double atol, double h_max, int integrator,
+                     const char *const names[], cw_rk_observer observer,
+                     event_watch *watch) {
     cw_rk rk;
     cw_rk_init(&rk, n, rtol, atol, h_max);
     cw_rk_set_method(&rk, integrator);
@@ -1095,7 +1144,13 @@ int cw_integrate(struct cw_instance *inst, const char *model, cw_rhs f, int n,
     for (int k = 0; k < n; k++) x[k] = inst->s[first + k];
     double t = inst->time, h_next = inst->s[h_slot];
     cw_rk_result res =
-        cw_rk_advance(&rk, f, inst, &t, t_end, x, &h_next, observer, inst);
+        watch ? cw_rk_advance(&rk, f, inst, &t, t_end, x, &h_next, watch_events, watch)
+              : cw_rk_advance(&rk, f, inst, &t, t_end, x, &h_next, observer, inst);
+    if (watch && res == CW_RK_STOPPED && watch->stopped) {
+        t = watch->t_event;
+        for (int k = 0; k < n; k++) x[k] = watch->x_event[k];
+        res = CW_RK_OK;
+    }
     int finite = 1;
     for (int k = 0; k < n; k++) finite = finite && isfinite(x[k]);
     if (res != CW_RK_OK || !finite) {
@@ -1117,5 +1172,25 @@ int cw_integrate(struct cw_instance *inst, const char *model, cw_rhs f, int n,
     }
     for (int k = 0; k < n; k++) inst->s[first + k] = x[k];
     inst->s[h_slot] = h_next;
+    if (watch && watch->stopped) cw_return_early(inst, t);
     return fmi2OK;
+}
+
+int cw_integrate(struct cw_instance *inst, const char *model, cw_rhs f, int n,
+                 int first, int h_slot, double t_end, double rtol, double atol,
+                 double h_max, int integrator, const char *const names[],
+                 cw_rk_observer observer) {
+    return integrate(inst, model, f, n, first, h_slot, t_end, rtol, atol, h_max,
+                     integrator, names, observer, NULL);
+}
+
+int cw_integrate_to_event(struct cw_instance *inst, const char *model, cw_rhs f,
+                          int n, int first, int h_slot, double t_end,
+                          double rtol, double atol, double h_max,
+                          int integrator, const char *const names[],
+                          cw_event_fn g, cw_settle_fn settle) {
+    event_watch watch = {inst, f, g, settle, inst->time, t_end, 0, 0.0, {0.0}};
+    return integrate(inst, model, f, n, first, h_slot, t_end, rtol, atol, h_max,
+                     integrator, names, NULL,
+                     cw_may_return_early(inst) ? &watch : NULL);
 }

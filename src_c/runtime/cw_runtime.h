@@ -7,14 +7,27 @@
  * with each face. It supplies its equations as the static callbacks of
  * cw_model in model.c; its variable table and its cw_model are generated
  * into cw_vars.h from model.toml. Statuses are fmi2Status for both faces:
- * fmi3Status has the same values for OK, Warning, Discard, Error, Fatal. */
+ * fmi3Status has the same values for OK, Warning, Discard, Error, Fatal
+ * (cw_fmi3.c checks it when compiled). */
 #ifndef CW_RUNTIME_H
 #define CW_RUNTIME_H
 
 #include <stddef.h>
 #include <stdint.h>
 
-#include "fmi2FunctionTypes.h"
+/* The statuses, by FMI 2.0's names: from its header where the fmi2 face
+ * includes it first, else declared here with the same values, so that the
+ * FMI 3.0 build (its sources too) needs FMI 3.0's headers only. */
+#ifndef fmi2FunctionTypes_h
+typedef enum {
+    fmi2OK,
+    fmi2Warning,
+    fmi2Discard,
+    fmi2Error,
+    fmi2Fatal,
+    fmi2Pending
+} fmi2Status;
+#endif
 
 typedef enum { CW_REAL = 0, CW_INTEGER = 1, CW_BOOLEAN = 2 } cw_type;
 

@@ -87,3 +87,50 @@ def test_dependencies_are_in_index_order(drag, tmp_path):
     deps = [int(k) for k in unknown.get("dependencies").split()]
     assert deps == sorted(deps) and len(deps) == 3
     assert unknown.get("dependenciesKind") == "dependent dependent dependent"
+
+
+def test_every_model_gets_the_fmi3_build(drag, tmp_path):
+    """A model folder gives the FMI 3.0 files too: nothing per model to add."""
+    out = tmp_path / "gen"
+    assert fmugen.main([str(drag), str(out), "--sources", "cw_runtime.c", "cw_fmi2.c", "model.c"]) == 0
+    md = ET.parse(out / "fmi3" / "modelDescription.xml").getroot()
+    assert md.get("fmiVersion") == "3.0"
+    assert md.get("instantiationToken") == ET.parse(out / "modelDescription.xml").getroot().get("guid")
+    cs = md.find("CoSimulation")
+    assert cs.get("hasEventMode") == "true" and cs.get("mightReturnEarlyFromDoStep") == "false"
+    (time,) = [v for v in md.find("ModelVariables") if v.get("causality") == "independent"]
+    assert time.get("name") == "time"
+    build = ET.parse(out / "fmi3" / "buildDescription.xml").getroot()
+    assert [f.get("name") for f in build.iter("SourceFile")] == ["cw_runtime.c", "cw_fmi3.c", "model.c"]
+    assert (out / "fmi3" / "documentation" / "index.html").is_file()
+
+
+def test_early_return_sets_might_return_early(drag, tmp_path):
+    _edit(drag / "model.toml", 'callbacks = ["calc_outputs"]',
+          'callbacks = ["calc_outputs"]\nearly_return = ["stall"]')
+    out = tmp_path / "gen"
+    assert fmugen.main([str(drag), str(out)]) == 0
+    cs = ET.parse(out / "fmi3" / "modelDescription.xml").getroot().find("CoSimulation")
+    assert cs.get("mightReturnEarlyFromDoStep") == "true"
+    assert "stall" in (out / "fmi3" / "documentation" / "index.html").read_text()
+
+
+@pytest.mark.parametrize("value", ['"stall"', "[1]", '[""]'])
+def test_early_return_must_be_a_list_of_names(drag, value):
+    _edit(drag / "model.toml", 'callbacks = ["calc_outputs"]', f'callbacks = ["calc_outputs"]\nearly_return = {value}')
+    _refused(drag, "early_return must be a list of event names")
+
+
+def test_time_is_the_fmi3_independent_variable(drag):
+    _edit(drag / "model.toml", 'name = "c1"', 'name = "time"')
+    _refused(drag, "'time' is the FMI 3.0 build's independent variable")
+
+
+def test_fmi3_dependencies_are_value_references():
+    t = fmugen.load(MODELS / "Pendulum")
+    md = ET.fromstring(fmugen.generate_xml3(t))
+    vr = {v.get("name"): v.get("valueReference") for v in md.find("ModelVariables")}
+    (a,) = [o for o in md.find("ModelStructure").iter("Output") if o.get("valueReference") == vr["a"]]
+    assert a.get("dependencies").split() == [vr[n] for n in ("tau_escapement", "tau_drag", "tau_coupling",
+                                                             "tau_external", "g_factor")]
+    assert a.get("dependenciesKind").split() == ["fixed"] * 4 + ["dependent"]
