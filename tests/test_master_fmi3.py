@@ -342,3 +342,49 @@ def test_bundled_mixed_scene_fmi3_pendulum_fmi2_escapement(engine, tmp_path):
     assert max(abs(a - b) for r, q in zip(rows, ref) for a, b in zip(r, q)) < 1e-12
     assert outs["fmi3"][0].splitlines()[0] == outs["fmi2"][0].splitlines()[0]
     assert len(outs["fmi3"][0].splitlines()) == len(outs["fmi2"][0].splitlines())
+
+
+def _scene_stems():
+    from clockwork.paths import scenarios_dir
+    return sorted(p.stem for p in scenarios_dir().glob("*.toml"))
+
+
+@needs_fmi3_build
+def test_every_bundled_scene_loads_on_the_fmi3_build_or_is_refused_for_input_derivatives():
+    """Each scene loads with master.fmi_version = 3 (its model names then name
+    fmus/fmi3/ files), except those that hand an FMU its inputs as
+    polynomials, which FMI 3.0 cannot take: refused on the key that asks."""
+    from clockwork.run.catalog import load_scene
+    from clockwork.paths import scenarios_dir
+    refused = []
+    for stem in _scene_stems():
+        path = scenarios_dir() / f"{stem}.toml"
+        plain = load_scene(path, [])
+        try:
+            scene = load_scene(path, ["master.fmi_version=3"])
+        except SceneError as e:
+            assert e.key in ("master.extrapolation", "master.iterations") and "input derivatives" in e.detail
+            assert plain.master.extrapolation > 0 or plain.master.iterations > 0
+            refused.append(stem)
+            continue
+        for c in scene.components.values():
+            assert c.fmu_path.parent == FMI3_DIR and c.model_description.fmiVersion == "3.0", stem
+    assert len(refused) < len(_scene_stems()) // 2
+
+
+@needs_fmi3_build
+@pytest.mark.parametrize("stem", ["ziemkiewicz_fig4a", "hoyng_fig4", "ziemkiewicz_fig7a"])
+def test_bundled_scene_point_same_bits_on_both_builds_without_early_return(stem):
+    """A sweep point (shooting), Hoyng's averaged comparison and a kicked
+    clock: the FMI 3.0 build without early return gives the FMI 2.0 bits."""
+    from clockwork.analyses.registry import run_analysis
+    from clockwork.run.catalog import load_scene
+    from clockwork.paths import scenarios_dir
+    out = []
+    for sets in ([], ["master.fmi_version=3", "master.early_return=false"]):
+        scene = load_scene(scenarios_dir() / f"{stem}.toml", sets)
+        point = scene.sweep.points()[0] if scene.sweep else {}
+        res = run_analysis(scene, point)
+        res["result"] = {k: v for k, v in res["result"].items() if "wall" not in k and "cpu" not in k}
+        out.append(json.dumps(res, sort_keys=True, default=str))
+    assert out[0] == out[1]
