@@ -22,7 +22,8 @@ need not know the version. Behind them it speaks FMI 3.0 and does what FMI
   (the time the FMU reached): when the FMU finished the step, the step
   stands and the master ends the run before the next one; when it stopped
   short, ``c_doStep`` returns Discard and the step is not taken. Either way
-  the master raises ``SimulationEnded``.
+  the master ends the run cleanly (``SimulationEnded`` in ``master.ended``,
+  as for an FMI 2.0 FMU's fmi2Terminated).
 
 The adapter's state lives in a ctypes struct (``_Events``) that the
 compiled core's own adapter (the fmi3 section of src_c/master/cw_master.c)
