@@ -370,6 +370,22 @@ def test_the_tolerance_reaches_fmi2SetupExperiment(capsys, tmp_path, engine, ext
     assert x1 != pytest.approx((1.0 - 1e-2) ** 100, rel=1e-6)
 
 
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("extra, tolerance", [([], 1e-3), (["--set", "master.tolerance=1e-4"], 1e-4)])
+def test_the_tolerance_reaches_fmi3EnterInitializationMode(capsys, tmp_path, engine, extra, tolerance):
+    """TestDecay's FMI 3.0 build: the same tolerance reaches it, so it gives the FMI 2.0 build's bits."""
+    decay3 = test_fmu("TestDecay").parent / "fmi3" / "TestDecay.fmu"
+    assert decay3.is_file(), f"{decay3} is missing: build the test FMUs first (cmake --build build)"
+    scene3 = DECAY_SCENE.replace('fmu = "{decay}"', f'fmu = "{decay3}"')
+    rc, out, err = _run(capsys, tmp_path / "3", _scene(tmp_path, scene3, "s3.toml"), *extra, engine=engine)
+    assert rc == 0, err
+    rc2, out2, err2 = _run(capsys, tmp_path / "2", _scene(tmp_path, DECAY_SCENE), *extra, engine=engine)
+    assert rc2 == 0, err2
+    x1 = _csv(out)["d.x"][-1]
+    assert x1 == _csv(out2)["d.x"][-1]
+    assert float(x1) == pytest.approx((1.0 - tolerance) ** round(1.0 / tolerance), rel=1e-9)
+
+
 def test_a_bad_tolerance_is_refused(capsys, tmp_path):
     f = _scene(tmp_path, DECAY_SCENE)
     for value in ("0", "-1e-3", "true", '"tight"'):
