@@ -332,6 +332,26 @@ def test_an_fmu_that_ends_the_simulation_is_a_clean_end(capsys, tmp_path):
 
 
 @pytest.mark.parametrize("engine", ENGINES)
+def test_an_fmi3_fmu_ends_the_simulation_as_an_fmi2_one_does(capsys, tmp_path, engine):
+    """TestStair's FMI 3.0 build reports the model's end as terminateSimulation
+    from fmi3DoStep: the same clean end, the same result.ended and the same
+    series as its FMI 2.0 build (fmi2Discard + fmi2Terminated)."""
+    stair3 = test_fmu("TestStair").parent / "fmi3" / "TestStair.fmu"
+    assert stair3.is_file(), f"{stair3} is missing: build the test FMUs first (cmake --build build)"
+    runs = {}
+    for fmi, text in ((2, STAIR_SCENE), (3, STAIR_SCENE.replace('fmu = "{stair}"', f'fmu = "{stair3}"'))):
+        rc, out, err = _run(capsys, tmp_path / str(fmi), _scene(tmp_path, text, f"s{fmi}.toml"), engine=engine)
+        assert rc == 0, err
+        runs[fmi] = (json.loads((out / "summary.json").read_text())["result"], (out / "timeseries.csv").read_text())
+    (r2, csv2), (r3, csv3) = runs[2], runs[3]
+    assert csv3 == csv2
+    assert "terminateSimulation" in r3["ended"]["message"]
+    for key in ("instance", "time_s", "last_point_s"):
+        assert r3["ended"][key] == r2["ended"][key], key
+    assert r3["t_end_s"] == r2["t_end_s"] == 2.5
+
+
+@pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("extra, needle", [
     (["--set", "s.terminate=false"], "s: the stair ends at t = 2.55 s; the step to 2.6 s is refused."),
     (["--set", "s.terminate=false", "--set", "s.quiet=true"], "(the FMU logged no message)"),
