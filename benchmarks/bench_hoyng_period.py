@@ -28,8 +28,14 @@ end on the FMU's state bit for bit.
 4. the whole hoyng_fig6 scene's analysis in this process, on each engine
    (the Python engine for a fifth of the periods: it is slower).
 
+5. with --fmi-versions 2 3: cases 2 and 4 on the FMI 3.0 build of the
+   FMUs too (master.fmi_version = 3: the Pendulum returns early at each
+   tick and turning point and the master handles the event there), and
+   without early return (master.early_return = false), with the FMU state
+   saves and restores per period of each.
+
     python benchmarks/bench_hoyng_period.py [--periods 2000] [--repeats 3] [--integrators 1 2]
-                                            [--scene-periods 20000]
+                                            [--scene-periods 20000] [--fmi-versions 2 3]
 """
 
 from __future__ import annotations
@@ -115,25 +121,32 @@ def evaluations_alone(periods: int, integrator: int) -> tuple[float, float, bool
     return len(prob.times) / periods, steps / periods, same
 
 
-def bare_master(periods: int, integrator: int = 0, engine: str = "compiled") -> tuple[float, dict]:
+def bare_master(periods: int, integrator: int = 0, engine: str = "compiled", build: str = "2") -> tuple[float, dict]:
     """us per period of Master.run_until with the scene's settings on the
-    given engine (master.engine), and its statistics per period."""
+    given engine (master.engine) and build ("2", "3", or "3-" for FMI 3.0
+    without early return), and its statistics per period."""
     lam = analytic.hoyng_stationary_amplitude(MU0, EPS, PHI0)
+    settings = MasterSettings(step=TWO_PI, order="jacobi", engine=engine, fmi_version=int(build[0]),
+                              early_return=not build.endswith("-"))
     with System({"pendulum": ("Pendulum", dict(PEND, phi_start=lam, integrator=integrator)),
                  "escapement": ("GrasshopperEscapement", dict(torque=MU0, phi_r=PHI0))},
-                LINKS, MasterSettings(step=TWO_PI, order="jacobi", engine=engine), record={"pendulum": ["tick_time"]}) as s:
+                LINKS, settings, record={"pendulum": ["tick_time"]}) as s:
         m = s.master
         m.run_until(50 * TWO_PI)  # past the first steps
         before = dict(vars(m.stats))
+        ev = s.instances["pendulum"].events if build.startswith("3") else None
+        early = ev.early_returns if ev is not None else 0
         t0 = time.perf_counter()
         m.run_until(m.t + periods * TWO_PI)
         wall = time.perf_counter() - t0
         per = {k: (v - before[k]) / periods for k, v in vars(m.stats).items()}
+        if ev is not None:
+            per["pendulum_early_returns"] = (ev.early_returns - early) / periods
         per["outputs"] = [s.output("pendulum", "tick_time")]
     return wall / periods * 1e6, per
 
 
-def full_scene(periods: int, engine: str) -> tuple[float, float]:
+def full_scene(periods: int, engine: str, build: str = "2") -> tuple[float, float]:
     """us per period of the whole hoyng_fig6 scene's analysis (hoyng_long_run:
     the co-simulation with its tick points and torque noise from the start,
     then the AveragedPendulum twins replayed), run in this process on the
@@ -142,7 +155,8 @@ def full_scene(periods: int, engine: str) -> tuple[float, float]:
     from clockwork.run.catalog import load_scene
 
     scene = load_scene("hoyng_fig6", [f"experiment.stop={periods * TWO_PI!r}", "escapement.noise_start=0",
-                                      f"master.engine={engine}"])
+                                      f"master.engine={engine}", f"master.fmi_version={build[0]}",
+                                      f"master.early_return={str(not build.endswith('-')).lower()}"])
     res = run_analysis(scene, {})["result"]
     return res["wall_time_cosimulation_s"] / periods * 1e6, res["wall_time_run_s"] / periods * 1e6
 
@@ -183,33 +197,41 @@ def main(argv=None) -> int:
     ap.add_argument("--count-periods", type=int, default=50, help="periods replayed to count evaluations")
     ap.add_argument("--scene-periods", type=int, default=20000,
                     help="periods of the whole hoyng_fig6 scene per run (0: skip it)")
+    ap.add_argument("--fmi-versions", nargs="+", default=["2"], choices=["2", "3", "3-"],
+                    help="builds of the FMUs: 2, 3 (FMI 3.0 with early return), 3- (FMI 3.0 without)")
     a = ap.parse_args(argv)
     names = {0: "auto", 1: "DP5(4)", 2: "DOP853"}
+    builds = a.fmi_versions
     alone = {i: [] for i in a.integrators}
-    master = {(i, e): [] for i in a.integrators for e in ENGINES}
+    master = {(i, e, b): [] for i in a.integrators for e in ENGINES for b in builds}
     per = {}
     rk4 = []
-    scene = {e: [] for e in ENGINES}
+    scene = {(e, b): [] for e in ENGINES for b in builds}
     for _ in range(a.repeats):  # interleaved, so that machine noise hits all alike
         rk4.append(compiled_rk4(max(a.periods, 20000)))
         if a.scene_periods:
             for e in ENGINES:
-                scene[e].append(full_scene(a.scene_periods if e == "compiled" else max(1, a.scene_periods // 5), e))
+                for b in builds:
+                    scene[e, b].append(full_scene(a.scene_periods if e == "compiled"
+                                                  else max(1, a.scene_periods // 5), e, b))
         for i in a.integrators:
             alone[i].append(pendulum_alone(a.periods, i))
             for e in ENGINES:
-                us, per[i, e] = bare_master(a.periods, i, e)
-                master[i, e].append(us)
+                for b in builds:
+                    us, per[i, e, b] = bare_master(a.periods, i, e, b)
+                    master[i, e, b].append(us)
     print(f"# Hoyng's clock at point C, {a.periods} periods, median of {a.repeats} (us per period)")
     yard = statistics.median(rk4)
     print(f"Compiled RK4 of the whole clock, dt = 0.03 (Hoyng's method, {round(TWO_PI / 0.03)} steps per period): "
           f"{yard:.2f} (all runs: {', '.join(f'{v:.2f}' for v in rk4)})")
-    for e in ENGINES if a.scene_periods else ():
-        cosim = statistics.median(c for c, _ in scene[e])
-        whole = statistics.median(w for _, w in scene[e])
-        print(f"Whole hoyng_fig6 scene (hoyng_long_run, noise from the start), engine {e}: co-simulation {cosim:.1f} "
+    label = {"2": "FMI 2.0", "3": "FMI 3.0 with early return", "3-": "FMI 3.0 without early return"}
+    for e, b in scene if a.scene_periods else ():
+        cosim = statistics.median(c for c, _ in scene[e, b])
+        whole = statistics.median(w for _, w in scene[e, b])
+        print(f"Whole hoyng_fig6 scene (hoyng_long_run, noise from the start), {label[b]}, engine {e}: "
+              f"co-simulation {cosim:.1f} "
               f"({cosim / yard:.1f}x the RK4), whole analysis {whole:.1f} ({whole / yard:.1f}x; all runs: "
-              f"{', '.join(f'{w:.1f}' for _, w in scene[e])}); 110 days (4.84e6 periods) in about "
+              f"{', '.join(f'{w:.1f}' for _, w in scene[e, b])}); 110 days (4.84e6 periods) in about "
               f"{whole * 4.84e6 / 1e6:.0f} s")
     for i in a.integrators:
         rhs, steps, same = evaluations_alone(a.count_periods, i)
@@ -218,16 +240,17 @@ def main(argv=None) -> int:
               f"(all runs: {', '.join(f'{v:.1f}' for v in alone[i])}); "
               f"{rhs:.1f} right-hand sides and {steps:.1f} RK steps per period "
               f"(replay == FMU: {'yes' if same else 'NO'})")
-        for e in ENGINES:
-            us = statistics.median(master[i, e])
-            print(f"Pendulum + GrasshopperEscapement, bare run_until, engine {e}: {us:.1f} "
-                  f"(all runs: {', '.join(f'{v:.1f}' for v in master[i, e])}); "
-                  f"{us / yard:.1f}x the compiled RK4 (FMU alone: {statistics.median(alone[i]) / yard:.1f}x)")
-        same = per[i, "python"] == per[i, "compiled"]
-        print("per period: " + ", ".join(f"{k} {v:.2f}" for k, v in per[i, "compiled"].items()
-                                         if k != "outputs" and v)
-              + f"; python and compiled engines agree on every statistic and the last tick bit for bit: "
-              f"{'yes' if same else 'NO'}")
+        for b in builds:
+            for e in ENGINES:
+                us = statistics.median(master[i, e, b])
+                print(f"Pendulum + GrasshopperEscapement, bare run_until, {label[b]}, engine {e}: {us:.1f} "
+                      f"(all runs: {', '.join(f'{v:.1f}' for v in master[i, e, b])}); "
+                      f"{us / yard:.1f}x the compiled RK4 (FMU alone: {statistics.median(alone[i]) / yard:.1f}x)")
+            same = per[i, "python", b] == per[i, "compiled", b]
+            print(f"per period ({label[b]}): " + ", ".join(
+                f"{k} {v:.2f}" for k, v in per[i, "compiled", b].items() if k != "outputs" and v)
+                + f"; python and compiled engines agree on every statistic and the last tick bit for bit: "
+                f"{'yes' if same else 'NO'}")
     return 0
 
 

@@ -56,6 +56,18 @@ class SimulationError(ClockworkError):
         super().__init__(prefix + self.message)
 
 
+class SimulationEnded(SimulationError):
+    """An FMU ended the simulation (FMI 2.0: fmi2Discard with fmi2Terminated,
+    4.2.3; FMI 3.0: terminateSimulation): a clean end, not a failure of the
+    master. The results up to `time` (the last communication point, s)
+    stand; `fmu_time` is where the FMU stopped (its last successful time), s."""
+
+    def __init__(self, message: str, time: float | None = None, instance: str | None = None,
+                 fmu_time: float | None = None):
+        super().__init__(message, time=time, instance=instance)
+        self.fmu_time = fmu_time
+
+
 class ParametersRefused(SimulationError):
     """An FMU refused the parameter values it was given (setting them, or its
     cross-parameter checks at the end of initialization): bad input, which the

@@ -4,7 +4,9 @@ name and the scenes that come with it.
 In a source checkout the FMUs are the ones CMake builds into ``fmus/`` and
 the scenes are ``scenarios/``; an installed wheel carries both as package
 data (``clockwork/data/fmus``, ``clockwork/data/scenarios``), found with
-importlib.resources. ``$CLOCKWORK_FMU_DIR`` overrides where FMUs are looked up.
+importlib.resources; their FMI 3.0 build is in ``fmi3/`` inside either
+(``fmus/fmi3/<Name>.fmu``). ``$CLOCKWORK_FMU_DIR`` overrides where FMUs are
+looked up.
 
 The cache root is ``$CLOCKWORK_CACHE`` when set (``off``, ``0``, ``no``,
 ``false`` or empty disable it), else ``$XDG_CACHE_HOME/clockwork``, else
@@ -55,13 +57,18 @@ def scenarios_dir() -> Path:
     return REPO / "scenarios" if in_checkout() else _package_data("scenarios")
 
 
-def fmu_dir() -> Path:
+def fmu_dir(fmi_version: int = 2) -> Path:
     """Where model names are looked up: $CLOCKWORK_FMU_DIR, else the
-    checkout's fmus/, else the FMUs installed with the package."""
+    checkout's fmus/, else the FMUs installed with the package. The FMI 3.0
+    build of the same FMUs is the fmi3/ folder inside it (fmi_version=3)."""
+    if fmi_version not in (2, 3):
+        raise ValueError(f"fmi_version must be 2 or 3, not {fmi_version!r}")
     env = os.environ.get("CLOCKWORK_FMU_DIR")
     if env:
-        return Path(env)
-    return REPO / "fmus" if in_checkout() else _package_data("fmus")
+        base = Path(env)
+    else:
+        base = REPO / "fmus" if in_checkout() else _package_data("fmus")
+    return base / "fmi3" if fmi_version == 3 else base
 
 
 def core_library() -> Path:

@@ -2,7 +2,8 @@
 #
 # For every model, a C driver (tests/c/fmu_driver.c) that loads the model's
 # binary with dlopen and drives it through the FMI API with its own logger
-# and a counting allocator; ctest runs one test per model. With
+# and a counting allocator, and one for its FMI 3.0 build
+# (tests/c/fmu_driver3.c); ctest runs both per model. With
 # CW_SANITIZE=ON the drivers and the FMUs are built with
 # -fsanitize=address,undefined, the drivers run with LeakSanitizer on, and
 # the pytest FMU suite (test fmu_tests) runs with the AddressSanitizer
@@ -30,8 +31,19 @@ foreach(table ${MODEL_TABLES})
   add_dependencies(fmu_driver_${model} ${model})
   add_test(NAME driver_${model}
            COMMAND fmu_driver_${model} "$<TARGET_FILE:${model}>")
+
+  # The FMI 3.0 build of the same model (tests/c/fmu_driver3.c).
+  add_executable(fmu_driver3_${model} "${CMAKE_SOURCE_DIR}/tests/c/fmu_driver3.c"
+                                      "${gen_dir}/cw_vars.h")
+  target_include_directories(fmu_driver3_${model} PRIVATE "${gen_dir}" "${RUNTIME_DIR}" "${FMI_HEADERS}")
+  target_compile_options(fmu_driver3_${model} PRIVATE ${CW_WARNINGS} ${CW_SAN_FLAGS})
+  target_link_options(fmu_driver3_${model} PRIVATE ${CW_SAN_FLAGS})
+  target_link_libraries(fmu_driver3_${model} PRIVATE m ${CMAKE_DL_LIBS})
+  add_dependencies(fmu_driver3_${model} ${model}_fmi3)
+  add_test(NAME driver3_${model}
+           COMMAND fmu_driver3_${model} "$<TARGET_FILE:${model}_fmi3>")
   if(CW_SAN_ENV)
-    set_tests_properties(driver_${model} PROPERTIES ENVIRONMENT "${CW_SAN_ENV}")
+    set_tests_properties(driver_${model} driver3_${model} PROPERTIES ENVIRONMENT "${CW_SAN_ENV}")
   endif()
 endforeach()
 

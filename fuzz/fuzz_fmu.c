@@ -22,6 +22,7 @@
  *   - nothing the FMU allocated is left when the input is done. */
 #include <float.h>
 
+#include "fmi2Functions.h" /* the fmi2 functions, linked in */
 #include "harness.h"
 
 static fmi_api api;

@@ -85,6 +85,22 @@ def test_info_event_indicators(tmp_path, capsys):
     assert rc == 0 and "event indicators: phi" in out
 
 
+def test_info_on_the_fmi3_build(capsys):
+    from clockwork.paths import fmu_dir
+
+    rc, out, err = run(capsys, ["info", fmu_dir(fmi_version=3) / "GrasshopperEscapement.fmu"])
+    assert rc == 0 and err == ""
+    assert out.startswith("GrasshopperEscapement (FMI 3.0 Co-Simulation)")
+    flags = dict(ln.split()[:2] for ln in out.splitlines() if ln.startswith("  ") and len(ln.split()) == 2)
+    assert flags["hasEventMode"] == "true" and flags["mightReturnEarlyFromDoStep"] == "false"
+    assert flags["providesIntermediateUpdate"] == "false" and "canInterpolateInputs" not in flags
+    rows = {ln.split()[0]: ln.split() for ln in out.splitlines() if ln.startswith("  ") and len(ln.split()) > 6}
+    assert rows["phi"][:5] == ["phi", "input", "continuous", "Float64", "rad"]
+    assert rows["time"][1] == "independent"
+    # The indicators of FMI 3.0's annotation, as in the FMI 2.0 build.
+    assert "event indicators: event_indicator, event_indicator_turn" in out
+
+
 # --- bad input: one line on stderr, exit code 2 --------------------------------
 
 def _scene_with_fmu(tmp_path, fmu_bytes):

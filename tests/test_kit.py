@@ -67,6 +67,43 @@ def test_export_suite_writes_every_case(suite):
     assert not list(suite.rglob("*.part"))
 
 
+def test_reference_results_in_the_fmi_ls_ref_layout(suite):
+    """Every case's reference files are described by an FMI-LS-REF manifest
+    (extra/org.fmi-standard.fmi-ls-ref/fmi-ls-manifest.xml): inside the FMU
+    for a single-FMU case, with the files beside it; in the case directory
+    for a coupled case, pointing at the files there. Each source resolves to
+    the same bytes as the case's own file, and the reference has role result."""
+    import posixpath
+    import xml.etree.ElementTree as ET
+    import zipfile
+
+    ls = "extra/org.fmi-standard.fmi-ls-ref"
+    ns = "{http://fmi-standard.org/fmi-ls-manifest}"
+    for name, c in CASES.items():
+        d = _case_dir(suite, name)
+        if c.kind == "fmu":
+            z = zipfile.ZipFile(d / f"{name}.fmu")
+            manifest = z.read(f"{ls}/fmi-ls-manifest.xml")
+
+            def read(source):
+                return z.read(posixpath.normpath(f"{ls}/{source}"))
+            assert b"fmi-ls-ref" in z.read("documentation/fmi-ls-ref.txt")
+        else:
+            manifest = (d / ls / "fmi-ls-manifest.xml").read_bytes()
+
+            def read(source):
+                return (d / ls / source).resolve().read_bytes()
+        root = ET.fromstring(manifest)
+        assert root.tag == "fmiReferences" and root.get(f"{ns}fmi-ls-name") == "org.fmi-standard.fmi-ls-ref"
+        related = {Path(r.get("source")).name: r for r in root.iter("Related")}
+        assert related[f"{name}_ref.csv"].get("role") == "result"
+        assert related[f"{name}_ref.csv"].get("type") == "text/csv"
+        assert {f"{name}_events.csv", f"{name}_case.json", "README.md"} <= set(related)
+        assert (f"{name}_in.csv" in related) == (c.jump is not None)
+        for base, r in related.items():
+            assert read(r.get("source")) == (d / base).read_bytes(), (name, base)
+
+
 def test_single_fmu_part_passes_fmpy_cross_check_validation(suite):
     from fmpy.cross_check.validate_vendor_repo import validate_repo
 

@@ -55,8 +55,10 @@ def installed(tmp_path_factory):
 def test_the_wheel_carries_the_fmus_scenes_and_license(installed):
     wheel = installed[0]
     names = zipfile.ZipFile(wheel).namelist()
-    fmus = sorted(n.rsplit("/", 1)[1] for n in names if n.startswith("clockwork/data/fmus/"))
-    assert fmus == sorted(f"{p.name}.fmu" for p in (ROOT / "src_c" / "models").iterdir() if p.is_dir())
+    models = sorted(f"{p.name}.fmu" for p in (ROOT / "src_c" / "models").iterdir() if p.is_dir())
+    for folder in ("clockwork/data/fmus/", "clockwork/data/fmus/fmi3/"):  # the FMI 2.0 and 3.0 builds
+        fmus = sorted(n[len(folder):] for n in names if n.startswith(folder) and "/" not in n[len(folder):])
+        assert fmus == models, folder
     scenes = {n.rsplit("/", 1)[1] for n in names if n.startswith("clockwork/data/scenarios/")}
     assert scenes == {p.name for p in (ROOT / "scenarios").iterdir() if p.suffix in (".toml", ".json")}
     assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
@@ -82,6 +84,10 @@ def test_list_info_run_export_gallery_from_anywhere(installed):
     assert "ziemkiewicz_fig4a.toml" in listed and "core_grasshopper.toml" in listed
     info = clockwork("info", "Pendulum").stdout
     assert info.startswith("Pendulum (FMI 2.0 Co-Simulation)") and str(venv) in info
+    p = subprocess.run([str(venv / "bin" / "python"), "-c", "from clockwork.paths import fmu_dir; print(fmu_dir(3))"],
+                       cwd=work, env=env, capture_output=True, text=True)
+    info3 = clockwork("info", f"{p.stdout.strip()}/Pendulum.fmu").stdout
+    assert info3.startswith("Pendulum (FMI 3.0 Co-Simulation)") and str(venv) in info3
     clockwork("run", "core_grasshopper", "--out", "run", "--no-progress", "--set", "master.engine=compiled")
     summary = json.loads((work / "run" / "summary.json").read_text())
     assert summary["settings"]["master"]["engine"] == "compiled"

@@ -1,14 +1,16 @@
 """Generate a model's C variable table, modelDescription.xml, documentation and icon from model.toml.
 
-Usage: python fmugen.py MODEL_DIR OUT_DIR [--sources a.c b.c ...]
+Usage: python fmugen.py MODEL_DIR OUT_DIR [--sources a.c b.c ...] [--sources3 a.c ...]
 
-Writes OUT_DIR/cw_vars.h, modelDescription.xml, documentation/index.html and
-model.png (the last two by fmudoc.py).
+Writes OUT_DIR/cw_vars.h and, for the FMI 2.0 build, modelDescription.xml,
+documentation/index.html and model.png (the last two by fmudoc.py); for the
+FMI 3.0 build, OUT_DIR/fmi3/: modelDescription.xml, buildDescription.xml and
+documentation/index.html (its icon is the same model.png).
 
-The TOML file is the single description of a model's variables; both the C
-side (value-reference enum and the metadata table the runtime checks
-against) and the FMI 2.0 modelDescription.xml come from it. See
-docs/design.md for the table's keys.
+The TOML file is the single description of a model's variables; the C side
+(value-reference enum and the metadata table the runtime checks against)
+and both builds' modelDescription.xml come from it, so a new model gets both
+builds. See docs/design.md for the table's keys.
 """
 
 from __future__ import annotations
@@ -41,8 +43,13 @@ VAR_KEYS = {
 DEPENDENCY_KINDS = {"dependent", "constant", "fixed", "tunable", "discrete"}
 MODEL_KEYS = {
     "name", "description", "author", "version", "callbacks", "real_state",
-    "uint_state", "interpolates_inputs", "max_input_order",
+    "uint_state", "interpolates_inputs", "max_input_order", "early_return",
 }
+# The FMI 3.0 types of the table's types.
+FMI3_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
+# FMI 3.0 needs one independent variable; it takes the value reference after
+# the table's (CW_NVARS), which the runtime answers with the time.
+TIME_NAME = "time"
 # The cw_model callbacks (cw_runtime.h): field name -> (return type, parameters).
 CALLBACKS = {
     "validate": ("fmi2Status", "cw_instance *inst"),
@@ -112,6 +119,9 @@ def check(t: dict) -> None:
             raise TableError(f"{path}: state slot {s!r} is not a C identifier")
     if len(set(slots)) != len(slots):
         raise TableError(f"{path}: state slot names repeat")
+    early = model.get("early_return", [])
+    if not isinstance(early, list) or not all(isinstance(e, str) and e for e in early):
+        raise TableError(f"{path}: [model] early_return must be a list of event names")
     check_model_c(t)
     doc = t.get("documentation", {})
     unknown = set(doc) - DOC_KEYS
@@ -135,6 +145,8 @@ def check(t: dict) -> None:
                 raise TableError(f"{where}: missing '{key}'")
         if v["name"] in names:
             raise TableError(f"{where}: duplicate name")
+        if v["name"] == TIME_NAME:
+            raise TableError(f"{where}: '{TIME_NAME}' is the FMI 3.0 build's independent variable")
         if v["vr"] in vrs:
             raise TableError(f"{where}: duplicate value reference {v['vr']}")
         names.add(v["name"])
@@ -464,24 +476,190 @@ def generate_xml(t: dict, sources: list[str]) -> str:
     return "\n".join(x) + "\n"
 
 
+def _dependencies3(kinds: dict, vr_of: dict) -> str:
+    """dependencies (value references, ascending) and dependenciesKind
+    attributes of an FMI 3.0 unknown."""
+    deps = sorted((vr_of[name], kind) for name, kind in kinds.items())
+    if not deps:
+        return 'dependencies=""'
+    return (f'dependencies="{" ".join(str(r) for r, _ in deps)}" '
+            f'dependenciesKind="{" ".join(kind for _, kind in deps)}"')
+
+
+def generate_xml3(t: dict) -> str:
+    """The FMI 3.0 modelDescription.xml: the same variables, units and
+    dependencies as the FMI 2.0 one, in FMI 3.0's terms (typed variables,
+    value references in ModelStructure, the independent variable time)."""
+    m = t["model"]
+    variables = sorted(t["variable"], key=lambda v: v["vr"])
+    for v in variables:
+        # The fmi3 face has no fmi3Get/SetInt64 (FMI 3.0's access to an
+        # Enumeration) and a Co-Simulation FMU exposes no continuous states.
+        if v["type"] == "Enumeration":
+            raise TableError(f"{m['name']}: variable {v['name']!r}: the FMI 3.0 build takes no Enumeration "
+                             "variables (fmi3Get/SetInt64 not provided); build this model as FMI 2.0 only")
+        if "derivative_of" in v:
+            raise TableError(f"{m['name']}: variable {v['name']!r}: the FMI 3.0 build takes no declared states "
+                             "(derivative_of); build this model as FMI 2.0 only")
+    vr_of = {v["name"]: v["vr"] for v in variables}
+    time_vr = max(vr_of.values()) + 1  # CW_NVARS
+    max_order = max([int(v.get("derivatives", 0)) for v in variables] + [0])
+    early = bool(m.get("early_return"))
+    exp = t.get("experiment", {})
+    x = [
+        '<?xml version="1.0" encoding="UTF-8"?>',
+        "<fmiModelDescription",
+        '  fmiVersion="3.0"',
+        f"  modelName={quoteattr(m['name'])}",
+        f'  instantiationToken="{t["_guid"]}"',
+        f"  description={quoteattr(m['description'])}",
+        f"  author={quoteattr(m.get('author', 'clockwork'))}",
+        f"  version={quoteattr(m.get('version', '0.1.0'))}",
+        f"  copyright={quoteattr(COPYRIGHT)}",
+        f"  license={quoteattr(LICENSE)}",
+        '  generationTool="clockwork tools/fmugen.py"',
+        '  variableNamingConvention="structured">',
+        "  <CoSimulation",
+        f"    modelIdentifier={quoteattr(m['name'])}",
+        '    needsExecutionTool="false"',
+        '    canBeInstantiatedOnlyOncePerProcess="false"',
+        '    canGetAndSetFMUState="true"',
+        '    canSerializeFMUState="true"',
+        '    providesDirectionalDerivatives="false"',
+        '    providesAdjointDerivatives="false"',
+        '    providesPerElementDependencies="false"',
+        '    canHandleVariableCommunicationStepSize="true"',
+        f'    maxOutputDerivativeOrder="{max_order}"',
+        '    providesIntermediateUpdate="false"',
+        f'    mightReturnEarlyFromDoStep="{"true" if early else "false"}"',
+        '    canReturnEarlyAfterIntermediateUpdate="false"',
+        '    hasEventMode="true"',
+        '    providesEvaluateDiscreteStates="false"/>',
+    ]
+    units = t.get("units", {})
+    if units:
+        x.append("  <UnitDefinitions>")
+        for name, spec in units.items():
+            x += _unit_xml(name, spec)
+        x.append("  </UnitDefinitions>")
+    x += [
+        "  <LogCategories>",
+        '    <Category name="logEvents" description="Located crossings and mode switches"/>',
+        '    <Category name="logStatusWarning"/>',
+        '    <Category name="logStatusDiscard"/>',
+        '    <Category name="logStatusError"/>',
+        '    <Category name="logStatusFatal"/>',
+        '    <Category name="logAll"/>',
+        "  </LogCategories>",
+        f'  <DefaultExperiment startTime="{_num(exp.get("start", 0.0))}" '
+        f'stopTime="{_num(exp.get("stop", 10.0))}"'
+        + (f' tolerance="{_num(exp["tolerance"])}"' if "tolerance" in exp else "")
+        + f' stepSize="{_num(exp.get("step", 0.01))}"/>',
+        "  <ModelVariables>",
+        f'    <Float64 name="{TIME_NAME}" valueReference="{time_vr}" causality="independent" '
+        'variability="continuous" unit="s" description="Simulation time"/>'
+        if "s" in units else
+        f'    <Float64 name="{TIME_NAME}" valueReference="{time_vr}" causality="independent" '
+        'variability="continuous" description="Simulation time"/>',
+    ]
+    for v in variables:
+        attrs = [
+            f"name={quoteattr(v['name'])}",
+            f'valueReference="{v["vr"]}"',
+            f"description={quoteattr(v['description'])}",
+            f'causality="{v["causality"]}"',
+            f'variability="{v["variability"]}"',
+        ]
+        if v["causality"] in ("output", "local"):
+            attrs.append('initial="calculated"')
+        if v["type"] == "Real":
+            if "unit" in v:
+                attrs.append(f"unit={quoteattr(v['unit'])}")
+            if "display_unit" in v:
+                attrs.append(f"displayUnit={quoteattr(v['display_unit'])}")
+        if v["type"] != "Boolean":
+            for key in ("min", "max"):
+                if key in v:
+                    attrs.append(f'{key}="{_num(v[key])}"')
+        if v["causality"] in ("parameter", "input"):
+            start = v["start"]
+            if v["type"] == "Boolean":
+                start = bool(start)
+            attrs.append(f'start="{_num(start)}"')
+        x.append(f"    <{FMI3_TYPES[v['type']]} {' '.join(attrs)}/>")
+    x.append("  </ModelVariables>")
+    x.append("  <ModelStructure>")
+    outputs = [v for v in variables if v["causality"] == "output"]
+    # The same rules as the FMI 2.0 ModelStructure (see generate_xml); a
+    # Co-Simulation FMU exposes no continuous states, so there are no
+    # ContinuousStateDerivative elements, and its event indicators are
+    # outputs the importer watches (Model Exchange's EventIndicator
+    # elements do not apply): they are listed in the annotation below.
+    for v in outputs:
+        deps = v.get("depends_on", [])
+        kinds = deps if isinstance(deps, dict) else dict.fromkeys(deps, "dependent")
+        x.append(f'    <Output valueReference="{v["vr"]}" {_dependencies3(kinds, vr_of)}/>')
+    for v in outputs:
+        if "initial_depends_on" in v:
+            deps = _dependencies3(dict.fromkeys(v["initial_depends_on"], "dependent"), vr_of)
+            x.append(f'    <InitialUnknown valueReference="{v["vr"]}" {deps}/>')
+        else:  # undeclared: depends on every Known
+            x.append(f'    <InitialUnknown valueReference="{v["vr"]}"/>')
+    x.append("  </ModelStructure>")
+    indicators = [v["name"] for v in variables if v.get("event_indicator")]
+    if indicators:
+        x += ["  <Annotations>", '    <Annotation type="clockwork">', "      <EventIndicators>"]
+        x += [f"        <Indicator name={quoteattr(n)}/>" for n in indicators]
+        x += ["      </EventIndicators>", "    </Annotation>", "  </Annotations>"]
+    x.append("</fmiModelDescription>")
+    return "\n".join(x) + "\n"
+
+
+def generate_build_description(t: dict, sources: list[str]) -> str:
+    """sources/buildDescription.xml of the FMI 3.0 build (FMI 3.0 Sec. 2.5)."""
+    x = [
+        '<?xml version="1.0" encoding="UTF-8"?>',
+        '<fmiBuildDescription fmiVersion="3.0">',
+        f"  <BuildConfiguration modelIdentifier={quoteattr(t['model']['name'])}>",
+        '    <SourceFileSet language="C99">',
+    ]
+    x += [f"      <SourceFile name={quoteattr(s)}/>" for s in sources]
+    x += ["    </SourceFileSet>", "  </BuildConfiguration>", "</fmiBuildDescription>"]
+    return "\n".join(x) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("model_dir", type=Path)
     ap.add_argument("out_dir", type=Path)
-    ap.add_argument("--sources", nargs="*", default=[])
+    ap.add_argument("--sources", nargs="*", default=[], help="the FMI 2.0 build's C sources")
+    ap.add_argument("--sources3", nargs="*", default=None,
+                    help="the FMI 3.0 build's C sources (default: --sources with cw_fmi3.c for cw_fmi2.c)")
+    ap.add_argument("--fmi2-only", action="store_true",
+                    help="write no FMI 3.0 files (e.g. a test model whose C code calls FMI 2.0's logger)")
     a = ap.parse_args(argv)
+    sources3 = a.sources3 if a.sources3 is not None else [
+        "cw_fmi3.c" if s == "cw_fmi2.c" else s for s in a.sources]
     try:
         t = load(a.model_dir)
+        files = [
+            ("cw_vars.h", generate_header(t)),
+            ("modelDescription.xml", generate_xml(t, a.sources)),
+            ("documentation/index.html", fmudoc.generate_html(t, t["_references"])),
+            ("model.png", fmudoc.generate_png(t.get("documentation", {}).get("icon", "pendulum"))),
+        ]
+        if not a.fmi2_only:
+            t3 = fmudoc.fmi3_prose(t)
+            files += [
+                ("fmi3/modelDescription.xml", generate_xml3(t3)),
+                ("fmi3/buildDescription.xml", generate_build_description(t3, sources3)),
+                ("fmi3/documentation/index.html", fmudoc.generate_html(t3, t["_references"], fmi_version=3)),
+            ]
     except TableError as e:
         print(f"fmugen: {e}", file=sys.stderr)
         return 2
-    (a.out_dir / "documentation").mkdir(parents=True, exist_ok=True)
-    for name, data in (
-        ("cw_vars.h", generate_header(t)),
-        ("modelDescription.xml", generate_xml(t, a.sources)),
-        ("documentation/index.html", fmudoc.generate_html(t, t["_references"])),
-        ("model.png", fmudoc.generate_png(t.get("documentation", {}).get("icon", "pendulum"))),
-    ):
+    for name, data in files:
+        (a.out_dir / name).parent.mkdir(parents=True, exist_ok=True)
         data = data.encode() if isinstance(data, str) else data
         target = a.out_dir / name
         # Rewrite only on change so that the build stays incremental.

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Build the libFuzzer harness fuzz/fuzz_fmu.c against every model and run it.
+# Build the libFuzzer harnesses fuzz/fuzz_fmu.c (FMI 2.0 face) and
+# fuzz/fuzz_fmu3.c (FMI 3.0 face) against every model and run them.
 #
-#   bash tools/fuzz.sh                 bounded run (CI): 20000 executions per model
+#   bash tools/fuzz.sh                 bounded run (CI): 20000 executions per model (FMI 3.0: 5000)
 #   bash tools/fuzz.sh --long          long run: 600 s per model
 #   bash tools/fuzz.sh --time 3600     long run of that many seconds per model
 #   bash tools/fuzz.sh --runs N --model Pendulum [--model Drag ...]
@@ -10,8 +11,8 @@
 # Builds into build-fuzz/ (or $CW_FUZZ_DIR); the corpus grows in
 # build-fuzz/corpus/<Model>/, starting from fuzz/seeds/ (kept across runs, so
 # long runs build on earlier ones). A crash, sanitizer report, broken
-# invariant or timeout leaves its input in build-fuzz/crash-<Model>-* and
-# fails the script; rerun one with  build-fuzz/fuzz_<Model> FILE.
+# invariant or timeout leaves its input in build-fuzz/crash-<Model>[_fmi3]-* and
+# fails the script; rerun one with  build-fuzz/fuzz_<Model>[_fmi3] FILE.
 # Needs clang with libFuzzer: tools/install_fuzz_deps.sh.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -58,27 +59,33 @@ summary="$OUT/summary.txt"
 : > "$summary"
 failed=0
 total=0
-for m in "${MODELS[@]}"; do
-  gen="$OUT/gen/$m"
-  "$PY" tools/fmugen.py "src_c/models/$m" "$gen" --sources cw_runtime.c cw_rk.c model.c > /dev/null
+# Each model is fuzzed through both faces of the runtime: fuzz_fmu.c drives
+# the fmi2 functions (and through them the shared core), fuzz_fmu3.c what the
+# fmi3 face adds (Event Mode, early return, typed access, its states). The
+# FMI 3.0 harness gets a quarter of the bounded runs: the core under it is
+# the one the FMI 2.0 harness already covers.
+fuzz_one() {
+  local m=$1 face=$2 runs=$3
+  local gen="$OUT/gen/$m" name="$m" harness=fuzz/fuzz_fmu.c
+  [ "$face" = 3 ] && name="${m}_fmi3" && harness=fuzz/fuzz_fmu3.c
   "$CC" "${FLAGS[@]}" -I"$gen" -Isrc_c/runtime -I"$FMI" -Itests/c \
-        fuzz/fuzz_fmu.c src_c/runtime/cw_runtime.c src_c/runtime/cw_rk.c \
-        "src_c/models/$m/model.c" -lm -o "$OUT/fuzz_$m"
-  corpus="$OUT/corpus/$m"
+        "$harness" "src_c/runtime/cw_fmi$face.c" "$OUT/obj/$m"/*.o -lm -o "$OUT/fuzz_$name"
+  local corpus="$OUT/corpus/$name"
   [ "$FRESH" -eq 1 ] && rm -rf "$corpus"
   mkdir -p "$corpus"
-  seeds=()
-  [ -d "fuzz/seeds/$m" ] && seeds+=("fuzz/seeds/$m")
+  local seeds=()
+  [ -d "fuzz/seeds/$m" ] && [ "$face" = 2 ] && seeds+=("fuzz/seeds/$m")
   [ -d fuzz/seeds/common ] && seeds+=(fuzz/seeds/common)
-  log="$OUT/fuzz_$m.log"
-  args=(-seed=1 -timeout=20 -max_len=4096 -rss_limit_mb=2048 -print_final_stats=1
-        -artifact_prefix="$OUT/crash-$m-")
+  local log="$OUT/fuzz_$name.log"
+  local args=(-seed=1 -timeout=20 -max_len=4096 -rss_limit_mb=2048 -print_final_stats=1
+              -artifact_prefix="$OUT/crash-$name-")
   # Long runs let the input length (the length of the call sequences) grow
   # faster than libFuzzer's default.
-  if [ "$RUNS" -ge 0 ]; then args+=(-runs="$RUNS"); else args+=(-max_total_time="$TIME" -len_control=20); fi
+  if [ "$runs" -ge 0 ]; then args+=(-runs="$runs"); else args+=(-max_total_time="$TIME" -len_control=20); fi
+  local start rc secs execs cov result line
   start=$(date +%s)
   set +e
-  "$OUT/fuzz_$m" "${args[@]}" "$corpus" "${seeds[@]}" > "$log" 2>&1
+  "$OUT/fuzz_$name" "${args[@]}" "$corpus" "${seeds[@]}" > "$log" 2>&1
   rc=$?
   set -e
   secs=$(( $(date +%s) - start ))
@@ -87,10 +94,22 @@ for m in "${MODELS[@]}"; do
   execs=${execs:-0}
   total=$(( total + execs ))
   if [ "$rc" -eq 0 ]; then result=ok; else result="FAILED (exit $rc, see $log)"; failed=1; fi
-  line="$m: $execs executions in ${secs} s, coverage ${cov:-?} edges, corpus $(ls "$corpus" | wc -l) inputs: $result"
+  line="$name: $execs executions in ${secs} s, coverage ${cov:-?} edges, corpus $(ls "$corpus" | wc -l) inputs: $result"
   echo "fuzz: $line"
   echo "$line" >> "$summary"
   if [ "$rc" -ne 0 ]; then grep -E "ERROR|FAIL|fuzz_fmu|SUMMARY|runtime error" "$log" | head -n 20 >&2 || true; fi
+}
+
+for m in "${MODELS[@]}"; do
+  "$PY" tools/fmugen.py "src_c/models/$m" "$OUT/gen/$m" --sources cw_runtime.c cw_fmi2.c cw_rk.c model.c > /dev/null
+  # The core, the integrators and the model, compiled once for both harnesses.
+  rm -rf "$OUT/obj/$m" && mkdir -p "$OUT/obj/$m"
+  for src in src_c/runtime/cw_runtime.c src_c/runtime/cw_rk.c "src_c/models/$m/model.c"; do
+    "$CC" "${FLAGS[@]}" -c -I"$OUT/gen/$m" -Isrc_c/runtime -I"$FMI" "$src" \
+          -o "$OUT/obj/$m/$(basename "$src" .c).o"
+  done
+  fuzz_one "$m" 2 "$RUNS"
+  if [ "$RUNS" -ge 0 ]; then fuzz_one "$m" 3 $(( RUNS / 4 )); else fuzz_one "$m" 3 -1; fi
 done
 echo "fuzz: $total executions in total" | tee -a "$summary"
 exit "$failed"

@@ -5,7 +5,10 @@
 - ``ticks``: the same, but keep only the pendulum's tick times and rates.
 
 A grasshopper clock whose swing no longer reaches phi_r has stalled: that
-is a result (``"stalled": true``), not an error.
+is a result (``"stalled": true``), not an error. Nor is an FMU that ends the
+simulation (FMI 2.0 fmi2Discard with fmi2Terminated, FMI 3.0
+terminateSimulation): the run stops at the last communication point, what
+was recorded is kept, and the result says when and which FMU (``"ended"``).
 """
 
 from __future__ import annotations

@@ -26,6 +26,7 @@ from ctypes import POINTER, Structure, byref, c_double, c_int, c_longlong, c_siz
 from ..errors import SceneError, SimulationError
 from ..paths import core_library
 from .fmu import Instance
+from .fmu3 import _Events
 from .master import Master
 from .ports import link_type
 from .recording import Recorder, _DiscreteOutput
@@ -36,7 +37,7 @@ HISTORY = 3  # input history for divided differences (HISTORY in cw_master.c)
 ROWS_PER_CALL = 4096  # recording buffer, rows
 MAX_SINCE = 256  # steps kept since a checkpoint (the master forces one after 64)
 
-_DONE, _BUFFER_FULL, _CHECK_DIVERGENCE, _WATCHED = 0, 1, 2, 3
+_DONE, _BUFFER_FULL, _CHECK_DIVERGENCE, _WATCHED, _ENDED = 0, 1, 2, 3, 4
 _ERR_FMI, _ERR_NO_CHECKPOINT, _ERR_REPLAY, _ERR_LOCATE, _ERR_CAPACITY = -1, -2, -3, -4, -5
 _CALLS = ["fmi2DoStep", "fmi2GetReal", "fmi2SetReal of inputs", "fmi2SetRealInputDerivatives",
           "fmi2GetFMUstate", "fmi2SetFMUstate"]
@@ -81,7 +82,8 @@ class _Master(_Strict):
          "cap_since", "jacobi", "extrapolation", "locating", "has_sources", "after_event",
          "after_event_step", "sample_countdown", "prev_valid", "stale_sources", "snap_valid",
          "snap_after_event", "n_since", "max_replay_steps", "diverged", "err_port", "err_call", "err_status",
-         "orders_lowered"])
+         "orders_lowered"]
+    ) + [("n_fmi3", c_int), ("fmi3", c_void_p)]  # FMI 3.0 adapters (fmu3._Events), whose time events cap the step
 
 
 class _Recorder(_Strict):
@@ -110,7 +112,7 @@ def load_core():
             except OSError as e:
                 _lib_error = f"the compiled core {path} cannot be loaded ({e}); build it with tools/setup.sh"
                 return None
-            for name, struct in (("port", _Port), ("master", _Master), ("recorder", _Recorder)):
+            for name, struct in (("port", _Port), ("master", _Master), ("recorder", _Recorder), ("fmi3", _Events)):
                 size = getattr(lib, f"cw_sizeof_{name}")
                 size.restype = c_size_t
                 if size() != ctypes.sizeof(struct):
@@ -170,6 +172,14 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
     master = Master(instances, links, settings, start_time, step_order, extra_outputs)
     master.engine_reason = reason
     return master
+
+
+_CALL_FIELDS = ("doStep", "getReal", "setReal", "setInputDerivatives", "getOutputDerivatives",
+                "getState", "setState")
+_FMI2_NAMES = ("DoStep", "GetReal", "SetReal", "SetRealInputDerivatives", "GetRealOutputDerivatives",
+               "GetFMUstate", "SetFMUstate")
+_ADAPTER_NAMES = ("doStep", "getReal", "setReal", "setInputDerivatives", "getOutputDerivatives",
+                  "getState", "setState")
 
 
 def _array(ctype, values, n: int | None = None):
@@ -240,13 +250,15 @@ class CompiledMaster(Master):
         cports = (_Port * len(ports.all))()
         for i, p in enumerate(ports.all):
             inst, c = p.inst, cports[i]
-            dll = inst._slave.dll
-            c.comp = inst.component
-            c.doStep, c.getReal, c.setReal = (_fn(dll, "fmi2DoStep"), _fn(dll, "fmi2GetReal"),
-                                              _fn(dll, "fmi2SetReal"))
-            c.setInputDerivatives = _fn(dll, "fmi2SetRealInputDerivatives")
-            c.getOutputDerivatives = _fn(dll, "fmi2GetRealOutputDerivatives")
-            c.getState, c.setState = _fn(dll, "fmi2GetFMUstate"), _fn(dll, "fmi2SetFMUstate")
+            if inst.fmi_version == 3:
+                # The core's FMI 3.0 adapter (cw3_*), on the instance's shared adapter state.
+                dll, prefix, names = self._lib, "cw3_", _ADAPTER_NAMES
+                c.comp = ctypes.addressof(inst.events)
+            else:
+                dll, prefix, names = inst._slave.dll, "fmi2", _FMI2_NAMES
+                c.comp = inst.component
+            for field, name in zip(_CALL_FIELDS, names):
+                setattr(c, field, _fn(dll, prefix + name))
             c.state = ctypes.addressof(inst._state)
             c.out_vr, c.out = ref(p.out_vr), ctypes.addressof(p.out)
             c.in_vr, c.inp = ref(p.in_vr), ref(p.inp)
@@ -293,6 +305,8 @@ class CompiledMaster(Master):
         m.prev_kind, m.end_rate_set = ref(_array(c_int, [], nz)), ref(_array(c_int, [], nz))
         m.since, m.cap_since = ref(_array(c_double, [], MAX_SINCE)), MAX_SINCE
         m.n_ports, m.n_z = len(ports.all), nz
+        fmi3 = [ctypes.addressof(ev) for ev in self.fmi3_events]
+        m.fmi3, m.n_fmi3 = ref(_array(c_void_p, fmi3)), len(fmi3)
         s = self.settings
         m.t = self.__dict__.pop("_t_before_core", self.start_time)
         m.start_time, m.step = self.start_time, s.step
@@ -442,6 +456,8 @@ class CompiledMaster(Master):
         if rc == _CHECK_DIVERGENCE:
             self.ports.name_divergence(m.t, self.settings.divergence_limit)
             return
+        if rc == _ENDED:
+            raise self._fmi3_ended()
         if rc == _ERR_FMI:
             p = self.ports.all[m.err_port]
             if m.err_call == 0:

@@ -2,7 +2,12 @@
 
 ``resolve_fmu`` finds an FMU by model name or path, ``read_fmu`` reads its
 model description (cached by path, modification time and size) and checks
-that it is an FMI 2.0 Co-Simulation FMU with a binary for this platform.
+that it is an FMI 2.0 or 3.0 Co-Simulation FMU with a binary for this
+platform. An FMI 3.0 description is seen through FMI 2.0's type names
+(Float64 is "Real", Int32 "Integer"), so that the layers above read both
+alike; ``fmi_version`` tells them apart. FMI 3.0 features the master does
+not serve (clocks, arrays, scheduled execution only) are refused here with
+one line naming the FMU and the feature.
 """
 
 from __future__ import annotations
@@ -22,15 +27,18 @@ NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
 def event_indicator_names(xml: bytes) -> tuple[str, ...]:
-    """Outputs that a modelDescription.xml declares as event indicators (vendor annotation)."""
+    """Outputs that a modelDescription.xml declares as event indicators (the
+    annotation clockwork: FMI 2.0's VendorAnnotations/Tool, FMI 3.0's
+    Annotations/Annotation)."""
     try:
         root = ET.fromstring(xml)
     except ET.ParseError:
         return ()
     names = []
-    for tool in root.iterfind("VendorAnnotations/Tool"):
-        if tool.get("name") == "clockwork":
-            names += [i.get("name") for i in tool.iterfind("EventIndicators/Indicator") if i.get("name")]
+    tools = [t for t in root.iterfind("VendorAnnotations/Tool") if t.get("name") == "clockwork"]
+    tools += [t for t in root.iterfind("Annotations/Annotation") if t.get("type") == "clockwork"]
+    for tool in tools:
+        names += [i.get("name") for i in tool.iterfind("EventIndicators/Indicator") if i.get("name")]
     return tuple(names)
 
 
@@ -41,8 +49,10 @@ class FmuError(SceneError):
     """A missing or unusable FMU (bad input); str() is the reason."""
 
 
-def resolve_fmu(spec: str, base_dir: Path | None = None) -> Path:
-    """A model name -> <fmu_dir>/<name>.fmu; a path ending .fmu -> relative to base_dir."""
+def resolve_fmu(spec: str, base_dir: Path | None = None, fmi_version: int = 2) -> Path:
+    """A model name -> <fmu_dir>/<name>.fmu (the FMI 3.0 build in its fmi3/
+    subfolder when fmi_version is 3); a path ending .fmu -> relative to
+    base_dir, whatever its version."""
     if spec.endswith(".fmu"):
         p = Path(spec).expanduser()
         if not p.is_absolute():
@@ -60,23 +70,27 @@ def resolve_fmu(spec: str, base_dir: Path | None = None) -> Path:
         return p
     if not NAME_RE.match(spec):
         raise FmuError("expected a model name (e.g. \"Pendulum\") or a path ending .fmu")
-    d = fmu_dir()
+    d = fmu_dir(fmi_version)
     p = d / f"{spec}.fmu"
     if p.is_file():
         return p
     known = sorted(q.stem for q in d.glob("*.fmu")) if d.is_dir() else []
     close = difflib.get_close_matches(spec, known, n=1)
     hint = f" (did you mean {close[0]}?)" if close else ""
+    sub = "/fmi3" if fmi_version == 3 else ""
     if in_checkout():
         src = f"; there is no src_c/models/{spec} either" if not (REPO / "src_c" / "models" / spec).is_dir() else ""
-        where = f"else <repo>/fmus; build the FMUs with `cmake --build build`{src}"
+        where = f"else <repo>/fmus{sub}; build the FMUs with `cmake --build build`{src}"
     else:
         where = f"else the FMUs installed with clockwork: {', '.join(known) or 'none'}"
-    raise FmuError(f"no FMU named {spec}{hint}: looked for {p} (the FMU directory is $CLOCKWORK_FMU_DIR, {where})")
+    raise FmuError(f"no FMU named {spec}{hint}: looked for {p} (the FMU directory is $CLOCKWORK_FMU_DIR{sub}, "
+                   f"{where})")
 
 
-def read_fmu(path: Path, need_binary: bool = True) -> tuple[Any, str, tuple[str, ...]]:
-    """(model description, sha256, event indicators) of an FMU, cached by (path, mtime, size)."""
+def read_fmu(path: Path, need_binary: bool = True,
+             versions: tuple[str, ...] = ("2.0", "3.0")) -> tuple[Any, str, tuple[str, ...]]:
+    """(model description, sha256, event indicators) of an FMU, cached by
+    (path, mtime, size); its FMI version must be one of `versions`."""
     import fmpy
 
     path = Path(path).resolve()
@@ -101,20 +115,60 @@ def read_fmu(path: Path, need_binary: bool = True) -> tuple[Any, str, tuple[str,
             md = fmpy.read_model_description(str(path), validate=False)
         except Exception as e:  # fmpy raises bare Exceptions and lxml errors
             raise FmuError(f"{path}: unreadable modelDescription.xml: {e}") from None
-        if md.fmiVersion != "2.0":
-            raise FmuError(f"{path}: expected an FMI 2.0 FMU, found FMI {md.fmiVersion}")
+        if md.fmiVersion not in ("2.0", "3.0"):
+            raise FmuError(f"{path}: expected an FMI 2.0 or 3.0 FMU, found FMI {md.fmiVersion}")
+        if md.fmiVersion == "3.0":
+            _check_fmi3(path, md)
         if md.coSimulation is None:
             raise FmuError(f"{path}: expected a Co-Simulation FMU (no <CoSimulation> element)")
         indicators = event_indicator_names(xml)
         digest = sha256_file(path)
-        binary = f"binaries/{fmpy.platform}/{md.coSimulation.modelIdentifier}{fmpy.sharedLibraryExtension}"
+        # FMI 3.0 names binary folders by platform tuple (x86_64-linux), FMI 2.0 by platform (linux64).
+        platform = fmpy.platform_tuple if md.fmiVersion == "3.0" else fmpy.platform
+        binary = f"binaries/{platform}/{md.coSimulation.modelIdentifier}{fmpy.sharedLibraryExtension}"
         hit = (md, digest, indicators, binary in names, binary)
         _MD_CACHE.clear() if len(_MD_CACHE) > 256 else None
         _MD_CACHE[key] = hit
     md, digest, indicators, has_binary, binary = hit
+    if md.fmiVersion not in versions:
+        raise FmuError(f"{path}: expected an FMI {' or '.join(versions)} FMU, found FMI {md.fmiVersion}")
     if need_binary and not has_binary:
         raise FmuError(f"{path} has no binary for this platform ({binary}); rebuild it with `cmake --build build`")
     return md, digest, indicators
+
+
+# FMI 3.0 types the master exchanges, under the FMI 2.0 names the layers use.
+_FMI3_AS_FMI2 = {"Float64": "Real", "Int32": "Integer", "Boolean": "Boolean", "String": "String",
+                 "Enumeration": "Enumeration"}
+
+
+def _check_fmi3(path: Path, md) -> None:
+    """Refuse what the master does not serve; rename the types it does."""
+    clocks = [v.name for v in md.modelVariables if v.type == "Clock"]
+    if clocks:
+        raise FmuError(f"{path}: {md.modelName} uses clocks ({', '.join(clocks[:3])}"
+                       f"{', ...' if len(clocks) > 3 else ''}), which the master does not support")
+    if md.coSimulation is None and getattr(md, "scheduledExecution", None) is not None:
+        raise FmuError(f"{path}: {md.modelName} is a Scheduled Execution FMU, which the master does not support")
+    arrays = [v.name for v in md.modelVariables if v.dimensions]
+    if arrays:
+        raise FmuError(f"{path}: {md.modelName} has array variables ({', '.join(arrays[:3])}), "
+                       f"which the master does not support")
+    for v in md.modelVariables:
+        v.type = _FMI3_AS_FMI2.get(v.type, v.type)
+
+
+def type_name(md, v) -> str:
+    """A variable's type as its modelDescription.xml names it (Float64, not
+    Real, in an FMI 3.0 FMU)."""
+    if md.fmiVersion == "3.0":
+        return {fmi2: fmi3 for fmi3, fmi2 in _FMI3_AS_FMI2.items()}.get(v.type, v.type)
+    return v.type
+
+
+def fmi_version(md) -> int:
+    """2 or 3: the major FMI version of a model description."""
+    return 3 if md.fmiVersion == "3.0" else 2
 
 
 def event_indicators(path: Path) -> tuple[str, ...]:

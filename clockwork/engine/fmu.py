@@ -35,17 +35,6 @@ LAST_SUCCESSFUL_TIME, TERMINATED = 2, 3  # fmi2StatusKind
 NO_MESSAGE = "(the FMU logged no message)"
 
 
-class Terminated(SimulationError):
-    """An FMU ended the simulation (fmi2Discard with fmi2Terminated, FMI 2.0
-    4.2.3): a clean end, the results up to `time` (the last communication
-    point) stand; `fmu_time` is the FMU's fmi2LastSuccessfulTime, s."""
-
-    def __init__(self, message: str, time: float | None = None, instance: str | None = None,
-                 fmu_time: float | None = None):
-        super().__init__(message, time=time, instance=instance)
-        self.fmu_time = fmu_time
-
-
 # What the compiled core's formatting logger (cw_logger) hands on: the
 # instance name, the status, the category and the formatted text.
 _SINK = CFUNCTYPE(None, c_char_p, c_int, c_char_p, c_char_p)
@@ -196,6 +185,8 @@ def direct_feedthrough(md) -> dict[str, list[str]]:
 
 class Instance:
     """An instantiated FMU with fast access to its fmi2 functions."""
+
+    fmi_version = 2  # fmu3.Instance3 says 3
 
     def __init__(self, name: str, path: Path, model_description=None):
         self.name = name

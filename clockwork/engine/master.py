@@ -35,12 +35,12 @@ import math
 
 from .checkpoints import Checkpoints
 from .coupling import InputCoupling, iterate_step
-from .fmu import DISCARD, NO_MESSAGE, WARNING, Instance, Terminated, free_all
+from .fmu import DISCARD, NO_MESSAGE, WARNING, Instance, free_all
 from .location import EventLocator, crossed, scan
 from .ports import Port, Ports
 from .richardson import StepDoubling
 from .settings import MasterSettings, Statistics, rollback_need
-from ..errors import SceneError, SimulationError
+from ..errors import SceneError, SimulationEnded, SimulationError
 from .wiring import Link, build
 
 
@@ -76,9 +76,13 @@ class Master:
         self._extrapolating = bool(settings.extrapolation)
         self._jacobi = settings.order == "jacobi"
         self._check_rollback()
+        self._check_fmi3()
+        # FMI 3.0 instances' announced time events (fmu3._Events): a
+        # communication point lands on each.
+        self.fmi3_events = [p.inst.events for p in self.ports.all if p.inst.fmi_version == 3]
         self._reset_soft_state()
         self.engine_reason: str | None = None  # why "auto" chose this engine, when not the core
-        self.ended: Terminated | None = None  # an FMU ended the simulation (a clean end)
+        self.ended: SimulationEnded | None = None  # an FMU ended the simulation (a clean end)
 
     @property
     def notes(self) -> list[str]:
@@ -96,6 +100,23 @@ class Master:
                 raise SceneError(f"{key}: {inst.name} ({inst.path.name}) cannot save and restore its state "
                                  f"(its modelDescription.xml does not declare canGetAndSetFMUstate), "
                                  f"and {why} rolls every FMU back")
+
+    def _check_fmi3(self) -> None:
+        """FMI 3.0 Co-Simulation takes no input derivatives: refuse inputs
+        given as polynomials (extrapolation, or strong coupling's lines
+        between iterates) into an FMI 3.0 instance before the first step."""
+        s = self.settings
+        if s.extrapolation:
+            key, value, fix = "master.extrapolation", s.extrapolation, "master.extrapolation = 0"
+        elif s.iterations > 0:
+            key, value, fix = "master.iterations", s.iterations, "master.iterations = 0"
+        else:
+            return
+        for p in self.ports.dynamic:
+            if p.n_in and p.inst.fmi_version == 3:
+                raise SceneError(
+                    f"{key} = {value}: {p.inst.name} ({p.inst.path.name}) is an FMI 3.0 FMU, whose "
+                    f"Co-Simulation interface takes no input derivatives; use {fix} or an FMI 2.0 build")
 
     # -- initialization --------------------------------------------------
 
@@ -214,13 +235,32 @@ class Master:
             loc.z_end = loc.indicators()
 
     @staticmethod
+    def _fmi3_end(p: Port, t: float) -> SimulationEnded:
+        """The end an FMI 3.0 instance asked for (terminateSimulation), with
+        the results until t, the last communication point."""
+        end = p.inst.events.end_time
+        return SimulationEnded(f"{p.inst.name} ended the simulation (terminateSimulation) at t = {end!r} s; "
+                               f"results until {t!r} s", time=t, instance=p.inst.name, fmu_time=end)
+
+    def _fmi3_ended(self) -> SimulationEnded | None:
+        """The end an FMI 3.0 instance asked for in a step it finished, else None."""
+        for p in self.ports.all:
+            if p.inst.fmi_version == 3 and p.inst.events.terminated:
+                return self._fmi3_end(p, self.t)
+        return None
+
+    @staticmethod
     def _step_failure(p: Port, st: int, t: float, h: float) -> SimulationError:
-        """The error for a failed fmi2DoStep; Terminated where the FMU ended the simulation."""
-        if st == DISCARD and p.inst.terminated():
+        """The error for a failed fmi2DoStep/fmi3DoStep; SimulationEnded where
+        the FMU ended the simulation (a clean end, caught by run_until)."""
+        if st == DISCARD and p.inst.fmi_version == 3 and p.inst.events.terminated:
+            return Master._fmi3_end(p, t)
+        if st == DISCARD and p.inst.fmi_version == 2 and p.inst.terminated():
             end = p.inst.last_successful_time()
             end = t if end is None else end
-            return Terminated(f"{p.inst.name} ended the simulation at t = {end!r} s, in the step from "
-                              f"t = {t!r} s; results until {t!r} s", time=t, instance=p.inst.name, fmu_time=end)
+            return SimulationEnded(f"{p.inst.name} ended the simulation at t = {end!r} s, in the step from "
+                                   f"t = {t!r} s; results until {t!r} s", time=t, instance=p.inst.name,
+                                   fmu_time=end)
         if st == DISCARD:
             return SimulationError(
                 f"{p.inst.name}: fmi2DoStep from t = {t!r} s with h = {h!r} s was discarded: "
@@ -234,6 +274,14 @@ class Master:
         s = self.settings
         t = self.t
         loc = self.locator
+        # 0. An FMI 3.0 instance that asked to end the simulation ends it
+        # here; its announced time event caps the step.
+        for ev in self.fmi3_events:
+            if ev.terminated:
+                raise self._fmi3_ended()
+        for ev in self.fmi3_events:
+            if t < ev.next_event_time < t + h:
+                h = ev.next_event_time - t
         # 1. The indicators' sources cap the step.
         if loc.has_sources:
             if loc.sources_prev is None:
@@ -343,7 +391,7 @@ class Master:
             return
         try:
             self._run_until(t_stop, on_point)
-        except Terminated as e:
+        except SimulationEnded as e:
             self.ended = e
 
     def _run_until(self, t_stop: float, on_point=None) -> None:

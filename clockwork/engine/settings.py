@@ -28,9 +28,17 @@ class MasterSettings:
     # "compiled": the C stepping core (engine/compiled.py); "python": the
     # reference loop in master.py; "auto": compiled where it covers the settings.
     engine: str = "auto"
-    # Relative tolerance passed to every FMU's fmi2SetupExperiment; None:
+    # Relative tolerance passed to every FMU (fmi2SetupExperiment,
+    # fmi3EnterInitializationMode); None:
     # each FMU's DefaultExperiment tolerance, where it declares one.
     tolerance: float | None = None
+    # Which build of the bundled FMUs a model name loads: 2 (fmus/) or 3
+    # (fmus/fmi3/); a path to an .fmu file is whatever it is.
+    fmi_version: int = 2
+    # FMI 3.0 instances that declare mightReturnEarlyFromDoStep are allowed
+    # to return early at their own events (handled there in event mode);
+    # false: they handle them inside fmi3DoStep, as an FMI 2.0 FMU does.
+    early_return: bool = True
 
     def check(self) -> None:
         """Refuse combinations the master cannot run (SceneError: bad input)."""
@@ -43,6 +51,8 @@ class MasterSettings:
             raise SceneError(f"master.engine = {self.engine!r}: expected one of {', '.join(map(repr, ENGINES))}")
         if self.tolerance is not None and not (isinstance(self.tolerance, (int, float)) and self.tolerance > 0):
             raise SceneError(f"master.tolerance = {self.tolerance!r}: expected a number > 0")
+        if self.fmi_version not in (2, 3):
+            raise SceneError(f"master.fmi_version = {self.fmi_version!r}: expected 2 or 3")
         if self.extrapolation not in (0, 1, 2):
             raise SceneError(f"master.extrapolation = {self.extrapolation}: expected 0, 1 or 2")
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from .description import resolve_fmu
 from .fmu import Instance, free_all
+from .fmu3 import make_instance
 from .compiled import make_master
 from .settings import MasterSettings
 from .wiring import Link, parse_link
@@ -27,16 +28,18 @@ class System:
         # On a clean exit of a `with` block, hand the system to this callable
         # instead of freeing it (analyses.context.reusing_systems).
         self.release = None
+        settings = settings or MasterSettings()
         try:
             for name, (fmu, _) in components.items():
                 md = (model_descriptions or {}).get(name)
-                inst = Instance(name, resolve_fmu(str(fmu), Path.cwd()), md)
+                inst = make_instance(name, resolve_fmu(str(fmu), Path.cwd(), settings.fmi_version), md,
+                                     settings.early_return)
                 inst.instantiate()
                 self.instances[name] = inst
             known = {n: inst.variables for n, inst in self.instances.items()}
             links = [parse_link(c, known) if isinstance(c, str) else c if isinstance(c, Link) else Link(*c)
                      for c in connections]
-            self.master = make_master(self.instances, links, settings or MasterSettings(),
+            self.master = make_master(self.instances, links, settings,
                                  start_time=start_time, extra_outputs=record)
             self.master.initialize(self.parameters)
         except BaseException:

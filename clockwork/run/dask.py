@@ -46,7 +46,8 @@ def bundle(scene) -> dict:
         h.update(name.encode())
         h.update(hashlib.sha256(fmus[name]).digest())
     return {"key": h.hexdigest()[:24], "name": Path(scene.path).name, "text": text,
-            "overrides": list(scene.overrides), "specs": specs, "fmus": fmus}
+            "overrides": list(scene.overrides), "specs": specs, "fmus": fmus,
+            "fmi_version": scene.master.fmi_version}
 
 
 _ENV_LOCK = threading.Lock()
@@ -75,7 +76,10 @@ def materialize(b: dict, root: Path | None = None):
             if n == 0:
                 raise ValueError(f"cannot rewrite the FMU path {spec!r} of component {name}")
         else:
-            target = fmu_dir / f"{spec}.fmu"
+            # A model name resolves in the folder of the scene's build (paths.fmu_dir).
+            sub = fmu_dir / "fmi3" if b.get("fmi_version", 2) == 3 else fmu_dir
+            sub.mkdir(exist_ok=True)
+            target = sub / f"{spec}.fmu"
         if not target.exists() or target.stat().st_size != len(data):
             write_bytes_atomic(target, data)
     scene_file = base / b["name"]

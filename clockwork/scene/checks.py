@@ -158,11 +158,15 @@ def master_value(ctx: Ctx, key: str, value: object):
         if value not in ENGINES:
             raise ctx.bad(full, value, '"auto", "python" or "compiled"')
         return value
+    if key == "fmi_version":
+        if isinstance(value, bool) or value not in (2, 3) or not isinstance(value, int):
+            raise ctx.bad(full, value, "2 or 3 (which build of the bundled FMUs model names load)")
+        return value
     if key == "extrapolation":
         if isinstance(value, bool) or value not in (0, 1, 2) or not isinstance(value, int):
             raise ctx.bad(full, value, "0, 1 or 2 (order of the input extrapolation polynomial)")
         return value
-    if key in ("event_location", "richardson"):
+    if key in ("event_location", "richardson", "early_return"):
         if not isinstance(value, bool):
             raise ctx.bad(full, value, "true or false")
         return value

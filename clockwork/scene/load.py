@@ -207,15 +207,18 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     if not scene_t["title"].strip():
         raise ctx.bad("scene.title", scene_t["title"], "a non-empty title")
 
+    # The FMI version picks the build that model names load: known first.
+    master_t = ctx.table(raw, "master", "") or {}
+    fmi_version = master_value(ctx, "fmi_version", master_t["fmi_version"]) if "fmi_version" in master_t else 2
     if prebuilt is None:
-        components, input_params = _components(ctx, ctx.table(raw, "components", "", required=True))
+        components, input_params = _components(ctx, ctx.table(raw, "components", "", required=True), fmi_version)
         connections, notes = _connections(ctx, raw.get("connections", []), components, input_params)
     else:
         components, connections = prebuilt
         notes = ()
     experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
-    master, max_step_given = _master(ctx, ctx.table(raw, "master", "") or {})
-    problem = consistency(master, experiment, components)
+    master, max_step_given = _master(ctx, master_t)
+    problem = consistency(master, experiment, components) or _fmi3_inputs(master, components, connections)
     if problem:
         raise ctx.fail(*problem)
     if master.engine == "compiled":
@@ -259,7 +262,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     return scene
 
 
-def _components(ctx: Ctx, table: dict) -> tuple[dict[str, Component], set]:
+def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, Component], set]:
     if not table:
         raise ctx.fail("components", "expected at least one [components.<instance>] table")
     out: dict[str, Component] = {}
@@ -278,7 +281,7 @@ def _components(ctx: Ctx, table: dict) -> tuple[dict[str, Component], set]:
         if not isinstance(spec, str):
             raise ctx.bad(f"{where}.fmu", spec, "a model name or a path ending .fmu")
         try:
-            fpath = resolve_fmu(spec, ctx.path.parent)
+            fpath = resolve_fmu(spec, ctx.path.parent, fmi_version)
             md, digest, indicators = read_fmu(fpath)
         except FmuError as e:
             raise ctx.fail(f"{where}.fmu", str(e)) from None
@@ -372,6 +375,25 @@ def _experiment(ctx: Ctx, t: dict) -> Experiment:
     if not stop > start:
         raise ctx.bad("experiment.stop", t["stop"], f"a time > experiment.start ({fmt(start)} s)")
     return Experiment(start, stop)
+
+
+def _fmi3_inputs(m: MasterConfig, components: dict[str, Component], connections) -> tuple[str, str] | None:
+    """FMI 3.0 Co-Simulation takes no input derivatives: inputs given as
+    polynomials (extrapolation, strong coupling) cannot reach an FMI 3.0
+    FMU with dynamics (an output that does not depend on inputs). The
+    engine checks the exact rule again when it wires the FMUs."""
+    key = "extrapolation" if m.extrapolation else "iterations" if m.iterations > 0 else None
+    if key is None:
+        return None
+    for c in connections:
+        comp = components[c.dst_instance]
+        md = comp.model_description
+        dynamic = any(o.dependencies is not None and not o.dependencies for o in md.outputs)
+        if md.fmiVersion == "3.0" and dynamic:
+            return (f"master.{key}", f"{c.dst_instance} ({comp.fmu_path.name}) is an FMI 3.0 FMU with dynamics, "
+                    f"whose Co-Simulation interface takes no input derivatives: {key} needs them for "
+                    f"{c.dst_instance}.{c.dst_var}; use master.{key} = 0 or an FMI 2.0 build")
+    return None
 
 
 def _master(ctx: Ctx, t: dict) -> tuple[MasterConfig, bool]:

@@ -75,7 +75,9 @@ class MasterConfig:
     min_step: float = 1e-9  # s
     max_step: float = 0.01  # s
     engine: str = "auto"  # "auto", "python" or "compiled"
-    tolerance: float | None = None  # relative, for fmi2SetupExperiment; None: each FMU's DefaultExperiment's
+    tolerance: float | None = None  # relative, passed to every FMU; None: each FMU's DefaultExperiment's
+    fmi_version: int = 2  # which build of the bundled FMUs model names load: 2 or 3
+    early_return: bool = True  # FMI 3.0 FMUs may return early from fmi3DoStep at their own events
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)

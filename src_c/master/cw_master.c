@@ -15,10 +15,16 @@
  *
  * Not covered (the Python master serves them): strong coupling
  * (master.iterations > 0) and step doubling (master.richardson).
+ *
+ * FMI 3.0 instances are called through the adapter at the end of this
+ * file (cw3_*): fmi2-shaped functions whose first argument is a cw_fmi3,
+ * the twin of clockwork/engine/fmu3.py, so the stepping code above never
+ * asks which version an FMU is.
  */
 
 #include <math.h>
 #include <stdarg.h>
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -42,6 +48,7 @@ enum {
     CW_BUFFER_FULL = 1,     /* recording buffers full: drain and call again */
     CW_CHECK_DIVERGENCE = 2,/* an output is not finite or too large: Python names it */
     CW_WATCHED = 3,         /* a watched output changed (cw_run_watch) */
+    CW_ENDED = 4,           /* an FMI 3.0 instance asked to end the simulation (terminateSimulation) */
     CW_ERR_FMI = -1,        /* an fmi2 call failed: err_port, err_call, err_status */
     CW_ERR_NO_CHECKPOINT = -2,
     CW_ERR_REPLAY = -3,
@@ -133,6 +140,8 @@ typedef struct {
     int diverged;
     int err_port, err_call, err_status;
     int orders_lowered;        /* a port's ext_order was lowered: Python says so */
+    int n_fmi3;                /* FMI 3.0 instances, whose announced time events cap the step */
+    struct cw_fmi3 **fmi3;
 } cw_master;
 
 typedef struct {
@@ -991,9 +1000,22 @@ static int diverged(const cw_master *m)
     return !(s < m->divergence_limit);  /* NaN fails too */
 }
 
+static double fmi3_next_event_time(const struct cw_fmi3 *a);
+static int fmi3_terminated(const struct cw_fmi3 *a);
+
 static int step(cw_master *m, double h, double *taken_out)
 {
     double t = m->t;
+    /* 0. An FMI 3.0 instance that asked to end the simulation ends it here;
+     * its announced time event caps the step. */
+    for (int i = 0; i < m->n_fmi3; i++)
+        if (fmi3_terminated(m->fmi3[i]))
+            return CW_ENDED;
+    for (int i = 0; i < m->n_fmi3; i++) {
+        double te = fmi3_next_event_time(m->fmi3[i]);
+        if (t < te && te < t + h)
+            h = te - t;
+    }
     /* 1. The indicators' sources cap the step. */
     if (m->has_sources) {
         if (!m->prev_valid)
@@ -1132,7 +1154,7 @@ CW_EXPORT int cw_run_until(cw_master *m, double t_stop, cw_recorder *r)
         }
         double taken;
         int rc = step(m, h, &taken);
-        if (rc < 0)
+        if (rc < 0 || rc == CW_ENDED)
             return rc;
         if (r)
             record_point(m, r);
@@ -1220,4 +1242,176 @@ CW_EXPORT void cw_logger(void *env, const char *instance, int status, const char
     va_end(ap);
     sink(instance, status, category, big);
     free(big);
+}
+
+/* ---- FMI 3.0: the adapter (the twin of clockwork/engine/fmu3.py) ----------
+ *
+ * Each function has the fmi2 shape the core calls and takes a cw_fmi3 as
+ * its component. cw3_doStep steps through the FMU's own events: at an early
+ * return it handles the event at lastSuccessfulTime and steps on to the
+ * communication point; at eventHandlingNeeded it runs event mode
+ * (fmi3EnterEventMode, fmi3UpdateDiscreteStates until the discrete states
+ * settle, fmi3EnterStepMode) and keeps the announced next event time;
+ * terminateSimulation returns Discard with `terminated` set.
+ */
+
+enum { MAX_EVENT_ITERATIONS = 1000, MAX_STALLED_RETURNS = 100 };
+
+typedef int (*fmi3DoStep_t)(void *, double, double, bool, bool *, bool *, bool *, double *);
+typedef int (*fmi3GetFloat64_t)(void *, const unsigned *, size_t, double *, size_t);
+typedef int (*fmi3SetFloat64_t)(void *, const unsigned *, size_t, const double *, size_t);
+typedef int (*fmi3GetOutputDerivatives_t)(void *, const unsigned *, size_t, const int *, double *, size_t);
+typedef int (*fmi3GetFMUState_t)(void *, void **);
+typedef int (*fmi3SetFMUState_t)(void *, void *);
+typedef int (*fmi3ModeChange_t)(void *);
+typedef int (*fmi3UpdateDiscreteStates_t)(void *, bool *, bool *, bool *, bool *, bool *, double *);
+
+typedef struct cw_fmi3 {
+    void *instance;
+    fmi3DoStep_t doStep;
+    fmi3GetFloat64_t getFloat64;
+    fmi3SetFloat64_t setFloat64;
+    fmi3GetOutputDerivatives_t getOutputDerivatives;
+    fmi3GetFMUState_t getState;
+    fmi3SetFMUState_t setState;
+    fmi3ModeChange_t enterEventMode;
+    fmi3UpdateDiscreteStates_t updateDiscreteStates;
+    fmi3ModeChange_t enterStepMode;
+    double next_event_time;       /* s; INFINITY when none is announced */
+    double saved_next_event_time; /* with the saved FMU state */
+    double end_time;              /* where terminateSimulation stopped the FMU, s */
+    long long early_returns, events;
+    int event_mode_used, terminated;
+    int failed_call;              /* 0, or which call failed (fmu3.FAILED_CALLS) */
+    int pad_;
+} cw_fmi3;
+
+CW_EXPORT size_t cw_sizeof_fmi3(void) { return sizeof(cw_fmi3); }
+
+static double fmi3_next_event_time(const cw_fmi3 *a) { return a->next_event_time; }
+static int fmi3_terminated(const cw_fmi3 *a) { return a->terminated; }
+
+static int fmi3_settle(cw_fmi3 *a)
+{
+    bool need = false, term = false, nominals = false, values = false, defined = false;
+    double next_time = 0.0;
+    int st = FMI_OK, k;
+    for (k = 0; k < MAX_EVENT_ITERATIONS; k++) {
+        int s = a->updateDiscreteStates(a->instance, &need, &term, &nominals, &values, &defined, &next_time);
+        st = s > st ? s : st;
+        if (s > FMI_WARNING) {
+            a->failed_call = 3;
+            return s;
+        }
+        if (term)
+            a->terminated = 1;
+        if (!need)
+            break;
+    }
+    if (k == MAX_EVENT_ITERATIONS) {
+        a->failed_call = 6;
+        return FMI_ERROR;
+    }
+    a->next_event_time = defined ? next_time : INFINITY;
+    a->events += 1;
+    int s = a->enterStepMode(a->instance);
+    if (s > FMI_WARNING)
+        a->failed_call = 4;
+    return s > st ? s : st;
+}
+
+static int fmi3_handle_event(cw_fmi3 *a)
+{
+    int st = a->enterEventMode(a->instance);
+    if (st > FMI_WARNING) {
+        a->failed_call = 2;
+        return st;
+    }
+    int s = fmi3_settle(a);
+    return s > st ? s : st;
+}
+
+CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
+{
+    (void)no_set_prior;
+    cw_fmi3 *a = comp;
+    double end = t + h, now = t, step_size = h;
+    int worst = FMI_OK, stalled = 0;
+    for (;;) {
+        bool handling = false, term = false, early = false;
+        double last = 0.0;
+        int st = a->doStep(a->instance, now, step_size, false, &handling, &term, &early, &last);
+        if (st > FMI_WARNING) {
+            a->failed_call = 1;
+            return st;
+        }
+        worst = st > worst ? st : worst;
+        double reached = early ? last : end;
+        if (handling && a->event_mode_used) {
+            st = fmi3_handle_event(a);
+            if (st > FMI_WARNING)
+                return st;
+            worst = st > worst ? st : worst;
+        }
+        if (term)
+            reached = last;  /* where the FMU stopped, early return or not */
+        if (term || a->terminated) {
+            /* A whole step is kept; one the FMU stopped short of is discarded. */
+            a->terminated = 1;
+            a->end_time = reached;
+            return reached >= end ? worst : FMI_DISCARD;
+        }
+        if (!early || reached >= end)
+            return worst;
+        a->early_returns += 1;
+        stalled = reached <= now ? stalled + 1 : 0;
+        if (stalled > MAX_STALLED_RETURNS) {
+            a->failed_call = 5;
+            return FMI_ERROR;
+        }
+        now = reached;
+        step_size = end - reached;
+    }
+}
+
+CW_EXPORT int cw3_getReal(void *comp, const unsigned *vr, size_t n, double *out)
+{
+    cw_fmi3 *a = comp;
+    return a->getFloat64(a->instance, vr, n, out, n);
+}
+
+CW_EXPORT int cw3_setReal(void *comp, const unsigned *vr, size_t n, const double *values)
+{
+    cw_fmi3 *a = comp;
+    return a->setFloat64(a->instance, vr, n, values, n);
+}
+
+CW_EXPORT int cw3_setInputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order,
+                                      const double *values)
+{
+    /* FMI 3.0 CS has none; the master refuses extrapolation into FMI 3.0 first. */
+    (void)comp; (void)vr; (void)n; (void)order; (void)values;
+    return FMI_ERROR;
+}
+
+CW_EXPORT int cw3_getOutputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order, double *out)
+{
+    cw_fmi3 *a = comp;
+    return a->getOutputDerivatives(a->instance, vr, n, order, out, n);
+}
+
+CW_EXPORT int cw3_getState(void *comp, void **state)
+{
+    cw_fmi3 *a = comp;
+    int st = a->getState(a->instance, state);
+    a->saved_next_event_time = a->next_event_time;
+    return st;
+}
+
+CW_EXPORT int cw3_setState(void *comp, void *state)
+{
+    cw_fmi3 *a = comp;
+    int st = a->setState(a->instance, state);
+    a->next_event_time = a->saved_next_event_time;
+    return st;
 }

@@ -107,4 +107,21 @@ int cw_integrate(struct cw_instance *inst, const char *model, cw_rhs f, int n,
                  double h_max, int integrator, const char *const names[],
                  cw_rk_observer observer);
 
+/* An event of a model's own state: g(x) changes sign. `settle` puts a
+ * state located on the event exactly on it (so that the next step does not
+ * find it again). */
+typedef double (*cw_event_fn)(const struct cw_instance *inst, const double *x);
+typedef void (*cw_settle_fn)(const struct cw_instance *inst, double *x);
+
+/* cw_integrate (without an observer) that, when the importer allows early
+ * return (cw_may_return_early), ends the step at the first sign change of
+ * g inside it: located on the dense output (Illinois), the state there
+ * from a full step of the pair, settled, and reported with
+ * cw_return_early. Without early return it is cw_integrate, bit for bit. */
+int cw_integrate_to_event(struct cw_instance *inst, const char *model, cw_rhs f,
+                          int n, int first, int h_slot, double t_end,
+                          double rtol, double atol, double h_max,
+                          int integrator, const char *const names[],
+                          cw_event_fn g, cw_settle_fn settle);
+
 #endif

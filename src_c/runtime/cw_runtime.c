@@ -1,11 +1,10 @@
-/* FMI 2.0 Co-Simulation functions shared by all clockwork models.
- *
- * Everything here is model independent: the state machine of the standard
- * (FMI 2.0.4, Sec. 4.2.4), argument and range checks driven by the generated
- * variable table, logging through the environment's callbacks, per-instance
+/* The runtime's core, shared by every model and by both faces (cw_fmi2.c,
+ * cw_fmi3.c): the Co-Simulation state machine (FMI 2.0.4 Sec. 4.2.4, FMI
+ * 3.0 Step and Event Mode), argument and range checks driven by the
+ * generated variable table, logging through the face, per-instance
  * storage, input polynomials, and the versioned FMU state layout described
- * in docs/design.md. */
-#include "cw_runtime.h"
+ * in docs/design.md. Model independent. */
+#include "cw_core.h"
 #include "cw_rk.h"
 
 #include <math.h>
@@ -16,21 +15,26 @@
 #define STATE_MAGIC 0x31535743u /* "CWS1" little endian */
 #define STATE_LAYOUT_VERSION 2u  /* 2: the checksum runs over 64-bit words */
 
-#define ANY_OPEN_STATE                                                      \
-    (CW_INSTANTIATED | CW_INIT_MODE | CW_STEP_COMPLETE | CW_STEP_FAILED |   \
-     CW_TERMINATED | CW_ERROR)
+#define ANY_OPEN_STATE CW_ANY_OPEN_STATE
 #define READABLE_STATES                                                     \
     (CW_INIT_MODE | CW_STEP_COMPLETE | CW_STEP_FAILED | CW_TERMINATED |     \
-     CW_ERROR)
+     CW_ERROR | CW_EVENT_MODE)
+/* Where inputs and tunable parameters may be set. */
+#define SETTABLE_STATES                                                     \
+    (CW_INSTANTIATED | CW_INIT_MODE | CW_STEP_COMPLETE | CW_EVENT_MODE)
+/* After initialization: where tunable parameters are checked together. */
+#define RUNNING_STATES (CW_STEP_COMPLETE | CW_EVENT_MODE)
 
-static const char *state_name(cw_machine_state s) {
+static const char *state_name(const cw_instance *inst, cw_machine_state s) {
+    const int v3 = inst->api[3] == '3';
     switch (s) {
     case CW_INSTANTIATED: return "Instantiated";
     case CW_INIT_MODE: return "InitializationMode";
-    case CW_STEP_COMPLETE: return "StepComplete";
-    case CW_STEP_FAILED: return "StepFailed";
+    case CW_STEP_COMPLETE: return v3 ? "StepMode" : "StepComplete";
+    case CW_STEP_FAILED: return v3 ? "StepMode after a discarded step" : "StepFailed";
     case CW_TERMINATED: return "Terminated";
     case CW_ERROR: return "Error";
+    case CW_EVENT_MODE: return "EventMode";
     }
     return "?";
 }
@@ -46,9 +50,10 @@ static const char *status_category(fmi2Status status) {
     }
 }
 
+
 void cw_log(cw_instance *inst, fmi2Status status, const char *category,
             const char *fmt, ...) {
-    if (!inst || !inst->cb.logger) return;
+    if (!inst || !inst->emit) return;
     /* Problems are always reported; chatter only when asked for. */
     if (status == fmi2OK && !inst->logging_on) return;
     char buf[1024];
@@ -56,11 +61,7 @@ void cw_log(cw_instance *inst, fmi2Status status, const char *category,
     va_start(ap, fmt);
     vsnprintf(buf, sizeof buf, fmt, ap);
     va_end(ap);
-    /* The message is passed as a printf format by some environments. */
-    for (char *p = buf; *p; p++)
-        if (*p == '%') *p = ' ';
-    inst->cb.logger(inst->cb.componentEnvironment, inst->instance_name, status,
-                    category ? category : status_category(status), buf);
+    inst->emit(inst, status, category ? category : status_category(status), buf);
 }
 
 fmi2Status cw_refuse(cw_instance *inst, const char *var, double value,
@@ -70,13 +71,7 @@ fmi2Status cw_refuse(cw_instance *inst, const char *var, double value,
     return fmi2Error;
 }
 
-static fmi2Status fail(cw_instance *inst, const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 2, 3)))
-#endif
-    ;
-
-static fmi2Status fail(cw_instance *inst, const char *fmt, ...) {
+fmi2Status cw_core_fail(cw_instance *inst, const char *fmt, ...) {
     char buf[900];
     va_list ap;
     va_start(ap, fmt);
@@ -86,16 +81,18 @@ static fmi2Status fail(cw_instance *inst, const char *fmt, ...) {
     inst->state = CW_ERROR;
     return fmi2Error;
 }
+#define fail cw_core_fail
 
 /* Refuse a call made in the wrong state without changing the state: the
  * instance itself is still consistent, the caller is not. */
-static int allowed(cw_instance *inst, const char *fn, int mask) {
+int cw_core_allowed(cw_instance *inst, const char *fn, int mask) {
     if (!inst) return 0;
     if (inst->state & mask) return 1;
     cw_log(inst, fmi2Error, "logStatusError",
-           "%s may not be called in state %s.", fn, state_name(inst->state));
+           "%s may not be called in state %s.", fn, state_name(inst, inst->state));
     return 0;
 }
+#define allowed cw_core_allowed
 
 double cw_input(const cw_instance *inst, unsigned vr, double t) {
     double dt = t - inst->in_tref[vr];
@@ -106,15 +103,25 @@ double cw_input_rate(const cw_instance *inst, unsigned vr, double t) {
     return inst->in_d1[vr] + (t - inst->in_tref[vr]) * inst->in_d2[vr];
 }
 
-static const cw_var_info *var(cw_instance *inst, fmi2ValueReference vr) {
-    if (vr >= (fmi2ValueReference)inst->model->nvars) return NULL;
+
+int cw_may_return_early(const cw_instance *inst) {
+    return inst->early_return_allowed;
+}
+
+void cw_return_early(cw_instance *inst, double t) {
+    inst->returned_early = 1;
+    inst->early_time = t;
+}
+
+static const cw_var_info *var(cw_instance *inst, unsigned vr) {
+    if (vr >= (unsigned)inst->model->nvars) return NULL;
     const cw_var_info *v = &inst->model->vars[vr];
     return v->name ? v : NULL;
 }
 
 static void *alloc(cw_instance *inst, size_t n, size_t size) {
     if (n == 0) n = 1;
-    return inst->cb.allocateMemory(n, size);
+    return inst->alloc_mem(n, size);
 }
 
 static void set_start_values(cw_instance *inst) {
@@ -169,78 +176,58 @@ static int outputs_finite(cw_instance *inst, const char *fn) {
 
 /* ------------------------------------------------------------------ */
 /* Inquire version numbers and setting logging status                 */
+/* ------------------------------------------------------------------ */
+/* Logging, creation and destruction of instances                     */
 
-const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
-const char *fmi2GetVersion(void) { return fmi2Version; }
-
-fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn,
-                               size_t nCategories,
-                               const fmi2String categories[]) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2SetDebugLogging", ANY_OPEN_STATE)) return fmi2Error;
+fmi2Status cw_core_set_debug_logging(cw_instance *inst, const char *fn,
+                                     int logging_on, size_t n,
+                                     const char *const categories[]) {
+    if (!allowed(inst, fn, ANY_OPEN_STATE)) return fmi2Error;
     static const char *known[] = {"logEvents", "logStatusWarning",
                                   "logStatusDiscard", "logStatusError",
                                   "logStatusFatal", "logAll"};
-    if (nCategories > 0 && !categories) {
+    if (n > 0 && !categories) {
         cw_log(inst, fmi2Error, "logStatusError",
-               "fmi2SetDebugLogging: categories is NULL but nCategories = %zu.",
-               nCategories);
+               "%s: categories is NULL but nCategories = %zu.", fn, n);
         return fmi2Error;
     }
-    for (size_t k = 0; k < nCategories; k++) {
+    for (size_t k = 0; k < n; k++) {
         int found = 0;
         for (size_t j = 0; j < sizeof known / sizeof *known; j++)
             if (categories[k] && strcmp(categories[k], known[j]) == 0) found = 1;
         if (!found) {
             cw_log(inst, fmi2Error, "logStatusError",
-                   "fmi2SetDebugLogging: unknown log category '%s'.",
+                   "%s: unknown log category '%s'.", fn,
                    categories[k] ? categories[k] : "(null)");
             return fmi2Error;
         }
     }
-    inst->logging_on = loggingOn ? 1 : 0;
+    inst->logging_on = logging_on ? 1 : 0;
     return fmi2OK;
 }
 
-/* ------------------------------------------------------------------ */
-/* Creation and destruction of instances                              */
-
-fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType,
-                              fmi2String fmuGUID,
-                              fmi2String fmuResourceLocation,
-                              const fmi2CallbackFunctions *functions,
-                              fmi2Boolean visible, fmi2Boolean loggingOn) {
-    (void)fmuResourceLocation;
-    (void)visible;
-    if (!functions || !functions->allocateMemory || !functions->freeMemory)
-        return NULL; /* nobody to tell: the standard requires these */
-    cw_instance tmp;
-    memset(&tmp, 0, sizeof tmp);
-    tmp.cb = *functions;
-    tmp.instance_name = (char *)(instanceName ? instanceName : "?");
+cw_instance *cw_core_instantiate(const cw_instance *proto, const char *fn,
+                                 const char *instance_name, const char *token,
+                                 const char *token_name) {
+    cw_instance tmp = *proto;
+    tmp.instance_name = (char *)(instance_name ? instance_name : "?");
     tmp.model = &CW_MODEL;
-    if (!instanceName || !*instanceName) {
+    if (!instance_name || !*instance_name) {
         cw_log(&tmp, fmi2Error, "logStatusError",
-               "fmi2Instantiate: instanceName must be a non-empty string.");
+               "%s: instanceName must be a non-empty string.", fn);
         return NULL;
     }
-    if (fmuType != fmi2CoSimulation) {
+    if (!token || strcmp(token, CW_MODEL.guid) != 0) {
         cw_log(&tmp, fmi2Error, "logStatusError",
-               "fmi2Instantiate: %s supports only fmi2CoSimulation.",
-               CW_MODEL.name);
+               "%s: %s '%s' does not match %s's '%s'.", fn, token_name,
+               token ? token : "(null)", CW_MODEL.name, CW_MODEL.guid);
         return NULL;
     }
-    if (!fmuGUID || strcmp(fmuGUID, CW_MODEL.guid) != 0) {
-        cw_log(&tmp, fmi2Error, "logStatusError",
-               "fmi2Instantiate: GUID '%s' does not match %s's '%s'.",
-               fmuGUID ? fmuGUID : "(null)", CW_MODEL.name, CW_MODEL.guid);
-        return NULL;
-    }
-    cw_instance *inst = functions->allocateMemory(1, sizeof(cw_instance));
+    cw_instance *inst = tmp.alloc_mem(1, sizeof(cw_instance));
     if (!inst) return NULL;
     *inst = tmp;
-    size_t len = strlen(instanceName) + 1;
-    inst->instance_name = functions->allocateMemory(len, 1);
+    size_t len = strlen(instance_name) + 1;
+    inst->instance_name = tmp.alloc_mem(len, 1);
     int nv = CW_MODEL.nvars;
     inst->r = alloc(inst, nv, sizeof(double));
     inst->i = alloc(inst, nv, sizeof(int32_t));
@@ -251,63 +238,48 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType,
     inst->u = alloc(inst, CW_MODEL.n_uint_state, sizeof(uint64_t));
     if (!inst->instance_name || !inst->r || !inst->i || !inst->in_d1 ||
         !inst->in_d2 || !inst->in_tref || !inst->s || !inst->u) {
-        cw_log(&tmp, fmi2Error, "logStatusError",
-               "fmi2Instantiate: out of memory.");
-        fmi2FreeInstance(inst);
+        cw_log(&tmp, fmi2Error, "logStatusError", "%s: out of memory.", fn);
+        cw_core_free_instance(inst);
         return NULL;
     }
-    memcpy(inst->instance_name, instanceName, len);
-    inst->logging_on = loggingOn ? 1 : 0;
+    memcpy(inst->instance_name, instance_name, len);
     inst->state = CW_INSTANTIATED;
     set_start_values(inst);
     return inst;
 }
 
-void fmi2FreeInstance(fmi2Component c) {
-    cw_instance *inst = (cw_instance *)c;
+void cw_core_free_instance(cw_instance *inst) {
     if (!inst) return;
-    fmi2CallbackFreeMemory freeMemory = inst->cb.freeMemory;
+    void (*free_mem)(void *) = inst->free_mem;
     void *blocks[] = {inst->r,     inst->i,       inst->in_d1, inst->in_d2,
                       inst->in_tref, inst->s,     inst->u,
                       inst->instance_name, inst->scratch};
     for (size_t k = 0; k < sizeof blocks / sizeof *blocks; k++)
-        if (blocks[k]) freeMemory(blocks[k]);
-    freeMemory(inst);
+        if (blocks[k]) free_mem(blocks[k]);
+    free_mem(inst);
 }
 
 /* ------------------------------------------------------------------ */
-/* Initialization                                                     */
+/* Initialization, termination, reset                                 */
 
-fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
-                               fmi2Real tolerance, fmi2Real startTime,
-                               fmi2Boolean stopTimeDefined,
-                               fmi2Real stopTime) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2SetupExperiment", CW_INSTANTIATED)) return fmi2Error;
-    /* Kept for models that integrate to it; the clock's models take their
-     * tolerances as parameters. */
-    inst->tolerance_defined = toleranceDefined ? 1 : 0;
-    inst->tolerance = toleranceDefined ? tolerance : 0.0;
-    if (!isfinite(startTime))
-        return fail(inst, "fmi2SetupExperiment: startTime = %g must be finite.",
-                    startTime);
-    if (stopTimeDefined && !(isfinite(stopTime) && stopTime >= startTime))
+fmi2Status cw_core_setup(cw_instance *inst, const char *fn, double start_time,
+                         int stop_time_defined, double stop_time) {
+    if (!isfinite(start_time))
+        return fail(inst, "%s: startTime = %g must be finite.", fn, start_time);
+    if (stop_time_defined && !(isfinite(stop_time) && stop_time >= start_time))
         return fail(inst,
-                    "fmi2SetupExperiment: stopTime = %g must be finite and >= "
-                    "startTime = %g.",
-                    stopTime, startTime);
-    inst->start_time = startTime;
-    inst->time = startTime;
-    inst->stop_time = stopTime;
-    inst->stop_time_defined = stopTimeDefined ? 1 : 0;
-    for (int k = 0; k < inst->model->nvars; k++) inst->in_tref[k] = startTime;
+                    "%s: stopTime = %g must be finite and >= startTime = %g.",
+                    fn, stop_time, start_time);
+    inst->start_time = start_time;
+    inst->time = start_time;
+    inst->stop_time = stop_time;
+    inst->stop_time_defined = stop_time_defined ? 1 : 0;
+    for (int k = 0; k < inst->model->nvars; k++) inst->in_tref[k] = start_time;
     return fmi2OK;
 }
 
-fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2EnterInitializationMode", CW_INSTANTIATED))
-        return fmi2Error;
+fmi2Status cw_core_enter_initialization(cw_instance *inst, const char *fn) {
+    (void)fn;
     inst->state = CW_INIT_MODE;
     inst->outputs_dirty = 1;
     return fmi2OK;
@@ -326,56 +298,61 @@ static fmi2Status validate_and_initialize(cw_instance *inst) {
     return fmi2OK;
 }
 
-fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2ExitInitializationMode", CW_INIT_MODE))
-        return fmi2Error;
+fmi2Status cw_core_exit_initialization(cw_instance *inst, const char *fn,
+                                       cw_machine_state next) {
+    if (!allowed(inst, fn, CW_INIT_MODE)) return fmi2Error;
     fmi2Status st = validate_and_initialize(inst);
     if (st > fmi2Warning) return st;
-    if (!outputs_finite(inst, "fmi2ExitInitializationMode")) return fmi2Error;
-    inst->state = CW_STEP_COMPLETE;
+    if (!outputs_finite(inst, fn)) return fmi2Error;
+    inst->state = next;
     return fmi2OK;
 }
 
-fmi2Status fmi2Terminate(fmi2Component c) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2Terminate", CW_STEP_COMPLETE | CW_STEP_FAILED))
+fmi2Status cw_core_terminate(cw_instance *inst, const char *fn) {
+    if (!allowed(inst, fn, CW_STEP_COMPLETE | CW_STEP_FAILED | CW_EVENT_MODE))
         return fmi2Error;
     inst->state = CW_TERMINATED;
     return fmi2OK;
 }
 
-fmi2Status fmi2Reset(fmi2Component c) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2Reset", ANY_OPEN_STATE)) return fmi2Error;
+fmi2Status cw_core_reset(cw_instance *inst, const char *fn) {
+    if (!allowed(inst, fn, ANY_OPEN_STATE)) return fmi2Error;
     set_start_values(inst);
     inst->state = CW_INSTANTIATED;
     return fmi2OK;
 }
 
+void cw_core_commit(cw_instance *inst) {
+    if (inst->model->commit) inst->model->commit(inst);
+    inst->outputs_dirty = 1;
+}
+
 /* ------------------------------------------------------------------ */
 /* Getting and setting variable values                                */
 
-fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[],
-                       size_t nvr, fmi2Real value[]) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2GetReal", READABLE_STATES)) return fmi2Error;
+fmi2Status cw_core_get_real(cw_instance *inst, const char *fn,
+                            const unsigned vr[], size_t nvr, double value[]) {
+    if (!allowed(inst, fn, READABLE_STATES)) return fmi2Error;
     if (nvr > 0 && (!vr || !value)) {
         cw_log(inst, fmi2Error, "logStatusError",
-               "fmi2GetReal: vr or value is NULL with nvr = %zu.", nvr);
+               "%s: vr or value is NULL with nvr = %zu.", fn, nvr);
         return fmi2Error;
     }
     if (inst->state == CW_INIT_MODE && inst->outputs_dirty &&
         inst->model->initialize)
         inst->model->initialize(inst); /* outputs from the current parameters */
-    if (!outputs_finite(inst, "fmi2GetReal")) return fmi2Error;
+    if (!outputs_finite(inst, fn)) return fmi2Error;
     for (size_t k = 0; k < nvr; k++) {
         const cw_var_info *v = var(inst, vr[k]);
+        if (!v && inst->api[3] == '3' && vr[k] == (unsigned)inst->model->nvars) {
+            value[k] = inst->time; /* FMI 3.0's independent variable */
+            continue;
+        }
         if (!v || v->type != CW_REAL) {
             cw_log(inst, fmi2Error, "logStatusError",
-                   "fmi2GetReal: %u is not the value reference of a Real "
-                   "variable of %s.",
-                   (unsigned)vr[k], inst->model->name);
+                   "%s: %u is not the value reference of a %s variable of %s.",
+                   fn, (unsigned)vr[k], inst->api[3] == '3' ? "Float64" : "Real",
+                   inst->model->name);
             return fmi2Error;
         }
         value[k] = inst->r[vr[k]];
@@ -383,9 +360,14 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[],
     return fmi2OK;
 }
 
-static fmi2Status get_int_like(cw_instance *inst, const char *fn, cw_type type,
-                               const fmi2ValueReference vr[], size_t nvr,
-                               int32_t value[]) {
+static const char *int_type_name(const cw_instance *inst, cw_type type) {
+    if (type == CW_BOOLEAN) return " Boolean";
+    return inst->api[3] == '3' ? "n Int32" : "n Integer";
+}
+
+fmi2Status cw_core_get_int(cw_instance *inst, const char *fn, cw_type type,
+                           const unsigned vr[], size_t nvr, void *value,
+                           int as_bool) {
     if (!allowed(inst, fn, READABLE_STATES)) return fmi2Error;
     if (nvr > 0 && (!vr || !value)) {
         cw_log(inst, fmi2Error, "logStatusError",
@@ -401,37 +383,27 @@ static fmi2Status get_int_like(cw_instance *inst, const char *fn, cw_type type,
         if (!v || v->type != type) {
             cw_log(inst, fmi2Error, "logStatusError",
                    "%s: %u is not the value reference of a%s variable of %s.",
-                   fn, (unsigned)vr[k],
-                   type == CW_INTEGER ? "n Integer" : " Boolean",
+                   fn, (unsigned)vr[k], int_type_name(inst, type),
                    inst->model->name);
             return fmi2Error;
         }
-        value[k] = inst->i[vr[k]];
+        if (as_bool)
+            ((bool *)value)[k] = inst->i[vr[k]] != 0;
+        else
+            ((int32_t *)value)[k] = inst->i[vr[k]];
     }
     return fmi2OK;
 }
 
-fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[],
-                          size_t nvr, fmi2Integer value[]) {
-    return get_int_like((cw_instance *)c, "fmi2GetInteger", CW_INTEGER, vr, nvr,
-                        value);
-}
-
-fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[],
-                          size_t nvr, fmi2Boolean value[]) {
-    return get_int_like((cw_instance *)c, "fmi2GetBoolean", CW_BOOLEAN, vr, nvr,
-                        value);
-}
-
-fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[],
-                         size_t nvr, fmi2String value[]) {
-    cw_instance *inst = (cw_instance *)c;
-    (void)value;
-    if (!allowed(inst, "fmi2GetString", READABLE_STATES)) return fmi2Error;
+fmi2Status cw_core_no_such_type(cw_instance *inst, const char *fn,
+                                const char *type, const unsigned vr[],
+                                size_t nvr, int setter) {
+    if (!allowed(inst, fn, setter ? SETTABLE_STATES : READABLE_STATES))
+        return fmi2Error;
     if (nvr == 0) return fmi2OK;
     cw_log(inst, fmi2Error, "logStatusError",
-           "fmi2GetString: %s has no String variables (vr %u).",
-           inst->model->name, vr ? (unsigned)vr[0] : 0u);
+           "%s: %s has no %s variables (vr %u).", fn, inst->model->name, type,
+           vr ? (unsigned)vr[0] : 0u);
     return fmi2Error;
 }
 
@@ -440,12 +412,11 @@ static int settable(cw_instance *inst, const cw_var_info *v, const char *fn) {
     int ok;
     switch (v->causality) {
     case CW_INPUT:
-        ok = inst->state & (CW_INSTANTIATED | CW_INIT_MODE | CW_STEP_COMPLETE);
+        ok = inst->state & SETTABLE_STATES;
         break;
     case CW_PARAMETER:
         ok = v->variability == CW_TUNABLE
-                 ? inst->state &
-                       (CW_INSTANTIATED | CW_INIT_MODE | CW_STEP_COMPLETE)
+                 ? inst->state & SETTABLE_STATES
                  : inst->state & (CW_INSTANTIATED | CW_INIT_MODE);
         break;
     default: ok = 0;
@@ -456,11 +427,14 @@ static int settable(cw_instance *inst, const cw_var_info *v, const char *fn) {
                 ? "it is not a parameter or an input"
                 : v->variability == CW_FIXED
                       ? "a fixed parameter can be set only before "
-                        "fmi2ExitInitializationMode"
                       : "not in this state";
         cw_log(inst, fmi2Error, "logStatusError",
-               "%s: cannot set '%s' in state %s: %s.", fn, v->name,
-               state_name(inst->state), why);
+               "%s: cannot set '%s' in state %s: %s%s.", fn, v->name,
+               state_name(inst, inst->state), why,
+               v->variability == CW_FIXED && v->causality == CW_PARAMETER
+                   ? (inst->api[3] == '3' ? "fmi3ExitInitializationMode"
+                                          : "fmi2ExitInitializationMode")
+                   : "");
     }
     return ok;
 }
@@ -486,7 +460,7 @@ static int acceptable(cw_instance *inst, const cw_var_info *v, double x,
 
 static fmi2Status after_set(cw_instance *inst, int tunable_changed) {
     inst->outputs_dirty = 1;
-    if (tunable_changed && inst->state == CW_STEP_COMPLETE &&
+    if (tunable_changed && (inst->state & RUNNING_STATES) &&
         inst->model->validate) {
         fmi2Status st = inst->model->validate(inst);
         if (st > fmi2Warning) {
@@ -497,15 +471,14 @@ static fmi2Status after_set(cw_instance *inst, int tunable_changed) {
     return fmi2OK;
 }
 
-fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[],
-                       size_t nvr, const fmi2Real value[]) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2SetReal",
-                 CW_INSTANTIATED | CW_INIT_MODE | CW_STEP_COMPLETE))
-        return fmi2Error;
+
+fmi2Status cw_core_set_real(cw_instance *inst, const char *fn,
+                            const unsigned vr[], size_t nvr,
+                            const double value[]) {
+    if (!allowed(inst, fn, SETTABLE_STATES)) return fmi2Error;
     if (nvr > 0 && (!vr || !value)) {
         cw_log(inst, fmi2Error, "logStatusError",
-               "fmi2SetReal: vr or value is NULL with nvr = %zu.", nvr);
+               "%s: vr or value is NULL with nvr = %zu.", fn, nvr);
         return fmi2Error;
     }
     /* Check everything first so that a refused call changes nothing. */
@@ -513,13 +486,13 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[],
         const cw_var_info *v = var(inst, vr[k]);
         if (!v || v->type != CW_REAL) {
             cw_log(inst, fmi2Error, "logStatusError",
-                   "fmi2SetReal: %u is not the value reference of a Real "
-                   "variable of %s.",
-                   (unsigned)vr[k], inst->model->name);
+                   "%s: %u is not the value reference of a %s variable of %s.",
+                   fn, (unsigned)vr[k], inst->api[3] == '3' ? "Float64" : "Real",
+                   inst->model->name);
             return fmi2Error;
         }
-        if (!settable(inst, v, "fmi2SetReal")) return fmi2Error;
-        if (!acceptable(inst, v, value[k], "fmi2SetReal")) {
+        if (!settable(inst, v, fn)) return fmi2Error;
+        if (!acceptable(inst, v, value[k], fn)) {
             inst->state = CW_ERROR;
             return fmi2Error;
         }
@@ -539,11 +512,10 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[],
     return after_set(inst, tunable);
 }
 
-static fmi2Status set_int_like(cw_instance *inst, const char *fn, cw_type type,
-                               const fmi2ValueReference vr[], size_t nvr,
-                               const int32_t value[]) {
-    if (!allowed(inst, fn, CW_INSTANTIATED | CW_INIT_MODE | CW_STEP_COMPLETE))
-        return fmi2Error;
+fmi2Status cw_core_set_int(cw_instance *inst, const char *fn, cw_type type,
+                           const unsigned vr[], size_t nvr, const void *value,
+                           int as_bool) {
+    if (!allowed(inst, fn, SETTABLE_STATES)) return fmi2Error;
     if (nvr > 0 && (!vr || !value)) {
         cw_log(inst, fmi2Error, "logStatusError",
                "%s: vr or value is NULL with nvr = %zu.", fn, nvr);
@@ -554,13 +526,14 @@ static fmi2Status set_int_like(cw_instance *inst, const char *fn, cw_type type,
         if (!v || v->type != type) {
             cw_log(inst, fmi2Error, "logStatusError",
                    "%s: %u is not the value reference of a%s variable of %s.",
-                   fn, (unsigned)vr[k],
-                   type == CW_INTEGER ? "n Integer" : " Boolean",
+                   fn, (unsigned)vr[k], int_type_name(inst, type),
                    inst->model->name);
             return fmi2Error;
         }
         if (!settable(inst, v, fn)) return fmi2Error;
-        double x = type == CW_BOOLEAN ? (value[k] != 0) : (double)value[k];
+        const int32_t given = as_bool ? (int32_t)((const bool *)value)[k]
+                                      : ((const int32_t *)value)[k];
+        double x = type == CW_BOOLEAN ? (given != 0) : (double)given;
         if (!acceptable(inst, v, x, fn)) {
             inst->state = CW_ERROR;
             return fmi2Error;
@@ -569,37 +542,15 @@ static fmi2Status set_int_like(cw_instance *inst, const char *fn, cw_type type,
     int tunable = 0;
     for (size_t k = 0; k < nvr; k++) {
         const cw_var_info *v = &inst->model->vars[vr[k]];
-        inst->i[vr[k]] = type == CW_BOOLEAN ? (value[k] != 0) : value[k];
+        const int32_t given = as_bool ? (int32_t)((const bool *)value)[k]
+                                      : ((const int32_t *)value)[k];
+        inst->i[vr[k]] = type == CW_BOOLEAN ? (given != 0) : given;
         if (v->causality != CW_INPUT) tunable = 1;
     }
     return after_set(inst, tunable);
 }
 
-fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[],
-                          size_t nvr, const fmi2Integer value[]) {
-    return set_int_like((cw_instance *)c, "fmi2SetInteger", CW_INTEGER, vr, nvr,
-                        value);
-}
 
-fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[],
-                          size_t nvr, const fmi2Boolean value[]) {
-    return set_int_like((cw_instance *)c, "fmi2SetBoolean", CW_BOOLEAN, vr, nvr,
-                        value);
-}
-
-fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[],
-                         size_t nvr, const fmi2String value[]) {
-    cw_instance *inst = (cw_instance *)c;
-    (void)value;
-    if (!allowed(inst, "fmi2SetString",
-                 CW_INSTANTIATED | CW_INIT_MODE | CW_STEP_COMPLETE))
-        return fmi2Error;
-    if (nvr == 0) return fmi2OK;
-    cw_log(inst, fmi2Error, "logStatusError",
-           "fmi2SetString: %s has no String variables (vr %u).",
-           inst->model->name, vr ? (unsigned)vr[0] : 0u);
-    return fmi2Error;
-}
 
 /* ------------------------------------------------------------------ */
 /* FMU state: one flat, versioned byte layout for get/set and serialize */
@@ -739,8 +690,11 @@ static fmi2Status decode_state(cw_instance *inst, const unsigned char *buf,
 
     /* Decode into scratch space first: a refused state changes nothing. */
     uint32_t machine = get_u32(&p);
-    if (!(machine & (CW_INSTANTIATED | CW_INIT_MODE | CW_STEP_COMPLETE |
-                     CW_STEP_FAILED | CW_TERMINATED)) ||
+    /* Event Mode exists on FMI 3.0 only: the FMI 2.0 build refuses it. */
+    const uint32_t machine_states =
+        CW_INSTANTIATED | CW_INIT_MODE | CW_STEP_COMPLETE | CW_STEP_FAILED |
+        CW_TERMINATED | (inst->api[3] == '3' ? CW_EVENT_MODE : 0);
+    if (!(machine & machine_states) ||
         (machine & (machine - 1)))
         return fail(inst, "%s: the state holds an invalid machine state %u.", fn,
                     machine);
@@ -834,7 +788,7 @@ static int probe_open(cw_instance *inst, cw_instance *probe) {
  * (decode_state), and, for a state saved after initialization, the model's
  * cross-parameter rules, which fmi2ExitInitializationMode and every change
  * of a tunable parameter enforce too; a saved state must not smuggle in a
- * parameter combination that fmi2SetReal would refuse. With `commit`, an
+ * parameter combination that fmi2SetReal / fmi3SetFloat64 would refuse. With `commit`, an
  * accepted state is copied into inst. A refused state changes no value of
  * inst, which goes to Error like after any other refused state. */
 static fmi2Status restore_state(cw_instance *inst, const unsigned char *buf,
@@ -847,7 +801,8 @@ static fmi2Status restore_state(cw_instance *inst, const unsigned char *buf,
     } else {
         st = decode_state(&probe, buf, size, fn);
         if (st == fmi2OK && m->validate &&
-            (probe.state & (CW_STEP_COMPLETE | CW_STEP_FAILED | CW_TERMINATED)) &&
+            (probe.state & (CW_STEP_COMPLETE | CW_STEP_FAILED | CW_TERMINATED |
+                         CW_EVENT_MODE)) &&
             m->validate(&probe) > fmi2Warning) {
             cw_log(inst, fmi2Error, "logStatusError",
                    "%s: the state's parameters break a rule of %s between "
@@ -878,159 +833,126 @@ static fmi2Status restore_state(cw_instance *inst, const unsigned char *buf,
 
 #define STATE_STATES ANY_OPEN_STATE
 
-fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2GetFMUstate", STATE_STATES & ~CW_ERROR))
-        return fmi2Error;
-    if (!FMUstate) return fail(inst, "fmi2GetFMUstate: FMUstate is NULL.");
+#define STATE_STATES ANY_OPEN_STATE
+
+fmi2Status cw_core_get_state(cw_instance *inst, const char *fn, void **state) {
+    if (!allowed(inst, fn, STATE_STATES & ~CW_ERROR)) return fmi2Error;
+    if (!state) return fail(inst, "%s: FMUstate is NULL.", fn);
     /* A state with non-finite outputs could never be restored. */
-    if (!outputs_finite(inst, "fmi2GetFMUstate")) return fmi2Error;
+    if (!outputs_finite(inst, fn)) return fmi2Error;
     size_t size = state_size(inst->model);
-    cw_state_blob *blob = (cw_state_blob *)*FMUstate;
+    cw_state_blob *blob = (cw_state_blob *)*state;
     if (blob && blob->size != size) {
-        inst->cb.freeMemory(blob);
+        inst->free_mem(blob);
         blob = NULL;
     }
     if (!blob) {
-        blob = inst->cb.allocateMemory(1, sizeof(cw_state_blob) + size);
-        if (!blob) return fail(inst, "fmi2GetFMUstate: out of memory.");
+        blob = inst->alloc_mem(1, sizeof(cw_state_blob) + size);
+        if (!blob) return fail(inst, "%s: out of memory.", fn);
         blob->size = size;
     }
     encode_state(inst, blob->bytes, size);
-    *FMUstate = blob;
+    *state = blob;
     return fmi2OK;
 }
 
-fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2SetFMUstate", STATE_STATES)) return fmi2Error;
-    cw_state_blob *blob = (cw_state_blob *)FMUstate;
-    if (!blob) return fail(inst, "fmi2SetFMUstate: FMUstate is NULL.");
-    return restore_state(inst, blob->bytes, blob->size, "fmi2SetFMUstate", 1);
+fmi2Status cw_core_set_state(cw_instance *inst, const char *fn, void *state) {
+    if (!allowed(inst, fn, STATE_STATES)) return fmi2Error;
+    cw_state_blob *blob = (cw_state_blob *)state;
+    if (!blob) return fail(inst, "%s: FMUstate is NULL.", fn);
+    return restore_state(inst, blob->bytes, blob->size, fn, 1);
 }
 
-fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2FreeFMUstate", STATE_STATES)) return fmi2Error;
-    if (!FMUstate) return fail(inst, "fmi2FreeFMUstate: FMUstate is NULL.");
-    if (*FMUstate) inst->cb.freeMemory(*FMUstate);
-    *FMUstate = NULL;
+fmi2Status cw_core_free_state(cw_instance *inst, const char *fn, void **state) {
+    if (!allowed(inst, fn, STATE_STATES)) return fmi2Error;
+    if (!state) return fail(inst, "%s: FMUstate is NULL.", fn);
+    if (*state) inst->free_mem(*state);
+    *state = NULL;
     return fmi2OK;
 }
 
-fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate,
-                                      size_t *size) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2SerializedFMUstateSize", STATE_STATES))
-        return fmi2Error;
-    if (!FMUstate || !size)
-        return fail(inst, "fmi2SerializedFMUstateSize: NULL argument.");
-    *size = ((cw_state_blob *)FMUstate)->size;
+fmi2Status cw_core_state_size(cw_instance *inst, const char *fn, void *state,
+                              size_t *size) {
+    if (!allowed(inst, fn, STATE_STATES)) return fmi2Error;
+    if (!state || !size) return fail(inst, "%s: NULL argument.", fn);
+    *size = ((cw_state_blob *)state)->size;
     return fmi2OK;
 }
 
-fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate,
-                                 fmi2Byte serializedState[], size_t size) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2SerializeFMUstate", STATE_STATES)) return fmi2Error;
-    cw_state_blob *blob = (cw_state_blob *)FMUstate;
-    if (!blob || !serializedState)
-        return fail(inst, "fmi2SerializeFMUstate: NULL argument.");
+fmi2Status cw_core_serialize(cw_instance *inst, const char *fn, void *state,
+                             unsigned char *buf, size_t size) {
+    if (!allowed(inst, fn, STATE_STATES)) return fmi2Error;
+    cw_state_blob *blob = (cw_state_blob *)state;
+    if (!blob || !buf) return fail(inst, "%s: NULL argument.", fn);
     if (size < blob->size)
-        return fail(inst,
-                    "fmi2SerializeFMUstate: buffer of %zu bytes is too small "
-                    "for %zu.",
+        return fail(inst, "%s: buffer of %zu bytes is too small for %zu.", fn,
                     size, blob->size);
-    memcpy(serializedState, blob->bytes, blob->size);
+    memcpy(buf, blob->bytes, blob->size);
     return fmi2OK;
 }
 
-fmi2Status fmi2DeSerializeFMUstate(fmi2Component c,
-                                   const fmi2Byte serializedState[],
-                                   size_t size, fmi2FMUstate *FMUstate) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2DeSerializeFMUstate", STATE_STATES))
-        return fmi2Error;
-    if (!serializedState || !FMUstate)
-        return fail(inst, "fmi2DeSerializeFMUstate: NULL argument.");
+fmi2Status cw_core_deserialize(cw_instance *inst, const char *fn,
+                               const unsigned char *buf, size_t size,
+                               void **state) {
+    if (!allowed(inst, fn, STATE_STATES)) return fmi2Error;
+    if (!buf || !state) return fail(inst, "%s: NULL argument.", fn);
     /* Check it whole now, so that a bad buffer is refused here rather than
-     * at fmi2SetFMUstate. */
+     * when the state is set. */
     size_t expected = state_size(inst->model);
     if (size != expected)
-        return fail(inst,
-                    "fmi2DeSerializeFMUstate: %zu bytes given; %s expects %zu.",
-                    size, inst->model->name, expected);
-    if (restore_state(inst, (const unsigned char *)serializedState, size,
-                      "fmi2DeSerializeFMUstate", 0) != fmi2OK)
-        return fmi2Error;
-    cw_state_blob *blob = inst->cb.allocateMemory(1, sizeof(cw_state_blob) + size);
-    if (!blob) return fail(inst, "fmi2DeSerializeFMUstate: out of memory.");
+        return fail(inst, "%s: %zu bytes given; %s expects %zu.", fn, size,
+                    inst->model->name, expected);
+    if (restore_state(inst, buf, size, fn, 0) != fmi2OK) return fmi2Error;
+    cw_state_blob *blob = inst->alloc_mem(1, sizeof(cw_state_blob) + size);
+    if (!blob) return fail(inst, "%s: out of memory.", fn);
     blob->size = size;
-    memcpy(blob->bytes, serializedState, size);
-    if (*FMUstate) inst->cb.freeMemory(*FMUstate);
-    *FMUstate = blob;
+    memcpy(blob->bytes, buf, size);
+    if (*state) inst->free_mem(*state);
+    *state = blob;
     return fmi2OK;
 }
 
-fmi2Status fmi2GetDirectionalDerivative(fmi2Component c,
-                                        const fmi2ValueReference vUnknown[],
-                                        size_t nUnknown,
-                                        const fmi2ValueReference vKnown[],
-                                        size_t nKnown, const fmi2Real dvKnown[],
-                                        fmi2Real dvUnknown[]) {
-    cw_instance *inst = (cw_instance *)c;
-    (void)vUnknown;
-    (void)nUnknown;
-    (void)vKnown;
-    (void)nKnown;
-    (void)dvKnown;
-    (void)dvUnknown;
+fmi2Status cw_core_unsupported(cw_instance *inst, const char *fn,
+                               const char *why) {
     if (!inst) return fmi2Error;
-    cw_log(inst, fmi2Error, "logStatusError",
-           "fmi2GetDirectionalDerivative: %s does not provide directional "
-           "derivatives (providesDirectionalDerivative=false).",
-           inst->model->name);
+    cw_log(inst, fmi2Error, "logStatusError", "%s: %s %s.", fn,
+           inst->model->name, why);
     return fmi2Error;
 }
 
 /* ------------------------------------------------------------------ */
 /* Co-Simulation                                                      */
 
-fmi2Status fmi2SetRealInputDerivatives(fmi2Component c,
-                                       const fmi2ValueReference vr[],
-                                       size_t nvr, const fmi2Integer order[],
-                                       const fmi2Real value[]) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2SetRealInputDerivatives",
-                 CW_INSTANTIATED | CW_INIT_MODE | CW_STEP_COMPLETE))
+fmi2Status cw_core_set_input_derivatives(cw_instance *inst, const char *fn,
+                                         const unsigned vr[], size_t nvr,
+                                         const int32_t order[],
+                                         const double value[]) {
+    if (!allowed(inst, fn, CW_INSTANTIATED | CW_INIT_MODE | CW_STEP_COMPLETE))
         return fmi2Error;
     if (nvr > 0 && (!vr || !order || !value)) {
         cw_log(inst, fmi2Error, "logStatusError",
-               "fmi2SetRealInputDerivatives: NULL argument with nvr = %zu.",
-               nvr);
+               "%s: NULL argument with nvr = %zu.", fn, nvr);
         return fmi2Error;
     }
     for (size_t k = 0; k < nvr; k++) {
         const cw_var_info *v = var(inst, vr[k]);
         if (!v || v->type != CW_REAL || v->causality != CW_INPUT) {
             cw_log(inst, fmi2Error, "logStatusError",
-                   "fmi2SetRealInputDerivatives: %u is not a Real input of %s.",
+                   "%s: %u is not a Real input of %s.", fn,
                    (unsigned)vr[k], inst->model->name);
             return fmi2Error;
         }
         const int max_order = inst->model->max_input_order ? inst->model->max_input_order : 2;
         if (order[k] < 1 || order[k] > max_order) {
             cw_log(inst, fmi2Error, "logStatusError",
-                   "fmi2SetRealInputDerivatives: order %d for %s; expected 1 "
-                   "to %d.",
+                   "%s: order %d for %s; expected 1 to %d.", fn,
                    (int)order[k], v->name, max_order);
             return fmi2Error;
         }
         if (!isfinite(value[k])) {
             cw_log(inst, fmi2Error, "logStatusError",
-                   "fmi2SetRealInputDerivatives: derivative of %s = %g; "
-                   "expected a finite number.",
-                   v->name, value[k]);
+                   "%s: derivative of %s = %g; expected a finite number.",
+                   fn, v->name, value[k]);
             inst->state = CW_ERROR;
             return fmi2Error;
         }
@@ -1050,83 +972,76 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component c,
     return fmi2OK;
 }
 
-fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c,
-                                        const fmi2ValueReference vr[],
-                                        size_t nvr, const fmi2Integer order[],
-                                        fmi2Real value[]) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2GetRealOutputDerivatives",
-                 CW_STEP_COMPLETE | CW_STEP_FAILED | CW_TERMINATED | CW_ERROR))
+fmi2Status cw_core_get_output_derivatives(cw_instance *inst, const char *fn,
+                                          const unsigned vr[], size_t nvr,
+                                          const int32_t order[],
+                                          double value[]) {
+    if (!allowed(inst, fn,
+                 CW_STEP_COMPLETE | CW_STEP_FAILED | CW_TERMINATED | CW_ERROR |
+                     CW_EVENT_MODE))
         return fmi2Error;
     if (nvr > 0 && (!vr || !order || !value)) {
         cw_log(inst, fmi2Error, "logStatusError",
-               "fmi2GetRealOutputDerivatives: NULL argument with nvr = %zu.",
-               nvr);
+               "%s: NULL argument with nvr = %zu.", fn, nvr);
         return fmi2Error;
     }
-    if (!outputs_finite(inst, "fmi2GetRealOutputDerivatives")) return fmi2Error;
+    if (!outputs_finite(inst, fn)) return fmi2Error;
     for (size_t k = 0; k < nvr; k++) {
         const cw_var_info *v = var(inst, vr[k]);
         if (!v || v->type != CW_REAL || v->causality != CW_OUTPUT) {
             cw_log(inst, fmi2Error, "logStatusError",
-                   "fmi2GetRealOutputDerivatives: %u is not a Real output of "
-                   "%s.",
-                   (unsigned)vr[k], inst->model->name);
+                   "%s: %u is not a %s output of %s.", fn, (unsigned)vr[k],
+                   inst->api[3] == '3' ? "Float64" : "Real", inst->model->name);
             return fmi2Error;
         }
         if (order[k] < 1 || order[k] > v->max_derivative_order ||
             !inst->model->output_derivative ||
             !inst->model->output_derivative(inst, vr[k], order[k], &value[k])) {
             cw_log(inst, fmi2Error, "logStatusError",
-                   "fmi2GetRealOutputDerivatives: %s offers derivatives up to "
-                   "order %d, not %d.",
+                   "%s: %s offers derivatives up to order %d, not %d.", fn,
                    v->name, v->max_derivative_order, (int)order[k]);
             return fmi2Error;
         }
         if (!isfinite(value[k]))
             return fail(inst,
-                        "fmi2GetRealOutputDerivatives: derivative of order %d "
-                        "of %s = %g at t = %.17g is not finite.",
-                        (int)order[k], v->name, value[k], inst->time);
+                        "%s: derivative of order %d of %s = %g at t = %.17g is "
+                        "not finite.",
+                        fn, (int)order[k], v->name, value[k], inst->time);
     }
     return fmi2OK;
 }
 
-fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
-                      fmi2Real communicationStepSize,
-                      fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
-    cw_instance *inst = (cw_instance *)c;
-    (void)noSetFMUStatePriorToCurrentPoint;
-    if (!allowed(inst, "fmi2DoStep", CW_STEP_COMPLETE)) return fmi2Error;
-    const double tc = currentCommunicationPoint, h = communicationStepSize;
+fmi2Status cw_core_do_step(cw_instance *inst, const char *fn, double tc,
+                           double h) {
+    if (!allowed(inst, fn, CW_STEP_COMPLETE)) return fmi2Error;
     if (!isfinite(tc) || !isfinite(h) || !(h > 0)) {
         cw_log(inst, fmi2Error, "logStatusError",
-               "fmi2DoStep: communication point %g and step size %g; expected "
-               "finite values and a step size > 0.",
-               tc, h);
+               "%s: communication point %g and step size %g; expected finite "
+               "values and a step size > 0.",
+               fn, tc, h);
         return fmi2Error;
     }
     /* The master's time is authoritative, but it must be the point where
      * this FMU stands. */
     if (fabs(tc - inst->time) > 1e-9 * fmax(1.0, fabs(inst->time))) {
         cw_log(inst, fmi2Error, "logStatusError",
-               "fmi2DoStep: communication point %.17g does not match the "
-               "FMU's time %.17g.",
-               tc, inst->time);
+               "%s: communication point %.17g does not match the FMU's time "
+               "%.17g.",
+               fn, tc, inst->time);
         return fmi2Error;
     }
     const double t_end = tc + h;
     if (!isfinite(t_end)) { /* found by fuzzing: time became inf */
         cw_log(inst, fmi2Error, "logStatusError",
-               "fmi2DoStep: the step from %.17g by %.17g ends beyond the "
-               "largest representable time.",
-               tc, h);
+               "%s: the step from %.17g by %.17g ends beyond the largest "
+               "representable time.",
+               fn, tc, h);
         return fmi2Error;
     }
     if (inst->stop_time_defined &&
         t_end > inst->stop_time + 1e-9 * fmax(1.0, fabs(inst->stop_time))) {
         cw_log(inst, fmi2Error, "logStatusError",
-               "fmi2DoStep: step to %.17g goes beyond stopTime %.17g.", t_end,
+               "%s: step to %.17g goes beyond stopTime %.17g.", fn, t_end,
                inst->stop_time);
         return fmi2Error;
     }
@@ -1139,21 +1054,29 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                      u1 = cw_input(inst, (unsigned)k, t_end);
         if (!isfinite(u0) || !isfinite(u1))
             return fail(inst,
-                        "fmi2DoStep: input %s, following its derivatives, is "
-                        "%g at t = %.17g and %g at t = %.17g; expected finite "
-                        "values.",
-                        v->name, u0, tc, u1, t_end);
+                        "%s: input %s, following its derivatives, is %g at "
+                        "t = %.17g and %g at t = %.17g; expected finite values.",
+                        fn, v->name, u0, tc, u1, t_end);
     }
     inst->time = tc;
     if (inst->model->commit) inst->model->commit(inst);
     fmi2Status st = fmi2OK;
+    inst->returned_early = 0;
     if (inst->model->do_step) st = inst->model->do_step(inst, t_end);
     inst->outputs_dirty = 1;
     if (st == fmi2OK || st == fmi2Warning) {
-        inst->time = t_end;
-        if (!outputs_finite(inst, "fmi2DoStep")) return fmi2Error;
+        /* An early return must end inside the step (a model bug else). */
+        if (inst->returned_early &&
+            !(inst->early_time > tc && inst->early_time < t_end))
+            return fail(inst,
+                        "%s: %s returned early at t = %.17g, outside the step "
+                        "from %.17g to %.17g.",
+                        fn, inst->model->name, inst->early_time, tc, t_end);
+        inst->time = inst->returned_early ? inst->early_time : t_end;
+        if (!outputs_finite(inst, fn)) return fmi2Error;
         return st;
     }
+    inst->returned_early = 0;
     if (st == fmi2Discard) {
         inst->state = CW_STEP_FAILED;
         refresh_outputs(inst);
@@ -1163,99 +1086,59 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
     return fmi2Error;
 }
 
-fmi2Status fmi2CancelStep(fmi2Component c) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!inst) return fmi2Error;
-    cw_log(inst, fmi2Error, "logStatusError",
-           "fmi2CancelStep: steps are synchronous; there is nothing to cancel.");
-    return fmi2Error;
+/* What cw_integrate_to_event's observer watches for. */
+typedef struct {
+    struct cw_instance *inst;
+    cw_rhs f;
+    cw_event_fn g;
+    cw_settle_fn settle;
+    double t_start, t_end; /* the communication step */
+    int stopped;
+    double t_event, x_event[CW_RK_MAXN];
+} event_watch;
+
+/* The root of g on the dense output of the last accepted step (Illinois). */
+static double event_root(const event_watch *w, const cw_rk *rk) {
+    double a = rk->t0, b = rk->t0 + rk->h, x[CW_RK_MAXN];
+    double fa = w->g(w->inst, rk->x0), fb = w->g(w->inst, rk->x1);
+    int side = 0;
+    for (int it = 0; it < 200; it++) {
+        double t = (fa * b - fb * a) / (fa - fb);
+        if (!(t > a && t < b)) t = 0.5 * (a + b);
+        cw_rk_dense(rk, t, x);
+        const double ft = w->g(w->inst, x);
+        if (ft == 0.0 || b - a <= 4e-16 * fmax(1.0, fabs(t))) return t;
+        if ((ft > 0) == (fa > 0)) {
+            a = t, fa = ft;
+            if (side == -1) fb *= 0.5;
+            side = -1;
+        } else {
+            b = t, fb = ft;
+            if (side == 1) fa *= 0.5;
+            side = 1;
+        }
+    }
+    return 0.5 * (a + b);
 }
 
-fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s,
-                         fmi2Status *value) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2GetStatus",
-                 CW_STEP_COMPLETE | CW_STEP_FAILED | CW_TERMINATED))
-        return fmi2Error;
-    if (!value) {
-        cw_log(inst, fmi2Error, "logStatusError", "fmi2GetStatus: value is NULL.");
-        return fmi2Error;
-    }
-    if (s == fmi2DoStepStatus) {
-        *value = inst->state == CW_STEP_FAILED ? fmi2Discard : fmi2OK;
-        return fmi2OK;
-    }
-    cw_log(inst, fmi2Error, "logStatusError",
-           "fmi2GetStatus: status kind %d is not provided.", (int)s);
-    return fmi2Error;
+static int watch_events(void *ctx, const cw_rk *rk) {
+    event_watch *w = ctx;
+    if ((w->g(w->inst, rk->x0) > 0) == (w->g(w->inst, rk->x1) > 0)) return 0;
+    const double t = event_root(w, rk);
+    if (!(t > w->t_start && t < w->t_end)) return 0;
+    cw_rk_single_step_with(rk->method, rk->n, w->f, w->inst, rk->t0, rk->x0,
+                           t - rk->t0, w->x_event);
+    w->settle(w->inst, w->x_event);
+    w->stopped = 1;
+    w->t_event = t;
+    return 1;
 }
 
-fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s,
-                             fmi2Real *value) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2GetRealStatus",
-                 CW_STEP_COMPLETE | CW_STEP_FAILED | CW_TERMINATED))
-        return fmi2Error;
-    if (!value) {
-        cw_log(inst, fmi2Error, "logStatusError",
-               "fmi2GetRealStatus: value is NULL.");
-        return fmi2Error;
-    }
-    if (s == fmi2LastSuccessfulTime) {
-        *value = inst->time;
-        return fmi2OK;
-    }
-    cw_log(inst, fmi2Error, "logStatusError",
-           "fmi2GetRealStatus: status kind %d is not provided.", (int)s);
-    return fmi2Error;
-}
-
-fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s,
-                                fmi2Integer *value) {
-    cw_instance *inst = (cw_instance *)c;
-    (void)s;
-    (void)value;
-    if (!inst) return fmi2Error;
-    cw_log(inst, fmi2Error, "logStatusError",
-           "fmi2GetIntegerStatus: no Integer status is provided.");
-    return fmi2Error;
-}
-
-fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s,
-                                fmi2Boolean *value) {
-    cw_instance *inst = (cw_instance *)c;
-    if (!allowed(inst, "fmi2GetBooleanStatus",
-                 CW_STEP_COMPLETE | CW_STEP_FAILED | CW_TERMINATED))
-        return fmi2Error;
-    if (!value) {
-        cw_log(inst, fmi2Error, "logStatusError",
-               "fmi2GetBooleanStatus: value is NULL.");
-        return fmi2Error;
-    }
-    if (s == fmi2Terminated) {
-        *value = inst->terminate_requested ? fmi2True : fmi2False;
-        return fmi2OK;
-    }
-    cw_log(inst, fmi2Error, "logStatusError",
-           "fmi2GetBooleanStatus: status kind %d is not provided.", (int)s);
-    return fmi2Error;
-}
-
-fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s,
-                               fmi2String *value) {
-    cw_instance *inst = (cw_instance *)c;
-    (void)s;
-    (void)value;
-    if (!inst) return fmi2Error;
-    cw_log(inst, fmi2Error, "logStatusError",
-           "fmi2GetStringStatus: no String status is provided.");
-    return fmi2Error;
-}
-
-int cw_integrate(struct cw_instance *inst, const char *model, cw_rhs f, int n,
-                 int first, int h_slot, double t_end, double rtol, double atol,
-                 double h_max, int integrator, const char *const names[],
-                 cw_rk_observer observer) {
+static int integrate(struct cw_instance *inst, const char *model, cw_rhs f,
+                     int n, int first, int h_slot, double t_end, double rtol,
+                     double atol, double h_max, int integrator,
+                     const char *const names[], cw_rk_observer observer,
+                     event_watch *watch) {
     cw_rk rk;
     cw_rk_init(&rk, n, rtol, atol, h_max);
     cw_rk_set_method(&rk, integrator);
@@ -1263,7 +1146,13 @@ int cw_integrate(struct cw_instance *inst, const char *model, cw_rhs f, int n,
     for (int k = 0; k < n; k++) x[k] = inst->s[first + k];
     double t = inst->time, h_next = inst->s[h_slot];
     cw_rk_result res =
-        cw_rk_advance(&rk, f, inst, &t, t_end, x, &h_next, observer, inst);
+        watch ? cw_rk_advance(&rk, f, inst, &t, t_end, x, &h_next, watch_events, watch)
+              : cw_rk_advance(&rk, f, inst, &t, t_end, x, &h_next, observer, inst);
+    if (watch && res == CW_RK_STOPPED && watch->stopped) {
+        t = watch->t_event;
+        for (int k = 0; k < n; k++) x[k] = watch->x_event[k];
+        res = CW_RK_OK;
+    }
     int finite = 1;
     for (int k = 0; k < n; k++) finite = finite && isfinite(x[k]);
     if (res != CW_RK_OK || !finite) {
@@ -1285,5 +1174,25 @@ int cw_integrate(struct cw_instance *inst, const char *model, cw_rhs f, int n,
     }
     for (int k = 0; k < n; k++) inst->s[first + k] = x[k];
     inst->s[h_slot] = h_next;
+    if (watch && watch->stopped) cw_return_early(inst, t);
     return fmi2OK;
+}
+
+int cw_integrate(struct cw_instance *inst, const char *model, cw_rhs f, int n,
+                 int first, int h_slot, double t_end, double rtol, double atol,
+                 double h_max, int integrator, const char *const names[],
+                 cw_rk_observer observer) {
+    return integrate(inst, model, f, n, first, h_slot, t_end, rtol, atol, h_max,
+                     integrator, names, observer, NULL);
+}
+
+int cw_integrate_to_event(struct cw_instance *inst, const char *model, cw_rhs f,
+                          int n, int first, int h_slot, double t_end,
+                          double rtol, double atol, double h_max,
+                          int integrator, const char *const names[],
+                          cw_event_fn g, cw_settle_fn settle) {
+    event_watch watch = {inst, f, g, settle, inst->time, t_end, 0, 0.0, {0.0}};
+    return integrate(inst, model, f, n, first, h_slot, t_end, rtol, atol, h_max,
+                     integrator, names, NULL,
+                     cw_may_return_early(inst) ? &watch : NULL);
 }

@@ -1,17 +1,33 @@
-/* clockwork FMI 2.0 Co-Simulation runtime: the part shared by every model.
+/* clockwork Co-Simulation runtime: the part shared by every model.
  *
- * The runtime owns the fmi2 functions, the state machine, argument checks,
- * logging, per-instance storage of variable values and the FMU state
- * serialization. A model supplies its equations as the static callbacks of
+ * The runtime owns the state machine, argument checks, logging,
+ * per-instance storage of variable values and the FMU state serialization
+ * (cw_runtime.c), and two thin faces over it: the fmi2 functions
+ * (cw_fmi2.c) and the fmi3 functions (cw_fmi3.c). A model is built once
+ * with each face. It supplies its equations as the static callbacks of
  * cw_model in model.c; its variable table and its cw_model are generated
- * into cw_vars.h from model.toml. */
+ * into cw_vars.h from model.toml. Statuses are fmi2Status for both faces:
+ * fmi3Status has the same values for OK, Warning, Discard, Error, Fatal
+ * (cw_fmi3.c checks it when compiled). */
 #ifndef CW_RUNTIME_H
 #define CW_RUNTIME_H
 
 #include <stddef.h>
 #include <stdint.h>
 
-#include "fmi2Functions.h"
+/* The statuses, by FMI 2.0's names: from its header where the fmi2 face
+ * includes it first, else declared here with the same values, so that the
+ * FMI 3.0 build (its sources too) needs FMI 3.0's headers only. */
+#ifndef fmi2FunctionTypes_h
+typedef enum {
+    fmi2OK,
+    fmi2Warning,
+    fmi2Discard,
+    fmi2Error,
+    fmi2Fatal,
+    fmi2Pending
+} fmi2Status;
+#endif
 
 typedef enum { CW_REAL = 0, CW_INTEGER = 1, CW_BOOLEAN = 2 } cw_type;
 
@@ -42,14 +58,16 @@ typedef struct {
     int event_indicator;
 } cw_var_info;
 
-/* States of the FMI 2.0 Co-Simulation state machine. */
+/* States of the Co-Simulation state machine. FMI 2.0's StepComplete is
+ * FMI 3.0's Step Mode; Event Mode is FMI 3.0's alone. */
 typedef enum {
     CW_INSTANTIATED = 1 << 0,
     CW_INIT_MODE = 1 << 1,
     CW_STEP_COMPLETE = 1 << 2,
     CW_STEP_FAILED = 1 << 3,
     CW_TERMINATED = 1 << 4,
-    CW_ERROR = 1 << 5
+    CW_ERROR = 1 << 5,
+    CW_EVENT_MODE = 1 << 6
 } cw_machine_state;
 
 struct cw_instance;
@@ -81,8 +99,10 @@ typedef struct {
      * logging why. NULL for models without dynamics. */
     fmi2Status (*do_step)(struct cw_instance *inst, double t_end);
 
-    /* Called at the start of fmi2DoStep before do_step: commit discrete
-     * modes decided from inputs at the communication point (may be NULL). */
+    /* Called at the start of fmi2DoStep / fmi3DoStep before do_step, and by
+     * fmi3UpdateDiscreteStates: commit discrete modes decided from inputs
+     * at the communication point (may be NULL). Calling it twice at the
+     * same point with the same inputs must change nothing more. */
     void (*commit)(struct cw_instance *inst);
 
     /* Time derivative of given order of an output at inst->time; returns
@@ -95,12 +115,31 @@ typedef struct {
     int max_input_order;
 } cw_model;
 
+/* How a face hands a message to its environment's logger. */
+typedef void (*cw_emit)(const struct cw_instance *inst, fmi2Status status,
+                        const char *category, const char *message);
+
 typedef struct cw_instance {
     const cw_model *model;
-    fmi2CallbackFunctions cb;
+    /* The environment: memory (FMI 2.0's callbacks, calloc/free on FMI
+     * 3.0), the face's logger and what it needs to call the environment's. */
+    void *(*alloc_mem)(size_t n, size_t size);
+    void (*free_mem)(void *p);
+    cw_emit emit;
+    void *env;                   /* componentEnvironment / instanceEnvironment */
+    void (*env_logger)(void);    /* the environment's logger, cast by the face */
+    const char *api;             /* "fmi2" or "fmi3": prefix of function names in messages */
     char *instance_name;
     int logging_on;
     cw_machine_state state;
+
+    /* FMI 3.0 instantiation arguments (0 on FMI 2.0). */
+    int event_mode_used;
+    int early_return_allowed;
+    /* Set by a model's do_step through cw_return_early: the time of the
+     * model's own event where the step ended early (-1 flag: none). */
+    int returned_early;
+    double early_time;
 
     double time;       /* current communication point, s */
     double start_time; /* from fmi2SetupExperiment */
@@ -144,6 +183,16 @@ void cw_log(cw_instance *inst, fmi2Status status, const char *category,
     __attribute__((format(printf, 4, 5)))
 #endif
     ;
+
+/* For do_step: may the step end early at an event the model owns (FMI 3.0
+ * with earlyReturnAllowed)? Always 0 on FMI 2.0. */
+int cw_may_return_early(const cw_instance *inst);
+
+/* Called by do_step that stops at its own event at time t before t_end,
+ * with the model state already at t: the step then ends at t, and fmi3DoStep
+ * reports earlyReturn, eventHandlingNeeded (with Event Mode) and
+ * lastSuccessfulTime = t. */
+void cw_return_early(cw_instance *inst, double t);
 
 /* Shorthand used by models to refuse a parameter with a named message. */
 fmi2Status cw_refuse(cw_instance *inst, const char *var, double value,

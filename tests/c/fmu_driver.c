@@ -449,7 +449,13 @@ static void test_wrong_states(void) {
                   "directional derivative");
     CHECK_REFUSED(api.CancelStep(I.c), "cancel step");
     CHECK_REFUSED(api.GetIntegerStatus(I.c, fmi2DoStepStatus, &iv), "integer status");
-    CHECK_REFUSED(api.GetBooleanStatus(I.c, fmi2Terminated, &bv), "boolean status");
+    /* fmi2Terminated is provided (false: these FMUs never end the run);
+     * other Boolean status kinds and a NULL value are refused. */
+    bv = fmi2True;
+    CHECK(api.GetBooleanStatus(I.c, fmi2Terminated, &bv) == fmi2OK && bv == fmi2False,
+          "fmi2GetBooleanStatus(fmi2Terminated) is fmi2OK and false");
+    CHECK_REFUSED(api.GetBooleanStatus(I.c, fmi2DoStepStatus, &bv), "boolean status kind");
+    CHECK_REFUSED(api.GetBooleanStatus(I.c, fmi2Terminated, NULL), "NULL boolean status");
     CHECK_REFUSED(api.GetStringStatus(I.c, fmi2PendingStatus, &str), "string status");
     CHECK_REFUSED(api.GetString(I.c, &vr, 1, &str), "strings");
     CHECK_REFUSED(api.SetString(I.c, &vr, 1, &str), "strings");

@@ -15,6 +15,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "fmi2FunctionTypes.h" /* before cw_vars.h: its fmi2Status */
+
 /* The table only: CW_MODEL is defined by the model's own model.c. */
 #define CW_VARS_TABLE_ONLY
 #include "cw_vars.h"

@@ -104,7 +104,7 @@ def test_enumerations_states_and_fmi_names(drag, tmp_path):
                 'variability = "continuous"\nderivative_of = "q"\ndescription = "rate"\n'
                 '\n[[variable]]\nname = "out.q"\nvr = 33\ntype = "Real"\ncausality = "output"\n'
                 'variability = "continuous"\ndepends_on = ["q"]\ndescription = "q"\n')
-    assert fmugen.main([str(drag), str(tmp_path / "gen")]) == 0
+    assert fmugen.main([str(drag), str(tmp_path / "gen"), "--fmi2-only"]) == 0
     header = (tmp_path / "gen" / "cw_vars.h").read_text()
     assert "VR_der_q_ = 32," in header and "VR_out_q = 33," in header
     assert '[30] = {"mode", 30, CW_INTEGER,' in header
@@ -129,3 +129,83 @@ def test_enumeration_and_state_declarations_are_checked(drag):
     toml.write_text(original)
     _edit(toml, 'name = "c1"\nvr = 0\ntype = "Real"', 'name = "c1"\nvr = 0\ntype = "Real"\nderivative_of = "w"')
     _refused(drag, "derivative_of is for Real local variables")
+
+
+@pytest.mark.parametrize("kind, variable", [
+    ("Enumeration", '[types.Mode]\nitems = ["a"]\n'),
+    ("declared states", ""),
+])
+def test_fmi3_build_refuses_enumerations_and_declared_states(drag, tmp_path, capsys, kind, variable):
+    """The FMI 3.0 writer refuses what the fmi3 face cannot serve, in one
+    line; --fmi2-only builds the same table (as CMake does for test models)."""
+    if kind == "Enumeration":
+        _edit(drag / "model.toml", "[experiment]", variable + "\n[experiment]")
+        extra = ('\n[[variable]]\nname = "mode"\nvr = 30\ntype = "Enumeration"\ndeclared_type = "Mode"\n'
+                 'causality = "parameter"\nvariability = "fixed"\nstart = 1\ndescription = "m"\n')
+    else:
+        extra = ('\n[[variable]]\nname = "q"\nvr = 31\ntype = "Real"\ncausality = "local"\n'
+                 'variability = "continuous"\ndescription = "state"\n'
+                 '\n[[variable]]\nname = "der(q)"\nvr = 32\ntype = "Real"\ncausality = "local"\n'
+                 'variability = "continuous"\nderivative_of = "q"\ndescription = "rate"\n')
+    with open(drag / "model.toml", "a") as fh:
+        fh.write(extra)
+    assert fmugen.main([str(drag), str(tmp_path / "gen")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "FMI 3.0 build" in err and "FMI 2.0 only" in err
+    assert not (tmp_path / "gen" / "fmi3" / "modelDescription.xml").exists()
+    assert fmugen.main([str(drag), str(tmp_path / "gen"), "--fmi2-only"]) == 0
+    assert not (tmp_path / "gen" / "fmi3").exists()
+
+
+def test_fmi3_default_experiment_keeps_the_tolerance(drag, tmp_path):
+    _edit(drag / "model.toml", "step = 0.01", "step = 0.01\ntolerance = 1e-5")
+    assert fmugen.main([str(drag), str(tmp_path / "gen")]) == 0
+    md = ET.parse(tmp_path / "gen" / "fmi3" / "modelDescription.xml").getroot()
+    assert md.find("DefaultExperiment").get("tolerance") == "1e-05"
+
+
+def test_every_model_gets_the_fmi3_build(drag, tmp_path):
+    """A model folder gives the FMI 3.0 files too: nothing per model to add."""
+    out = tmp_path / "gen"
+    assert fmugen.main([str(drag), str(out), "--sources", "cw_runtime.c", "cw_fmi2.c", "model.c"]) == 0
+    md = ET.parse(out / "fmi3" / "modelDescription.xml").getroot()
+    assert md.get("fmiVersion") == "3.0"
+    assert md.get("instantiationToken") == ET.parse(out / "modelDescription.xml").getroot().get("guid")
+    cs = md.find("CoSimulation")
+    assert cs.get("hasEventMode") == "true" and cs.get("mightReturnEarlyFromDoStep") == "false"
+    (time,) = [v for v in md.find("ModelVariables") if v.get("causality") == "independent"]
+    assert time.get("name") == "time"
+    build = ET.parse(out / "fmi3" / "buildDescription.xml").getroot()
+    assert [f.get("name") for f in build.iter("SourceFile")] == ["cw_runtime.c", "cw_fmi3.c", "model.c"]
+    assert (out / "fmi3" / "documentation" / "index.html").is_file()
+
+
+def test_early_return_sets_might_return_early(drag, tmp_path):
+    _edit(drag / "model.toml", 'callbacks = ["calc_outputs"]',
+          'callbacks = ["calc_outputs"]\nearly_return = ["stall"]')
+    out = tmp_path / "gen"
+    assert fmugen.main([str(drag), str(out)]) == 0
+    cs = ET.parse(out / "fmi3" / "modelDescription.xml").getroot().find("CoSimulation")
+    assert cs.get("mightReturnEarlyFromDoStep") == "true"
+    assert "stall" in (out / "fmi3" / "documentation" / "index.html").read_text()
+
+
+@pytest.mark.parametrize("value", ['"stall"', "[1]", '[""]'])
+def test_early_return_must_be_a_list_of_names(drag, value):
+    _edit(drag / "model.toml", 'callbacks = ["calc_outputs"]', f'callbacks = ["calc_outputs"]\nearly_return = {value}')
+    _refused(drag, "early_return must be a list of event names")
+
+
+def test_time_is_the_fmi3_independent_variable(drag):
+    _edit(drag / "model.toml", 'name = "c1"', 'name = "time"')
+    _refused(drag, "'time' is the FMI 3.0 build's independent variable")
+
+
+def test_fmi3_dependencies_are_value_references():
+    t = fmugen.load(MODELS / "Pendulum")
+    md = ET.fromstring(fmugen.generate_xml3(t))
+    vr = {v.get("name"): v.get("valueReference") for v in md.find("ModelVariables")}
+    (a,) = [o for o in md.find("ModelStructure").iter("Output") if o.get("valueReference") == vr["a"]]
+    assert a.get("dependencies").split() == [vr[n] for n in ("tau_escapement", "tau_drag", "tau_coupling",
+                                                             "tau_external", "g_factor")]
+    assert a.get("dependenciesKind").split() == ["fixed"] * 4 + ["dependent"]

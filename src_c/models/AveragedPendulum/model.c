@@ -114,8 +114,25 @@ static void calc_outputs(cw_instance *inst) {
     I(stalled) = a.stalled;
 }
 
+/* The stall is the model's own event: lambda^2 falls through the square of
+ * the angle where the escapement acts. */
+static double stall_threshold(const cw_instance *inst) {
+    const double a = I(escapement) == 0 ? R(phi_r) : fabs(R(phi_1));
+    return a * a;
+}
+
+static double stall_margin(const cw_instance *inst, const double *x) {
+    return x[0] - stall_threshold(inst);
+}
+
+static void settle_on_stall(const cw_instance *inst, double *x) {
+    x[0] = stall_threshold(inst); /* lambda = phi_r exactly: stalled */
+}
+
 static fmi2Status do_step(cw_instance *inst, double t_end) {
     static const char *const names[] = {"lambda^2", "psi - omega0 t"};
-    return (fmi2Status)cw_integrate(inst, "AveragedPendulum", rhs, 2, S_LAM2, S_H_NEXT, t_end,
-                                    R(rtol), R(atol), R(h_max), I(integrator), names, NULL);
+    return (fmi2Status)cw_integrate_to_event(inst, "AveragedPendulum", rhs, 2, S_LAM2,
+                                             S_H_NEXT, t_end, R(rtol), R(atol), R(h_max),
+                                             I(integrator), names, stall_margin,
+                                             settle_on_stall);
 }

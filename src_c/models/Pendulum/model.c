@@ -10,7 +10,8 @@
  * Ticks (upward zero crossings) and turning points are located on the
  * dense output of each accepted step, then the tick time is polished with
  * a full step of the same Runge-Kutta pair, so that period measurements do
- * not depend on the communication step. */
+ * not depend on the communication step. Both are the model's own events:
+ * with early return (FMI 3.0) the step ends at the first of them. */
 #include <math.h>
 
 #include "cw_rk.h"
@@ -141,30 +142,102 @@ static double dense_root(const cw_rk *rk, int c) {
     return 0.5 * (a + b);
 }
 
+/* What the step observer watches for. With early return (FMI 3.0's
+ * earlyReturnAllowed), the first tick or turning point inside the
+ * communication step ends it there, with the state at the event. */
+typedef struct {
+    cw_instance *inst;
+    step_context *rhs_ctx; /* what the right-hand side needs */
+    int stop_at_events;
+    double t_start, t_end; /* the communication step */
+    int stopped;
+    double t_event, x_event[2];
+} step_watch;
+
+/* Newton steps on component c of a full step of the pair from the start of
+ * the last accepted step to t; its time derivative is f_c(x). The state at
+ * the final time goes into x. */
+static double polish(step_context *ctx, const cw_rk *rk, int c, double t,
+                     double x[2]) {
+    const cw_instance *inst = ctx->inst;
+    x[0] = 0.0;
+    x[1] = rk->x1[1];
+    for (int it = 0; it < 2; it++) {
+        cw_rk_single_step_with(rk->method, 2, rhs, ctx, rk->t0, rk->x0,
+                               t - rk->t0, x);
+        const double rate = c == 0 ? x[1] : acceleration(inst, t, x[0], x[1]);
+        if (rate == 0.0) break;
+        double dt = -x[c] / rate;
+        if (!(fabs(dt) < rk->h)) break;
+        t += dt;
+    }
+    return t;
+}
+
+static void record_tick(cw_instance *inst, double t, double w) {
+    R(tick_w) = w;
+    int n = I(tick_count);
+    if (n > 0) R(period) = t - R(tick_time);
+    R(tick_time) = t;
+    I(tick_count) = n + 1;
+    cw_log(inst, fmi2OK, "logEvents", "tick %d at t = %.17g s", n + 1, t);
+}
+
+/* The first own event of the step, as an early return: its time and the
+ * state there, with the crossing component exactly 0 so that the next step
+ * does not find the same event again. 0 when no event falls strictly
+ * inside the communication step. */
+static int stop_at_event(step_watch *watch, const cw_rk *rk, int tick,
+                         int turn) {
+    cw_instance *inst = watch->inst;
+    double t_tick = HUGE_VAL, t_turn = HUGE_VAL, x[2];
+    if (tick) t_tick = polish(watch->rhs_ctx, rk, 0, dense_root(rk, 0), x);
+    if (turn) t_turn = polish(watch->rhs_ctx, rk, 1, dense_root(rk, 1), x);
+    const int is_tick = t_tick <= t_turn;
+    const double t = is_tick ? t_tick : t_turn;
+    if (!(t > watch->t_start && t < watch->t_end)) return 0;
+    cw_rk_single_step_with(rk->method, 2, rhs, watch->rhs_ctx, rk->t0, rk->x0,
+                           t - rk->t0, x);
+    if (is_tick) {
+        x[0] = 0.0;
+        record_tick(inst, t, x[1]);
+    } else {
+        x[1] = 0.0;
+        R(amplitude) = fabs(x[0]);
+        I(turn_count) = I(turn_count) + 1;
+    }
+    watch->stopped = 1;
+    watch->t_event = t;
+    watch->x_event[0] = x[0];
+    watch->x_event[1] = x[1];
+    return 1;
+}
+
 static int observe_step(void *ctx, const cw_rk *rk) {
-    cw_instance *inst = ((step_context *)ctx)->inst;
+    step_watch *watch = ctx;
+    cw_instance *inst = watch->inst;
     const double phi0 = rk->x0[0], phi1 = rk->x1[0];
     const double w0 = rk->x0[1], w1 = rk->x1[1];
-    if (phi0 < 0.0 && phi1 >= 0.0) {
+    const int tick = phi0 < 0.0 && phi1 >= 0.0;
+    const int turn = (w0 > 0.0 && w1 <= 0.0) || (w0 < 0.0 && w1 >= 0.0);
+    if (watch->stop_at_events && (tick || turn) &&
+        stop_at_event(watch, rk, tick, turn))
+        return 1;
+    if (tick) {
         double t = dense_root(rk, 0);
         /* Polish: integrate exactly to t and take Newton steps on phi. */
         double x[2] = {0.0, rk->x1[1]};
         for (int it = 0; it < 2; it++) {
-            cw_rk_single_step_with(rk->method, 2, rhs, ctx, rk->t0, rk->x0,
+            cw_rk_single_step_with(rk->method, 2, rhs, watch->rhs_ctx, rk->t0, rk->x0,
                                    t - rk->t0, x);
             if (x[1] == 0.0) break;
             double dt = -x[0] / x[1];
             if (!(fabs(dt) < rk->h)) break;
             t += dt;
         }
-        R(tick_w) = x[1];
-        int n = I(tick_count);
-        if (n > 0) R(period) = t - R(tick_time);
-        R(tick_time) = t;
-        I(tick_count) = n + 1;
-        cw_log(inst, fmi2OK, "logEvents", "tick %d at t = %.17g s", n + 1, t);
+        record_tick(inst, t, x[1]);
     }
-    if ((w0 > 0.0 && w1 <= 0.0) || (w0 < 0.0 && w1 >= 0.0)) {
+    if (turn) {
         double t = dense_root(rk, 1), x[CW_RK_MAXN];
         cw_rk_dense(rk, t, x);
         R(amplitude) = fabs(x[0]);
@@ -185,8 +258,16 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
     const double tick_w = R(tick_w);
     const double tick_time = R(tick_time), period = R(period),
                  amplitude = R(amplitude);
+    step_watch watch = {inst, &ctx, cw_may_return_early(inst), inst->time,
+                        t_end, 0, 0.0, {0.0, 0.0}};
     cw_rk_result res =
-        cw_rk_advance(&rk, rhs, &ctx, &t, t_end, x, &h_next, observe_step, &ctx);
+        cw_rk_advance(&rk, rhs, &ctx, &t, t_end, x, &h_next, observe_step, &watch);
+    if (res == CW_RK_STOPPED && watch.stopped) {
+        t = watch.t_event;
+        x[0] = watch.x_event[0];
+        x[1] = watch.x_event[1];
+        res = CW_RK_OK;
+    }
     if (res != CW_RK_OK || !isfinite(x[0]) || !isfinite(x[1])) {
         I(tick_count) = ticks;
         I(turn_count) = turns;
@@ -208,6 +289,7 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
     inst->s[S_PHI] = x[0];
     inst->s[S_W] = x[1];
     inst->s[S_H_NEXT] = h_next;
+    if (watch.stopped) cw_return_early(inst, t);
     return fmi2OK;
 }
 

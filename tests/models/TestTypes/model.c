@@ -1,6 +1,6 @@
 /* TestTypes: y = p + u for every variable type the runtime stores, and a
  * state x with dx/dt = u_real whose output depends on x alone (a test FMU:
- * tests/test_any_fmu.py). */
+ * tests/test_generic_fmu.py). */
 #include <math.h>
 
 #include "cw_runtime.h"

@@ -332,6 +332,26 @@ def test_an_fmu_that_ends_the_simulation_is_a_clean_end(capsys, tmp_path):
 
 
 @pytest.mark.parametrize("engine", ENGINES)
+def test_an_fmi3_fmu_ends_the_simulation_as_an_fmi2_one_does(capsys, tmp_path, engine):
+    """TestStair's FMI 3.0 build reports the model's end as terminateSimulation
+    from fmi3DoStep: the same clean end, the same result.ended and the same
+    series as its FMI 2.0 build (fmi2Discard + fmi2Terminated)."""
+    stair3 = test_fmu("TestStair").parent / "fmi3" / "TestStair.fmu"
+    assert stair3.is_file(), f"{stair3} is missing: build the test FMUs first (cmake --build build)"
+    runs = {}
+    for fmi, text in ((2, STAIR_SCENE), (3, STAIR_SCENE.replace('fmu = "{stair}"', f'fmu = "{stair3}"'))):
+        rc, out, err = _run(capsys, tmp_path / str(fmi), _scene(tmp_path, text, f"s{fmi}.toml"), engine=engine)
+        assert rc == 0, err
+        runs[fmi] = (json.loads((out / "summary.json").read_text())["result"], (out / "timeseries.csv").read_text())
+    (r2, csv2), (r3, csv3) = runs[2], runs[3]
+    assert csv3 == csv2
+    assert "terminateSimulation" in r3["ended"]["message"]
+    for key in ("instance", "time_s", "last_point_s"):
+        assert r3["ended"][key] == r2["ended"][key], key
+    assert r3["t_end_s"] == r2["t_end_s"] == 2.5
+
+
+@pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("extra, needle", [
     (["--set", "s.terminate=false"], "s: the stair ends at t = 2.55 s; the step to 2.6 s is refused."),
     (["--set", "s.terminate=false", "--set", "s.quiet=true"], "(the FMU logged no message)"),
@@ -368,6 +388,22 @@ def test_the_tolerance_reaches_fmi2SetupExperiment(capsys, tmp_path, engine, ext
     steps = round(1.0 / tolerance)
     assert x1 == pytest.approx((1.0 - tolerance) ** steps, rel=1e-9)
     assert x1 != pytest.approx((1.0 - 1e-2) ** 100, rel=1e-6)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("extra, tolerance", [([], 1e-3), (["--set", "master.tolerance=1e-4"], 1e-4)])
+def test_the_tolerance_reaches_fmi3EnterInitializationMode(capsys, tmp_path, engine, extra, tolerance):
+    """TestDecay's FMI 3.0 build: the same tolerance reaches it, so it gives the FMI 2.0 build's bits."""
+    decay3 = test_fmu("TestDecay").parent / "fmi3" / "TestDecay.fmu"
+    assert decay3.is_file(), f"{decay3} is missing: build the test FMUs first (cmake --build build)"
+    scene3 = DECAY_SCENE.replace('fmu = "{decay}"', f'fmu = "{decay3}"')
+    rc, out, err = _run(capsys, tmp_path / "3", _scene(tmp_path, scene3, "s3.toml"), *extra, engine=engine)
+    assert rc == 0, err
+    rc2, out2, err2 = _run(capsys, tmp_path / "2", _scene(tmp_path, DECAY_SCENE), *extra, engine=engine)
+    assert rc2 == 0, err2
+    x1 = _csv(out)["d.x"][-1]
+    assert x1 == _csv(out2)["d.x"][-1]
+    assert float(x1) == pytest.approx((1.0 - tolerance) ** round(1.0 / tolerance), rel=1e-9)
 
 
 def test_a_bad_tolerance_is_refused(capsys, tmp_path):

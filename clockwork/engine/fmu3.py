@@ -1,0 +1,316 @@
+"""An FMI 3.0 Co-Simulation instance as the master sees it.
+
+``Instance3`` gives the master the same calls as an FMI 2.0 ``Instance``
+(fmi2-shaped: ``c_doStep(comp, t, h, flag)``, ``c_getReal(comp, vr, n,
+out)``...), so that master.py, coupling.py, location.py and checkpoints.py
+need not know the version. Behind them it speaks FMI 3.0 and does what FMI
+3.0 adds:
+
+- the instance is created with ``eventModeUsed`` when the FMU declares
+  ``hasEventMode`` and with ``earlyReturnAllowed`` when it declares
+  ``mightReturnEarlyFromDoStep`` (unless ``master.early_return`` is false);
+- ``c_doStep`` calls fmi3DoStep; when the FMU returns early at one of its
+  own events (``earlyReturn``, ``lastSuccessfulTime``) the event is handled
+  there, exactly, and the step goes on from that time to the communication
+  point, so that the master needs no rollback for events an FMU owns;
+- an event (``eventHandlingNeeded``, and the end of initialization in event
+  mode) is handled by fmi3EnterEventMode, fmi3UpdateDiscreteStates until
+  ``discreteStatesNeedUpdate`` is false, and fmi3EnterStepMode; the
+  ``nextEventTime`` it announces is kept in ``events.next_event_time``,
+  where the master caps its step so that a communication point lands on it;
+- ``terminateSimulation`` sets ``events.terminated`` and ``events.end_time``
+  (the time the FMU reached): when the FMU finished the step, the step
+  stands and the master ends the run before the next one; when it stopped
+  short, ``c_doStep`` returns Discard and the step is not taken. Either way
+  the master ends the run cleanly (``SimulationEnded`` in ``master.ended``,
+  as for an FMI 2.0 FMU's fmi2Terminated).
+
+The adapter's state lives in a ctypes struct (``_Events``) that the
+compiled core's own adapter (the fmi3 section of src_c/master/cw_master.c)
+reads and writes too, so that the two engines hand it over at any point.
+Saving and restoring the FMU state saves and restores the announced next
+event time with it.
+
+FMI 3.0 Co-Simulation has no input derivatives: ``c_setInputDerivatives``
+fails, and the master refuses extrapolated inputs into an FMI 3.0 instance
+before the first step.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from ctypes import POINTER, Structure, byref, c_bool, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
+
+from fmpy.fmi3 import FMU3Slave
+
+from ..errors import SceneError, SimulationError
+from .description import fmi_version, read_fmu
+from .fmu import DISCARD, ERROR, OK, WARNING, Instance, extract
+
+MAX_EVENT_ITERATIONS = 1000  # fmi3UpdateDiscreteStates calls per event before giving up
+MAX_STALLED_RETURNS = 100  # early returns in a row that do not move the FMU's time
+
+
+class _Events(Structure):
+    """The FMI 3.0 adapter's state, shared with cw_master.c's cw_fmi3 (same layout)."""
+
+    _fields_ = [(n, c_void_p) for n in (
+        "instance", "doStep", "getFloat64", "setFloat64", "getOutputDerivatives", "getState", "setState",
+        "enterEventMode", "updateDiscreteStates", "enterStepMode")] + [
+        ("next_event_time", c_double),        # s; inf when none is announced
+        ("saved_next_event_time", c_double),  # with the saved FMU state
+        ("end_time", c_double),               # where terminateSimulation stopped the FMU, s
+        ("early_returns", c_longlong),
+        ("events", c_longlong),               # events handled in event mode
+        ("event_mode_used", c_int),
+        ("terminated", c_int),
+        ("failed_call", c_int),               # 0 none, else which fmi3 call failed (FAILED_CALLS)
+        ("pad_", c_int),
+    ]
+
+
+# What _Events.failed_call names (the same numbers in cw_master.c).
+FAILED_CALLS = {1: "fmi3DoStep", 2: "fmi3EnterEventMode", 3: "fmi3UpdateDiscreteStates",
+                4: "fmi3EnterStepMode", 5: "fmi3DoStep (early returns that do not move time)",
+                6: "fmi3UpdateDiscreteStates (discrete states did not settle)"}
+
+
+class Instance3(Instance):
+    """An instantiated FMI 3.0 Co-Simulation FMU behind fmi2-shaped calls."""
+
+    fmi_version = 3
+
+    def __init__(self, name, path, model_description=None, early_return: bool = True):
+        super().__init__(name, path, model_description)
+        cs = self.md.coSimulation
+        self.event_mode_used = bool(cs.hasEventMode)
+        self.early_return_allowed = bool(cs.mightReturnEarlyFromDoStep) and early_return
+        self.can_interpolate_inputs = False  # FMI 3.0 CS has no input derivatives
+        self.events = _Events(next_event_time=math.inf, saved_next_event_time=math.inf, end_time=math.nan,
+                              event_mode_used=int(self.event_mode_used))
+        self._setup_args = (0, 0.0, 0.0, 0, 0.0)
+
+    def instantiate(self) -> None:
+        unzip = extract(self.path)
+        try:
+            self._slave = FMU3Slave(guid=self.md.guid, unzipDirectory=str(unzip),
+                                    modelIdentifier=self.md.coSimulation.modelIdentifier,
+                                    instanceName=self.name)
+        except Exception as e:  # fmpy raises a bare Exception for a bad library
+            raise SceneError(f"{self.path}: cannot load the FMU's binary for this platform: {e}") from None
+        messages = self.messages
+
+        def logger(env, status, category, message):
+            messages.append((status, message.decode("utf-8", "replace")))
+            del messages[:-50]
+
+        try:
+            self._slave.instantiate(eventModeUsed=self.event_mode_used,
+                                    earlyReturnAllowed=self.early_return_allowed, logMessage=logger)
+        except Exception as e:
+            raise SceneError(
+                f"{self.path}: fmi3InstantiateCoSimulation refused the model description's instantiation "
+                f"token {self.md.guid}: {self.last_message() or e}") from None
+        self.component = self._slave.component
+        self._bind(self._slave.dll)
+
+    def _bind(self, dll) -> None:
+        def fn(name, *argtypes):
+            f = getattr(dll, name)
+            f.argtypes = list(argtypes)
+            f.restype = c_int
+            return f
+
+        inst = c_void_p
+        vrs = POINTER(c_uint)
+        pb = POINTER(c_bool)
+        f_doStep = fn("fmi3DoStep", inst, c_double, c_double, c_bool, pb, pb, pb, POINTER(c_double))
+        f_getF64 = fn("fmi3GetFloat64", inst, vrs, c_size_t, POINTER(c_double), c_size_t)
+        f_setF64 = fn("fmi3SetFloat64", inst, vrs, c_size_t, POINTER(c_double), c_size_t)
+        f_getI32 = fn("fmi3GetInt32", inst, vrs, c_size_t, POINTER(c_int), c_size_t)
+        f_setI32 = fn("fmi3SetInt32", inst, vrs, c_size_t, POINTER(c_int), c_size_t)
+        f_getBool = fn("fmi3GetBoolean", inst, vrs, c_size_t, pb, c_size_t)
+        f_setBool = fn("fmi3SetBoolean", inst, vrs, c_size_t, pb, c_size_t)
+        f_getDer = fn("fmi3GetOutputDerivatives", inst, vrs, c_size_t, POINTER(c_int), POINTER(c_double), c_size_t)
+        f_getState = fn("fmi3GetFMUState", inst, POINTER(c_void_p))
+        f_setState = fn("fmi3SetFMUState", inst, c_void_p)
+        f_enterEvent = fn("fmi3EnterEventMode", inst)
+        f_update = fn("fmi3UpdateDiscreteStates", inst, pb, pb, pb, pb, pb, POINTER(c_double))
+        f_enterStep = fn("fmi3EnterStepMode", inst)
+        f_enterInit = fn("fmi3EnterInitializationMode", inst, c_bool, c_double, c_double, c_bool, c_double)
+        self._f = (f_doStep, f_enterEvent, f_update, f_enterStep)
+
+        ev = self.events
+        ev.instance = self.component
+        for field, f in (("doStep", f_doStep), ("getFloat64", f_getF64), ("setFloat64", f_setF64),
+                         ("getOutputDerivatives", f_getDer), ("getState", f_getState), ("setState", f_setState),
+                         ("enterEventMode", f_enterEvent), ("updateDiscreteStates", f_update),
+                         ("enterStepMode", f_enterStep)):
+            setattr(ev, field, ctypes.cast(f, c_void_p).value)
+
+        self.c_doStep = self._do_step
+        self.c_getReal = lambda comp, vr, n, out: f_getF64(comp, vr, n, out, n)
+        self.c_setReal = lambda comp, vr, n, val: f_setF64(comp, vr, n, val, n)
+        self.c_getInteger = lambda comp, vr, n, out: f_getI32(comp, vr, n, out, n)
+        self.c_setInteger = lambda comp, vr, n, val: f_setI32(comp, vr, n, val, n)
+
+        def get_boolean(comp, vr, n, out):
+            got = (c_bool * max(1, n))()
+            st = f_getBool(comp, vr, n, got, n)
+            for k in range(n):
+                out[k] = int(got[k])
+            return st
+
+        self.c_getBoolean = get_boolean
+        self.c_setBoolean = lambda comp, vr, n, val: f_setBool(comp, vr, n, (c_bool * max(1, n))(*val[:n]), n)
+        self.c_getOutputDerivatives = lambda comp, vr, n, orders, out: f_getDer(comp, vr, n, orders, out, n)
+        self.c_setInputDerivatives = self._no_input_derivatives
+        self.c_getState = f_getState
+        self.c_setState = f_setState
+        self.c_freeState = fn("fmi3FreeFMUState", inst, POINTER(c_void_p))
+        self.c_reset = fn("fmi3Reset", inst)
+        self.c_terminate = fn("fmi3Terminate", inst)
+        exit_init = fn("fmi3ExitInitializationMode", inst)
+
+        def setup(comp, tol_defined, tol, start, stop_defined, stop):
+            self._setup_args = (tol_defined, tol, start, stop_defined, stop)
+            return OK  # FMI 3.0 takes these when initialization mode is entered
+
+        def enter_init(comp):
+            return f_enterInit(comp, *self._setup_args)
+
+        def exit_and_settle(comp):
+            st = exit_init(comp)
+            if st <= WARNING and self.event_mode_used:
+                # In event mode after initialization: settle the discrete states.
+                st = max(st, self._settle(comp))
+            return st
+
+        self.c_setup, self.c_enterInit, self.c_exitInit = setup, enter_init, exit_and_settle
+
+    def _no_input_derivatives(self, comp, vr, n, orders, der) -> int:
+        self.messages.append((ERROR, "FMI 3.0 Co-Simulation has no input derivatives"))
+        return ERROR
+
+    # -- the step, with the events FMI 3.0 reports ------------------------------
+
+    def _handle_event(self, comp) -> int:
+        """Event mode: update the discrete states until they settle, then step mode."""
+        st = self._f[1](comp)
+        if st > WARNING:
+            self.events.failed_call = 2
+            return st
+        return max(st, self._settle(comp))
+
+    def _settle(self, comp) -> int:
+        """In event mode: fmi3UpdateDiscreteStates until the discrete states
+        settle, keep the next event time, then fmi3EnterStepMode."""
+        _, _, update, enter_step = self._f
+        ev = self.events
+        st = OK
+        need, term, nominals, values, defined = (c_bool() for _ in range(5))
+        next_time = c_double()
+        for _ in range(MAX_EVENT_ITERATIONS):
+            s = update(comp, byref(need), byref(term), byref(nominals), byref(values), byref(defined),
+                       byref(next_time))
+            st = max(st, s)
+            if s > WARNING:
+                ev.failed_call = 3
+                return s
+            if term.value:
+                ev.terminated = 1
+            if not need.value:
+                break
+        else:
+            ev.failed_call = 6
+            return ERROR
+        ev.next_event_time = next_time.value if defined.value else math.inf
+        ev.events += 1
+        s = enter_step(comp)
+        if s > WARNING:
+            ev.failed_call = 4
+        return max(st, s)
+
+    def _do_step(self, comp, t: float, h: float, _no_set_prior: int = 0) -> int:
+        """fmi3DoStep from t to t + h, through the FMU's own events."""
+        do_step = self._f[0]
+        ev = self.events
+        end = t + h
+        now, step = t, h
+        handling, term, early = c_bool(), c_bool(), c_bool()
+        last = c_double()
+        worst = OK
+        stalled = 0
+        while True:
+            st = do_step(comp, now, step, False, byref(handling), byref(term), byref(early), byref(last))
+            if st > WARNING:
+                ev.failed_call = 1
+                return st
+            worst = max(worst, st)
+            reached = last.value if early.value else end
+            if handling.value and self.event_mode_used:
+                st = self._handle_event(comp)
+                if st > WARNING:
+                    return st
+                worst = max(worst, st)
+            if term.value:
+                reached = last.value  # where the FMU stopped, early return or not
+            if term.value or ev.terminated:
+                # A whole step is kept (the master ends the run at its next
+                # step); one the FMU stopped short of is discarded.
+                ev.terminated = 1
+                ev.end_time = reached
+                return worst if reached >= end else DISCARD
+            if not early.value or reached >= end:
+                return worst
+            ev.early_returns += 1
+            stalled = stalled + 1 if reached <= now else 0
+            if stalled > MAX_STALLED_RETURNS:
+                ev.failed_call = 5
+                return ERROR
+            now, step = reached, end - reached
+
+    # -- lifecycle --------------------------------------------------------------
+
+    def reset(self) -> None:
+        super().reset()
+        ev = self.events
+        ev.next_event_time = ev.saved_next_event_time = math.inf
+        ev.end_time = math.nan
+        ev.terminated = ev.failed_call = 0
+
+    def save_state(self, t: float | None = None) -> None:
+        super().save_state(t)
+        self.events.saved_next_event_time = self.events.next_event_time
+
+    def restore_state(self, t: float | None = None) -> None:
+        super().restore_state(t)
+        self.events.next_event_time = self.events.saved_next_event_time
+
+    def free(self) -> None:
+        if self._slave is None:
+            return
+        if self._state.value:
+            self.c_freeState(self.component, byref(self._state))
+        try:
+            self._slave.fmi3FreeInstance(self.component)
+        finally:
+            self._slave = None
+
+    def fail(self, what, status, time=None, error=None):
+        call = FAILED_CALLS.get(self.events.failed_call)
+        if call and what.startswith("fmi2DoStep"):
+            what = call + what[len("fmi2DoStep"):]
+        self.events.failed_call = 0
+        return super().fail(what.replace("fmi2", "fmi3"), status, time, error or SimulationError)
+
+
+def make_instance(name, path, model_description=None, early_return: bool = True) -> Instance:
+    """An ``Instance`` or ``Instance3`` (early return allowed where it
+    declares it, unless `early_return` is false), as the FMU's
+    modelDescription says."""
+    md = model_description or read_fmu(path, need_binary=False)[0]
+    if fmi_version(md) == 3:
+        return Instance3(name, path, md, early_return)
+    return Instance(name, path, md)

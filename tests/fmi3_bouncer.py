@@ -1,0 +1,93 @@
+"""Builds tests/data/fmi3/bouncer.c into an FMI 3.0 Co-Simulation FMU (the
+FMI 3.0 headers come from the installed fmpy), for the master's FMI 3.0
+tests: event mode, early return, time events, terminateSimulation, FMU
+state, an event indicator. See bouncer.c for the model."""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import zipfile
+from pathlib import Path
+
+import fmpy
+
+SOURCE = Path(__file__).parent / "data" / "fmi3" / "bouncer.c"
+
+MODEL_DESCRIPTION = """<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="3.0" modelName="Bouncer" instantiationToken="{{cw-fmi3-bouncer}}"
+    description="clockwork's FMI 3.0 test FMU">
+  <CoSimulation modelIdentifier="Bouncer" canHandleVariableCommunicationStepSize="true"
+      canGetAndSetFMUState="true" maxOutputDerivativeOrder="1"
+      hasEventMode="{event_mode}" mightReturnEarlyFromDoStep="{early}"/>
+  <ModelVariables>
+    <Float64 name="time" valueReference="0" causality="independent" variability="continuous"/>
+    <Float64 name="v0" valueReference="1" causality="parameter" variability="fixed" start="1"/>
+    <Float64 name="period" valueReference="2" causality="parameter" variability="fixed" start="0.25"/>
+    <Float64 name="threshold" valueReference="3" causality="parameter" variability="fixed" start="0.5"/>
+    <Float64 name="u" valueReference="4" causality="input" variability="continuous" start="0"/>
+    <Float64 name="x" valueReference="5" causality="output" variability="continuous" initial="exact" start="0"/>
+    <Float64 name="n" valueReference="6" causality="output" variability="discrete" initial="exact" start="0"/>
+    <Float64 name="bounces" valueReference="7" causality="output" variability="discrete" initial="exact" start="0"/>
+    <Float64 name="z" valueReference="8" causality="output" variability="continuous"/>
+    <Int32 name="n_stop" valueReference="9" causality="parameter" variability="fixed" start="0"/>
+  </ModelVariables>
+  <ModelStructure>
+    <Output valueReference="5" dependencies=""/>
+    <Output valueReference="6" dependencies=""/>
+    <Output valueReference="7" dependencies=""/>
+    <Output valueReference="8" dependencies=""/>
+    <InitialUnknown valueReference="8" dependencies="3"/>
+  </ModelStructure>
+  {annotation}
+</fmiModelDescription>
+"""
+
+INDICATOR = """<VendorAnnotations><Tool name="clockwork"><EventIndicators><Indicator name="z"/></EventIndicators>
+  </Tool></VendorAnnotations>"""
+
+
+_TYPEDEF = re.compile(r"typedef\s+([\w\s\*]+?)\s*\*?\s*(fmi3\w+)TYPE\s*\(([^;]*)\)\s*;", re.S)
+
+
+def stubs(defined: str) -> str:
+    """The FMI 3.0 functions bouncer.c leaves out, each failing (fmpy loads
+    every symbol), made from the prototypes of fmpy's fmi3FunctionTypes.h."""
+    header = (Path(fmpy.__file__).parent / "c-code" / "fmi3FunctionTypes.h").read_text()
+    out = []
+    for m in _TYPEDEF.finditer(header):
+        ret, name, args = m.group(1).strip(), m.group(2), " ".join(m.group(3).split())
+        if re.search(rf"\b{name}\s*\(", defined):
+            continue
+        body = {"fmi3Status": "return fmi3Error;", "fmi3Instance": "return NULL;", "void": "",
+                "const char": 'return "3.0";'}[ret]
+        out.append(f"{ret}{'*' if ret == 'const char' else ''} {name}({args}) {{ {body} }}")
+    return "\n".join(out) + "\n"
+
+
+def build(folder: Path, event_mode: bool = True, early_return: bool = True, indicator: bool = False,
+          name: str = "Bouncer") -> Path:
+    """Compile and zip the FMU into folder/<name>.fmu; returns its path."""
+    cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
+    if cc is None:
+        raise RuntimeError("no C compiler")
+    folder = Path(folder)
+    work = folder / f"{name}.build"
+    binary = work / "binaries" / fmpy.platform_tuple / "Bouncer.so"
+    binary.parent.mkdir(parents=True, exist_ok=True)
+    headers = Path(fmpy.__file__).parent / "c-code"
+    source = SOURCE.read_text()
+    full = work / "bouncer_all.c"
+    full.write_text(source + "\n/* generated: the functions left out */\n" + stubs(source))
+    subprocess.run([cc, "-shared", "-fPIC", "-O1", "-std=c99", f"-I{headers}", f"-I{SOURCE.parent}", str(full),
+                    "-o", str(binary), "-lm"], check=True)
+    xml = MODEL_DESCRIPTION.format(event_mode=str(event_mode).lower(), early=str(early_return).lower(),
+                                   annotation=INDICATOR if indicator else "")
+    fmu = folder / f"{name}.fmu"
+    with zipfile.ZipFile(fmu, "w") as z:
+        z.writestr("modelDescription.xml", xml)
+        z.write(binary, f"binaries/{fmpy.platform_tuple}/Bouncer.so")
+    shutil.rmtree(work)
+    return fmu
