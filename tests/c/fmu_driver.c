@@ -117,8 +117,10 @@ static double get_real(fmi2Component c, unsigned vr) {
 /* Inputs follow smooth signals around their start values, given to the FMU
  * with first and second derivatives, so that the input polynomials are
  * part of every state. */
+#define INPUT_AMPLITUDE 0.2
+
 static void input_signal(int k, double t, double *u, double *d1, double *d2) {
-    const double amp = 0.2, w = 2.0 + 0.7 * k, ph = w * t + k;
+    const double amp = INPUT_AMPLITUDE, w = 2.0 + 0.7 * k, ph = w * t + k;
     *u = amp * sin(ph);
     *d1 = amp * w * cos(ph);
     *d2 = -amp * w * w * sin(ph);
@@ -132,7 +134,11 @@ static fmi2Status drive_inputs(fmi2Component c, double t) {
         if (!v->name || v->type != CW_REAL || v->causality != CW_INPUT) continue;
         double u, d[2];
         input_signal(k++, t, &u, &d[0], &d[1]);
-        fmi2Status st = set_real(c, (unsigned)vr, v->start + u);
+        /* Around the start value, moved inside [min, max] where the start
+         * sits on a bound (the air's density starts at its minimum, 0). */
+        const double center = fmin(fmax(v->start, v->min + INPUT_AMPLITUDE),
+                                   v->max - INPUT_AMPLITUDE);
+        fmi2Status st = set_real(c, (unsigned)vr, center + u);
         fmi2ValueReference vrs[2] = {(unsigned)vr, (unsigned)vr};
         fmi2Integer order[2] = {1, 2};
         if (st == fmi2OK) st = api.SetRealInputDerivatives(c, vrs, 2, order, d);
