@@ -71,11 +71,11 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
         except FileNotFoundError:
             pass
         raise
-    _fsync_dir(path.parent)
+    fsync_dir(path.parent)
     return path
 
 
-def _fsync_dir(d: Path) -> None:
+def fsync_dir(d: Path) -> None:
     # Makes the rename itself durable; not possible on every platform.
     try:
         fd = os.open(d, os.O_RDONLY)
