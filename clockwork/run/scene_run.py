@@ -21,7 +21,7 @@ from ..results.files import write_json_atomic
 from ..results.outdir import OutputDir
 from ..results.plots import Plotter
 from ..results.report import write_outputs
-from .points import point_key, point_label, run_point
+from .points import analysis_kind, point_key, point_label, run_point
 from .pool import default_workers, run_in_pool
 
 
@@ -40,7 +40,7 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
          plotter: Plotter, t_start: float) -> dict:
     points = scene.points()
     sweep = scene.sweep is not None
-    kind = (scene.analysis or {}).get("kind", "time_series")
+    kind = analysis_kind(scene)
     results: list[dict | None] = [None] * len(points)
     keys = [point_key(scene, p) for p in points]
     if sweep:
