@@ -1,5 +1,15 @@
 """Exceptions with one-line messages meant for the user.
 
+Every error clockwork raises on purpose is a `ClockworkError`:
+
+- `SceneError`: a scene file, an override or a setting that is malformed;
+- `UsageError`: bad use of the command line or of the Python API (an unknown
+  instance or variable, a stop time that is not finite or lies in the past);
+  `ClosedError`, a subclass, for a System used after it was freed;
+- `SimulationError`: a run that failed (an FMU error, divergence), and
+  `ResourceError`, a subclass, for a run that ran out of a resource (disk
+  space, file size limit, memory).
+
 The CLI prints `clockwork: error: <str(exc)>` and exits with 2 for
 `SceneError`/`UsageError` (bad input) and 1 for `SimulationError` (a run
 that failed).
@@ -35,6 +45,10 @@ class UsageError(ClockworkError):
         super().__init__(_one_line(message))
 
 
+class ClosedError(UsageError):
+    """A System (or its master) used after its `with` block or `free()`."""
+
+
 class SimulationError(ClockworkError):
     """A run that failed (an FMU returned an error, a step did not converge...).
 
@@ -54,6 +68,11 @@ class SimulationError(ClockworkError):
             where.append(instance if variable is None else f"{instance}.{variable}")
         prefix = ", ".join(where) + ": " if where else ""
         super().__init__(prefix + self.message)
+
+
+class ResourceError(SimulationError):
+    """A run stopped by the machine, not by its input: no space left, a file
+    size limit, no memory. `path` names the file being written, when known."""
 
 
 class ParametersRefused(SimulationError):

@@ -28,7 +28,7 @@ from ..paths import core_library
 from .fmu import Instance
 from .master import Master
 from .recording import Recorder, _DiscreteOutput
-from .settings import MasterSettings, Statistics
+from .settings import MasterSettings, Statistics, check_run
 from .wiring import Link
 
 HISTORY = 3  # input history for divided differences (HISTORY in cw_master.c)
@@ -333,6 +333,7 @@ class CompiledMaster(Master):
         return self._taken.value
 
     def run_until(self, t_stop: float, on_point=None) -> None:
+        t_stop = check_run(self.instances, self.t, t_stop)
         native = on_point is None or (type(on_point) is Recorder and on_point.master is self
                                       and not any(isinstance(a, _DiscreteOutput) for a, _ in on_point._sources))
         if self.on_step is not None or not native:

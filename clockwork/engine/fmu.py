@@ -245,6 +245,11 @@ class Instance:
         self.c_exitInit = fn("fmi2ExitInitializationMode", comp)
         self.c_terminate = fn("fmi2Terminate", comp)
 
+    @property
+    def freed(self) -> bool:
+        """Whether free() ran (an instance never instantiated is not freed)."""
+        return self._slave is None and hasattr(self, "component")
+
     def free(self) -> None:
         if self._slave is None:
             return

@@ -39,7 +39,7 @@ from .fmu import DISCARD, WARNING, Instance, free_all
 from .location import EventLocator, crossed, scan
 from .ports import Port, Ports
 from .richardson import StepDoubling
-from .settings import MasterSettings, Statistics, rollback_need
+from .settings import MasterSettings, Statistics, check_run, rollback_need
 from ..errors import SceneError, SimulationError
 from .wiring import Link, build
 
@@ -322,6 +322,7 @@ class Master:
         Grid points are computed as start + k*step, never by summing steps,
         so that time does not drift.
         """
+        t_stop = check_run(self.instances, self.t, t_stop)
         s = self.settings
         h_nom, t0 = s.step, self.start_time
         eps = 1e-12 * max(1.0, abs(t_stop))
