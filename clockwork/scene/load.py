@@ -21,6 +21,9 @@ from pathlib import Path
 
 from ..engine.description import NAME_RE, FmuError, read_fmu, resolve_fmu, var_unit
 from ..engine.description import variables as variables_of
+from ..engine.fmu import Instance
+from ..engine.wiring import Link
+from ..engine.wiring import build as build_wiring
 from ..errors import SceneError
 from .checks import TOP_KEYS, Ctx, article, component, convert_value, lookup, master_value, names_of, parse_ref
 from .kinds import NO_KINDS, Invalid, Kinds
@@ -140,6 +143,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
 
     components, input_params = _components(ctx, ctx.table(raw, "components", "", required=True))
     connections = _connections(ctx, raw.get("connections", []), components, input_params)
+    _check_wiring(ctx, components, connections)
     experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
     master, max_step_given = _master(ctx, ctx.table(raw, "master", "") or {})
     problem = consistency(master, experiment, components)
@@ -216,6 +220,16 @@ def _components(ctx: Ctx, table: dict) -> tuple[dict[str, Component], set]:
             params[pname] = convert_value(ctx, key, value, v, md)
         out[name] = Component(name, fpath, digest, md, params, indicators)
     return out, input_params
+
+
+def _check_wiring(ctx: Ctx, components: dict[str, Component], connections) -> None:
+    """What the master refuses before it steps (an algebraic loop through
+    direct-feedthrough outputs), refused now, by the engine's own wiring code."""
+    try:
+        instances = {n: Instance(n, c.fmu_path, c.model_description) for n, c in components.items()}
+        build_wiring(instances, [Link(*c) for c in connections])
+    except SceneError as e:
+        raise ctx.fail("connections", e.detail) from None
 
 
 def _connections(ctx: Ctx, conns, components: dict[str, Component], input_params: set) -> tuple[Connection, ...]:
