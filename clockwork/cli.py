@@ -8,14 +8,18 @@ stderr and exit code 2; a failed simulation with one line and exit code 1.
 from __future__ import annotations
 
 import argparse
+import atexit
+import contextlib
 import errno
 import gc
 import os
+import signal
 import sys
+import threading
 from pathlib import Path
 
 from . import __version__
-from .errors import SceneError, SimulationError, UsageError
+from .errors import Interrupted, SceneError, SimulationError, UsageError
 from .paths import scenarios_dir
 
 
@@ -368,10 +372,58 @@ def console() -> int:
     handlers run as usual."""
     code = main()
     gc.freeze()
+    if code > 128:
+        # Interrupted: our cleanup is done (the with blocks ran; atexit next).
+        # A pool's manager thread may wait forever for a message that a killed
+        # worker left half-written; the interpreter would join it. Leave now.
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        atexit._run_exitfuncs()
+        os._exit(code)
     return code
 
 
 def main(argv=None) -> int:
+    with _signals_as_interrupts():
+        return _main(argv)
+
+
+# Signals that end a run as Ctrl-C does: one line, exit code 128 + the signal's number.
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+@contextlib.contextmanager
+def _signals_as_interrupts():
+    """SIGTERM and SIGHUP raise Interrupted where the process is (SIGINT raises
+    KeyboardInterrupt), so that every `with` and `finally` cleans up: the
+    staging folder, the worker and plot processes, the scratch folder. Once
+    one has arrived, more of them wait until the cleanup is done."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    first: list[int] = []
+
+    def stop(signo, frame):
+        if first:
+            return  # already on the way out
+        first.append(signo)
+        if signo == signal.SIGINT:
+            raise KeyboardInterrupt
+        raise Interrupted(signo)
+
+    before = {sig: signal.signal(sig, stop) for sig in _STOP_SIGNALS
+              if signal.getsignal(sig) in (signal.default_int_handler, signal.SIG_DFL)}
+    try:
+        yield
+    finally:
+        for sig, handler in before.items():
+            signal.signal(sig, handler)
+
+
+def _main(argv=None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -397,7 +449,8 @@ def main(argv=None) -> int:
         where = f"{e.filename}: " if e.filename else ""
         _error(f"{where}{e.strerror or e}")
         return 1 if e.errno in _RUN_FAILURES else 2
-    except KeyboardInterrupt:
-        _error("interrupted")
-        return 130
+    except KeyboardInterrupt as e:
+        signo = getattr(e, "signo", signal.SIGINT)
+        _error("interrupted" if signo == signal.SIGINT else f"interrupted by {signal.Signals(signo).name}")
+        return 128 + signo
 

@@ -81,5 +81,15 @@ class ParametersRefused(SimulationError):
     run layer reports against the scene file."""
 
 
+class Interrupted(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised where the process is, like Ctrl-C's
+    KeyboardInterrupt, so that the same cleanup runs (clockwork.cli installs
+    the handlers). `signo` is the signal's number."""
+
+    def __init__(self, signo: int):
+        super().__init__(signo)
+        self.signo = signo
+
+
 def _one_line(text: str) -> str:
     return " ".join(str(text).split())

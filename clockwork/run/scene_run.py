@@ -33,7 +33,10 @@ def run_scene(scene, out_dir, workers: int | None = None, scheduler: str | None 
     # The plot process starts first: it imports matplotlib while the points run,
     # and it must not inherit the output directory's lock.
     with Plotter.start(scene) as plotter, OutputDir(out_dir) as out:
-        return _run(scene, out, workers, scheduler, progress, plotter, t_start)
+        try:
+            return _run(scene, out, workers, scheduler, progress, plotter, t_start)
+        finally:
+            plotter.close()  # before the staging folder goes: nothing may write into it after
 
 
 def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, progress: bool,
@@ -80,11 +83,15 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
             done = ((i, run_point(scene, points[i], catch=True)) for i in todo)
         else:
             done = run_in_pool(scene, [points[i] for i in todo], todo, n_workers)
-        with reusing_systems():  # points in this process share their FMU instances
-            for i, r in done:
-                finished(i, r)
-                bar.update()
-        bar.close()
+        try:
+            with reusing_systems():  # points in this process share their FMU instances
+                for i, r in done:
+                    finished(i, r)
+                    bar.update()
+        finally:
+            if hasattr(done, "close"):
+                done.close()  # a pool stops its workers now, not when the generator is collected
+            bar.close()
 
     summary = {
         "scene": str(scene.path),

@@ -18,7 +18,8 @@ already imported (the gallery after its first scene, the tests), or when
 the scene has no plots. A child that dies without an answer is reported
 on stderr and the plots are drawn here.
 
-The child ignores SIGINT (an interrupted run is the parent's to report),
+The child ignores SIGINT, SIGTERM and SIGHUP (an interrupted run is the
+parent's to report),
 dies with its parent (Linux prctl), never runs the parent's atexit
 handlers (it leaves by os._exit), and is reaped by ``close``.
 """
@@ -168,7 +169,8 @@ def _child(scene, parent: int, job_fd: int, answer_fd: int) -> None:
     """The plot process: import matplotlib, wait for the results, draw, answer."""
     code = 0
     try:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, signal.SIG_IGN)  # the run's to report; this process dies with it
         die_with_parent(parent)
         # The slow part, done while the parent computes. The collector would
         # walk the growing heap again and again during the import (a tenth of
