@@ -355,7 +355,9 @@ def cmd_info(args) -> int:
 
 
 # The machine failed the run (not the user's input).
-_RUN_FAILURES = (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.ENOMEM)
+# The machine ran out of something: a failed run (1), not bad input (2).
+_RUN_FAILURES = (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.ENOMEM, errno.EFBIG, errno.EMFILE, errno.ENFILE,
+                 errno.EAGAIN)
 
 
 def _error(message: object) -> None:
@@ -370,6 +372,7 @@ def console() -> int:
     loaded) only for the operating system to free the memory anyway;
     frozen objects are left out of that walk. Files are closed and atexit
     handlers run as usual."""
+    _std_streams_open()
     code = main()
     gc.freeze()
     if code > 128:
@@ -384,6 +387,22 @@ def console() -> int:
         atexit._run_exitfuncs()
         os._exit(code)
     return code
+
+
+def _std_streams_open() -> None:
+    """A command started with a standard stream closed (`>&-`) gets /dev/null
+    there: else the next file opened would take its number, and what is
+    printed would land in it (or, with sys.stdout None, fail)."""
+    for fd, name, mode in ((0, "stdin", "r"), (1, "stdout", "w"), (2, "stderr", "w")):
+        try:
+            os.fstat(fd)
+        except OSError:
+            null = os.open(os.devnull, os.O_RDWR)
+            if null != fd:
+                os.dup2(null, fd)
+                os.close(null)
+        if getattr(sys, name) is None:
+            setattr(sys, name, open(fd, mode, closefd=False))
 
 
 def main(argv=None) -> int:
@@ -445,10 +464,18 @@ def _main(argv=None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except OSError as e:
-        # Writing results: disk full, permissions, a path below a regular file.
+        # Writing results: disk full, file size limit, permissions, a path below a regular file.
         where = f"{e.filename}: " if e.filename else ""
+        if e.errno in _RUN_FAILURES:
+            _error(f"{where}{e.strerror or e}: a limit of the machine, not bad input (free some, or raise "
+                   "the limit, and run again)")
+            return 1
         _error(f"{where}{e.strerror or e}")
-        return 1 if e.errno in _RUN_FAILURES else 2
+        return 2
+    except MemoryError:
+        _error("out of memory (ulimit -v or the machine's memory): record fewer outputs, a longer "
+               "record.interval or a shorter experiment, or run on a machine with more memory")
+        return 1
     except KeyboardInterrupt as e:
         signo = getattr(e, "signo", signal.SIGINT)
         _error("interrupted" if signo == signal.SIGINT else f"interrupted by {signal.Signals(signo).name}")

@@ -102,7 +102,12 @@ def _extract_into(path: Path, target: Path) -> Path:
 def _unzip(path: Path, target: Path) -> None:
     with zipfile.ZipFile(path) as z:
         check_archive(path, z.infolist())  # also when read_fmu's check was done on another file
-        z.extractall(target)
+        try:
+            z.extractall(target)
+        except OSError as e:
+            if e.filename is not None:
+                raise
+            raise OSError(e.errno, f"{e.strerror} (unzipping {path.name})", str(target)) from None
     # What extractall wrote (it drops "../" and absolute parts of names), not the archive's names,
     # so that the check before reuse finds every file where it is.
     manifest = {str(p.relative_to(target)): p.stat().st_size for p in target.rglob("*") if p.is_file()}

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict
+from pathlib import Path
 
 from .. import __version__
 from ..analyses.context import reusing_systems
@@ -105,6 +106,11 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
         "points_total": len(points),
         "points_reused": reused,
     }
-    write_outputs(scene, out.staging, results, summary, t_start, plotter)
+    try:
+        write_outputs(scene, out.staging, results, summary, t_start, plotter)
+    except OSError as e:  # name the file the user asked for, not its staged copy
+        if e.filename is None or Path(e.filename).parent != out.staging:
+            raise
+        raise OSError(e.errno, e.strerror, str(out.path / Path(e.filename).name)) from None
     out.commit()
     return summary

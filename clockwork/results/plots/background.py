@@ -37,7 +37,7 @@ from pathlib import Path
 
 from ...atomic import remove_stale_parts
 from ...processes import die_with_parent
-from .registry import draw_plot, gather, load_matplotlib, make_plots
+from .registry import draw_plot, gather, load_matplotlib, make_plots, matplotlib_config
 
 
 class Plotter:
@@ -86,7 +86,9 @@ class _PlotProcess(Plotter):
         job_r, job_w = os.pipe()
         answer_r, answer_w = os.pipe()
         for stream in (sys.stdout, sys.stderr):  # else the child would write their buffers again
-            stream.flush()
+            if stream is not None:  # None: the stream was closed when the command started
+                stream.flush()
+        matplotlib_config()  # its folder must outlive the child: made here
         parent = os.getpid()
         try:
             pid = os.fork()

@@ -11,6 +11,9 @@ plots are drawn on ``matplotlib.figure.Figure`` without pyplot.
 from __future__ import annotations
 
 import io
+import logging
+import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,15 +21,44 @@ import numpy as np
 from ...engine.description import var_unit, variables
 from ...scene.kinds import Converter, Invalid
 from ...atomic import write_bytes_atomic
+from ...paths import cache_root, scratch_dir
 
 PLOTS: dict = {}  # kind -> function
 PLOT_KEYS: dict[str, set[str]] = {}  # kind -> allowed keys besides `kind`
 _PLOT_CONVERT: dict[str, Converter] = {}
 
 
+def matplotlib_config() -> None:
+    """Give matplotlib a usable config folder before it is imported, and
+    keep its log lines off stderr (one line per failure is ours to print).
+
+    Without $MPLCONFIGDIR and a writable ~/.config/matplotlib, matplotlib
+    makes a temporary folder that only its atexit handler removes (a plot
+    process never runs those) and says so on stderr. The folder here is
+    $MPLCONFIGDIR when writable, else <cache>/matplotlib, else a folder in
+    this process's scratch folder, removed at exit. Call it in the process
+    that forks the plot process, before the fork."""
+    logging.getLogger("matplotlib").setLevel(logging.ERROR)
+    given = os.environ.get("MPLCONFIGDIR")
+    root = cache_root()
+    for d in ([Path(given)] if given else []) + ([root / "matplotlib"] if root is not None else []):
+        try:
+            d.mkdir(parents=True, exist_ok=True)
+            if os.access(d, os.W_OK | os.X_OK):
+                os.environ["MPLCONFIGDIR"] = str(d)
+                return
+        except OSError:
+            pass
+    d = scratch_dir() / "matplotlib"
+    d.mkdir(exist_ok=True)
+    os.environ["MPLCONFIGDIR"] = str(d)
+
+
 def load_matplotlib() -> None:
     """Import what drawing a PNG needs (a third of a second: done once, on
     the first plot, or ahead of time by the plot process)."""
+    if "matplotlib" not in sys.modules:
+        matplotlib_config()
     import matplotlib.figure  # noqa: F401
     from matplotlib.backends import backend_agg  # noqa: F401
 
@@ -35,6 +67,7 @@ def subplots(*args, figsize: tuple[float, float], **kwargs):
     """A new figure and its axes, as ``pyplot.subplots`` takes them, without
     pyplot: no global list of figures to close, and no backend switched
     under the feet of a program that imports clockwork."""
+    load_matplotlib()
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=figsize)
