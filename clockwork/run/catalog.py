@@ -7,6 +7,7 @@ analyses and the plots register (importing them registers them all).
 from __future__ import annotations
 
 import difflib
+import math
 import os
 from pathlib import Path
 
@@ -39,4 +40,42 @@ def find_scene(spec: str | os.PathLike) -> Path:
 
 def load_scene(path: str | os.PathLike, overrides=()):
     """Load, override and validate a scene file (or a bundled scene by name); raises SceneError."""
-    return _load_scene(find_scene(path), overrides, kinds())
+    scene = _load_scene(find_scene(path), overrides, kinds())
+    check_recording_bound(scene)
+    return scene
+
+
+# What a run that records at communication points may keep in memory: each
+# value is a Python float in a list (32 bytes) until the point is written.
+MAX_RECORDED_VALUES = 20_000_000  # about 640 MB
+_RECORDING_KINDS = ("time_series", "ticks")
+
+
+def recorded_values(scene) -> tuple[int, float, float]:
+    """(values a point records at most, its span s, its recording interval s),
+    for the analyses that record over the whole experiment: a row of the
+    recorded outputs and the time per record.interval (or communication
+    step), and at most one tick per communication step."""
+    kind = (scene.analysis or {}).get("kind", "time_series")
+    if kind not in _RECORDING_KINDS:
+        return 0, 0.0, 0.0
+    span = scene.experiment.stop - scene.experiment.start
+    every = scene.record.interval or scene.master.step
+    columns = len(scene.record.outputs) + 1 if scene.record.outputs and kind == "time_series" else 0
+    ticks = scene.record.ticks is not None or kind == "ticks"
+    n = (math.floor(span / every) + 1) * columns + (math.floor(span / scene.master.step) + 1 if ticks else 0)
+    return n, span, every
+
+
+def check_recording_bound(scene) -> None:
+    """Refuse, before the run, a point that would record more than
+    MAX_RECORDED_VALUES (e.g. stop = 1e12 s at a 0.01 s step)."""
+    variants = [scene]
+    if scene.sweep is not None and any(a.parameter[0] in ("master", "experiment") for a in scene.sweep.axes):
+        variants = [scene.variant(p) for p in scene.points()]
+    n, span, every = max(recorded_values(v) for v in variants)
+    if n > MAX_RECORDED_VALUES:
+        raise SceneError(f"a run of {span:g} s recording every {every:g} s keeps about {n:.3g} values in memory, "
+                         f"more than {MAX_RECORDED_VALUES:.0e} (about {MAX_RECORDED_VALUES * 32 / 1e6:.0f} MB): "
+                         "give a longer record.interval, a shorter span (experiment.stop), fewer record.outputs, "
+                         "or a longer master.step", scene.path, "experiment.stop")
