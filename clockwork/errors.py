@@ -6,9 +6,11 @@ Every error clockwork raises on purpose is a `ClockworkError`:
 - `UsageError`: bad use of the command line or of the Python API (an unknown
   instance or variable, a stop time that is not finite or lies in the past);
   `ClosedError`, a subclass, for a System used after it was freed;
-- `SimulationError`: a run that failed (an FMU error, divergence), and
-  `ResourceError`, a subclass, for a run that ran out of a resource (disk
-  space, file size limit, memory).
+- `SimulationError`: a run that failed (an FMU error, divergence).
+
+A run that runs out of a resource (disk space, a file size limit, memory)
+ends in Python's own OSError or MemoryError; the CLI reports it as a failed
+run (exit code 1) naming the file.
 
 The CLI prints `clockwork: error: <str(exc)>` and exits with 2 for
 `SceneError`/`UsageError` (bad input) and 1 for `SimulationError` (a run
@@ -68,11 +70,6 @@ class SimulationError(ClockworkError):
             where.append(instance if variable is None else f"{instance}.{variable}")
         prefix = ", ".join(where) + ": " if where else ""
         super().__init__(prefix + self.message)
-
-
-class ResourceError(SimulationError):
-    """A run stopped by the machine, not by its input: no space left, a file
-    size limit, no memory. `path` names the file being written, when known."""
 
 
 class ParametersRefused(SimulationError):

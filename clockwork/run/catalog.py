@@ -42,7 +42,25 @@ def load_scene(path: str | os.PathLike, overrides=()):
     """Load, override and validate a scene file (or a bundled scene by name); raises SceneError."""
     scene = _load_scene(find_scene(path), overrides, kinds())
     check_recording_bound(scene)
+    check_plot_axes(scene)
     return scene
+
+
+def check_plot_axes(scene) -> None:
+    """A plot column named "instance.variable" of a sweep's results is a
+    sweep axis (result columns have no dot): checked now, not after the run."""
+    axes = {f"{a}.{b}" for a, b in (ax.parameter for ax in scene.sweep.axes)} if scene.sweep else set()
+    for i, spec in enumerate(scene.plots):
+        keys, source = plots.PLOT_COLUMNS.get(spec["kind"], ({}, "rows"))
+        if source != "rows":
+            continue
+        for key, default in keys.items():
+            for name in plots.column_names(spec, key, default):
+                if "." in name and name not in axes:
+                    close = difflib.get_close_matches(name, sorted(axes), n=1)
+                    raise SceneError(f"{name} is not a sweep axis{f' (did you mean {close[0]}?)' if close else ''}: "
+                                     f"expected a result column or one of the axes ({', '.join(sorted(axes)) or 'none'})",
+                                     scene.path, f"plot[{i}].{key}")
 
 
 # What a run that records at communication points may keep in memory: each

@@ -21,6 +21,7 @@ from ..results.cache import cache_load, cache_store, read_point
 from ..results.files import write_json_atomic
 from ..results.outdir import OutputDir
 from ..results.plots import Plotter
+from ..results.plots.registry import unknown_column
 from ..results.report import write_outputs
 from .points import analysis_kind, point_key, point_label, run_point
 from .pool import default_workers, run_in_pool
@@ -106,6 +107,12 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
         "points_total": len(points),
         "points_reused": reused,
     }
+    unknown = unknown_column(scene, results)
+    if unknown is not None:  # before anything is written: the points are kept for the rerun
+        i, key, name, there = unknown
+        shown = ", ".join(there[:12]) + (f" and {len(there) - 12} more" if len(there) > 12 else "")
+        raise SceneError(f"{name} is not a column of the results: expected one of {shown}",
+                         scene.path, f"plot[{i}].{key}")
     try:
         write_outputs(scene, out.staging, results, summary, t_start, plotter)
     except OSError as e:  # name the file the user asked for, not its staged copy

@@ -26,6 +26,8 @@ from ...paths import cache_root, scratch_dir
 PLOTS: dict = {}  # kind -> function
 PLOT_KEYS: dict[str, set[str]] = {}  # kind -> allowed keys besides `kind`
 _PLOT_CONVERT: dict[str, Converter] = {}
+# kind -> ({spec key naming columns: its default}, where the columns are: "series" or "rows")
+PLOT_COLUMNS: dict[str, tuple[dict, str]] = {}
 
 
 def matplotlib_config() -> None:
@@ -124,8 +126,14 @@ def curves(rows: list[dict], key) -> dict:
 
 
 def register(kind: str, keys: set[str] | frozenset[str] = frozenset(), convert: Converter | None = None,
-             run: str | None = None, rows=None):
+             run: str | None = None, rows=None, columns: dict | None = None):
     """Register ``f(scene, results, spec) -> Figure | None`` as plot kind `kind`.
+
+    `columns` names the spec keys that name data columns, with their
+    defaults (None: no default): a sweep axis or a result column, or (with
+    `run`) a column of the run's series. They are checked against the
+    results before anything is written (``unknown_column``), so that a
+    typo is refused instead of drawn as an empty plot.
 
     With `run` (a key such as "series"), the kind plots the one result of a
     scene without a sweep: f gets that result instead of the list, and is
@@ -147,6 +155,7 @@ def register(kind: str, keys: set[str] | frozenset[str] = frozenset(), convert: 
         else:
             PLOTS[kind] = func
         PLOT_KEYS[kind] = set(keys) | {"title", "file"}
+        PLOT_COLUMNS[kind] = (dict(columns or {}), run or "rows")
         if convert is not None:
             _PLOT_CONVERT[kind] = convert
         else:
@@ -236,6 +245,37 @@ def gather(outcomes: list[tuple[str, object]]) -> tuple[list[str], list[dict], l
     failed = [x for what, x in outcomes if what == "failed"]
     empty = [x for what, x in outcomes if what == "empty"]
     return written, failed, empty
+
+
+def column_names(spec: dict, key: str, default) -> list[str]:
+    names = spec.get(key, default)
+    return [] if names is None else [names] if isinstance(names, str) else list(names)
+
+
+def unknown_column(scene, results: list[dict]) -> tuple[int, str, str, list[str]] | None:
+    """The first column a plot names that no result has: (plot index, spec
+    key, name, the columns there are), or None. Plots with nothing to draw
+    at all (every point failed or stalled) are not judged: they say so
+    themselves (``plots_not_drawn``)."""
+    for i, spec in enumerate(scene.plots):
+        keys, source = PLOT_COLUMNS.get(spec["kind"], ({}, "rows"))
+        if not keys:
+            continue
+        there: set[str] = set()
+        for r in results:
+            if not r or "error" in r or r.get("result", {}).get("stalled") or r.get("result", {}).get("omitted"):
+                continue  # a stalled point has no rates: it says nothing of the columns
+            if source == "rows":
+                there |= set(r.get("result", {})) | set(r.get("point", {}))
+            else:
+                there |= set(r.get(source, {}) or {})
+        if not there:
+            continue
+        for key, default in keys.items():
+            for name in column_names(spec, key, default):
+                if name not in there:
+                    return i, key, name, sorted(there)
+    return None
 
 
 def make_plots(scene, results: list[dict], out: Path) -> tuple[list[str], list[dict], list[dict]]:
