@@ -28,7 +28,7 @@ NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 # (the declared sizes bound what zipfile writes: it stops there and checks the CRC).
 MAX_DESCRIPTION_BYTES = 64 * 2**20  # modelDescription.xml; ours are 20-40 KB
 MAX_ENTRIES = 100_000
-DEFAULT_MAX_UNZIPPED_MB = 1024  # an FMU's files, unzipped; ours are 0.2 MB. $CLOCKWORK_MAX_FMU_MB changes it
+DEFAULT_MAX_UNZIPPED_MB = 1024  # MiB: an FMU's files, unzipped; ours are 0.2 MB. $CLOCKWORK_MAX_FMU_MB changes it
 
 
 def max_unzipped_bytes() -> int:
@@ -47,12 +47,12 @@ def check_archive(path: Path, infos: list) -> None:
     total = sum(i.file_size for i in infos)
     limit = max_unzipped_bytes()
     if total > limit:
-        raise FmuError(f"{path}: unzips to {total / 2**20:.0f} MB, more than the limit of {limit / 2**20:.0f} MB: "
-                       "not unzipped (set CLOCKWORK_MAX_FMU_MB to allow more)")
+        raise FmuError(f"{path}: unzips to {total:,} bytes, more than the limit of {limit:,} bytes "
+                       f"({limit / 2**20:g} MiB): not unzipped (set CLOCKWORK_MAX_FMU_MB to allow more)")
     md = next((i for i in infos if i.filename == "modelDescription.xml"), None)
     if md is not None and md.file_size > MAX_DESCRIPTION_BYTES:
-        raise FmuError(f"{path}: modelDescription.xml is {md.file_size / 2**20:.0f} MB, more than "
-                       f"{MAX_DESCRIPTION_BYTES // 2**20} MB: not read")
+        raise FmuError(f"{path}: modelDescription.xml is {md.file_size:,} bytes, more than "
+                       f"{MAX_DESCRIPTION_BYTES:,} ({MAX_DESCRIPTION_BYTES // 2**20} MiB): not read")
 
 
 # The first bytes of a shared library for this platform (checked without loading it).
