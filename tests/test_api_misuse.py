@@ -153,3 +153,13 @@ def test_lookups_on_a_live_system_name_instance_and_variable(engine):
 def test_every_error_is_a_clockwork_error():
     assert issubclass(ClosedError, UsageError) and issubclass(UsageError, ClockworkError)
     assert issubclass(SceneError, ClockworkError)
+
+
+def test_numpy_numbers_are_numbers():
+    import numpy as np
+
+    s = MasterSettings(step=np.float64(0.5), iterations=np.int64(0), min_step=np.float32(1e-9))
+    assert s.step == 0.5
+    with _system("auto") as sys_:
+        sys_.master.run_until(np.int64(1))
+        assert sys_.master.t == 1.0

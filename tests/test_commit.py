@@ -189,3 +189,19 @@ def test_a_kill_mid_commit_then_a_real_run_resumes(tmp_path):
                        env=dict(os.environ, CLOCKWORK_CACHE="off", CLOCKWORK_FMU_DIR=str(FMU_DIR)))
     assert r.returncode == 0, r.stderr
     assert (d / "summary.json").exists() and "old_only.png" not in os.listdir(d)
+
+
+@pytest.mark.parametrize("journal", ["{ not json", '{"new": ["../x"], "old": ["summary.json"]}', ""])
+def test_a_damaged_journal_puts_the_earlier_result_back(tmp_path, journal):
+    """A journal is written atomically, so a damaged one was damaged by hand:
+    the earlier files moved aside go back, and nothing outside the directory is touched."""
+    d = tmp_path / "out"
+    _commit(d, OLD, "old")
+    with OutputDir(d) as out:
+        _stage(out, NEW, "new")
+        (out.staging / ".old").mkdir()
+        for name in ["summary.json"] + sorted(OLD):
+            os.replace(d / name, out.staging / ".old" / name)
+        (out.staging / ".journal").write_text(journal)
+        out.staging = None  # as if killed
+    assert _reopened(d) == _expected(OLD, "old")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 from ..errors import ClosedError, SceneError, UsageError
@@ -42,7 +43,7 @@ class MasterSettings:
             _positive("max_step", self.max_step)
         for key in ("extrapolation", "iterations"):
             v = getattr(self, key)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 0:
                 raise SceneError(f"master.{key} = {v!r}: expected a whole number >= 0")
         for key in ("event_location", "richardson"):
             if not isinstance(getattr(self, key), bool):
@@ -59,7 +60,7 @@ class MasterSettings:
 
 
 def _positive(key: str, v) -> None:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+    if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or v <= 0:
         raise SceneError(f"master.{key} = {v!r}: expected a finite number > 0")
 
 
@@ -68,7 +69,7 @@ def check_run(instances: dict, t_now: float, t_stop) -> float:
     `t_stop` a finite time (s) not before `t_now`. Returns it as a float."""
     if any(getattr(inst, "freed", False) for inst in instances.values()):
         raise ClosedError("this System was freed (used after its `with` block or free()): build a new System")
-    if isinstance(t_stop, bool) or not isinstance(t_stop, (int, float)) or not math.isfinite(t_stop):
+    if isinstance(t_stop, bool) or not isinstance(t_stop, numbers.Real) or not math.isfinite(t_stop):
         raise UsageError(f"run_until({t_stop!r}): expected a finite time in s")
     if t_stop < t_now:
         raise UsageError(f"run_until({t_stop!r}): the system is already at t = {t_now!r} s; "

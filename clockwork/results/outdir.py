@@ -143,23 +143,29 @@ def _recover(directory: Path, staging: Path) -> None:
     """Finish (new summary.json in place) or undo a journaled commit."""
     try:
         journal = json.loads((staging / _JOURNAL).read_text())
-        new, old = list(journal["new"]), list(journal["old"])
+        new, old = [_plain(n) for n in journal["new"]], [_plain(n) for n in journal["old"]]
     except (OSError, ValueError, KeyError, TypeError):
-        shutil.rmtree(staging, ignore_errors=True)  # written atomically: absent means no move happened yet
-        return
-    names_ok = all(isinstance(n, str) and n == Path(n).name and n not in ("", ".", "..") for n in new + old)
-    if names_ok and not (staging / SUMMARY).exists() and (directory / SUMMARY).exists():
+        # Written atomically, so not a cut-short write: a hand-damaged journal.
+        # Whatever earlier files were moved aside go back.
+        new, old = [], sorted(p.name for p in (staging / _OLD).glob("*"))
+    if new and not (staging / SUMMARY).exists() and (directory / SUMMARY).exists():
         shutil.rmtree(staging, ignore_errors=True)  # committed: the earlier files go
         return
-    if names_ok:
-        for name in new:  # undo: the new files that moved in go back
-            if not (staging / name).exists() and (directory / name).exists():
-                os.replace(directory / name, staging / name)
-        for name in old:
-            if (staging / _OLD / name).exists():
-                os.replace(staging / _OLD / name, directory / name)
-        fsync_dir(directory)
+    for name in new:  # undo: the new files that moved in go back
+        if not (staging / name).exists() and (directory / name).exists():
+            os.replace(directory / name, staging / name)
+    for name in old:
+        if (staging / _OLD / name).exists():
+            os.replace(staging / _OLD / name, directory / name)
+    fsync_dir(directory)
     shutil.rmtree(staging, ignore_errors=True)
+
+
+def _plain(name) -> str:
+    """A journal entry: a plain file name of this directory, nothing that reaches elsewhere."""
+    if not isinstance(name, str) or name != Path(name).name or name in ("", ".", ".."):
+        raise ValueError(f"not a plain file name: {name!r}")
+    return name
 
 
 def _earlier_files(directory: Path) -> set[str]:
