@@ -46,9 +46,10 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
     result: dict = {"t_end_s": stop}
     if stall is not None:
         result.update(stall)
+    if tick_inst:  # none is a count too: a plot of it is not a plot of a missing column
+        result["ticks"] = len(ticks)
     if ticks:
         t = np.asarray(ticks)
-        result["ticks"] = len(ticks)
         if len(t) > 1:
             periods = np.diff(t)
             result["mean_period_s"] = float(periods.mean())

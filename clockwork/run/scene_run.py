@@ -111,7 +111,7 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
     if unknown is not None:  # before anything is written: the points are kept for the rerun
         i, key, name, there = unknown
         shown = ", ".join(there[:12]) + (f" and {len(there) - 12} more" if len(there) > 12 else "")
-        raise SceneError(f"{name} is not a column of the results: expected one of {shown}",
+        raise SceneError(f"no point has a column {name}: expected one of {shown}",
                          scene.path, f"plot[{i}].{key}")
     try:
         write_outputs(scene, out.staging, results, summary, t_start, plotter)
