@@ -244,9 +244,10 @@ def _short(x) -> str:
 
 
 def cmd_validate(args) -> int:
-    from .run.catalog import load_scene
+    from .run.catalog import check_loadable, load_scene
 
     scene = load_scene(args.scene, args.overrides)
+    check_loadable(scene)
     n, m = len(scene.components), len(scene.connections)
     points = len(scene.points())
     extra = f", {points} sweep points" if scene.sweep is not None else ""

@@ -180,3 +180,26 @@ def test_an_fmu_with_dotdot_entries_does_not_damage_the_cache(capsys, tmp_path):
         rc, _, err = run_cli(capsys, ["run", scene, "--out", tmp_path / "out", "--no-progress"])
         assert rc == 0 and "damaged" not in err and "warning" not in err, (k, err)
     assert not (tmp_path / "cache" / "escaped.txt").exists() and not (tmp_path / "escaped.txt").exists()
+
+
+# --- what only loading tells: validate loads and instantiates each FMU as run does --------
+
+LOAD_FAILURES = {
+    "a position-independent executable": (lambda n, d: Path("/bin/true").read_bytes() if n == BINARY else d,
+                                          "cannot load"),
+    "another model's GUID": (lambda n, d: d.replace(b'guid="{', b'guid="{0', 1) if n == "modelDescription.xml"
+                             else d, "GUID"),
+}
+
+
+@pytest.mark.skipif(not Path("/bin/true").exists(), reason="needs /bin/true")
+@pytest.mark.parametrize("case", list(LOAD_FAILURES))
+def test_validate_refuses_what_only_loading_shows(capsys, tmp_path, case):
+    change, needle = LOAD_FAILURES[case]
+    path = _copy(tmp_path, "load", change)
+    scene = _scene(tmp_path, path)
+    for argv in (["validate", scene], ["run", scene, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, argv)
+        assert_one_line_error(rc, err, needle, code=2)
+    rc, _, err = run_cli(capsys, ["validate", scene])
+    assert "components.pendulum.fmu" in err

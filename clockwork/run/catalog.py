@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 
 from ..analyses import registry as analyses
+from ..engine.fmu import Instance
 from ..errors import SceneError
 from ..paths import scenarios_dir
 from ..results.plots import registry as plots
@@ -44,6 +45,20 @@ def load_scene(path: str | os.PathLike, overrides=()):
     check_recording_bound(scene)
     check_plot_axes(scene)
     return scene
+
+
+def check_loadable(scene) -> None:
+    """Load and instantiate each FMU once, as a run does before its first
+    step, and free it: a binary that does not load (a PIE executable, a
+    missing dependency) or refuses its model description's GUID is refused
+    by `validate` too, under the component's key."""
+    for name, c in scene.components.items():
+        inst = Instance(name, c.fmu_path, c.model_description)
+        try:
+            inst.instantiate()
+        except SceneError as e:  # nothing instantiated: nothing to free
+            raise SceneError(e.detail, scene.path, f"components.{name}.fmu") from None
+        inst.free()
 
 
 def check_plot_axes(scene) -> None:
