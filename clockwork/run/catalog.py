@@ -63,8 +63,11 @@ def check_loadable(scene) -> None:
 
 def check_plot_axes(scene) -> None:
     """A plot column named "instance.variable" of a sweep's results is a
-    sweep axis (result columns have no dot): checked now, not after the run."""
+    sweep axis (result columns have no dot), and, where the analysis kind
+    declares its result columns, any other name is one of them: checked
+    now, not after the run."""
     axes = {f"{a}.{b}" for a, b in (ax.parameter for ax in scene.sweep.axes)} if scene.sweep else set()
+    declared = analyses.RESULT_COLUMNS.get((scene.analysis or {}).get("kind", "time_series"))
     for i, spec in enumerate(scene.plots):
         keys, source = plots.PLOT_COLUMNS.get(spec["kind"], ({}, "rows"))
         if source != "rows":
@@ -76,6 +79,11 @@ def check_plot_axes(scene) -> None:
                     raise SceneError(f"{name} is not a sweep axis{f' (did you mean {close[0]}?)' if close else ''}: "
                                      f"expected a result column or one of the axes ({', '.join(sorted(axes)) or 'none'})",
                                      scene.path, f"plot[{i}].{key}")
+                if "." not in name and declared is not None and name not in declared:
+                    close = difflib.get_close_matches(name, sorted(declared), n=1)
+                    raise SceneError(f"{name} is not a column of {(scene.analysis or {}).get('kind', 'time_series')} "
+                                     f"results{f' (did you mean {close[0]}?)' if close else ''}: expected one of "
+                                     f"{', '.join(sorted(declared | axes))}", scene.path, f"plot[{i}].{key}")
 
 
 # What a run that records at communication points may keep in memory: each
