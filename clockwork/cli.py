@@ -8,14 +8,18 @@ stderr and exit code 2; a failed simulation with one line and exit code 1.
 from __future__ import annotations
 
 import argparse
+import atexit
+import contextlib
 import errno
 import gc
 import os
+import signal
 import sys
+import threading
 from pathlib import Path
 
 from . import __version__
-from .errors import SceneError, SimulationError, UsageError
+from .errors import Interrupted, SceneError, SimulationError, UsageError
 from .paths import scenarios_dir
 
 
@@ -243,9 +247,10 @@ def _short(x) -> str:
 
 
 def cmd_validate(args) -> int:
-    from .run.catalog import load_scene
+    from .run.catalog import check_loadable, load_scene
 
     scene = load_scene(args.scene, args.overrides)
+    check_loadable(scene)
     n, m = len(scene.components), len(scene.connections)
     points = len(scene.points())
     extra = f", {points} sweep points" if scene.sweep is not None else ""
@@ -396,7 +401,9 @@ def cmd_info(args) -> int:
 
 
 # The machine failed the run (not the user's input).
-_RUN_FAILURES = (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.ENOMEM)
+# The machine ran out of something: a failed run (1), not bad input (2).
+_RUN_FAILURES = (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.ENOMEM, errno.EFBIG, errno.EMFILE, errno.ENFILE,
+                 errno.EAGAIN)
 
 
 def _error(message: object) -> None:
@@ -411,12 +418,77 @@ def console() -> int:
     loaded) only for the operating system to free the memory anyway;
     frozen objects are left out of that walk. Files are closed and atexit
     handlers run as usual."""
+    _std_streams_open()
     code = main()
     gc.freeze()
+    if code > 128:
+        # Interrupted: our cleanup is done (the with blocks ran; atexit next).
+        # A pool's manager thread may wait forever for a message that a killed
+        # worker left half-written; the interpreter would join it. Leave now.
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        atexit._run_exitfuncs()
+        os._exit(code)
     return code
 
 
+def _std_streams_open() -> None:
+    """A command started with a standard stream closed (`>&-`) gets /dev/null
+    there: else the next file opened would take its number, and what is
+    printed would land in it (or, with sys.stdout None, fail)."""
+    for fd, name, mode in ((0, "stdin", "r"), (1, "stdout", "w"), (2, "stderr", "w")):
+        try:
+            os.fstat(fd)
+        except OSError:
+            null = os.open(os.devnull, os.O_RDWR)
+            if null != fd:
+                os.dup2(null, fd)
+                os.close(null)
+        if getattr(sys, name) is None:
+            setattr(sys, name, open(fd, mode, closefd=False))
+
+
 def main(argv=None) -> int:
+    with _signals_as_interrupts():
+        return _main(argv)
+
+
+# Signals that end a run as Ctrl-C does: one line, exit code 128 + the signal's number.
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+@contextlib.contextmanager
+def _signals_as_interrupts():
+    """SIGTERM and SIGHUP raise Interrupted where the process is (SIGINT raises
+    KeyboardInterrupt), so that every `with` and `finally` cleans up: the
+    staging folder, the worker and plot processes, the scratch folder. Once
+    one has arrived, more of them wait until the cleanup is done."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    first: list[int] = []
+
+    def stop(signo, frame):
+        if first:
+            return  # already on the way out
+        first.append(signo)
+        if signo == signal.SIGINT:
+            raise KeyboardInterrupt
+        raise Interrupted(signo)
+
+    before = {sig: signal.signal(sig, stop) for sig in _STOP_SIGNALS
+              if signal.getsignal(sig) in (signal.default_int_handler, signal.SIG_DFL)}
+    try:
+        yield
+    finally:
+        for sig, handler in before.items():
+            signal.signal(sig, handler)
+
+
+def _main(argv=None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -438,11 +510,20 @@ def main(argv=None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except OSError as e:
-        # Writing results: disk full, permissions, a path below a regular file.
+        # Writing results: disk full, file size limit, permissions, a path below a regular file.
         where = f"{e.filename}: " if e.filename else ""
+        if e.errno in _RUN_FAILURES:
+            _error(f"{where}{e.strerror or e}: a limit of the machine, not bad input (free some, or raise "
+                   "the limit, and run again)")
+            return 1
         _error(f"{where}{e.strerror or e}")
-        return 1 if e.errno in _RUN_FAILURES else 2
-    except KeyboardInterrupt:
-        _error("interrupted")
-        return 130
+        return 2
+    except MemoryError:
+        _error("out of memory (ulimit -v or the machine's memory): record fewer outputs, a longer "
+               "record.interval or a shorter experiment, or run on a machine with more memory")
+        return 1
+    except KeyboardInterrupt as e:
+        signo = getattr(e, "signo", signal.SIGINT)
+        _error("interrupted" if signo == signal.SIGINT else f"interrupted by {signal.Signals(signo).name}")
+        return 128 + signo
 

@@ -1,5 +1,17 @@
 """Exceptions with one-line messages meant for the user.
 
+Every error clockwork raises on purpose is a `ClockworkError`:
+
+- `SceneError`: a scene file, an override or a setting that is malformed;
+- `UsageError`: bad use of the command line or of the Python API (an unknown
+  instance or variable, a stop time that is not finite or lies in the past);
+  `ClosedError`, a subclass, for a System used after it was freed;
+- `SimulationError`: a run that failed (an FMU error, divergence).
+
+A run that runs out of a resource (disk space, a file size limit, memory)
+ends in Python's own OSError or MemoryError; the CLI reports it as a failed
+run (exit code 1) naming the file.
+
 The CLI prints `clockwork: error: <str(exc)>` and exits with 2 for
 `SceneError`/`UsageError` (bad input) and 1 for `SimulationError` (a run
 that failed).
@@ -33,6 +45,10 @@ class UsageError(ClockworkError):
 
     def __init__(self, message: str):
         super().__init__(_one_line(message))
+
+
+class ClosedError(UsageError):
+    """A System (or its master) used after its `with` block or `free()`."""
 
 
 class SimulationError(ClockworkError):
@@ -72,6 +88,16 @@ class ParametersRefused(SimulationError):
     """An FMU refused the parameter values it was given (setting them, or its
     cross-parameter checks at the end of initialization): bad input, which the
     run layer reports against the scene file."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised where the process is, like Ctrl-C's
+    KeyboardInterrupt, so that the same cleanup runs (clockwork.cli installs
+    the handlers). `signo` is the signal's number."""
+
+    def __init__(self, signo: int):
+        super().__init__(signo)
+        self.signo = signo
 
 
 def _one_line(text: str) -> str:

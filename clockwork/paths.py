@@ -94,6 +94,9 @@ def scratch_dir() -> Path:
     """
     global _scratch
     if _scratch is None:
+        if _scratch_parent is not None:  # a worker: inside its parent's, which goes with the parent
+            _scratch = Path(tempfile.mkdtemp(prefix=f"worker-{os.getpid()}-", dir=_scratch_parent))
+            return _scratch
         base = Path(tempfile.gettempdir())
         for old in base.glob(f"{_SCRATCH_PREFIX}*"):
             pid = old.name[len(_SCRATCH_PREFIX):].split("-", 1)[0]
@@ -102,3 +105,14 @@ def scratch_dir() -> Path:
         _scratch = Path(tempfile.mkdtemp(prefix=f"{_SCRATCH_PREFIX}{os.getpid()}-"))
         atexit.register(shutil.rmtree, _scratch, True)
     return _scratch
+
+
+_scratch_parent: Path | None = None
+
+
+def scratch_inside(parent: Path) -> None:
+    """Call first thing in a worker process (which leaves without running
+    atexit handlers, or is killed): its scratch folder is made inside
+    `parent`, its parent process's, removed with it."""
+    global _scratch, _scratch_parent
+    _scratch, _scratch_parent = None, Path(parent)

@@ -35,7 +35,7 @@ SCENE = CLOCK_SCENE.format(stop=3, sweep=textwrap.dedent("""\
     [[plot]]
     kind = "sweep"
     x = "escapement.torque"
-    y = "amplitude_deg"
+    y = "last_amplitude_deg"
     file = "a.png"
     [[plot]]
     kind = "boom"
@@ -43,7 +43,7 @@ SCENE = CLOCK_SCENE.format(stop=3, sweep=textwrap.dedent("""\
     [[plot]]
     kind = "sweep"
     x = "escapement.torque"
-    y = ["period_s"]
+    y = ["ticks"]
     file = "c.png"
     [[plot]]
     kind = "blank"
@@ -51,7 +51,7 @@ SCENE = CLOCK_SCENE.format(stop=3, sweep=textwrap.dedent("""\
     [[plot]]
     kind = "sweep"
     x = "escapement.torque"
-    y = "amplitude_deg"
+    y = "last_amplitude_deg"
     file = "e.png"
     """))
 
@@ -157,7 +157,7 @@ def test_an_interrupted_run_leaves_no_plot_process_and_one_line(tmp_path):
         [[plot]]
         kind = "sweep"
         x = "escapement.torque"
-        y = "amplitude_deg"
+        y = "last_amplitude_deg"
         """)))
     env = dict(os.environ, CLOCKWORK_FMU_DIR=str(FMU_DIR), PYTHONPATH=str(ROOT), CLOCKWORK_CACHE="off")
     out = tmp_path / "out"
@@ -193,8 +193,8 @@ def test_a_sweep_on_worker_processes_hands_its_plots_over(tmp_path):
     """Pool workers are forked after the plot process and hold copies of its
     pipes: the hand-over must not wait for them (messages carry their length)."""
     scene = tmp_path / "plots.toml"
-    scene.write_text(SCENE.replace('kind = "boom"', 'kind = "sweep"\nx = "escapement.torque"\ny = "period_s"')
-                     .replace('kind = "blank"', 'kind = "sweep"\nx = "escapement.torque"\ny = "period_s"'))
+    scene.write_text(SCENE.replace('kind = "boom"', 'kind = "sweep"\nx = "escapement.torque"\ny = "ticks"')
+                     .replace('kind = "blank"', 'kind = "sweep"\nx = "escapement.torque"\ny = "ticks"'))
     env = dict(os.environ, CLOCKWORK_FMU_DIR=str(FMU_DIR), PYTHONPATH=str(ROOT), CLOCKWORK_CACHE="off")
     out = tmp_path / "out"
     r = subprocess.run([sys.executable, "-m", "clockwork", "run", str(scene), "--out", str(out), "--workers", "2",

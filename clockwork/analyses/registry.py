@@ -16,6 +16,9 @@ from ..scene.kinds import Converter
 ANALYSES: dict[str, Callable] = {}  # kind -> implementation
 ANALYSIS_KEYS: dict[str, set[str]] = {}  # kind -> allowed keys besides `kind`
 _ANALYSIS_CONVERT: dict[str, Converter] = {}  # kind -> converter of its table
+# kind -> every column its `result` may hold (not all in every point): declared
+# by the kinds that do, so that a plot of another name is refused at validation.
+RESULT_COLUMNS: dict[str, frozenset[str]] = {}
 
 
 def register_analysis(kind: str, keys: set[str] | frozenset[str] = frozenset(),
@@ -33,11 +36,17 @@ def register_analysis(kind: str, keys: set[str] | frozenset[str] = frozenset(),
         _ANALYSIS_CONVERT.pop(kind, None)
 
 
-def register(kind: str, keys: set[str] | frozenset[str] = frozenset(), convert: Converter | None = None):
-    """Decorator: the function implements analysis `kind` (see register_analysis)."""
+def register(kind: str, keys: set[str] | frozenset[str] = frozenset(), convert: Converter | None = None,
+             columns: set[str] | frozenset[str] | None = None):
+    """Decorator: the function implements analysis `kind` (see register_analysis);
+    `columns`, when given, every key its results' `result` table may hold."""
     def wrap(func):
         ANALYSES[kind] = func
         register_analysis(kind, keys, convert)
+        if columns is not None:
+            RESULT_COLUMNS[kind] = frozenset(columns)
+        else:
+            RESULT_COLUMNS.pop(kind, None)
         return func
 
     return wrap

@@ -154,8 +154,15 @@ def clock_at(scene, point: dict, analysis: str) -> Clock:
     return Clock(pendulum, escapement, esc_model, params, a_min, guess, tolerance)
 
 
+# Every key of a steady_state result: SteadyState.as_dict's, and what steady_state adds.
+COLUMNS = {"stalled", "amplitude_deg", "amplitude_right_deg", "amplitude_left_deg", "period_s", "E_T_s_per_day",
+           "E_C_s_per_day", "E_E_s_per_day", "shooting_iterations", "shooting_residual_rad_per_s",
+           "rate_tolerance_s_per_day", "rate_change_s_per_day", "reason", "torque_Nm",
+           "energy_balance_amplitude_deg", "E_E_B7_s_per_day"}
+
+
 @register("steady_state", {"tolerance_s_per_day", "max_periods", "measure_periods", "amplitude_guess"},
-          keys.table_converter(_KEYS))
+          keys.table_converter(_KEYS), columns=COLUMNS)
 def steady_state(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     clock = clock_at(scene, point, "steady_state")

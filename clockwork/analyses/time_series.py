@@ -22,12 +22,17 @@ from .context import build_system, experiment, find_component, parameters
 from .registry import register
 
 
-@register("ticks")
+# Every key of a time_series result (t_end_s always; the others when ticks are
+# recorded, or from the grasshopper clock's stall check).
+COLUMNS = {"t_end_s", "ticks", "mean_period_s", "last_period_s", "stalled", "last_amplitude_deg", "reason"}
+
+
+@register("ticks", columns=COLUMNS)
 def ticks(scene, point: dict, progress: bool = False) -> dict:
     return time_series(scene, point, progress=progress, ticks_only=True)
 
 
-@register("time_series")
+@register("time_series", columns=COLUMNS)
 def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = False) -> dict:
     start, stop = experiment(scene, point)
     outputs = [] if ticks_only else list(scene.record.outputs)
@@ -58,9 +63,10 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
         result["notes"] = notes
     if stall is not None:
         result.update(stall)
+    if tick_inst:  # none is a count too: a plot of it is not a plot of a missing column
+        result["ticks"] = len(ticks)
     if ticks:
         t = np.asarray(ticks)
-        result["ticks"] = len(ticks)
         if len(t) > 1:
             periods = np.diff(t)
             result["mean_period_s"] = float(periods.mean())

@@ -13,7 +13,11 @@ one line naming the FMU and the feature.
 from __future__ import annotations
 
 import difflib
+import os
+import platform
 import re
+import struct
+import sys
 import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
@@ -24,6 +28,59 @@ from ..hashing import sha256_file
 from ..paths import REPO, fmu_dir, in_checkout
 
 NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+# Bounds checked from the zip's directory before anything is read or unzipped
+# (the declared sizes bound what zipfile writes: it stops there and checks the CRC).
+MAX_DESCRIPTION_BYTES = 64 * 2**20  # modelDescription.xml; ours are 20-40 KB
+MAX_ENTRIES = 100_000
+DEFAULT_MAX_UNZIPPED_MB = 1024  # MiB: an FMU's files, unzipped; ours are 0.2 MB. $CLOCKWORK_MAX_FMU_MB changes it
+
+
+def max_unzipped_bytes() -> int:
+    env = os.environ.get("CLOCKWORK_MAX_FMU_MB", "").strip()
+    try:
+        mb = float(env) if env else DEFAULT_MAX_UNZIPPED_MB
+    except ValueError:
+        mb = DEFAULT_MAX_UNZIPPED_MB
+    return int(mb * 2**20) if mb > 0 else int(DEFAULT_MAX_UNZIPPED_MB * 2**20)
+
+
+def check_archive(path: Path, infos: list) -> None:
+    """Refuse an archive whose unzipped size, entry count or description size is over the bounds."""
+    if len(infos) > MAX_ENTRIES:
+        raise FmuError(f"{path}: {len(infos)} entries in the archive, more than {MAX_ENTRIES}: not unzipped")
+    total = sum(i.file_size for i in infos)
+    limit = max_unzipped_bytes()
+    if total > limit:
+        raise FmuError(f"{path}: unzips to {total:,} bytes, more than the limit of {limit:,} bytes "
+                       f"({limit / 2**20:g} MiB): not unzipped (set CLOCKWORK_MAX_FMU_MB to allow more)")
+    md = next((i for i in infos if i.filename == "modelDescription.xml"), None)
+    if md is not None and md.file_size > MAX_DESCRIPTION_BYTES:
+        raise FmuError(f"{path}: modelDescription.xml is {md.file_size:,} bytes, more than "
+                       f"{MAX_DESCRIPTION_BYTES:,} ({MAX_DESCRIPTION_BYTES // 2**20} MiB): not read")
+
+
+# The first bytes of a shared library for this platform (checked without loading it).
+_ELF_MACHINES = {"x86_64": 62, "aarch64": 183, "i686": 3, "armv7l": 40}
+
+
+def binary_problem(head: bytes) -> str | None:
+    """Why the first 64 bytes of a binaries/<platform>/ file are not a shared
+    library this process can load, or None (only Linux's ELF is checked)."""
+    if not sys.platform.startswith("linux"):
+        return None
+    if len(head) < 20 or head[:4] != b"\x7fELF":
+        return "not a shared library (no ELF header)"
+    bits = {1: 32, 2: 64}.get(head[4])
+    if bits != struct.calcsize("P") * 8:
+        return f"an ELF file for {bits or 'unknown'}-bit machines, this is a {struct.calcsize('P') * 8}-bit process"
+    e_type, e_machine = struct.unpack("<HH" if head[5] == 1 else ">HH", head[16:20])
+    if e_type != 3:
+        return "an ELF file that is not a shared library (ET_DYN)"
+    want = _ELF_MACHINES.get(platform.machine())
+    if want is not None and e_machine != want:
+        return f"an ELF shared library for another processor (e_machine {e_machine}, this is {platform.machine()})"
+    return None
 
 
 def event_indicator_names(xml: bytes) -> tuple[str, ...]:
@@ -105,10 +162,15 @@ def read_fmu(path: Path, need_binary: bool = True,
             raise FmuError(f"{path} is not an FMU: not a zip archive")
         try:
             with zipfile.ZipFile(path) as z:
-                names = set(z.namelist())
+                infos = z.infolist()
+                names = {i.filename for i in infos}
                 if "modelDescription.xml" not in names:
                     raise FmuError(f"{path} is not an FMU: no modelDescription.xml in the archive")
+                check_archive(path, infos)
                 xml = z.read("modelDescription.xml")
+                # FMI 3.0 names binary folders by platform tuple (x86_64-linux), FMI 2.0 by platform (linux64).
+                heads = {n: _head(z, n) for n in names
+                         if n.startswith((f"binaries/{fmpy.platform}/", f"binaries/{fmpy.platform_tuple}/"))}
         except (zipfile.BadZipFile, OSError) as e:
             raise FmuError(f"{path} is not a readable FMU: {e}") from None
         try:
@@ -121,20 +183,47 @@ def read_fmu(path: Path, need_binary: bool = True,
             _check_fmi3(path, md)
         if md.coSimulation is None:
             raise FmuError(f"{path}: expected a Co-Simulation FMU (no <CoSimulation> element)")
+        ident = md.coSimulation.modelIdentifier
+        if not isinstance(ident, str) or not NAME_RE.match(ident):
+            # fmpy loads binaries/<platform>/<modelIdentifier>.so: a path here would load a file outside the FMU.
+            raise FmuError(f"{path}: modelDescription.xml: CoSimulation modelIdentifier {ident!r}: expected a "
+                           "plain name (letters, digits, underscores), the binary's file name")
         indicators = event_indicator_names(xml)
         digest = sha256_file(path)
-        # FMI 3.0 names binary folders by platform tuple (x86_64-linux), FMI 2.0 by platform (linux64).
-        platform = fmpy.platform_tuple if md.fmiVersion == "3.0" else fmpy.platform
-        binary = f"binaries/{platform}/{md.coSimulation.modelIdentifier}{fmpy.sharedLibraryExtension}"
-        hit = (md, digest, indicators, binary in names, binary)
+        folder = fmpy.platform_tuple if md.fmiVersion == "3.0" else fmpy.platform
+        binary = f"binaries/{folder}/{ident}{fmpy.sharedLibraryExtension}"
+        problem = binary_problem(heads[binary]) if binary in heads else "missing"
+        hit = (md, digest, indicators, problem, binary)
         _MD_CACHE.clear() if len(_MD_CACHE) > 256 else None
         _MD_CACHE[key] = hit
-    md, digest, indicators, has_binary, binary = hit
+    md, digest, indicators, problem, binary = hit
     if md.fmiVersion not in versions:
         raise FmuError(f"{path}: expected an FMI {' or '.join(versions)} FMU, found FMI {md.fmiVersion}")
-    if need_binary and not has_binary:
-        raise FmuError(f"{path} has no binary for this platform ({binary}); rebuild it with `cmake --build build`")
+    if need_binary and problem == "missing":
+        raise FmuError(f"{path} has no binary for this platform ({binary}); {_rebuild_advice(path)}")
+    if need_binary and problem is not None:
+        raise FmuError(f"{path}: {binary}: {problem}; {_rebuild_advice(path)}")
     return md, digest, indicators
+
+
+def _head(z: zipfile.ZipFile, name: str) -> bytes:
+    with z.open(name) as f:
+        return f.read(64)
+
+
+def _rebuild_advice(path: Path) -> str:
+    """Rebuild advice for the project's own FMUs, the vendor's for others."""
+    path = Path(path)
+    own_dirs = {(REPO / "fmus").resolve(), (REPO / "fmus" / "fmi3").resolve(), fmu_dir().resolve()}
+    if in_checkout() and (REPO / "src_c" / "models" / path.stem).is_dir() and path.parent.resolve() in own_dirs:
+        return "rebuild it with `cmake --build build`"
+    return f"this FMU cannot run here: ask its maker for a build for {_platform()}"
+
+
+def _platform() -> str:
+    import fmpy
+
+    return fmpy.platform
 
 
 # FMI 3.0 types the master exchanges, under the FMI 2.0 names the layers use.

@@ -27,7 +27,7 @@ from ..atomic import alive
 from ..errors import ParametersRefused, SceneError, SimulationError
 from ..hashing import sha256_file
 from ..paths import cache_root, core_library, scratch_dir
-from .description import read_fmu, var_unit
+from .description import check_archive, read_fmu, var_unit
 
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
 STATUS_NAMES = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
@@ -124,8 +124,16 @@ def _extract_into(path: Path, target: Path) -> Path:
 
 def _unzip(path: Path, target: Path) -> None:
     with zipfile.ZipFile(path) as z:
-        z.extractall(target)
-        manifest = {i.filename: i.file_size for i in z.infolist() if not i.is_dir()}
+        check_archive(path, z.infolist())  # also when read_fmu's check was done on another file
+        try:
+            z.extractall(target)
+        except OSError as e:
+            if e.filename is not None:
+                raise
+            raise OSError(e.errno, f"{e.strerror} (unzipping {path.name})", str(target)) from None
+    # What extractall wrote (it drops "../" and absolute parts of names), not the archive's names,
+    # so that the check before reuse finds every file where it is.
+    manifest = {str(p.relative_to(target)): p.stat().st_size for p in target.rglob("*") if p.is_file()}
     (target / _MANIFEST).write_text(json.dumps(manifest))
 
 
@@ -296,6 +304,11 @@ class Instance:
         self.c_enterInit = fn("fmi2EnterInitializationMode", comp)
         self.c_exitInit = fn("fmi2ExitInitializationMode", comp)
         self.c_terminate = fn("fmi2Terminate", comp)
+
+    @property
+    def freed(self) -> bool:
+        """Whether free() ran (an instance never instantiated is not freed)."""
+        return self._slave is None and hasattr(self, "component")
 
     def free(self) -> None:
         if self._slave is None:

@@ -39,7 +39,7 @@ from .fmu import DISCARD, NO_MESSAGE, WARNING, Instance, free_all
 from .location import EventLocator, crossed, scan
 from .ports import Port, Ports
 from .richardson import StepDoubling
-from .settings import MasterSettings, Statistics, rollback_need
+from .settings import MasterSettings, Statistics, check_run, rollback_need
 from ..errors import SceneError, SimulationEnded, SimulationError
 from .wiring import Link, build
 
@@ -387,6 +387,7 @@ class Master:
         the run cleanly at the last communication point: ``ended`` says
         when and which, and later calls return at once.
         """
+        t_stop = check_run(self.instances, self.t, t_stop)
         if self.ended is not None:
             return
         try:

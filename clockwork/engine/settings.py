@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass
 
-from ..errors import SceneError
+from ..errors import ClosedError, SceneError, UsageError
 
 
 ENGINES = ("auto", "python", "compiled")
@@ -40,8 +42,23 @@ class MasterSettings:
     # false: they handle them inside fmi3DoStep, as an FMI 2.0 FMU does.
     early_return: bool = True
 
+    def __post_init__(self) -> None:
+        self.check()  # a bad setting is refused where it is made, not in an endless run_until
+
     def check(self) -> None:
-        """Refuse combinations the master cannot run (SceneError: bad input)."""
+        """Refuse values and combinations the master cannot run (SceneError: bad input)."""
+        for key in ("step", "event_time_tolerance", "event_indicator_tolerance", "iteration_tolerance",
+                    "richardson_tolerance", "min_step", "divergence_limit"):
+            _positive(key, getattr(self, key))
+        if self.max_step is not None:
+            _positive("max_step", self.max_step)
+        for key in ("extrapolation", "iterations"):
+            v = getattr(self, key)
+            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 0:
+                raise SceneError(f"master.{key} = {v!r}: expected a whole number >= 0")
+        for key in ("event_location", "richardson"):
+            if not isinstance(getattr(self, key), bool):
+                raise SceneError(f"master.{key} = {getattr(self, key)!r}: expected true or false")
         if self.order not in ("gauss-seidel", "jacobi"):
             raise SceneError(f"master.order = {self.order!r}: expected 'gauss-seidel' or 'jacobi'")
         if self.richardson and self.iterations > 0:
@@ -55,6 +72,24 @@ class MasterSettings:
             raise SceneError(f"master.fmi_version = {self.fmi_version!r}: expected 2 or 3")
         if self.extrapolation not in (0, 1, 2):
             raise SceneError(f"master.extrapolation = {self.extrapolation}: expected 0, 1 or 2")
+
+
+def _positive(key: str, v) -> None:
+    if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or v <= 0:
+        raise SceneError(f"master.{key} = {v!r}: expected a finite number > 0")
+
+
+def check_run(instances: dict, t_now: float, t_stop) -> float:
+    """The stop time of a run_until, checked: the instances still live, and
+    `t_stop` a finite time (s) not before `t_now`. Returns it as a float."""
+    if any(getattr(inst, "freed", False) for inst in instances.values()):
+        raise ClosedError("this System was freed (used after its `with` block or free()): build a new System")
+    if isinstance(t_stop, bool) or not isinstance(t_stop, numbers.Real) or not math.isfinite(t_stop):
+        raise UsageError(f"run_until({t_stop!r}): expected a finite time in s")
+    if t_stop < t_now:
+        raise UsageError(f"run_until({t_stop!r}): the system is already at t = {t_now!r} s; "
+                         "time only runs forward (restart() starts again)")
+    return float(t_stop)
 
 
 def rollback_need(settings, indicators: bool) -> tuple[str, str] | None:

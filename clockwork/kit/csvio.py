@@ -23,6 +23,7 @@ import csv
 import io
 import math
 import re
+from array import array
 from pathlib import Path
 
 import numpy as np
@@ -50,30 +51,46 @@ def _clean(name: str) -> str:
 
 
 def _read_table(path: Path) -> tuple[list[str], np.ndarray]:
+    """Header and rows of numbers, read as a stream: memory holds the numbers
+    (8 bytes each) and one line at a time, never the text. A UTF-8 byte order
+    mark (Excel writes one) is skipped; a column name given twice is refused."""
     try:
-        text = path.read_text()
+        with open(path, encoding="utf-8-sig", newline="") as f:
+            return _parse(path, f)
     except (OSError, UnicodeDecodeError) as e:
         raise UsageError(f"{path}: cannot read: {getattr(e, 'strerror', None) or e}") from None
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-    if len(lines) < 2:
+
+
+def _parse(path: Path, f) -> tuple[list[str], np.ndarray]:
+    lines = ((k, ln) for k, ln in enumerate(f, start=1) if ln.strip() and not ln.lstrip().startswith("#"))
+    first = next(lines, None)
+    if first is None:
         raise UsageError(f"{path}: expected a header line and at least one row of numbers")
     try:
-        dialect = csv.Sniffer().sniff(lines[0], delimiters=",;\t")
-        delim = dialect.delimiter
+        delim = csv.Sniffer().sniff(first[1], delimiters=",;\t").delimiter
     except csv.Error:
         delim = ","
-    header = [_clean(h) for h in next(csv.reader([lines[0]], delimiter=delim))]
-    rows = []
-    for k, line in enumerate(lines[1:], start=2):
+    header = [_clean(h) for h in next(csv.reader([first[1]], delimiter=delim))]
+    seen: dict[str, int] = {}
+    for j, name in enumerate(header):
+        if name in seen:
+            raise UsageError(f"{path}: line {first[0]}: column {name!r} appears twice (columns {seen[name] + 1} "
+                             f"and {j + 1}): expected each signal once")
+        seen[name] = j
+    values = array("d")
+    n_rows = 0
+    for k, line in lines:
         cells = next(csv.reader([line], delimiter=delim))
         if len(cells) != len(header):
             raise UsageError(f"{path}: line {k}: {len(cells)} values for {len(header)} columns")
         try:
-            row = [_number(c) for c in cells]
+            values.extend(_number(c) for c in cells)
         except ValueError:
-            raise UsageError(f"{path}: line {k}: not a number in {line[:60]!r}") from None
-        rows.append(row)
-    return header, np.array(rows, dtype=float)
+            raise UsageError(f"{path}: line {k}: not a number in {line.strip()[:60]!r}") from None
+        n_rows += 1
+    if n_rows == 0:
+        raise UsageError(f"{path}: expected a header line and at least one row of numbers")
+    return header, np.frombuffer(values, dtype=float).reshape(n_rows, len(header))
 
 
 def _number(cell: str) -> float:
@@ -93,12 +110,11 @@ class Result:
 
     def match(self, signal: str) -> str | None:
         """The column that is `signal` (suffix at a dot), or None."""
-        if signal in self.columns:
-            return signal
-        hits = [c for c in self.columns if c.endswith("." + signal)]
-        if len(hits) == 1:
-            return hits[0]
-        return None
+        hits = [c for c in self.columns if c == signal or c.endswith("." + signal)]
+        if len(hits) > 1:
+            raise UsageError(f"{self.source}: columns {hits[0]!r} and {hits[1]!r} are both the signal {signal!r}: "
+                             "expected each signal once")
+        return hits[0] if hits else None
 
 
 def read_result(path: str | Path) -> Result:
@@ -147,7 +163,11 @@ def _read_slave_dir(d: Path) -> Result:
         elif len(r.time) != len(time) or np.max(np.abs(r.time - time)) > 1e-9 * max(1.0, abs(time[-1])):
             raise UsageError(f"{f}: its time column differs from {files[0].name}'s")
         for name, v in r.columns.items():
-            cols[name if "." in name else f"{slave}.{name}"] = v
+            full = name if "." in name else f"{slave}.{name}"
+            if full in cols:
+                raise UsageError(f"{f}: column {full!r} is also in another file of {d.name}: "
+                                 "expected each signal once")
+            cols[full] = v
     return Result(str(d), time, cols)
 
 

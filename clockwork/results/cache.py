@@ -9,7 +9,8 @@ version) and the code digest a hash of the clockwork package's source, so
 that a changed analysis never reuses results computed by older code.
 
 What is read back is checked (``check_point``): strict JSON, the shape of a
-result, finite numbers, the same point and analysis kind. A file that fails
+result, finite numbers, the same point and analysis kind (``analysis_kind``, the
+[analysis] kind it was computed for). A file that fails
 is computed again, with one warning line. Points that failed are neither
 cached nor reused: a rerun tries them again.
 """
@@ -71,8 +72,8 @@ def check_point(data, label: dict, kind: str) -> str | None:
         return "a failed point (tried again)"
     if data.get("point") != label:
         return "it belongs to another point"
-    if data.get("kind") != kind:
-        return f"it holds a {data.get('kind')!r} result, not {kind!r}"
+    if data.get("analysis_kind") != kind:
+        return f"it holds a result of analysis {data.get('analysis_kind')!r}, not {kind!r}"
     result = data.get("result")
     if not isinstance(result, dict) or not all(isinstance(v, _SCALARS) for v in result.values()):
         return "no result table of numbers and text"

@@ -7,10 +7,12 @@ analyses and the plots register (importing them registers them all).
 from __future__ import annotations
 
 import difflib
+import math
 import os
 from pathlib import Path
 
 from ..analyses import registry as analyses
+from ..engine.fmu import Instance
 from ..errors import SceneError
 from ..paths import scenarios_dir
 from ..results.plots import registry as plots
@@ -39,4 +41,82 @@ def find_scene(spec: str | os.PathLike) -> Path:
 
 def load_scene(path: str | os.PathLike, overrides=()):
     """Load, override and validate a scene file (or a bundled scene by name); raises SceneError."""
-    return _load_scene(find_scene(path), overrides, kinds())
+    scene = _load_scene(find_scene(path), overrides, kinds())
+    check_recording_bound(scene)
+    check_plot_axes(scene)
+    return scene
+
+
+def check_loadable(scene) -> None:
+    """Load and instantiate each FMU once, as a run does before its first
+    step, and free it: a binary that does not load (a PIE executable, a
+    missing dependency) or refuses its model description's GUID is refused
+    by `validate` too, under the component's key."""
+    for name, c in scene.components.items():
+        inst = Instance(name, c.fmu_path, c.model_description)
+        try:
+            inst.instantiate()
+        except SceneError as e:  # nothing instantiated: nothing to free
+            raise SceneError(e.detail, scene.path, f"components.{name}.fmu") from None
+        inst.free()
+
+
+def check_plot_axes(scene) -> None:
+    """A plot column named "instance.variable" of a sweep's results is a
+    sweep axis (result columns have no dot), and, where the analysis kind
+    declares its result columns, any other name is one of them: checked
+    now, not after the run."""
+    axes = {f"{a}.{b}" for a, b in (ax.parameter for ax in scene.sweep.axes)} if scene.sweep else set()
+    declared = analyses.RESULT_COLUMNS.get((scene.analysis or {}).get("kind", "time_series"))
+    for i, spec in enumerate(scene.plots):
+        keys, source = plots.PLOT_COLUMNS.get(spec["kind"], ({}, "rows"))
+        if source != "rows":
+            continue
+        for key, default in keys.items():
+            for name in plots.column_names(spec, key, default):
+                if "." in name and name not in axes:
+                    close = difflib.get_close_matches(name, sorted(axes), n=1)
+                    raise SceneError(f"{name} is not a sweep axis{f' (did you mean {close[0]}?)' if close else ''}: "
+                                     f"expected a result column or one of the axes ({', '.join(sorted(axes)) or 'none'})",
+                                     scene.path, f"plot[{i}].{key}")
+                if "." not in name and declared is not None and name not in declared:
+                    close = difflib.get_close_matches(name, sorted(declared), n=1)
+                    raise SceneError(f"{name} is not a column of {(scene.analysis or {}).get('kind', 'time_series')} "
+                                     f"results{f' (did you mean {close[0]}?)' if close else ''}: expected one of "
+                                     f"{', '.join(sorted(declared | axes))}", scene.path, f"plot[{i}].{key}")
+
+
+# What a run that records at communication points may keep in memory: each
+# value is a Python float in a list (32 bytes) until the point is written.
+MAX_RECORDED_VALUES = 20_000_000  # about 640 MB
+_RECORDING_KINDS = ("time_series", "ticks")
+
+
+def recorded_values(scene) -> tuple[int, float, float]:
+    """(values a point records at most, its span s, its recording interval s),
+    for the analyses that record over the whole experiment: a row of the
+    recorded outputs and the time per record.interval (or communication
+    step), and at most one tick per communication step."""
+    kind = (scene.analysis or {}).get("kind", "time_series")
+    if kind not in _RECORDING_KINDS:
+        return 0, 0.0, 0.0
+    span = scene.experiment.stop - scene.experiment.start
+    every = scene.record.interval or scene.master.step
+    columns = len(scene.record.outputs) + 1 if scene.record.outputs and kind == "time_series" else 0
+    ticks = scene.record.ticks is not None or kind == "ticks"
+    n = (math.floor(span / every) + 1) * columns + (math.floor(span / scene.master.step) + 1 if ticks else 0)
+    return n, span, every
+
+
+def check_recording_bound(scene) -> None:
+    """Refuse, before the run, a point that would record more than
+    MAX_RECORDED_VALUES (e.g. stop = 1e12 s at a 0.01 s step)."""
+    variants = [scene]
+    if scene.sweep is not None and any(a.parameter[0] in ("master", "experiment") for a in scene.sweep.axes):
+        variants = [scene.variant(p) for p in scene.points()]
+    n, span, every = max(recorded_values(v) for v in variants)
+    if n > MAX_RECORDED_VALUES:
+        raise SceneError(f"a run of {span:g} s recording every {every:g} s keeps about {n:.3g} values in memory, "
+                         f"more than {MAX_RECORDED_VALUES:.0e} (about {MAX_RECORDED_VALUES * 32 / 1e6:.0f} MB): "
+                         "give a longer record.interval, a shorter span (experiment.stop), fewer record.outputs, "
+                         "or a longer master.step", scene.path, "experiment.stop")

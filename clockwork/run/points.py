@@ -20,9 +20,14 @@ from ..errors import SimulationError
 from ..hashing import source_digest
 
 
+def analysis_kind(scene) -> str:
+    return (scene.analysis or {}).get("kind", "time_series")
+
+
 def point_key(scene, point: dict) -> str:
     """Content address of a sweep point's result."""
     blob = {
+        "analysis_kind": analysis_kind(scene),  # stated on its own: two kinds never share an entry
         "fmus": {n: c.sha256 for n, c in sorted(scene.components.items())},
         "parameters": {n: dict(p) for n, p in parameters(scene, point).items()},
         "connections": [list(c) for c in scene.connections],
@@ -57,4 +62,6 @@ def run_point(scene, point: dict, progress: bool = False, catch: bool = False) -
         return {"point": point_label(point), "error": str(e)}
     result["wall_time_s"] = time.perf_counter() - t0
     result["point"] = point_label(point)
+    # What the point was computed for; its "kind" is the data's shape, which analyses share.
+    result["analysis_kind"] = analysis_kind(scene)
     return result

@@ -8,9 +8,12 @@ from __future__ import annotations
 
 import atexit
 import os
+import signal
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
 
 from ..analyses.context import reusing_systems
+from ..paths import scratch_dir, scratch_inside
 from ..processes import die_with_parent
 from .catalog import load_scene
 from .points import run_point
@@ -18,11 +21,16 @@ from .points import run_point
 _scenes: dict = {}  # per worker process: (path, overrides) -> Scene
 
 
-def _start_worker(parent: int) -> None:
+def _start_worker(parent: int, scratch: str) -> None:
     """A worker must not outlive its parent: when the parent dies (even by
     SIGKILL) the kernel sends the worker SIGKILL too (Linux prctl). Its
-    points share their FMU instances for the worker's whole life."""
+    scratch folder lies in the parent's, and SIGTERM and SIGHUP end it at
+    once (it may be ended at any moment: nothing of it needs cleaning up).
+    Its points share their FMU instances for the worker's whole life."""
     die_with_parent(parent)
+    scratch_inside(Path(scratch))
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, signal.SIG_DFL)
     reuse = reusing_systems()
     reuse.__enter__()
     atexit.register(reuse.__exit__, None, None, None)
@@ -44,7 +52,8 @@ def default_workers(n_points: int) -> int:
 
 def run_in_pool(scene, points: list[dict], indices: list[int], workers: int):
     """Run `points` (their sweep `indices`) in `workers` processes; yield (index, result)."""
-    with ProcessPoolExecutor(workers, initializer=_start_worker, initargs=(os.getpid(),)) as pool:
+    pool = ProcessPoolExecutor(workers, initializer=_start_worker, initargs=(os.getpid(), str(scratch_dir())))
+    try:
         futures = {
             pool.submit(_worker, str(scene.path), tuple(scene.overrides),
                         [[list(k), v] for k, v in p.items()]): i
@@ -52,3 +61,22 @@ def run_in_pool(scene, points: list[dict], indices: list[int], workers: int):
         }
         for f in as_completed(futures):
             yield futures[f], f.result()
+    except BaseException:
+        # Interrupted (or the consumer stopped): the points still running are
+        # not waited for; the finished ones are already stored for a rerun.
+        _stop_now(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+def _stop_now(pool: ProcessPoolExecutor) -> None:
+    """Cancel what has not started, kill the workers and reap them."""
+    workers = list((getattr(pool, "_processes", None) or {}).values())  # no public handle before 3.14
+    pool.shutdown(wait=False, cancel_futures=True)
+    for w in workers:
+        try:
+            w.kill()
+        except (OSError, ValueError):
+            pass
+    for w in workers:
+        w.join(timeout=10)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict
+from pathlib import Path
 
 from .. import __version__
 from ..analyses.context import reusing_systems
@@ -20,8 +21,9 @@ from ..results.cache import cache_load, cache_store, read_point
 from ..results.files import write_json_atomic
 from ..results.outdir import OutputDir
 from ..results.plots import Plotter
+from ..results.plots.registry import unknown_column
 from ..results.report import write_outputs
-from .points import point_key, point_label, run_point
+from .points import analysis_kind, point_key, point_label, run_point
 from .pool import default_workers, run_in_pool
 
 
@@ -33,14 +35,17 @@ def run_scene(scene, out_dir, workers: int | None = None, scheduler: str | None 
     # The plot process starts first: it imports matplotlib while the points run,
     # and it must not inherit the output directory's lock.
     with Plotter.start(scene) as plotter, OutputDir(out_dir) as out:
-        return _run(scene, out, workers, scheduler, progress, plotter, t_start)
+        try:
+            return _run(scene, out, workers, scheduler, progress, plotter, t_start)
+        finally:
+            plotter.close()  # before the staging folder goes: nothing may write into it after
 
 
 def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, progress: bool,
          plotter: Plotter, t_start: float) -> dict:
     points = scene.points()
     sweep = scene.sweep is not None
-    kind = (scene.analysis or {}).get("kind", "time_series")
+    kind = analysis_kind(scene)
     results: list[dict | None] = [None] * len(points)
     keys = [point_key(scene, p) for p in points]
     if sweep:
@@ -80,11 +85,15 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
             done = ((i, run_point(scene, points[i], catch=True)) for i in todo)
         else:
             done = run_in_pool(scene, [points[i] for i in todo], todo, n_workers)
-        with reusing_systems():  # points in this process share their FMU instances
-            for i, r in done:
-                finished(i, r)
-                bar.update()
-        bar.close()
+        try:
+            with reusing_systems():  # points in this process share their FMU instances
+                for i, r in done:
+                    finished(i, r)
+                    bar.update()
+        finally:
+            if hasattr(done, "close"):
+                done.close()  # a pool stops its workers now, not when the generator is collected
+            bar.close()
 
     summary = {
         "scene": str(scene.path),
@@ -98,6 +107,17 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
         "points_total": len(points),
         "points_reused": reused,
     }
-    write_outputs(scene, out.staging, results, summary, t_start, plotter)
+    unknown = unknown_column(scene, results)
+    if unknown is not None:  # before anything is written: the points are kept for the rerun
+        i, key, name, there = unknown
+        shown = ", ".join(there[:12]) + (f" and {len(there) - 12} more" if len(there) > 12 else "")
+        raise SceneError(f"no point has a column {name}: expected one of {shown}",
+                         scene.path, f"plot[{i}].{key}")
+    try:
+        write_outputs(scene, out.staging, results, summary, t_start, plotter)
+    except OSError as e:  # name the file the user asked for, not its staged copy
+        if e.filename is None or Path(e.filename).parent != out.staging:
+            raise
+        raise OSError(e.errno, e.strerror, str(out.path / Path(e.filename).name)) from None
     out.commit()
     return summary

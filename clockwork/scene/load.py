@@ -23,7 +23,10 @@ from pathlib import Path
 from ..engine import compiled
 from ..engine.description import FmuError, read_fmu, resolve_fmu, var_unit
 from ..engine.description import variables as variables_of
+from ..engine.fmu3 import make_instance
 from ..engine.names import instance_name_problem, split_link, split_ref
+from ..engine.wiring import Link
+from ..engine.wiring import build as build_wiring
 from ..errors import SceneError
 from .checks import TOP_KEYS, Ctx, article, component, convert_value, lookup, master_value, names_of, parse_ref
 from .kinds import NO_KINDS, Invalid, Kinds
@@ -216,6 +219,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     else:
         components, connections = prebuilt
         notes = ()
+    _check_wiring(ctx, components, connections)
     experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
     master, max_step_given = _master(ctx, master_t)
     problem = consistency(master, experiment, components) or _fmi3_inputs(master, components, connections)
@@ -300,6 +304,16 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
             params[pname] = convert_value(ctx, key, value, v, md)
         out[name] = Component(name, fpath, digest, md, params, indicators)
     return out, input_params
+
+
+def _check_wiring(ctx: Ctx, components: dict[str, Component], connections) -> None:
+    """What the master refuses before it steps (an algebraic loop through
+    direct-feedthrough outputs), refused now, by the engine's own wiring code."""
+    try:
+        instances = {n: make_instance(n, c.fmu_path, c.model_description) for n, c in components.items()}
+        build_wiring(instances, [Link(*c) for c in connections])
+    except SceneError as e:
+        raise ctx.fail("connections", e.detail) from None
 
 
 def _connections(ctx: Ctx, conns, components: dict[str, Component],

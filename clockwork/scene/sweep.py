@@ -112,7 +112,28 @@ def parse_sweep(ctx: Ctx, t: dict | None, components: dict[str, Component], conn
     total = len(axes[0].values) if mode == "zip" else math.prod(len(ax.values) for ax in axes)
     if total > MAX_POINTS:
         raise ctx.fail("sweep", f"{total} points: a sweep has at most {MAX_POINTS}")
+    _refuse_repeated_points(ctx, mode, axes)
     return Sweep(mode, tuple(axes))
+
+
+def _refuse_repeated_points(ctx: Ctx, mode: str, axes: list[SweepAxis]) -> None:
+    """A point given twice would run twice for the same result: refused, not
+    merged, since it is a slip (a copied value, start = stop) that changes
+    the sweep's shape, and merging would shift the rows against the values."""
+    rows = list(zip(*(ax.values for ax in axes))) if mode == "zip" else None
+    groups = [(f"sweep.axes[{i}]", [(v,) for v in ax.values]) for i, ax in enumerate(axes)] if rows is None \
+        else [("sweep.axes", rows)]
+    for where, items in groups:
+        first: dict = {}
+        for j, item in enumerate(items):
+            k = tuple((type(x).__name__, x) for x in item)
+            if k in first:
+                n = len(items) - len(set(map(lambda it: tuple((type(x).__name__, x) for x in it), items)))
+                what = "value" if rows is None else "point (one value of each axis)"
+                raise ctx.fail(where, f"the {what} #{j} ({', '.join(map(show, item))}) repeats #{first[k]}"
+                                      f"{f' ({n} repeats in all)' if n > 1 else ''}: expected each {what} once "
+                                      "(a repeated point would run again for the same result)")
+            first[k] = j
 
 
 def _master_value_at(ctx: Ctx, key: str, name: str, value: object):

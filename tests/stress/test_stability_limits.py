@@ -135,8 +135,8 @@ def test_iterations_are_not_ignored_under_richardson():
 
     outs = []
     for iterations in (0, 5):
-        settings = MasterSettings(step=0.3, richardson=True, richardson_tolerance=1e-5, iterations=iterations)
-        try:
+        try:  # refused where the settings are made, or where the system is
+            settings = MasterSettings(step=0.3, richardson=True, richardson_tolerance=1e-5, iterations=iterations)
             system = st.vibration_system(st.Coupling(0.0, 5.0), settings)
         except (ValueError, SceneError):
             return  # refused with a clear error: fine

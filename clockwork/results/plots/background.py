@@ -18,7 +18,8 @@ already imported (the gallery after its first scene, the tests), or when
 the scene has no plots. A child that dies without an answer is reported
 on stderr and the plots are drawn here.
 
-The child ignores SIGINT (an interrupted run is the parent's to report),
+The child ignores SIGINT, SIGTERM and SIGHUP (an interrupted run is the
+parent's to report),
 dies with its parent (Linux prctl), never runs the parent's atexit
 handlers (it leaves by os._exit), and is reaped by ``close``.
 """
@@ -36,7 +37,7 @@ from pathlib import Path
 
 from ...atomic import remove_stale_parts
 from ...processes import die_with_parent
-from .registry import draw_plot, gather, load_matplotlib, make_plots
+from .registry import draw_plot, gather, load_matplotlib, make_plots, matplotlib_config
 
 
 class Plotter:
@@ -85,7 +86,9 @@ class _PlotProcess(Plotter):
         job_r, job_w = os.pipe()
         answer_r, answer_w = os.pipe()
         for stream in (sys.stdout, sys.stderr):  # else the child would write their buffers again
-            stream.flush()
+            if stream is not None:  # None: the stream was closed when the command started
+                stream.flush()
+        matplotlib_config()  # its folder must outlive the child: made here
         parent = os.getpid()
         try:
             pid = os.fork()
@@ -168,7 +171,8 @@ def _child(scene, parent: int, job_fd: int, answer_fd: int) -> None:
     """The plot process: import matplotlib, wait for the results, draw, answer."""
     code = 0
     try:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, signal.SIG_IGN)  # the run's to report; this process dies with it
         die_with_parent(parent)
         # The slow part, done while the parent computes. The collector would
         # walk the growing heap again and again during the import (a tenth of

@@ -16,7 +16,7 @@ def _convert(t: dict) -> dict:
     return out
 
 
-@register("time_series", {"x", "y"}, _convert, run="series")
+@register("time_series", {"x", "y"}, _convert, run="series", columns={"x": None, "y": None})
 def time_series(scene, r, spec):
     series = r["series"]
     fig, ax = subplots(figsize=(7, 4))
@@ -37,7 +37,7 @@ def time_series(scene, r, spec):
     return fig
 
 
-@register("phase_portrait", {"x", "y"}, _convert, run="series")
+@register("phase_portrait", {"x", "y"}, _convert, run="series", columns={"x": None, "y": None})
 def phase_portrait(scene, r, spec):
     series = r["series"]
     fig, ax = subplots(figsize=(5, 5))
@@ -49,7 +49,7 @@ def phase_portrait(scene, r, spec):
     return fig
 
 
-@register("sweep", {"x", "y"}, _convert)
+@register("sweep", {"x", "y"}, _convert, columns={"x": "amplitude_deg", "y": ["E_T_s_per_day", "E_C_s_per_day", "E_E_s_per_day"]})
 def sweep(scene, results, spec):
     """Result columns against a sweep axis (`x`: an axis "instance.variable" or
     a result column); text and true/false axes are drawn as categories."""

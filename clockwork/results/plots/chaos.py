@@ -28,7 +28,7 @@ def _plot_keys(t: dict) -> dict:
     return out
 
 
-@register("phase_space", {"x", "y", "window"}, _plot_keys, run="series")
+@register("phase_space", {"x", "y", "window"}, _plot_keys, run="series", columns={"x": None, "y": None})
 def plot_phase_space(scene, r, spec):
     """A trajectory in degrees, coloured by time; +-phi_r marked when x is the pendulum angle."""
     s = r["series"]

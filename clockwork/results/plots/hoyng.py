@@ -71,7 +71,8 @@ def plot_rate_map(scene, results, spec):
     return fig
 
 
-@register("hoyng_comparison", {"x", "group", "theory", "log_x", "title", "file"}, _convert_plot, rows=stationary_rows)
+@register("hoyng_comparison", {"x", "group", "theory", "log_x", "title", "file"}, _convert_plot, rows=stationary_rows,
+          columns={"x": "eps", "group": None, "theory": "rate_theory"})
 def plot_comparison(scene, rows, spec):
     """Simulated stationary rate against the closed form (s/day), and their difference."""
     xk, gk = spec.get("x", "eps"), spec.get("group")

@@ -11,6 +11,9 @@ plots are drawn on ``matplotlib.figure.Figure`` without pyplot.
 from __future__ import annotations
 
 import io
+import logging
+import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -19,15 +22,46 @@ from ...engine.description import var_unit, variables
 from ...engine.names import split_ref
 from ...scene.kinds import Converter, Invalid
 from ...atomic import write_bytes_atomic
+from ...paths import cache_root, scratch_dir
 
 PLOTS: dict = {}  # kind -> function
 PLOT_KEYS: dict[str, set[str]] = {}  # kind -> allowed keys besides `kind`
 _PLOT_CONVERT: dict[str, Converter] = {}
+# kind -> ({spec key naming columns: its default}, where the columns are: "series" or "rows")
+PLOT_COLUMNS: dict[str, tuple[dict, str]] = {}
+
+
+def matplotlib_config() -> None:
+    """Give matplotlib a usable config folder before it is imported, and
+    keep its log lines off stderr (one line per failure is ours to print).
+
+    Without $MPLCONFIGDIR and a writable ~/.config/matplotlib, matplotlib
+    makes a temporary folder that only its atexit handler removes (a plot
+    process never runs those) and says so on stderr. The folder here is
+    $MPLCONFIGDIR when writable, else <cache>/matplotlib, else a folder in
+    this process's scratch folder, removed at exit. Call it in the process
+    that forks the plot process, before the fork."""
+    logging.getLogger("matplotlib").setLevel(logging.ERROR)
+    given = os.environ.get("MPLCONFIGDIR")
+    root = cache_root()
+    for d in ([Path(given)] if given else []) + ([root / "matplotlib"] if root is not None else []):
+        try:
+            d.mkdir(parents=True, exist_ok=True)
+            if os.access(d, os.W_OK | os.X_OK):
+                os.environ["MPLCONFIGDIR"] = str(d)
+                return
+        except OSError:
+            pass
+    d = scratch_dir() / "matplotlib"
+    d.mkdir(exist_ok=True)
+    os.environ["MPLCONFIGDIR"] = str(d)
 
 
 def load_matplotlib() -> None:
     """Import what drawing a PNG needs (a third of a second: done once, on
     the first plot, or ahead of time by the plot process)."""
+    if "matplotlib" not in sys.modules:
+        matplotlib_config()
     import matplotlib.figure  # noqa: F401
     from matplotlib.backends import backend_agg  # noqa: F401
 
@@ -36,6 +70,7 @@ def subplots(*args, figsize: tuple[float, float], **kwargs):
     """A new figure and its axes, as ``pyplot.subplots`` takes them, without
     pyplot: no global list of figures to close, and no backend switched
     under the feet of a program that imports clockwork."""
+    load_matplotlib()
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=figsize)
@@ -92,8 +127,14 @@ def curves(rows: list[dict], key) -> dict:
 
 
 def register(kind: str, keys: set[str] | frozenset[str] = frozenset(), convert: Converter | None = None,
-             run: str | None = None, rows=None):
+             run: str | None = None, rows=None, columns: dict | None = None):
     """Register ``f(scene, results, spec) -> Figure | None`` as plot kind `kind`.
+
+    `columns` names the spec keys that name data columns, with their
+    defaults (None: no default): a sweep axis or a result column, or (with
+    `run`) a column of the run's series. They are checked against the
+    results before anything is written (``unknown_column``), so that a
+    typo is refused instead of drawn as an empty plot.
 
     With `run` (a key such as "series"), the kind plots the one result of a
     scene without a sweep: f gets that result instead of the list, and is
@@ -115,6 +156,7 @@ def register(kind: str, keys: set[str] | frozenset[str] = frozenset(), convert: 
         else:
             PLOTS[kind] = func
         PLOT_KEYS[kind] = set(keys) | {"title", "file"}
+        PLOT_COLUMNS[kind] = (dict(columns or {}), run or "rows")
         if convert is not None:
             _PLOT_CONVERT[kind] = convert
         else:
@@ -201,6 +243,37 @@ def gather(outcomes: list[tuple[str, object]]) -> tuple[list[str], list[dict], l
     failed = [x for what, x in outcomes if what == "failed"]
     empty = [x for what, x in outcomes if what == "empty"]
     return written, failed, empty
+
+
+def column_names(spec: dict, key: str, default) -> list[str]:
+    names = spec.get(key, default)
+    return [] if names is None else [names] if isinstance(names, str) else list(names)
+
+
+def unknown_column(scene, results: list[dict]) -> tuple[int, str, str, list[str]] | None:
+    """The first column a plot names that no result has: (plot index, spec
+    key, name, the columns there are), or None. Plots with nothing to draw
+    at all (every point failed or stalled) are not judged: they say so
+    themselves (``plots_not_drawn``)."""
+    for i, spec in enumerate(scene.plots):
+        keys, source = PLOT_COLUMNS.get(spec["kind"], ({}, "rows"))
+        if not keys:
+            continue
+        there: set[str] = set()
+        for r in results:
+            if not r or "error" in r or r.get("result", {}).get("stalled") or r.get("result", {}).get("omitted"):
+                continue  # a stalled point has no rates: it says nothing of the columns
+            if source == "rows":
+                there |= set(r.get("result", {})) | set(r.get("point", {}))
+            else:
+                there |= set(r.get(source, {}) or {})
+        if not there:
+            continue
+        for key, default in keys.items():
+            for name in column_names(spec, key, default):
+                if name not in there:
+                    return i, key, name, sorted(there)
+    return None
 
 
 def make_plots(scene, results: list[dict], out: Path) -> tuple[list[str], list[dict], list[dict]]:

@@ -75,7 +75,8 @@ def plot_period_amplitude(scene, results, spec):
     return fig
 
 
-@register("rate_errors", {"y", "dashed", "torque", "title", "file"}, _convert_plot)
+@register("rate_errors", {"y", "dashed", "torque", "title", "file"}, _convert_plot,
+          columns={"y": ["E_T_s_per_day", "E_C_s_per_day", "E_E_s_per_day"], "dashed": None})
 def plot_rate_errors(scene, results, spec):
     """Rate errors (s/day) against amplitude (deg), the torque (N.cm) on a second axis."""
     rows = sorted(orbit_rows(results), key=lambda r: r["result"]["amplitude_deg"])
@@ -153,7 +154,8 @@ def _point_values(rows, key):
     return np.array([float(r["point"][key]) for r in rows])
 
 
-@register("contour", {"x", "y", "z", "levels", "log_x", "marker", "title", "file"}, _convert_plot)
+@register("contour", {"x", "y", "z", "levels", "log_x", "marker", "title", "file"}, _convert_plot,
+          columns={"x": None, "y": None, "z": "E_T_s_per_day"})
 def plot_contour(scene, results, spec):
     """A result over a 2-D grid sweep: colour map and contour lines (Fig. 5)."""
     rows = [r for r in results if r and "point" in r]
@@ -203,7 +205,8 @@ def plot_contour(scene, results, spec):
     return fig
 
 
-@register("curves", {"x", "y", "group", "dashed_if", "title", "file"}, _convert_plot, rows=orbit_rows)
+@register("curves", {"x", "y", "group", "dashed_if", "title", "file"}, _convert_plot, rows=orbit_rows,
+          columns={"x": "amplitude_deg", "y": ["E_T_s_per_day"], "group": None, "dashed_if": None})
 def plot_curves(scene, rows, spec):
     """One curve per combination of the `group` sweep parameters (Fig. 6)."""
     xk = spec.get("x", "amplitude_deg")

@@ -1,0 +1,90 @@
+"""Bounds known before the work starts: what a run records, and sweeps that
+repeat a point. (The FMU archive bounds are in test_fmu_hardening.py.)"""
+
+from __future__ import annotations
+
+import pytest
+
+from cwtest import CLOCK_SCENE, FMU_DIR, assert_one_line_error, fmu_file, run_cli
+
+
+@pytest.fixture(autouse=True)
+def _env(monkeypatch, tmp_path):
+    fmu_file("Pendulum")
+    monkeypatch.setenv("CLOCKWORK_FMU_DIR", str(FMU_DIR))
+    monkeypatch.setenv("CLOCKWORK_CACHE", str(tmp_path / "cache"))
+
+
+def _scene(tmp_path, stop=1.0, sweep="", edit=lambda s: s):
+    f = tmp_path / "s.toml"
+    f.write_text(edit(CLOCK_SCENE.format(stop=stop, sweep=sweep)))
+    return f
+
+
+# Each records far more than memory holds; each must be refused by validate and run, before any work.
+UNBOUNDED = {
+    "stop = 1e12 s": dict(stop=1e12),
+    "a tiny step": dict(stop=1000, edit=lambda s: s.replace('step = "0.01 s"', 'step = "1e-7 s"')),
+    "a tiny record interval": dict(stop=1e5, edit=lambda s: s.replace("[record]", '[record]\ninterval = "1e-3 s"')),
+    "ticks only": dict(stop=1e12, edit=lambda s: s.replace('outputs = ["pendulum.phi"]', "outputs = []")),
+    "many outputs": dict(stop=1e6, edit=lambda s: s.replace('outputs = ["pendulum.phi"]', 'outputs = ["pendulum.phi", '
+                                                             '"pendulum.w", "escapement.tau", "escapement.mode"]')),
+    "a swept stop": dict(sweep='\n[sweep]\naxes = [ { parameter = "experiment.stop", values = [1, 1e11] } ]\n'),
+}
+
+
+@pytest.mark.parametrize("case", list(UNBOUNDED))
+@pytest.mark.parametrize("command", ["validate", "run"])
+def test_a_run_that_would_record_without_bound_is_refused_before_it_starts(capsys, tmp_path, case, command):
+    f = _scene(tmp_path, **UNBOUNDED[case])
+    argv = [command, f] + (["--out", tmp_path / "out", "--no-progress"] if command == "run" else [])
+    rc, _, err = run_cli(capsys, argv)
+    assert_one_line_error(rc, err, str(f), "experiment.stop", "record.interval", code=2)
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_override_past_the_bound_is_refused(capsys, tmp_path):
+    f = _scene(tmp_path)
+    rc, _, err = run_cli(capsys, ["validate", f, "--set", "experiment.stop=1e12"])
+    assert_one_line_error(rc, err, "experiment.stop", code=2)
+
+
+def test_a_long_run_with_a_record_interval_is_accepted(capsys, tmp_path):
+    f = _scene(tmp_path, stop=1e6, edit=lambda s: s.replace("[record]", '[record]\ninterval = "100 s"')
+               .replace('ticks = "pendulum"', ""))
+    rc, out, err = run_cli(capsys, ["validate", f])
+    assert rc == 0 and out.startswith("ok"), err
+
+
+# --- sweeps that repeat a point -------------------------------------------------------
+
+REPEATS = {
+    "150,000 identical values": ('{ parameter = "pendulum.Q", values = [' + ",".join(["1e3"] * 150_000) + "] }",
+                                 "", "sweep.axes[0]"),
+    "one value twice": ('{ parameter = "pendulum.Q", values = [500, 1000, 500] }', "", "sweep.axes[0]"),
+    "the same value in other units": ('{ parameter = "escapement.torque", values = ["0.4 N.cm", "0.004 N.m"] }',
+                                      "", "sweep.axes[0]"),
+    "start = stop": ('{ parameter = "pendulum.Q", start = 1000, stop = 1000, num = 5 }', "", "sweep.axes[0]"),
+    "a grid with a repeated second axis": ('{ parameter = "pendulum.Q", values = [500, 1000] }, '
+                                           '{ parameter = "master.step", values = ["0.01 s", "0.01 s"] }',
+                                           "", "sweep.axes[1]"),
+    "a zip with a repeated pair": ('{ parameter = "pendulum.Q", values = [500, 1000, 500] }, '
+                                   '{ parameter = "escapement.torque", values = ["0.4 N.cm", "0.5 N.cm", "0.4 N.cm"] }',
+                                   'mode = "zip"\n', "sweep.axes"),
+}
+
+
+@pytest.mark.parametrize("case", list(REPEATS))
+def test_a_sweep_that_repeats_a_point_is_refused(capsys, tmp_path, case):
+    axes, mode, key = REPEATS[case]
+    f = _scene(tmp_path, stop=0.1, sweep=f"\n[sweep]\n{mode}axes = [ {axes} ]\n")
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, str(f), key, "repeats", code=2)
+
+
+def test_a_zip_whose_axes_repeat_values_but_not_points_is_accepted(capsys, tmp_path):
+    axes = ('{ parameter = "pendulum.Q", values = [500, 1000, 500] }, '
+            '{ parameter = "escapement.torque", values = ["0.4 N.cm", "0.5 N.cm", "0.6 N.cm"] }')
+    f = _scene(tmp_path, stop=0.1, sweep=f'\n[sweep]\nmode = "zip"\naxes = [ {axes} ]\n')
+    rc, out, err = run_cli(capsys, ["validate", f])
+    assert rc == 0 and "3 sweep points" in out, err

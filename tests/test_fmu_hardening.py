@@ -1,0 +1,205 @@
+"""Hostile FMUs: what `run` refuses before stepping, `info` and `validate`
+refuse too (with the file and key), and nothing is unzipped past a bound.
+
+Each class is tried on several FMUs made from Pendulum.fmu: model
+identifiers that are not plain names, binaries that are not a shared
+library for this machine, archives over the size bounds, algebraic loops
+between feedthrough FMUs, and entry names with "../".
+"""
+
+from __future__ import annotations
+
+import platform
+import struct
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from cwtest import FMU_DIR, assert_one_line_error, fmu_file, run_cli
+from clockwork.engine import description, fmu
+
+BINARY = "binaries/linux64/Pendulum.so"
+
+
+@pytest.fixture(autouse=True)
+def _env(monkeypatch, tmp_path):
+    fmu_file("Pendulum")
+    monkeypatch.setenv("CLOCKWORK_FMU_DIR", str(FMU_DIR))
+    monkeypatch.setenv("CLOCKWORK_CACHE", str(tmp_path / "cache"))
+    monkeypatch.delenv("CLOCKWORK_MAX_FMU_MB", raising=False)
+    description._MD_CACHE.clear()
+    fmu._extracted.clear()
+
+
+def _copy(tmp_path: Path, name: str, change=None, extra: dict | None = None) -> Path:
+    """Pendulum.fmu with change(entry name, bytes) -> bytes applied, plus `extra` entries."""
+    out = tmp_path / f"{name}.fmu"
+    with zipfile.ZipFile(FMU_DIR / "Pendulum.fmu") as src, zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as dst:
+        for info in src.infolist():
+            data = src.read(info.filename)
+            dst.writestr(info.filename, change(info.filename, data) if change else data)
+        for n, data in (extra or {}).items():
+            dst.writestr(n, data)
+    return out
+
+
+def _scene(tmp_path: Path, fmu_path: Path) -> Path:
+    f = tmp_path / "one.toml"
+    f.write_text(f'[scene]\ntitle = "one"\n[components.pendulum]\nfmu = "{fmu_path}"\n'
+                 '[experiment]\nstop = "0.2 s"\n[master]\nstep = "0.1 s"\n')
+    return f
+
+
+def _refused_everywhere(capsys, tmp_path, path: Path, *needles):
+    """info, validate and run each refuse with one line (exit 2); nothing is run or cached."""
+    scene = _scene(tmp_path, path)
+    for argv in (["info", path], ["validate", scene], ["run", scene, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, argv)
+        assert_one_line_error(rc, err, str(path), *needles, code=2)
+    assert not (tmp_path / "out" / "summary.json").exists()
+    cached = tmp_path / "cache" / "fmus"
+    assert not cached.exists() or not any(cached.iterdir()), list(cached.iterdir())
+
+
+# --- modelIdentifier -------------------------------------------------------------
+
+IDENTIFIERS = ["../../x/Pendulum", "/tmp/Pendulum", "sub/Pendulum", "..", "Pendulum.so", "Pend ulum", "",
+               "Pendulum\\..\\x"]
+
+
+@pytest.mark.parametrize("ident", IDENTIFIERS)
+def test_a_model_identifier_that_is_not_a_plain_name_is_refused(capsys, tmp_path, ident):
+    def change(name, data):
+        if name == "modelDescription.xml":
+            return data.replace(b'modelIdentifier="Pendulum"', f'modelIdentifier="{ident}"'.encode())
+        return data
+    path = _copy(tmp_path, "ident", change)
+    _refused_everywhere(capsys, tmp_path, path, "modelIdentifier")
+
+
+# --- binaries that are not a shared library for this machine ---------------------------
+
+def _patched(offset: int, value: bytes):
+    def patch(data: bytes) -> bytes:
+        return data[:offset] + value + data[offset + len(value):]
+    return patch
+
+
+BINARIES = {
+    "text": lambda data: b"#!/bin/sh\necho not a library\n",
+    "empty": lambda data: b"",
+    "truncated ELF header": lambda data: data[:10],
+    "32-bit ELF": _patched(4, b"\x01"),
+    "relocatable object (ET_REL)": _patched(16, struct.pack("<H", 1)),
+    "executable (ET_EXEC)": _patched(16, struct.pack("<H", 2)),
+    "another processor": _patched(18, struct.pack("<H", 183 if platform.machine() != "aarch64" else 62)),
+    "a Windows DLL": lambda data: b"MZ" + data[2:],
+}
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="ELF checks are for Linux")
+@pytest.mark.parametrize("kind", list(BINARIES))
+def test_a_binary_that_is_not_a_shared_library_is_refused_by_validate(capsys, tmp_path, kind):
+    path = _copy(tmp_path, "bin", lambda n, d: BINARIES[kind](d) if n == BINARY else d)
+    scene = _scene(tmp_path, path)
+    for argv in (["validate", scene], ["run", scene, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, argv)
+        assert_one_line_error(rc, err, str(path), BINARY, code=2)
+    assert "cmake" not in err  # not one of the project's FMUs: no rebuild advice
+
+
+def test_rebuild_advice_only_for_the_projects_own_fmus(capsys, tmp_path):
+    gone = _copy(tmp_path, "Pendulum", lambda n, d: d)  # named like ours, but not in fmus/
+    with zipfile.ZipFile(gone) as z, zipfile.ZipFile(tmp_path / "nobin.fmu", "w") as out:
+        for i in z.infolist():
+            if i.filename != BINARY:
+                out.writestr(i, z.read(i.filename))
+    rc, _, err = run_cli(capsys, ["validate", _scene(tmp_path, tmp_path / "nobin.fmu")])
+    assert_one_line_error(rc, err, "no binary for this platform", code=2)
+    assert "cmake" not in err and "linux64" in err
+    assert "cmake --build build" in description._rebuild_advice(FMU_DIR / "Pendulum.fmu") or \
+        not description.in_checkout()
+
+
+# --- size bounds ---------------------------------------------------------------------
+
+def test_an_fmu_that_unzips_past_the_bound_is_refused_and_nothing_is_cached(capsys, tmp_path, monkeypatch):
+    monkeypatch.setenv("CLOCKWORK_MAX_FMU_MB", "2")
+    path = _copy(tmp_path, "bomb", extra={"resources/zeros.bin": bytes(3 * 2**20)})
+    assert path.stat().st_size < 200_000  # compresses well: the bound is on what it unzips to
+    _refused_everywhere(capsys, tmp_path, path, "unzips to", "CLOCKWORK_MAX_FMU_MB")
+
+
+def test_many_small_entries_past_the_bound_are_refused(capsys, tmp_path, monkeypatch):
+    monkeypatch.setattr(description, "MAX_ENTRIES", 50)
+    path = _copy(tmp_path, "many", extra={f"resources/f{k}.txt": b"x" for k in range(60)})
+    _refused_everywhere(capsys, tmp_path, path, "entries")
+
+
+def test_a_huge_model_description_is_refused_before_it_is_read(capsys, tmp_path):
+    pad = b"<!--" + b" " * (description.MAX_DESCRIPTION_BYTES + 1) + b"-->\n"
+    path = _copy(tmp_path, "hugexml", lambda n, d: d.replace(b"?>", b"?>" + pad, 1)
+                 if n == "modelDescription.xml" else d)
+    _refused_everywhere(capsys, tmp_path, path, "modelDescription.xml", "not read")
+
+
+# --- algebraic loops between feedthrough FMUs -------------------------------------------
+
+LOOPS = {
+    "two escapements": ({"e1": "GrasshopperEscapement", "e2": "GrasshopperEscapement"},
+                        ["e1.event_indicator -> e2.phi", "e2.event_indicator -> e1.phi"]),
+    "one feeding itself": ({"e1": "GrasshopperEscapement"}, ["e1.event_indicator -> e1.phi"]),
+    "three instances": ({"e1": "GrasshopperEscapement", "c": "ChronometerEscapement", "d": "Drag"},
+                        ["e1.event_indicator -> c.phi", "c.event_indicator_turn -> d.w",
+                         "c.event_indicator_lower -> e1.phi"]),
+}
+
+
+@pytest.mark.parametrize("case", list(LOOPS))
+def test_validate_refuses_an_algebraic_loop_with_file_and_key(capsys, tmp_path, case):
+    comps, links = LOOPS[case]
+    f = tmp_path / "loop.toml"
+    f.write_text('connections = [' + ", ".join(f'"{c}"' for c in links) + ']\n[scene]\ntitle = "loop"\n'
+                 + "".join(f'[components.{n}]\nfmu = "{m}"\n' for n, m in comps.items())
+                 + '[experiment]\nstop = "1 s"\n')
+    for argv in (["validate", f], ["run", f, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, argv)
+        assert_one_line_error(rc, err, str(f), "connections", "algebraic loop", code=2)
+
+
+# --- entry names with ../ -------------------------------------------------------------
+
+def test_an_fmu_with_dotdot_entries_does_not_damage_the_cache(capsys, tmp_path):
+    path = _copy(tmp_path, "dotdot", extra={"../escaped.txt": b"x", "resources/../../up.txt": b"y",
+                                            "/abs.txt": b"z"})
+    scene = _scene(tmp_path, path)
+    for k in range(3):
+        fmu._extracted.clear()  # as a new process: the cache entry is checked again
+        rc, _, err = run_cli(capsys, ["run", scene, "--out", tmp_path / "out", "--no-progress"])
+        assert rc == 0 and "damaged" not in err and "warning" not in err, (k, err)
+    assert not (tmp_path / "cache" / "escaped.txt").exists() and not (tmp_path / "escaped.txt").exists()
+
+
+# --- what only loading tells: validate loads and instantiates each FMU as run does --------
+
+LOAD_FAILURES = {
+    "a position-independent executable": (lambda n, d: Path("/bin/true").read_bytes() if n == BINARY else d,
+                                          "cannot load"),
+    "another model's GUID": (lambda n, d: d.replace(b'guid="{', b'guid="{0', 1) if n == "modelDescription.xml"
+                             else d, "GUID"),
+}
+
+
+@pytest.mark.skipif(not Path("/bin/true").exists(), reason="needs /bin/true")
+@pytest.mark.parametrize("case", list(LOAD_FAILURES))
+def test_validate_refuses_what_only_loading_shows(capsys, tmp_path, case):
+    change, needle = LOAD_FAILURES[case]
+    path = _copy(tmp_path, "load", change)
+    scene = _scene(tmp_path, path)
+    for argv in (["validate", scene], ["run", scene, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, argv)
+        assert_one_line_error(rc, err, needle, code=2)
+    rc, _, err = run_cli(capsys, ["validate", scene])
+    assert "components.pendulum.fmu" in err

@@ -1,0 +1,120 @@
+"""Every plot kind's columns are checked: a column that does not exist is
+refused (exit 2, the plot's key in the line), never drawn as an empty plot.
+A sweep axis ("instance.variable"), and a result column of an analysis kind
+that declares its columns (time_series, ticks, steady_state), are checked
+when the scene is loaded; other result or series columns as soon as the
+points are computed, before anything is written (the points are kept, so
+the corrected rerun is free).
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from cwtest import CLOCK_SCENE, FMU_DIR, assert_one_line_error, fmu_file, run_cli
+
+SWEEP = '\n[sweep]\naxes = [ { parameter = "escapement.torque", values = ["0.4 N.cm", "0.5 N.cm"] } ]\n'
+
+
+@pytest.fixture(autouse=True)
+def _env(monkeypatch, tmp_path):
+    fmu_file("Pendulum")
+    monkeypatch.setenv("CLOCKWORK_FMU_DIR", str(FMU_DIR))
+    monkeypatch.setenv("CLOCKWORK_CACHE", str(tmp_path / "cache"))
+
+
+def _scene(tmp_path, plot: str, sweep: str = SWEEP):
+    f = tmp_path / "s.toml"
+    f.write_text(CLOCK_SCENE.format(stop=0.5, sweep=sweep + "\n[[plot]]\n" + plot + "\n"))
+    return f
+
+
+# (plot table, key in the error): a time_series scene, whose kind declares its result columns
+BAD = {
+    "sweep y": ('kind = "sweep"\nx = "escapement.torque"\ny = "no_such_column"', "plot[0].y"),
+    "sweep y among good ones": ('kind = "sweep"\nx = "escapement.torque"\ny = ["t_end_s", "t_ends"]', "plot[0].y"),
+    "sweep x result column": ('kind = "sweep"\nx = "amplitude"\ny = "t_end_s"', "plot[0].x"),
+    "sweep x axis typo": ('kind = "sweep"\nx = "escapement.torqe"\ny = "t_end_s"', "plot[0].x"),
+    "sweep default columns": ('kind = "sweep"\nx = "escapement.torque"', "plot[0].y"),
+    "rate_errors y": ('kind = "rate_errors"\ny = ["E_X"]', "plot[0].y"),
+    "contour z": ('kind = "contour"\nx = "escapement.torque"\ny = "escapement.torque"\nz = "nope"', "plot[0].z"),
+    "curves group axis": ('kind = "curves"\nx = "t_end_s"\ny = ["t_end_s"]\ngroup = ["pendulum.Qx"]', "plot[0].group"),
+    "hoyng_comparison theory": ('kind = "hoyng_comparison"\nx = "t_end_s"\ntheory = "nope"', "plot[0].theory"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD))
+def test_a_plot_of_a_missing_column_is_refused(capsys, tmp_path, case):
+    plot, key = BAD[case]
+    f = _scene(tmp_path, plot)
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, str(f), key, code=2)
+    out = tmp_path / "out"
+    rc, _, err = run_cli(capsys, ["run", f, "--out", out, "--no-progress", "--workers", "1"])
+    assert_one_line_error(rc, err, str(f), key, code=2)
+    assert not (out / "summary.json").exists() and not list(out.glob("*.png")) and not list(out.glob("*.csv"))
+
+
+@pytest.fixture
+def undeclared_kind():
+    """An analysis kind that does not declare its result columns: checked after the points."""
+    from clockwork.analyses.registry import ANALYSES, ANALYSIS_KEYS, RESULT_COLUMNS, _ANALYSIS_CONVERT, register
+
+    register("columns_test")(lambda scene, point, progress=False: {"kind": "x", "result": {"value": 1.0}})
+    yield "columns_test"
+    for table in (ANALYSES, ANALYSIS_KEYS, RESULT_COLUMNS, _ANALYSIS_CONVERT):
+        table.pop("columns_test", None)
+
+
+@pytest.mark.parametrize("plot, key", [('kind = "sweep"\nx = "escapement.torque"\ny = "valu"', "plot[0].y"),
+                                       ('kind = "sweep"\nx = "vale"\ny = "value"', "plot[0].x")])
+def test_a_column_of_an_undeclared_kind_is_refused_after_the_points(capsys, tmp_path, undeclared_kind, plot, key):
+    f = _scene(tmp_path, plot)
+    f.write_text(f.read_text().replace('kind = "time_series"', f'kind = "{undeclared_kind}"'))
+    rc, out, err = run_cli(capsys, ["validate", f])
+    assert rc == 0, err
+    out_dir = tmp_path / "out"
+    rc, _, err = run_cli(capsys, ["run", f, "--out", out_dir, "--no-progress", "--workers", "1"])
+    assert_one_line_error(rc, err, str(f), key, "no point has", code=2)
+    assert not (out_dir / "summary.json").exists() and not list(out_dir.glob("*.png"))
+    assert len(list((out_dir / "points").glob("*.json"))) == 2  # kept: the corrected scene reuses them
+    f.write_text(f.read_text().replace('"valu"', '"value"').replace('"vale"', '"escapement.torque"'))
+    rc, _, err = run_cli(capsys, ["run", f, "--out", out_dir, "--no-progress", "--workers", "1"])
+    assert rc == 0, err
+    assert json.loads((out_dir / "summary.json").read_text())["points_reused"] == 2
+
+
+def test_phase_space_of_a_series_column_that_is_not_there(capsys, tmp_path):
+    f = _scene(tmp_path, 'kind = "phase_space"\nx = "pendulum.phi"\ny = "pendulum.w"', sweep="")
+    rc, _, err = run_cli(capsys, ["run", f, "--out", tmp_path / "out", "--no-progress"])
+    assert_one_line_error(rc, err, str(f), "plot[0].y", "pendulum.w", code=2)
+
+
+def test_a_correct_sweep_plot_is_drawn(capsys, tmp_path):
+    f = _scene(tmp_path, 'kind = "sweep"\nx = "escapement.torque"\ny = "t_end_s"\nfile = "ok.png"')
+    rc, _, err = run_cli(capsys, ["run", f, "--out", tmp_path / "out", "--no-progress", "--workers", "1"])
+    assert rc == 0, err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert "ok.png" in summary["files"] and "plots_not_drawn" not in summary
+
+
+def test_every_plot_kind_that_names_columns_declares_them():
+    """The kinds whose table takes x, y, z, group, theory or dashed keys say which are columns."""
+    from clockwork.results.plots.registry import PLOT_COLUMNS, PLOT_KEYS
+
+    naming = {"x", "y", "z", "group", "theory", "dashed", "dashed_if"}
+    for kind, keys in PLOT_KEYS.items():
+        assert set(keys) & naming <= set(PLOT_COLUMNS[kind][0]), kind
+
+
+@pytest.mark.parametrize("y, ok", [("E_T_s_per_dya", False), ("E_T_s_per_day", True), ("amplitude_deg", True)])
+def test_a_steady_state_scene_is_checked_at_validation(capsys, tmp_path, y, ok):
+    f = _scene(tmp_path, f'kind = "sweep"\nx = "escapement.torque"\ny = "{y}"')
+    f.write_text(f.read_text().replace('kind = "time_series"', 'kind = "steady_state"'))
+    rc, _, err = run_cli(capsys, ["validate", f])
+    if ok:
+        assert rc == 0, err
+    else:
+        assert_one_line_error(rc, err, str(f), "plot[0].y", "did you mean E_T_s_per_day?", code=2)

@@ -1,0 +1,74 @@
+"""SIGTERM, SIGHUP and SIGINT sent to the run's own process alone.
+
+Each ends the run like Ctrl-C: one stderr line, exit code 128 + the
+signal's number, no worker or plot process left, nothing in $TMPDIR, no
+staging folder or .part file in the result directory, and the finished
+points kept: a rerun reuses them and finishes.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from cwtest import CLOCK_SCENE, FMU_DIR, ROOT, fmu_file
+
+sys.path.insert(0, str(ROOT / "tools"))
+from kill_sweep import descendants, running  # noqa: E402
+
+SWEEP = ('\n[sweep]\naxes = [ { parameter = "escapement.torque", start = "0.3 N.cm", stop = "0.6 N.cm", '
+         'num = 8 } ]\n\n[[plot]]\nkind = "sweep"\nx = "escapement.torque"\ny = "ticks"\n')
+
+
+@pytest.fixture(autouse=True)
+def _fmus():
+    fmu_file("Pendulum")
+
+
+def _start(tmp_path: Path, workers: int, cache: str):
+    scene = tmp_path / "s.toml"
+    scene.write_text(CLOCK_SCENE.format(stop=300.0, sweep=SWEEP))
+    tmp = tmp_path / "tmp"
+    tmp.mkdir(exist_ok=True)
+    env = dict(os.environ, TMPDIR=str(tmp), CLOCKWORK_FMU_DIR=str(FMU_DIR), PYTHONPATH=str(ROOT),
+               CLOCKWORK_CACHE=cache if cache == "off" else str(tmp_path / "cache"))
+    argv = [sys.executable, "-m", "clockwork", "run", str(scene), "--out", str(tmp_path / "out"),
+            "--no-progress", "--workers", str(workers)]
+    return argv, env, tmp
+
+
+@pytest.mark.parametrize("cache", ["on", "off"])
+@pytest.mark.parametrize("workers", [1, 2])
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT], ids=lambda s: s.name)
+def test_a_signal_to_the_parent_alone_leaves_nothing_and_keeps_the_points(tmp_path, sig, workers, cache):
+    argv, env, tmp = _start(tmp_path, workers, cache)
+    proc = subprocess.Popen(argv, env=env, stderr=subprocess.PIPE, text=True)
+    points = tmp_path / "out" / "points"
+    deadline = time.monotonic() + 60
+    while not list(points.glob("*.json")) and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.02)
+    family = descendants(proc.pid)
+    assert proc.poll() is None and family, "the run ended before the signal"
+    os.kill(proc.pid, sig)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + sig, err
+    assert len(err.strip().splitlines()) == 1 and err.startswith("clockwork: error: interrupted"), err
+    time.sleep(0.2)
+    assert not [p for p in family if running(p)], "a worker or the plot process outlived the run"
+    assert not list(tmp.iterdir()), list(tmp.iterdir())
+    out = tmp_path / "out"
+    assert not [p for p in out.rglob("*") if p.name.endswith(".part") or p.name.startswith(".staging")]
+    finished = len(list(points.glob("*.json")))
+    assert 1 <= finished < 8
+    if cache == "on":  # the rerun: the finished points are reused (from points/), the rest run
+        r = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+        assert json.loads((out / "summary.json").read_text())["points_reused"] >= finished
+        assert not list(tmp.iterdir())
