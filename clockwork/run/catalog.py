@@ -12,7 +12,7 @@ import os
 from pathlib import Path
 
 from ..analyses import registry as analyses
-from ..engine.fmu import Instance
+from ..engine.fmu3 import make_instance
 from ..errors import SceneError
 from ..paths import scenarios_dir
 from ..results.plots import registry as plots
@@ -53,7 +53,7 @@ def check_loadable(scene) -> None:
     missing dependency) or refuses its model description's GUID is refused
     by `validate` too, under the component's key."""
     for name, c in scene.components.items():
-        inst = Instance(name, c.fmu_path, c.model_description)
+        inst = make_instance(name, c.fmu_path, c.model_description)
         try:
             inst.instantiate()
         except SceneError as e:  # nothing instantiated: nothing to free
