@@ -213,15 +213,15 @@ def test_outputs_on_states_close_no_algebraic_loop(engine):
 # 2. Every variable type: parameters, recording, connections, checks at validation.
 
 TYPES_SCENE = """
-connections = ["a.y_int -> b.u_int", "a.y_bool -> b.u_bool", "a.y_enum -> b.u_enum", "a.y_real -> b.u_real"]
+connections = ["a.y_int -> b.u_int", "a.y_bool -> b.u_bool", "a.y_enum -> b.u_enum", "a.y_real -> b.u_real", "a.y_str -> b.u_str"]
 [scene]
 title = "types"
 [components.a]
 fmu = "{types}"
-parameters = { p_int = 5, p_bool = true, p_enum = "high", p_real = 0.5 }
+parameters = { p_int = 5, p_bool = true, p_enum = "high", p_real = 0.5, p_str = "tick é" }
 [components.b]
 fmu = "{types}"
-parameters = { p_int = -1, p_enum = 1 }
+parameters = { p_int = -1, p_enum = 1, p_str = "tock " }
 [experiment]
 stop = 0.3
 [master]
@@ -239,6 +239,8 @@ def test_every_type_is_set_recorded_and_connected(capsys, tmp_path, engine):
     assert set(cols["a.y_int"]) == {"5.0"} and set(cols["b.y_int"]) == {"4.0"}
     assert set(cols["a.y_bool"]) == {"1.0"} and set(cols["b.y_bool"]) == {"1.0"}
     assert set(cols["b.y_real"]) == {"1.5"}  # gain.k p_real + u_real = 1 + 0.5
+    # Strings set, passed on and recorded as text: y_str = p_str u_str.
+    assert set(cols["a.y_str"]) == {"tick é"} and set(cols["b.y_str"]) == {"tock tick é"}
     summary = json.loads((out / "summary.json").read_text())
     assert summary["result"]["engine"] == "python"
     if engine == "auto":  # the core passes Real values only: Python, and why

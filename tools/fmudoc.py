@@ -83,7 +83,9 @@ def variable_table(variables: list[dict]) -> list[str]:
         unit = v.get("unit", "")
         if "display_unit" in v:
             unit += f" (shown in {v['display_unit']})"
-        start = number_text(v["start"]) if v["causality"] in ("parameter", "input") else "calculated"
+        start = "calculated"
+        if v["causality"] in ("parameter", "input"):
+            start = v["start"] if v["type"] == "String" else number_text(v["start"])
         feed = ", ".join(_deps(v)) if v["causality"] == "output" else ""
         if v["causality"] == "output" and not feed:
             feed = "none"

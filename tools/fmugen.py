@@ -30,7 +30,7 @@ from fmudoc import number_text as _num
 
 CAUSALITIES = {"parameter", "input", "output", "local"}
 VARIABILITIES = {"fixed", "tunable", "discrete", "continuous"}
-TYPES = {"Real", "Integer", "Boolean", "Enumeration"}  # Enumeration: stored as an Integer
+TYPES = {"Real", "Integer", "Boolean", "Enumeration", "String"}  # Enumeration: stored as an Integer
 BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 VAR_KEYS = {
     "name", "vr", "type", "causality", "variability", "unit", "display_unit",
@@ -66,11 +66,23 @@ def c_name(name: str) -> str:
     """The C identifier of a variable: FMI names such as der(x) or a[1] made
     into der_x_, a_1_ (identifiers stay as they are)."""
     return re.sub(r"\W", "_", name)
+
+
+def c_string(text: str) -> str:
+    """A C string literal of text's UTF-8 bytes: printable ASCII as is, the
+    rest as octal escapes (which, unlike hex ones, end after three digits)."""
+    out = []
+    for b in text.encode("utf-8"):
+        ch = chr(b)
+        out.append("\\" + ch if ch in '"\\' else ch if 32 <= b < 127 else f"\\{b:03o}")
+    return '"' + "".join(out) + '"'
+
+
 # The project's terms (LICENSE at the repository root), stated in every FMU.
 COPYRIGHT = "Copyright (c) 2026 The clockwork authors"
 LICENSE = "MIT"
 DOC_KEYS = {"equations", "references", "example", "icon"}
-C_TYPES = {"Real": "REAL", "Integer": "INTEGER", "Boolean": "BOOLEAN", "Enumeration": "INTEGER"}
+C_TYPES = {"Real": "REAL", "Integer": "INTEGER", "Boolean": "BOOLEAN", "Enumeration": "INTEGER", "String": "STRING"}
 GUID_NAMESPACE = uuid.UUID("5d1f7a0e-6c55-4c39-9a43-2f0b7f3c1c0e")
 
 
@@ -163,7 +175,10 @@ def check(t: dict) -> None:
             raise TableError(f"{where}: unit {v['unit']!r} is not declared in units.toml or [units]")
         if "display_unit" in v and v["display_unit"] not in units.get(v.get("unit"), {}).get("display", {}):
             raise TableError(f"{where}: display_unit {v['display_unit']!r} is not a display unit of {v.get('unit')!r}")
-        if "start" in v and v["type"] != "Boolean":
+        if v["type"] == "String":
+            if not isinstance(v.get("start", ""), str) or {"min", "max", "unit"} & set(v):
+                raise TableError(f"{where}: a String takes a text start value and no min, max or unit")
+        elif "start" in v and v["type"] != "Boolean":
             lo, hi = v.get("min", -math.inf), v.get("max", math.inf)
             if not lo <= v["start"] <= hi:
                 raise TableError(f"{where}: start {v['start']} outside [{lo}, {hi}]")
@@ -284,19 +299,23 @@ def generate_header(t: dict) -> str:
         def bound(key, default):
             return _num(v[key]) if key in v else default
         start = v.get("start", 0)
+        text = ""
+        if v["type"] == "String":
+            start, text = 0, ", " + c_string(v.get("start", ""))
         if isinstance(start, bool):
             start = int(start)
         lines.append(
             f'    [{v["vr"]}] = {{"{v["name"]}", {v["vr"]}, CW_{C_TYPES[v["type"]]}, '
             f'CW_{v["causality"].upper()}, CW_{v["variability"].upper()}, '
             f'{_num(start)}, {bound("min", "-HUGE_VAL")}, {bound("max", "HUGE_VAL")}, '
-            f'{int(v.get("derivatives", 0))}, {int(bool(v.get("event_indicator", False)))}}},'
+            f'{int(v.get("derivatives", 0))}, {int(bool(v.get("event_indicator", False)))}{text}}},'
         )
     lines += [
         "};",
         "",
         "#define R(name) (inst->r[VR_##name])",
         "#define I(name) (inst->i[VR_##name])",
+        "#define S(name) ((const char *)inst->str[VR_##name])",
         "#define IN(name, t) cw_input(inst, VR_##name, (t))",
         "",
     ]
@@ -431,12 +450,13 @@ def generate_xml(t: dict, sources: list[str]) -> str:
                 tattrs.append(f"unit={quoteattr(v['unit'])}")
             if "display_unit" in v:
                 tattrs.append(f"displayUnit={quoteattr(v['display_unit'])}")
-        if v["type"] != "Boolean":
+        if v["type"] not in ("Boolean", "String"):
             for key in ("min", "max"):
                 if key in v:
                     tattrs.append(f'{key}="{_num(v[key])}"')
         if v["causality"] in ("parameter", "input"):
-            tattrs.append(f'start="{_num(v["start"])}"')
+            start = v["start"]
+            tattrs.append(f"start={quoteattr(start)}" if v["type"] == "String" else f'start="{_num(start)}"')
         x.append(f"      <{v['type']} {' '.join(tattrs)}/>".replace("  />", " />"))
         x.append("    </ScalarVariable>")
     x.append("  </ModelVariables>")
@@ -495,6 +515,9 @@ def generate_xml3(t: dict) -> str:
     for v in variables:
         # The fmi3 face has no fmi3Get/SetInt64 (FMI 3.0's access to an
         # Enumeration) and a Co-Simulation FMU exposes no continuous states.
+        if v["type"] == "String":
+            raise TableError(f"{m['name']}: variable {v['name']!r}: the FMI 3.0 build takes no String "
+                             "variables (fmi3Get/SetString not provided); build this model as FMI 2.0 only")
         if v["type"] == "Enumeration":
             raise TableError(f"{m['name']}: variable {v['name']!r}: the FMI 3.0 build takes no Enumeration "
                              "variables (fmi3Get/SetInt64 not provided); build this model as FMI 2.0 only")

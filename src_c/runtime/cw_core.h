@@ -58,6 +58,14 @@ fmi2Status cw_core_set_real(cw_instance *inst, const char *fn,
 fmi2Status cw_core_set_int(cw_instance *inst, const char *fn, cw_type type,
                            const unsigned vr[], size_t nvr, const void *value,
                            int as_bool);
+/* String values (FMI 2.0): the instance's own copies are handed out, valid
+ * until the variable next changes; a set copies every value. */
+fmi2Status cw_core_get_string(cw_instance *inst, const char *fn,
+                              const unsigned vr[], size_t nvr,
+                              const char *value[]);
+fmi2Status cw_core_set_string(cw_instance *inst, const char *fn,
+                              const unsigned vr[], size_t nvr,
+                              const char *const value[]);
 /* A type the models have no variables of: refused unless nvr == 0. */
 fmi2Status cw_core_no_such_type(cw_instance *inst, const char *fn,
                                 const char *type, const unsigned vr[],

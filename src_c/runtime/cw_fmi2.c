@@ -125,8 +125,7 @@ fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[],
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[],
                          size_t nvr, fmi2String value[]) {
-    (void)value;
-    return cw_core_no_such_type(INST, "fmi2GetString", "String", vr, nvr, 0);
+    return cw_core_get_string(INST, "fmi2GetString", vr, nvr, value);
 }
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[],
@@ -146,8 +145,7 @@ fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[],
 
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[],
                          size_t nvr, const fmi2String value[]) {
-    (void)value;
-    return cw_core_no_such_type(INST, "fmi2SetString", "String", vr, nvr, 1);
+    return cw_core_set_string(INST, "fmi2SetString", vr, nvr, value);
 }
 
 /* ------------------------------------------------------------------ */

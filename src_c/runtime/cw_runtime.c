@@ -124,13 +124,42 @@ static void *alloc(cw_instance *inst, size_t n, size_t size) {
     return inst->alloc_mem(n, size);
 }
 
-static void set_start_values(cw_instance *inst) {
+/* A fresh copy of head + tail (tail may be NULL), or NULL. */
+static char *join(cw_instance *inst, const char *head, const char *tail) {
+    const size_t a = strlen(head), b = tail ? strlen(tail) : 0;
+    char *s = inst->alloc_mem(a + b + 1, 1);
+    if (!s) return NULL;
+    memcpy(s, head, a);
+    if (b) memcpy(s + a, tail, b);
+    s[a + b] = '\0';
+    return s;
+}
+
+int cw_set_string(cw_instance *inst, unsigned vr, const char *head,
+                  const char *tail) {
+    char *s = join(inst, head ? head : "", tail);
+    if (!s) {
+        cw_log(inst, fmi2Error, "logStatusError",
+               "%s: out of memory for the String %s.", inst->model->name,
+               inst->model->vars[vr].name);
+        return 0;
+    }
+    if (inst->str[vr]) inst->free_mem(inst->str[vr]);
+    inst->str[vr] = s;
+    return 1;
+}
+
+/* Start values; 0 when a String's copy could not be made (logged). */
+static int set_start_values(cw_instance *inst) {
     const cw_model *m = inst->model;
+    int ok = 1;
     for (int k = 0; k < m->nvars; k++) {
         const cw_var_info *v = &m->vars[k];
         if (!v->name) continue;
         if (v->type == CW_REAL)
             inst->r[k] = v->start;
+        else if (v->type == CW_STRING)
+            ok &= cw_set_string(inst, (unsigned)k, v->start_string, NULL);
         else
             inst->i[k] = (int32_t)v->start;
         inst->in_d1[k] = inst->in_d2[k] = 0.0;
@@ -144,6 +173,7 @@ static void set_start_values(cw_instance *inst) {
     inst->stop_time_defined = 0;
     inst->outputs_dirty = 1;
     inst->terminate_requested = 0;
+    return ok;
 }
 
 static void refresh_outputs(cw_instance *inst) {
@@ -236,22 +266,31 @@ cw_instance *cw_core_instantiate(const cw_instance *proto, const char *fn,
     inst->in_tref = alloc(inst, nv, sizeof(double));
     inst->s = alloc(inst, CW_MODEL.n_real_state, sizeof(double));
     inst->u = alloc(inst, CW_MODEL.n_uint_state, sizeof(uint64_t));
+    inst->str = alloc(inst, nv, sizeof(char *));
+    if (inst->str)
+        for (int k = 0; k < nv; k++) inst->str[k] = NULL;
     if (!inst->instance_name || !inst->r || !inst->i || !inst->in_d1 ||
-        !inst->in_d2 || !inst->in_tref || !inst->s || !inst->u) {
+        !inst->in_d2 || !inst->in_tref || !inst->s || !inst->u || !inst->str) {
         cw_log(&tmp, fmi2Error, "logStatusError", "%s: out of memory.", fn);
         cw_core_free_instance(inst);
         return NULL;
     }
     memcpy(inst->instance_name, instance_name, len);
     inst->state = CW_INSTANTIATED;
-    set_start_values(inst);
+    if (!set_start_values(inst)) {
+        cw_core_free_instance(inst);
+        return NULL;
+    }
     return inst;
 }
 
 void cw_core_free_instance(cw_instance *inst) {
     if (!inst) return;
     void (*free_mem)(void *) = inst->free_mem;
-    void *blocks[] = {inst->r,     inst->i,       inst->in_d1, inst->in_d2,
+    if (inst->str)
+        for (int k = 0; k < inst->model->nvars; k++)
+            if (inst->str[k]) free_mem(inst->str[k]);
+    void *blocks[] = {inst->str, inst->r,     inst->i,       inst->in_d1, inst->in_d2,
                       inst->in_tref, inst->s,     inst->u,
                       inst->instance_name, inst->scratch};
     for (size_t k = 0; k < sizeof blocks / sizeof *blocks; k++)
@@ -317,7 +356,10 @@ fmi2Status cw_core_terminate(cw_instance *inst, const char *fn) {
 
 fmi2Status cw_core_reset(cw_instance *inst, const char *fn) {
     if (!allowed(inst, fn, ANY_OPEN_STATE)) return fmi2Error;
-    set_start_values(inst);
+    if (!set_start_values(inst)) {
+        inst->state = CW_ERROR;
+        return fmi2Error;
+    }
     inst->state = CW_INSTANTIATED;
     return fmi2OK;
 }
@@ -551,6 +593,81 @@ fmi2Status cw_core_set_int(cw_instance *inst, const char *fn, cw_type type,
 }
 
 
+fmi2Status cw_core_get_string(cw_instance *inst, const char *fn,
+                              const unsigned vr[], size_t nvr,
+                              const char *value[]) {
+    if (!allowed(inst, fn, READABLE_STATES)) return fmi2Error;
+    if (nvr > 0 && (!vr || !value)) {
+        cw_log(inst, fmi2Error, "logStatusError",
+               "%s: vr or value is NULL with nvr = %zu.", fn, nvr);
+        return fmi2Error;
+    }
+    if (inst->state == CW_INIT_MODE && inst->outputs_dirty &&
+        inst->model->initialize)
+        inst->model->initialize(inst);
+    if (!outputs_finite(inst, fn)) return fmi2Error;
+    for (size_t k = 0; k < nvr; k++) {
+        const cw_var_info *v = var(inst, vr[k]);
+        if (!v || v->type != CW_STRING) {
+            cw_log(inst, fmi2Error, "logStatusError",
+                   "%s: %u is not the value reference of a String variable "
+                   "of %s.",
+                   fn, (unsigned)vr[k], inst->model->name);
+            return fmi2Error;
+        }
+        value[k] = inst->str[vr[k]];
+    }
+    return fmi2OK;
+}
+
+fmi2Status cw_core_set_string(cw_instance *inst, const char *fn,
+                              const unsigned vr[], size_t nvr,
+                              const char *const value[]) {
+    if (!allowed(inst, fn, SETTABLE_STATES)) return fmi2Error;
+    if (nvr > 0 && (!vr || !value)) {
+        cw_log(inst, fmi2Error, "logStatusError",
+               "%s: vr or value is NULL with nvr = %zu.", fn, nvr);
+        return fmi2Error;
+    }
+    for (size_t k = 0; k < nvr; k++) {
+        const cw_var_info *v = var(inst, vr[k]);
+        if (!v || v->type != CW_STRING) {
+            cw_log(inst, fmi2Error, "logStatusError",
+                   "%s: %u is not the value reference of a String variable "
+                   "of %s.",
+                   fn, (unsigned)vr[k], inst->model->name);
+            return fmi2Error;
+        }
+        if (!settable(inst, v, fn)) return fmi2Error;
+        if (!value[k]) {
+            cw_log(inst, fmi2Error, "logStatusError",
+                   "%s: the value of %s is NULL: expected a string.", fn,
+                   v->name);
+            inst->state = CW_ERROR;
+            return fmi2Error;
+        }
+    }
+    /* Copy every value first, so that running out of memory changes
+     * nothing; then give up the old copies. */
+    char **copies = alloc(inst, nvr, sizeof(char *));
+    if (!copies) return fail(inst, "%s: out of memory.", fn);
+    size_t made = 0;
+    for (; made < nvr; made++)
+        if (!(copies[made] = join(inst, value[made], NULL))) break;
+    if (made < nvr) {
+        for (size_t k = 0; k < made; k++) inst->free_mem(copies[k]);
+        inst->free_mem(copies);
+        return fail(inst, "%s: out of memory.", fn);
+    }
+    int tunable = 0;
+    for (size_t k = 0; k < nvr; k++) {
+        if (inst->str[vr[k]]) inst->free_mem(inst->str[vr[k]]);
+        inst->str[vr[k]] = copies[k];
+        if (inst->model->vars[vr[k]].causality != CW_INPUT) tunable = 1;
+    }
+    inst->free_mem(copies);
+    return after_set(inst, tunable);
+}
 
 /* ------------------------------------------------------------------ */
 /* FMU state: one flat, versioned byte layout for get/set and serialize */
@@ -585,16 +702,35 @@ static uint64_t state_checksum(const unsigned char *p, size_t n) {
     return fnv1a(p + k, n - k, h);
 }
 
-static size_t state_size(const cw_model *m) {
+static int has_strings(const cw_model *m) {
+    for (int k = 0; k < m->nvars; k++)
+        if (m->vars[k].name && m->vars[k].type == CW_STRING) return 1;
+    return 0;
+}
+
+/* The size of a state without its String section: the whole state of a
+ * model without String variables. */
+static size_t fixed_state_size(const cw_model *m) {
     size_t n = 4 + 4 + 8 + 4 + 4 + 8;
     for (int k = 0; k < m->nvars; k++) {
         const cw_var_info *v = &m->vars[k];
-        if (!v->name) continue;
+        if (!v->name || v->type == CW_STRING) continue;
         n += v->type == CW_REAL ? 8 : 4;
         if (v->type == CW_REAL && v->causality == CW_INPUT) n += 24;
     }
     n += 4 + 8 * (size_t)m->n_real_state + 4 + 8 * (size_t)m->n_uint_state;
     return n + 8;
+}
+
+/* The instance's state size: the fixed part and, for each String
+ * variable, u32 byte count and the bytes (no terminating NUL). */
+static size_t state_size(const cw_instance *inst) {
+    const cw_model *m = inst->model;
+    size_t n = fixed_state_size(m);
+    for (int k = 0; k < m->nvars; k++)
+        if (m->vars[k].name && m->vars[k].type == CW_STRING)
+            n += 4 + strlen(inst->str[k]);
+    return n;
 }
 
 /* Explicit little-endian encoding, independent of the host's layout. */
@@ -638,7 +774,7 @@ static void encode_state(const cw_instance *inst, unsigned char *buf,
     put_f64(&p, inst->time);
     for (int k = 0; k < m->nvars; k++) {
         const cw_var_info *v = &m->vars[k];
-        if (!v->name) continue;
+        if (!v->name || v->type == CW_STRING) continue;
         if (v->type == CW_REAL) {
             put_f64(&p, inst->r[k]);
             if (v->causality == CW_INPUT) {
@@ -654,6 +790,13 @@ static void encode_state(const cw_instance *inst, unsigned char *buf,
     for (int k = 0; k < m->n_real_state; k++) put_f64(&p, inst->s[k]);
     put_u32(&p, (uint32_t)m->n_uint_state);
     for (int k = 0; k < m->n_uint_state; k++) put_u64(&p, inst->u[k]);
+    for (int k = 0; k < m->nvars; k++) {
+        if (!m->vars[k].name || m->vars[k].type != CW_STRING) continue;
+        const size_t len = strlen(inst->str[k]);
+        put_u32(&p, (uint32_t)len);
+        memcpy(p, inst->str[k], len);
+        p += len;
+    }
     put_u64(&p, state_checksum(buf, (size_t)(p - buf)));
 }
 
@@ -662,11 +805,13 @@ static void encode_state(const cw_instance *inst, unsigned char *buf,
 static fmi2Status decode_state(cw_instance *inst, const unsigned char *buf,
                                size_t size, const char *fn) {
     const cw_model *m = inst->model;
-    size_t expected = state_size(m);
+    const size_t fixed = fixed_state_size(m);
+    const int strings = has_strings(m);
     if (!buf) return fail(inst, "%s: the state is NULL.", fn);
-    if (size != expected)
-        return fail(inst, "%s: the state has %zu bytes; %s expects %zu.", fn,
-                    size, m->name, expected);
+    if (strings ? size < fixed : size != fixed)
+        return fail(inst, "%s: the state has %zu bytes; %s expects %s%zu.", fn,
+                    size, m->name, strings ? "at least " : "", fixed);
+    const size_t expected = size;
     const unsigned char *p = buf;
     uint32_t magic = get_u32(&p), version = get_u32(&p);
     uint64_t guid_hash = get_u64(&p);
@@ -681,7 +826,7 @@ static fmi2Status decode_state(cw_instance *inst, const unsigned char *buf,
         return fail(inst, "%s: the state belongs to another model, not %s.", fn,
                     m->name);
     if (stored_size != expected)
-        return fail(inst, "%s: the state header says %u bytes, expected %zu.",
+        return fail(inst, "%s: the state header says %u bytes, given %zu.",
                     fn, stored_size, expected);
     const unsigned char *end = buf + size - 8;
     const unsigned char *q = end;
@@ -703,7 +848,7 @@ static fmi2Status decode_state(cw_instance *inst, const unsigned char *buf,
     const unsigned char *values = p;
     for (int k = 0; k < m->nvars; k++) {
         const cw_var_info *v = &m->vars[k];
-        if (!v->name) continue;
+        if (!v->name || v->type == CW_STRING) continue;
         if (v->type == CW_REAL) {
             double x = get_f64(&p);
             if (!isfinite(x))
@@ -735,6 +880,22 @@ static fmi2Status decode_state(cw_instance *inst, const unsigned char *buf,
                         fn, k);
     if (get_u32(&p) != (uint32_t)m->n_uint_state)
         return fail(inst, "%s: the state has the wrong counter count.", fn);
+    /* The String section: each count within the buffer, no NUL inside, and
+     * nothing after the last one. */
+    const unsigned char *sp = buf + fixed - 8;
+    for (int k = 0; k < m->nvars; k++) {
+        if (!m->vars[k].name || m->vars[k].type != CW_STRING) continue;
+        if ((size_t)(end - sp) < 4)
+            return fail(inst, "%s: the state ends inside its Strings.", fn);
+        const uint32_t len = get_u32(&sp);
+        if ((size_t)(end - sp) < len || memchr(sp, 0, len))
+            return fail(inst, "%s: the state's String %s is not %u bytes of "
+                        "text.", fn, m->vars[k].name, (unsigned)len);
+        sp += len;
+    }
+    if (sp != end)
+        return fail(inst, "%s: the state has %zu bytes after its Strings.", fn,
+                    (size_t)(end - sp));
 
     /* Everything checked: commit. */
     p = values;
@@ -742,7 +903,7 @@ static fmi2Status decode_state(cw_instance *inst, const unsigned char *buf,
     inst->time = t;
     for (int k = 0; k < m->nvars; k++) {
         const cw_var_info *v = &m->vars[k];
-        if (!v->name) continue;
+        if (!v->name || v->type == CW_STRING) continue;
         if (v->type == CW_REAL) {
             inst->r[k] = get_f64(&p);
             if (v->causality == CW_INPUT) {
@@ -811,8 +972,44 @@ static fmi2Status restore_state(cw_instance *inst, const unsigned char *buf,
             st = fmi2Error;
         }
     }
+    /* The state's Strings, copied before anything changes (decode_state
+     * checked the section). */
+    char **strings = NULL;
+    const int with_strings = has_strings(m);
+    if (st == fmi2OK && commit && with_strings &&
+        (strings = alloc(inst, m->nvars, sizeof(char *)))) {
+        const unsigned char *sp = buf + fixed_state_size(m) - 8;
+        for (int k = 0; k < m->nvars; k++) {
+            strings[k] = NULL;
+            if (!m->vars[k].name || m->vars[k].type != CW_STRING) continue;
+            const uint32_t len = get_u32(&sp);
+            if (!(strings[k] = inst->alloc_mem((size_t)len + 1, 1))) {
+                st = fmi2Error;
+                break;
+            }
+            memcpy(strings[k], sp, len);
+            strings[k][len] = '\0';
+            sp += len;
+        }
+    } else if (st == fmi2OK && commit && with_strings) {
+        cw_log(inst, fmi2Error, "logStatusError", "%s: out of memory.", fn);
+        st = fmi2Error;
+    }
+    if (strings && st != fmi2OK) {
+        cw_log(inst, fmi2Error, "logStatusError", "%s: out of memory.", fn);
+        for (int k = 0; k < m->nvars; k++)
+            if (strings[k]) inst->free_mem(strings[k]);
+        inst->free_mem(strings);
+        strings = NULL;
+    }
     if (st == fmi2OK && commit) {
         const size_t nv = (size_t)m->nvars;
+        for (int k = 0; strings && k < m->nvars; k++)
+            if (strings[k]) {
+                if (inst->str[k]) inst->free_mem(inst->str[k]);
+                inst->str[k] = strings[k];
+            }
+        if (strings) inst->free_mem(strings);
         memcpy(inst->r, probe.r, nv * sizeof(double));
         memcpy(inst->i, probe.i, nv * sizeof(int32_t));
         memcpy(inst->in_d1, probe.in_d1, nv * sizeof(double));
@@ -840,7 +1037,7 @@ fmi2Status cw_core_get_state(cw_instance *inst, const char *fn, void **state) {
     if (!state) return fail(inst, "%s: FMUstate is NULL.", fn);
     /* A state with non-finite outputs could never be restored. */
     if (!outputs_finite(inst, fn)) return fmi2Error;
-    size_t size = state_size(inst->model);
+    size_t size = state_size(inst);
     cw_state_blob *blob = (cw_state_blob *)*state;
     if (blob && blob->size != size) {
         inst->free_mem(blob);
@@ -898,10 +1095,6 @@ fmi2Status cw_core_deserialize(cw_instance *inst, const char *fn,
     if (!buf || !state) return fail(inst, "%s: NULL argument.", fn);
     /* Check it whole now, so that a bad buffer is refused here rather than
      * when the state is set. */
-    size_t expected = state_size(inst->model);
-    if (size != expected)
-        return fail(inst, "%s: %zu bytes given; %s expects %zu.", fn, size,
-                    inst->model->name, expected);
     if (restore_state(inst, buf, size, fn, 0) != fmi2OK) return fmi2Error;
     cw_state_blob *blob = inst->alloc_mem(1, sizeof(cw_state_blob) + size);
     if (!blob) return fail(inst, "%s: out of memory.", fn);

@@ -29,7 +29,12 @@ typedef enum {
 } fmi2Status;
 #endif
 
-typedef enum { CW_REAL = 0, CW_INTEGER = 1, CW_BOOLEAN = 2 } cw_type;
+typedef enum {
+    CW_REAL = 0,
+    CW_INTEGER = 1,
+    CW_BOOLEAN = 2,
+    CW_STRING = 3 /* FMI 2.0 only: the FMI 3.0 build takes none */
+} cw_type;
 
 typedef enum {
     CW_PARAMETER = 0,
@@ -56,6 +61,7 @@ typedef struct {
     double max; /* +HUGE_VAL when unbounded */
     int max_derivative_order;
     int event_indicator;
+    const char *start_string; /* a String's start value (NULL: "") */
 } cw_var_info;
 
 /* States of the Co-Simulation state machine. FMI 2.0's StepComplete is
@@ -168,6 +174,10 @@ typedef struct cw_instance {
     /* Set by a model whose do_step returns fmi2Discard to end the
      * simulation: fmi2GetBooleanStatus(fmi2Terminated) says so. */
     int terminate_requested;
+
+    /* String values by value reference (NULL for other types): owned by
+     * the instance, copied on every set, freed on reset and free. */
+    char **str;
 } cw_instance;
 
 /* Value of input `vr` at time t, following the input derivatives. */
@@ -175,6 +185,12 @@ double cw_input(const cw_instance *inst, unsigned vr, double t);
 
 /* Time derivative of input `vr` at time t. */
 double cw_input_rate(const cw_instance *inst, unsigned vr, double t);
+
+/* Set String variable `vr` to head followed by tail (tail may be NULL):
+ * a copy the instance owns. Returns 0 after logging when out of memory,
+ * leaving the old value. */
+int cw_set_string(cw_instance *inst, unsigned vr, const char *head,
+                  const char *tail);
 
 /* Log through the environment's logger; category "logStatusError" etc. */
 void cw_log(cw_instance *inst, fmi2Status status, const char *category,

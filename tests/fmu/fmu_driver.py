@@ -206,7 +206,8 @@ class Instance:
         worst = OK
         by_type: dict[str, list] = {}
         for name, value in values.items():
-            by_type.setdefault(self.vars[name].type, []).append((self.vars[name].valueReference, value))
+            typ = "Integer" if self.vars[name].type == "Enumeration" else self.vars[name].type
+            by_type.setdefault(typ, []).append((self.vars[name].valueReference, value))
         for typ, items in by_type.items():
             n = len(items)
             vrs = (ctypes.c_uint * n)(*[vr for vr, _ in items])
@@ -219,6 +220,9 @@ class Instance:
             elif typ == "Boolean":
                 vals = (ctypes.c_int * n)(*[1 if x else 0 for _, x in items])
                 st = self.raw.fmi2SetBoolean(self.c, vrs, n, vals)
+            elif typ == "String":
+                vals = (ctypes.c_char_p * n)(*[None if x is None else x.encode() for _, x in items])
+                st = self.raw.fmi2SetString(self.c, vrs, n, vals)
             else:
                 raise TypeError(f"cannot set {typ} variables")
             worst = max(worst, st)
@@ -232,8 +236,9 @@ class Instance:
     def get_many(self, names: Iterable[str]) -> list:
         names = list(names)
         out = [None] * len(names)
-        for typ in ("Real", "Integer", "Boolean"):
-            idx = [k for k, nm in enumerate(names) if self.vars[nm].type == typ]
+        for typ in ("Real", "Integer", "Boolean", "String"):
+            idx = [k for k, nm in enumerate(names)
+                   if ("Integer" if self.vars[nm].type == "Enumeration" else self.vars[nm].type) == typ]
             if not idx:
                 continue
             n = len(idx)
@@ -241,13 +246,16 @@ class Instance:
             if typ == "Real":
                 vals = (ctypes.c_double * n)()
                 st = self.raw.fmi2GetReal(self.c, vrs, n, vals)
+            elif typ == "String":
+                vals = (ctypes.c_char_p * n)()
+                st = self.raw.fmi2GetString(self.c, vrs, n, vals)
             else:
                 vals = (ctypes.c_int * n)()
                 fn = self.raw.fmi2GetInteger if typ == "Integer" else self.raw.fmi2GetBoolean
                 st = fn(self.c, vrs, n, vals)
             self.check(st, f"fmi2Get{typ}")
             for j, k in enumerate(idx):
-                out[k] = bool(vals[j]) if typ == "Boolean" else vals[j]
+                out[k] = bool(vals[j]) if typ == "Boolean" else vals[j].decode() if typ == "String" else vals[j]
         return out
 
     def set_input_derivatives(self, values: dict[str, dict[int, float]]) -> int:

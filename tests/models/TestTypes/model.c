@@ -1,6 +1,6 @@
-/* TestTypes: y = p + u for every variable type the runtime stores, and a
- * state x with dx/dt = u_real whose output depends on x alone (a test FMU:
- * tests/test_generic_fmu.py). */
+/* TestTypes: y = p + u for every variable type the runtime stores (y_str:
+ * p_str followed by u_str), and a state x with dx/dt = u_real whose output
+ * depends on x alone (a test FMU: tests/test_generic_fmu.py). */
 #include <math.h>
 
 #include "cw_runtime.h"
@@ -12,6 +12,8 @@ static void calc_outputs(cw_instance *inst) {
     I(y_int) = I(p_int) + I(u_int);
     I(y_bool) = (I(p_bool) != 0) != (I(u_bool) != 0);
     I(y_enum) = I(p_enum) > I(u_enum) ? I(p_enum) : I(u_enum);
+    /* Out of memory is logged; the old text stays. */
+    cw_set_string(inst, VR_y_str, S(p_str), S(u_str));
     R(y_mm) = IN(u_mm, t);
     R(y_k) = IN(u_k, t);
     R(y_state) = R(x);
