@@ -211,3 +211,33 @@ def test_fmi3_dependencies_are_value_references():
                                                              "temperature")]
     # The torques act through the inertia, which the air's inputs change.
     assert a.get("dependenciesKind").split() == ["dependent"] * 8
+
+
+STRING_VARIABLE = ('\n[[variable]]\nname = "label"\nvr = 30\ntype = "String"\ncausality = "parameter"\n'
+                   'variability = "tunable"\nstart = "a \\"b\\" \\\\ é & <c>"\ndescription = "text"\n')
+
+
+def test_strings_are_written_escaped_and_fmi2_only(drag, tmp_path, capsys):
+    with open(drag / "model.toml", "a") as fh:
+        fh.write(STRING_VARIABLE)
+    assert fmugen.main([str(drag), str(tmp_path / "gen"), "--fmi2-only"]) == 0
+    header = (tmp_path / "gen" / "cw_vars.h").read_text()
+    assert r'CW_STRING, CW_PARAMETER, CW_TUNABLE, 0, -HUGE_VAL, HUGE_VAL, 0, 0, "a \"b\" \\ \303\251 & <c>"}' in header
+    import fmpy
+
+    md = fmpy.read_model_description(str(tmp_path / "gen" / "modelDescription.xml"))
+    label = next(v for v in md.modelVariables if v.name == "label")
+    assert (label.type, label.start) == ("String", 'a "b" \\ é & <c>')
+    assert fmugen.main([str(drag), str(tmp_path / "gen3")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no String variables" in err and "FMI 2.0 only" in err
+
+
+@pytest.mark.parametrize("extra", ['min = 0\n', 'unit = "m"\n', None])
+def test_a_string_with_a_range_unit_or_number_start_is_refused(drag, extra):
+    text = STRING_VARIABLE + (extra or "")
+    if extra is None:
+        text = text.replace('start = "a', 'start = 1\n#"a')
+    with open(drag / "model.toml", "a") as fh:
+        fh.write(text)
+    _refused(drag, "label", "a String takes a text start value")
