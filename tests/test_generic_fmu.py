@@ -255,13 +255,32 @@ def test_compiled_asked_for_discrete_links_is_refused_at_validation(capsys, tmp_
 
 @pytest.mark.parametrize("link, detail", [
     ("a.y_int -> b.u_bool", "type mismatch: a.y_int is Integer, b.u_bool is Boolean"),
-    ("a.y_enum -> b.u_int", "type mismatch: a.y_enum is Enumeration, b.u_int is Integer"),
+    ("a.y_str -> b.u_int", "type mismatch: a.y_str is String, b.u_int is Integer"),
+    ("a.y_bool -> b.u_enum", "type mismatch: a.y_bool is Boolean, b.u_enum is Enumeration"),
     ("a.y_real -> b.u_enum", "type mismatch: a.y_real is Real, b.u_enum is Enumeration"),
 ])
 def test_a_connection_of_two_types_is_refused_at_validation(capsys, tmp_path, link, detail):
     f = _scene(tmp_path, TYPES_SCENE.replace(TYPES_SCENE.splitlines()[1], f'connections = ["{link}"]'))
     rc, _, err = run_cli(capsys, ["validate", f])
     assert_one_line_error(rc, err, str(f), "connections[0]", detail)
+
+
+ENUM_INT_SCENE = TYPES_SCENE.replace(TYPES_SCENE.splitlines()[1],
+                                    'connections = ["a.y_int -> b.u_enum", "a.y_enum -> b.u_int"]')
+
+
+@pytest.mark.parametrize("engine", ["auto", "python"])
+def test_integers_and_enumerations_connect_both_ways(capsys, tmp_path, engine):
+    # An Enumeration's value is an integer; SSP leaves mixed types to the tool.
+    f = _scene(tmp_path, ENUM_INT_SCENE.replace("p_int = 5", "p_int = 2"))
+    rc, out, err = _run(capsys, tmp_path, f, engine=engine)
+    assert rc == 0, err
+    cols = _csv(out)
+    assert set(cols["b.y_enum"]) == {"2.0"}  # max(b.p_enum = 1, a.y_int = 2 + 0)
+    assert set(cols["b.y_int"]) == {"2.0"}  # b.p_int + a.y_enum = -1 + 3
+    # An integer that is no item of the Enumeration: the FMU refuses it, a failed run.
+    rc, out, err = _run(capsys, tmp_path, _scene(tmp_path, ENUM_INT_SCENE), engine=engine)
+    assert rc == 1 and "u_enum = 5" in err and "[1, 3]" in err, err
 
 
 @pytest.mark.parametrize("setting, expected", [

@@ -439,3 +439,25 @@ def test_set_chooses_another_analysis_for_an_ssp(tmp_path):
     s = load_scene(d / "SystemStructure.ssd", ['analysis.kind="ticks"'])
     assert s.analysis == {"kind": "ticks"} and s.plots == ()
     assert load_scene(d / "SystemStructure.ssd").analysis == {"kind": "time_series"}
+
+
+def test_integer_and_enumeration_connectors_connect_both_ways(tmp_path, capsys):
+    """SSP leaves connections of different types to the tool; an
+    Enumeration's value is an integer, so both directions are taken (as
+    OMSimulator's acvs_compositeModel needs)."""
+    fmu = BUILD_DIR / "test-fmus" / "TestTypes.fmu"
+    d = tmp_path / "types"
+    shutil.copytree(DATA / "types", d)
+    shutil.copy(fmu, d / "resources" / "TestTypes.fmu")
+    ssd = d / "SystemStructure.ssd"
+    text = ssd.read_text()
+    plain = '<ssd:Connection startElement="a" startConnector="y_int" endElement="b" endConnector="u_int"/>'
+    assert plain in text
+    ssd.write_text(text.replace(plain, plain.replace("y_int", "y_enum")))
+    out = tmp_path / "run"
+    run_ok(capsys, ssd, "--out", out, "--set", 'record.outputs=["b.y_int"]', "--set", 'master.engine="python"')
+    assert series(out)["b.y_int"][-1] == -3 + 3  # b.p_int + a.y_enum (high)
+    ssd.write_text(text.replace(plain, plain.replace("u_int", "u_enum")).replace(
+        '<ssd:Connection startElement="a" startConnector="y_enum" endElement="b" endConnector="u_enum"/>', ""))
+    s = load_scene(ssd)
+    assert {(c.src_var, c.dst_var) for c in s.connections} >= {("y_int", "u_enum")}

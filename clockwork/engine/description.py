@@ -277,6 +277,18 @@ def variables(md) -> dict:
     return cache
 
 
+# An Enumeration's value is an integer (FMI 2.0 passes it through
+# fmi2Get/SetInteger), and SSP leaves connections of different types to the
+# tool: an Integer and an Enumeration may be connected either way. The
+# receiving FMU refuses a value outside its type's items.
+_CONNECTABLE = {frozenset({"Integer", "Enumeration"})}
+
+
+def types_connect(output_type: str, input_type: str) -> bool:
+    """Whether an output of one FMI type may feed an input of the other."""
+    return output_type == input_type or frozenset({output_type, input_type}) in _CONNECTABLE
+
+
 def var_unit(v) -> str | None:
     """A variable's unit (its declared type's when it has none), or None."""
     u = v.unit or (v.declaredType.unit if v.declaredType is not None else None)

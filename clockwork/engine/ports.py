@@ -14,6 +14,7 @@ import math
 from ctypes import c_double, c_int, c_uint
 
 from ..errors import SceneError, SimulationError
+from .description import types_connect
 from .fmu import WARNING, Instance
 from .wiring import Link, Wiring
 
@@ -89,10 +90,11 @@ class Port:
 
 
 def link_type(instances: dict[str, Instance], link: Link) -> str:
-    """The FMI type of a link's two ends; SceneError (bad input) where they differ."""
+    """The FMI type of a link's two ends (the output's); SceneError (bad
+    input) where they cannot be connected."""
     a = instances[link.src].variables[link.output].type
     b = instances[link.dst].variables[link.input].type
-    if a != b:
+    if not types_connect(a, b):
         raise SceneError(f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: type mismatch, "
                          f"{link.src}.{link.output} is {a}, {link.dst}.{link.input} is {b}")
     return a

@@ -21,7 +21,7 @@ import tomllib
 from pathlib import Path
 
 from ..engine import compiled
-from ..engine.description import FmuError, read_fmu, resolve_fmu, var_unit
+from ..engine.description import FmuError, read_fmu, resolve_fmu, types_connect, var_unit
 from ..engine.description import variables as variables_of
 from ..engine.fmu3 import make_instance
 from ..engine.names import instance_name_problem, split_link, split_ref
@@ -363,7 +363,7 @@ def _connections(ctx: Ctx, conns, components: dict[str, Component],
     # Structure first (names, directions, duplicates), then types and units.
     notes = []
     for key, si, sv, di, dv, sc, s, dc, d in checked:
-        if s.type != d.type:
+        if not types_connect(s.type, d.type):
             raise ctx.fail(key, f"type mismatch: {si}.{sv} is {s.type}, {di}.{dv} is {d.type}")
         su, du = var_unit(s), var_unit(d)
         factor, offset = 1.0, 0.0

@@ -35,7 +35,7 @@ import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ...engine.description import FmuError, read_fmu, var_unit
+from ...engine.description import FmuError, read_fmu, types_connect, var_unit
 from ...engine.description import variables as variables_of
 from ...errors import SceneError
 from ..checks import Ctx, convert_value
@@ -399,8 +399,7 @@ class _Reader:
 
     def _chain(self, chain, src_var, dst_var) -> tuple[float, float]:
         """The factor and offset of a chain of connections in data-flow order."""
-        # strict, as the engine's links are (an Integer into an Enumeration is refused too)
-        if src_var is not None and src_var.type != dst_var.type:
+        if src_var is not None and not types_connect(src_var.type, dst_var.type):
             e = chain[-1][0]
             raise e.doc.fail(e.el, f"type mismatch: the source is {src_var.type}, the input {dst_var.type}")
         factor, offset = 1.0, 0.0
