@@ -265,6 +265,18 @@ def test_a_connection_of_two_types_is_refused_at_validation(capsys, tmp_path, li
     assert_one_line_error(rc, err, str(f), "connections[0]", detail)
 
 
+@pytest.mark.parametrize("axis", ["y", "x"])
+def test_a_plot_of_a_string_column_is_refused_at_validation(capsys, tmp_path, axis):
+    plot = {"y": '["a.y_real", "b.y_str"]', "x": '"b.y_str"'}[axis]
+    other = {"y": 'x = "time"', "x": 'y = ["a.y_real"]'}[axis]
+    f = _scene(tmp_path, TYPES_SCENE + '[record]\noutputs = ["a.y_real", "b.y_str"]\n'
+               f'[[plot]]\nkind = "time_series"\n{axis} = {plot}\n{other}\n')
+    for cmd in (["validate", f], ["run", f, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, cmd)
+        assert_one_line_error(rc, err, str(f), f"plot[0].{axis}", "b.y_str is a String")
+    assert not (tmp_path / "out").exists()
+
+
 ENUM_INT_SCENE = TYPES_SCENE.replace(TYPES_SCENE.splitlines()[1],
                                     'connections = ["a.y_int -> b.u_enum", "a.y_enum -> b.u_int"]')
 

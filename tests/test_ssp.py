@@ -461,3 +461,60 @@ def test_integer_and_enumeration_connectors_connect_both_ways(tmp_path, capsys):
         '<ssd:Connection startElement="a" startConnector="y_enum" endElement="b" endConnector="u_enum"/>', ""))
     s = load_scene(ssd)
     assert {(c.src_var, c.dst_var) for c in s.connections} >= {("y_int", "u_enum")}
+
+
+TRANSFORMED_SCENE = """
+connections = ["a.y_real -> b.u_mm", "a.y_int -> b.u_int", "a.y_enum -> b.u_enum", "a.y_str -> b.u_str",
+               "a.y_bool -> b.u_bool"]
+[scene]
+title = "converted"
+[components.a]
+fmu = "{types}"
+parameters = {{ p_real = 1.25, p_enum = "high", p_str = "tick" }}
+[components.b]
+fmu = "{types}"
+[experiment]
+stop = 0.5
+[master]
+step = 0.1
+[record]
+outputs = ["b.y_mm", "b.y_int", "b.y_enum", "b.y_str", "b.y_bool"]
+"""
+
+
+def test_an_exported_transformation_runs_back_to_the_same_bits(tmp_path, capsys):
+    """A unit conversion (m -> mm) and an SSD's ssc:LinearTransformation are
+    written as the link's whole factor and offset with suppressUnitConversion;
+    Enumeration and String connectors are written too; fmpy's schema
+    validation accepts the archive."""
+    from fmpy.ssp.ssd import read_ssd
+
+    toml = tmp_path / "converted.toml"
+    toml.write_text(TRANSFORMED_SCENE.format(types=BUILD_DIR / "test-fmus" / "TestTypes.fmu"))
+    ssp = tmp_path / "converted.ssp"
+    rc, _, err = run_cli(capsys, ["export-ssp", toml, "--out", ssp])
+    assert rc == 0, err
+    read_ssd(str(ssp), validate=True)
+    with zipfile.ZipFile(ssp) as z:
+        root = etree.fromstring(z.read("SystemStructure.ssd"))
+    [mm] = [c for c in root.iter("{*}Connection") if c.get("endConnector") == "u_mm"]
+    assert mm.get("suppressUnitConversion") == "true"
+    assert [(t.get("factor"), t.get("offset")) for t in mm] == [("1000.0", "0.0")]
+    assert not any(len(c) for c in root.iter("{*}Connection") if c.get("endConnector") != "u_mm")
+    types = {c.get("name"): etree.QName(c[0]).localname for c in root.iter("{*}Connector")}
+    assert types["u_enum"] == "Enumeration" and types["y_str"] == "String"
+    for engine in ("python", "auto"):
+        run_ok(capsys, toml, "--out", tmp_path / f"toml_{engine}", "--set", f'master.engine="{engine}"')
+        run_ok(capsys, ssp, "--out", tmp_path / f"ssp_{engine}", "--set", f'master.engine="{engine}"')
+        csv = (tmp_path / f"toml_{engine}" / "timeseries.csv").read_bytes()
+        assert (tmp_path / f"ssp_{engine}" / "timeseries.csv").read_bytes() == csv
+        assert b"1250.0" in csv and b"tick" in csv  # 1.25 m in mm; the String passed on
+    # An SSD's own transformation (factor 2, offset 0.5) and unit conversion, exported and read back.
+    d = tmp_path / "types"
+    shutil.copytree(DATA / "types", d)
+    shutil.copy(BUILD_DIR / "test-fmus" / "TestTypes.fmu", d / "resources" / "TestTypes.fmu")
+    first = load_scene(d / "SystemStructure.ssd")
+    export_ssp(first, tmp_path / "again.ssp")
+    read_ssd(str(tmp_path / "again.ssp"), validate=True)
+    assert load_scene(tmp_path / "again.ssp").connections == first.connections
+    assert {(c.factor, c.offset) for c in first.connections} >= {(1000.0, 0.0), (2.0, 0.5)}

@@ -192,7 +192,12 @@ def _load_ssp(path: Path, overrides, kinds: Kinds) -> Scene:
     raw.setdefault("analysis", {"kind": "time_series"})  # --set analysis.kind=... may choose another
     series = isinstance(raw["analysis"], dict) and raw["analysis"].get("kind") == "time_series"
     if series and isinstance(outputs, list) and outputs and all(isinstance(o, str) for o in outputs):
-        raw["plot"] = [{"kind": "time_series", "x": "time", "y": outputs, "title": ssp.name, "file": "outputs.png"}]
+        # Strings are recorded as text, not drawn.
+        variables = {n: variables_of(c.model_description) for n, c in components.items()}
+        numbers = [o for o in outputs if _column_type(o, variables) != "String"]
+        if numbers:
+            raw["plot"] = [{"kind": "time_series", "x": "time", "y": numbers, "title": ssp.name,
+                            "file": "outputs.png"}]
     ctx = Ctx(path, labels)
     return _build(ctx, raw, tuple(applied), ssp.sha256, kinds, (components, ssp.connections))
 
@@ -237,7 +242,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     sweep = parse_sweep(ctx, ctx.table(raw, "sweep", ""), components, connected_inputs)
     plots = _plots(ctx, raw.get("plot", []), kinds)
     if (analysis or {}).get("kind", "time_series") == "time_series":
-        _check_series_plots(ctx, plots, record)
+        _check_series_plots(ctx, plots, record, components)
 
     scene = Scene(
         path=ctx.path,
@@ -486,15 +491,26 @@ def _analysis(ctx: Ctx, t: dict | None, kinds: Kinds) -> dict | None:
 _SERIES_PLOTS = ("time_series", "phase_portrait")
 
 
-def _check_series_plots(ctx: Ctx, plots: tuple[dict, ...], record: Record) -> None:
-    """A time series can only draw what [record] records: refuse a typo now, not after the run."""
+def _column_type(name: str, variables: dict) -> str | None:
+    """The FMI type of a recorded column "instance.variable" (None: not a variable)."""
+    split = split_ref(name, variables)
+    return None if split is None or split[1] not in variables[split[0]] else variables[split[0]][split[1]].type
+
+
+def _check_series_plots(ctx: Ctx, plots: tuple[dict, ...], record: Record, components: dict) -> None:
+    """A time series can only draw what [record] records, and numbers only:
+    refuse a typo or a String column now, not after the run."""
     recorded = {f"{inst}.{var}" for inst, var in record.outputs}
+    text = {f"{inst}.{var}" for inst, var in record.outputs if components[inst].variable(var).type == "String"}
     for i, spec in enumerate(plots):
         if spec["kind"] not in _SERIES_PLOTS:
             continue
         for key in ("x", "y"):
             names = spec.get(key)
             for name in [names] if isinstance(names, str) else names or []:
+                if name in text:
+                    raise ctx.fail(f"plot[{i}].{key}", f"{name} is a String: a plot draws numbers; record it "
+                                                       "without plotting it")
                 if name != "time" and name not in recorded:
                     close = difflib.get_close_matches(name, sorted(recorded), n=1)
                     hint = f" (did you mean {close[0]}?)" if close else ""

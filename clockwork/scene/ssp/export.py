@@ -147,8 +147,6 @@ def build_ssp(scene, point: dict | None = None) -> dict[str, bytes]:
         el = _sub(elements, "ssd", "Component", name=inst, type=FMU_TYPE, source=fmu_names[comp.sha256])
         connectors = []
         for v in md.modelVariables:
-            if v.type not in ("Real", "Integer", "Boolean"):
-                continue
             if v.causality == "output" or (v.causality == "input" and (inst, v.name) in connected_inputs):
                 connectors.append(v)
         if connectors:  # an empty ssd:Connectors is invalid
@@ -156,7 +154,8 @@ def build_ssp(scene, point: dict | None = None) -> dict[str, bytes]:
             for v in connectors:
                 c = _sub(cs, "ssd", "Connector", name=v.name, kind=v.causality)
                 unit = var_unit(v) if v.type == "Real" else None
-                _sub(c, "ssc", v.type, unit=unit)
+                declared = getattr(v.declaredType, "name", None) if v.type == "Enumeration" else None
+                _sub(c, "ssc", v.type, unit=unit, name=declared)
                 if unit:
                     used_units.setdefault(unit, md)
         params = []
@@ -172,8 +171,15 @@ def build_ssp(scene, point: dict | None = None) -> dict[str, bytes]:
     if scene.connections:
         conns = _sub(system, "ssd", "Connections")
         for c in scene.connections:
-            _sub(conns, "ssd", "Connection", startElement=c.src_instance, startConnector=c.src_var,
-                 endElement=c.dst_instance, endConnector=c.dst_var)
+            transformed = (c.factor, c.offset) != (1.0, 0.0)
+            # The link's whole factor and offset (a unit conversion folded in):
+            # written as they are, with the tools' own unit conversion off, so
+            # that every reader applies the very doubles the scene does.
+            el = _sub(conns, "ssd", "Connection", startElement=c.src_instance, startConnector=c.src_var,
+                      endElement=c.dst_instance, endConnector=c.dst_var,
+                      suppressUnitConversion="true" if transformed else None)
+            if transformed:
+                _sub(el, "ssc", "LinearTransformation", factor=_real(c.factor), offset=_real(c.offset))
 
     step = _real(scene.master.step)
     annotations = _sub(system, "ssd", "Annotations")
