@@ -280,3 +280,33 @@ def test_fmpy_ssp_run_with_the_torque_jump_input_is_graded(tmp_path, suite):
     checks = {c.what.split(" (")[0]: c for c in g.checks}
     assert not checks["switches"].ok and checks["switches"].worst > 0.02  # one to two steps late
     assert set(Path(tempfile.gettempdir()).glob("clockwork-kit-fmpy-*")) == before
+
+
+def test_signals_of_dotted_instances_are_split_by_the_names_resolver(tmp_path):
+    """Instances "clock" and "clock.pendulum": clock.pendulum.phi is phi of
+    clock.pendulum, clock.vibration_velocity an input of clock (a split at
+    the first dot would look for pendulum.phi in clock). The run gives the
+    plain case's numbers."""
+    import dataclasses
+
+    from clockwork.kit.cases import SCENES
+
+    plain = CASES["HoyngTorqueJump"]
+    text = (SCENES / "hoyng_jump.toml").read_text()
+    text = text.replace('"escapement.', '"clock.').replace('"pendulum.', '"clock.pendulum.')
+    text = text.replace("-> escapement.", "-> clock.").replace("-> pendulum.", "-> clock.pendulum.")
+    text = text.replace("[components.pendulum]", '[components."clock.pendulum"]')
+    text = text.replace("[components.escapement]", "[components.clock]")
+    (tmp_path / "dotted.toml").write_text(text)
+    short = plain.overrides[0], "experiment.stop=3.0"
+    a = read_result(run_clockwork(dataclasses.replace(plain, stop=3.0, overrides=short, jump=(1.5, *plain.jump[1:])),
+                                  tmp_path / "plain.csv"))
+    dotted = dataclasses.replace(
+        plain, scene=str(tmp_path / "dotted.toml"), stop=3.0, overrides=("clock." + short[0], short[1]),
+        tube_signals=("clock.pendulum.phi", "clock.pendulum.w"), switch_signal="clock.tau",
+        jump=(1.5, "clock.vibration_velocity", 0.0, 1.0))
+    b = read_result(run_clockwork(dotted, tmp_path / "dotted.csv"))
+    assert len(a.time) > 100 and np.array_equal(a.time, b.time)
+    for x, y in (("pendulum.phi", "clock.pendulum.phi"), ("pendulum.w", "clock.pendulum.w"),
+                 ("escapement.tau", "clock.tau")):
+        assert np.array_equal(a.columns[x], b.columns[y]), x

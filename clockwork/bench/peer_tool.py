@@ -16,6 +16,8 @@ import sys
 
 import numpy as np
 
+from clockwork.engine.names import split_ref
+
 
 def run_fmpy(ssp: str, steps: int, h: float, names: list[str]) -> dict:
     from fmpy.ssp.simulation import simulate_ssp
@@ -46,8 +48,13 @@ def run_libcosim(ssp: str, steps: int, h: float, names: list[str]) -> dict:
     obs = CosimObserver.create_last_value()
     ex.add_observer(obs)
     refs = []
+    slaves = [info.name.decode() for info in ex.slave_infos()]
     for n in names:
-        inst, var = n.split(".", 1)
+        # Instance and variable names may hold dots: the longest instance that fits.
+        split = split_ref(n, slaves)
+        if split is None:
+            raise SystemExit(f"{n}: no instance of {', '.join(slaves)} is followed by a variable name")
+        inst, var = split
         idx = ex.slave_index_from_instance_name(inst)
         vrs = {(v.name.decode() if isinstance(v.name, bytes) else v.name): v.reference
                for v in ex.slave_variables(idx)}

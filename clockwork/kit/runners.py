@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import SimulationError
+from ..engine.names import split_ref
+from ..errors import SceneError, SimulationError
 from .cases import Case, load_case_scene
 from .csvio import write_csv
 
@@ -40,17 +41,28 @@ def run_clockwork(c: Case, out: str | Path, *, step: float | None = None, event_
         overrides.append("master.event_location=false")
     scene = load_case_scene(c, tuple(overrides))
     names = recorded_signals(c)
-    full = [n if "." in n else f"pendulum.{n}" for n in names]
+    variables = {n: {v.name for v in comp.model_description.modelVariables} for n, comp in scene.components.items()}
+
+    def ref(signal: str) -> tuple[str, str]:
+        # Instance and variable names may hold dots: the longest instance that fits.
+        split = split_ref(signal, variables)
+        if split is not None and split[1] in variables[split[0]]:
+            return split
+        if signal in variables.get("pendulum", ()):  # a single-FMU case's bare names
+            return "pendulum", signal
+        raise SceneError(f"{c.name}: signal {signal!r} names no variable of the case's instances "
+                         f"({', '.join(variables)})")
+
+    full = [ref(n) for n in names]
     record: dict[str, list[str]] = {}
-    for n in full:
-        inst, var = n.split(".", 1)
+    for inst, var in full:
         record.setdefault(inst, []).append(var)
     rows: list[list[float]] = []
     with build_system(scene, {}, record=record) as sysm:
         m = sysm.master
 
         def on_point(master):
-            rows.append([master.t] + [sysm.output(*n.split(".", 1)) for n in full])
+            rows.append([master.t] + [sysm.output(inst, var) for inst, var in full])
 
         on_point(m)
         try:
@@ -58,7 +70,7 @@ def run_clockwork(c: Case, out: str | Path, *, step: float | None = None, event_
                 m.run_until(c.stop, on_point)
             else:
                 t_jump, signal, _, after = c.jump
-                inst, var = signal.split(".", 1)
+                inst, var = ref(signal)
                 m.run_until(t_jump, on_point)
                 sysm.instances[inst].set_values({var: after})
                 m.discontinuity()

@@ -28,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..engine.names import split_ref
+
 
 def _meta(case_dir: Path) -> dict:
     return json.loads(next(case_dir.glob("*_case.json")).read_text())
@@ -50,6 +52,14 @@ def _record(meta: dict) -> list[str]:
 # --- fmpy ------------------------------------------------------------------------
 
 
+def _split(signal: str, instances) -> tuple[str, str]:
+    """(instance, variable) of "instance.variable", the instances known."""
+    split = split_ref(signal, list(instances))
+    if split is None:
+        raise SystemExit(f"{signal}: no instance of {', '.join(instances)} is followed by a variable name")
+    return split
+
+
 def _ssp_with_input(ssp: Path, signal: str, work: Path) -> tuple[Path, str]:
     """A copy of the archive with a system input connector feeding `signal`."""
     import zipfile
@@ -58,12 +68,13 @@ def _ssp_with_input(ssp: Path, signal: str, work: Path) -> tuple[Path, str]:
 
     from ..scene.ssp import NS
 
-    inst, var = signal.split(".", 1)
-    name = f"{inst}_{var}"
     with zipfile.ZipFile(ssp) as z:
         files = {n: z.read(n) for n in z.namelist()}
     root = etree.fromstring(files["SystemStructure.ssd"])
     ssd, ssc = "{%s}" % NS["ssd"], "{%s}" % NS["ssc"]
+    # Instance and variable names may hold dots: the longest component name that fits.
+    inst, var = _split(signal, [c.get("name") for c in root.iter(f"{ssd}Component")])
+    name = f"{inst}_{var}"
     system = root.find(f"{ssd}System")
     conns = etree.Element(f"{ssd}Connectors")
     c = etree.SubElement(conns, f"{ssd}Connector", name=name, kind="input")
@@ -144,7 +155,10 @@ def run_libcosim(case_dir: Path, h: float, out: Path, native: bool = False) -> N
         ex.add_local_slave(CosimLocalSlave(fmu_path=str(case_dir / f"{meta['name']}.fmu"), instance_name="pendulum"))
     else:
         ex = CosimExecution.from_ssp_file(str(case_dir / f"{meta['name']}.ssp"), step_size=int(round(h * 1e9)))
-    def ref(inst, var):
+    slaves = [info.name.decode() for info in ex.slave_infos()]
+
+    def ref(signal):
+        inst, var = _split(signal, slaves)
         idx = ex.slave_index_from_instance_name(inst)
         return idx, next(v.reference for v in ex.slave_variables(idx)
                          if (v.name.decode() if isinstance(v.name, bytes) else v.name) == var)
@@ -156,7 +170,7 @@ def run_libcosim(case_dir: Path, h: float, out: Path, native: bool = False) -> N
         names, refs, obs = [], [], None
     else:
         names = [s if "." in s else f"pendulum.{s}" for s in _record(meta)]
-        refs = [ref(*s.split(".", 1)) for s in names]
+        refs = [ref(s) for s in names]
         obs = CosimObserver.create_last_value()
         ex.add_observer(obs)
         # The initialized values (t = 0): a time-series observer keeps step 0,
@@ -170,7 +184,7 @@ def run_libcosim(case_dir: Path, h: float, out: Path, native: bool = False) -> N
     if inp:
         man = CosimManipulator.create_override()
         ex.add_manipulator(man)
-        in_ref = ref(*inp["signal"].split(".", 1))
+        in_ref = ref(inp["signal"])
     rows, initial = [], None
     for k in range(n + 1):
         if k == k_in:
