@@ -384,6 +384,56 @@ def test_an_fmi3_fmu_ends_the_simulation_as_an_fmi2_one_does(capsys, tmp_path, e
     assert r3["t_end_s"] == r2["t_end_s"] == 2.5
 
 
+DISCRETE_FMI3_SCENE = """
+connections = ["s.counter -> t.u_int", "t.y_int -> s.offset", "t.y_bool -> s.flip", "s.odd -> u.u_bool",
+               "s.shifted -> u.u_int"]
+[scene]
+title = "discrete links of an FMI 3.0 FMU"
+[components.s]
+fmu = "{stair}"
+parameters = { end_time = 9.0 }
+[components.t]
+fmu = "{types}"
+parameters = { p_int = 10, p_bool = true }
+[components.u]
+fmu = "{types}"
+[experiment]
+stop = 3.5
+[master]
+step = 0.5
+[record]
+outputs = ["s.counter", "s.shifted", "s.odd", "t.y_int", "u.y_int", "u.y_bool"]
+"""
+
+
+@pytest.mark.parametrize("engine", ["python", "auto"])
+def test_int32_and_boolean_links_into_and_out_of_an_fmi3_fmu(capsys, tmp_path, engine):
+    """TestStair's FMI 3.0 build between two FMI 2.0 instances: an Int32 and
+    a Boolean output feed Integer and Boolean inputs, and Integer and Boolean
+    outputs feed its Int32 and Boolean inputs; the same series as with its
+    FMI 2.0 build."""
+    stair3 = test_fmu("TestStair").parent / "fmi3" / "TestStair.fmu"
+    csvs = {}
+    for fmi, text in ((2, DISCRETE_FMI3_SCENE), (3, DISCRETE_FMI3_SCENE.replace('"{stair}"', f'"{stair3}"'))):
+        rc, out, err = _run(capsys, tmp_path / str(fmi), _scene(tmp_path, text, f"d{fmi}.toml"), engine=engine)
+        assert rc == 0, err
+        csvs[fmi] = (out / "timeseries.csv").read_text()
+    assert csvs[3] == csvs[2]
+    cols = _csv(tmp_path / "3" / f"out_{engine}")
+    counter = [float(int(float(x))) for x in cols["time"]]
+    assert [float(x) for x in cols["s.counter"]] == counter
+    # t.y_int = 10 + counter; s takes it as offset one point later (s goes
+    # first: counter feeds t without feedthrough), shifted = counter + offset;
+    # u adds its p_int = 2 at the same point.
+    assert [float(x) for x in cols["t.y_int"]] == [c + 10 for c in counter]
+    shifted = [c + 10 + before for c, before in zip(counter[1:], counter)]
+    assert [float(x) for x in cols["s.shifted"]][1:] == shifted
+    assert [float(x) for x in cols["u.y_int"]][1:] == [x + 2 for x in shifted]
+    # flip = t.y_bool = true: odd is "counter is even", and u.y_bool = odd.
+    assert [float(x) for x in cols["s.odd"]][1:] == [float(c % 2 == 0) for c in counter][1:]
+    assert cols["u.y_bool"][1:] == cols["s.odd"][1:]
+
+
 @pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("extra, needle", [
     (["--set", "s.terminate=false"], "s: the stair ends at t = 2.55 s; the step to 2.6 s is refused."),

@@ -1,7 +1,8 @@
 /* TestStair: a counter that steps up every second and ends the simulation
  * at end_time, as Reference-FMUs' Stair does (a test FMU). On FMI 2.0 its
  * messages go to the logger as a printf format with arguments, as FMI 2.0
- * allows; on FMI 3.0 (whose logger takes the text) the runtime formats them. */
+ * allows; on FMI 3.0 (whose logger takes the text) the runtime formats them.
+ * shifted and odd follow its Integer and Boolean inputs (discrete links). */
 #include <math.h>
 #include <string.h>
 
@@ -12,6 +13,11 @@
  * needs no FMI 2.0 header. */
 typedef void (*fmi2_logger)(void *env, const char *instance, int status, const char *category,
                             const char *message, ...);
+
+static void calc_outputs(cw_instance *inst) {
+    I(shifted) = I(counter) + I(offset);
+    I(odd) = (I(counter) % 2 != 0) != (I(flip) != 0);
+}
 
 static fmi2Status do_step(cw_instance *inst, double t_end) {
     const int fmi2 = strcmp(inst->api, "fmi2") == 0;
