@@ -46,7 +46,11 @@ PY=${PYTHON:-python3}
 FMI=$("$PY" -c "import fmpy, os; print(os.path.join(os.path.dirname(fmpy.__file__), 'c-code'))")
 if [ ${#MODELS[@]} -eq 0 ]; then
   for t in src_c/models/*/model.toml; do MODELS+=("$(basename "$(dirname "$t")")"); done
+  # The test FMU with String variables (FMI 2.0 only): the runtime's String storage.
+  MODELS+=(TestTypes)
 fi
+# A model's folder: src_c/models, else tests/models (FMI 2.0 builds only).
+model_dir() { if [ -d "src_c/models/$1" ]; then echo "src_c/models/$1"; else echo "tests/models/$1"; fi; }
 
 # The integrators' per-call step limit is lowered so that a fuzzed step of
 # 1e9 s with a 1e-9 s step cap is discarded after 20000 internal steps
@@ -101,14 +105,18 @@ fuzz_one() {
 }
 
 for m in "${MODELS[@]}"; do
-  "$PY" tools/fmugen.py "src_c/models/$m" "$OUT/gen/$m" --sources cw_runtime.c cw_fmi2.c cw_rk.c model.c > /dev/null
+  dir=$(model_dir "$m")
+  only=()
+  [ "$dir" = "tests/models/$m" ] && only=(--fmi2-only)
+  "$PY" tools/fmugen.py "$dir" "$OUT/gen/$m" --sources cw_runtime.c cw_fmi2.c cw_rk.c model.c "${only[@]}" > /dev/null
   # The core, the integrators and the model, compiled once for both harnesses.
   rm -rf "$OUT/obj/$m" && mkdir -p "$OUT/obj/$m"
-  for src in src_c/runtime/cw_runtime.c src_c/runtime/cw_rk.c "src_c/models/$m/model.c"; do
+  for src in src_c/runtime/cw_runtime.c src_c/runtime/cw_rk.c "$dir/model.c"; do
     "$CC" "${FLAGS[@]}" -c -I"$OUT/gen/$m" -Isrc_c/runtime -I"$FMI" "$src" \
           -o "$OUT/obj/$m/$(basename "$src" .c).o"
   done
   fuzz_one "$m" 2 "$RUNS"
+  [ ${#only[@]} -gt 0 ] && continue
   if [ "$RUNS" -ge 0 ]; then fuzz_one "$m" 3 $(( RUNS / 4 )); else fuzz_one "$m" 3 -1; fi
 done
 echo "fuzz: $total executions in total" | tee -a "$summary"

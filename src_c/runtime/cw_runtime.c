@@ -867,6 +867,9 @@ static fmi2Status decode_state(cw_instance *inst, const unsigned char *buf,
                                     fn, v->name);
         } else {
             int32_t x = (int32_t)get_u32(&p);
+            if (v->type == CW_BOOLEAN && x != 0 && x != 1)
+                return fail(inst, "%s: the state's %s = %d is not a Boolean (0 or 1).",
+                            fn, v->name, (int)x);
             if ((double)x < v->min || (double)x > v->max)
                 return fail(inst, "%s: the state's %s = %d is outside [%g, %g].",
                             fn, v->name, (int)x, v->min, v->max);
@@ -1039,14 +1042,14 @@ fmi2Status cw_core_get_state(cw_instance *inst, const char *fn, void **state) {
     if (!outputs_finite(inst, fn)) return fmi2Error;
     size_t size = state_size(inst);
     cw_state_blob *blob = (cw_state_blob *)*state;
-    if (blob && blob->size != size) {
-        inst->free_mem(blob);
-        blob = NULL;
-    }
-    if (!blob) {
-        blob = inst->alloc_mem(1, sizeof(cw_state_blob) + size);
-        if (!blob) return fail(inst, "%s: out of memory.", fn);
-        blob->size = size;
+    if (!blob || blob->size != size) {
+        /* A state of another size (a String changed length): the new block
+         * first, so that running out of memory leaves the old state whole. */
+        cw_state_blob *fresh = inst->alloc_mem(1, sizeof(cw_state_blob) + size);
+        if (!fresh) return fail(inst, "%s: out of memory.", fn);
+        fresh->size = size;
+        if (blob) inst->free_mem(blob);
+        blob = fresh;
     }
     encode_state(inst, blob->bytes, size);
     *state = blob;
@@ -1162,6 +1165,9 @@ fmi2Status cw_core_set_input_derivatives(cw_instance *inst, const char *fn,
         else
             inst->in_d2[vr[k]] = value[k];
     }
+    /* An output may show an input's slope (TestTypes' u_rate; found by
+     * fuzz/fuzz_fmu.c: a restored state recomputed it, the live one not). */
+    inst->outputs_dirty = 1;
     return fmi2OK;
 }
 

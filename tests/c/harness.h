@@ -150,11 +150,16 @@ static int h_vrs_of_type(cw_type type, fmi2ValueReference *out) {
 
 /* A snapshot of every variable's value, for bitwise comparisons. */
 typedef struct {
-    fmi2Status st_real, st_int, st_bool;
+    fmi2Status st_real, st_int, st_bool, st_str;
     double r[CW_NVARS > 0 ? CW_NVARS : 1];
     int i[CW_NVARS > 0 ? CW_NVARS : 1];
     int b[CW_NVARS > 0 ? CW_NVARS : 1];
-    int nr, ni, nb;
+    int nr, ni, nb, ns;
+    /* Strings: FNV-1a over each one's bytes and terminator (the pointers
+     * live only until the FMU changes the variable); the first that came
+     * back NULL with fmi2OK, or -1. */
+    uint64_t s_hash;
+    int s_null;
 } h_values;
 
 static void h_read_all(const fmi_api *api, fmi2Component c, h_values *v) {
@@ -166,6 +171,23 @@ static void h_read_all(const fmi_api *api, fmi2Component c, h_values *v) {
     v->st_int = api->GetInteger(c, vr, (size_t)v->ni, v->i);
     v->nb = h_vrs_of_type(CW_BOOLEAN, vr);
     v->st_bool = api->GetBoolean(c, vr, (size_t)v->nb, v->b);
+    v->ns = h_vrs_of_type(CW_STRING, vr);
+    v->s_null = -1;
+    v->s_hash = 14695981039346656037ULL;
+    if (v->ns == 0) return; /* models without Strings: no fmi2GetString call */
+    fmi2String text[CW_NVARS > 0 ? CW_NVARS : 1];
+    v->st_str = api->GetString(c, vr, (size_t)v->ns, text);
+    if (v->st_str > fmi2Warning) return;
+    for (int k = 0; k < v->ns; k++) {
+        if (!text[k]) {
+            if (v->s_null < 0) v->s_null = (int)vr[k];
+            continue;
+        }
+        for (const unsigned char *p = (const unsigned char *)text[k];; p++) {
+            v->s_hash = (v->s_hash ^ *p) * 1099511628211ULL;
+            if (!*p) break;
+        }
+    }
 }
 
 /* Name of the first variable whose value is unfit although the FMU said
@@ -177,6 +199,7 @@ static const char *h_unfit_value(const h_values *v) {
         for (int k = 0; k < v->nr; k++)
             if (!isfinite(v->r[k])) return CW_VARS[vr[k]].name;
     }
+    if (v->ns && v->st_str <= fmi2Warning && v->s_null >= 0) return CW_VARS[v->s_null].name;
     if (v->st_bool <= fmi2Warning) {
         h_vrs_of_type(CW_BOOLEAN, vr);
         for (int k = 0; k < v->nb; k++)
@@ -189,6 +212,7 @@ static const char *h_unfit_value(const h_values *v) {
 static int h_same_values(const h_values *a, const h_values *b) {
     return a->st_real == b->st_real && a->st_int == b->st_int &&
            a->st_bool == b->st_bool && a->nr == b->nr &&
+           a->st_str == b->st_str && a->s_hash == b->s_hash &&
            memcmp(a->r, b->r, sizeof(double) * (size_t)a->nr) == 0 &&
            memcmp(a->i, b->i, sizeof(int) * (size_t)a->ni) == 0 &&
            memcmp(a->b, b->b, sizeof(int) * (size_t)a->nb) == 0;
@@ -239,7 +263,7 @@ static size_t h_value_offset(unsigned vr) {
     size_t off = 4 + 4 + 8 + 4 + 4 + 8;
     for (int k = 0; k < CW_NVARS && (unsigned)k < vr; k++) {
         const cw_var_info *v = &CW_VARS[k];
-        if (!v->name) continue;
+        if (!v->name || v->type == CW_STRING) continue; /* Strings: after the counters */
         off += v->type == CW_REAL ? 8 : 4;
         if (v->type == CW_REAL && v->causality == CW_INPUT) off += 24;
     }

@@ -1,6 +1,7 @@
 """String variables in the runtime (TestTypes: p_str, u_str, y_str = p_str
 u_str): fmi2Get/SetString, the instance's own copies, reset, and the String
-section of the FMU state (docs/design.md "FMU state layout")."""
+section of the FMU state (docs/design.md "FMU state layout"); and the
+runtime faults that fuzzing TestTypes found (docs/reliability.md)."""
 
 from __future__ import annotations
 
@@ -140,3 +141,27 @@ def test_replaced_strings_are_freed(types):
         grown = _rss_bytes() - before
         p.free_state(saved)
     assert grown < 1 << 20, grown
+
+
+def test_a_state_with_a_boolean_other_than_0_or_1_is_refused(types):
+    # Found by fuzz/fuzz_fmu.c on TestTypes: the range check let any integer through.
+    with Instance(types) as p:
+        data = bytearray(p.serialize(p.get_state()))
+        off = 32
+        for v in sorted(p.md.modelVariables, key=lambda v: v.valueReference):
+            if v.name == "u_bool":
+                break
+            if v.type != "String":
+                off += (32 if v.causality == "input" else 8) if v.type == "Real" else 4
+        assert struct.unpack_from("<i", data, off)[0] == 0
+        struct.pack_into("<i", data, off, 7)
+        st, _ = p.deserialize(_rechecksummed(bytes(data)))
+        assert st == ERROR and "u_bool = 7 is not a Boolean" in p.log_text(), p.log_text()
+
+
+def test_an_output_showing_an_input_slope_follows_fmi2SetRealInputDerivatives(types):
+    # Found by fuzz/fuzz_fmu.c on TestTypes: u_rate kept the slope it was computed with.
+    with Instance(types) as p:
+        assert p.get("u_rate") == 0.0
+        assert p.set_input_derivatives({"u_real": {1: 2.5}}) == OK
+        assert p.get("u_rate") == 2.5
