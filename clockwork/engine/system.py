@@ -33,7 +33,8 @@ class System:
             for name, (fmu, _) in components.items():
                 md = (model_descriptions or {}).get(name)
                 inst = make_instance(name, resolve_fmu(str(fmu), Path.cwd(), settings.fmi_version), md,
-                                     settings.early_return)
+                                     settings.early_return,
+                                     bool(settings.extrapolation) or settings.iterations > 0)
                 inst.instantiate()
                 self.instances[name] = inst
             links = [parse_link(c) if isinstance(c, str) else Link(*c) for c in connections]

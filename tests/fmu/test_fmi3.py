@@ -97,7 +97,13 @@ def test_model_description_matches_the_fmi2_build(model):
     assert structure(md3.outputs) == structure(md2.outputs)
     assert structure(md3.initialUnknowns) == structure(md2.initialUnknowns)
     cs = md3.coSimulation
-    assert cs.hasEventMode and not cs.providesIntermediateUpdate
+    # Intermediate update (FMI 3.0's replacement for input derivatives) for
+    # the models with Float64 inputs, on each of those inputs.
+    real_inputs = [n for n, a in v2.items() if a.causality == "input" and a.type == "Real"]
+    assert cs.hasEventMode and cs.providesIntermediateUpdate == bool(real_inputs)
+    xml = zipfile.ZipFile(find_fmu3(model)).read("modelDescription.xml").decode()
+    assert xml.count('intermediateUpdate="true"') == len(real_inputs)
+    assert ('recommendedIntermediateInputSmoothness="2"' in xml) == bool(real_inputs)
     assert cs.mightReturnEarlyFromDoStep == (model in EARLY_RETURN)
     assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate and cs.canHandleVariableCommunicationStepSize
     assert cs.maxOutputDerivativeOrder == md2.coSimulation.maxOutputDerivativeOrder
