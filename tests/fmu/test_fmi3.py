@@ -516,3 +516,49 @@ def test_the_sources_build_with_fmi3_headers_only(tmp_path):
     version = ctypes.CDLL(str(lib)).fmi3GetVersion
     version.restype = ctypes.c_char_p
     assert version() == b"3.0"
+
+
+def test_intermediate_update_hands_the_pendulum_its_inputs_at_each_stage():
+    """With an intermediateUpdate callback, fmi3DoStep asks for the inputs at
+    the times its integrator needs them (inside the step, in Intermediate
+    Update Mode: set requested, get not allowed, no early return), where
+    only Float64 inputs may be set and every other call is refused. Fed
+    the polynomial an FMI 2.0 instance gets from
+    fmi2SetRealInputDerivatives, evaluated as the runtime evaluates it, the
+    FMI 3.0 Pendulum gives the FMI 2.0 bits."""
+    params = {"phi_start": 0.2, "Q": 200.0}
+    u0, d1, d2, h = 1e-3, -4e-3, 2.5e-3, 0.05
+    calls, refused = [], []
+
+    def feed(inst, t, set_requested, get_allowed, step_finished, can_return_early):
+        calls.append((inst.time, t, set_requested, get_allowed, step_finished, can_return_early))
+        if len(calls) == 1:  # what Intermediate Update Mode refuses
+            refused.append(inst.set(L=2.0))
+            refused.append(inst.step(h).status)
+            phi = (ctypes.c_uint32 * 1)(inst.vr("phi"))
+            refused.append(inst.raw.fmi3GetFloat64(inst.c, phi, 1, (ctypes.c_double * 1)(), 1))
+        tref = inst.time  # the step's communication point, where u0 was set
+        dt = t - tref
+        assert inst.set(tau_external=u0 + dt * (d1 + 0.5 * dt * d2)) == OK
+
+    phi2, phi3 = [], []
+    with Instance(fmu_file("Pendulum"), params=params) as p2, \
+         Instance3(find_fmu3("Pendulum"), params=params, intermediate_update=feed) as p3:
+        for _ in range(8):
+            p2.check(p2.set(tau_external=u0), "set")
+            p2.check(p2.set_input_derivatives({"tau_external": {1: d1, 2: d2}}), "derivatives")
+            p2.check(p2.step(h), "step")
+            p3.check(p3.set(tau_external=u0), "set")
+            start = len(calls)
+            r = p3.step(h)
+            assert r.status == OK, p3.log_text()
+            assert len(calls) - start >= 4  # the RK stages of at least one internal step
+            phi2.append(p2.get_many(["phi", "w", "a"]))
+            phi3.append(p3.get_many(["phi", "w", "a"]))
+        assert refused == [ERROR, ERROR, ERROR] and len(p3.errors()) == 3
+    assert phi2 == phi3
+    assert all(tc <= t <= tc + h and tuple(flags) == (True, False, False, False) for tc, t, *flags in calls)
+    # Without a callback nothing asks: the inputs hold over the step.
+    with Instance3(find_fmu3("Pendulum"), params=params) as p3:
+        p3.check(p3.set(tau_external=u0), "set")
+        assert p3.step(h).status == OK
