@@ -371,6 +371,12 @@ class Instance3(Instance):
                 ev.failed_call = 5
                 return ERROR
             now, step = reached, end - reached
+            # The FMU's step must end on `end` itself (now + step rounds),
+            # so that it lands where a step without early return lands.
+            while now + step < end:
+                step = math.nextafter(step, math.inf)
+            while now + step > end:
+                step = math.nextafter(step, 0.0)
 
     # -- lifecycle --------------------------------------------------------------
 

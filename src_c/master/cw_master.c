@@ -1352,6 +1352,12 @@ CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
         }
         now = reached;
         step_size = end - reached;
+        /* The FMU's step must end on `end` itself (now + step_size rounds),
+         * so that it lands where a step without early return lands. */
+        while (now + step_size < end)
+            step_size = nextafter(step_size, INFINITY);
+        while (now + step_size > end)
+            step_size = nextafter(step_size, 0.0);
     }
 }
 

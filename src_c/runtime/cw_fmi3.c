@@ -238,6 +238,7 @@ fmi3Status fmi3Terminate(fmi3Instance instance) {
 }
 
 fmi3Status fmi3Reset(fmi3Instance instance) {
+    if (instance) INST->resume_valid = 0;
     return S(cw_core_reset(INST, "fmi3Reset"));
 }
 
@@ -272,9 +273,11 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance,
     static const char fn[] = "fmi3SetFloat64";
     cw_instance *inst = INST;
     if (!scalars(inst, fn, nValueReferences, nValues)) return fmi3Error;
-    if (inst->state != CW_INTERMEDIATE_UPDATE)
+    if (inst->state != CW_INTERMEDIATE_UPDATE) {
+        inst->resume_valid = 0;
         return S(cw_core_set_real(inst, fn, valueReferences, nValueReferences,
                                   values));
+    }
     /* Intermediate Update Mode: only the inputs (all intermediateUpdate =
      * true), set as in Step Mode; the model reads them at this time. */
     for (size_t k = 0; k < nValueReferences; k++) {
@@ -313,6 +316,7 @@ fmi3Status fmi3SetInt32(fmi3Instance instance,
                         size_t nValues) {
     static const char fn[] = "fmi3SetInt32";
     if (!scalars(INST, fn, nValueReferences, nValues)) return fmi3Error;
+    INST->resume_valid = 0;
     return S(cw_core_set_int(INST, fn, CW_INTEGER, valueReferences,
                              nValueReferences, values, 0));
 }
@@ -333,6 +337,7 @@ fmi3Status fmi3SetBoolean(fmi3Instance instance,
                           size_t nValues) {
     static const char fn[] = "fmi3SetBoolean";
     if (!scalars(INST, fn, nValueReferences, nValues)) return fmi3Error;
+    INST->resume_valid = 0;
     return S(cw_core_set_int(INST, fn, CW_BOOLEAN, valueReferences,
                              nValueReferences, values, 1));
 }
@@ -413,6 +418,7 @@ fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
 }
 
 fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState) {
+    if (instance) INST->resume_valid = 0;
     return S(cw_core_set_state(INST, "fmi3SetFMUState", FMUState));
 }
 

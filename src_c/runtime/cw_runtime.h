@@ -143,6 +143,16 @@ typedef struct cw_instance {
     void (*intermediate_update)(struct cw_instance *inst, double t);
     void (*env_intermediate_update)(void); /* the importer's callback, cast by the face */
     double intermediate_time;              /* when the inputs were last asked for */
+    /* After an early return, where the model's integrator stood (the end
+     * of the accepted internal step that held the event), so that the next
+     * fmi3DoStep from the event goes on with the same steps as a run
+     * without early return. Valid until the importer sets a value, a state
+     * or resets (the FMI 3.0 face clears it); never set on FMI 2.0. */
+    int resume_valid;
+    double resume_from;  /* the early return's time, s */
+    double resume_t;     /* the internal step's end, s */
+    double resume_h;     /* the integrator's next step size there, s */
+    double resume_x[4];  /* the state there */
 
     double time;       /* current communication point, s */
     double start_time; /* from fmi2SetupExperiment */

@@ -562,3 +562,33 @@ def test_intermediate_update_hands_the_pendulum_its_inputs_at_each_stage():
     with Instance3(find_fmu3("Pendulum"), params=params) as p3:
         p3.check(p3.set(tau_external=u0), "set")
         assert p3.step(h).status == OK
+
+
+def test_early_return_goes_on_with_the_integrators_own_steps():
+    """After an early return at a tick or turning point, the next fmi3DoStep
+    from the event goes on from the end of the internal step that held it:
+    stepping on to each communication point, the FMI 3.0 Pendulum gives the
+    FMI 2.0 build's bits at every one, ticks, amplitudes and tick speeds
+    included."""
+    params = {"phi_start": -0.2, "Q": 50.0}
+    names = ["phi", "w", "a", "tick_count", "tick_time", "tick_w", "turn_count", "amplitude", "period"]
+    early = 0
+    with Instance3(find_fmu3("Pendulum"), params=params, event_mode=True, early_return=True) as p, \
+         Instance(fmu_file("Pendulum"), params=params) as ref:
+        for k in range(1, 41):
+            end = 0.25 * k
+            ref.check(ref.step(0.25), "fmi2DoStep")
+            while p.time < end:
+                h = end - p.time
+                while p.time + h < end:
+                    h = math.nextafter(h, math.inf)
+                while p.time + h > end:
+                    h = math.nextafter(h, 0.0)
+                r = p.step(h)
+                p.check(r.status, "fmi3DoStep")
+                if r.early_return:
+                    early += 1
+                    assert p.raw.fmi3EnterEventMode(p.c) == OK
+                    p.settle()
+            assert p.get_many(names) == ref.get_many(names), k
+    assert early >= 8
