@@ -164,8 +164,9 @@ def test_polynomial_inputs_into_fmi3_are_refused(fmus, fmu_dir, tmp_path, key, v
     """FMI 3.0 CS has no input derivatives: extrapolation and strong coupling
     into an FMI 3.0 FMU without intermediate update are refused by the
     engine and, in a scene, in one line naming the file and the key."""
-    with pytest.raises(SceneError, match=f"master.{key} = {value}: b .* FMI 3.0 FMU without intermediate "
-                                         "update, whose Co-Simulation interface takes no input derivatives"):
+    with pytest.raises(SceneError, match=f"master.{key} = {value}: b .* FMI 3.0 FMU, whose Co-Simulation "
+                                         "interface takes no input derivatives, and it provides no intermediate "
+                                         "update"):
         System({"pendulum": (str(fmu_dir / "Pendulum.fmu"), {}), "b": (str(fmus["early"]), {})},
                ["pendulum.phi -> b.u"], MasterSettings(step=0.01, **{key: value}))
     scene = tmp_path / "s.toml"

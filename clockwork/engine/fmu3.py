@@ -148,9 +148,15 @@ class Instance3(Instance):
         # callback is at hand; else none (FMI 3.0 CS has no input derivatives).
         iu_vrs = [v.valueReference for v in self.md.modelVariables
                   if v.causality == "input" and v.type == "Real" and v.intermediateUpdate]
-        self.intermediate_update = bool(intermediate_update and cs.providesIntermediateUpdate and iu_vrs
-                                        and _core_adapter())
+        declared = bool(cs.providesIntermediateUpdate and iu_vrs)
+        self.intermediate_update = bool(intermediate_update and declared and _core_adapter())
         self.can_interpolate_inputs = self.intermediate_update
+        # Why polynomial inputs cannot reach this instance (the master's refusal says it).
+        self.no_intermediate_update = (
+            "" if self.intermediate_update else
+            f"the compiled core {core_library()}, which serves its intermediate update, cannot be loaded "
+            f"(build it with tools/setup.sh)" if intermediate_update and declared else
+            "it provides no intermediate update")
         self.events = _Events(next_event_time=math.inf, saved_next_event_time=math.inf, end_time=math.nan,
                               event_mode_used=int(self.event_mode_used))
         self._setup_args = (0, 0.0, 0.0, 0, 0.0)

@@ -107,10 +107,10 @@ class Master:
             return
         for p in self.ports.dynamic:
             if p.n_in and p.inst.fmi_version == 3 and not p.inst.can_interpolate_inputs:
+                why = getattr(p.inst, "no_intermediate_update", "") or "it provides no intermediate update"
                 raise SceneError(
-                    f"{key} = {value}: {p.inst.name} ({p.inst.path.name}) is an FMI 3.0 FMU without intermediate "
-                    f"update, whose Co-Simulation interface takes no input derivatives; use {fix} or an FMI 2.0 "
-                    f"build")
+                    f"{key} = {value}: {p.inst.name} ({p.inst.path.name}) is an FMI 3.0 FMU, whose Co-Simulation "
+                    f"interface takes no input derivatives, and {why}; use {fix} or an FMI 2.0 build")
 
     # -- initialization --------------------------------------------------
 
