@@ -1284,6 +1284,23 @@ typedef struct cw_fmi3 {
     int event_mode_used, terminated;
     int failed_call;              /* 0, or which call failed (fmu3.FAILED_CALLS) */
     int pad_;
+    /* Intermediate update: the input polynomials FMI 2.0 would hand over
+     * with fmi2SetRealInputDerivatives, kept here as an FMI 2.0 FMU keeps
+     * them (u0 + d1 dt + d2 dt^2/2, dt from iu_tref: the FMU's time when
+     * the value was set) and set by cw3_intermediateUpdate at the times
+     * the FMU asks for. */
+    int n_iu;                     /* inputs with intermediateUpdate = true */
+    int iu_poly;                  /* some derivative is not 0 */
+    const unsigned *iu_vr;
+    double *iu_u0, *iu_d1, *iu_d2, *iu_tref;
+    int *iu_fed;                  /* set by the master at least once */
+    unsigned *iu_set_vr;          /* scratch for the callback's fmi3SetFloat64 */
+    double *iu_val;
+    double iu_time;               /* the FMU's time: start, then the end of each step, s */
+    double iu_saved_time;
+    long long iu_calls;           /* callbacks that set inputs */
+    double *iu_saved;             /* u0, d1, d2, tref (4 n_iu) with the saved FMU state, */
+    int *iu_saved_fed;            /* as FMI 2.0 saves its polynomials in its state */
 } cw_fmi3;
 
 CW_EXPORT size_t cw_sizeof_fmi3(void) { return sizeof(cw_fmi3); }
@@ -1331,6 +1348,47 @@ static int fmi3_handle_event(cw_fmi3 *a)
     return s > st ? s : st;
 }
 
+/* The importer's side of Intermediate Update Mode (instanceEnvironment is
+ * the cw_fmi3): set each fed input to its polynomial at `t`, with the
+ * arithmetic of the runtime's cw_input, so that FMI 2.0 and 3.0 give the
+ * same bits. Held inputs (every derivative 0) the FMU already has. */
+CW_EXPORT void cw3_intermediateUpdate(void *env, double t, bool set_requested, bool get_allowed,
+                                      bool step_finished, bool can_return_early, bool *early_requested,
+                                      double *early_time)
+{
+    cw_fmi3 *a = env;
+    (void)get_allowed; (void)step_finished; (void)can_return_early; (void)early_time;
+    if (early_requested)
+        *early_requested = false;
+    if (!set_requested || !a->iu_poly)
+        return;
+    size_t m = 0;
+    for (int k = 0; k < a->n_iu; k++)
+        if (a->iu_fed[k]) {
+            const double dt = t - a->iu_tref[k];
+            a->iu_set_vr[m] = a->iu_vr[k];
+            a->iu_val[m++] = a->iu_u0[k] + dt * (a->iu_d1[k] + 0.5 * dt * a->iu_d2[k]);
+        }
+    a->iu_calls += 1;
+    a->setFloat64(a->instance, a->iu_set_vr, m, a->iu_val, m);  /* a refusal fails fmi3DoStep */
+}
+
+static int iu_index(const cw_fmi3 *a, unsigned vr)
+{
+    for (int k = 0; k < a->n_iu; k++)
+        if (a->iu_vr[k] == vr)
+            return k;
+    return -1;
+}
+
+static void iu_recheck(cw_fmi3 *a)
+{
+    a->iu_poly = 0;
+    for (int k = 0; k < a->n_iu; k++)
+        if (a->iu_fed[k] && (a->iu_d1[k] != 0.0 || a->iu_d2[k] != 0.0))
+            a->iu_poly = 1;
+}
+
 CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
 {
     (void)no_set_prior;
@@ -1361,8 +1419,10 @@ CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
             a->end_time = reached;
             return reached >= end ? worst : FMI_DISCARD;
         }
-        if (!early || reached >= end)
+        if (!early || reached >= end) {
+            a->iu_time = end;
             return worst;
+        }
         a->early_returns += 1;
         stalled = reached <= now ? stalled + 1 : 0;
         if (stalled > MAX_STALLED_RETURNS) {
@@ -1371,6 +1431,12 @@ CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
         }
         now = reached;
         step_size = end - reached;
+        /* The FMU's step must end on `end` itself (now + step_size rounds),
+         * so that it lands where a step without early return lands. */
+        while (now + step_size < end)
+            step_size = nextafter(step_size, INFINITY);
+        while (now + step_size > end)
+            step_size = nextafter(step_size, 0.0);
     }
 }
 
@@ -1383,15 +1449,51 @@ CW_EXPORT int cw3_getReal(void *comp, const unsigned *vr, size_t n, double *out)
 CW_EXPORT int cw3_setReal(void *comp, const unsigned *vr, size_t n, const double *values)
 {
     cw_fmi3 *a = comp;
-    return a->setFloat64(a->instance, vr, n, values, n);
+    int st = a->setFloat64(a->instance, vr, n, values, n);
+    if (st <= FMI_WARNING && a->n_iu) {
+        /* A value without derivatives is held (as fmi2SetReal on FMI 2.0). */
+        for (size_t k = 0; k < n; k++) {
+            int j = iu_index(a, vr[k]);
+            if (j >= 0) {
+                a->iu_u0[j] = values[k];
+                a->iu_d1[j] = a->iu_d2[j] = 0.0;
+                a->iu_tref[j] = a->iu_time;
+                a->iu_fed[j] = 1;
+            }
+        }
+        iu_recheck(a);
+    }
+    return st;
 }
 
+/* FMI 3.0 CS has no input derivatives: with intermediate update they are
+ * kept for cw3_intermediateUpdate; without it (n_iu = 0) they are refused
+ * (the master refuses extrapolation into such an FMU first). */
 CW_EXPORT int cw3_setInputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order,
                                       const double *values)
 {
-    /* FMI 3.0 CS has none; the master refuses extrapolation into FMI 3.0 first. */
-    (void)comp; (void)vr; (void)n; (void)order; (void)values;
-    return FMI_ERROR;
+    cw_fmi3 *a = comp;
+    for (size_t k = 0; k < n; k++) {
+        int j = iu_index(a, vr[k]);
+        if (j < 0 || !a->iu_fed[j] || order[k] < 1 || order[k] > 2 || !isfinite(values[k]))
+            return FMI_ERROR;
+    }
+    for (size_t k = 0; k < n; k++) {
+        int j = iu_index(a, vr[k]);
+        if (a->iu_tref[j] != a->iu_time) {
+            /* Re-based at the FMU's time, as the FMI 2.0 runtime does. */
+            const double dt = a->iu_time - a->iu_tref[j];
+            a->iu_u0[j] = a->iu_u0[j] + dt * (a->iu_d1[j] + 0.5 * dt * a->iu_d2[j]);
+            a->iu_d1[j] = a->iu_d2[j] = 0.0;
+            a->iu_tref[j] = a->iu_time;
+        }
+        if (order[k] == 1)
+            a->iu_d1[j] = values[k];
+        else
+            a->iu_d2[j] = values[k];
+    }
+    iu_recheck(a);
+    return FMI_OK;
 }
 
 CW_EXPORT int cw3_getOutputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order, double *out)
@@ -1405,6 +1507,15 @@ CW_EXPORT int cw3_getState(void *comp, void **state)
     cw_fmi3 *a = comp;
     int st = a->getState(a->instance, state);
     a->saved_next_event_time = a->next_event_time;
+    if (a->n_iu) {
+        size_t n = (size_t)a->n_iu;
+        memcpy(a->iu_saved, a->iu_u0, n * sizeof(double));
+        memcpy(a->iu_saved + n, a->iu_d1, n * sizeof(double));
+        memcpy(a->iu_saved + 2 * n, a->iu_d2, n * sizeof(double));
+        memcpy(a->iu_saved + 3 * n, a->iu_tref, n * sizeof(double));
+        memcpy(a->iu_saved_fed, a->iu_fed, n * sizeof(int));
+        a->iu_saved_time = a->iu_time;
+    }
     return st;
 }
 
@@ -1413,5 +1524,15 @@ CW_EXPORT int cw3_setState(void *comp, void *state)
     cw_fmi3 *a = comp;
     int st = a->setState(a->instance, state);
     a->next_event_time = a->saved_next_event_time;
+    if (a->n_iu) {
+        size_t n = (size_t)a->n_iu;
+        memcpy(a->iu_u0, a->iu_saved, n * sizeof(double));
+        memcpy(a->iu_d1, a->iu_saved + n, n * sizeof(double));
+        memcpy(a->iu_d2, a->iu_saved + 2 * n, n * sizeof(double));
+        memcpy(a->iu_tref, a->iu_saved + 3 * n, n * sizeof(double));
+        memcpy(a->iu_fed, a->iu_saved_fed, n * sizeof(int));
+        a->iu_time = a->iu_saved_time;
+        iu_recheck(a);
+    }
     return st;
 }
