@@ -12,6 +12,8 @@ import os
 from pathlib import Path
 
 from ..analyses import registry as analyses
+from ..analyses.bounds import MAX_KEPT_VALUES as MAX_RECORDED_VALUES
+from ..analyses.bounds import check_bounds
 from ..engine.fmu3 import make_instance
 from ..errors import SceneError
 from ..paths import scenarios_dir
@@ -88,7 +90,6 @@ def check_plot_axes(scene) -> None:
 
 # What a run that records at communication points may keep in memory: each
 # value is a Python float in a list (32 bytes) until the point is written.
-MAX_RECORDED_VALUES = 20_000_000  # about 640 MB
 _RECORDING_KINDS = ("time_series", "ticks")
 
 
@@ -112,7 +113,8 @@ def check_recording_bound(scene) -> None:
     """Refuse, before the run, a point that would record more than
     MAX_RECORDED_VALUES (e.g. stop = 1e12 s at a 0.01 s step)."""
     variants = [scene]
-    if scene.sweep is not None and any(a.parameter[0] in ("master", "experiment") for a in scene.sweep.axes):
+    if scene.sweep is not None and any(a.parameter[0] in ("master", "experiment", "analysis") or a.parameter[1] in ("L", "g")
+                                       for a in scene.sweep.axes):
         variants = [scene.variant(p) for p in scene.points()]
     n, span, every = max(recorded_values(v) for v in variants)
     if n > MAX_RECORDED_VALUES:
@@ -120,3 +122,6 @@ def check_recording_bound(scene) -> None:
                          f"more than {MAX_RECORDED_VALUES:.0e} (about {MAX_RECORDED_VALUES * 32 / 1e6:.0f} MB): "
                          "give a longer record.interval, a shorter span (experiment.stop), fewer record.outputs, "
                          "or a longer master.step", scene.path, "experiment.stop")
+    kind = (scene.analysis or {}).get("kind", "time_series")
+    for v in variants:  # the other kinds' memory, and every kind's steps
+        check_bounds(v, kind)

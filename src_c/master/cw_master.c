@@ -29,6 +29,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #define CW_EXPORT __attribute__((visibility("default")))
 
@@ -49,6 +50,7 @@ enum {
     CW_CHECK_DIVERGENCE = 2,/* an output is not finite or too large: Python names it */
     CW_WATCHED = 3,         /* a watched output changed (cw_run_watch) */
     CW_ENDED = 4,           /* an FMI 3.0 instance asked to end the simulation (terminateSimulation) */
+    CW_SLICE_OVER = 5,      /* the call's slice of wall time is spent: call again (Python handles signals between calls) */
     CW_ERR_FMI = -1,        /* an fmi2 call failed: err_port, err_call, err_status */
     CW_ERR_NO_CHECKPOINT = -2,
     CW_ERR_REPLAY = -3,
@@ -1105,6 +1107,23 @@ CW_EXPORT void cw_discontinuity(cw_master *m)
     record_history(m);
 }
 
+/* Long runs return to Python after `slice_s` of wall time (Python passes
+ * 0.05 s), so that a signal (Ctrl-C, SIGTERM) is handled within a fraction
+ * of a second rather than when a run of minutes ends. The clock is read
+ * every CW_SLICE_STEPS steps only (a vDSO call, ~20 ns, against a step's
+ * microseconds); the caller continues where the call stopped, so the bits
+ * do not change. */
+#define CW_SLICE_STEPS 16u
+
+static int slice_over(const struct timespec *began, unsigned *steps, double slice_s)
+{
+    if (++*steps % CW_SLICE_STEPS)
+        return 0;
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return (double)(now.tv_sec - began->tv_sec) + 1e-9 * (double)(now.tv_nsec - began->tv_nsec) >= slice_s;
+}
+
 static void record_point(cw_master *m, cw_recorder *r)
 {
     if (r->tick_port >= 0) {
@@ -1132,17 +1151,25 @@ static void record_point(cw_master *m, cw_recorder *r)
 }
 
 /* Step to t_stop on the grid start + k * step, plus located events
- * (Master.run_until), recording into r when given. Returns CW_BUFFER_FULL
- * or CW_CHECK_DIVERGENCE to be called again, r->grid_k keeping the place. */
-CW_EXPORT int cw_run_until(cw_master *m, double t_stop, cw_recorder *r)
+ * (Master.run_until), recording into r when given. Returns CW_BUFFER_FULL,
+ * CW_SLICE_OVER or CW_CHECK_DIVERGENCE to be called again, r->grid_k keeping
+ * the place. */
+CW_EXPORT int cw_run_until(cw_master *m, double t_stop, cw_recorder *r, double slice_s)
 {
     double h_nom = m->step, t0 = m->start_time;
     double eps = 1e-12 * py_max(1.0, fabs(t_stop));
     long long k = r && r->grid_k >= 0 ? r->grid_k : (long long)floor((m->t - t0) / h_nom + 1e-9) + 1;
+    struct timespec began;
+    clock_gettime(CLOCK_MONOTONIC, &began);
+    unsigned steps = 0;
     while (m->t < t_stop - eps) {
         if (r && (r->n_rows >= r->capacity || r->n_ticks >= r->tick_capacity)) {
             r->grid_k = k;
             return CW_BUFFER_FULL;
+        }
+        if (r && slice_over(&began, &steps, slice_s)) {
+            r->grid_k = k;
+            return CW_SLICE_OVER;
         }
         double grid = t0 + (double)k * h_nom;
         if (grid > t_stop)
@@ -1177,13 +1204,19 @@ CW_EXPORT int cw_run_until(cw_master *m, double t_stop, cw_recorder *r)
  * values of the `n_prev` outputs at the point before the last one. */
 CW_EXPORT int cw_run_watch(cw_master *m, double t_stop, double mark, double margin, double max_step,
                            int n_watch, const int *watch_port, const int *watch_pos,
-                           int n_prev, const int *prev_port, const int *prev_pos, double *previous)
+                           int n_prev, const int *prev_port, const int *prev_pos, double *previous,
+                           double slice_s)
 {
     double eps = 1e-12 * py_max(1.0, fabs(t_stop));
     double seen[n_watch > 0 ? n_watch : 1];
     for (int k = 0; k < n_watch; k++)
         seen[k] = m->ports[watch_port[k]].out[watch_pos[k]];
+    struct timespec began;
+    clock_gettime(CLOCK_MONOTONIC, &began);
+    unsigned steps = 0;
     while (m->t < t_stop - eps) {
+        if (slice_over(&began, &steps, slice_s))
+            return CW_SLICE_OVER;  /* nothing changed yet: calling again continues the same watch */
         for (int k = 0; k < n_prev; k++)
             previous[k] = m->ports[prev_port[k]].out[prev_pos[k]];
         double target = m->t < mark - eps ? mark : m->t + margin;
