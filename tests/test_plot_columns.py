@@ -14,6 +14,8 @@ import json
 import pytest
 
 from cwtest import CLOCK_SCENE, FMU_DIR, assert_one_line_error, fmu_file, run_cli
+from clockwork.run import load_scene
+from clockwork.results.plots.registry import PLOT_COLUMNS
 
 SWEEP = '\n[sweep]\naxes = [ { parameter = "escapement.torque", values = ["0.4 N.cm", "0.5 N.cm"] } ]\n'
 
@@ -118,3 +120,77 @@ def test_a_steady_state_scene_is_checked_at_validation(capsys, tmp_path, y, ok):
         assert rc == 0, err
     else:
         assert_one_line_error(rc, err, str(f), "plot[0].y", "did you mean E_T_s_per_day?", code=2)
+
+
+def _bundled_scene_of_each_kind() -> dict[str, str]:
+    """analysis kind -> a bundled scene of that kind (ticks: core_grasshopper, made a ticks run)."""
+    import tomllib
+
+    from clockwork.paths import scenarios_dir
+
+    out = {}
+    for f in sorted(scenarios_dir().glob("*.toml")):
+        out.setdefault(tomllib.loads(f.read_text()).get("analysis", {}).get("kind", "time_series"), f.stem)
+    out["ticks"] = "core_grasshopper"
+    return out
+
+
+KIND_SCENES = _bundled_scene_of_each_kind()
+# Plot kinds of sweep rows, and the column key each is tried with (the others in the next test).
+ROW_PLOTS = {"sweep": "y", "rate_errors": "dashed", "contour": "z", "curves": "y", "hoyng_comparison": "theory"}
+
+
+def _with_plot(tmp_path, kind: str, plot: dict):
+    """The bundled scene of analysis `kind` with one more plot: (file, that plot's index)."""
+    import tomllib
+
+    from clockwork.paths import scenarios_dir
+
+    text = (scenarios_dir() / f"{KIND_SCENES[kind]}.toml").read_text()
+    if kind == "ticks":
+        text = text.replace('[analysis]\nkind = "time_series"', '[analysis]\nkind = "ticks"')
+        assert 'kind = "ticks"' in text
+    n = len(tomllib.loads(text).get("plot", []))
+    f = tmp_path / "s.toml"
+    f.write_text(text + "\n[[plot]]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in plot.items()))
+    return f, n
+
+
+def test_every_analysis_kind_has_a_bundled_scene():
+    from clockwork.analyses.registry import ANALYSES
+
+    assert set(ANALYSES) <= set(KIND_SCENES)
+
+
+@pytest.mark.parametrize("analysis", sorted(KIND_SCENES))
+@pytest.mark.parametrize("plot_kind", list(ROW_PLOTS))
+def test_a_missing_column_of_every_plot_kind_and_analysis_kind_is_refused_at_validation(
+        capsys, tmp_path, monkeypatch, plot_kind, analysis):
+    from clockwork.analyses.registry import result_columns
+
+    fmu_file("Air")
+    f, _ = _with_plot(tmp_path, analysis, {"kind": "sweep", "x": "no_such_column"})
+    f.write_text(f.read_text().rsplit("[[plot]]", 1)[0])
+    good = min(result_columns(load_scene(f)))  # a column the kind declares for this scene
+    key = ROW_PLOTS[plot_kind]
+    plot = {"kind": plot_kind, **{k: good for k in PLOT_COLUMNS[plot_kind][0]}, key: "no_such_column"}
+    f, n = _with_plot(tmp_path, analysis, plot)
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, str(f), f"plot[{n}].{key}", f"not a column of {analysis} results", code=2)
+
+
+@pytest.mark.parametrize("plot_kind, key", [(p, k) for p in ROW_PLOTS for k in ("x", "y", "z", "group", "theory",
+                                                                              "dashed", "dashed_if")
+                                            if k in PLOT_COLUMNS[p][0]])
+def test_every_column_key_of_a_row_plot_is_checked_at_validation(capsys, tmp_path, plot_kind, key):
+    """Each key naming columns, on an escapement_steady_state scene, with a typo: the nearest name is given."""
+    plot = {"kind": plot_kind, "x": "amplitude_deg", "y": ["E_T_s_per_day"] if plot_kind != "contour" else "period_s",
+            "z": "E_T_s_per_day", "group": ["E_C_s_per_day"], "theory": "E_E_s_per_day", "dashed": ["E_E_s_per_day"],
+            "dashed_if": "stalled"}
+    plot = {k: v for k, v in plot.items() if k == "kind" or k in PLOT_COLUMNS[plot_kind][0]}
+    if plot_kind == "hoyng_comparison":
+        plot["group"] = "E_C_s_per_day"  # one column there
+    plot[key] = "E_T_s_per_dya"
+    f, n = _with_plot(tmp_path, "escapement_steady_state", plot)
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, str(f), f"plot[{n}].{key}", "did you mean E_T_s_per_day?", code=2)

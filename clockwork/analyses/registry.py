@@ -16,9 +16,10 @@ from ..scene.kinds import Converter
 ANALYSES: dict[str, Callable] = {}  # kind -> implementation
 ANALYSIS_KEYS: dict[str, set[str]] = {}  # kind -> allowed keys besides `kind`
 _ANALYSIS_CONVERT: dict[str, Converter] = {}  # kind -> converter of its table
-# kind -> every column its `result` may hold (not all in every point): declared
-# by the kinds that do, so that a plot of another name is refused at validation.
-RESULT_COLUMNS: dict[str, frozenset[str]] = {}
+# kind -> every column its `result` may hold (not all in every point): a set,
+# or a function of the scene for names that carry an instance's name or a
+# configured value. A plot of another name is refused at validation.
+RESULT_COLUMNS: dict[str, frozenset[str] | Callable] = {}
 
 
 def register_analysis(kind: str, keys: set[str] | frozenset[str] = frozenset(),
@@ -37,19 +38,31 @@ def register_analysis(kind: str, keys: set[str] | frozenset[str] = frozenset(),
 
 
 def register(kind: str, keys: set[str] | frozenset[str] = frozenset(), convert: Converter | None = None,
-             columns: set[str] | frozenset[str] | None = None):
+             columns: set[str] | frozenset[str] | Callable | None = None):
     """Decorator: the function implements analysis `kind` (see register_analysis);
-    `columns`, when given, every key its results' `result` table may hold."""
+    `columns`, every key its results' `result` table may hold: a set, or
+    ``columns(scene) -> set`` when names depend on the scene. Every kind of
+    clockwork's own declares them; without, a plot's result columns are
+    checked only once the points are computed."""
     def wrap(func):
         ANALYSES[kind] = func
         register_analysis(kind, keys, convert)
-        if columns is not None:
-            RESULT_COLUMNS[kind] = frozenset(columns)
-        else:
+        if columns is None:
             RESULT_COLUMNS.pop(kind, None)
+        else:
+            RESULT_COLUMNS[kind] = columns if callable(columns) else frozenset(columns)
         return func
 
     return wrap
+
+
+def result_columns(scene) -> frozenset[str] | None:
+    """Every column the results of the scene's analysis may hold, or None
+    when its kind does not declare them."""
+    columns = RESULT_COLUMNS.get((scene.analysis or {}).get("kind", "time_series"))
+    if columns is None:
+        return None
+    return frozenset(columns(scene) if callable(columns) else columns)
 
 
 def run_analysis(scene, point: dict, progress: bool = False) -> dict:

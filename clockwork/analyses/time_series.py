@@ -22,9 +22,10 @@ from .context import build_system, experiment, find_component, parameters
 from .registry import register
 
 
-# Every key of a time_series result (t_end_s always; the others when ticks are
-# recorded, or from the grasshopper clock's stall check).
-COLUMNS = {"t_end_s", "ticks", "mean_period_s", "last_period_s", "stalled", "last_amplitude_deg", "reason"}
+# Every key of a time_series result (t_end_s and engine always; the others when
+# ticks are recorded, an FMU ends the run, or from the grasshopper clock's stall check).
+COLUMNS = {"t_end_s", "engine", "engine_reason", "ended", "notes", "ticks", "mean_period_s", "last_period_s",
+           "stalled", "last_amplitude_deg", "reason"}
 
 
 @register("ticks", columns=COLUMNS)

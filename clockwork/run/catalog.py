@@ -63,11 +63,10 @@ def check_loadable(scene) -> None:
 
 def check_plot_axes(scene) -> None:
     """A plot column named "instance.variable" of a sweep's results is a
-    sweep axis (result columns have no dot), and, where the analysis kind
-    declares its result columns, any other name is one of them: checked
-    now, not after the run."""
+    sweep axis (result columns have no dot), and any other name is one of
+    the columns the analysis kind declares: checked now, not after the run."""
     axes = {f"{a}.{b}" for a, b in (ax.parameter for ax in scene.sweep.axes)} if scene.sweep else set()
-    declared = analyses.RESULT_COLUMNS.get((scene.analysis or {}).get("kind", "time_series"))
+    declared = analyses.result_columns(scene)
     for i, spec in enumerate(scene.plots):
         keys, source = plots.PLOT_COLUMNS.get(spec["kind"], ({}, "rows"))
         if source != "rows":

@@ -29,7 +29,12 @@ _KEYS = {"torque": keys.torque, "noise_rms": keys.nonnegative_number, "noise_sta
          "sample_periods": keys.positive_int}
 
 
-@register("hoyng_averaged_run", set(_KEYS), keys.table_converter(_KEYS))
+# The result's keys (the literal `res` below, the fit, and the noise's with noise).
+COLUMNS = {"eps", "mu0", "phi0_rad", "periods", "wall_time_run_s", "cpu_time_run_s", "block_periods", "circular",
+           "rate_eq20", "gain_no_noise", "rms_deviation_cycles", "max_deviation_cycles", "rms_gain"}
+
+
+@register("hoyng_averaged_run", set(_KEYS), keys.table_converter(_KEYS), columns=COLUMNS)
 def hoyng_averaged_run(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     avgs = [n_ for n_, c in scene.components.items() if c.model_description.modelName == AVERAGED]

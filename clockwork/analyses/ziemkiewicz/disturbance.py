@@ -17,8 +17,14 @@ from ..registry import register
 from .clock import DAY, Clock, advance_to, convert_keys, steady_for
 
 
+# What disturbance adds to the clock's result (the out.update below).
+KICK_COLUMNS = {"kick_start_s", "kick_at", "kick_duration_s", "g_factor", "phi_at_kick_deg", "w_at_kick_rad_per_s",
+                "stationary_period_s", "baseline_max_abs_dT_over_T", "max_abs_dT_over_T", "max_dT_over_T_signed",
+                "max_abs_dA_deg", "time_error_end_s", "time_error_max_abs_s", "ticks"}
+
+
 @register("disturbance", {"amplitude", "kick_time", "kick_duration", "g_factor", "kick_at",
-                          "tolerance_s_per_day", "max_periods"}, convert_keys)
+                          "tolerance_s_per_day", "max_periods"}, convert_keys, columns=Clock.RESULT_COLUMNS | KICK_COLUMNS)
 def disturbance(scene, point: dict, progress: bool = False) -> dict:
     """Point disturbance g' = g_factor g for kick_duration on the steady orbit (Fig. 7).
 

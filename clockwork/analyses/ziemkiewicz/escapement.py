@@ -19,7 +19,8 @@ from ..registry import register
 from .clock import Clock, advance_to, convert_keys, steady_for
 
 
-@register("escapement_steady_state", {"tolerance_s_per_day", "max_periods", "amplitude_guess"}, convert_keys)
+@register("escapement_steady_state", {"tolerance_s_per_day", "max_periods", "amplitude_guess"}, convert_keys,
+          columns=Clock.RESULT_COLUMNS | {"energy_balance_amplitude_deg"})
 def escapement_steady_state(scene, point: dict, progress: bool = False) -> dict:
     """Steady-state rate errors by shooting, for any escapement, profile and drag."""
     with Clock(scene, point) as c:
@@ -30,7 +31,13 @@ def escapement_steady_state(scene, point: dict, progress: bool = False) -> dict:
     return {"kind": "escapement_steady_state", "result": out, "statistics": stats}
 
 
-@register("steady_orbit", {"amplitude", "periods", "tolerance_s_per_day", "max_periods"}, convert_keys)
+# What steady_orbit adds to the clock's result.
+ORBIT_COLUMNS = {"orbit_closure_rad_per_s", "orbit_closure_phi_rad", "periods", "recoil_fraction", "phi_r_deg",
+                 "max_abs_phi_deg"}
+
+
+@register("steady_orbit", {"amplitude", "periods", "tolerance_s_per_day", "max_periods"}, convert_keys,
+          columns=Clock.RESULT_COLUMNS | ORBIT_COLUMNS)
 def steady_orbit(scene, point: dict, progress: bool = False) -> dict:
     """A few periods of the steady orbit, for a given torque or amplitude (Fig. 3)."""
     cfg = scene.analysis or {}

@@ -18,7 +18,13 @@ from ..time_series import run_with_progress
 from .parts import Parts, convert_keys, on_grid, stats_of
 
 
-@register("limit_cycle", {"sample_interval"}, convert_keys)
+# The keys of the result built at the end of limit_cycle.
+COLUMNS = {"amplitude_start_deg", "limit_cycle_amplitude_deg", "limit_cycle_change_deg", "amplitude_B6_deg",
+           "first_turn_amplitude_deg", "turns", "switches", "switch_abs_phi_deg_mean", "switch_abs_phi_deg_max_dev",
+           "phi_r_deg", "Q", "torque_Ncm", "acceleration_jump_rad_per_s2"}
+
+
+@register("limit_cycle", {"sample_interval"}, convert_keys, columns=COLUMNS)
 def limit_cycle(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     parts = Parts(scene, point)

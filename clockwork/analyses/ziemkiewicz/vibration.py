@@ -23,7 +23,13 @@ from ..time_series import run_with_progress
 from .parts import Parts, convert_keys, hermite, on_grid, stats_of
 
 
-@register("vibration_series", {"sample_interval", "transient"}, convert_keys)
+# The keys of the result built at the end of vibration_series.
+COLUMNS = {"transient_s", "a2_max_abs_deg", "a2_rms_deg", "a1_max_abs_deg", "forced_gain", "forced_gain_linear",
+           "free_rms_deg", "duffing_over_linear", "sign_a2_equals_sign_tau", "a2_sign_changes_per_period",
+           "torque_variation_percent", "torque_mean_excess_percent", "amplitude_end_deg", "mean_period_s", "ticks"}
+
+
+@register("vibration_series", {"sample_interval", "transient"}, convert_keys, columns=COLUMNS)
 def vibration_series(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     parts = Parts(scene, point, needs_vibration=True)
@@ -89,6 +95,12 @@ def vibration_series(scene, point: dict, progress: bool = False) -> dict:
             "statistics": stats}
 
 
+# section_statistics' keys (n_points alone under 8 points), and what poincare adds.
+SECTION_COLUMNS = {"n_points", "ring_width", "occupied_fraction", "positive_fraction"}
+POINCARE_COLUMNS = SECTION_COLUMNS | {"C2", "transient_s", "a2_min_deg", "a2_max_deg", "a2dot_min_deg_per_s",
+                                      "a2dot_max_deg_per_s", "interpolation_step_max_s"}
+
+
 def section_statistics(x: np.ndarray, y: np.ndarray, grid: int = 32) -> dict:
     """Shape statistics of section points (x, y), in any common unit.
 
@@ -127,7 +139,7 @@ def section_statistics(x: np.ndarray, y: np.ndarray, grid: int = 32) -> dict:
     }
 
 
-@register("poincare", {"transient"}, convert_keys)
+@register("poincare", {"transient"}, convert_keys, columns=POINCARE_COLUMNS)
 def poincare(scene, point: dict, progress: bool = False) -> dict:
     """(a2, a2dot) at each upward zero crossing of the pendulum angle.
 
