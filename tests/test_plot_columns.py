@@ -1,10 +1,13 @@
 """Every plot kind's columns are checked: a column that does not exist is
 refused (exit 2, the plot's key in the line), never drawn as an empty plot.
-A sweep axis ("instance.variable"), and a result column of an analysis kind
-that declares its columns (time_series, ticks, steady_state), are checked
-when the scene is loaded; other result or series columns as soon as the
-points are computed, before anything is written (the points are kept, so
-the corrected rerun is free).
+Every analysis kind declares its result and series columns
+(tests/test_result_columns.py holds them to the code), so a sweep axis
+("instance.variable"), a result column and a series column are checked
+when the scene is loaded, for every plot kind and analysis kind. A column
+that is declared but that no point has (it exists only in some runs), and
+the columns of a kind registered without a declaration, are refused as
+soon as the points are computed, before anything is written (the points
+are kept, so the corrected rerun is free).
 """
 
 from __future__ import annotations
@@ -90,8 +93,23 @@ def test_a_column_of_an_undeclared_kind_is_refused_after_the_points(capsys, tmp_
 
 def test_phase_space_of_a_series_column_that_is_not_there(capsys, tmp_path):
     f = _scene(tmp_path, 'kind = "phase_space"\nx = "pendulum.phi"\ny = "pendulum.w"', sweep="")
-    rc, _, err = run_cli(capsys, ["run", f, "--out", tmp_path / "out", "--no-progress"])
-    assert_one_line_error(rc, err, str(f), "plot[0].y", "pendulum.w", code=2)
+    for argv in (["validate", f], ["run", f, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, argv)
+        assert_one_line_error(rc, err, str(f), "plot[0].y", "pendulum.w", code=2)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_declared_column_that_no_point_has_is_refused_after_the_points(capsys, tmp_path):
+    """mean_period_s is a time_series column only with record.ticks: this scene records none."""
+    f = _scene(tmp_path, 'kind = "sweep"\nx = "escapement.torque"\ny = "mean_period_s"')
+    f.write_text(f.read_text().replace('ticks = "pendulum"\n', ""))
+    assert "ticks" not in f.read_text()
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert rc == 0, err
+    out = tmp_path / "out"
+    rc, _, err = run_cli(capsys, ["run", f, "--out", out, "--no-progress", "--workers", "1"])
+    assert_one_line_error(rc, err, str(f), "plot[0].y", "mean_period_s", "no point has", code=2)
+    assert not (out / "summary.json").exists() and len(list((out / "points").glob("*.json"))) == 2
 
 
 def test_a_correct_sweep_plot_is_drawn(capsys, tmp_path):
@@ -131,7 +149,7 @@ def _bundled_scene_of_each_kind() -> dict[str, str]:
     out = {}
     for f in sorted(scenarios_dir().glob("*.toml")):
         out.setdefault(tomllib.loads(f.read_text()).get("analysis", {}).get("kind", "time_series"), f.stem)
-    out["ticks"] = "core_grasshopper"
+    out["ticks"] = "ticks"  # none bundled: _with_plot makes one
     return out
 
 
@@ -146,10 +164,11 @@ def _with_plot(tmp_path, kind: str, plot: dict):
 
     from clockwork.paths import scenarios_dir
 
-    text = (scenarios_dir() / f"{KIND_SCENES[kind]}.toml").read_text()
-    if kind == "ticks":
-        text = text.replace('[analysis]\nkind = "time_series"', '[analysis]\nkind = "ticks"')
+    if kind == "ticks":  # the test scene: core_grasshopper's plots of series a ticks run has not
+        text = CLOCK_SCENE.format(stop=0.5, sweep="").replace('kind = "time_series"', 'kind = "ticks"')
         assert 'kind = "ticks"' in text
+    else:
+        text = (scenarios_dir() / f"{KIND_SCENES[kind]}.toml").read_text()
     n = len(tomllib.loads(text).get("plot", []))
     f = tmp_path / "s.toml"
     f.write_text(text + "\n[[plot]]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in plot.items()))
@@ -194,3 +213,31 @@ def test_every_column_key_of_a_row_plot_is_checked_at_validation(capsys, tmp_pat
     f, n = _with_plot(tmp_path, "escapement_steady_state", plot)
     rc, _, err = run_cli(capsys, ["validate", f])
     assert_one_line_error(rc, err, str(f), f"plot[{n}].{key}", "did you mean E_T_s_per_day?", code=2)
+
+
+SERIES_PLOTS = [k for k, (keys, source) in PLOT_COLUMNS.items() if source == "series" and keys]
+
+
+def test_the_series_plot_kinds_are_known():
+    assert set(SERIES_PLOTS) == {"time_series", "phase_portrait", "phase_space"}
+
+
+@pytest.mark.parametrize("analysis", sorted(KIND_SCENES))
+@pytest.mark.parametrize("plot_kind", SERIES_PLOTS)
+def test_a_missing_series_column_of_every_analysis_kind_is_refused_at_validation(capsys, tmp_path, plot_kind, analysis):
+    """y names no series column; where the kind has a series, x naming one of them passes."""
+    from clockwork.analyses.registry import series_columns
+
+    fmu_file("Air")
+    f, _ = _with_plot(tmp_path, analysis, {"kind": "sweep", "x": "no_such_column"})
+    f.write_text(f.read_text().rsplit("[[plot]]", 1)[0])
+    series = sorted(series_columns(load_scene(f)))
+    f, n = _with_plot(tmp_path, analysis, {"kind": plot_kind, "x": series[0] if series else "time",
+                                           "y": "no_such_column"})
+    rc, _, err = run_cli(capsys, ["validate", f])
+    key = f"plot[{n}].y" if series else f"plot[{n}].x"
+    if analysis == "time_series" and plot_kind != "phase_space":  # the scene's own check, with its advice
+        assert_one_line_error(rc, err, str(f), key, "is not recorded", "record.outputs", code=2)
+    else:
+        assert_one_line_error(rc, err, str(f), key, f"not a column of {analysis} series",
+                              "expected one of" if series else "has no series", code=2)

@@ -1,8 +1,9 @@
-"""Every analysis kind declares the columns its results hold, and the
-declaration is the code's: for every bundled scene (at reduced size) the
-result of its first point holds only declared columns, and over all the
-scenes every declared column is produced, but for the few listed below
-that these cases cannot reach (each with the reason)."""
+"""Every analysis kind declares the columns its results and series hold,
+and the declaration is the code's: for every bundled scene (at reduced
+size) the result of its first point holds only declared columns and its
+series exactly the declared ones, and over all the scenes every declared
+result column is produced, but for the few listed below that these cases
+cannot reach (each with the reason)."""
 
 from __future__ import annotations
 
@@ -54,7 +55,7 @@ def _fmus(monkeypatch):
 
 
 def test_every_analysis_kind_declares_its_columns():
-    assert set(registry.ANALYSES) == set(registry.RESULT_COLUMNS)
+    assert set(registry.ANALYSES) == set(registry.RESULT_COLUMNS) == set(registry.SERIES_COLUMNS)
 
 
 @pytest.fixture(scope="module")
@@ -71,6 +72,7 @@ def test_a_bundled_scene_produces_only_declared_columns(stem, produced):
     result = run_point(sc, point)
     declared, there = registry.result_columns(sc), set(result["result"])
     assert there <= declared, f"{kind} produces undeclared columns {sorted(there - declared)}"
+    assert set(result.get("series") or {}) == registry.series_columns(sc)
     produced.setdefault(kind, {})[stem] = (declared, there)
 
 

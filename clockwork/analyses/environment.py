@@ -153,7 +153,8 @@ def barometric_point(clock: Clock, rates: _Rates, air: str, delta_hpa: float) ->
 _BARO_KEYS = dict(_COMMON, delta_hPa=keys.positive_number)
 
 
-@register("barometric_coefficient", set(_BARO_KEYS), keys.table_converter(_BARO_KEYS), columns=BAROMETRIC_COLUMNS)
+@register("barometric_coefficient", set(_BARO_KEYS), keys.table_converter(_BARO_KEYS), columns=BAROMETRIC_COLUMNS,
+          series=set())
 def barometric_coefficient(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     air = _air(scene, "barometric_coefficient")
@@ -177,7 +178,8 @@ THERMAL_COLUMNS = SteadyState.COLUMNS | {"rate_s_per_day", "alpha_per_K", "therm
                                          "closed_form_rod_s_per_day_per_K", "delta_K"}
 
 
-@register("thermal_coefficient", set(_THERMAL_KEYS), keys.table_converter(_THERMAL_KEYS), columns=THERMAL_COLUMNS)
+@register("thermal_coefficient", set(_THERMAL_KEYS), keys.table_converter(_THERMAL_KEYS), columns=THERMAL_COLUMNS,
+          series=set())
 def thermal_coefficient(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     air = _air(scene, "thermal_coefficient")
@@ -384,7 +386,16 @@ YEAR_COLUMNS = {"compensating_search_evaluations", "days", "pressure_rms_hPa", "
     f"{name}_{k}" for name in _CLOCKS for k in _PER_CLOCK}
 
 
-@register("weather_year", set(_YEAR_KEYS), keys.table_converter(_YEAR_KEYS), columns=YEAR_COLUMNS)
+def _clock_series(name: str) -> tuple[str, str]:
+    """The series' (accumulated error, rate) columns of one clock."""
+    return f"error_{name}_s", f"rate_{name}_s_per_day"
+
+
+YEAR_SERIES = {"time", "pressure_hPa", "temperature_C", "day", *(c for n in _CLOCKS for c in _clock_series(n))}
+
+
+@register("weather_year", set(_YEAR_KEYS), keys.table_converter(_YEAR_KEYS), columns=YEAR_COLUMNS,
+          series=YEAR_SERIES)
 def weather_year(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     air = _air(scene, "weather_year")
@@ -443,8 +454,9 @@ def _year(cfg, clock: Clock, rates: _Rates, air: str, weather: dict, series: dic
             vacuum[k + 1] = vacuum_ss[k] + gap * decay[k]
         mean_over_step[-1] = vacuum_ss[-1]
         lagged = _accumulated((1.0 - (1.0 - mean_over_step) * f) * DAY, regulated, dt)
-        series[f"error_{name}_s"] = error
-        series[f"rate_{name}_s_per_day"] = r - regulated
+        error_column, rate_column = _clock_series(name)
+        series[error_column] = error
+        series[rate_column] = r - regulated
         out.update({
             f"{name}_torque_Nm": tau,
             f"{name}_amplitude_deg": math.degrees(centre.amplitude),

@@ -166,7 +166,7 @@ COLUMNS = SteadyState.COLUMNS | {"torque_Nm", "energy_balance_amplitude_deg", "E
 
 
 @register("steady_state", {"tolerance_s_per_day", "max_periods", "measure_periods", "amplitude_guess"},
-          keys.table_converter(_KEYS), columns=COLUMNS)
+          keys.table_converter(_KEYS), columns=COLUMNS, series=set())
 def steady_state(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     clock = clock_at(scene, point, "steady_state")

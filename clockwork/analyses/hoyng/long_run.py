@@ -42,7 +42,17 @@ def columns(scene) -> set[str]:
     return COLUMNS | {c for a in hoyng_components(scene)[2] for c in _twin_columns(a)}
 
 
-@register("hoyng_long_run", set(_KEYS), keys.table_converter(_KEYS), columns=columns)
+def _twin_series(avg: str) -> tuple[str, str]:
+    """The series' (psi_p - psi_twin, psi_twin - t) columns of an AveragedPendulum twin, cycles."""
+    return f"psi_p_minus_psi_{avg}_cycles", f"psi_{avg}_minus_t_cycles"
+
+
+def series_columns(scene) -> set[str]:
+    return {"tau", "periods", "psi_p_minus_t_cycles", *(c for a in hoyng_components(scene)[2] for c in _twin_series(a))}
+
+
+@register("hoyng_long_run", set(_KEYS), keys.table_converter(_KEYS), columns=columns,
+          series=series_columns)
 def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     pend, esc, avgs, params, pp, ep, n = grasshopper_clock(scene, point, "hoyng_long_run")
@@ -185,8 +195,9 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
     series = {"tau": tau.tolist(), "periods": (tau / TWO_PI).tolist(),
               "psi_p_minus_t_cycles": (y / TWO_PI).tolist()}
     for a in avgs:
-        series[f"psi_p_minus_psi_{a}_cycles"] = ((psi_p - np.asarray(samples[f"psi_{a}"])) / TWO_PI).tolist()
-        series[f"psi_{a}_minus_t_cycles"] = ((np.asarray(samples[f"psi_{a}"]) - tau) / TWO_PI).tolist()
+        lead, lag = _twin_series(a)
+        series[lead] = ((psi_p - np.asarray(samples[f"psi_{a}"])) / TWO_PI).tolist()
+        series[lag] = ((np.asarray(samples[f"psi_{a}"]) - tau) / TWO_PI).tolist()
     return {"kind": "hoyng_long_run", "result": res, "series": series, "statistics": stats,
             "noise_head": noise["head"]}
 

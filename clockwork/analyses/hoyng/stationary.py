@@ -43,7 +43,7 @@ def columns(scene) -> set[str]:
     return STEADY_COLUMNS | ADDED_COLUMNS | {c for a in hoyng_components(scene)[2] for c in _twin_columns(a)}
 
 
-@register("hoyng_stationary", set(_KEYS), keys.table_converter(_KEYS), columns=columns)
+@register("hoyng_stationary", set(_KEYS), keys.table_converter(_KEYS), columns=columns, series=set())
 def hoyng_stationary(scene, point: dict, progress: bool = False) -> dict:
     pend, esc, avgs = hoyng_components(scene)
     if pend is None or esc is None:

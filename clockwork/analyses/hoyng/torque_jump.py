@@ -34,7 +34,8 @@ COLUMNS = {"eps", "mu0", "mu1", "phi0_rad", "periods", "jump_at_periods", "rate_
            "next_order_bound_rate", "delta_psi_sim", "rate_final", "delta_psi_eq", "t_end_s"}
 
 
-@register("hoyng_torque_jump", set(_KEYS), keys.table_converter(_KEYS), columns=COLUMNS)
+@register("hoyng_torque_jump", set(_KEYS), keys.table_converter(_KEYS), columns=COLUMNS,
+          series={"tick_time_s", "periods", "rate", "rate_eq16_eq18", "amplitude_rad", "amplitude_eq18_rad"})
 def hoyng_torque_jump(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     pend, esc, _, params, pp, ep, n = grasshopper_clock(scene, point, "hoyng_torque_jump")

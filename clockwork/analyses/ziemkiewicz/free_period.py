@@ -24,7 +24,7 @@ COLUMNS = {"amplitude_deg", "turning_amplitude_deg", "period_s", "period_agm_s",
            "E_C_agm_s_per_day", "periods"}
 
 
-@register("free_period", {"periods"}, convert_keys, columns=COLUMNS)
+@register("free_period", {"periods"}, convert_keys, columns=COLUMNS, series=set())
 def free_period(scene, point: dict, progress: bool = False) -> dict:
     """Period of a free pendulum from its tick times (Fig. 1)."""
     cfg = scene.analysis or {}

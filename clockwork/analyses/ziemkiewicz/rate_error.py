@@ -22,7 +22,8 @@ COLUMNS = {"transient_s", "periods", "momentary_mean_s_per_day", "momentary_std_
            "reference_period_end_s"}
 
 
-@register("rate_error", {"transient"}, convert_keys, columns=COLUMNS)
+@register("rate_error", {"transient"}, convert_keys, columns=COLUMNS,
+          series={"time", "period_s", "reference_period_s", "momentary_s_per_day", "accumulated_s"})
 def rate_error(scene, point: dict, progress: bool = False) -> dict:
     """Periods of the clock with the vibrating mechanism against the same
     clock with C1 = C2 = 0, started alike and run in lockstep.

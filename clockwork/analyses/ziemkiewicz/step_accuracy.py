@@ -101,8 +101,18 @@ def columns(scene) -> set[str]:
     return BASE_COLUMNS | {c for dt in paper for c in _paper_columns(dt)} | {_fixed_column(h) for h in fixed}
 
 
+def _curves(rtols: list) -> list[str]:
+    """The curves, each a series column "<curve>_rel_err" against h_s."""
+    return ["fixed", *(f"rtol_{r:.0e}" for r in rtols), "paper_a1_quantized", "paper_a1_interpolated"]
+
+
+def series_columns(scene) -> set[str]:
+    return {"h_s", *(f"{name}_rel_err" for name in _curves(_steps(scene.analysis or {})[1]))}
+
+
 @register("step_accuracy", {"amplitude", "periods", "fixed_steps", "rtols", "comm_steps",
-                            "paper_steps", "paper_span"}, convert_keys, columns=columns)
+                            "paper_steps", "paper_span"}, convert_keys, columns=columns,
+          series=series_columns)
 def step_accuracy(scene, point: dict, progress: bool = False) -> dict:
     """E_C(simulated) - E_C(AGM) = (T - T_AGM)/T0 of a free pendulum (Fig. 11).
 
@@ -139,7 +149,7 @@ def step_accuracy(scene, point: dict, progress: bool = False) -> dict:
 
     default = err(_measure_period(scene, point, {P: A}, n))
     bar.update()
-    curves: dict[str, dict[float, float]] = {"fixed": {}}
+    curves: dict[str, dict[float, float]] = {name: {} for name in _curves(rtols)}
     for h in fixed:
         o = {P: A, (pend, "h_max"): h, (pend, "rtol"): 0.1, (pend, "atol"): 1.0,
              ("master", "step"): max(h, base_step)}
@@ -147,12 +157,10 @@ def step_accuracy(scene, point: dict, progress: bool = False) -> dict:
         bar.update()
     for r in rtols:
         key = f"rtol_{r:.0e}"
-        curves[key] = {}
         for c in comm:
             o = {P: A, (pend, "rtol"): r, (pend, "atol"): r * 1e-2, ("master", "step"): c}
             curves[key][c] = err(_measure_period(scene, point, o, n))
             bar.update()
-    curves["paper_a1_quantized"], curves["paper_a1_interpolated"] = {}, {}
     for dt in paper:
         Tq, Ti = euler_a1_period(A, dt, span, g / L)
         curves["paper_a1_quantized"][dt] = err(Tq)
