@@ -3,9 +3,10 @@
  * objects, with -fsanitize=fuzzer,address,undefined. fuzz_fmu.c covers the
  * core through the fmi2 face; this one covers what the fmi3 face adds and
  * routes: Event Mode and Step Mode in any order, instances with and without
- * eventModeUsed and earlyReturnAllowed, fmi3DoStep's early return, the
- * typed getters and setters with nValues, FMU states (also corrupted), and
- * the functions the FMU does not provide.
+ * eventModeUsed and earlyReturnAllowed, with and without an intermediate
+ * update callback (fuzzed inputs, refused calls inside it), fmi3DoStep's
+ * early return, the typed getters and setters with nValues, FMU states
+ * (also corrupted), and the functions the FMU does not provide.
  *
  * Pass = no crash, no sanitizer report, no hang, and after every call:
  *   - every status is OK, Warning, Discard or Error, and every fmi3Error
@@ -147,12 +148,58 @@ static fmi3Status checked(fmi3Status st, long before, const char *fn) {
 static long before;
 #define CALL(fn, ...) (before = n_errors, checked(fmi3##fn(__VA_ARGS__), before, #fn))
 
+/* Intermediate update: the callback, given the fuzz input as its
+ * environment, sets the Float64 inputs to fuzzed values or tries what
+ * Intermediate Update Mode refuses; it may only be called inside
+ * fmi3DoStep, at a time inside the step. */
+static int in_do_step;
+static double step_tc, step_h;
+
+static void intermediate(fmi3InstanceEnvironment env, fmi3Float64 t, fmi3Boolean set_requested,
+                         fmi3Boolean get_allowed, fmi3Boolean step_finished, fmi3Boolean can_return_early,
+                         fmi3Boolean *early_requested, fmi3Float64 *early_time) {
+    reader *r = env;
+    (void)step_finished;
+    if (!in_do_step) FAIL("intermediate update outside fmi3DoStep");
+    if (!(t >= step_tc && t <= step_tc + step_h))
+        FAIL("intermediate update at %.17g outside [%.17g, %.17g]", t, step_tc, step_tc + step_h);
+    if (!set_requested || get_allowed || can_return_early) FAIL("unexpected intermediate update flags");
+    if (!early_requested || !early_time) FAIL("NULL early-return arguments");
+    *early_requested = fmi3False;
+    const uint8_t what = u8(r);
+    const long e = n_errors;
+    if (what % 8 == 7) { /* what the mode refuses: each must fail with a logged reason */
+        fmi3Boolean a, b, c;
+        double x;
+        fmi3ValueReference vr = fuzz_vr(r);
+        const cw_var_info *v = info(vr);
+        if (fmi3DoStep(C, t, 0.1, fmi3False, &a, &b, &c, &x) != fmi3Error || n_errors == e)
+            FAIL("fmi3DoStep in Intermediate Update Mode");
+        if (fmi3GetFloat64(C, &vr, 1, &x, 1) != fmi3Error)
+            FAIL("fmi3GetFloat64 in Intermediate Update Mode");
+        x = 1.0;
+        if ((!v || v->causality != CW_INPUT || v->type != CW_REAL) &&
+            fmi3SetFloat64(C, &vr, 1, &x, 1) != fmi3Error)
+            FAIL("fmi3SetFloat64 of %u (not a Float64 input) in Intermediate Update Mode", (unsigned)vr);
+        n_errors = e;
+        return;
+    }
+    for (int k = 0; k < CW_NVARS; k++) {
+        const cw_var_info *v = &CW_VARS[k];
+        if (!v->name || v->type != CW_REAL || v->causality != CW_INPUT || !(u8(r) & 1)) continue;
+        fmi3ValueReference vr = (fmi3ValueReference)k;
+        double x = fuzz_double(r, v);
+        fmi3SetFloat64(C, &vr, 1, &x, 1); /* a bad value fails the step, with a reason */
+    }
+}
+
 static fmi3Instance instantiate(reader *r) {
     const uint8_t f = u8(r);
     event_mode = f & 1;
     early_allowed = (f >> 1) & 1;
     return fmi3InstantiateCoSimulation("fuzz3", CW_MODEL_GUID, NULL, fmi3False, (f >> 2) & 1,
-                                       event_mode, early_allowed, NULL, 0, NULL, logger, NULL);
+                                       event_mode, early_allowed, NULL, 0, r, logger,
+                                       (f >> 3) & 1 ? intermediate : NULL);
 }
 
 static void sync_time(void) {
@@ -243,7 +290,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
             const double tc = u8(r) % 8 ? T : fuzz_double(r, NULL);
             fmi3Boolean event = 1, term = 1, early = 1;
             double t_last = NAN;
+            in_do_step = 1, step_tc = tc, step_h = h;
             fmi3Status st = CALL(DoStep, C, tc, h, fmi3False, &event, &term, &early, &t_last);
+            in_do_step = 0;
             if (st <= fmi3Warning) {
                 if (early && !early_allowed) FAIL("an early return that was not allowed");
                 if (early && !(t_last > tc && t_last < tc + h))

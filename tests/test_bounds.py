@@ -88,3 +88,70 @@ def test_a_zip_whose_axes_repeat_values_but_not_points_is_accepted(capsys, tmp_p
     f = _scene(tmp_path, stop=0.1, sweep=f'\n[sweep]\nmode = "zip"\naxes = [ {axes} ]\n')
     rc, out, err = run_cli(capsys, ["validate", f])
     assert rc == 0 and "3 sweep points" in out, err
+
+
+# --- every analysis kind: memory and steps known before the work -------------------------
+
+# (bundled scene, overrides, the key the one line must name). Each would keep
+# far more than memory holds or step for days; validate and run refuse it.
+KIND_CASES = {
+    "hoyng_long_run, 10x the span (memory)": ("hoyng_fig6", ["experiment.stop=3e8"], "experiment.stop"),
+    "hoyng_long_run, stop = 1e13 (steps)": ("hoyng_fig6", ["experiment.stop=1e13"], "experiment.stop"),
+    "hoyng_averaged_run, stop = 1e12": ("hoyng_fig6_averaged", ["experiment.stop=1e12"], "experiment.stop"),
+    "hoyng_torque_jump, stop = 1e9": ("hoyng_fig4", ["experiment.stop=1e9"], "experiment.stop"),
+    "lyapunov, a tiny sample_interval": ("ziemkiewicz_fig10b", ["analysis.sample_interval=1e-6"],
+                                         "analysis.sample_interval"),
+    "vibration_series, a tiny sample_interval": ("ziemkiewicz_fig8b", ["analysis.sample_interval=1e-7"],
+                                                 "analysis.sample_interval"),
+    "limit_cycle, stop = 1e9": ("ziemkiewicz_fig8a", ["experiment.stop=1e9"], "experiment.stop"),
+    "rate_error, stop = 1e9": ("ziemkiewicz_fig10a", ["experiment.stop=1e9"], "experiment.stop"),
+    "poincare, stop = 1e9": ("ziemkiewicz_fig9b", ["experiment.stop=1e9"], "experiment.stop"),
+    "disturbance, stop = 1e9": ("ziemkiewicz_fig7a", ["experiment.stop=1e9"], "experiment.stop"),
+    "free_period, 1e15 periods": ("ziemkiewicz_fig1", ["analysis.periods=1000000000000000"], "analysis.periods"),
+    "steady_orbit, 1e7 periods": ("ziemkiewicz_fig3", ["analysis.periods=10000000"], "analysis.periods"),
+    "step_accuracy, a tiny fixed step": ("ziemkiewicz_fig11", ['analysis.fixed_steps=["1e-12 s"]'],
+                                         "analysis.fixed_steps"),
+    "step_accuracy, a tiny paper step": ("ziemkiewicz_fig11", ['analysis.paper_steps=["1e-12 s"]'],
+                                         "analysis.paper_steps"),
+    "step_accuracy, 5000 runs": ("ziemkiewicz_fig11",
+                                 ["analysis.rtols=[" + ",".join(f"{1e-6 * (1 + k / 1e4)!r}" for k in range(5000)) + "]"],
+                                 "analysis.rtols"),
+    "steady_state, max_periods = 1e15": ("ziemkiewicz_fig4a", ["analysis.max_periods=1000000000000000"],
+                                         "analysis.max_periods"),
+    "hoyng_stationary, measure_periods = 1e15": ("hoyng_fig3", ["analysis.measure_periods=1000000000000000"],
+                                                 "analysis.measure_periods"),
+}
+
+
+@pytest.mark.parametrize("case", list(KIND_CASES))
+@pytest.mark.parametrize("command", ["validate", "run"])
+def test_every_kind_refuses_an_unbounded_input_before_it_starts(capsys, tmp_path, case, command):
+    scene, overrides, key = KIND_CASES[case]
+    argv = [command, scene] + [a for o in overrides for a in ("--set", o)]
+    argv += ["--out", tmp_path / "out", "--no-progress"] if command == "run" else []
+    rc, _, err = run_cli(capsys, argv)
+    assert_one_line_error(rc, err, f"{scene}.toml", key, code=2)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_run_that_records_little_but_steps_for_days_is_refused(capsys, tmp_path):
+    f = _scene(tmp_path, stop=1e11, edit=lambda s: s.replace('ticks = "pendulum"', 'interval = "1e10 s"'))
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, str(f), "experiment.stop", "steps", code=2)
+
+
+def test_every_kind_that_runs_over_a_span_declares_what_it_keeps():
+    from clockwork.analyses.bounds import KEPT
+    from clockwork.analyses.registry import ANALYSES
+
+    spanless = {"time_series", "ticks",  # counted by clockwork.run.catalog
+                "steady_state", "escapement_steady_state", "hoyng_stationary",  # end on their tolerance
+                "barometric_coefficient", "thermal_coefficient", "weather_year"}
+    assert set(ANALYSES) - spanless == set(KEPT)
+
+
+@pytest.mark.parametrize("scene", ["hoyng_fig6", "hoyng_fig6_averaged", "ziemkiewicz_fig11", "ziemkiewicz_fig9a",
+                                   "ziemkiewicz_fig10b", "ziemkiewicz_fig7a"])
+def test_the_bundled_long_scenes_are_within_the_bounds(capsys, scene):
+    rc, out, err = run_cli(capsys, ["validate", scene])
+    assert rc == 0 and out.startswith("ok"), err

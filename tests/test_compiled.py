@@ -115,6 +115,38 @@ def test_a_long_recording_crosses_the_buffer_boundary(monkeypatch):
         assert recs[0].ticks == recs[1].ticks
 
 
+def test_a_run_cut_into_slices_gives_the_same_bits(monkeypatch):
+    """The core returns to Python after each slice of wall time (so that
+    signals are handled) and is called again where it stopped: with a slice
+    of 0 s it returns every 16 steps, and the bits do not change."""
+    monkeypatch.setattr(CompiledMaster, "slice_s", 0.0)
+    lib = compiled.load_core()
+    returns = []
+    for name in ("cw_run_until", "cw_run_watch"):
+        def counted(*args, _call=getattr(lib, name)):
+            rc = _call(*args)
+            returns.append(rc)
+            return rc
+        monkeypatch.setattr(lib, name, counted)
+    p, c = _pair(CLOCK, LINKS, step=0.01)
+    with p, c:
+        got = []
+        for s in (p, c):
+            m = s.master
+            r = Recorder(m, [("pendulum", "phi"), ("escapement", "tau")], interval=0.05, ticks_of="pendulum")
+            r.start()
+            m.run_until(2.0, r)
+            m.run_until(3.0)  # nothing recorded
+            port = m.ports["pendulum"]
+            watched, remember = [(port, port.out_names.index("tick_time"))], [(port, port.out_names.index("phi"))]
+            trace = [m.run_watch(6.0, 5.5, 2e-3, watched, remember), m.t]
+            got.append((r.columns, r.ticks, trace))
+        assert got[0] == got[1] and len(got[0][0]["time"]) == round(2.0 / 0.05) + 1
+        _same_state(p, c)
+    assert returns.count(compiled._SLICE_OVER) >= 300 // 16, returns  # 300 steps to t = 3 s, then the watch
+    assert returns[-2:] == [compiled._SLICE_OVER, compiled._WATCHED], returns  # the watch was sliced too
+
+
 def test_run_watch_is_the_same_on_both_engines():
     p, c = _pair(CLOCK, LINKS, step=0.05)
     with p, c:

@@ -1,10 +1,13 @@
 """Every plot kind's columns are checked: a column that does not exist is
 refused (exit 2, the plot's key in the line), never drawn as an empty plot.
-A sweep axis ("instance.variable"), and a result column of an analysis kind
-that declares its columns (time_series, ticks, steady_state), are checked
-when the scene is loaded; other result or series columns as soon as the
-points are computed, before anything is written (the points are kept, so
-the corrected rerun is free).
+Every analysis kind declares its result and series columns
+(tests/test_result_columns.py holds them to the code), so a sweep axis
+("instance.variable"), a result column and a series column are checked
+when the scene is loaded, for every plot kind and analysis kind. A column
+that is declared but that no point has (it exists only in some runs), and
+the columns of a kind registered without a declaration, are refused as
+soon as the points are computed, before anything is written (the points
+are kept, so the corrected rerun is free).
 """
 
 from __future__ import annotations
@@ -14,6 +17,8 @@ import json
 import pytest
 
 from cwtest import CLOCK_SCENE, FMU_DIR, assert_one_line_error, fmu_file, run_cli
+from clockwork.run import load_scene
+from clockwork.results.plots.registry import PLOT_COLUMNS
 
 SWEEP = '\n[sweep]\naxes = [ { parameter = "escapement.torque", values = ["0.4 N.cm", "0.5 N.cm"] } ]\n'
 
@@ -88,8 +93,23 @@ def test_a_column_of_an_undeclared_kind_is_refused_after_the_points(capsys, tmp_
 
 def test_phase_space_of_a_series_column_that_is_not_there(capsys, tmp_path):
     f = _scene(tmp_path, 'kind = "phase_space"\nx = "pendulum.phi"\ny = "pendulum.w"', sweep="")
-    rc, _, err = run_cli(capsys, ["run", f, "--out", tmp_path / "out", "--no-progress"])
-    assert_one_line_error(rc, err, str(f), "plot[0].y", "pendulum.w", code=2)
+    for argv in (["validate", f], ["run", f, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, argv)
+        assert_one_line_error(rc, err, str(f), "plot[0].y", "pendulum.w", code=2)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_declared_column_that_no_point_has_is_refused_after_the_points(capsys, tmp_path):
+    """mean_period_s is a time_series column only with record.ticks: this scene records none."""
+    f = _scene(tmp_path, 'kind = "sweep"\nx = "escapement.torque"\ny = "mean_period_s"')
+    f.write_text(f.read_text().replace('ticks = "pendulum"\n', ""))
+    assert "ticks" not in f.read_text()
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert rc == 0, err
+    out = tmp_path / "out"
+    rc, _, err = run_cli(capsys, ["run", f, "--out", out, "--no-progress", "--workers", "1"])
+    assert_one_line_error(rc, err, str(f), "plot[0].y", "mean_period_s", "no point has", code=2)
+    assert not (out / "summary.json").exists() and len(list((out / "points").glob("*.json"))) == 2
 
 
 def test_a_correct_sweep_plot_is_drawn(capsys, tmp_path):
@@ -118,3 +138,106 @@ def test_a_steady_state_scene_is_checked_at_validation(capsys, tmp_path, y, ok):
         assert rc == 0, err
     else:
         assert_one_line_error(rc, err, str(f), "plot[0].y", "did you mean E_T_s_per_day?", code=2)
+
+
+def _bundled_scene_of_each_kind() -> dict[str, str]:
+    """analysis kind -> a bundled scene of that kind (ticks: core_grasshopper, made a ticks run)."""
+    import tomllib
+
+    from clockwork.paths import scenarios_dir
+
+    out = {}
+    for f in sorted(scenarios_dir().glob("*.toml")):
+        out.setdefault(tomllib.loads(f.read_text()).get("analysis", {}).get("kind", "time_series"), f.stem)
+    out["ticks"] = "ticks"  # none bundled: _with_plot makes one
+    return out
+
+
+KIND_SCENES = _bundled_scene_of_each_kind()
+# Plot kinds of sweep rows, and the column key each is tried with (the others in the next test).
+ROW_PLOTS = {"sweep": "y", "rate_errors": "dashed", "contour": "z", "curves": "y", "hoyng_comparison": "theory"}
+
+
+def _with_plot(tmp_path, kind: str, plot: dict):
+    """The bundled scene of analysis `kind` with one more plot: (file, that plot's index)."""
+    import tomllib
+
+    from clockwork.paths import scenarios_dir
+
+    if kind == "ticks":  # the test scene: core_grasshopper's plots of series a ticks run has not
+        text = CLOCK_SCENE.format(stop=0.5, sweep="").replace('kind = "time_series"', 'kind = "ticks"')
+        assert 'kind = "ticks"' in text
+    else:
+        text = (scenarios_dir() / f"{KIND_SCENES[kind]}.toml").read_text()
+    n = len(tomllib.loads(text).get("plot", []))
+    f = tmp_path / "s.toml"
+    f.write_text(text + "\n[[plot]]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in plot.items()))
+    return f, n
+
+
+def test_every_analysis_kind_has_a_bundled_scene():
+    from clockwork.analyses.registry import ANALYSES
+
+    assert set(ANALYSES) <= set(KIND_SCENES)
+
+
+@pytest.mark.parametrize("analysis", sorted(KIND_SCENES))
+@pytest.mark.parametrize("plot_kind", list(ROW_PLOTS))
+def test_a_missing_column_of_every_plot_kind_and_analysis_kind_is_refused_at_validation(
+        capsys, tmp_path, monkeypatch, plot_kind, analysis):
+    from clockwork.analyses.registry import result_columns
+
+    fmu_file("Air")
+    f, _ = _with_plot(tmp_path, analysis, {"kind": "sweep", "x": "no_such_column"})
+    f.write_text(f.read_text().rsplit("[[plot]]", 1)[0])
+    good = min(result_columns(load_scene(f)))  # a column the kind declares for this scene
+    key = ROW_PLOTS[plot_kind]
+    plot = {"kind": plot_kind, **{k: good for k in PLOT_COLUMNS[plot_kind][0]}, key: "no_such_column"}
+    f, n = _with_plot(tmp_path, analysis, plot)
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, str(f), f"plot[{n}].{key}", f"not a column of {analysis} results", code=2)
+
+
+@pytest.mark.parametrize("plot_kind, key", [(p, k) for p in ROW_PLOTS for k in ("x", "y", "z", "group", "theory",
+                                                                              "dashed", "dashed_if")
+                                            if k in PLOT_COLUMNS[p][0]])
+def test_every_column_key_of_a_row_plot_is_checked_at_validation(capsys, tmp_path, plot_kind, key):
+    """Each key naming columns, on an escapement_steady_state scene, with a typo: the nearest name is given."""
+    plot = {"kind": plot_kind, "x": "amplitude_deg", "y": ["E_T_s_per_day"] if plot_kind != "contour" else "period_s",
+            "z": "E_T_s_per_day", "group": ["E_C_s_per_day"], "theory": "E_E_s_per_day", "dashed": ["E_E_s_per_day"],
+            "dashed_if": "stalled"}
+    plot = {k: v for k, v in plot.items() if k == "kind" or k in PLOT_COLUMNS[plot_kind][0]}
+    if plot_kind == "hoyng_comparison":
+        plot["group"] = "E_C_s_per_day"  # one column there
+    plot[key] = "E_T_s_per_dya"
+    f, n = _with_plot(tmp_path, "escapement_steady_state", plot)
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, str(f), f"plot[{n}].{key}", "did you mean E_T_s_per_day?", code=2)
+
+
+SERIES_PLOTS = [k for k, (keys, source) in PLOT_COLUMNS.items() if source == "series" and keys]
+
+
+def test_the_series_plot_kinds_are_known():
+    assert set(SERIES_PLOTS) == {"time_series", "phase_portrait", "phase_space"}
+
+
+@pytest.mark.parametrize("analysis", sorted(KIND_SCENES))
+@pytest.mark.parametrize("plot_kind", SERIES_PLOTS)
+def test_a_missing_series_column_of_every_analysis_kind_is_refused_at_validation(capsys, tmp_path, plot_kind, analysis):
+    """y names no series column; where the kind has a series, x naming one of them passes."""
+    from clockwork.analyses.registry import series_columns
+
+    fmu_file("Air")
+    f, _ = _with_plot(tmp_path, analysis, {"kind": "sweep", "x": "no_such_column"})
+    f.write_text(f.read_text().rsplit("[[plot]]", 1)[0])
+    series = sorted(series_columns(load_scene(f)))
+    f, n = _with_plot(tmp_path, analysis, {"kind": plot_kind, "x": series[0] if series else "time",
+                                           "y": "no_such_column"})
+    rc, _, err = run_cli(capsys, ["validate", f])
+    key = f"plot[{n}].y" if series else f"plot[{n}].x"
+    if analysis == "time_series" and plot_kind != "phase_space":  # the scene's own check, with its advice
+        assert_one_line_error(rc, err, str(f), key, "is not recorded", "record.outputs", code=2)
+    else:
+        assert_one_line_error(rc, err, str(f), key, f"not a column of {analysis} series",
+                              "expected one of" if series else "has no series", code=2)

@@ -118,7 +118,7 @@ def test_good_scene_values_are_converted():
     points = s.points()
     assert len(points) == 6 and s.sweep.shape == (3, 2)
     assert points[1] == {("pendulum", "Q"): q.values[0], ("other", "phi_start"): phi.values[1]}
-    assert [pl["kind"] for pl in s.plots] == ["time_series", "phase_portrait"]
+    assert [pl["kind"] for pl in s.plots] == ["sweep", "rate_errors"]  # a steady state draws no series
     assert s.plots[0]["file"] == "angles.png"
     assert len(s.sha256) == 64
 

@@ -72,3 +72,34 @@ def test_a_signal_to_the_parent_alone_leaves_nothing_and_keeps_the_points(tmp_pa
         assert r.returncode == 0, r.stderr
         assert json.loads((out / "summary.json").read_text())["points_reused"] >= finished
         assert not list(tmp.iterdir())
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT], ids=lambda s: s.name)
+def test_a_signal_ends_a_long_compiled_run_inside_one_core_call(tmp_path, sig):
+    """One run_until of the compiled core that would take minutes (1e8 s of
+    the clock, nothing recorded on the way that would fill a buffer) still
+    ends within seconds of the signal: the core returns to Python every
+    50 ms of wall time. The bound below is a bound on termination, not on
+    speed: without the slices the run goes on for minutes."""
+    argv, env, tmp = _start(tmp_path, 1, "off")
+    scene = CLOCK_SCENE.format(stop=1e8, sweep="")
+    scene = scene.replace('ticks = "pendulum"\n', 'interval = "1e6 s"\n').replace(
+        "[master]\n", '[master]\nengine = "compiled"\n')
+    (tmp_path / "s.toml").write_text(scene)
+    argv = argv[:argv.index("--workers")]  # a single run: no pool, and no warning about one
+    proc = subprocess.Popen(argv, env=env, stderr=subprocess.PIPE, text=True)
+    time.sleep(1.5)  # start-up takes ~0.5 s; then the run is inside the core
+    assert proc.poll() is None, proc.communicate()[1]
+    os.kill(proc.pid, sig)
+    try:
+        _, err = proc.communicate(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
+        pytest.fail(f"{sig.name} did not end the run inside the compiled core within 10 s")
+    assert proc.returncode == 128 + sig, err
+    assert len(err.strip().splitlines()) == 1 and err.startswith("clockwork: error: interrupted"), err
+    assert not list(tmp.iterdir()), list(tmp.iterdir())
+    out = tmp_path / "out"
+    assert not [p for p in out.rglob("*") if p.name.endswith(".part") or p.name.startswith(".staging")]
+    assert not (out / "summary.json").exists()

@@ -518,3 +518,82 @@ def test_an_exported_transformation_runs_back_to_the_same_bits(tmp_path, capsys)
     read_ssd(str(tmp_path / "again.ssp"), validate=True)
     assert load_scene(tmp_path / "again.ssp").connections == first.connections
     assert {(c.factor, c.offset) for c in first.connections} >= {(1000.0, 0.0), (2.0, 0.5)}
+
+
+# --- bounds before the work: sizes, counts, depth, paths -------------------------------
+
+def _clique(d: Path, k: int = 9) -> None:
+    """k system connectors all connected to each other, one of them to an input:
+    the paths to that input grow as k! (9! = 362,880)."""
+    ssd = d / "SystemStructure.ssd"
+    s = ssd.read_text()
+    conns = "".join(f'<ssd:Connector name="x{i}" kind="input"><ssc:Real/></ssd:Connector>' for i in range(k))
+    s = s.replace('<ssd:System name="clock" description="Grasshopper clock, pendulum in a sub-system">',
+                  f'<ssd:System name="clock"><ssd:Connectors>{conns}</ssd:Connectors>', 1)
+    edges = "".join(f'<ssd:Connection startConnector="x{i}" endConnector="x{j}"/>'
+                    for i in range(k) for j in range(i + 1, k))
+    edges += '<ssd:Connection startConnector="x0" endElement="escapement" endConnector="phi"/>'
+    i = s.rindex("</ssd:Connections>")
+    ssd.write_text(s[:i] + edges + s[i:])
+
+
+def _nest(d: Path, depth: int = 10_000) -> None:
+    ssd = d / "SystemStructure.ssd"
+    s = ssd.read_text()
+    inner = '<ssd:System name="n"><ssd:Elements>' * depth + "</ssd:Elements></ssd:System>" * depth
+    s = s.replace("<ssd:Elements>", f"<ssd:Elements>{inner}", 1)
+    ssd.write_text(s)
+
+
+def _pad(name: str, size: int):
+    def edit(d: Path) -> None:
+        f = d / name
+        text = f.read_text()
+        f.write_text(text.replace("?>", "?>" + " " * size, 1))  # whitespace: compresses ~1000:1
+    return edit
+
+
+# (edit of the nested fixture's folder, environment, monkeypatched bound, words of the one line, archive only)
+SSP_BOUNDS = {
+    "an SSD over 16 MiB (a zip bomb in the archive)": (_pad("SystemStructure.ssd", 17 << 20), {}, None,
+                                                       ["SystemStructure.ssd", "at most 16777216 bytes"]),
+    "an SSV over 16 MiB": (_pad("resources/pendulum.ssv", 17 << 20), {}, None,
+                           ["pendulum.ssv", "16777216 bytes"]),
+    "an FMU in the archive over the unzip bound": (
+        lambda d: (d / "resources" / "Pendulum.fmu").write_bytes(bytes(2 << 20)), {"CLOCKWORK_MAX_FMU_MB": "1"},
+        None, ["resources/Pendulum.fmu", "more than the limit of 1,048,576 bytes", "CLOCKWORK_MAX_FMU_MB"]),
+    "more entries than an archive may hold": (lambda d: None, {}, ("documents", "MAX_ENTRIES", 5),
+                                              ["entries in the archive, more than 5"]),
+    "more components than a system may hold": (lambda d: None, {}, ("read", "MAX_COMPONENTS", 1),
+                                               ["ssd:Component 'escapement'", "more than 1 components"]),
+    "10,000 nested systems": (_nest, {}, None, ["malformed XML", "depth"]),
+    "system connectors in a loop (9! paths)": (_clique, {}, None,
+                                               ["ssd:Connection", "paths through system connectors", "escapement.phi",
+                                                "without loops"]),
+}
+
+
+@pytest.mark.parametrize("as_archive", [False, True], ids=["ssd", "ssp"])
+@pytest.mark.parametrize("case", list(SSP_BOUNDS))
+def test_an_ssp_over_a_bound_is_one_line_exit_2(tmp_path, capsys, monkeypatch, case, as_archive):
+    from clockwork.scene.ssp import documents, read
+
+    edit, env, bound, needles = SSP_BOUNDS[case]
+    archive_only = "archive" in case or "FMU in" in case
+    if archive_only and not as_archive:
+        pytest.skip("a bound of the archive")
+    d = fixture_dir(tmp_path, "nested")
+    edit(d)
+    for k, v in env.items():
+        monkeypatch.setenv(k, v)
+    if bound is not None:
+        module, name, value = bound
+        monkeypatch.setattr({"documents": documents, "read": read}[module], name, value)
+    src = zip_dir(d, tmp_path / "x.ssp") if as_archive else d / "SystemStructure.ssd"
+    if as_archive:
+        shutil.rmtree(d)
+    for command in ("validate", "run"):
+        argv = [command, src] + (["--out", tmp_path / "out", "--no-progress"] if command == "run" else [])
+        rc, _, err = run_cli(capsys, argv)
+        assert_one_line_error(rc, err, *needles)
+    assert not (tmp_path / "out").exists()

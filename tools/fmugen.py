@@ -528,6 +528,11 @@ def generate_xml3(t: dict) -> str:
     time_vr = max(vr_of.values()) + 1  # CW_NVARS
     max_order = max([int(v.get("derivatives", 0)) for v in variables] + [0])
     early = bool(m.get("early_return"))
+    # Float64 inputs are read by the model inside fmi3DoStep (its RK stages):
+    # it calls the importer's intermediate update there, where the importer
+    # sets them to the values of its input polynomials (what FMI 2.0 passes
+    # with fmi2SetRealInputDerivatives, whose orders reach 2).
+    intermediate = any(v["causality"] == "input" and v["type"] == "Real" for v in variables)
     exp = t.get("experiment", {})
     x = [
         '<?xml version="1.0" encoding="UTF-8"?>',
@@ -553,7 +558,8 @@ def generate_xml3(t: dict) -> str:
         '    providesPerElementDependencies="false"',
         '    canHandleVariableCommunicationStepSize="true"',
         f'    maxOutputDerivativeOrder="{max_order}"',
-        '    providesIntermediateUpdate="false"',
+        f'    providesIntermediateUpdate="{"true" if intermediate else "false"}"',
+        *(['    recommendedIntermediateInputSmoothness="2"'] if intermediate else []),
         f'    mightReturnEarlyFromDoStep="{"true" if early else "false"}"',
         '    canReturnEarlyAfterIntermediateUpdate="false"',
         '    hasEventMode="true"',
@@ -595,6 +601,8 @@ def generate_xml3(t: dict) -> str:
         ]
         if v["causality"] in ("output", "local"):
             attrs.append('initial="calculated"')
+        if v["causality"] == "input" and v["type"] == "Real":
+            attrs.append('intermediateUpdate="true"')
         if v["type"] == "Real":
             if "unit" in v:
                 attrs.append(f"unit={quoteattr(v['unit'])}")

@@ -118,6 +118,13 @@ def _closed_form_barometric(pp, rho: tuple[float, float, float], mu: tuple[float
     return (1.0 - rate0 / DAY) / f[1] * (f[0] - f[2]) * DAY / (2.0 * delta_hpa)
 
 
+# What barometric_point adds to the steady state's keys (a stalled clock: the state's alone).
+BAROMETRIC_COLUMNS = SteadyState.COLUMNS | {
+    "rate_s_per_day", "barometric_s_per_day_per_hPa", "buoyancy_s_per_day_per_hPa", "arc_s_per_day_per_hPa",
+    "amplitude_deg_per_hPa", "density_kg_per_m3", "density_minus_kg_per_m3", "density_plus_kg_per_m3",
+    "viscosity_Pa_s", "pressure_hPa", "delta_hPa", "torque_Nm"}
+
+
 def barometric_point(clock: Clock, rates: _Rates, air: str, delta_hpa: float) -> dict:
     p0 = clock.params[air]["pressure"]
     states = [rates.at({(air, "pressure"): p0 + k * delta_hpa * HPA}) for k in (-1, 0, 1)]
@@ -146,7 +153,8 @@ def barometric_point(clock: Clock, rates: _Rates, air: str, delta_hpa: float) ->
 _BARO_KEYS = dict(_COMMON, delta_hPa=keys.positive_number)
 
 
-@register("barometric_coefficient", set(_BARO_KEYS), keys.table_converter(_BARO_KEYS))
+@register("barometric_coefficient", set(_BARO_KEYS), keys.table_converter(_BARO_KEYS), columns=BAROMETRIC_COLUMNS,
+          series=set())
 def barometric_coefficient(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     air = _air(scene, "barometric_coefficient")
@@ -164,7 +172,14 @@ def barometric_coefficient(scene, point: dict, progress: bool = False) -> dict:
 _THERMAL_KEYS = dict(_COMMON, delta_K=keys.positive_number)
 
 
-@register("thermal_coefficient", set(_THERMAL_KEYS), keys.table_converter(_THERMAL_KEYS))
+# What thermal_coefficient adds to the steady state's keys (a stalled clock: the state's alone).
+THERMAL_COLUMNS = SteadyState.COLUMNS | {"rate_s_per_day", "alpha_per_K", "thermal_s_per_day_per_K",
+                                         "rod_s_per_day_per_K", "air_s_per_day_per_K",
+                                         "closed_form_rod_s_per_day_per_K", "delta_K"}
+
+
+@register("thermal_coefficient", set(_THERMAL_KEYS), keys.table_converter(_THERMAL_KEYS), columns=THERMAL_COLUMNS,
+          series=set())
 def thermal_coefficient(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     air = _air(scene, "thermal_coefficient")
@@ -360,7 +375,27 @@ _YEAR_KEYS = dict(_COMMON, delta_hPa=keys.positive_number, days=_days, seed=keys
                   seasonal_K=keys.nonnegative_number, synoptic_K=keys.nonnegative_number)
 
 
-@register("weather_year", set(_YEAR_KEYS), keys.table_converter(_YEAR_KEYS))
+# The year's result: per clock (the scene's torque, the compensating one) the
+# keys below prefixed "<clock>_" (the check's with check_hours > 0), and the weather's.
+_CLOCKS = ("scene", "compensating")
+_PER_CLOCK = ("torque_Nm", "amplitude_deg", "relaxation_time_s", "rate_rms_s_per_day", "error_after_year_s",
+              "error_max_abs_s", "lag_effect_max_abs_s", "surface_fit_rms_s_per_day", "check_hours", "check_ticks",
+              "check_cosimulated_error_s", "check_averaged_error_s", "check_quasi_static_error_s",
+              "check_difference_s")
+YEAR_COLUMNS = {"compensating_search_evaluations", "days", "pressure_rms_hPa", "temperature_rms_K"} | {
+    f"{name}_{k}" for name in _CLOCKS for k in _PER_CLOCK}
+
+
+def _clock_series(name: str) -> tuple[str, str]:
+    """The series' (accumulated error, rate) columns of one clock."""
+    return f"error_{name}_s", f"rate_{name}_s_per_day"
+
+
+YEAR_SERIES = {"time", "pressure_hPa", "temperature_C", "day", *(c for n in _CLOCKS for c in _clock_series(n))}
+
+
+@register("weather_year", set(_YEAR_KEYS), keys.table_converter(_YEAR_KEYS), columns=YEAR_COLUMNS,
+          series=YEAR_SERIES)
 def weather_year(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     air = _air(scene, "weather_year")
@@ -392,7 +427,7 @@ def _year(cfg, clock: Clock, rates: _Rates, air: str, weather: dict, series: dic
     out["compensating_search_evaluations"] = evaluations
     pp = clock.params[clock.pendulum]
     omega0 = math.sqrt(pp["g"] / pp["L"])
-    for name, tau in (("scene", torque), ("compensating", compensating)):
+    for name, tau in zip(_CLOCKS, (torque, compensating)):
         rates.base = {(clock.escapement, "torque"): tau}
         surface = _Surface(rates, clock, air, cfg.get("grid_hPa", 30.0), cfg.get("grid_K", 8.0))
         centre = surface.centre
@@ -419,8 +454,9 @@ def _year(cfg, clock: Clock, rates: _Rates, air: str, weather: dict, series: dic
             vacuum[k + 1] = vacuum_ss[k] + gap * decay[k]
         mean_over_step[-1] = vacuum_ss[-1]
         lagged = _accumulated((1.0 - (1.0 - mean_over_step) * f) * DAY, regulated, dt)
-        series[f"error_{name}_s"] = error
-        series[f"rate_{name}_s_per_day"] = r - regulated
+        error_column, rate_column = _clock_series(name)
+        series[error_column] = error
+        series[rate_column] = r - regulated
         out.update({
             f"{name}_torque_Nm": tau,
             f"{name}_amplitude_deg": math.degrees(centre.amplitude),

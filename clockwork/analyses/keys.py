@@ -27,9 +27,12 @@ def nonnegative_number(key: str, v) -> float:
     return float(v)
 
 
+MAX_COUNT = 10_000_000  # a count an analysis takes (periods, samples): each costs steps or memory
+
+
 def positive_int(key: str, v) -> int:
-    if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-        raise Invalid(key, "a positive integer")
+    if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_COUNT:
+        raise Invalid(key, f"a positive integer, at most {MAX_COUNT:,}")
     return v
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 from ..engine.shooting import Shooter, shoot
 from ..errors import SimulationError
@@ -37,6 +38,12 @@ class SteadyState:
     tolerance: float = math.nan  # asked-for tolerance on E_T (dimensionless)
     reason: str = ""
     speed: float = math.nan  # rad/s, the orbit's speed on the section (phi = 0, upward)
+
+    # as_dict's keys ("reason" only with a reason)
+    COLUMNS: ClassVar[frozenset[str]] = frozenset({
+        "stalled", "amplitude_deg", "amplitude_right_deg", "amplitude_left_deg", "period_s", "E_T_s_per_day",
+        "E_C_s_per_day", "E_E_s_per_day", "shooting_iterations", "shooting_residual_rad_per_s",
+        "rate_tolerance_s_per_day", "rate_change_s_per_day", "reason"})
 
     def as_dict(self) -> dict:
         d = {
@@ -155,14 +162,11 @@ def clock_at(scene, point: dict, analysis: str) -> Clock:
 
 
 # Every key of a steady_state result: SteadyState.as_dict's, and what steady_state adds.
-COLUMNS = {"stalled", "amplitude_deg", "amplitude_right_deg", "amplitude_left_deg", "period_s", "E_T_s_per_day",
-           "E_C_s_per_day", "E_E_s_per_day", "shooting_iterations", "shooting_residual_rad_per_s",
-           "rate_tolerance_s_per_day", "rate_change_s_per_day", "reason", "torque_Nm",
-           "energy_balance_amplitude_deg", "E_E_B7_s_per_day"}
+COLUMNS = SteadyState.COLUMNS | {"torque_Nm", "energy_balance_amplitude_deg", "E_E_B7_s_per_day"}
 
 
 @register("steady_state", {"tolerance_s_per_day", "max_periods", "measure_periods", "amplitude_guess"},
-          keys.table_converter(_KEYS), columns=COLUMNS)
+          keys.table_converter(_KEYS), columns=COLUMNS, series=set())
 def steady_state(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     clock = clock_at(scene, point, "steady_state")

@@ -22,17 +22,23 @@ from .context import build_system, experiment, find_component, parameters
 from .registry import register
 
 
-# Every key of a time_series result (t_end_s always; the others when ticks are
-# recorded, or from the grasshopper clock's stall check).
-COLUMNS = {"t_end_s", "ticks", "mean_period_s", "last_period_s", "stalled", "last_amplitude_deg", "reason"}
+# Every key of a time_series result (t_end_s and engine always; the others when
+# ticks are recorded, an FMU ends the run, or from the grasshopper clock's stall check).
+COLUMNS = {"t_end_s", "engine", "engine_reason", "ended", "notes", "ticks", "mean_period_s", "last_period_s",
+           "stalled", "last_amplitude_deg", "reason"}
 
 
-@register("ticks", columns=COLUMNS)
+def series_columns(scene) -> set[str]:
+    """The Recorder's columns: time and each recorded "instance.variable" (no series without outputs)."""
+    return {"time", *(f"{i}.{v}" for i, v in scene.record.outputs)} if scene.record.outputs else set()
+
+
+@register("ticks", columns=COLUMNS, series=set())
 def ticks(scene, point: dict, progress: bool = False) -> dict:
     return time_series(scene, point, progress=progress, ticks_only=True)
 
 
-@register("time_series", columns=COLUMNS)
+@register("time_series", columns=COLUMNS, series=series_columns)
 def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = False) -> dict:
     start, stop = experiment(scene, point)
     outputs = [] if ticks_only else list(scene.record.outputs)

@@ -37,7 +37,7 @@ HISTORY = 3  # input history for divided differences (HISTORY in cw_master.c)
 ROWS_PER_CALL = 4096  # recording buffer, rows
 MAX_SINCE = 256  # steps kept since a checkpoint (the master forces one after 64)
 
-_DONE, _BUFFER_FULL, _CHECK_DIVERGENCE, _WATCHED, _ENDED = 0, 1, 2, 3, 4
+_DONE, _BUFFER_FULL, _CHECK_DIVERGENCE, _WATCHED, _ENDED, _SLICE_OVER = 0, 1, 2, 3, 4, 5
 _ERR_FMI, _ERR_NO_CHECKPOINT, _ERR_REPLAY, _ERR_LOCATE, _ERR_CAPACITY = -1, -2, -3, -4, -5
 _CALLS = ["fmi2DoStep", "fmi2GetReal", "fmi2SetReal of inputs", "fmi2SetRealInputDerivatives",
           "fmi2GetFMUstate", "fmi2SetFMUstate"]
@@ -120,12 +120,12 @@ def load_core():
                     return None
             lib.cw_step.argtypes = [POINTER(_Master), c_double, POINTER(c_double)]
             lib.cw_step.restype = c_int
-            lib.cw_run_until.argtypes = [POINTER(_Master), c_double, POINTER(_Recorder)]
+            lib.cw_run_until.argtypes = [POINTER(_Master), c_double, POINTER(_Recorder), c_double]
             lib.cw_run_until.restype = c_int
             lib.cw_start.argtypes = [POINTER(_Master)]
             lib.cw_start.restype = None
             lib.cw_run_watch.argtypes = ([POINTER(_Master)] + [c_double] * 4
-                                         + [c_int, c_void_p, c_void_p] * 2 + [c_void_p])
+                                         + [c_int, c_void_p, c_void_p] * 2 + [c_void_p, c_double])
             lib.cw_run_watch.restype = c_int
             lib.cw_discontinuity.argtypes = [POINTER(_Master)]
             lib.cw_discontinuity.restype = None
@@ -195,6 +195,10 @@ class CompiledMaster(Master):
     """``Master`` with ``step`` and ``run_until`` in the compiled core."""
 
     engine = "compiled"
+    # Wall time of one core call, s: a long run returns to Python this often
+    # and is called again where it stopped (Python runs signal handlers only
+    # between calls). 0 returns every 16 steps (the tests compare the bits).
+    slice_s = 0.05
 
     def __init__(self, instances, links, settings, start_time=0.0, step_order=None, extra_outputs=None):
         self._lib = load_core()
@@ -386,14 +390,14 @@ class CompiledMaster(Master):
         rec.grid_k = -1
         rec.n_rows = rec.n_ticks = 0
         while True:
-            rc = self._lib.cw_run_until(self._core_ptr, t_stop, byref(rec))
+            rc = self._lib.cw_run_until(self._core_ptr, t_stop, byref(rec), self.slice_s)
             if self._core.orders_lowered:
                 self._orders_lowered()
             if columns is not None:
                 self._drain(on_point, rec, columns)
             if rc == _DONE:
                 return
-            if rc != _BUFFER_FULL:
+            if rc != _BUFFER_FULL and rc != _SLICE_OVER:
                 self._handle(rc)
 
     def run_watch(self, t_stop, mark, margin, watched, remember=()):
@@ -413,10 +417,13 @@ class CompiledMaster(Master):
             args = self._watch_args[key] = (len(watched), a[0], a[1], len(remember), a[2], a[3], a[4], arrays[4],
                                             (list(watched), list(remember)), (watched, remember))
         n_w, w_port, w_pos, n_r, r_port, r_pos, before_addr, before, _, _ = args
-        rc = self._lib.cw_run_watch(self._core_ptr, t_stop, mark, margin, self.settings.step,
-                                    n_w, w_port, w_pos, n_r, r_port, r_pos, before_addr)
-        if self._core.orders_lowered:
-            self._orders_lowered()
+        while True:
+            rc = self._lib.cw_run_watch(self._core_ptr, t_stop, mark, margin, self.settings.step,
+                                        n_w, w_port, w_pos, n_r, r_port, r_pos, before_addr, self.slice_s)
+            if self._core.orders_lowered:
+                self._orders_lowered()
+            if rc != _SLICE_OVER:
+                break
         if rc not in (_DONE, _WATCHED):
             self._handle(rc)
         return before[:n_r]

@@ -180,7 +180,7 @@ def read_fmu(path: Path, need_binary: bool = True,
         if md.fmiVersion not in ("2.0", "3.0"):
             raise FmuError(f"{path}: expected an FMI 2.0 or 3.0 FMU, found FMI {md.fmiVersion}")
         if md.fmiVersion == "3.0":
-            _check_fmi3(path, md)
+            _check_fmi3(path, md, xml)
         if md.coSimulation is None:
             raise FmuError(f"{path}: expected a Co-Simulation FMU (no <CoSimulation> element)")
         ident = md.coSimulation.modelIdentifier
@@ -231,7 +231,17 @@ _FMI3_AS_FMI2 = {"Float64": "Real", "Int32": "Integer", "Boolean": "Boolean", "S
                  "Enumeration": "Enumeration"}
 
 
-def _check_fmi3(path: Path, md) -> None:
+def _intermediate_update_names(xml: bytes) -> set[str]:
+    """Variables of an FMI 3.0 modelDescription.xml with
+    intermediateUpdate="true" (fmpy does not read the attribute)."""
+    try:
+        root = ET.fromstring(xml)
+    except ET.ParseError:
+        return set()
+    return {v.get("name") for v in root.iterfind("ModelVariables/*") if v.get("intermediateUpdate") == "true"}
+
+
+def _check_fmi3(path: Path, md, xml: bytes) -> None:
     """Refuse what the master does not serve; rename the types it does."""
     clocks = [v.name for v in md.modelVariables if v.type == "Clock"]
     if clocks:
@@ -243,8 +253,10 @@ def _check_fmi3(path: Path, md) -> None:
     if arrays:
         raise FmuError(f"{path}: {md.modelName} has array variables ({', '.join(arrays[:3])}), "
                        f"which the master does not support")
+    intermediate = _intermediate_update_names(xml)
     for v in md.modelVariables:
         v.type = _FMI3_AS_FMI2.get(v.type, v.type)
+        v.intermediateUpdate = v.name in intermediate
 
 
 def type_name(md, v) -> str:

@@ -31,9 +31,19 @@ reads and writes too, so that the two engines hand it over at any point.
 Saving and restoring the FMU state saves and restores the announced next
 event time with it.
 
-FMI 3.0 Co-Simulation has no input derivatives: ``c_setInputDerivatives``
-fails, and the master refuses extrapolated inputs into an FMI 3.0 instance
-before the first step.
+FMI 3.0 Co-Simulation has no input derivatives; its replacement is
+intermediate update. When the master gives inputs as polynomials
+(extrapolation, strong coupling) and the FMU declares
+``providesIntermediateUpdate``, the instance is made with the compiled
+core's C callback ``cw3_intermediateUpdate`` (instanceEnvironment: the
+``_Events``): ``c_setReal`` and ``c_setInputDerivatives`` go through the
+core's ``cw3_setReal``/``cw3_setInputDerivatives``, which keep the
+polynomials FMI 2.0 would hand to fmi2SetRealInputDerivatives, and at each
+time the FMU asks (its RK stages) the callback sets every input to its
+polynomial's value there, with the FMI 2.0 FMU's own arithmetic, so both
+builds give the same bits. Both engines use the same callback (never a
+Python one). Without it ``c_setInputDerivatives`` fails, and the master
+refuses polynomial inputs into the instance before the first step.
 """
 
 from __future__ import annotations
@@ -42,9 +52,10 @@ import ctypes
 import math
 from ctypes import POINTER, Structure, byref, c_bool, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
 
-from fmpy.fmi3 import FMU3Slave
+from fmpy.fmi3 import FMU3Slave, fmi3IntermediateUpdateCallback, fmi3LogMessageCallback
 
 from ..errors import SceneError, SimulationError
+from ..paths import core_library
 from .description import fmi_version, read_fmu
 from .fmu import DISCARD, ERROR, OK, WARNING, Instance, extract
 
@@ -67,7 +78,53 @@ class _Events(Structure):
         ("terminated", c_int),
         ("failed_call", c_int),               # 0 none, else which fmi3 call failed (FAILED_CALLS)
         ("pad_", c_int),
+        # Intermediate update: the input polynomials (see cw_master.c)
+        ("n_iu", c_int),
+        ("iu_poly", c_int),
+        ("iu_vr", c_void_p),
+        ("iu_u0", c_void_p),
+        ("iu_d1", c_void_p),
+        ("iu_d2", c_void_p),
+        ("iu_tref", c_void_p),
+        ("iu_fed", c_void_p),
+        ("iu_set_vr", c_void_p),
+        ("iu_val", c_void_p),
+        ("iu_time", c_double),
+        ("iu_saved_time", c_double),
+        ("iu_calls", c_longlong),
+        ("iu_saved", c_void_p),
+        ("iu_saved_fed", c_void_p),
     ]
+
+
+_core = None
+
+
+def _core_adapter():
+    """The compiled core's intermediate-update functions (callback address,
+    cw3_setReal, cw3_setInputDerivatives, cw3_getState, cw3_setState), or
+    None without the core."""
+    global _core
+    if _core is None:
+        try:
+            lib = ctypes.CDLL(str(core_library()))
+            lib.cw_sizeof_fmi3.restype = c_size_t
+            if lib.cw_sizeof_fmi3() != ctypes.sizeof(_Events):
+                raise OSError("another version of the core")
+            fns = []
+            vrs, doubles = POINTER(c_uint), POINTER(c_double)
+            for name, argtypes in (("cw3_setReal", [c_void_p, vrs, c_size_t, doubles]),
+                                   ("cw3_setInputDerivatives", [c_void_p, vrs, c_size_t, c_void_p, doubles]),
+                                   ("cw3_getState", [c_void_p, POINTER(c_void_p)]),
+                                   ("cw3_setState", [c_void_p, c_void_p])):
+                f = getattr(lib, name)
+                f.argtypes = argtypes
+                f.restype = c_int
+                fns.append(f)
+            _core = (ctypes.cast(lib.cw3_intermediateUpdate, c_void_p).value, *fns)
+        except (OSError, AttributeError):
+            _core = False
+    return _core or None
 
 
 # What _Events.failed_call names (the same numbers in cw_master.c).
@@ -81,15 +138,39 @@ class Instance3(Instance):
 
     fmi_version = 3
 
-    def __init__(self, name, path, model_description=None, early_return: bool = True):
+    def __init__(self, name, path, model_description=None, early_return: bool = True,
+                 intermediate_update: bool = False):
         super().__init__(name, path, model_description)
         cs = self.md.coSimulation
         self.event_mode_used = bool(cs.hasEventMode)
         self.early_return_allowed = bool(cs.mightReturnEarlyFromDoStep) and early_return
-        self.can_interpolate_inputs = False  # FMI 3.0 CS has no input derivatives
+        # Inputs as polynomials through intermediate update, when asked for
+        # (the master's inputs are polynomials), declared, and the core's
+        # callback is at hand; else none (FMI 3.0 CS has no input derivatives).
+        iu_vrs = [v.valueReference for v in self.md.modelVariables
+                  if v.causality == "input" and v.type == "Real" and v.intermediateUpdate]
+        declared = bool(cs.providesIntermediateUpdate and iu_vrs)
+        self.intermediate_update = bool(intermediate_update and declared and _core_adapter())
+        self.can_interpolate_inputs = self.intermediate_update
+        # Why polynomial inputs cannot reach this instance (the master's refusal says it).
+        self.no_intermediate_update = (
+            "" if self.intermediate_update else
+            f"the compiled core {core_library()}, which serves its intermediate update, cannot be loaded "
+            f"(build it with tools/setup.sh)" if intermediate_update and declared else
+            "it provides no intermediate update")
         self.events = _Events(next_event_time=math.inf, saved_next_event_time=math.inf, end_time=math.nan,
                               event_mode_used=int(self.event_mode_used))
         self._setup_args = (0, 0.0, 0.0, 0, 0.0)
+        if self.intermediate_update:
+            n = len(iu_vrs)
+            self._iu_arrays = ((c_uint * n)(*iu_vrs), (c_double * n)(), (c_double * n)(), (c_double * n)(),
+                               (c_double * n)(), (c_int * n)(), (c_uint * n)(), (c_double * n)(),
+                               (c_double * (4 * n))(), (c_int * n)())
+            ev = self.events
+            ev.n_iu = n
+            for field, arr in zip(("iu_vr", "iu_u0", "iu_d1", "iu_d2", "iu_tref", "iu_fed", "iu_set_vr", "iu_val",
+                                   "iu_saved", "iu_saved_fed"), self._iu_arrays):
+                setattr(ev, field, ctypes.addressof(arr))
 
     def instantiate(self) -> None:
         unzip = extract(self.path)
@@ -106,14 +187,31 @@ class Instance3(Instance):
             del messages[:-50]
 
         try:
-            self._slave.instantiate(eventModeUsed=self.event_mode_used,
-                                    earlyReturnAllowed=self.early_return_allowed, logMessage=logger)
+            if self.intermediate_update:
+                self._instantiate_with_callback(logger)
+            else:
+                self._slave.instantiate(eventModeUsed=self.event_mode_used,
+                                        earlyReturnAllowed=self.early_return_allowed, logMessage=logger)
         except Exception as e:
             raise SceneError(
                 f"{self.path}: fmi3InstantiateCoSimulation refused the model description's instantiation "
                 f"token {self.md.guid}: {self.last_message() or e}") from None
         self.component = self._slave.component
         self._bind(self._slave.dll)
+
+    def _instantiate_with_callback(self, logger) -> None:
+        """fmi3InstantiateCoSimulation with the core's C intermediate-update
+        callback and this instance's ``_Events`` as its environment."""
+        slave = self._slave
+        slave.logMessage = fmi3LogMessageCallback(logger)  # kept from GC
+        slave.intermediateUpdate = fmi3IntermediateUpdateCallback(_core_adapter()[0])
+        resources = str(extract(self.path) / "resources") + "/"
+        slave.component = slave.fmi3InstantiateCoSimulation(
+            self.name.encode(), self.md.guid.encode(), resources.encode(), False, False,
+            self.event_mode_used, self.early_return_allowed, None, 0, ctypes.addressof(self.events),
+            slave.logMessage, slave.intermediateUpdate)
+        if not slave.component:
+            raise Exception("Failed to instantiate FMU")
 
     def _bind(self, dll) -> None:
         def fn(name, *argtypes):
@@ -168,6 +266,14 @@ class Instance3(Instance):
         self.c_setInputDerivatives = self._no_input_derivatives
         self.c_getState = f_getState
         self.c_setState = f_setState
+        if self.intermediate_update:
+            # The core's adapter keeps the polynomials (and saves them with the FMU state).
+            _, cw3_set, cw3_set_der, cw3_get_state, cw3_set_state = _core_adapter()
+            here = ctypes.addressof(ev)
+            self.c_setReal = lambda comp, vr, n, val: cw3_set(here, vr, n, val)
+            self.c_setInputDerivatives = lambda comp, vr, n, orders, der: cw3_set_der(here, vr, n, orders, der)
+            self.c_getState = lambda comp, state: cw3_get_state(here, state)
+            self.c_setState = lambda comp, state: cw3_set_state(here, state)
         self.c_freeState = fn("fmi3FreeFMUState", inst, POINTER(c_void_p))
         self.c_reset = fn("fmi3Reset", inst)
         self.c_terminate = fn("fmi3Terminate", inst)
@@ -175,6 +281,7 @@ class Instance3(Instance):
 
         def setup(comp, tol_defined, tol, start, stop_defined, stop):
             self._setup_args = (tol_defined, tol, start, stop_defined, stop)
+            self.events.iu_time = start
             return OK  # FMI 3.0 takes these when initialization mode is entered
 
         def enter_init(comp):
@@ -263,6 +370,7 @@ class Instance3(Instance):
                 ev.end_time = reached
                 return worst if reached >= end else DISCARD
             if not early.value or reached >= end:
+                ev.iu_time = end  # the FMU's time, where inputs set next are anchored
                 return worst
             ev.early_returns += 1
             stalled = stalled + 1 if reached <= now else 0
@@ -270,6 +378,12 @@ class Instance3(Instance):
                 ev.failed_call = 5
                 return ERROR
             now, step = reached, end - reached
+            # The FMU's step must end on `end` itself (now + step rounds),
+            # so that it lands where a step without early return lands.
+            while now + step < end:
+                step = math.nextafter(step, math.inf)
+            while now + step > end:
+                step = math.nextafter(step, 0.0)
 
     # -- lifecycle --------------------------------------------------------------
 
@@ -279,6 +393,9 @@ class Instance3(Instance):
         ev.next_event_time = ev.saved_next_event_time = math.inf
         ev.end_time = math.nan
         ev.terminated = ev.failed_call = 0
+        if self.intermediate_update:  # the inputs are the start values again
+            ctypes.memset(self._iu_arrays[5], 0, ctypes.sizeof(self._iu_arrays[5]))
+            ev.iu_poly = 0
 
     def save_state(self, t: float | None = None) -> None:
         super().save_state(t)
@@ -306,11 +423,13 @@ class Instance3(Instance):
         return super().fail(what.replace("fmi2", "fmi3"), status, time, error or SimulationError)
 
 
-def make_instance(name, path, model_description=None, early_return: bool = True) -> Instance:
+def make_instance(name, path, model_description=None, early_return: bool = True,
+                  intermediate_update: bool = False) -> Instance:
     """An ``Instance`` or ``Instance3`` (early return allowed where it
-    declares it, unless `early_return` is false), as the FMU's
+    declares it, unless `early_return` is false; intermediate update where
+    it provides it and `intermediate_update` asks for it), as the FMU's
     modelDescription says."""
     md = model_description or read_fmu(path, need_binary=False)[0]
     if fmi_version(md) == 3:
-        return Instance3(name, path, md, early_return)
+        return Instance3(name, path, md, early_return, intermediate_update)
     return Instance(name, path, md)

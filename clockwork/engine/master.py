@@ -104,7 +104,8 @@ class Master:
     def _check_fmi3(self) -> None:
         """FMI 3.0 Co-Simulation takes no input derivatives: refuse inputs
         given as polynomials (extrapolation, or strong coupling's lines
-        between iterates) into an FMI 3.0 instance before the first step."""
+        between iterates) into an FMI 3.0 instance that does not take them
+        by intermediate update, before the first step."""
         s = self.settings
         if s.extrapolation:
             key, value, fix = "master.extrapolation", s.extrapolation, "master.extrapolation = 0"
@@ -113,10 +114,11 @@ class Master:
         else:
             return
         for p in self.ports.dynamic:
-            if p.n_in and p.inst.fmi_version == 3:
+            if p.n_in and p.inst.fmi_version == 3 and not p.inst.can_interpolate_inputs:
+                why = getattr(p.inst, "no_intermediate_update", "") or "it provides no intermediate update"
                 raise SceneError(
-                    f"{key} = {value}: {p.inst.name} ({p.inst.path.name}) is an FMI 3.0 FMU, whose "
-                    f"Co-Simulation interface takes no input derivatives; use {fix} or an FMI 2.0 build")
+                    f"{key} = {value}: {p.inst.name} ({p.inst.path.name}) is an FMI 3.0 FMU, whose Co-Simulation "
+                    f"interface takes no input derivatives, and {why}; use {fix} or an FMI 2.0 build")
 
     # -- initialization --------------------------------------------------
 

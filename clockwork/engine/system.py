@@ -39,7 +39,8 @@ class System:
             for name, (fmu, _) in components.items():
                 md = (model_descriptions or {}).get(name)
                 inst = make_instance(name, resolve_fmu(str(fmu), Path.cwd(), settings.fmi_version), md,
-                                     settings.early_return)
+                                     settings.early_return,
+                                     bool(settings.extrapolation) or settings.iterations > 0)
                 inst.instantiate()
                 self.instances[name] = inst
             known = {n: inst.variables for n, inst in self.instances.items()}

@@ -12,6 +12,8 @@ import os
 from pathlib import Path
 
 from ..analyses import registry as analyses
+from ..analyses.bounds import MAX_KEPT_VALUES as MAX_RECORDED_VALUES
+from ..analyses.bounds import check_bounds
 from ..engine.fmu3 import make_instance
 from ..errors import SceneError
 from ..paths import scenarios_dir
@@ -62,33 +64,40 @@ def check_loadable(scene) -> None:
 
 
 def check_plot_axes(scene) -> None:
-    """A plot column named "instance.variable" of a sweep's results is a
-    sweep axis (result columns have no dot), and, where the analysis kind
-    declares its result columns, any other name is one of them: checked
-    now, not after the run."""
+    """Every column a plot names is checked now, not after the run: in a
+    sweep's results, "instance.variable" is a sweep axis (result columns
+    have no dot) and any other name one of the columns the analysis kind
+    declares; in a run's series, one of the series columns it declares."""
     axes = {f"{a}.{b}" for a, b in (ax.parameter for ax in scene.sweep.axes)} if scene.sweep else set()
-    declared = analyses.RESULT_COLUMNS.get((scene.analysis or {}).get("kind", "time_series"))
+    kind = (scene.analysis or {}).get("kind", "time_series")
+    declared = {"rows": analyses.result_columns(scene), "series": analyses.series_columns(scene)}
     for i, spec in enumerate(scene.plots):
         keys, source = plots.PLOT_COLUMNS.get(spec["kind"], ({}, "rows"))
-        if source != "rows":
+        if source not in declared:
             continue
         for key, default in keys.items():
             for name in plots.column_names(spec, key, default):
-                if "." in name and name not in axes:
-                    close = difflib.get_close_matches(name, sorted(axes), n=1)
-                    raise SceneError(f"{name} is not a sweep axis{f' (did you mean {close[0]}?)' if close else ''}: "
-                                     f"expected a result column or one of the axes ({', '.join(sorted(axes)) or 'none'})",
-                                     scene.path, f"plot[{i}].{key}")
-                if "." not in name and declared is not None and name not in declared:
-                    close = difflib.get_close_matches(name, sorted(declared), n=1)
-                    raise SceneError(f"{name} is not a column of {(scene.analysis or {}).get('kind', 'time_series')} "
-                                     f"results{f' (did you mean {close[0]}?)' if close else ''}: expected one of "
-                                     f"{', '.join(sorted(declared | axes))}", scene.path, f"plot[{i}].{key}")
+                if source == "rows" and "." in name:
+                    if name not in axes:
+                        _refuse(scene, i, key, name, "is not a sweep axis", sorted(axes),
+                                f"a result column or one of the axes ({', '.join(sorted(axes)) or 'none'})")
+                    continue
+                known = declared[source]
+                if known is not None and name not in known:
+                    what = "results" if source == "rows" else "series"
+                    choices = sorted(known | axes if source == "rows" else known)
+                    _refuse(scene, i, key, name, f"is not a column of {kind} {what}", choices,
+                            f"one of {', '.join(choices)}" if choices else f"none: {kind} has no {what} here")
+
+
+def _refuse(scene, i: int, key: str, name: str, what: str, choices: list[str], expected: str) -> None:
+    close = difflib.get_close_matches(name, choices, n=1)
+    raise SceneError(f"{name} {what}{f' (did you mean {close[0]}?)' if close else ''}: expected {expected}",
+                     scene.path, f"plot[{i}].{key}")
 
 
 # What a run that records at communication points may keep in memory: each
 # value is a Python float in a list (32 bytes) until the point is written.
-MAX_RECORDED_VALUES = 20_000_000  # about 640 MB
 _RECORDING_KINDS = ("time_series", "ticks")
 
 
@@ -112,7 +121,8 @@ def check_recording_bound(scene) -> None:
     """Refuse, before the run, a point that would record more than
     MAX_RECORDED_VALUES (e.g. stop = 1e12 s at a 0.01 s step)."""
     variants = [scene]
-    if scene.sweep is not None and any(a.parameter[0] in ("master", "experiment") for a in scene.sweep.axes):
+    if scene.sweep is not None and any(a.parameter[0] in ("master", "experiment", "analysis") or a.parameter[1] in ("L", "g")
+                                       for a in scene.sweep.axes):
         variants = [scene.variant(p) for p in scene.points()]
     n, span, every = max(recorded_values(v) for v in variants)
     if n > MAX_RECORDED_VALUES:
@@ -120,3 +130,6 @@ def check_recording_bound(scene) -> None:
                          f"more than {MAX_RECORDED_VALUES:.0e} (about {MAX_RECORDED_VALUES * 32 / 1e6:.0f} MB): "
                          "give a longer record.interval, a shorter span (experiment.stop), fewer record.outputs, "
                          "or a longer master.step", scene.path, "experiment.stop")
+    kind = (scene.analysis or {}).get("kind", "time_series")
+    for v in variants:  # the other kinds' memory, and every kind's steps
+        check_bounds(v, kind)

@@ -396,10 +396,19 @@ def _experiment(ctx: Ctx, t: dict) -> Experiment:
     return Experiment(start, stop)
 
 
+def _takes_intermediate_update(md, name: str) -> bool:
+    """An FMI 3.0 input the FMU asks for at its own times (FMI 3.0's
+    replacement for input derivatives)."""
+    if not md.coSimulation or not md.coSimulation.providesIntermediateUpdate:
+        return False
+    return any(v.name == name and v.intermediateUpdate for v in md.modelVariables)
+
+
 def _fmi3_inputs(m: MasterConfig, components: dict[str, Component], connections) -> tuple[str, str] | None:
     """FMI 3.0 Co-Simulation takes no input derivatives: inputs given as
-    polynomials (extrapolation, strong coupling) cannot reach an FMI 3.0
-    FMU with dynamics (an output that does not depend on inputs). The
+    polynomials (extrapolation, strong coupling) reach an FMI 3.0 FMU with
+    dynamics (an output that does not depend on inputs) only through
+    intermediate update, on inputs that declare it. The
     engine checks the exact rule again when it wires the FMUs."""
     key = "extrapolation" if m.extrapolation else "iterations" if m.iterations > 0 else None
     if key is None:
@@ -408,10 +417,11 @@ def _fmi3_inputs(m: MasterConfig, components: dict[str, Component], connections)
         comp = components[c.dst_instance]
         md = comp.model_description
         dynamic = any(o.dependencies is not None and not o.dependencies for o in md.outputs)
-        if md.fmiVersion == "3.0" and dynamic:
-            return (f"master.{key}", f"{c.dst_instance} ({comp.fmu_path.name}) is an FMI 3.0 FMU with dynamics, "
-                    f"whose Co-Simulation interface takes no input derivatives: {key} needs them for "
-                    f"{c.dst_instance}.{c.dst_var}; use master.{key} = 0 or an FMI 2.0 build")
+        if md.fmiVersion == "3.0" and dynamic and not _takes_intermediate_update(md, c.dst_var):
+            return (f"master.{key}", f"{c.dst_instance} ({comp.fmu_path.name}) is an FMI 3.0 FMU with dynamics "
+                    f"whose {c.dst_var} has no intermediate update, and its Co-Simulation interface takes no "
+                    f"input derivatives: {key} needs them for {c.dst_instance}.{c.dst_var}; use "
+                    f"master.{key} = 0 or an FMI 2.0 build")
     return None
 
 

@@ -29,6 +29,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #define CW_EXPORT __attribute__((visibility("default")))
 
@@ -49,6 +50,7 @@ enum {
     CW_CHECK_DIVERGENCE = 2,/* an output is not finite or too large: Python names it */
     CW_WATCHED = 3,         /* a watched output changed (cw_run_watch) */
     CW_ENDED = 4,           /* an FMI 3.0 instance asked to end the simulation (terminateSimulation) */
+    CW_SLICE_OVER = 5,      /* the call's slice of wall time is spent: call again (Python handles signals between calls) */
     CW_ERR_FMI = -1,        /* an fmi2 call failed: err_port, err_call, err_status */
     CW_ERR_NO_CHECKPOINT = -2,
     CW_ERR_REPLAY = -3,
@@ -1105,6 +1107,23 @@ CW_EXPORT void cw_discontinuity(cw_master *m)
     record_history(m);
 }
 
+/* Long runs return to Python after `slice_s` of wall time (Python passes
+ * 0.05 s), so that a signal (Ctrl-C, SIGTERM) is handled within a fraction
+ * of a second rather than when a run of minutes ends. The clock is read
+ * every CW_SLICE_STEPS steps only (a vDSO call, ~20 ns, against a step's
+ * microseconds); the caller continues where the call stopped, so the bits
+ * do not change. */
+#define CW_SLICE_STEPS 16u
+
+static int slice_over(const struct timespec *began, unsigned *steps, double slice_s)
+{
+    if (++*steps % CW_SLICE_STEPS)
+        return 0;
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return (double)(now.tv_sec - began->tv_sec) + 1e-9 * (double)(now.tv_nsec - began->tv_nsec) >= slice_s;
+}
+
 static void record_point(cw_master *m, cw_recorder *r)
 {
     if (r->tick_port >= 0) {
@@ -1132,17 +1151,25 @@ static void record_point(cw_master *m, cw_recorder *r)
 }
 
 /* Step to t_stop on the grid start + k * step, plus located events
- * (Master.run_until), recording into r when given. Returns CW_BUFFER_FULL
- * or CW_CHECK_DIVERGENCE to be called again, r->grid_k keeping the place. */
-CW_EXPORT int cw_run_until(cw_master *m, double t_stop, cw_recorder *r)
+ * (Master.run_until), recording into r when given. Returns CW_BUFFER_FULL,
+ * CW_SLICE_OVER or CW_CHECK_DIVERGENCE to be called again, r->grid_k keeping
+ * the place. */
+CW_EXPORT int cw_run_until(cw_master *m, double t_stop, cw_recorder *r, double slice_s)
 {
     double h_nom = m->step, t0 = m->start_time;
     double eps = 1e-12 * py_max(1.0, fabs(t_stop));
     long long k = r && r->grid_k >= 0 ? r->grid_k : (long long)floor((m->t - t0) / h_nom + 1e-9) + 1;
+    struct timespec began;
+    clock_gettime(CLOCK_MONOTONIC, &began);
+    unsigned steps = 0;
     while (m->t < t_stop - eps) {
         if (r && (r->n_rows >= r->capacity || r->n_ticks >= r->tick_capacity)) {
             r->grid_k = k;
             return CW_BUFFER_FULL;
+        }
+        if (r && slice_over(&began, &steps, slice_s)) {
+            r->grid_k = k;
+            return CW_SLICE_OVER;
         }
         double grid = t0 + (double)k * h_nom;
         if (grid > t_stop)
@@ -1177,13 +1204,19 @@ CW_EXPORT int cw_run_until(cw_master *m, double t_stop, cw_recorder *r)
  * values of the `n_prev` outputs at the point before the last one. */
 CW_EXPORT int cw_run_watch(cw_master *m, double t_stop, double mark, double margin, double max_step,
                            int n_watch, const int *watch_port, const int *watch_pos,
-                           int n_prev, const int *prev_port, const int *prev_pos, double *previous)
+                           int n_prev, const int *prev_port, const int *prev_pos, double *previous,
+                           double slice_s)
 {
     double eps = 1e-12 * py_max(1.0, fabs(t_stop));
     double seen[n_watch > 0 ? n_watch : 1];
     for (int k = 0; k < n_watch; k++)
         seen[k] = m->ports[watch_port[k]].out[watch_pos[k]];
+    struct timespec began;
+    clock_gettime(CLOCK_MONOTONIC, &began);
+    unsigned steps = 0;
     while (m->t < t_stop - eps) {
+        if (slice_over(&began, &steps, slice_s))
+            return CW_SLICE_OVER;  /* nothing changed yet: calling again continues the same watch */
         for (int k = 0; k < n_prev; k++)
             previous[k] = m->ports[prev_port[k]].out[prev_pos[k]];
         double target = m->t < mark - eps ? mark : m->t + margin;
@@ -1284,6 +1317,23 @@ typedef struct cw_fmi3 {
     int event_mode_used, terminated;
     int failed_call;              /* 0, or which call failed (fmu3.FAILED_CALLS) */
     int pad_;
+    /* Intermediate update: the input polynomials FMI 2.0 would hand over
+     * with fmi2SetRealInputDerivatives, kept here as an FMI 2.0 FMU keeps
+     * them (u0 + d1 dt + d2 dt^2/2, dt from iu_tref: the FMU's time when
+     * the value was set) and set by cw3_intermediateUpdate at the times
+     * the FMU asks for. */
+    int n_iu;                     /* inputs with intermediateUpdate = true */
+    int iu_poly;                  /* some derivative is not 0 */
+    const unsigned *iu_vr;
+    double *iu_u0, *iu_d1, *iu_d2, *iu_tref;
+    int *iu_fed;                  /* set by the master at least once */
+    unsigned *iu_set_vr;          /* scratch for the callback's fmi3SetFloat64 */
+    double *iu_val;
+    double iu_time;               /* the FMU's time: start, then the end of each step, s */
+    double iu_saved_time;
+    long long iu_calls;           /* callbacks that set inputs */
+    double *iu_saved;             /* u0, d1, d2, tref (4 n_iu) with the saved FMU state, */
+    int *iu_saved_fed;            /* as FMI 2.0 saves its polynomials in its state */
 } cw_fmi3;
 
 CW_EXPORT size_t cw_sizeof_fmi3(void) { return sizeof(cw_fmi3); }
@@ -1331,6 +1381,47 @@ static int fmi3_handle_event(cw_fmi3 *a)
     return s > st ? s : st;
 }
 
+/* The importer's side of Intermediate Update Mode (instanceEnvironment is
+ * the cw_fmi3): set each fed input to its polynomial at `t`, with the
+ * arithmetic of the runtime's cw_input, so that FMI 2.0 and 3.0 give the
+ * same bits. Held inputs (every derivative 0) the FMU already has. */
+CW_EXPORT void cw3_intermediateUpdate(void *env, double t, bool set_requested, bool get_allowed,
+                                      bool step_finished, bool can_return_early, bool *early_requested,
+                                      double *early_time)
+{
+    cw_fmi3 *a = env;
+    (void)get_allowed; (void)step_finished; (void)can_return_early; (void)early_time;
+    if (early_requested)
+        *early_requested = false;
+    if (!set_requested || !a->iu_poly)
+        return;
+    size_t m = 0;
+    for (int k = 0; k < a->n_iu; k++)
+        if (a->iu_fed[k]) {
+            const double dt = t - a->iu_tref[k];
+            a->iu_set_vr[m] = a->iu_vr[k];
+            a->iu_val[m++] = a->iu_u0[k] + dt * (a->iu_d1[k] + 0.5 * dt * a->iu_d2[k]);
+        }
+    a->iu_calls += 1;
+    a->setFloat64(a->instance, a->iu_set_vr, m, a->iu_val, m);  /* a refusal fails fmi3DoStep */
+}
+
+static int iu_index(const cw_fmi3 *a, unsigned vr)
+{
+    for (int k = 0; k < a->n_iu; k++)
+        if (a->iu_vr[k] == vr)
+            return k;
+    return -1;
+}
+
+static void iu_recheck(cw_fmi3 *a)
+{
+    a->iu_poly = 0;
+    for (int k = 0; k < a->n_iu; k++)
+        if (a->iu_fed[k] && (a->iu_d1[k] != 0.0 || a->iu_d2[k] != 0.0))
+            a->iu_poly = 1;
+}
+
 CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
 {
     (void)no_set_prior;
@@ -1361,8 +1452,10 @@ CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
             a->end_time = reached;
             return reached >= end ? worst : FMI_DISCARD;
         }
-        if (!early || reached >= end)
+        if (!early || reached >= end) {
+            a->iu_time = end;
             return worst;
+        }
         a->early_returns += 1;
         stalled = reached <= now ? stalled + 1 : 0;
         if (stalled > MAX_STALLED_RETURNS) {
@@ -1371,6 +1464,12 @@ CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
         }
         now = reached;
         step_size = end - reached;
+        /* The FMU's step must end on `end` itself (now + step_size rounds),
+         * so that it lands where a step without early return lands. */
+        while (now + step_size < end)
+            step_size = nextafter(step_size, INFINITY);
+        while (now + step_size > end)
+            step_size = nextafter(step_size, 0.0);
     }
 }
 
@@ -1383,15 +1482,51 @@ CW_EXPORT int cw3_getReal(void *comp, const unsigned *vr, size_t n, double *out)
 CW_EXPORT int cw3_setReal(void *comp, const unsigned *vr, size_t n, const double *values)
 {
     cw_fmi3 *a = comp;
-    return a->setFloat64(a->instance, vr, n, values, n);
+    int st = a->setFloat64(a->instance, vr, n, values, n);
+    if (st <= FMI_WARNING && a->n_iu) {
+        /* A value without derivatives is held (as fmi2SetReal on FMI 2.0). */
+        for (size_t k = 0; k < n; k++) {
+            int j = iu_index(a, vr[k]);
+            if (j >= 0) {
+                a->iu_u0[j] = values[k];
+                a->iu_d1[j] = a->iu_d2[j] = 0.0;
+                a->iu_tref[j] = a->iu_time;
+                a->iu_fed[j] = 1;
+            }
+        }
+        iu_recheck(a);
+    }
+    return st;
 }
 
+/* FMI 3.0 CS has no input derivatives: with intermediate update they are
+ * kept for cw3_intermediateUpdate; without it (n_iu = 0) they are refused
+ * (the master refuses extrapolation into such an FMU first). */
 CW_EXPORT int cw3_setInputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order,
                                       const double *values)
 {
-    /* FMI 3.0 CS has none; the master refuses extrapolation into FMI 3.0 first. */
-    (void)comp; (void)vr; (void)n; (void)order; (void)values;
-    return FMI_ERROR;
+    cw_fmi3 *a = comp;
+    for (size_t k = 0; k < n; k++) {
+        int j = iu_index(a, vr[k]);
+        if (j < 0 || !a->iu_fed[j] || order[k] < 1 || order[k] > 2 || !isfinite(values[k]))
+            return FMI_ERROR;
+    }
+    for (size_t k = 0; k < n; k++) {
+        int j = iu_index(a, vr[k]);
+        if (a->iu_tref[j] != a->iu_time) {
+            /* Re-based at the FMU's time, as the FMI 2.0 runtime does. */
+            const double dt = a->iu_time - a->iu_tref[j];
+            a->iu_u0[j] = a->iu_u0[j] + dt * (a->iu_d1[j] + 0.5 * dt * a->iu_d2[j]);
+            a->iu_d1[j] = a->iu_d2[j] = 0.0;
+            a->iu_tref[j] = a->iu_time;
+        }
+        if (order[k] == 1)
+            a->iu_d1[j] = values[k];
+        else
+            a->iu_d2[j] = values[k];
+    }
+    iu_recheck(a);
+    return FMI_OK;
 }
 
 CW_EXPORT int cw3_getOutputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order, double *out)
@@ -1405,6 +1540,15 @@ CW_EXPORT int cw3_getState(void *comp, void **state)
     cw_fmi3 *a = comp;
     int st = a->getState(a->instance, state);
     a->saved_next_event_time = a->next_event_time;
+    if (a->n_iu) {
+        size_t n = (size_t)a->n_iu;
+        memcpy(a->iu_saved, a->iu_u0, n * sizeof(double));
+        memcpy(a->iu_saved + n, a->iu_d1, n * sizeof(double));
+        memcpy(a->iu_saved + 2 * n, a->iu_d2, n * sizeof(double));
+        memcpy(a->iu_saved + 3 * n, a->iu_tref, n * sizeof(double));
+        memcpy(a->iu_saved_fed, a->iu_fed, n * sizeof(int));
+        a->iu_saved_time = a->iu_time;
+    }
     return st;
 }
 
@@ -1413,5 +1557,15 @@ CW_EXPORT int cw3_setState(void *comp, void *state)
     cw_fmi3 *a = comp;
     int st = a->setState(a->instance, state);
     a->next_event_time = a->saved_next_event_time;
+    if (a->n_iu) {
+        size_t n = (size_t)a->n_iu;
+        memcpy(a->iu_u0, a->iu_saved, n * sizeof(double));
+        memcpy(a->iu_d1, a->iu_saved + n, n * sizeof(double));
+        memcpy(a->iu_d2, a->iu_saved + 2 * n, n * sizeof(double));
+        memcpy(a->iu_tref, a->iu_saved + 3 * n, n * sizeof(double));
+        memcpy(a->iu_fed, a->iu_saved_fed, n * sizeof(int));
+        a->iu_time = a->iu_saved_time;
+        iu_recheck(a);
+    }
     return st;
 }

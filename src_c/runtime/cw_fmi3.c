@@ -3,6 +3,7 @@
  * FMI 3.0 adds: Event Mode, early return, scalar nValues checks and the
  * integer types of the new standard (Float64, Int32 and Boolean are the
  * models' Real, Integer and Boolean; the other types have no variables). */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -26,6 +27,33 @@ static void emit3(const cw_instance *inst, fmi2Status status,
 }
 
 static void *calloc_mem(size_t n, size_t size) { return calloc(n, size); }
+
+/* A model with Float64 inputs provides intermediate update (fmugen writes
+ * providesIntermediateUpdate and intermediateUpdate on those inputs). */
+static int has_real_inputs(const cw_model *model) {
+    for (int k = 0; k < model->nvars; k++)
+        if (model->vars[k].name && model->vars[k].type == CW_REAL &&
+            model->vars[k].causality == CW_INPUT)
+            return 1;
+    return 0;
+}
+
+/* Inside fmi3DoStep, where the model reads its inputs at a new time (an
+ * RK stage, the end of the step): Intermediate Update Mode, in which the
+ * importer may set the inputs to their values at that time. */
+static void intermediate_update(cw_instance *inst, double t) {
+    fmi3IntermediateUpdateCallback callback =
+        (fmi3IntermediateUpdateCallback)inst->env_intermediate_update;
+    const cw_machine_state was = inst->state;
+    fmi3Boolean early_requested = fmi3False;
+    fmi3Float64 early_time = t;
+    inst->intermediate_time = t;
+    inst->state = CW_INTERMEDIATE_UPDATE;
+    callback(inst->env, t, fmi3True, fmi3False, fmi3False, fmi3False,
+             &early_requested, &early_time);
+    /* A refused set left the instance in Error: fmi3DoStep reports it. */
+    if (inst->state == CW_INTERMEDIATE_UPDATE) inst->state = was;
+}
 
 #define INST ((cw_instance *)instance)
 #define S(x) ((fmi3Status)(x))
@@ -54,7 +82,6 @@ fmi3Instance fmi3InstantiateCoSimulation(
     (void)resourcePath;
     (void)visible;
     (void)requiredIntermediateVariables;
-    (void)intermediateUpdate; /* providesIntermediateUpdate = false */
     cw_instance proto;
     memset(&proto, 0, sizeof proto);
     proto.alloc_mem = calloc_mem;
@@ -68,10 +95,15 @@ fmi3Instance fmi3InstantiateCoSimulation(
     proto.logging_on = loggingOn ? 1 : 0;
     proto.event_mode_used = eventModeUsed ? 1 : 0;
     proto.early_return_allowed = earlyReturnAllowed ? 1 : 0;
+    if (intermediateUpdate && has_real_inputs(&CW_MODEL))
+        proto.env_intermediate_update = (void (*)(void))intermediateUpdate;
     if (nRequiredIntermediateVariables > 0) {
+        /* Its intermediate update serves inputs only: no output has
+         * intermediateUpdate = true. */
         cw_log(&proto, fmi2Error, "logStatusError",
-               "fmi3InstantiateCoSimulation: %s provides no intermediate "
-               "update; %zu required intermediate variables cannot be served.",
+               "fmi3InstantiateCoSimulation: %s has no intermediate "
+               "variables to get; %zu required intermediate variables cannot "
+               "be served.",
                CW_MODEL.name, nRequiredIntermediateVariables);
         return NULL;
     }
@@ -207,6 +239,7 @@ fmi3Status fmi3Terminate(fmi3Instance instance) {
 }
 
 fmi3Status fmi3Reset(fmi3Instance instance) {
+    if (instance) INST->resume_valid = 0;
     return S(cw_core_reset(INST, "fmi3Reset"));
 }
 
@@ -239,8 +272,33 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance,
                           size_t nValueReferences, const fmi3Float64 values[],
                           size_t nValues) {
     static const char fn[] = "fmi3SetFloat64";
-    if (!scalars(INST, fn, nValueReferences, nValues)) return fmi3Error;
-    return S(cw_core_set_real(INST, fn, valueReferences, nValueReferences, values));
+    cw_instance *inst = INST;
+    if (!scalars(inst, fn, nValueReferences, nValues)) return fmi3Error;
+    if (inst->state != CW_INTERMEDIATE_UPDATE) {
+        inst->resume_valid = 0;
+        return S(cw_core_set_real(inst, fn, valueReferences, nValueReferences,
+                                  values));
+    }
+    /* Intermediate Update Mode: only the inputs (all intermediateUpdate =
+     * true), set as in Step Mode; the model reads them at this time. */
+    for (size_t k = 0; k < nValueReferences; k++) {
+        const unsigned vr = valueReferences ? valueReferences[k] : 0;
+        const cw_var_info *v =
+            vr < (unsigned)inst->model->nvars ? &inst->model->vars[vr] : NULL;
+        if (!valueReferences || !v || !v->name || v->type != CW_REAL ||
+            v->causality != CW_INPUT) {
+            cw_log(inst, fmi2Error, "logStatusError",
+                   "%s: in IntermediateUpdateMode only the Float64 inputs of "
+                   "%s may be set; value reference %u is not one.",
+                   fn, inst->model->name, vr);
+            return fmi3Error;
+        }
+    }
+    inst->state = CW_STEP_COMPLETE;
+    const fmi2Status st =
+        cw_core_set_real(inst, fn, valueReferences, nValueReferences, values);
+    if (inst->state == CW_STEP_COMPLETE) inst->state = CW_INTERMEDIATE_UPDATE;
+    return S(st);
 }
 
 fmi3Status fmi3GetInt32(fmi3Instance instance,
@@ -259,6 +317,7 @@ fmi3Status fmi3SetInt32(fmi3Instance instance,
                         size_t nValues) {
     static const char fn[] = "fmi3SetInt32";
     if (!scalars(INST, fn, nValueReferences, nValues)) return fmi3Error;
+    INST->resume_valid = 0;
     return S(cw_core_set_int(INST, fn, CW_INTEGER, valueReferences,
                              nValueReferences, values, 0));
 }
@@ -279,6 +338,7 @@ fmi3Status fmi3SetBoolean(fmi3Instance instance,
                           size_t nValues) {
     static const char fn[] = "fmi3SetBoolean";
     if (!scalars(INST, fn, nValueReferences, nValues)) return fmi3Error;
+    INST->resume_valid = 0;
     return S(cw_core_set_int(INST, fn, CW_BOOLEAN, valueReferences,
                              nValueReferences, values, 1));
 }
@@ -359,6 +419,7 @@ fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
 }
 
 fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState) {
+    if (instance) INST->resume_valid = 0;
     return S(cw_core_set_state(INST, "fmi3SetFMUState", FMUState));
 }
 
@@ -415,8 +476,17 @@ fmi3Status fmi3DoStep(fmi3Instance instance,
         cw_log(inst, fmi2Error, "logStatusError", "%s: NULL argument.", fn);
         return fmi3Error;
     }
+    if (inst->env_intermediate_update) {
+        inst->intermediate_update = intermediate_update;
+        inst->intermediate_time = NAN;
+    }
     fmi2Status st = cw_core_do_step(inst, fn, currentCommunicationPoint,
                                     communicationStepSize);
+    if (inst->intermediate_update && st <= fmi2Warning &&
+        inst->state == CW_STEP_COMPLETE && inst->intermediate_time != inst->time)
+        intermediate_update(inst, inst->time); /* the outputs' inputs */
+    inst->intermediate_update = NULL;
+    if (inst->state == CW_ERROR) return fmi3Error; /* a refused intermediate set */
     const int early = st <= fmi2Warning && inst->returned_early;
     /* The model's own event ends the step; the importer handles it in Event
      * Mode when it uses Event Mode. */

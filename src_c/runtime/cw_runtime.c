@@ -35,6 +35,7 @@ static const char *state_name(const cw_instance *inst, cw_machine_state s) {
     case CW_TERMINATED: return "Terminated";
     case CW_ERROR: return "Error";
     case CW_EVENT_MODE: return "EventMode";
+    case CW_INTERMEDIATE_UPDATE: return "IntermediateUpdateMode";
     }
     return "?";
 }
@@ -95,6 +96,8 @@ int cw_core_allowed(cw_instance *inst, const char *fn, int mask) {
 #define allowed cw_core_allowed
 
 double cw_input(const cw_instance *inst, unsigned vr, double t) {
+    if (inst->intermediate_update && t != inst->intermediate_time)
+        inst->intermediate_update((cw_instance *)inst, t);
     double dt = t - inst->in_tref[vr];
     return inst->r[vr] + dt * (inst->in_d1[vr] + 0.5 * dt * inst->in_d2[vr]);
 }

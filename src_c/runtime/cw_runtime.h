@@ -73,7 +73,8 @@ typedef enum {
     CW_STEP_FAILED = 1 << 3,
     CW_TERMINATED = 1 << 4,
     CW_ERROR = 1 << 5,
-    CW_EVENT_MODE = 1 << 6
+    CW_EVENT_MODE = 1 << 6,
+    CW_INTERMEDIATE_UPDATE = 1 << 7 /* FMI 3.0: inside the importer's callback */
 } cw_machine_state;
 
 struct cw_instance;
@@ -146,6 +147,22 @@ typedef struct cw_instance {
      * model's own event where the step ended early (-1 flag: none). */
     int returned_early;
     double early_time;
+    /* FMI 3.0 intermediate update: while fmi3DoStep runs with the
+     * importer's callback, cw_input asks the importer for the inputs at a
+     * new time through this hook (NULL otherwise: inputs are as set). */
+    void (*intermediate_update)(struct cw_instance *inst, double t);
+    void (*env_intermediate_update)(void); /* the importer's callback, cast by the face */
+    double intermediate_time;              /* when the inputs were last asked for */
+    /* After an early return, where the model's integrator stood (the end
+     * of the accepted internal step that held the event), so that the next
+     * fmi3DoStep from the event goes on with the same steps as a run
+     * without early return. Valid until the importer sets a value, a state
+     * or resets (the FMI 3.0 face clears it); never set on FMI 2.0. */
+    int resume_valid;
+    double resume_from;  /* the early return's time, s */
+    double resume_t;     /* the internal step's end, s */
+    double resume_h;     /* the integrator's next step size there, s */
+    double resume_x[4];  /* the state there */
 
     double time;       /* current communication point, s */
     double start_time; /* from fmi2SetupExperiment */

@@ -47,7 +47,7 @@ class Instance3:
     def __init__(self, fmu, params: dict | None = None, inputs: dict | None = None, *,
                  name: str = "inst", start_time: float = 0.0, stop_time: float | None = None,
                  event_mode: bool = False, early_return: bool = False, logging_on: bool = False,
-                 token: str | None = None, initialize: bool = True):
+                 token: str | None = None, initialize: bool = True, intermediate_update=None):
         self.md, self.unzipdir = unpack(fmu)
         self.vars = {v.name: v for v in self.md.modelVariables}
         self.messages: list[Message] = []
@@ -57,13 +57,18 @@ class Instance3:
             self.messages.append(Message(status, (category or b"").decode(), (message or b"").decode()))
 
         self._log = fmi3LogMessageCallback(log)  # the C side keeps the pointer
+        # intermediate_update(inst, time, set_requested, get_allowed, step_finished, can_return_early)
+        self._intermediate = fmi3IntermediateUpdateCallback(
+            (lambda env, t, set_req, get_ok, finished, can_return, early_req, early_time:
+             intermediate_update(self, t, set_req, get_ok, finished, can_return))
+            if intermediate_update else 0)
         self.slave = FMU3Slave(guid=self.md.guid, unzipDirectory=self.unzipdir,
                                modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
         self.raw = self.slave.dll  # the fmi3 functions, with fmpy's argtypes
         self.instance = self.raw.fmi3InstantiateCoSimulation(
             name.encode(), (token if token is not None else self.md.instantiationToken).encode(),
             str(Path(self.unzipdir, "resources")).encode(), False, logging_on, event_mode,
-            early_return, None, 0, None, self._log, fmi3IntermediateUpdateCallback())
+            early_return, None, 0, None, self._log, self._intermediate)
         if not self.instance:
             self.instance = None
             self.slave.freeLibrary()

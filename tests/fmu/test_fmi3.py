@@ -97,7 +97,13 @@ def test_model_description_matches_the_fmi2_build(model):
     assert structure(md3.outputs) == structure(md2.outputs)
     assert structure(md3.initialUnknowns) == structure(md2.initialUnknowns)
     cs = md3.coSimulation
-    assert cs.hasEventMode and not cs.providesIntermediateUpdate
+    # Intermediate update (FMI 3.0's replacement for input derivatives) for
+    # the models with Float64 inputs, on each of those inputs.
+    real_inputs = [n for n, a in v2.items() if a.causality == "input" and a.type == "Real"]
+    assert cs.hasEventMode and cs.providesIntermediateUpdate == bool(real_inputs)
+    xml = zipfile.ZipFile(find_fmu3(model)).read("modelDescription.xml").decode()
+    assert xml.count('intermediateUpdate="true"') == len(real_inputs)
+    assert ('recommendedIntermediateInputSmoothness="2"' in xml) == bool(real_inputs)
     assert cs.mightReturnEarlyFromDoStep == (model in EARLY_RETURN)
     assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate and cs.canHandleVariableCommunicationStepSize
     assert cs.maxOutputDerivativeOrder == md2.coSimulation.maxOutputDerivativeOrder
@@ -510,3 +516,79 @@ def test_the_sources_build_with_fmi3_headers_only(tmp_path):
     version = ctypes.CDLL(str(lib)).fmi3GetVersion
     version.restype = ctypes.c_char_p
     assert version() == b"3.0"
+
+
+def test_intermediate_update_hands_the_pendulum_its_inputs_at_each_stage():
+    """With an intermediateUpdate callback, fmi3DoStep asks for the inputs at
+    the times its integrator needs them (inside the step, in Intermediate
+    Update Mode: set requested, get not allowed, no early return), where
+    only Float64 inputs may be set and every other call is refused. Fed
+    the polynomial an FMI 2.0 instance gets from
+    fmi2SetRealInputDerivatives, evaluated as the runtime evaluates it, the
+    FMI 3.0 Pendulum gives the FMI 2.0 bits."""
+    params = {"phi_start": 0.2, "Q": 200.0}
+    u0, d1, d2, h = 1e-3, -4e-3, 2.5e-3, 0.05
+    calls, refused = [], []
+
+    def feed(inst, t, set_requested, get_allowed, step_finished, can_return_early):
+        calls.append((inst.time, t, set_requested, get_allowed, step_finished, can_return_early))
+        if len(calls) == 1:  # what Intermediate Update Mode refuses
+            refused.append(inst.set(L=2.0))
+            refused.append(inst.step(h).status)
+            phi = (ctypes.c_uint32 * 1)(inst.vr("phi"))
+            refused.append(inst.raw.fmi3GetFloat64(inst.c, phi, 1, (ctypes.c_double * 1)(), 1))
+        tref = inst.time  # the step's communication point, where u0 was set
+        dt = t - tref
+        assert inst.set(tau_external=u0 + dt * (d1 + 0.5 * dt * d2)) == OK
+
+    phi2, phi3 = [], []
+    with Instance(fmu_file("Pendulum"), params=params) as p2, \
+         Instance3(find_fmu3("Pendulum"), params=params, intermediate_update=feed) as p3:
+        for _ in range(8):
+            p2.check(p2.set(tau_external=u0), "set")
+            p2.check(p2.set_input_derivatives({"tau_external": {1: d1, 2: d2}}), "derivatives")
+            p2.check(p2.step(h), "step")
+            p3.check(p3.set(tau_external=u0), "set")
+            start = len(calls)
+            r = p3.step(h)
+            assert r.status == OK, p3.log_text()
+            assert len(calls) - start >= 4  # the RK stages of at least one internal step
+            phi2.append(p2.get_many(["phi", "w", "a"]))
+            phi3.append(p3.get_many(["phi", "w", "a"]))
+        assert refused == [ERROR, ERROR, ERROR] and len(p3.errors()) == 3
+    assert phi2 == phi3
+    assert all(tc <= t <= tc + h and tuple(flags) == (True, False, False, False) for tc, t, *flags in calls)
+    # Without a callback nothing asks: the inputs hold over the step.
+    with Instance3(find_fmu3("Pendulum"), params=params) as p3:
+        p3.check(p3.set(tau_external=u0), "set")
+        assert p3.step(h).status == OK
+
+
+def test_early_return_goes_on_with_the_integrators_own_steps():
+    """After an early return at a tick or turning point, the next fmi3DoStep
+    from the event goes on from the end of the internal step that held it:
+    stepping on to each communication point, the FMI 3.0 Pendulum gives the
+    FMI 2.0 build's bits at every one, ticks, amplitudes and tick speeds
+    included."""
+    params = {"phi_start": -0.2, "Q": 50.0}
+    names = ["phi", "w", "a", "tick_count", "tick_time", "tick_w", "turn_count", "amplitude", "period"]
+    early = 0
+    with Instance3(find_fmu3("Pendulum"), params=params, event_mode=True, early_return=True) as p, \
+         Instance(fmu_file("Pendulum"), params=params) as ref:
+        for k in range(1, 41):
+            end = 0.25 * k
+            ref.check(ref.step(0.25), "fmi2DoStep")
+            while p.time < end:
+                h = end - p.time
+                while p.time + h < end:
+                    h = math.nextafter(h, math.inf)
+                while p.time + h > end:
+                    h = math.nextafter(h, 0.0)
+                r = p.step(h)
+                p.check(r.status, "fmi3DoStep")
+                if r.early_return:
+                    early += 1
+                    assert p.raw.fmi3EnterEventMode(p.c) == OK
+                    p.settle()
+            assert p.get_many(names) == ref.get_many(names), k
+    assert early >= 8

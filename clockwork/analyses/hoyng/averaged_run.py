@@ -29,10 +29,29 @@ _KEYS = {"torque": keys.torque, "noise_rms": keys.nonnegative_number, "noise_sta
          "sample_periods": keys.positive_int}
 
 
-@register("hoyng_averaged_run", set(_KEYS), keys.table_converter(_KEYS))
+def _twins(scene) -> list[str]:
+    return [n for n, c in scene.components.items() if c.model_description.modelName == AVERAGED]
+
+
+def _twin_series(avg: str) -> str:
+    """The series column of the AveragedPendulum's psi - t, cycles."""
+    return f"psi_{avg}_minus_t_cycles"
+
+
+def series_columns(scene) -> set[str]:
+    return {"tau", "periods", *(_twin_series(a) for a in _twins(scene))}
+
+
+# The result's keys (the literal `res` below, the fit, and the noise's with noise).
+COLUMNS = {"eps", "mu0", "phi0_rad", "periods", "wall_time_run_s", "cpu_time_run_s", "block_periods", "circular",
+           "rate_eq20", "gain_no_noise", "rms_deviation_cycles", "max_deviation_cycles", "rms_gain"}
+
+
+@register("hoyng_averaged_run", set(_KEYS), keys.table_converter(_KEYS), columns=COLUMNS,
+          series=series_columns)
 def hoyng_averaged_run(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
-    avgs = [n_ for n_, c in scene.components.items() if c.model_description.modelName == AVERAGED]
+    avgs = _twins(scene)
     if len(avgs) != 1 or "torque" not in cfg:
         raise SimulationError("hoyng_averaged_run needs one AveragedPendulum and analysis.torque")
     avg = avgs[0]
@@ -145,5 +164,5 @@ def hoyng_averaged_run(scene, point: dict, progress: bool = False) -> dict:
         res["max_deviation_cycles"] = float(np.max(np.abs(dev)) / TWO_PI)
         res["rms_gain"] = res["rms_deviation_cycles"] / ((tau[-1] - tau_n) / TWO_PI)
     series = {"tau": tau.tolist(), "periods": (tau / TWO_PI).tolist(),
-              f"psi_{avg}_minus_t_cycles": (y / TWO_PI).tolist()}
+              _twin_series(avg): (y / TWO_PI).tolist()}
     return {"kind": "hoyng_averaged_run", "result": res, "series": series, "statistics": stats}

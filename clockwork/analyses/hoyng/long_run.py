@@ -19,14 +19,40 @@ from ...physics import analytic
 from .. import keys
 from ..context import build_system, experiment
 from ..registry import register
-from .common import TWO_PI, grasshopper_clock, linfit, subscene, twin_values
+from .common import TWO_PI, grasshopper_clock, hoyng_components, linfit, subscene, twin_values
 
 
 _KEYS = {"sample_every": keys.positive_int, "stationary_start": keys.boolean,
          "twins": lambda k, v: keys.choice(k, v, ("replay", "cosimulate"))}
 
 
-@register("hoyng_long_run", set(_KEYS), keys.table_converter(_KEYS))
+def _twin_columns(avg: str) -> tuple[str, str, str]:
+    """The result's (slope, end, circular) columns of an AveragedPendulum twin."""
+    return f"psi_diff_slope_{avg}", f"psi_diff_end_{avg}_rad", f"circular_{avg}"
+
+
+# The result's keys besides the twins' (the literal `res` below, and the fits; the noise's with noise).
+COLUMNS = {"eps", "mu0", "phi0_rad", "ticks", "periods", "noise_start_periods", "wall_time_run_s", "cpu_time_run_s",
+           "wall_time_cosimulation_s", "twins", "torque_changes", "periods_per_s", "rate_eq20", "rate_eq16_bessel",
+           "gain_no_noise", "gain_fit_from_periods", "noise_rms_measured", "noise_renewals", "rms_deviation_cycles",
+           "max_deviation_cycles", "rms_gain", "gain_noise"}
+
+
+def columns(scene) -> set[str]:
+    return COLUMNS | {c for a in hoyng_components(scene)[2] for c in _twin_columns(a)}
+
+
+def _twin_series(avg: str) -> tuple[str, str]:
+    """The series' (psi_p - psi_twin, psi_twin - t) columns of an AveragedPendulum twin, cycles."""
+    return f"psi_p_minus_psi_{avg}_cycles", f"psi_{avg}_minus_t_cycles"
+
+
+def series_columns(scene) -> set[str]:
+    return {"tau", "periods", "psi_p_minus_t_cycles", *(c for a in hoyng_components(scene)[2] for c in _twin_series(a))}
+
+
+@register("hoyng_long_run", set(_KEYS), keys.table_converter(_KEYS), columns=columns,
+          series=series_columns)
 def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     pend, esc, avgs, params, pp, ep, n = grasshopper_clock(scene, point, "hoyng_long_run")
@@ -162,14 +188,16 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
     for a in avgs:
         d = psi_p - np.asarray(samples[f"psi_{a}"])
         late = tau >= 0.1 * tau[-1]
-        res[f"psi_diff_slope_{a}"] = linfit(tau[late], d[late])[1]
-        res[f"psi_diff_end_{a}_rad"] = float(d[-1])
-        res[f"circular_{a}"] = int(params[a].get("circular", 1))
+        slope, end, circular = _twin_columns(a)
+        res[slope] = linfit(tau[late], d[late])[1]
+        res[end] = float(d[-1])
+        res[circular] = int(params[a].get("circular", 1))
     series = {"tau": tau.tolist(), "periods": (tau / TWO_PI).tolist(),
               "psi_p_minus_t_cycles": (y / TWO_PI).tolist()}
     for a in avgs:
-        series[f"psi_p_minus_psi_{a}_cycles"] = ((psi_p - np.asarray(samples[f"psi_{a}"])) / TWO_PI).tolist()
-        series[f"psi_{a}_minus_t_cycles"] = ((np.asarray(samples[f"psi_{a}"]) - tau) / TWO_PI).tolist()
+        lead, lag = _twin_series(a)
+        series[lead] = ((psi_p - np.asarray(samples[f"psi_{a}"])) / TWO_PI).tolist()
+        series[lag] = ((np.asarray(samples[f"psi_{a}"]) - tau) / TWO_PI).tolist()
     return {"kind": "hoyng_long_run", "result": res, "series": series, "statistics": stats,
             "noise_head": noise["head"]}
 

@@ -19,7 +19,7 @@ from ...physics import analytic
 from .. import keys
 from ..context import build_system, parameters
 from ..registry import register
-from ..steady_state import steady_state
+from ..steady_state import COLUMNS as STEADY_COLUMNS, steady_state
 from .common import DAY, TWO_PI, hoyng_components, normalized, second_order, subscene, twin_values
 
 
@@ -27,7 +27,23 @@ _KEYS = {"tolerance_s_per_day": keys.positive_number, "max_periods": keys.positi
          "measure_periods": keys.positive_int}
 
 
-@register("hoyng_stationary", set(_KEYS), keys.table_converter(_KEYS))
+def _twin_columns(avg: str) -> tuple[str, str]:
+    """The result's (rate, amplitude) columns of an AveragedPendulum twin."""
+    return f"rate_{avg}", f"amplitude_{avg}_rad"
+
+
+# What hoyng_stationary adds to the steady state's result (some per escapement, some not when stalled).
+ADDED_COLUMNS = {"kind_hoyng", "eps", "mu", "phi0_rad", "rate_eq20", "lambda_eq19_rad", "rate_eq16_bessel", "e",
+                 "phi1_rad", "window_rad", "rate_C6", "lambda_C4_rad", "rate_theory", "rate_theory_s_per_day",
+                 "rate_circular_term", "rate_escapement_term", "next_order_bound", "rate_sim", "rate_sim_s_per_day",
+                 "amplitude_rad", "rate_diff", "amplitude_rel_diff"}
+
+
+def columns(scene) -> set[str]:
+    return STEADY_COLUMNS | ADDED_COLUMNS | {c for a in hoyng_components(scene)[2] for c in _twin_columns(a)}
+
+
+@register("hoyng_stationary", set(_KEYS), keys.table_converter(_KEYS), columns=columns, series=set())
 def hoyng_stationary(scene, point: dict, progress: bool = False) -> dict:
     pend, esc, avgs = hoyng_components(scene)
     if pend is None or esc is None:
@@ -80,8 +96,9 @@ def hoyng_stationary(scene, point: dict, progress: bool = False) -> dict:
         res["amplitude_rel_diff"] = res["amplitude_rad"] / lam - 1.0
     for a in avgs:
         r_avg, lam_avg = _averaged_stationary(scene, point, a, pp, esc_model, ep, n, lam)
-        res[f"rate_{a}"] = r_avg
-        res[f"amplitude_{a}_rad"] = lam_avg
+        rate_column, amplitude_column = _twin_columns(a)
+        res[rate_column] = r_avg
+        res[amplitude_column] = lam_avg
     return out
 
 

@@ -26,7 +26,16 @@ _KEYS = {"jump_at_periods": keys.positive_number, "torque_after": keys.torque, "
          "tail_start_periods": keys.positive_number}
 
 
-@register("hoyng_torque_jump", set(_KEYS), keys.table_converter(_KEYS))
+# The result's keys (the literal `res` below and what follows it).
+COLUMNS = {"eps", "mu0", "mu1", "phi0_rad", "periods", "jump_at_periods", "rate_before", "rate_eq20_A",
+           "lambda_eq19_A_rad", "amplitude_before_rad", "rate_after_jump", "rate_eq16_after_jump",
+           "rate_eq16_at_jump", "rate_eq20_B", "lambda_eq19_B_rad", "amplitude_final_rad",
+           "amplitude_eq18_max_rel_diff", "rate_eq16_max_diff", "next_order_bound_amplitude",
+           "next_order_bound_rate", "delta_psi_sim", "rate_final", "delta_psi_eq", "t_end_s"}
+
+
+@register("hoyng_torque_jump", set(_KEYS), keys.table_converter(_KEYS), columns=COLUMNS,
+          series={"tick_time_s", "periods", "rate", "rate_eq16_eq18", "amplitude_rad", "amplitude_eq18_rad"})
 def hoyng_torque_jump(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     pend, esc, _, params, pp, ep, n = grasshopper_clock(scene, point, "hoyng_torque_jump")

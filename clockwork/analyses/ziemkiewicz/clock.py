@@ -189,6 +189,10 @@ class Clock:
         # speed equals its end speed to the residual.
         return self.system.output(self.pendulum, "tick_w")
 
+    # result's keys: the state's, and what the clock adds (some only when not stalled)
+    RESULT_COLUMNS = SteadyState.COLUMNS | {"torque_Nm", "E_E_right_s_per_day", "E_E_left_s_per_day",
+                                            "E_E_B7_s_per_day", "turns_inside_window", "omitted"}
+
     def result(self, st: SteadyState) -> dict:
         out = st.as_dict()
         out["torque_Nm"] = self.esc.get("torque")

@@ -17,8 +17,17 @@ from ..registry import register
 from .clock import DAY, Clock, advance_to, convert_keys, steady_for
 
 
+SAMPLED = ("time", "period_s", "dT_over_T", "amplitude_deg", "time_error_s")  # per tick
+SERIES = SAMPLED + ("dA_deg",)  # and the amplitude's change, after the run
+# What disturbance adds to the clock's result (the out.update below).
+KICK_COLUMNS = {"kick_start_s", "kick_at", "kick_duration_s", "g_factor", "phi_at_kick_deg", "w_at_kick_rad_per_s",
+                "stationary_period_s", "baseline_max_abs_dT_over_T", "max_abs_dT_over_T", "max_dT_over_T_signed",
+                "max_abs_dA_deg", "time_error_end_s", "time_error_max_abs_s", "ticks"}
+
+
 @register("disturbance", {"amplitude", "kick_time", "kick_duration", "g_factor", "kick_at",
-                          "tolerance_s_per_day", "max_periods"}, convert_keys)
+                          "tolerance_s_per_day", "max_periods"}, convert_keys, columns=Clock.RESULT_COLUMNS | KICK_COLUMNS,
+          series=SERIES)
 def disturbance(scene, point: dict, progress: bool = False) -> dict:
     """Point disturbance g' = g_factor g for kick_duration on the steady orbit (Fig. 7).
 
@@ -61,7 +70,7 @@ def disturbance(scene, point: dict, progress: bool = False) -> dict:
             raise SimulationError(f"the kick at {tk:.6g} s does not end before experiment.stop")
         ticks: list[float] = []
         amps: list[float] = []
-        rows = {"time": [], "period_s": [], "dT_over_T": [], "amplitude_deg": [], "time_error_s": []}
+        rows = {k: [] for k in SAMPLED}
         state = {"tick": sysm.output(c.pendulum, "tick_time"), "amp": sysm.output(c.pendulum, "amplitude"),
                  "err": 0.0}
 

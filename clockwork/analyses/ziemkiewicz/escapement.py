@@ -15,11 +15,13 @@ import math
 
 import numpy as np
 
+from ..context import ESCAPEMENTS, find_component
 from ..registry import register
 from .clock import Clock, advance_to, convert_keys, steady_for
 
 
-@register("escapement_steady_state", {"tolerance_s_per_day", "max_periods", "amplitude_guess"}, convert_keys)
+@register("escapement_steady_state", {"tolerance_s_per_day", "max_periods", "amplitude_guess"}, convert_keys,
+          columns=Clock.RESULT_COLUMNS | {"energy_balance_amplitude_deg"}, series=set())
 def escapement_steady_state(scene, point: dict, progress: bool = False) -> dict:
     """Steady-state rate errors by shooting, for any escapement, profile and drag."""
     with Clock(scene, point) as c:
@@ -30,7 +32,23 @@ def escapement_steady_state(scene, point: dict, progress: bool = False) -> dict:
     return {"kind": "escapement_steady_state", "result": out, "statistics": stats}
 
 
-@register("steady_orbit", {"amplitude", "periods", "tolerance_s_per_day", "max_periods"}, convert_keys)
+# What steady_orbit adds to the clock's result.
+ORBIT_COLUMNS = {"orbit_closure_rad_per_s", "orbit_closure_phi_rad", "periods", "recoil_fraction", "phi_r_deg",
+                 "max_abs_phi_deg"}
+
+
+def _orbit_series(pendulum: str, escapement: str) -> dict[str, str]:
+    """The sampled orbit's series columns, by sample."""
+    return {"time": "time", "phi": f"{pendulum}.phi", "w": f"{pendulum}.w", "tau": f"{escapement}.tau"}
+
+
+def orbit_series_columns(scene) -> set[str]:
+    names = _orbit_series(find_component(scene, "Pendulum"), find_component(scene, ESCAPEMENTS))
+    return {*names.values(), "recoil"}
+
+
+@register("steady_orbit", {"amplitude", "periods", "tolerance_s_per_day", "max_periods"}, convert_keys,
+          columns=Clock.RESULT_COLUMNS | ORBIT_COLUMNS, series=orbit_series_columns)
 def steady_orbit(scene, point: dict, progress: bool = False) -> dict:
     """A few periods of the steady orbit, for a given torque or amplitude (Fig. 3)."""
     cfg = scene.analysis or {}
@@ -67,6 +85,6 @@ def steady_orbit(scene, point: dict, progress: bool = False) -> dict:
     out.update(periods=periods, recoil_fraction=share,
                phi_r_deg=math.degrees(c.esc["phi_r"]) if "phi_r" in c.esc else None,
                max_abs_phi_deg=float(np.degrees(np.max(np.abs(phi)))))
-    series = {"time": cols["time"], f"{c.pendulum}.phi": cols["phi"], f"{c.pendulum}.w": cols["w"],
-              f"{c.escapement}.tau": cols["tau"], "recoil": [float(r) for r in recoil]}
+    series = {name: cols[k] for k, name in _orbit_series(c.pendulum, c.escapement).items()}
+    series["recoil"] = [float(r) for r in recoil]
     return {"kind": "steady_orbit", "result": out, "series": series, "statistics": stats}

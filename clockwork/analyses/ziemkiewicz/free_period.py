@@ -18,7 +18,13 @@ from ..registry import register
 from .clock import DAY, convert_keys
 
 
-@register("free_period", {"periods"}, convert_keys)
+# The keys of the result built at the end of free_period.
+COLUMNS = {"amplitude_deg", "turning_amplitude_deg", "period_s", "period_agm_s", "period_eq2_first_order_s",
+           "period_eq2_second_order_s", "rel_diff_agm", "rel_diff_eq2_first_order", "E_C_sim_s_per_day",
+           "E_C_agm_s_per_day", "periods"}
+
+
+@register("free_period", {"periods"}, convert_keys, columns=COLUMNS, series=set())
 def free_period(scene, point: dict, progress: bool = False) -> dict:
     """Period of a free pendulum from its tick times (Fig. 1)."""
     cfg = scene.analysis or {}

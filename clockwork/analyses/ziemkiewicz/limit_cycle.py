@@ -12,13 +12,27 @@ import math
 import numpy as np
 
 from ...errors import SimulationError
-from ..context import build_system, experiment
+from ..context import build_system, experiment, find_component
 from ..registry import register
 from ..time_series import run_with_progress
 from .parts import Parts, convert_keys, on_grid, stats_of
 
 
-@register("limit_cycle", {"sample_interval"}, convert_keys)
+# The keys of the result built at the end of limit_cycle.
+COLUMNS = {"amplitude_start_deg", "limit_cycle_amplitude_deg", "limit_cycle_change_deg", "amplitude_B6_deg",
+           "first_turn_amplitude_deg", "turns", "switches", "switch_abs_phi_deg_mean", "switch_abs_phi_deg_max_dev",
+           "phi_r_deg", "Q", "torque_Ncm", "acceleration_jump_rad_per_s2"}
+
+
+def _series(pendulum: str, escapement: str) -> list[str]:
+    return ["time", f"{pendulum}.phi", f"{pendulum}.w", f"{escapement}.tau"]
+
+
+def series_columns(scene) -> set[str]:
+    return set(_series(find_component(scene, "Pendulum"), find_component(scene, "GrasshopperEscapement")))
+
+
+@register("limit_cycle", {"sample_interval"}, convert_keys, columns=COLUMNS, series=series_columns)
 def limit_cycle(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     parts = Parts(scene, point)
@@ -27,7 +41,7 @@ def limit_cycle(scene, point: dict, progress: bool = False) -> dict:
         raise SimulationError("limit_cycle needs a GrasshopperEscapement")
     _, stop = experiment(scene, point)
     interval = cfg.get("sample_interval")
-    cols = {"time": [], f"{pend}.phi": [], f"{pend}.w": [], f"{esc}.tau": []}
+    cols = {n: [] for n in _series(pend, esc)}
     turns: list[tuple[float, float]] = []
     switches: list[float] = []
     with build_system(scene, point, record={pend: ["amplitude"]}) as system:

@@ -42,7 +42,13 @@ def running_exponent(t: np.ndarray, d: np.ndarray, t_from: float = 0.0) -> np.nd
     return out
 
 
-@register("lyapunov", {"perturbation", "sample_interval", "fit_start"}, convert_keys)
+# The keys of the result built at the end of lyapunov.
+COLUMNS = {"C1", "C2", "perturbation_deg", "lambda1_end_per_s", "lambda2_end_per_s", "lambda1_late_per_s",
+           "lambda2_late_per_s", "d1_start_rad", "d1_end_rad", "d2_end_rad", "d1_growth", "d2_growth"}
+
+
+@register("lyapunov", {"perturbation", "sample_interval", "fit_start"}, convert_keys, columns=COLUMNS,
+          series={"time", "d1", "d2", "lambda1", "lambda2"})
 def lyapunov(scene, point: dict, progress: bool = False) -> dict:
     """Twin runs from phi_start and phi_start + perturbation (Ziemkiewicz Eq. 8).
 

@@ -16,7 +16,14 @@ from .parts import Parts, convert_keys, lockstep, stats_of
 from .clock import DAY
 
 
-@register("rate_error", {"transient"}, convert_keys)
+# The keys of the result built at the end of rate_error.
+COLUMNS = {"transient_s", "periods", "momentary_mean_s_per_day", "momentary_std_s_per_day",
+           "momentary_max_abs_s_per_day", "momentary_p2p_s_per_day", "accumulated_end_s", "accumulated_max_abs_s",
+           "reference_period_end_s"}
+
+
+@register("rate_error", {"transient"}, convert_keys, columns=COLUMNS,
+          series={"time", "period_s", "reference_period_s", "momentary_s_per_day", "accumulated_s"})
 def rate_error(scene, point: dict, progress: bool = False) -> dict:
     """Periods of the clock with the vibrating mechanism against the same
     clock with C1 = C2 = 0, started alike and run in lockstep.

@@ -75,8 +75,44 @@ def _measure_period(scene, point: dict, overrides: dict, n_periods: int) -> floa
     return (ticks[-1] - ticks[0]) / n_periods
 
 
+def _steps(cfg: dict) -> tuple[list, list, list, list]:
+    """(fixed steps, rtols, communication steps, paper steps) of the study, s."""
+    return (cfg.get("fixed_steps", [1e-3, 1e-2, 0.1]), cfg.get("rtols", [1e-6, 1e-9, 1e-12]),
+            cfg.get("comm_steps", [1e-3, 1e-2, 0.1]), cfg.get("paper_steps", [1e-5, 1e-4]))
+
+
+def _paper_columns(dt: float) -> tuple[str, str]:
+    tag = f"{dt * 1e6:g}us"
+    return f"paper_a1_{tag}_quantized_rel_err", f"paper_a1_{tag}_interpolated_rel_err"
+
+
+def _fixed_column(h: float) -> str:
+    return f"fixed_{h:g}s_rel_err"
+
+
+# The result's keys for every study (the literal below), and per step.
+BASE_COLUMNS = {"amplitude_deg", "periods", "paper_span_s", "E_C_agm", "default_rel_err", "default_s_per_year",
+                "default_rtol", "default_master_step_s", "eq2_one_term_rel_err", "eq2_two_term_rel_err",
+                "eq2_one_term_s_per_year"}
+
+
+def columns(scene) -> set[str]:
+    fixed, _, _, paper = _steps(scene.analysis or {})
+    return BASE_COLUMNS | {c for dt in paper for c in _paper_columns(dt)} | {_fixed_column(h) for h in fixed}
+
+
+def _curves(rtols: list) -> list[str]:
+    """The curves, each a series column "<curve>_rel_err" against h_s."""
+    return ["fixed", *(f"rtol_{r:.0e}" for r in rtols), "paper_a1_quantized", "paper_a1_interpolated"]
+
+
+def series_columns(scene) -> set[str]:
+    return {"h_s", *(f"{name}_rel_err" for name in _curves(_steps(scene.analysis or {})[1]))}
+
+
 @register("step_accuracy", {"amplitude", "periods", "fixed_steps", "rtols", "comm_steps",
-                            "paper_steps", "paper_span"}, convert_keys)
+                            "paper_steps", "paper_span"}, convert_keys, columns=columns,
+          series=series_columns)
 def step_accuracy(scene, point: dict, progress: bool = False) -> dict:
     """E_C(simulated) - E_C(AGM) = (T - T_AGM)/T0 of a free pendulum (Fig. 11).
 
@@ -98,10 +134,7 @@ def step_accuracy(scene, point: dict, progress: bool = False) -> dict:
         raise SimulationError("step_accuracy needs a lone free pendulum (Q = 0) released at rest")
     A = cfg.get("amplitude", 5.0 * DEG)
     n = cfg.get("periods", 100)
-    fixed = cfg.get("fixed_steps", [1e-3, 1e-2, 0.1])
-    rtols = cfg.get("rtols", [1e-6, 1e-9, 1e-12])
-    comm = cfg.get("comm_steps", [1e-3, 1e-2, 0.1])
-    paper = cfg.get("paper_steps", [1e-5, 1e-4])
+    fixed, rtols, comm, paper = _steps(cfg)
     span = cfg.get("paper_span", 2000.0)
     L, g = pp["L"], pp["g"]
     T0 = analytic.small_angle_period(L, g)
@@ -116,7 +149,7 @@ def step_accuracy(scene, point: dict, progress: bool = False) -> dict:
 
     default = err(_measure_period(scene, point, {P: A}, n))
     bar.update()
-    curves: dict[str, dict[float, float]] = {"fixed": {}}
+    curves: dict[str, dict[float, float]] = {name: {} for name in _curves(rtols)}
     for h in fixed:
         o = {P: A, (pend, "h_max"): h, (pend, "rtol"): 0.1, (pend, "atol"): 1.0,
              ("master", "step"): max(h, base_step)}
@@ -124,12 +157,10 @@ def step_accuracy(scene, point: dict, progress: bool = False) -> dict:
         bar.update()
     for r in rtols:
         key = f"rtol_{r:.0e}"
-        curves[key] = {}
         for c in comm:
             o = {P: A, (pend, "rtol"): r, (pend, "atol"): r * 1e-2, ("master", "step"): c}
             curves[key][c] = err(_measure_period(scene, point, o, n))
             bar.update()
-    curves["paper_a1_quantized"], curves["paper_a1_interpolated"] = {}, {}
     for dt in paper:
         Tq, Ti = euler_a1_period(A, dt, span, g / L)
         curves["paper_a1_quantized"][dt] = err(Tq)
@@ -158,10 +189,10 @@ def step_accuracy(scene, point: dict, progress: bool = False) -> dict:
         "eq2_one_term_s_per_year": e1 * DAY * 365.25,
     }
     for dt in paper:
-        tag = f"{dt * 1e6:g}us"
         key = float(f"{dt:.12g}")
-        result[f"paper_a1_{tag}_quantized_rel_err"] = curves["paper_a1_quantized"][key]
-        result[f"paper_a1_{tag}_interpolated_rel_err"] = curves["paper_a1_interpolated"][key]
+        quantized, interpolated = _paper_columns(dt)
+        result[quantized] = curves["paper_a1_quantized"][key]
+        result[interpolated] = curves["paper_a1_interpolated"][key]
     for h in fixed:
-        result[f"fixed_{h:g}s_rel_err"] = curves["fixed"][float(f"{h:.12g}")]
+        result[_fixed_column(h)] = curves["fixed"][float(f"{h:.12g}")]
     return {"kind": "step_accuracy", "result": result, "series": series}

@@ -17,21 +17,38 @@ import math
 import numpy as np
 
 from ...errors import SimulationError
-from ..context import build_system
+from ..context import build_system, find_component
 from ..registry import register
 from ..time_series import run_with_progress
 from .parts import Parts, convert_keys, hermite, on_grid, stats_of
 
 
-@register("vibration_series", {"sample_interval", "transient"}, convert_keys)
+# The keys of the result built at the end of vibration_series.
+COLUMNS = {"transient_s", "a2_max_abs_deg", "a2_rms_deg", "a1_max_abs_deg", "forced_gain", "forced_gain_linear",
+           "free_rms_deg", "duffing_over_linear", "sign_a2_equals_sign_tau", "a2_sign_changes_per_period",
+           "torque_variation_percent", "torque_mean_excess_percent", "amplitude_end_deg", "mean_period_s", "ticks"}
+
+
+def _sampled(pend: str, esc: str, vib: str) -> list[tuple[str, tuple[str, str] | None]]:
+    """The series columns and the (instance, variable) each samples (None: the time)."""
+    return [("time", None), (f"{pend}.phi", (pend, "phi")), (f"{pend}.w", (pend, "w")),
+            (f"{esc}.tau", (esc, "tau")), (f"{vib}.a2", (vib, "a2")), (f"{vib}.a2dot", (vib, "a2dot"))]
+
+
+def series_columns(scene) -> set[str]:
+    return {n for n, _ in _sampled(find_component(scene, "Pendulum"), find_component(scene, "GrasshopperEscapement"),
+                                   find_component(scene, "MechanismVibration"))}
+
+
+@register("vibration_series", {"sample_interval", "transient"}, convert_keys, columns=COLUMNS,
+          series=series_columns)
 def vibration_series(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     parts = Parts(scene, point, needs_vibration=True)
     pend, esc, vib = parts.pendulum, parts.escapement, parts.vibration
     start, stop, transient = parts.start, parts.stop, parts.transient
     interval = cfg.get("sample_interval")
-    names = [("time", None), (f"{pend}.phi", (pend, "phi")), (f"{pend}.w", (pend, "w")),
-             (f"{esc}.tau", (esc, "tau")), (f"{vib}.a2", (vib, "a2")), (f"{vib}.a2dot", (vib, "a2dot"))]
+    names = _sampled(pend, esc, vib)
     cols: dict[str, list] = {n: [] for n, _ in names}
     ticks: list[float] = []
     record = {pend: ["tick_time", "amplitude"], vib: ["a2", "a2dot"], esc: ["tau"]}
@@ -89,6 +106,12 @@ def vibration_series(scene, point: dict, progress: bool = False) -> dict:
             "statistics": stats}
 
 
+# section_statistics' keys (n_points alone under 8 points), and what poincare adds.
+SECTION_COLUMNS = {"n_points", "ring_width", "occupied_fraction", "positive_fraction"}
+POINCARE_COLUMNS = SECTION_COLUMNS | {"C2", "transient_s", "a2_min_deg", "a2_max_deg", "a2dot_min_deg_per_s",
+                                      "a2dot_max_deg_per_s", "interpolation_step_max_s"}
+
+
 def section_statistics(x: np.ndarray, y: np.ndarray, grid: int = 32) -> dict:
     """Shape statistics of section points (x, y), in any common unit.
 
@@ -127,7 +150,10 @@ def section_statistics(x: np.ndarray, y: np.ndarray, grid: int = 32) -> dict:
     }
 
 
-@register("poincare", {"transient"}, convert_keys)
+POINCARE_SERIES = ("tick_time", "a2", "a2dot", "tick_w")
+
+
+@register("poincare", {"transient"}, convert_keys, columns=POINCARE_COLUMNS, series=POINCARE_SERIES)
 def poincare(scene, point: dict, progress: bool = False) -> dict:
     """(a2, a2dot) at each upward zero crossing of the pendulum angle.
 
@@ -140,7 +166,7 @@ def poincare(scene, point: dict, progress: bool = False) -> dict:
     parts = Parts(scene, point, needs_vibration=True)
     pend, vib = parts.pendulum, parts.vibration
     start, stop, transient = parts.start, parts.stop, parts.transient
-    rows = {"tick_time": [], "a2": [], "a2dot": [], "tick_w": []}
+    rows = {k: [] for k in POINCARE_SERIES}
     h_max = [0.0]
     record = {pend: ["tick_time", "tick_w"], vib: ["a2", "a2dot", "a2ddot"]}
     with build_system(scene, point, record=record) as system:

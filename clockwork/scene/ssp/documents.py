@@ -17,11 +17,11 @@ from urllib.parse import unquote, urlsplit
 from ...atomic import write_bytes_atomic
 from ...errors import SceneError
 from ...paths import cache_root, scratch_dir
+from ...engine.description import MAX_ENTRIES, max_unzipped_bytes
 from .common import NS, XmlError, parse_xml, q
 
 SSD_NAME = "SystemStructure.ssd"
 MAX_XML_BYTES = 16 << 20  # an SSD, SSV or SSM of more is not a description
-MAX_FMU_BYTES = 2 << 30  # read into memory once, to hash and copy it
 _PREFIX = {v: k for k, v in NS.items()}
 _EXPONENTS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 
@@ -55,6 +55,7 @@ class Store:
         self.path = path
         self.zip: zipfile.ZipFile | None = None
         self.digest = hashlib.sha256()  # of the archive, or of the SSD and every file it reads
+        self._fmus: dict[str, Path] = {}  # archive entry -> its copy (components may share an FMU)
         if path.suffix.lower() == ".ssp":
             if not zipfile.is_zipfile(path):
                 raise SceneError("expected an SSP archive: a zip file with SystemStructure.ssd at its root; "
@@ -64,6 +65,8 @@ class Store:
                 names = self.zip.namelist()
             except (zipfile.BadZipFile, OSError, ValueError) as e:
                 raise SceneError(f"expected an SSP archive: unreadable zip file ({e})", path) from None
+            if len(names) > MAX_ENTRIES:
+                raise SceneError(f"{len(names)} entries in the archive, more than {MAX_ENTRIES}: not read", path)
             for name in names:
                 parts = name.split("/")
                 if "\\" in name or name.startswith("/") or ".." in parts or (parts and ":" in parts[0]):
@@ -144,10 +147,14 @@ class Store:
         copied once per content into the cache (the scratch folder without one)."""
         if self.zip is None:
             return Path(where)
-        size = self.zip.getinfo(where).file_size
-        if size > MAX_FMU_BYTES:
-            raise SceneError(f"{size} bytes unpacked: an FMU in an SSP archive is at most {MAX_FMU_BYTES} bytes here",
-                             self.label(where))
+        if where in self._fmus:
+            return self._fmus[where]
+        # The FMU's own files are bounded when it is read; the FMU itself, read
+        # into memory here to hash and copy it, by the same unzip bound.
+        size, limit = self.zip.getinfo(where).file_size, max_unzipped_bytes()
+        if size > limit:
+            raise SceneError(f"{size:,} bytes unpacked, more than the limit of {limit:,} bytes ({limit / 2**20:g} MiB) "
+                             "for an FMU: not unpacked (set CLOCKWORK_MAX_FMU_MB to allow more)", self.label(where))
         try:
             data = self.zip.read(where)
         except (zipfile.BadZipFile, OSError, ValueError) as e:
@@ -160,6 +167,7 @@ class Store:
                 if not (target.is_file() and target.stat().st_size == len(data)):
                     folder.mkdir(parents=True, exist_ok=True)
                     write_bytes_atomic(target, data)
+                self._fmus[where] = target
                 return target
             except OSError:
                 if root is None:

@@ -53,6 +53,10 @@ _FMI_TYPE = {**{t: "Real" for t in _REALS}, **{t: "Integer" for t in _INTEGERS},
              "Boolean": "Boolean", "String": "String", "Enumeration": "Enumeration"}
 # What clockwork's annotation may set: MasterConfig fields and record keys.
 _RECORD_KEYS = ("interval", "ticks")
+# Bounds before the work: each component is an FMU instance (a clock has 2 to 6),
+# and each input's sources are found by walking the connections.
+MAX_COMPONENTS = 1000
+MAX_PATH_STEPS = 100_000
 _MASTER_FIELDS = tuple(f.name for f in dataclasses.fields(MasterConfig))
 
 
@@ -237,6 +241,9 @@ class _Reader:
             raise doc.fail(el, f"expected type {FMU_TYPE} (an FMU)", "type")
         if el.get("source") is None:
             raise doc.fail(el, "missing required attribute; expected the FMU's path", "source")
+        if len(self.instances) >= MAX_COMPONENTS:
+            raise doc.fail(el, f"more than {MAX_COMPONENTS} components (FMU instances) in the system and its "
+                               "sub-systems: not read")
         fmu = self.store.fmu(self.store.resolve(doc, el, "source"))
         try:
             md, digest, indicators = read_fmu(fmu)
@@ -364,11 +371,16 @@ class _Reader:
         """What feeds `node`: [(source node, [(edge, upstream, downstream)] in data-flow order)],
         a component output, or a system connector with nothing upstream."""
         found = []
+        visits = [0]
 
         def walk(cur, chain, seen):
             for e, other in adj.get(cur, []):
                 if other in seen:
                     continue
+                visits[0] += 1
+                if visits[0] > MAX_PATH_STEPS:  # loops of system connectors: the paths grow as n!
+                    raise e.doc.fail(e.el, f"more than {MAX_PATH_STEPS:,} paths through system connectors lead to "
+                                           f"{'.'.join(n for n in node[1:] if n)}: expected connections without loops")
                 role = self._role(other)
                 step = [(e, other, cur)] + chain
                 if role == "source":

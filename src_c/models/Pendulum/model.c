@@ -57,6 +57,8 @@ static air_factors factors(const cw_instance *inst, double t) {
 /* The air and the temperature hold still over a step unless the master
  * gave their inputs derivatives: then the factors are computed once. */
 static int air_is_steady(const cw_instance *inst) {
+    /* FMI 3.0's intermediate update hands new input values inside the step. */
+    if (inst->intermediate_update) return 0;
     static const unsigned vrs[] = {VR_rho_air, VR_mu_air, VR_temperature};
     for (int k = 0; k < 3; k++)
         if (inst->in_d1[vrs[k]] != 0.0 || inst->in_d2[vrs[k]] != 0.0) return 0;
@@ -154,26 +156,6 @@ typedef struct {
     double t_event, x_event[2];
 } step_watch;
 
-/* Newton steps on component c of a full step of the pair from the start of
- * the last accepted step to t; its time derivative is f_c(x). The state at
- * the final time goes into x. */
-static double polish(step_context *ctx, const cw_rk *rk, int c, double t,
-                     double x[2]) {
-    const cw_instance *inst = ctx->inst;
-    x[0] = 0.0;
-    x[1] = rk->x1[1];
-    for (int it = 0; it < 2; it++) {
-        cw_rk_single_step_with(rk->method, 2, rhs, ctx, rk->t0, rk->x0,
-                               t - rk->t0, x);
-        const double rate = c == 0 ? x[1] : acceleration(inst, t, x[0], x[1]);
-        if (rate == 0.0) break;
-        double dt = -x[c] / rate;
-        if (!(fabs(dt) < rk->h)) break;
-        t += dt;
-    }
-    return t;
-}
-
 static void record_tick(cw_instance *inst, double t, double w) {
     R(tick_w) = w;
     int n = I(tick_count);
@@ -183,36 +165,21 @@ static void record_tick(cw_instance *inst, double t, double w) {
     cw_log(inst, fmi2OK, "logEvents", "tick %d at t = %.17g s", n + 1, t);
 }
 
-/* The first own event of the step, as an early return: its time and the
- * state there, with the crossing component exactly 0 so that the next step
- * does not find the same event again. 0 when no event falls strictly
- * inside the communication step. */
-static int stop_at_event(step_watch *watch, const cw_rk *rk, int tick,
-                         int turn) {
-    cw_instance *inst = watch->inst;
-    double t_tick = HUGE_VAL, t_turn = HUGE_VAL, x[2];
-    if (tick) t_tick = polish(watch->rhs_ctx, rk, 0, dense_root(rk, 0), x);
-    if (turn) t_turn = polish(watch->rhs_ctx, rk, 1, dense_root(rk, 1), x);
-    const int is_tick = t_tick <= t_turn;
-    const double t = is_tick ? t_tick : t_turn;
-    if (!(t > watch->t_start && t < watch->t_end)) return 0;
-    cw_rk_single_step_with(rk->method, 2, rhs, watch->rhs_ctx, rk->t0, rk->x0,
+/* Where an early return at an event found in the accepted step `rk`
+ * reports the pendulum: a full step of the pair from the step's start to t,
+ * with the crossing component exactly 0 so that a step restarted there does
+ * not find the same event again. */
+static void state_at_event(step_context *ctx, const cw_rk *rk, double t,
+                           int c, double x[2]) {
+    cw_rk_single_step_with(rk->method, 2, rhs, ctx, rk->t0, rk->x0,
                            t - rk->t0, x);
-    if (is_tick) {
-        x[0] = 0.0;
-        record_tick(inst, t, x[1]);
-    } else {
-        x[1] = 0.0;
-        R(amplitude) = fabs(x[0]);
-        I(turn_count) = I(turn_count) + 1;
-    }
-    watch->stopped = 1;
-    watch->t_event = t;
-    watch->x_event[0] = x[0];
-    watch->x_event[1] = x[1];
-    return 1;
+    x[c] = 0.0;
 }
 
+/* Every accepted step: ticks and turning points are recorded the same way
+ * with or without early return. With early return, a step that holds one
+ * of them (not both) inside the communication step ends it there; the
+ * integrator's own state (the end of this step) is kept to resume from. */
 static int observe_step(void *ctx, const cw_rk *rk) {
     step_watch *watch = ctx;
     cw_instance *inst = watch->inst;
@@ -220,9 +187,7 @@ static int observe_step(void *ctx, const cw_rk *rk) {
     const double w0 = rk->x0[1], w1 = rk->x1[1];
     const int tick = phi0 < 0.0 && phi1 >= 0.0;
     const int turn = (w0 > 0.0 && w1 <= 0.0) || (w0 < 0.0 && w1 >= 0.0);
-    if (watch->stop_at_events && (tick || turn) &&
-        stop_at_event(watch, rk, tick, turn))
-        return 1;
+    double t_event = 0.0;
     if (tick) {
         double t = dense_root(rk, 0);
         /* Polish: integrate exactly to t and take Newton steps on phi. */
@@ -236,12 +201,21 @@ static int observe_step(void *ctx, const cw_rk *rk) {
             t += dt;
         }
         record_tick(inst, t, x[1]);
+        t_event = t;
     }
     if (turn) {
         double t = dense_root(rk, 1), x[CW_RK_MAXN];
         cw_rk_dense(rk, t, x);
         R(amplitude) = fabs(x[0]);
         I(turn_count) = I(turn_count) + 1;
+        t_event = t;
+    }
+    if (watch->stop_at_events && tick != turn && t_event > watch->t_start &&
+        t_event < watch->t_end) {
+        watch->stopped = 1;
+        watch->t_event = t_event;
+        state_at_event(watch->rhs_ctx, rk, t_event, tick ? 0 : 1, watch->x_event);
+        return 1;
     }
     return 0;
 }
@@ -252,6 +226,16 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
     cw_rk_set_method(&rk, I(integrator));
     double x[2] = {inst->s[S_PHI], inst->s[S_W]};
     double t = inst->time, h_next = inst->s[S_H_NEXT];
+    /* Right after an early return, untouched since: go on from the end of
+     * the internal step that held the event, as without early return. */
+    if (inst->resume_valid && inst->resume_from == inst->time &&
+        inst->resume_t <= t_end) {
+        t = inst->resume_t;
+        x[0] = inst->resume_x[0];
+        x[1] = inst->resume_x[1];
+        h_next = inst->resume_h;
+    }
+    inst->resume_valid = 0;
     step_context ctx = {inst, air_is_steady(inst), factors(inst, t)};
     /* Tick outputs are updated by the observer; keep them for a retry. */
     const int ticks = I(tick_count), turns = I(turn_count);
@@ -263,6 +247,12 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
     cw_rk_result res =
         cw_rk_advance(&rk, rhs, &ctx, &t, t_end, x, &h_next, observe_step, &watch);
     if (res == CW_RK_STOPPED && watch.stopped) {
+        inst->resume_valid = 1;
+        inst->resume_from = watch.t_event;
+        inst->resume_t = t;
+        inst->resume_x[0] = x[0];
+        inst->resume_x[1] = x[1];
+        inst->resume_h = h_next;
         t = watch.t_event;
         x[0] = watch.x_event[0];
         x[1] = watch.x_event[1];
