@@ -166,6 +166,25 @@ def test_unmatched_parameter_is_a_warning_not_silence(tmp_path, capsys):
     assert "clockwork: warning:" in err and "phi_rr" in err and "ignored" in err
 
 
+def test_a_mapping_entry_with_an_empty_source_is_a_warning_and_changes_nothing(tmp_path, capsys):
+    """source="" is valid by the schema and names no parameter (OMSimulator
+    writes such entries): one warning, the other entries still apply."""
+    d = fixture_dir(tmp_path, "nested")
+    ssm = d / "resources" / "drive.ssm"
+    rc, _, _ = run_cli(capsys, ["validate", d / "SystemStructure.ssd"])
+    assert rc == 0
+    before = load_scene(d / "SystemStructure.ssd")
+    ssm.write_text(ssm.read_text().replace('<ssm:MappingEntry source="relay_angle" target="phi_r"/>',
+                                           '<ssm:MappingEntry source="relay_angle" target="phi_r"/>\n'
+                                           '  <ssm:MappingEntry source="" target="torque"/>'))
+    rc, out, err = run_cli(capsys, ["validate", d / "SystemStructure.ssd"])
+    assert rc == 0, err
+    assert "clockwork: warning:" in err and "empty source" in err
+    after = load_scene(d / "SystemStructure.ssd")
+    assert {n: c.parameters for n, c in after.components.items()} == \
+        {n: c.parameters for n, c in before.components.items()}
+
+
 # ---------------------------------------------------------------- bad input
 
 

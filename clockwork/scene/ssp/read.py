@@ -562,10 +562,12 @@ class _Reader:
                     continue
                 raise mdoc.fail(m, "expected ssm:MappingEntry elements only")
             src, target = m.get("source"), m.get("target")
-            if not src or not target:
-                raise mdoc.fail(m, "expected the attributes source and target", "source" if not src else "target")
+            if src is None or not target:
+                raise mdoc.fail(m, "expected the attributes source and target", "source" if src is None else "target")
             if src not in by_name:
-                self.warn(mdoc.label, mdoc.key(m, "source"), f"the parameter set has no {src}; entry not applied")
+                # An empty source is valid by the schema and names no parameter (OMSimulator writes such entries).
+                what = "an empty source names no parameter" if not src else f"the parameter set has no {src}"
+                self.warn(mdoc.label, mdoc.key(m, "source"), f"{what}; entry not applied")
                 continue
             value, kind, unit, label, key, units = by_name[src]
             suppress = boolean(mdoc, m, "suppressUnitConversion")
