@@ -112,12 +112,8 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS) -
     comps_raw = raw.get("components")
     instance_names = list(comps_raw) if isinstance(comps_raw, dict) else []
     for text_ov in overrides:
-        try:
-            owner, name, value = parse_override(text_ov, instance_names)
-        except ValueError as e:
-            raise SceneError(str(e), path) from None
+        owner, name, value, label = _override(text_ov, instance_names, path)
         applied.append(text_ov)
-        label = f"--set {owner}.{name}"
         if owner in _OVERRIDABLE:
             sect = raw.setdefault(owner, {})
             if not isinstance(sect, dict):
@@ -131,11 +127,7 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS) -
                 f"cannot be set from the command line; settable: <instance>.<parameter>, "
                 f"{', '.join(s + '.<key>' for s in _OVERRIDABLE)}", path, label)
         if not isinstance(comps, dict) or owner not in comps or not isinstance(comps[owner], dict):
-            names = list(comps) if isinstance(comps, dict) else []
-            close = difflib.get_close_matches(owner, names + list(_OVERRIDABLE), n=1)
-            hint = f" (did you mean {close[0]}?)" if close else ""
-            raise SceneError(
-                f"no component named {owner}{hint}; components: {', '.join(names) or 'none'}", path, label)
+            raise _no_component(owner, list(comps) if isinstance(comps, dict) else [], path, label)
         params = comps[owner].setdefault("parameters", {})
         if not isinstance(params, dict):
             raise SceneError(f"components.{owner}.parameters is not a table in the file", path, label)
@@ -144,6 +136,22 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS) -
 
     ctx = Ctx(path, labels)
     return _build(ctx, raw, tuple(applied), hashlib.sha256(data).hexdigest(), kinds)
+
+
+def _override(text: str, instances, path: Path) -> tuple[str, str, object, str]:
+    """One --set of a scene file or an SSP: owner, name, value and the label
+    its errors are reported under."""
+    try:
+        owner, name, value = parse_override(text, instances)
+    except ValueError as e:
+        raise SceneError(str(e), path) from None
+    return owner, name, value, f"--set {owner}.{name}"
+
+
+def _no_component(owner: str, names: list[str], path: Path, label: str) -> SceneError:
+    close = difflib.get_close_matches(owner, names + list(_OVERRIDABLE), n=1)
+    hint = f" (did you mean {close[0]}?)" if close else ""
+    return SceneError(f"no component named {owner}{hint}; components: {', '.join(names) or 'none'}", path, label)
 
 
 def _load_ssp(path: Path, overrides, kinds: Kinds) -> Scene:
@@ -159,20 +167,14 @@ def _load_ssp(path: Path, overrides, kinds: Kinds) -> Scene:
     labels: dict[str, str] = {}
     applied = []
     for text in overrides:
-        try:
-            owner, name, value = parse_override(text, components)
-        except ValueError as e:
-            raise SceneError(str(e), path) from None
+        owner, name, value, label = _override(text, components, path)
         applied.append(text)
-        label = f"--set {owner}.{name}"
         if owner in _OVERRIDABLE:
             raw.setdefault(owner, {})[name] = value
             labels[f"{owner}.{name}"] = label
             continue
         if owner not in components:
-            close = difflib.get_close_matches(owner, list(components) + list(_OVERRIDABLE), n=1)
-            hint = f" (did you mean {close[0]}?)" if close else ""
-            raise SceneError(f"no component named {owner}{hint}; components: {', '.join(components)}", path, label)
+            raise _no_component(owner, list(components), path, label)
         inst = owner
         comp, var = components[inst], name
         ctx = Ctx(path, {})
