@@ -341,6 +341,37 @@ def _unit_xml(name: str, spec: dict) -> list[str]:
     return out
 
 
+def _unit_definitions(units: dict) -> list[str]:
+    """<UnitDefinitions>, the same in FMI 2.0 and 3.0 (none: no element)."""
+    if not units:
+        return []
+    x = ["  <UnitDefinitions>"]
+    for name, spec in units.items():
+        x += _unit_xml(name, spec)
+    return x + ["  </UnitDefinitions>"]
+
+
+# The <LogCategories> of every model, in FMI 2.0 and 3.0.
+_LOG_CATEGORIES = (
+    "  <LogCategories>",
+    '    <Category name="logEvents" description="Located crossings and mode switches"/>',
+    '    <Category name="logStatusWarning"/>',
+    '    <Category name="logStatusDiscard"/>',
+    '    <Category name="logStatusError"/>',
+    '    <Category name="logStatusFatal"/>',
+    '    <Category name="logAll"/>',
+    "  </LogCategories>",
+)
+
+
+def _default_experiment(exp: dict) -> str:
+    """<DefaultExperiment> from the model table's [experiment], in FMI 2.0 and 3.0."""
+    return (f'  <DefaultExperiment startTime="{_num(exp.get("start", 0.0))}" '
+            f'stopTime="{_num(exp.get("stop", 10.0))}"'
+            + (f' tolerance="{_num(exp["tolerance"])}"' if "tolerance" in exp else "")
+            + f' stepSize="{_num(exp.get("step", 0.01))}"/>')
+
+
 def _unknown_xml(index: dict, v: dict, kinds: dict) -> str:
     """An <Unknown> with its dependencies in ScalarVariable index order, as
     FMI 2.0 requires."""
@@ -393,12 +424,7 @@ def generate_xml(t: dict, sources: list[str]) -> str:
         x += [f"      <File name={quoteattr(s)}/>" for s in sources]
         x.append("    </SourceFiles>")
     x.append("  </CoSimulation>")
-    units = t.get("units", {})
-    if units:
-        x.append("  <UnitDefinitions>")
-        for name, spec in units.items():
-            x += _unit_xml(name, spec)
-        x.append("  </UnitDefinitions>")
+    x += _unit_definitions(t.get("units", {}))
     used_types = sorted({v["declared_type"] for v in variables if "declared_type" in v})
     if used_types:
         x.append("  <TypeDefinitions>")
@@ -409,18 +435,8 @@ def generate_xml(t: dict, sources: list[str]) -> str:
             x += ["      </Enumeration>", "    </SimpleType>"]
         x.append("  </TypeDefinitions>")
     x += [
-        "  <LogCategories>",
-        '    <Category name="logEvents" description="Located crossings and mode switches"/>',
-        '    <Category name="logStatusWarning"/>',
-        '    <Category name="logStatusDiscard"/>',
-        '    <Category name="logStatusError"/>',
-        '    <Category name="logStatusFatal"/>',
-        '    <Category name="logAll"/>',
-        "  </LogCategories>",
-        f'  <DefaultExperiment startTime="{_num(exp.get("start", 0.0))}" '
-        f'stopTime="{_num(exp.get("stop", 10.0))}"'
-        + (f' tolerance="{_num(exp["tolerance"])}"' if "tolerance" in exp else "")
-        + f' stepSize="{_num(exp.get("step", 0.01))}"/>',
+        *_LOG_CATEGORIES,
+        _default_experiment(exp),
     ]
     indicators = [v["name"] for v in variables if v.get("event_indicator")]
     if indicators:
@@ -566,30 +582,14 @@ def generate_xml3(t: dict) -> str:
         '    providesEvaluateDiscreteStates="false"/>',
     ]
     units = t.get("units", {})
-    if units:
-        x.append("  <UnitDefinitions>")
-        for name, spec in units.items():
-            x += _unit_xml(name, spec)
-        x.append("  </UnitDefinitions>")
+    x += _unit_definitions(units)
+    time_unit = ' unit="s"' if "s" in units else ""  # only a declared unit may be named
     x += [
-        "  <LogCategories>",
-        '    <Category name="logEvents" description="Located crossings and mode switches"/>',
-        '    <Category name="logStatusWarning"/>',
-        '    <Category name="logStatusDiscard"/>',
-        '    <Category name="logStatusError"/>',
-        '    <Category name="logStatusFatal"/>',
-        '    <Category name="logAll"/>',
-        "  </LogCategories>",
-        f'  <DefaultExperiment startTime="{_num(exp.get("start", 0.0))}" '
-        f'stopTime="{_num(exp.get("stop", 10.0))}"'
-        + (f' tolerance="{_num(exp["tolerance"])}"' if "tolerance" in exp else "")
-        + f' stepSize="{_num(exp.get("step", 0.01))}"/>',
+        *_LOG_CATEGORIES,
+        _default_experiment(exp),
         "  <ModelVariables>",
         f'    <Float64 name="{TIME_NAME}" valueReference="{time_vr}" causality="independent" '
-        'variability="continuous" unit="s" description="Simulation time"/>'
-        if "s" in units else
-        f'    <Float64 name="{TIME_NAME}" valueReference="{time_vr}" causality="independent" '
-        'variability="continuous" description="Simulation time"/>',
+        f'variability="continuous"{time_unit} description="Simulation time"/>',
     ]
     for v in variables:
         attrs = [
