@@ -375,18 +375,26 @@ void cw_core_commit(cw_instance *inst) {
 /* ------------------------------------------------------------------ */
 /* Getting and setting variable values                                */
 
-fmi2Status cw_core_get_real(cw_instance *inst, const char *fn,
-                            const unsigned vr[], size_t nvr, double value[]) {
-    if (!allowed(inst, fn, READABLE_STATES)) return fmi2Error;
+/* What every getter checks first: the state allows reading, the arrays are
+   given, and in Initialization Mode the outputs follow the current
+   parameters; then that the outputs are finite. 0: refused (logged). */
+static int readable(cw_instance *inst, const char *fn, const unsigned vr[],
+                    size_t nvr, const void *value) {
+    if (!allowed(inst, fn, READABLE_STATES)) return 0;
     if (nvr > 0 && (!vr || !value)) {
         cw_log(inst, fmi2Error, "logStatusError",
                "%s: vr or value is NULL with nvr = %zu.", fn, nvr);
-        return fmi2Error;
+        return 0;
     }
     if (inst->state == CW_INIT_MODE && inst->outputs_dirty &&
         inst->model->initialize)
         inst->model->initialize(inst); /* outputs from the current parameters */
-    if (!outputs_finite(inst, fn)) return fmi2Error;
+    return outputs_finite(inst, fn);
+}
+
+fmi2Status cw_core_get_real(cw_instance *inst, const char *fn,
+                            const unsigned vr[], size_t nvr, double value[]) {
+    if (!readable(inst, fn, vr, nvr, value)) return fmi2Error;
     for (size_t k = 0; k < nvr; k++) {
         const cw_var_info *v = var(inst, vr[k]);
         if (!v && inst->api[3] == '3' && vr[k] == (unsigned)inst->model->nvars) {
@@ -413,16 +421,7 @@ static const char *int_type_name(const cw_instance *inst, cw_type type) {
 fmi2Status cw_core_get_int(cw_instance *inst, const char *fn, cw_type type,
                            const unsigned vr[], size_t nvr, void *value,
                            int as_bool) {
-    if (!allowed(inst, fn, READABLE_STATES)) return fmi2Error;
-    if (nvr > 0 && (!vr || !value)) {
-        cw_log(inst, fmi2Error, "logStatusError",
-               "%s: vr or value is NULL with nvr = %zu.", fn, nvr);
-        return fmi2Error;
-    }
-    if (inst->state == CW_INIT_MODE && inst->outputs_dirty &&
-        inst->model->initialize)
-        inst->model->initialize(inst);
-    if (!outputs_finite(inst, fn)) return fmi2Error;
+    if (!readable(inst, fn, vr, nvr, value)) return fmi2Error;
     for (size_t k = 0; k < nvr; k++) {
         const cw_var_info *v = var(inst, vr[k]);
         if (!v || v->type != type) {
@@ -599,16 +598,7 @@ fmi2Status cw_core_set_int(cw_instance *inst, const char *fn, cw_type type,
 fmi2Status cw_core_get_string(cw_instance *inst, const char *fn,
                               const unsigned vr[], size_t nvr,
                               const char *value[]) {
-    if (!allowed(inst, fn, READABLE_STATES)) return fmi2Error;
-    if (nvr > 0 && (!vr || !value)) {
-        cw_log(inst, fmi2Error, "logStatusError",
-               "%s: vr or value is NULL with nvr = %zu.", fn, nvr);
-        return fmi2Error;
-    }
-    if (inst->state == CW_INIT_MODE && inst->outputs_dirty &&
-        inst->model->initialize)
-        inst->model->initialize(inst);
-    if (!outputs_finite(inst, fn)) return fmi2Error;
+    if (!readable(inst, fn, vr, nvr, value)) return fmi2Error;
     for (size_t k = 0; k < nvr; k++) {
         const cw_var_info *v = var(inst, vr[k]);
         if (!v || v->type != CW_STRING) {
