@@ -20,7 +20,7 @@ from typing import Iterable, NamedTuple
 
 from fmpy.fmi3 import FMU3Slave, fmi3FMUState, fmi3IntermediateUpdateCallback, fmi3LogMessageCallback
 
-from fmu_driver import ERROR, OK, ROOT, STATUS_NAMES, WARNING, FmuError, Message, unpack
+from fmu_driver import OK, ROOT, WARNING, FmuError, Logged, Message, unpack
 
 CTYPES = {"Float64": ctypes.c_double, "Int32": ctypes.c_int32, "Boolean": ctypes.c_bool}
 
@@ -41,7 +41,7 @@ class StepResult(NamedTuple):
     last_successful_time: float
 
 
-class Instance3:
+class Instance3(Logged):
     """One FMI 3.0 instance. `time` is the importer's time: the next communication point."""
 
     def __init__(self, fmu, params: dict | None = None, inputs: dict | None = None, *,
@@ -85,24 +85,6 @@ class Instance3:
             self.raw.fmi3FreeInstance(self.c)
             self.instance = None
             self.slave.freeLibrary()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.free()
-
-    # -- messages ---------------------------------------------------------
-    def log_text(self) -> str:
-        return " | ".join(f"[{STATUS_NAMES.get(m.status, m.status)}] {m.text}" for m in self.messages)
-
-    def errors(self) -> list[Message]:
-        return [m for m in self.messages if m.status >= ERROR]
-
-    def check(self, status: int, what: str) -> int:
-        if status > WARNING:
-            raise FmuError(f"{what} returned {STATUS_NAMES.get(status, status)}: {self.log_text()}")
-        return status
 
     # -- modes ------------------------------------------------------------
     def enter_init(self, start_time=0.0, stop_time=None) -> int:

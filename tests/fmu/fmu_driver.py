@@ -92,7 +92,30 @@ class FmuError(RuntimeError):
     pass
 
 
-class Instance:
+class Logged:
+    """What an FMI 2.0 and an FMI 3.0 instance share: the messages they
+    logged (self.messages), the status check on them, and `with` calling
+    free()."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.free()
+
+    def log_text(self) -> str:
+        return " | ".join(f"[{STATUS_NAMES.get(m.status, m.status)}] {m.text}" for m in self.messages)
+
+    def errors(self) -> list[Message]:
+        return [m for m in self.messages if m.status >= ERROR]
+
+    def check(self, status: int, what: str) -> int:
+        if status > WARNING:
+            raise FmuError(f"{what} returned {STATUS_NAMES.get(status, status)}: {self.log_text()}")
+        return status
+
+
+class Instance(Logged):
     """One instance. `time` is the master's time: the next communication point."""
 
     def __init__(
@@ -156,24 +179,6 @@ class Instance:
             self.raw.fmi2FreeInstance(self.c)
             self.component = None
             self.slave.freeLibrary()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.free()
-
-    # -- messages ---------------------------------------------------------
-    def log_text(self) -> str:
-        return " | ".join(f"[{STATUS_NAMES.get(m.status, m.status)}] {m.text}" for m in self.messages)
-
-    def errors(self) -> list[Message]:
-        return [m for m in self.messages if m.status >= ERROR]
-
-    def check(self, status: int, what: str) -> int:
-        if status > WARNING:
-            raise FmuError(f"{what} returned {STATUS_NAMES.get(status, status)}: {self.log_text()}")
-        return status
 
     # -- initialization ---------------------------------------------------
     def setup(self, start_time=0.0, stop_time=None) -> int:
