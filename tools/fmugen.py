@@ -372,6 +372,36 @@ def _default_experiment(exp: dict) -> str:
             + f' stepSize="{_num(exp.get("step", 0.01))}"/>')
 
 
+def _variable_attrs(v: dict) -> list[str]:
+    """The attributes every variable has, in FMI 2.0's ScalarVariable and
+    FMI 3.0's typed element alike."""
+    attrs = [
+        f"name={quoteattr(v['name'])}",
+        f'valueReference="{v["vr"]}"',
+        f"description={quoteattr(v['description'])}",
+        f'causality="{v["causality"]}"',
+        f'variability="{v["variability"]}"',
+    ]
+    if v["causality"] in ("output", "local"):
+        attrs.append('initial="calculated"')
+    return attrs
+
+
+def _unit_and_range_attrs(v: dict) -> list[str]:
+    """unit and displayUnit of a Real, min and max of a number (FMI 2.0 and 3.0)."""
+    attrs = []
+    if v["type"] == "Real":
+        if "unit" in v:
+            attrs.append(f"unit={quoteattr(v['unit'])}")
+        if "display_unit" in v:
+            attrs.append(f"displayUnit={quoteattr(v['display_unit'])}")
+    if v["type"] not in ("Boolean", "String"):
+        for key in ("min", "max"):
+            if key in v:
+                attrs.append(f'{key}="{_num(v[key])}"')
+    return attrs
+
+
 def _unknown_xml(index: dict, v: dict, kinds: dict) -> str:
     """An <Unknown> with its dependencies in ScalarVariable index order, as
     FMI 2.0 requires."""
@@ -445,31 +475,14 @@ def generate_xml(t: dict, sources: list[str]) -> str:
         x += ["      </EventIndicators>", "    </Tool>", "  </VendorAnnotations>"]
     x.append("  <ModelVariables>")
     for k, v in enumerate(variables):
-        attrs = [
-            f"name={quoteattr(v['name'])}",
-            f'valueReference="{v["vr"]}"',
-            f"description={quoteattr(v['description'])}",
-            f'causality="{v["causality"]}"',
-            f'variability="{v["variability"]}"',
-        ]
-        if v["causality"] in ("output", "local"):
-            attrs.append('initial="calculated"')
         x.append(f"    <!-- index {k + 1} -->")
-        x.append(f"    <ScalarVariable {' '.join(attrs)}>")
+        x.append(f"    <ScalarVariable {' '.join(_variable_attrs(v))}>")
         tattrs = []
         if "declared_type" in v:
             tattrs.append(f"declaredType={quoteattr(v['declared_type'])}")
         if "derivative_of" in v:
             tattrs.append(f'derivative="{index[v["derivative_of"]]}"')
-        if v["type"] == "Real":
-            if "unit" in v:
-                tattrs.append(f"unit={quoteattr(v['unit'])}")
-            if "display_unit" in v:
-                tattrs.append(f"displayUnit={quoteattr(v['display_unit'])}")
-        if v["type"] not in ("Boolean", "String"):
-            for key in ("min", "max"):
-                if key in v:
-                    tattrs.append(f'{key}="{_num(v[key])}"')
+        tattrs += _unit_and_range_attrs(v)
         if v["causality"] in ("parameter", "input"):
             start = v["start"]
             tattrs.append(f"start={quoteattr(start)}" if v["type"] == "String" else f'start="{_num(start)}"')
@@ -592,26 +605,10 @@ def generate_xml3(t: dict) -> str:
         f'variability="continuous"{time_unit} description="Simulation time"/>',
     ]
     for v in variables:
-        attrs = [
-            f"name={quoteattr(v['name'])}",
-            f'valueReference="{v["vr"]}"',
-            f"description={quoteattr(v['description'])}",
-            f'causality="{v["causality"]}"',
-            f'variability="{v["variability"]}"',
-        ]
-        if v["causality"] in ("output", "local"):
-            attrs.append('initial="calculated"')
+        attrs = _variable_attrs(v)
         if v["causality"] == "input" and v["type"] == "Real":
             attrs.append('intermediateUpdate="true"')
-        if v["type"] == "Real":
-            if "unit" in v:
-                attrs.append(f"unit={quoteattr(v['unit'])}")
-            if "display_unit" in v:
-                attrs.append(f"displayUnit={quoteattr(v['display_unit'])}")
-        if v["type"] != "Boolean":
-            for key in ("min", "max"):
-                if key in v:
-                    attrs.append(f'{key}="{_num(v[key])}"')
+        attrs += _unit_and_range_attrs(v)
         if v["causality"] in ("parameter", "input"):
             start = v["start"]
             if v["type"] == "Boolean":
