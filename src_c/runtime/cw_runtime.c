@@ -375,17 +375,49 @@ void cw_core_commit(cw_instance *inst) {
 /* ------------------------------------------------------------------ */
 /* Getting and setting variable values                                */
 
-/* What every getter checks first: the state allows reading, the arrays are
-   given, and in Initialization Mode the outputs follow the current
-   parameters; then that the outputs are finite. 0: refused (logged). */
-static int readable(cw_instance *inst, const char *fn, const unsigned vr[],
-                    size_t nvr, const void *value) {
-    if (!allowed(inst, fn, READABLE_STATES)) return 0;
+static int arrays_given(cw_instance *inst, const char *fn, const unsigned vr[],
+                        size_t nvr, const void *value) {
     if (nvr > 0 && (!vr || !value)) {
         cw_log(inst, fmi2Error, "logStatusError",
                "%s: vr or value is NULL with nvr = %zu.", fn, nvr);
         return 0;
     }
+    return 1;
+}
+
+/* What every setter checks first: the state allows setting, the arrays are
+   given. 0: refused (logged). */
+static int writable(cw_instance *inst, const char *fn, const unsigned vr[],
+                    size_t nvr, const void *value) {
+    return allowed(inst, fn, SETTABLE_STATES) &&
+           arrays_given(inst, fn, vr, nvr, value);
+}
+
+/* The variable of value reference vr if it is of the type the getter or
+   setter handles; NULL (logged) if not. */
+static const cw_var_info *typed_var(cw_instance *inst, const char *fn,
+                                    unsigned vr, cw_type type) {
+    const cw_var_info *v = var(inst, vr);
+    if (v && v->type == type) return v;
+    const int fmi3 = inst->api[3] == '3';
+    const char *a_type = type == CW_REAL      ? (fmi3 ? " Float64" : " Real")
+                         : type == CW_BOOLEAN ? " Boolean"
+                         : type == CW_STRING  ? " String"
+                                              : (fmi3 ? "n Int32" : "n Integer");
+    cw_log(inst, fmi2Error, "logStatusError",
+           "%s: %u is not the value reference of a%s variable of %s.", fn, vr,
+           a_type, inst->model->name);
+    return NULL;
+}
+
+/* What every getter checks first: the state allows reading, the arrays are
+   given, and in Initialization Mode the outputs follow the current
+   parameters; then that the outputs are finite. 0: refused (logged). */
+static int readable(cw_instance *inst, const char *fn, const unsigned vr[],
+                    size_t nvr, const void *value) {
+    if (!allowed(inst, fn, READABLE_STATES) ||
+        !arrays_given(inst, fn, vr, nvr, value))
+        return 0;
     if (inst->state == CW_INIT_MODE && inst->outputs_dirty &&
         inst->model->initialize)
         inst->model->initialize(inst); /* outputs from the current parameters */
@@ -396,26 +428,15 @@ fmi2Status cw_core_get_real(cw_instance *inst, const char *fn,
                             const unsigned vr[], size_t nvr, double value[]) {
     if (!readable(inst, fn, vr, nvr, value)) return fmi2Error;
     for (size_t k = 0; k < nvr; k++) {
-        const cw_var_info *v = var(inst, vr[k]);
-        if (!v && inst->api[3] == '3' && vr[k] == (unsigned)inst->model->nvars) {
+        if (inst->api[3] == '3' && vr[k] == (unsigned)inst->model->nvars) {
             value[k] = inst->time; /* FMI 3.0's independent variable */
             continue;
         }
-        if (!v || v->type != CW_REAL) {
-            cw_log(inst, fmi2Error, "logStatusError",
-                   "%s: %u is not the value reference of a %s variable of %s.",
-                   fn, (unsigned)vr[k], inst->api[3] == '3' ? "Float64" : "Real",
-                   inst->model->name);
-            return fmi2Error;
-        }
+        const cw_var_info *v = typed_var(inst, fn, vr[k], CW_REAL);
+        if (!v) return fmi2Error;
         value[k] = inst->r[vr[k]];
     }
     return fmi2OK;
-}
-
-static const char *int_type_name(const cw_instance *inst, cw_type type) {
-    if (type == CW_BOOLEAN) return " Boolean";
-    return inst->api[3] == '3' ? "n Int32" : "n Integer";
 }
 
 fmi2Status cw_core_get_int(cw_instance *inst, const char *fn, cw_type type,
@@ -423,14 +444,8 @@ fmi2Status cw_core_get_int(cw_instance *inst, const char *fn, cw_type type,
                            int as_bool) {
     if (!readable(inst, fn, vr, nvr, value)) return fmi2Error;
     for (size_t k = 0; k < nvr; k++) {
-        const cw_var_info *v = var(inst, vr[k]);
-        if (!v || v->type != type) {
-            cw_log(inst, fmi2Error, "logStatusError",
-                   "%s: %u is not the value reference of a%s variable of %s.",
-                   fn, (unsigned)vr[k], int_type_name(inst, type),
-                   inst->model->name);
-            return fmi2Error;
-        }
+        const cw_var_info *v = typed_var(inst, fn, vr[k], type);
+        if (!v) return fmi2Error;
         if (as_bool)
             ((bool *)value)[k] = inst->i[vr[k]] != 0;
         else
@@ -519,22 +534,11 @@ static fmi2Status after_set(cw_instance *inst, int tunable_changed) {
 fmi2Status cw_core_set_real(cw_instance *inst, const char *fn,
                             const unsigned vr[], size_t nvr,
                             const double value[]) {
-    if (!allowed(inst, fn, SETTABLE_STATES)) return fmi2Error;
-    if (nvr > 0 && (!vr || !value)) {
-        cw_log(inst, fmi2Error, "logStatusError",
-               "%s: vr or value is NULL with nvr = %zu.", fn, nvr);
-        return fmi2Error;
-    }
+    if (!writable(inst, fn, vr, nvr, value)) return fmi2Error;
     /* Check everything first so that a refused call changes nothing. */
     for (size_t k = 0; k < nvr; k++) {
-        const cw_var_info *v = var(inst, vr[k]);
-        if (!v || v->type != CW_REAL) {
-            cw_log(inst, fmi2Error, "logStatusError",
-                   "%s: %u is not the value reference of a %s variable of %s.",
-                   fn, (unsigned)vr[k], inst->api[3] == '3' ? "Float64" : "Real",
-                   inst->model->name);
-            return fmi2Error;
-        }
+        const cw_var_info *v = typed_var(inst, fn, vr[k], CW_REAL);
+        if (!v) return fmi2Error;
         if (!settable(inst, v, fn)) return fmi2Error;
         if (!acceptable(inst, v, value[k], fn)) {
             inst->state = CW_ERROR;
@@ -559,21 +563,10 @@ fmi2Status cw_core_set_real(cw_instance *inst, const char *fn,
 fmi2Status cw_core_set_int(cw_instance *inst, const char *fn, cw_type type,
                            const unsigned vr[], size_t nvr, const void *value,
                            int as_bool) {
-    if (!allowed(inst, fn, SETTABLE_STATES)) return fmi2Error;
-    if (nvr > 0 && (!vr || !value)) {
-        cw_log(inst, fmi2Error, "logStatusError",
-               "%s: vr or value is NULL with nvr = %zu.", fn, nvr);
-        return fmi2Error;
-    }
+    if (!writable(inst, fn, vr, nvr, value)) return fmi2Error;
     for (size_t k = 0; k < nvr; k++) {
-        const cw_var_info *v = var(inst, vr[k]);
-        if (!v || v->type != type) {
-            cw_log(inst, fmi2Error, "logStatusError",
-                   "%s: %u is not the value reference of a%s variable of %s.",
-                   fn, (unsigned)vr[k], int_type_name(inst, type),
-                   inst->model->name);
-            return fmi2Error;
-        }
+        const cw_var_info *v = typed_var(inst, fn, vr[k], type);
+        if (!v) return fmi2Error;
         if (!settable(inst, v, fn)) return fmi2Error;
         const int32_t given = as_bool ? (int32_t)((const bool *)value)[k]
                                       : ((const int32_t *)value)[k];
@@ -600,14 +593,8 @@ fmi2Status cw_core_get_string(cw_instance *inst, const char *fn,
                               const char *value[]) {
     if (!readable(inst, fn, vr, nvr, value)) return fmi2Error;
     for (size_t k = 0; k < nvr; k++) {
-        const cw_var_info *v = var(inst, vr[k]);
-        if (!v || v->type != CW_STRING) {
-            cw_log(inst, fmi2Error, "logStatusError",
-                   "%s: %u is not the value reference of a String variable "
-                   "of %s.",
-                   fn, (unsigned)vr[k], inst->model->name);
-            return fmi2Error;
-        }
+        const cw_var_info *v = typed_var(inst, fn, vr[k], CW_STRING);
+        if (!v) return fmi2Error;
         value[k] = inst->str[vr[k]];
     }
     return fmi2OK;
@@ -616,21 +603,10 @@ fmi2Status cw_core_get_string(cw_instance *inst, const char *fn,
 fmi2Status cw_core_set_string(cw_instance *inst, const char *fn,
                               const unsigned vr[], size_t nvr,
                               const char *const value[]) {
-    if (!allowed(inst, fn, SETTABLE_STATES)) return fmi2Error;
-    if (nvr > 0 && (!vr || !value)) {
-        cw_log(inst, fmi2Error, "logStatusError",
-               "%s: vr or value is NULL with nvr = %zu.", fn, nvr);
-        return fmi2Error;
-    }
+    if (!writable(inst, fn, vr, nvr, value)) return fmi2Error;
     for (size_t k = 0; k < nvr; k++) {
-        const cw_var_info *v = var(inst, vr[k]);
-        if (!v || v->type != CW_STRING) {
-            cw_log(inst, fmi2Error, "logStatusError",
-                   "%s: %u is not the value reference of a String variable "
-                   "of %s.",
-                   fn, (unsigned)vr[k], inst->model->name);
-            return fmi2Error;
-        }
+        const cw_var_info *v = typed_var(inst, fn, vr[k], CW_STRING);
+        if (!v) return fmi2Error;
         if (!settable(inst, v, fn)) return fmi2Error;
         if (!value[k]) {
             cw_log(inst, fmi2Error, "logStatusError",
