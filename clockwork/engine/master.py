@@ -281,7 +281,6 @@ class Master:
         for ev in self.fmi3_events:
             if ev.terminated:
                 raise self._fmi3_ended()
-        for ev in self.fmi3_events:
             if t < ev.next_event_time < t + h:
                 h = ev.next_event_time - t
         # 1. The indicators' sources cap the step.
