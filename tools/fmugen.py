@@ -341,6 +341,18 @@ def _unit_xml(name: str, spec: dict) -> list[str]:
     return out
 
 
+def _about_attrs(m: dict) -> list[str]:
+    """The <fmiModelDescription> attributes about the model, in FMI 2.0 and 3.0."""
+    return [
+        f"  description={quoteattr(m['description'])}",
+        f"  author={quoteattr(m.get('author', 'clockwork'))}",
+        f"  version={quoteattr(m.get('version', '0.1.0'))}",
+        f"  copyright={quoteattr(COPYRIGHT)}",
+        f"  license={quoteattr(LICENSE)}",
+        '  generationTool="clockwork tools/fmugen.py"',
+    ]
+
+
 def _unit_definitions(units: dict) -> list[str]:
     """<UnitDefinitions>, the same in FMI 2.0 and 3.0 (none: no element)."""
     if not units:
@@ -428,12 +440,7 @@ def generate_xml(t: dict, sources: list[str]) -> str:
         '  fmiVersion="2.0"',
         f"  modelName={quoteattr(m['name'])}",
         f'  guid="{t["_guid"]}"',
-        f"  description={quoteattr(m['description'])}",
-        f"  author={quoteattr(m.get('author', 'clockwork'))}",
-        f"  version={quoteattr(m.get('version', '0.1.0'))}",
-        f"  copyright={quoteattr(COPYRIGHT)}",
-        f"  license={quoteattr(LICENSE)}",
-        '  generationTool="clockwork tools/fmugen.py"',
+        *_about_attrs(m),
         '  variableNamingConvention="structured"',
         '  numberOfEventIndicators="0">',
         "  <CoSimulation",
@@ -569,12 +576,7 @@ def generate_xml3(t: dict) -> str:
         '  fmiVersion="3.0"',
         f"  modelName={quoteattr(m['name'])}",
         f'  instantiationToken="{t["_guid"]}"',
-        f"  description={quoteattr(m['description'])}",
-        f"  author={quoteattr(m.get('author', 'clockwork'))}",
-        f"  version={quoteattr(m.get('version', '0.1.0'))}",
-        f"  copyright={quoteattr(COPYRIGHT)}",
-        f"  license={quoteattr(LICENSE)}",
-        '  generationTool="clockwork tools/fmugen.py"',
+        *_about_attrs(m),
         '  variableNamingConvention="structured">',
         "  <CoSimulation",
         f"    modelIdentifier={quoteattr(m['name'])}",
