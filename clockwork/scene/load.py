@@ -21,7 +21,7 @@ import tomllib
 from pathlib import Path
 
 from ..engine import compiled
-from ..engine.description import FmuError, read_fmu, resolve_fmu, types_connect, var_unit
+from ..engine.description import TEXT_TYPES, FmuError, read_fmu, resolve_fmu, types_connect, var_unit
 from ..engine.description import variables as variables_of
 from ..engine.fmu3 import make_instance
 from ..engine.names import instance_name_problem, split_link, split_ref
@@ -194,7 +194,7 @@ def _load_ssp(path: Path, overrides, kinds: Kinds) -> Scene:
     if series and isinstance(outputs, list) and outputs and all(isinstance(o, str) for o in outputs):
         # Strings are recorded as text, not drawn.
         variables = {n: variables_of(c.model_description) for n, c in components.items()}
-        numbers = [o for o in outputs if _column_type(o, variables) != "String"]
+        numbers = [o for o in outputs if _column_type(o, variables) not in TEXT_TYPES]
         if numbers:
             raw["plot"] = [{"kind": "time_series", "x": "time", "y": numbers, "title": ssp.name,
                             "file": "outputs.png"}]
@@ -511,7 +511,7 @@ def _check_series_plots(ctx: Ctx, plots: tuple[dict, ...], record: Record, compo
     """A time series can only draw what [record] records, and numbers only:
     refuse a typo or a String column now, not after the run."""
     recorded = {f"{inst}.{var}" for inst, var in record.outputs}
-    text = {f"{inst}.{var}" for inst, var in record.outputs if components[inst].variable(var).type == "String"}
+    text = {f"{inst}.{var}" for inst, var in record.outputs if components[inst].variable(var).type in TEXT_TYPES}
     for i, spec in enumerate(plots):
         if spec["kind"] not in _SERIES_PLOTS:
             continue
