@@ -21,7 +21,8 @@ import tomllib
 from pathlib import Path
 
 from ..engine import compiled
-from ..engine.description import TEXT_TYPES, FmuError, read_fmu, resolve_fmu, types_connect, var_unit
+from ..engine.description import (TEXT_TYPES, FmuError, read_fmu, resolve_fmu, type_name, types_connect,
+                                  var_unit)
 from ..engine.description import variables as variables_of
 from ..engine.fmu3 import make_instance
 from ..engine.names import instance_name_problem, split_link, split_ref
@@ -369,7 +370,8 @@ def _connections(ctx: Ctx, conns, components: dict[str, Component],
     notes = []
     for key, si, sv, di, dv, sc, s, dc, d in checked:
         if not types_connect(s.type, d.type):
-            raise ctx.fail(key, f"type mismatch: {si}.{sv} is {s.type}, {di}.{dv} is {d.type}")
+            raise ctx.fail(key, f"type mismatch: {si}.{sv} is {type_name(sc.model_description, s)}, "
+                                f"{di}.{dv} is {type_name(dc.model_description, d)}")
         su, du = var_unit(s), var_unit(d)
         factor, offset = 1.0, 0.0
         if su != du and (su is None or du is None):
