@@ -126,7 +126,7 @@ def test_an_integer_parameter_out_of_its_types_range_is_refused_at_validation(ca
 
 
 @pytest.mark.parametrize("param, value, needle", [
-    ("p_Float32", "1e39", "Float32"), ("p_Binary", '"0g"', "hexadecimal"), ("p_Binary", '"abc"', "hexadecimal"),
+    ("p_Float32", "1e39", "a Float32 value"), ("p_Binary", '"0g"', "hexadecimal"), ("p_Binary", '"abc"', "hexadecimal"),
     ("p_Binary", "12", "hexadecimal"), ("p_Int8", "1.5", "an integer"), ("p_Int64", "true", "an integer"),
     ("p_Boolean", "1", "true or false"), ("p_Enumeration", "4", "Mode"), ("p_String", "3", "a string")])
 def test_a_parameter_of_the_wrong_kind_is_refused_at_validation(capsys, tmp_path, fmu, param, value, needle):
