@@ -36,7 +36,20 @@ def _variable(kind: str, name: str, vr: int, causality: str, variability: str, e
     return f"    <{kind} {attrs}{start}/>"
 
 
-def model_description() -> str:
+# Array variables (FMI 3.0 <Dimension>), which the master refuses at load.
+ARRAYS = ("a_Float64", "a_Int8", "a_Boolean", "a_String")
+_ARRAY_ROWS = """    <Float64 name="a_Float64" valueReference="100" causality="output" variability="continuous">
+      <Dimension start="3"/></Float64>
+    <Int8 name="a_Int8" valueReference="101" causality="parameter" variability="fixed" start="1 2">
+      <Dimension start="2"/></Int8>
+    <Boolean name="a_Boolean" valueReference="102" causality="local" variability="discrete" initial="exact"
+        start="true">
+      <Dimension start="1"/></Boolean>
+    <String name="a_String" valueReference="103" causality="parameter" variability="fixed">
+      <Dimension start="2"/><Start value="x"/><Start value="y"/></String>"""
+
+
+def model_description(arrays: bool = False) -> str:
     rows = ['    <Float64 name="time" valueReference="0" causality="independent" variability="continuous"/>']
     outputs = []
     for k, kind in enumerate(TYPES):
@@ -58,16 +71,20 @@ def model_description() -> str:
   </TypeDefinitions>
   <ModelVariables>
 {chr(10).join(rows)}
+{_ARRAY_ROWS if arrays else ''}
   </ModelVariables>
   <ModelStructure>
+{'    <Output valueReference="100"/>' if arrays else ''}
 {chr(10).join(outputs)}
+{'    <InitialUnknown valueReference="100"/>' if arrays else ''}
   </ModelStructure>
 </fmiModelDescription>
 """
 
 
-def build(folder: Path, name: str = "AllTypes") -> Path:
-    """Compile and zip the FMU into folder/<name>.fmu; returns its path."""
+def build(folder: Path, name: str = "AllTypes", arrays: bool = False) -> Path:
+    """Compile and zip the FMU into folder/<name>.fmu (with the ARRAYS
+    variables when `arrays`); returns its path."""
     cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
     if cc is None:
         raise RuntimeError("no C compiler")
@@ -84,7 +101,7 @@ def build(folder: Path, name: str = "AllTypes") -> Path:
                     "-o", str(binary)], check=True)
     fmu = folder / f"{name}.fmu"
     with zipfile.ZipFile(fmu, "w") as z:
-        z.writestr("modelDescription.xml", model_description())
+        z.writestr("modelDescription.xml", model_description(arrays))
         z.write(binary, f"binaries/{fmpy.platform_tuple}/AllTypes.so")
     shutil.rmtree(work)
     return fmu

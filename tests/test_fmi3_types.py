@@ -195,3 +195,14 @@ def test_the_compiled_engine_refuses_non_real_links_and_says_why(capsys, tmp_pat
     rc, _, err = run_cli(capsys, ["validate", f])
     assert_one_line_error(rc, err, "the compiled core passes Real connections only",
                           "a.y_Float32 -> b.u_Float64 is Float32")
+
+
+def test_array_variables_are_refused_in_one_line_naming_the_fmu_and_the_arrays(capsys, tmp_path):
+    """FMI 3.0 arrays (<Dimension>) are not served: validate, run and info
+    say so in one line naming the FMU and every array variable."""
+    fmu = fmi3_alltypes.build(tmp_path, name="Arrays", arrays=True)
+    f = scene(tmp_path, fmu)
+    for argv in (["validate", f], ["run", f, "--out", tmp_path / "out", "--no-progress"], ["info", fmu]):
+        rc, _, err = run_cli(capsys, argv)
+        assert_one_line_error(rc, err, str(fmu), "array variables", *fmi3_alltypes.ARRAYS)
+    assert not (tmp_path / "out").exists()

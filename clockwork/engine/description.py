@@ -253,7 +253,7 @@ def _check_fmi3(path: Path, md, xml: bytes) -> None:
         raise FmuError(f"{path}: {md.modelName} is a Scheduled Execution FMU, which the master does not support")
     arrays = [v.name for v in md.modelVariables if v.dimensions]
     if arrays:
-        raise FmuError(f"{path}: {md.modelName} has array variables ({', '.join(arrays[:3])}), "
+        raise FmuError(f"{path}: {md.modelName} has array variables ({', '.join(arrays)}), "
                        f"which the master does not support")
     intermediate = _intermediate_update_names(xml)
     for v in md.modelVariables:
