@@ -4,8 +4,11 @@
 model description (cached by path, modification time and size) and checks
 that it is an FMI 2.0 or 3.0 Co-Simulation FMU with a binary for this
 platform. An FMI 3.0 description is seen through FMI 2.0's type names
-(Float64 is "Real", Int32 "Integer"), so that the layers above read both
-alike; ``fmi_version`` tells them apart. FMI 3.0 features the master does
+where FMI 2.0 has the type (Float64 is "Real", Int32 "Integer"), so that
+the layers above read both alike; Float32, the other integer sizes and
+Binary keep their FMI 3.0 names (``INTEGER_TYPES``, ``REAL_TYPES``,
+``TEXT_TYPES`` and ``types_connect`` group them); ``fmi_version`` tells
+the versions apart. FMI 3.0 features the master does
 not serve (clocks, arrays, scheduled execution only) are refused here with
 one line naming the FMU and the feature.
 """
