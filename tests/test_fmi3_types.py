@@ -231,3 +231,27 @@ def test_export_ssp_carries_every_type_and_reads_back(capsys, tmp_path, fmu):
     rc, _, err = run_cli(capsys, ["export-ssp", f, "--out", tmp_path / "b.ssp"])
     assert_one_line_error(rc, err, str(f), "components.a.parameters.p_Binary", "SSP 1.0")
     assert not (tmp_path / "b.ssp").exists()
+
+
+@pytest.mark.parametrize("kind, start, stop, want", [("Int8", -128, 127, ["-128.0", "-43.0", "42.0", "127.0"]),
+                                                     ("UInt16", 0, 300, ["0.0", "100.0", "200.0", "300.0"]),
+                                                     ("Float32", 0.5, 2.0, ["0.5", "1.0", "1.5", "2.0"])])
+def test_a_sweep_axis_runs_over_fmi3_number_types(capsys, tmp_path, fmu, kind, start, stop, want):
+    """start/stop/num axes take Float32 and integers of every size (integers on integer points)."""
+    f = scene(tmp_path, fmu, outputs=[f"a.y_{kind}"])
+    f.write_text(f.read_text() + f'[sweep]\naxes = [ {{ parameter = "a.u_{kind}", start = {start}, stop = {stop}, '
+                                 f'num = 4 }} ]\n')
+    rc, out, err = run(capsys, tmp_path, f)
+    assert rc == 0, err
+    points = [json.loads(p.read_text()) for p in (out / "points").glob("*.json")]
+    assert len(points) == 4
+    got = sorted(p["series"][f"a.y_{kind}"][-1] for p in points)
+    assert got == [float(x) for x in want]
+    assert sorted(p["point"][f"a.u_{kind}"] for p in points) == [float(x) for x in want]
+
+
+def test_a_sweep_axis_out_of_an_integer_types_range_is_refused_at_validation(capsys, tmp_path, fmu):
+    f = scene(tmp_path, fmu)
+    f.write_text(f.read_text() + '[sweep]\naxes = [ { parameter = "a.u_Int8", start = 0, stop = 200, num = 3 } ]\n')
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, str(f), "[-128, 127]")
