@@ -270,8 +270,12 @@ BAD_SSD = {
     "parameters inside the FMU": (_edit('source="resources/escapement.ssv"',
                                         'source="resources/escapement.ssv" sourceBase="component"'),
                                   ["sourceBase", "not supported"]),
+    # Binary connectors serve FMI 3.0 Binary variables; on a Real one it is a mismatch.
     "binary connector": (_edit('<ssd:Connector name="w" kind="input"><ssc:Real unit="rad/s"/>',
-                               '<ssd:Connector name="w" kind="input"><ssc:Binary/>'), ["ssc:Binary", "not supported"]),
+                               '<ssd:Connector name="w" kind="input"><ssc:Binary/>'),
+                         ["type mismatch", "the connector is Binary", "w is Real"]),
+    "clock connector": (_edit('<ssd:Connector name="w" kind="input"><ssc:Real unit="rad/s"/>',
+                              '<ssd:Connector name="w" kind="input"><ssc:Clock/>'), ["ssc:Clock", "not supported"]),
     "two values for the source and inline": (_edit('<ssd:ParameterBinding source="resources/escapement.ssv"/>',
                                                    '<ssd:ParameterBinding source="resources/escapement.ssv">'
                                                    '<ssd:ParameterValues/></ssd:ParameterBinding>'),

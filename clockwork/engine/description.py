@@ -4,8 +4,11 @@
 model description (cached by path, modification time and size) and checks
 that it is an FMI 2.0 or 3.0 Co-Simulation FMU with a binary for this
 platform. An FMI 3.0 description is seen through FMI 2.0's type names
-(Float64 is "Real", Int32 "Integer"), so that the layers above read both
-alike; ``fmi_version`` tells them apart. FMI 3.0 features the master does
+where FMI 2.0 has the type (Float64 is "Real", Int32 "Integer"), so that
+the layers above read both alike; Float32, the other integer sizes and
+Binary keep their FMI 3.0 names (``INTEGER_TYPES``, ``REAL_TYPES``,
+``TEXT_TYPES`` and ``types_connect`` group them); ``fmi_version`` tells
+the versions apart. FMI 3.0 features the master does
 not serve (clocks, arrays, scheduled execution only) are refused here with
 one line naming the FMU and the feature.
 """
@@ -226,7 +229,9 @@ def _platform() -> str:
     return fmpy.platform
 
 
-# FMI 3.0 types the master exchanges, under the FMI 2.0 names the layers use.
+# FMI 3.0 types that have an FMI 2.0 twin, under the FMI 2.0 names the
+# layers use; the others (Float32, Int8... UInt64 but Int32, Binary) keep
+# their FMI 3.0 names.
 _FMI3_AS_FMI2 = {"Float64": "Real", "Int32": "Integer", "Boolean": "Boolean", "String": "String",
                  "Enumeration": "Enumeration"}
 
@@ -251,7 +256,7 @@ def _check_fmi3(path: Path, md, xml: bytes) -> None:
         raise FmuError(f"{path}: {md.modelName} is a Scheduled Execution FMU, which the master does not support")
     arrays = [v.name for v in md.modelVariables if v.dimensions]
     if arrays:
-        raise FmuError(f"{path}: {md.modelName} has array variables ({', '.join(arrays[:3])}), "
+        raise FmuError(f"{path}: {md.modelName} has array variables ({', '.join(arrays)}), "
                        f"which the master does not support")
     intermediate = _intermediate_update_names(xml)
     for v in md.modelVariables:
@@ -289,16 +294,34 @@ def variables(md) -> dict:
     return cache
 
 
-# An Enumeration's value is an integer (FMI 2.0 passes it through
-# fmi2Get/SetInteger), and SSP leaves connections of different types to the
-# tool: an Integer and an Enumeration may be connected either way. The
-# receiving FMU refuses a value outside its type's items.
-_CONNECTABLE = {frozenset({"Integer", "Enumeration"})}
+# The integer types and their ranges: FMI 2.0's Integer is a C int, FMI
+# 3.0's sized types keep their own names (and fmi3Get/Set* functions).
+_INT_RANGES = {"Integer": (-2**31, 2**31 - 1), "Int32": (-2**31, 2**31 - 1),
+               **{f"Int{b}": (-2**(b - 1), 2**(b - 1) - 1) for b in (8, 16, 64)},
+               **{f"UInt{b}": (0, 2**b - 1) for b in (8, 16, 32, 64)}}
+INTEGER_TYPES = (*_INT_RANGES, "Enumeration")
+# Float32 is a Real exchanged through fmi3Get/SetFloat32.
+REAL_TYPES = ("Real", "Float32")
+# Recorded as text: Binary as hexadecimal digits (FMI 3.0).
+TEXT_TYPES = ("String", "Binary")
+FLOAT32_MAX = 3.4028234663852886e38
+
+
+def int_range(var_type: str) -> tuple[int, int] | None:
+    """(min, max) that an integer type can hold, or None (an Enumeration's
+    items say what it takes; not an integer type)."""
+    return _INT_RANGES.get(var_type)
 
 
 def types_connect(output_type: str, input_type: str) -> bool:
-    """Whether an output of one FMI type may feed an input of the other."""
-    return output_type == input_type or frozenset({output_type, input_type}) in _CONNECTABLE
+    """Whether an output of one FMI type may feed an input of the other.
+    Integers of any size and Enumerations connect either way (SSP leaves
+    connections of different types to the tool; a value the input's type
+    cannot hold fails the run, naming the link; the receiving FMU refuses a
+    value outside its Enumeration's items), and so do Float32 and Float64."""
+    if output_type == input_type:
+        return True
+    return any(output_type in family and input_type in family for family in (INTEGER_TYPES, REAL_TYPES))
 
 
 def var_unit(v) -> str | None:
@@ -314,4 +337,4 @@ def var_limit(v, which: str):
         x = getattr(v.declaredType, which, None)
     if x is None:
         return None
-    return int(x) if v.type in ("Integer", "Enumeration") else float(x)
+    return int(x) if v.type in INTEGER_TYPES else float(x)

@@ -50,13 +50,14 @@ from __future__ import annotations
 
 import ctypes
 import math
-from ctypes import POINTER, Structure, byref, c_bool, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
+from ctypes import (POINTER, Structure, byref, c_bool, c_char_p, c_double, c_float, c_int, c_int8, c_int16, c_int32,
+                    c_int64, c_longlong, c_size_t, c_uint, c_uint8, c_uint16, c_uint32, c_uint64, c_void_p)
 
 from fmpy.fmi3 import FMU3Slave, fmi3IntermediateUpdateCallback, fmi3LogMessageCallback
 
 from ..errors import SceneError, SimulationError
 from ..paths import core_library
-from .description import fmi_version, read_fmu
+from .description import fmi_version, int_range, read_fmu, type_name
 from .fmu import DISCARD, ERROR, OK, WARNING, Instance, extract
 
 MAX_EVENT_ITERATIONS = 1000  # fmi3UpdateDiscreteStates calls per event before giving up
@@ -125,6 +126,12 @@ def _core_adapter():
         except (OSError, AttributeError):
             _core = False
     return _core or None
+
+
+# The C type of each FMI 3.0 number type (an Enumeration goes through fmi3Get/SetInt64).
+_CTYPES = {"Float32": c_float, "Float64": c_double, "Int8": c_int8, "UInt8": c_uint8, "Int16": c_int16,
+           "UInt16": c_uint16, "Int32": c_int32, "UInt32": c_uint32, "Int64": c_int64, "UInt64": c_uint64,
+           "Boolean": c_bool, "String": c_char_p, "Enumeration": c_int64}
 
 
 # What _Events.failed_call names (the same numbers in cw_master.c).
@@ -295,6 +302,79 @@ class Instance3(Instance):
             return st
 
         self.c_setup, self.c_enterInit, self.c_exitInit = setup, enter_init, exit_and_settle
+
+    # -- values of every type (not on the hot path) ------------------------------
+
+    def _value_functions(self, kind: str):
+        """(fmi3Get<kind>, fmi3Set<kind>), bound once per type."""
+        fns = self.__dict__.setdefault("_value_fns", {})
+        if kind not in fns:
+            name = "Int64" if kind == "Enumeration" else kind
+            vrs = POINTER(c_uint)
+            if kind == "Binary":
+                args = [c_void_p, vrs, c_size_t, POINTER(c_size_t), POINTER(POINTER(c_uint8)), c_size_t]
+            else:
+                args = [c_void_p, vrs, c_size_t, POINTER(_CTYPES[kind]), c_size_t]
+            pair = []
+            for prefix in ("fmi3Get", "fmi3Set"):
+                f = getattr(self._slave.dll, prefix + name)
+                f.argtypes, f.restype = args, c_int
+                pair.append(f)
+            fns[kind] = tuple(pair)
+        return fns[kind]
+
+    def get_values(self, names: list[str]) -> list:
+        """Values of any type, each through the fmi3Get* of its type: numbers
+        as Python numbers, Boolean as bool, String as text, Binary as
+        hexadecimal digits."""
+        values = []
+        for n in names:
+            v = self.variables[n]
+            kind = type_name(self.md, v)
+            get = self._value_functions(kind)[0]
+            vr = (c_uint * 1)(v.vr)
+            if kind == "Binary":
+                size, data = (c_size_t * 1)(), (POINTER(c_uint8) * 1)()
+                self.check(get(self.component, vr, 1, size, data, 1), f"fmi3GetBinary ({n})")
+                values.append(ctypes.string_at(data[0], size[0]).hex() if size[0] else "")
+                continue
+            out = (_CTYPES[kind] * 1)()
+            self.check(get(self.component, vr, 1, out, 1), f"fmi3Get{kind} ({n})")
+            x = out[0]
+            values.append((x or b"").decode("utf-8", "replace") if kind == "String" else x)
+        return values
+
+    def set_values(self, values: dict[str, object], what: str = "fmi3Set*",
+                   error: type[SimulationError] = SimulationError) -> None:
+        """Set variables of any type through the fmi3Set* of its type (Binary
+        from hexadecimal digits); a value an integer type cannot hold is
+        refused here, never wrapped."""
+        for n, value in values.items():
+            v = self.variables[n]
+            kind = type_name(self.md, v)
+            vr = (c_uint * 1)(v.vr)
+            if kind == "Float64":  # through c_setReal, which the intermediate update may keep
+                st = self.c_setReal(self.component, vr, 1, (c_double * 1)(float(value)))
+            elif kind == "Binary":
+                data = bytes.fromhex(str(value))
+                buf = (c_uint8 * max(1, len(data)))(*data)
+                st = self._value_functions(kind)[1](self.component, vr, 1, (c_size_t * 1)(len(data)),
+                         (POINTER(c_uint8) * 1)(ctypes.cast(buf, POINTER(c_uint8))), 1)
+            else:
+                if kind == "String":
+                    x = str(value).encode("utf-8")
+                elif kind == "Boolean":
+                    x = bool(value)
+                elif kind in ("Float32", "Float64"):
+                    x = float(value)
+                else:
+                    x = int(value)
+                    bounds = int_range(kind)
+                    if bounds and not bounds[0] <= x <= bounds[1]:
+                        raise error(f"{what}: {self.name}.{n} = {x} is out of the range of {kind} "
+                                    f"[{bounds[0]}, {bounds[1]}]")
+                st = self._value_functions(kind)[1](self.component, vr, 1, (_CTYPES[kind] * 1)(x), 1)
+            self.check(st, f"{what} ({n} = {value!r})", error=error)
 
     def _no_input_derivatives(self, comp, vr, n, orders, der) -> int:
         self.messages.append((ERROR, "FMI 3.0 Co-Simulation has no input derivatives"))

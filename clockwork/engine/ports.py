@@ -14,7 +14,7 @@ import math
 from ctypes import c_double, c_int, c_uint
 
 from ..errors import SceneError, SimulationError
-from .description import types_connect
+from .description import int_range, types_connect
 from .fmu import WARNING, Instance
 from .wiring import Link, Wiring
 
@@ -69,8 +69,18 @@ class Port:
 
     def set_discrete(self) -> None:
         """Set the discrete inputs to their sources' values (Python engine only)."""
-        self.inst.set_values({n: src.dout[j] for n, (src, j) in zip(self.din_names, self.din_sources)},
-                             "fmi2Set* of inputs")
+        values = {}
+        for n, (src, j) in zip(self.din_names, self.din_sources):
+            x = src.dout[j]
+            kind = self.inst.variables[n].type
+            bounds = int_range(kind)
+            if bounds and not bounds[0] <= x <= bounds[1]:
+                # Integers of different sizes connect; a value the input cannot hold stops the run.
+                raise SimulationError(f"connection {src.inst.name}.{src.dout_names[j]} -> {self.inst.name}.{n}: "
+                                      f"the value {x} is out of the range of {kind} [{bounds[0]}, {bounds[1]}]",
+                                      instance=self.inst.name)
+            values[n] = x
+        self.inst.set_values(values, "fmi2Set* of inputs")
 
     def pull(self, t: float) -> None:
         """Set the inputs to their sources' outputs, then read the outputs, at t."""
@@ -90,14 +100,15 @@ class Port:
 
 
 def link_type(instances: dict[str, Instance], link: Link) -> str:
-    """The FMI type of a link's two ends (the output's); SceneError (bad
-    input) where they cannot be connected."""
+    """The FMI type of a link's two ends (the output's, or the input's where
+    that is not Real: a Float32 end goes through the discrete path);
+    SceneError (bad input) where they cannot be connected."""
     a = instances[link.src].variables[link.output].type
     b = instances[link.dst].variables[link.input].type
     if not types_connect(a, b):
         raise SceneError(f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: type mismatch, "
                          f"{link.src}.{link.output} is {a}, {link.dst}.{link.input} is {b}")
-    return a
+    return b if a == "Real" else a
 
 
 def feeds(inst: Instance, name: str) -> bool:

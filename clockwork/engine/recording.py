@@ -11,11 +11,13 @@ as text); Real ones come from the master's output buffer.
 
 from __future__ import annotations
 
+from .description import TEXT_TYPES
+
 
 class _DiscreteOutput:
     """A variable that is not Real, read from the FMU when sampled through
-    the fmi2Get* of its type: Integer, Enumeration (fmi2GetInteger) and
-    Boolean as numbers, String as text."""
+    the fmi2Get*/fmi3Get* of its type: integers, Enumeration, Float32 and
+    Boolean as numbers, String and Binary (hexadecimal digits) as text."""
 
     def __init__(self, inst, var: str):
         self.inst, self.var = inst, var
@@ -23,7 +25,7 @@ class _DiscreteOutput:
 
     def __getitem__(self, _):
         value = self.inst.get_values([self.var])[0]
-        return value if self.kind == "String" else float(value)
+        return value if self.kind in TEXT_TYPES else float(value)
 
 
 class Recorder:

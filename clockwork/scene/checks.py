@@ -12,7 +12,7 @@ import difflib
 import math
 from pathlib import Path
 
-from ..engine.description import var_limit, var_unit
+from ..engine.description import FLOAT32_MAX, INTEGER_TYPES, int_range, var_limit, var_unit
 from ..engine.description import variables as variables_of
 from ..engine.names import split_ref
 from ..engine.settings import ENGINES
@@ -110,10 +110,20 @@ def convert_value(ctx: Ctx, key: str, value: object, v, md):
             raise ctx.bad(key, value, f"an integer or one of the items of {v.declaredType.name}: "
                                       f"{', '.join(items) or 'none'}")
         x = items[value]
-    elif v.type in ("Integer", "Enumeration"):
+    elif v.type == "Float32":
+        try:
+            x = to_unit(value, md, unit)
+        except UnitError as e:
+            raise ctx.bad(key, value, str(e)) from None
+        if not abs(x) <= FLOAT32_MAX:
+            raise ctx.bad(key, value, f"a Float32 value, in [-{FLOAT32_MAX:g}, {FLOAT32_MAX:g}]")
+    elif v.type in INTEGER_TYPES:
         if isinstance(value, bool) or not isinstance(value, int):
             raise ctx.bad(key, value, "an integer" + (" or an item name" if v.type == "Enumeration" else ""))
         x = value
+        bounds = int_range(v.type)
+        if bounds and not bounds[0] <= x <= bounds[1]:
+            raise ctx.bad(key, value, f"an integer in [{bounds[0]}, {bounds[1]}] ({v.type})")
         items = {int(i.value): i.name for i in getattr(v.declaredType, "items", None) or []}
         if v.type == "Enumeration" and items and x not in items:
             raise ctx.bad(key, value, f"the value of an item of {v.declaredType.name}: "
@@ -125,6 +135,12 @@ def convert_value(ctx: Ctx, key: str, value: object, v, md):
     elif v.type == "String":
         if not isinstance(value, str):
             raise ctx.bad(key, value, "a string")
+        return value
+    elif v.type == "Binary":
+        try:
+            bytes.fromhex(value if isinstance(value, str) else "?")
+        except ValueError:
+            raise ctx.bad(key, value, "a string of hexadecimal digits, two per byte (Binary)") from None
         return value
     else:
         raise ctx.fail(key, f"variables of type {v.type} cannot be set")

@@ -21,7 +21,8 @@ import tomllib
 from pathlib import Path
 
 from ..engine import compiled
-from ..engine.description import FmuError, read_fmu, resolve_fmu, types_connect, var_unit
+from ..engine.description import (TEXT_TYPES, FmuError, read_fmu, resolve_fmu, type_name, types_connect,
+                                  var_unit)
 from ..engine.description import variables as variables_of
 from ..engine.fmu3 import make_instance
 from ..engine.names import instance_name_problem, split_link, split_ref
@@ -196,7 +197,7 @@ def _load_ssp(path: Path, overrides, kinds: Kinds) -> Scene:
     if series and isinstance(outputs, list) and outputs and all(isinstance(o, str) for o in outputs):
         # Strings are recorded as text, not drawn.
         variables = {n: variables_of(c.model_description) for n, c in components.items()}
-        numbers = [o for o in outputs if _column_type(o, variables) != "String"]
+        numbers = [o for o in outputs if _column_type(o, variables) not in TEXT_TYPES]
         if numbers:
             raw["plot"] = [{"kind": "time_series", "x": "time", "y": numbers, "title": ssp.name,
                             "file": "outputs.png"}]
@@ -371,7 +372,8 @@ def _connections(ctx: Ctx, conns, components: dict[str, Component],
     notes = []
     for key, si, sv, di, dv, sc, s, dc, d in checked:
         if not types_connect(s.type, d.type):
-            raise ctx.fail(key, f"type mismatch: {si}.{sv} is {s.type}, {di}.{dv} is {d.type}")
+            raise ctx.fail(key, f"type mismatch: {si}.{sv} is {type_name(sc.model_description, s)}, "
+                                f"{di}.{dv} is {type_name(dc.model_description, d)}")
         su, du = var_unit(s), var_unit(d)
         factor, offset = 1.0, 0.0
         if su != du and (su is None or du is None):
@@ -513,7 +515,7 @@ def _check_series_plots(ctx: Ctx, plots: tuple[dict, ...], record: Record, compo
     """A time series can only draw what [record] records, and numbers only:
     refuse a typo or a String column now, not after the run."""
     recorded = {f"{inst}.{var}" for inst, var in record.outputs}
-    text = {f"{inst}.{var}" for inst, var in record.outputs if components[inst].variable(var).type == "String"}
+    text = {f"{inst}.{var}" for inst, var in record.outputs if components[inst].variable(var).type in TEXT_TYPES}
     for i, spec in enumerate(plots):
         if spec["kind"] not in _SERIES_PLOTS:
             continue

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from ..engine.description import INTEGER_TYPES, REAL_TYPES
 from ..errors import SceneError
 from .checks import Ctx, article, convert_value, master_value, parse_ref
 from .model import Component, Sweep, SweepAxis, show
@@ -83,7 +84,8 @@ def parse_sweep(ctx: Ctx, t: dict | None, components: dict[str, Component], conn
             spacing = a.get("spacing", "linear")
             if spacing not in ("linear", "log"):
                 raise ctx.bad(f"{where}.spacing", spacing, '"linear" or "log"')
-            if var is not None and var.type not in ("Real", "Integer"):
+            numeric = var is None or var.type in REAL_TYPES or var.type in INTEGER_TYPES and var.type != "Enumeration"
+            if not numeric:
                 raise ctx.fail(where, f"{ref} is {var.type}: list its values instead of start/stop/num")
             lo = _range_end(ctx, f"{where}.start", a["start"], var, convert)
             hi = _range_end(ctx, f"{where}.stop", a["stop"], var, convert)
@@ -94,7 +96,7 @@ def parse_sweep(ctx: Ctx, t: dict | None, components: dict[str, Component], conn
             if num == 1:
                 grid = np.array([lo])
             seq = [float(x) for x in grid]
-            if (var is not None and var.type == "Integer") or param in (("master", "iterations"), ("master", "extrapolation")):
+            if (var is not None and var.type in INTEGER_TYPES) or param in (("master", "iterations"), ("master", "extrapolation")):
                 ints = [round(x) for x in seq]
                 if any(abs(x - r) > 1e-9 * max(1.0, abs(x)) for x, r in zip(seq, ints)):
                     odd = [x for x, r in zip(seq, ints) if abs(x - r) > 1e-9 * max(1.0, abs(x))]

@@ -44,7 +44,8 @@ from lxml import etree
 
 from ... import __version__
 from ...atomic import write_bytes_atomic, write_text_atomic
-from ...engine.description import var_unit
+from ...engine.description import INTEGER_TYPES, REAL_TYPES, var_unit
+from ...errors import SceneError
 from .common import CW_ANNOTATION, CW_NS, NS, OMS_NS, OSP_NS, q as _q
 
 _WRITTEN = ("ssd", "ssc", "ssv")  # the namespaces an exported SSD declares
@@ -70,9 +71,24 @@ def _identifier(text: str) -> str:
     return name if re.match(r"[A-Za-z_]", name) else "_" + name
 
 
-def _type_element(v) -> str:
-    return {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean", "String": "String",
-            "Enumeration": "Integer"}[v.type]
+def _connector_type(v) -> str:
+    """The SSP 1.0 connector type of a variable: FMI 3.0's Float32 is a
+    Real, its integers of every size are Integers."""
+    if v.type in REAL_TYPES:
+        return "Real"
+    if v.type in INTEGER_TYPES and v.type != "Enumeration":
+        return "Integer"
+    return v.type
+
+
+def _type_element(v, path, key: str) -> str:
+    """The ssv element of a parameter value (an Enumeration's is its
+    integer); SceneError at the scene's `key` for a type SSP 1.0 lacks."""
+    kind = "Integer" if v.type == "Enumeration" else _connector_type(v)
+    if kind not in ("Real", "Integer", "Boolean", "String"):
+        raise SceneError(f"{v.name} is {v.type}, which an SSP 1.0 parameter set cannot carry; expected "
+                         f"a Real, Integer, Boolean, String or Enumeration parameter", path, key)
+    return kind
 
 
 def _value_text(type_name: str, value) -> str:
@@ -153,15 +169,16 @@ def build_ssp(scene, point: dict | None = None) -> dict[str, bytes]:
             cs = _sub(el, "ssd", "Connectors")
             for v in connectors:
                 c = _sub(cs, "ssd", "Connector", name=v.name, kind=v.causality)
-                unit = var_unit(v) if v.type == "Real" else None
+                unit = var_unit(v) if v.type in REAL_TYPES else None
                 declared = getattr(v.declaredType, "name", None) if v.type == "Enumeration" else None
-                _sub(c, "ssc", v.type, unit=unit, name=declared)
+                _sub(c, "ssc", _connector_type(v), unit=unit, name=declared)
                 if unit:
                     used_units.setdefault(unit, md)
         params = []
         variables = {v.name: v for v in md.modelVariables}
         for name, value in comp.parameters.items():
-            params.append((name, _type_element(variables[name]), value))
+            params.append((name, _type_element(variables[name], scene.path, f"components.{inst}.parameters.{name}"),
+                           value))
         if params:
             ssv_path = f"resources/{inst}.ssv"
             files[ssv_path] = parameter_set_xml(PARAMETER_SET, params)

@@ -182,11 +182,11 @@ class _Reader:
             ctype, unit = None, None
             for child in c:
                 ns, _, local = child.tag[1:].partition("}")
-                if ns == NS["ssc"] and local in _TYPES:
-                    ctype = _FMI_TYPE[local]
+                if ns == NS["ssc"] and (local in _TYPES or local == "Binary"):  # Binary: FMI 3.0's
+                    ctype = _FMI_TYPE.get(local, local)
                     unit = (child.get("unit") or None) if ctype == "Real" else None  # unit="" is no unit
-                elif ns == NS["ssc"] and local in ("Binary", "Clock"):
-                    raise doc.fail(child, f"not supported: {local} connectors (FMI 2.0 has no such type)")
+                elif ns == NS["ssc"] and local == "Clock":
+                    raise doc.fail(child, "not supported: Clock connectors")
             if c.find(q("ssc", "Dimension")) is not None or c.find(q("ssd", "Dimension")) is not None:
                 raise doc.fail(c, "not supported: array connectors (ssc:Dimension)")
             if variables is not None:
@@ -194,7 +194,8 @@ class _Reader:
                 if v is None:
                     raise doc.fail(c, f"expected the name of a variable of {md.modelName}: it has no {name}",
                                    "name")
-                if ctype is not None and ctype != v.type and not (ctype == "Integer" and v.type == "Enumeration"):
+                if ctype is not None and ctype != _FMI_TYPE.get(v.type, v.type) and not (
+                        ctype == "Integer" and v.type == "Enumeration"):
                     raise doc.fail(c, f"type mismatch: the connector is {ctype}, {md.modelName}.{name} is {v.type}")
                 if kind in ("input", "output") and v.causality != kind:
                     raise doc.fail(c, f"expected kind={v.causality!r}: {md.modelName}.{name} is "
