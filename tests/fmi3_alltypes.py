@@ -5,14 +5,9 @@ output y_T that mirrors u_T. See alltypes.c."""
 
 from __future__ import annotations
 
-import os
-import shutil
-import subprocess
-import zipfile
 from pathlib import Path
 
-import fmpy
-from fmi3_bouncer import stubs
+from fmi3_bouncer import pack
 
 SOURCE = Path(__file__).parent / "data" / "fmi3" / "alltypes.c"
 
@@ -85,23 +80,6 @@ def model_description(arrays: bool = False) -> str:
 def build(folder: Path, name: str = "AllTypes", arrays: bool = False) -> Path:
     """Compile and zip the FMU into folder/<name>.fmu (with the ARRAYS
     variables when `arrays`); returns its path."""
-    cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
-    if cc is None:
-        raise RuntimeError("no C compiler")
-    folder = Path(folder)
-    work = folder / f"{name}.build"
-    binary = work / "binaries" / fmpy.platform_tuple / "AllTypes.so"
-    binary.parent.mkdir(parents=True, exist_ok=True)
-    headers = Path(fmpy.__file__).parent / "c-code"
     source = SOURCE.read_text()
     defined = source + "".join(f" fmi3Get{t}( fmi3Set{t}(" for t in _MACRO_TYPES)
-    full = work / "alltypes_all.c"
-    full.write_text(source + "\n/* generated: the functions left out */\n" + stubs(defined))
-    subprocess.run([cc, "-shared", "-fPIC", "-O1", "-std=c99", "-Wall", f"-I{headers}", str(full),
-                    "-o", str(binary)], check=True)
-    fmu = folder / f"{name}.fmu"
-    with zipfile.ZipFile(fmu, "w") as z:
-        z.writestr("modelDescription.xml", model_description(arrays))
-        z.write(binary, f"binaries/{fmpy.platform_tuple}/AllTypes.so")
-    shutil.rmtree(work)
-    return fmu
+    return pack(folder, name, "AllTypes", source, defined, model_description(arrays), ("-Wall",))

@@ -67,27 +67,35 @@ def stubs(defined: str) -> str:
     return "\n".join(out) + "\n"
 
 
-def build(folder: Path, event_mode: bool = True, early_return: bool = True, indicator: bool = False,
-          name: str = "Bouncer") -> Path:
-    """Compile and zip the FMU into folder/<name>.fmu; returns its path."""
+def pack(folder: Path, name: str, model_identifier: str, source: str, defined: str, model_description: str,
+         cflags: tuple[str, ...] = ()) -> Path:
+    """Compile `source` (with stubs for the fmi3 functions `defined` does not
+    name) into a binary `model_identifier`.so and zip it with
+    `model_description` into folder/<name>.fmu; returns its path."""
     cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
     if cc is None:
         raise RuntimeError("no C compiler")
     folder = Path(folder)
     work = folder / f"{name}.build"
-    binary = work / "binaries" / fmpy.platform_tuple / "Bouncer.so"
+    binary = work / "binaries" / fmpy.platform_tuple / f"{model_identifier}.so"
     binary.parent.mkdir(parents=True, exist_ok=True)
     headers = Path(fmpy.__file__).parent / "c-code"
-    source = SOURCE.read_text()
-    full = work / "bouncer_all.c"
-    full.write_text(source + "\n/* generated: the functions left out */\n" + stubs(source))
-    subprocess.run([cc, "-shared", "-fPIC", "-O1", "-std=c99", f"-I{headers}", f"-I{SOURCE.parent}", str(full),
+    full = work / f"{model_identifier}_all.c"
+    full.write_text(source + "\n/* generated: the functions left out */\n" + stubs(defined))
+    subprocess.run([cc, "-shared", "-fPIC", "-O1", "-std=c99", *cflags, f"-I{headers}", str(full),
                     "-o", str(binary), "-lm"], check=True)
-    xml = MODEL_DESCRIPTION.format(event_mode=str(event_mode).lower(), early=str(early_return).lower(),
-                                   annotation=INDICATOR if indicator else "")
     fmu = folder / f"{name}.fmu"
     with zipfile.ZipFile(fmu, "w") as z:
-        z.writestr("modelDescription.xml", xml)
-        z.write(binary, f"binaries/{fmpy.platform_tuple}/Bouncer.so")
+        z.writestr("modelDescription.xml", model_description)
+        z.write(binary, f"binaries/{fmpy.platform_tuple}/{model_identifier}.so")
     shutil.rmtree(work)
     return fmu
+
+
+def build(folder: Path, event_mode: bool = True, early_return: bool = True, indicator: bool = False,
+          name: str = "Bouncer") -> Path:
+    """Compile and zip the FMU into folder/<name>.fmu; returns its path."""
+    source = SOURCE.read_text()
+    xml = MODEL_DESCRIPTION.format(event_mode=str(event_mode).lower(), early=str(early_return).lower(),
+                                   annotation=INDICATOR if indicator else "")
+    return pack(folder, name, "Bouncer", source, source, xml, (f"-I{SOURCE.parent}",))
