@@ -93,6 +93,10 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS) -
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as e:
+        if data[:4] == b"PK\x03\x04":  # a zip archive: an FMU or an SSP given where a scene goes
+            raise SceneError("a zip archive, not a scene: expected a .toml scene file, an .ssp archive or "
+                             "an .ssd file (an FMU is run from a scene that names it; `clockwork info` lists "
+                             "its variables)", path) from None
         raise SceneError(f"not UTF-8 text (byte {e.start})", path) from None
     try:
         raw = tomllib.loads(text)
