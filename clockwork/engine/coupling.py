@@ -22,9 +22,6 @@ from dataclasses import dataclass, field
 from .fmu import WARNING
 from .ports import Port
 
-# FMI 2.0 has no attribute for the highest input derivative an FMU takes:
-# one that refuses order 2 at run time gets order 1, then 0 (zero-order hold).
-
 
 @dataclass
 class _History:
@@ -121,7 +118,8 @@ class InputCoupling:
                     p.der[p.n_in + k] = 0.0
                 self._set_derivatives(p, t, 1)
         elif polynomial and not self._set_derivatives(p, t, p.ext_order, refusable=True):
-            # Refused: one order lower, from the same sources, and never again this order.
+            # FMI 2.0 has no attribute for the highest input derivative an FMU takes:
+            # refused, it gets one order lower, from the same sources, and never this order again.
             p.ext_order -= 1
             self.note(f"{p.inst.name} refused input derivatives of order {p.ext_order + 1} "
                       f"(fmi2SetRealInputDerivatives): order {p.ext_order} from t = {t!r} s on")

@@ -316,9 +316,12 @@ class Instance:
         if self._state.value:
             self.c_freeState(self.component, byref(self._state))
         try:
-            self._slave.fmi2FreeInstance(self.component)
+            self._free_instance()
         finally:
             self._slave = None
+
+    def _free_instance(self) -> None:
+        self._slave.fmi2FreeInstance(self.component)
 
     # -- status handling ------------------------------------------------
 

@@ -485,15 +485,8 @@ class Instance3(Instance):
         super().restore_state(t)
         self.events.next_event_time = self.events.saved_next_event_time
 
-    def free(self) -> None:
-        if self._slave is None:
-            return
-        if self._state.value:
-            self.c_freeState(self.component, byref(self._state))
-        try:
-            self._slave.fmi3FreeInstance(self.component)
-        finally:
-            self._slave = None
+    def _free_instance(self) -> None:
+        self._slave.fmi3FreeInstance(self.component)
 
     def fail(self, what, status, time=None, error=None):
         call = FAILED_CALLS.get(self.events.failed_call)
