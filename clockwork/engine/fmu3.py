@@ -419,7 +419,7 @@ class Instance3(Instance):
             ev.failed_call = 4
         return max(st, s)
 
-    def _do_step(self, comp, t: float, h: float, _no_set_prior: int = 0) -> int:
+    def _do_step(self, comp, t: float, h: float, no_set_prior: int = 0) -> int:
         """fmi3DoStep from t to t + h, through the FMU's own events."""
         do_step = self._f[0]
         ev = self.events
@@ -430,7 +430,7 @@ class Instance3(Instance):
         worst = OK
         stalled = 0
         while True:
-            st = do_step(comp, now, step, False, byref(handling), byref(term), byref(early), byref(last))
+            st = do_step(comp, now, step, bool(no_set_prior), byref(handling), byref(term), byref(early), byref(last))
             if st > WARNING:
                 ev.failed_call = 1
                 return st

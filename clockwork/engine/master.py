@@ -198,9 +198,10 @@ class Master:
         t_new = t + h
         ports = self.ports
         loc = self.locator
+        no_set_prior = 0 if self.checkpoints.held else 1  # noSetFMUStatePriorToCurrentPoint
         # 1. Feedthrough-only instances commit the mode decided at t.
         for p in ports.first:
-            st = p.doStep(p.comp, t, h, 0)
+            st = p.doStep(p.comp, t, h, no_set_prior)
             if st > WARNING:
                 raise self._step_failure(p, st, t, h)
             if p.z_pos and self.after_event:
@@ -222,7 +223,7 @@ class Master:
         for p in dynamic:
             if not jacobi and p.has_inputs:
                 set_inputs(p, t, h, smooth, coupling.get(p.inst.name) if coupling else None)
-            st = p.doStep(p.comp, t, h, 0)
+            st = p.doStep(p.comp, t, h, no_set_prior)
             if st > WARNING:
                 raise self._step_failure(p, st, t, h)
             p.read(t_new)

@@ -381,10 +381,13 @@ again:
 static int advance(cw_master *m, double t, double h)
 {
     double t_new = t + h;
+    /* noSetFMUStatePriorToCurrentPoint: true only while no checkpoint is
+     * held that a rollback or replay may set again (Checkpoints.held). */
+    const int no_set_prior = !m->snap_valid;
     /* 1. Feedthrough-only instances commit the mode decided at t. */
     for (int a = 0; a < m->n_first; a++) {
         cw_port *p = &m->ports[m->first[a]];
-        int st = p->doStep(p->comp, t, h, 0);
+        int st = p->doStep(p->comp, t, h, no_set_prior);
         if (st > FMI_WARNING)
             return fail(m, m->first[a], CALL_DO_STEP, st, t, h);
         if (p->n_z && m->after_event)  /* a commit may have switched the mode: z at t+ */
@@ -407,7 +410,7 @@ static int advance(cw_master *m, double t, double h)
         cw_port *p = &m->ports[i];
         if (!m->jacobi && p->n_in)
             TRY(set_inputs(m, i, t, h, smooth));
-        int st = p->doStep(p->comp, t, h, 0);
+        int st = p->doStep(p->comp, t, h, no_set_prior);
         if (st > FMI_WARNING)
             return fail(m, i, CALL_DO_STEP, st, t, h);
         TRY(port_read(m, i, t_new));
@@ -1424,14 +1427,13 @@ static void iu_recheck(cw_fmi3 *a)
 
 CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
 {
-    (void)no_set_prior;
     cw_fmi3 *a = comp;
     double end = t + h, now = t, step_size = h;
     int worst = FMI_OK, stalled = 0;
     for (;;) {
         bool handling = false, term = false, early = false;
         double last = 0.0;
-        int st = a->doStep(a->instance, now, step_size, false, &handling, &term, &early, &last);
+        int st = a->doStep(a->instance, now, step_size, no_set_prior != 0, &handling, &term, &early, &last);
         if (st > FMI_WARNING) {
             a->failed_call = 1;
             return st;

@@ -221,7 +221,7 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c,
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                       fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
-    (void)noSetFMUStatePriorToCurrentPoint;
+    if (c) INST->no_set_prior = noSetFMUStatePriorToCurrentPoint ? 1 : 0;
     return cw_core_do_step(INST, "fmi2DoStep", currentCommunicationPoint,
                            communicationStepSize);
 }
