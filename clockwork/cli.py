@@ -362,13 +362,13 @@ def _info_ssp(path: str) -> int:
 
 
 def cmd_info(args) -> int:
-    from .engine.description import FmuError, read_fmu, resolve_fmu, type_name, var_unit
+    from .engine.description import FmuError, fmi1_details, read_fmu, resolve_fmu, type_name, var_unit
 
     if Path(args.fmu).suffix.lower() in (".ssp", ".ssd"):
         return _info_ssp(args.fmu)
     try:
         path = resolve_fmu(args.fmu)
-        md, digest, indicators = read_fmu(path, need_binary=False, versions=("2.0", "3.0"))
+        md, digest, indicators = read_fmu(path, need_binary=False)
     except FmuError as e:
         raise UsageError(str(e)) from None
     cs = md.coSimulation
@@ -386,12 +386,18 @@ def cmd_info(args) -> int:
     if fmi3:  # FMI 3.0 has no input derivatives, and adds events
         caps = caps[:3] + ("maxOutputDerivativeOrder", "hasEventMode", "mightReturnEarlyFromDoStep",
                            "providesIntermediateUpdate")
+    if md.fmiVersion == "1.0":  # no FMU state; an execution tool for CoSimulation_Tool
+        caps = ("canHandleVariableCommunicationStepSize", "canInterpolateInputs", "maxOutputDerivativeOrder",
+                "canRunAsynchronuously", "needsExecutionTool")
     for cap in caps:
         print(f"  {cap:<40} {_flag(getattr(cs, cap, None))}")
+    negated = fmi1_details(md).negated
     rows = [("name", "causality", "variability", "type", "unit", "start", "min", "max", "description")]
     for v in md.modelVariables:
+        alias = "" if v.alias is None else (
+            f"(negated alias of {v.alias.name}) " if v.name in negated else f"(alias of {v.alias.name}) ")
         rows.append((v.name, v.causality or "-", v.variability or "-", type_name(md, v), var_unit(v) or "-",
-                     _flag(v.start), _flag(v.min), _flag(v.max), v.description or ""))
+                     _flag(v.start), _flag(v.min), _flag(v.max), alias + (v.description or "")))
     widths = [max(len(r[k]) for r in rows) for k in range(len(rows[0]) - 1)]
     print(f"variables ({len(md.modelVariables)}):")
     for r in rows:

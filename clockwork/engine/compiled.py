@@ -4,7 +4,8 @@
 src_c/master/cw_master.c, a line-for-line twin of master.py with
 coupling.py, location.py, checkpoints.py and recording.py. It calls each
 FMU's fmi2 functions through the pointers of the library fmpy loaded, so
-it steps any FMI 2.0 Co-Simulation FMU. Loading, initialization, the
+it steps any FMI 2.0 Co-Simulation FMU, and FMI 1.0 and 3.0 ones through
+the core's adapters (cw1_*, cw3_*) with the same fmi2 shape. Loading, initialization, the
 wiring and everything a scene or an analysis asks for stay in Python: the
 core gets the ports' preallocated arrays and runs as many steps as it can
 before Python is needed again (the stop time, a full recording buffer, an
@@ -26,6 +27,7 @@ from ctypes import POINTER, Structure, byref, c_double, c_int, c_longlong, c_siz
 from ..errors import SceneError, SimulationError
 from ..paths import core_library
 from .fmu import Instance
+from .fmu1 import _Fmi1
 from .fmu3 import _Events
 from .master import Master
 from .ports import link_type
@@ -112,7 +114,8 @@ def load_core():
             except OSError as e:
                 _lib_error = f"the compiled core {path} cannot be loaded ({e}); build it with tools/setup.sh"
                 return None
-            for name, struct in (("port", _Port), ("master", _Master), ("recorder", _Recorder), ("fmi3", _Events)):
+            for name, struct in (("port", _Port), ("master", _Master), ("recorder", _Recorder), ("fmi3", _Events),
+                                 ("fmi1", _Fmi1)):
                 size = getattr(lib, f"cw_sizeof_{name}")
                 size.restype = c_size_t
                 if size() != ctypes.sizeof(struct):
@@ -258,6 +261,10 @@ class CompiledMaster(Master):
                 # The core's FMI 3.0 adapter (cw3_*), on the instance's shared adapter state.
                 dll, prefix, names = self._lib, "cw3_", _ADAPTER_NAMES
                 c.comp = ctypes.addressof(inst.events)
+            elif inst.fmi_version == 1:
+                # The core's FMI 1.0 adapter (cw1_*: fmiDoStep's char newStep, negated aliases).
+                dll, prefix, names = self._lib, "cw1_", _ADAPTER_NAMES
+                c.comp = ctypes.addressof(inst.adapter)
             else:
                 dll, prefix, names = inst._slave.dll, "fmi2", _FMI2_NAMES
                 c.comp = inst.component

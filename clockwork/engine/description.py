@@ -2,8 +2,12 @@
 
 ``resolve_fmu`` finds an FMU by model name or path, ``read_fmu`` reads its
 model description (cached by path, modification time and size) and checks
-that it is an FMI 2.0 or 3.0 Co-Simulation FMU with a binary for this
-platform. An FMI 3.0 description is seen through FMI 2.0's type names
+that it is an FMI 1.0, 2.0 or 3.0 Co-Simulation FMU with a binary for this
+platform. An FMI 1.0 description is completed where fmpy leaves it bare
+(``_check_fmi1``): its Capabilities go into ``coSimulation``, each output's
+DirectDependency into ``outputs`` (absent: every input), a causality of
+"none" reads as "local", and its negated aliases and MIME type are
+kept for ``fmi1_details``. An FMI 3.0 description is seen through FMI 2.0's type names
 where FMI 2.0 has the type (Float64 is "Real", Int32 "Integer"), so that
 the layers above read both alike; Float32, the other integer sizes and
 Binary keep their FMI 3.0 names (``INTEGER_TYPES``, ``REAL_TYPES``,
@@ -21,8 +25,10 @@ import platform
 import re
 import struct
 import sys
+import weakref
 import xml.etree.ElementTree as ET
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -99,6 +105,9 @@ def event_indicator_names(xml: bytes) -> tuple[str, ...]:
     tools += [t for t in root.iterfind("Annotations/Annotation") if t.get("type") == "clockwork"]
     for tool in tools:
         names += [i.get("name") for i in tool.iterfind("EventIndicators/Indicator") if i.get("name")]
+        # FMI 1.0's Tool holds name-value pairs only.
+        names += [a.get("value") for a in tool.iterfind("Annotation")
+                  if a.get("name") == "eventIndicator" and a.get("value")]
     return tuple(names)
 
 
@@ -148,7 +157,7 @@ def resolve_fmu(spec: str, base_dir: Path | None = None, fmi_version: int = 2) -
 
 
 def read_fmu(path: Path, need_binary: bool = True,
-             versions: tuple[str, ...] = ("2.0", "3.0")) -> tuple[Any, str, tuple[str, ...]]:
+             versions: tuple[str, ...] = ("1.0", "2.0", "3.0")) -> tuple[Any, str, tuple[str, ...]]:
     """(model description, sha256, event indicators) of an FMU, cached by
     (path, mtime, size); its FMI version must be one of `versions`."""
     import fmpy
@@ -180,12 +189,15 @@ def read_fmu(path: Path, need_binary: bool = True,
             md = fmpy.read_model_description(str(path), validate=False)
         except Exception as e:  # fmpy raises bare Exceptions and lxml errors
             raise FmuError(f"{path}: unreadable modelDescription.xml: {e}") from None
-        if md.fmiVersion not in ("2.0", "3.0"):
-            raise FmuError(f"{path}: expected an FMI 2.0 or 3.0 FMU, found FMI {md.fmiVersion}")
+        if md.fmiVersion not in ("1.0", "2.0", "3.0"):
+            raise FmuError(f"{path}: expected an FMI 1.0, 2.0 or 3.0 FMU, found FMI {md.fmiVersion}")
         if md.fmiVersion == "3.0":
             _check_fmi3(path, md, xml)
         if md.coSimulation is None:
-            raise FmuError(f"{path}: expected a Co-Simulation FMU (no <CoSimulation> element)")
+            element = "<Implementation>" if md.fmiVersion == "1.0" else "<CoSimulation>"
+            raise FmuError(f"{path}: expected a Co-Simulation FMU (no {element} element)")
+        if md.fmiVersion == "1.0":
+            _check_fmi1(path, md, xml)
         ident = md.coSimulation.modelIdentifier
         if not isinstance(ident, str) or not NAME_RE.match(ident):
             # fmpy loads binaries/<platform>/<modelIdentifier>.so: a path here would load a file outside the FMU.
@@ -264,6 +276,110 @@ def _check_fmi3(path: Path, md, xml: bytes) -> None:
         v.intermediateUpdate = v.name in intermediate
 
 
+# FMI 1.0's Co-Simulation Capabilities that the master reads, and how
+# (fmpy 0.3 reads none of them: its CoSimulation keeps the defaults).
+_FMI1_CAPABILITIES = {"canHandleVariableCommunicationStepSize": "bool", "canInterpolateInputs": "bool",
+                      "maxOutputDerivativeOrder": "int", "canRunAsynchronuously": "bool",
+                      "canBeInstantiatedOnlyOncePerProcess": "bool", "canNotUseMemoryManagementFunctions": "bool"}
+STAND_ALONE_MIME_TYPE = "application/x-fmu-sharedlibrary"
+
+
+@dataclass(frozen=True)
+class Fmi1Details:
+    """What an FMI 1.0 description says beyond fmpy's model description."""
+    negated: frozenset[str] = frozenset()  # negatedAlias variables
+    mime_type: str = STAND_ALONE_MIME_TYPE  # for fmiInstantiateSlave: the tool's, for CoSimulation_Tool
+
+
+_FMI1: "weakref.WeakKeyDictionary[Any, Fmi1Details]" = weakref.WeakKeyDictionary()
+
+
+def _check_fmi1(path: Path, md, xml: bytes) -> None:
+    """Complete an FMI 1.0 Co-Simulation description where fmpy leaves it
+    bare, in the terms the layers read for FMI 2.0: the Capabilities, each
+    output's DirectDependency as its ``outputs`` dependencies (no element:
+    every input, FMI 1.0 Sec. 2.10), "none" as "local", and the negated
+    aliases (same value reference, value negated) for ``fmi1_details``."""
+    from fmpy.model_description import Unknown
+
+    where = f"{path}: modelDescription.xml"
+    root = ET.fromstring(xml)  # fmpy has parsed it already
+    impl = root.find("Implementation")
+    caps = impl.find("CoSimulation_StandAlone/Capabilities") if impl is not None else None
+    if caps is None and impl is not None:
+        caps = impl.find("CoSimulation_Tool/Capabilities")
+    cs = md.coSimulation
+    model = impl.find("CoSimulation_Tool/Model") if impl is not None else None
+    cs.needsExecutionTool = model is not None
+    cs.canGetAndSetFMUstate = cs.canSerializeFMUstate = False  # FMI 1.0 has no FMU state
+    for name, kind in _FMI1_CAPABILITIES.items():
+        text = (caps.get(name) if caps is not None else None)
+        if text is None:
+            continue
+        text = text.strip()
+        if kind == "bool":
+            if text not in ("true", "false", "1", "0"):
+                raise FmuError(f"{where}: Capabilities {name}={text!r}: expected true or false")
+            setattr(cs, name, text in ("true", "1"))
+        else:
+            if not text.isdigit():
+                raise FmuError(f"{where}: Capabilities {name}={text!r}: expected a whole number >= 0")
+            setattr(cs, name, int(text))
+    by_name = {v.name: v for v in md.modelVariables}
+    for v in md.modelVariables:
+        if v.causality == "none":  # a tool's own variable: read like a local one
+            v.causality = "local"
+    base = {}  # (type, value reference) -> the variable that is no alias
+    elements = [e for e in root.iterfind("ModelVariables/ScalarVariable") if e.get("name") in by_name]
+    for e in elements:
+        if e.get("alias", "noAlias") == "noAlias":
+            v = by_name[e.get("name")]
+            base.setdefault((v.type, v.valueReference), v)
+    negated = set()
+    outputs = []
+    for e in elements:
+        v = by_name[e.get("name")]
+        if e.get("alias") == "negatedAlias":
+            if v.type not in ("Real", "Integer", "Boolean"):
+                raise FmuError(f"{where}: {v.name} is a negatedAlias of type {v.type}, which cannot be negated")
+            negated.add(v.name)
+        if e.get("alias") in ("alias", "negatedAlias"):
+            v.alias = base.get((v.type, v.valueReference))
+        if v.causality != "output":
+            continue
+        direct = e.find("DirectDependency")
+        deps = None
+        if direct is not None:
+            deps = []
+            for n in direct.iterfind("Name"):
+                name = (n.text or "").strip()
+                if name not in by_name:
+                    raise FmuError(f"{where}: the DirectDependency of output {v.name} names {name!r}, "
+                                   f"which is no variable of {md.modelName}")
+                deps.append(by_name[name])
+        outputs.append(Unknown(variable=v, dependencies=deps))
+    md.outputs[:] = outputs
+    _FMI1[md] = Fmi1Details(frozenset(negated), (model.get("type") if model is not None else None)
+                            or STAND_ALONE_MIME_TYPE)
+
+
+def fmi1_details(md) -> Fmi1Details:
+    """What ``_check_fmi1`` kept of an FMI 1.0 description: its negated
+    aliases (each shares its value reference with the variable it negates,
+    so its value is that variable's, negated) and the MIME type. Defaults
+    for other versions and for a description that did not come from
+    read_fmu (e.g. one unpickled): ask read_fmu for the file's."""
+    return _FMI1.get(md, Fmi1Details())
+
+
+def no_state_reason(md) -> str:
+    """Why an FMU cannot save and restore its state (for the refusals of
+    settings that roll every FMU back)."""
+    if md.fmiVersion == "1.0":
+        return "it is an FMI 1.0 FMU, which has no FMU state"
+    return "its modelDescription.xml does not declare canGetAndSetFMUstate"
+
+
 def type_name(md, v) -> str:
     """A variable's type as its modelDescription.xml names it (Float64, not
     Real, in an FMI 3.0 FMU)."""
@@ -273,8 +389,8 @@ def type_name(md, v) -> str:
 
 
 def fmi_version(md) -> int:
-    """2 or 3: the major FMI version of a model description."""
-    return 3 if md.fmiVersion == "3.0" else 2
+    """1, 2 or 3: the major FMI version of a model description."""
+    return {"1.0": 1, "3.0": 3}.get(md.fmiVersion, 2)
 
 
 def event_indicators(path: Path) -> tuple[str, ...]:

@@ -194,7 +194,8 @@ def direct_feedthrough(md) -> dict[str, list[str]]:
 class Instance:
     """An instantiated FMU with fast access to its fmi2 functions."""
 
-    fmi_version = 2  # fmu3.Instance3 says 3
+    fmi_version = 2  # fmu3.Instance3 says 3, fmu1.Instance1 1
+    do_step_name = "fmi2DoStep"  # in messages
 
     def __init__(self, name: str, path: Path, model_description=None):
         self.name = name

@@ -59,6 +59,7 @@ from ..errors import SceneError, SimulationError
 from ..paths import core_library
 from .description import fmi_version, int_range, read_fmu, type_name
 from .fmu import DISCARD, ERROR, OK, WARNING, Instance, extract
+from .fmu1 import Instance1
 
 MAX_EVENT_ITERATIONS = 1000  # fmi3UpdateDiscreteStates calls per event before giving up
 MAX_STALLED_RETURNS = 100  # early returns in a row that do not move the FMU's time
@@ -144,6 +145,7 @@ class Instance3(Instance):
     """An instantiated FMI 3.0 Co-Simulation FMU behind fmi2-shaped calls."""
 
     fmi_version = 3
+    do_step_name = "fmi3DoStep"
 
     def __init__(self, name, path, model_description=None, early_return: bool = True,
                  intermediate_update: bool = False):
@@ -498,11 +500,14 @@ class Instance3(Instance):
 
 def make_instance(name, path, model_description=None, early_return: bool = True,
                   intermediate_update: bool = False) -> Instance:
-    """An ``Instance`` or ``Instance3`` (early return allowed where it
-    declares it, unless `early_return` is false; intermediate update where
-    it provides it and `intermediate_update` asks for it), as the FMU's
-    modelDescription says."""
+    """An ``Instance1``, ``Instance`` or ``Instance3`` (early return
+    allowed where it declares it, unless `early_return` is false;
+    intermediate update where it provides it and `intermediate_update` asks
+    for it), as the FMU's modelDescription says."""
     md = model_description or read_fmu(path, need_binary=False)[0]
-    if fmi_version(md) == 3:
+    version = fmi_version(md)
+    if version == 3:
         return Instance3(name, path, md, early_return, intermediate_update)
+    if version == 1:
+        return Instance1(name, path, md)
     return Instance(name, path, md)

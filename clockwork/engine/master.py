@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 
 from .checkpoints import Checkpoints
+from .description import no_state_reason
 from .coupling import InputCoupling, iterate_step
 from .fmu import DISCARD, NO_MESSAGE, WARNING, Instance, free_all
 from .location import EventLocator, crossed, scan
@@ -98,8 +99,7 @@ class Master:
         for inst in self.instances.values():
             if not inst.can_get_set_state:
                 raise SceneError(f"{key}: {inst.name} ({inst.path.name}) cannot save and restore its state "
-                                 f"(its modelDescription.xml does not declare canGetAndSetFMUstate), "
-                                 f"and {why} rolls every FMU back")
+                                 f"({no_state_reason(inst.md)}), and {why} rolls every FMU back")
 
     def _check_fmi3(self) -> None:
         """FMI 3.0 Co-Simulation takes no input derivatives: refuse inputs
@@ -266,7 +266,7 @@ class Master:
                                    fmu_time=end)
         if st == DISCARD:
             return SimulationError(
-                f"{p.inst.name}: fmi2DoStep from t = {t!r} s with h = {h!r} s was discarded: "
+                f"{p.inst.name}: {p.inst.do_step_name} from t = {t!r} s with h = {h!r} s was discarded: "
                 f"{p.inst.last_message() or NO_MESSAGE}", time=t, instance=p.inst.name)
         return p.inst.fail(f"fmi2DoStep({t!r}, {h!r})", st, t)
 

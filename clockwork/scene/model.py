@@ -16,7 +16,7 @@ from typing import Any, NamedTuple
 
 from ..errors import SceneError
 from ..engine import compiled
-from ..engine.description import variables as variables_of
+from ..engine.description import no_state_reason, variables as variables_of
 from ..engine.settings import rollback_need
 from .units import fmt
 
@@ -212,8 +212,8 @@ def rollback_problem(m: MasterConfig, components: dict[str, Component]) -> tuple
     for c in components.values():
         if not c.model_description.coSimulation.canGetAndSetFMUstate:
             return key, (f"expected {'0' if key == 'master.iterations' else 'false'} here: components.{c.name} "
-                         f"({c.fmu_path.name}) cannot save and restore its state (its modelDescription.xml "
-                         f"does not declare canGetAndSetFMUstate), and {why} rolls every FMU back")
+                         f"({c.fmu_path.name}) cannot save and restore its state "
+                         f"({no_state_reason(c.model_description)}), and {why} rolls every FMU back")
     return None
 
 

@@ -16,10 +16,10 @@
  * Not covered (the Python master serves them): strong coupling
  * (master.iterations > 0) and step doubling (master.richardson).
  *
- * FMI 3.0 instances are called through the adapter at the end of this
- * file (cw3_*): fmi2-shaped functions whose first argument is a cw_fmi3,
- * the twin of clockwork/engine/fmu3.py, so the stepping code above never
- * asks which version an FMU is.
+ * FMI 3.0 and FMI 1.0 instances are called through the adapters at the
+ * end of this file (cw3_*, cw1_*): fmi2-shaped functions whose first
+ * argument is a cw_fmi3 or a cw_fmi1, the twins of clockwork/engine/fmu3.py
+ * and fmu1.py, so the stepping code above never asks which version an FMU is.
  */
 
 #include <math.h>
@@ -1570,4 +1570,161 @@ CW_EXPORT int cw3_setState(void *comp, void *state)
         iu_recheck(a);
     }
     return st;
+}
+
+/* ---- FMI 1.0: the adapter (the twin of clockwork/engine/fmu1.py) ----------
+ *
+ * Each function has the fmi2 shape the core calls and takes a cw_fmi1 as
+ * its component. fmiDoStep's last argument is FMI 1.0's newStep, an
+ * fmiBoolean (a char), where fmi2DoStep has an int: cw1_doStep calls it
+ * through its own type, always with newStep = true (a step of an FMU
+ * without state is never repeated). A negated alias has a value reference
+ * of its own (negated_vr), turned into the FMU's (base_vr) with its value
+ * negated both ways. FMI 1.0 has no FMU state: the master refuses every
+ * setting that needs one before the first step.
+ */
+
+typedef char fmi1_boolean;
+typedef int (*fmi1DoStep_t)(void *, double, double, fmi1_boolean);
+
+typedef struct cw_fmi1 {
+    void *instance;
+    fmi1DoStep_t doStep;
+    cw_getReal_t getReal;
+    cw_setReal_t setReal;
+    cw_setDer_t setInputDerivatives;
+    cw_getDer_t getOutputDerivatives;
+    const unsigned *negated_vr; /* the master's value references of negated aliases */
+    const unsigned *base_vr;    /* the FMU's, whose value they negate */
+    int n_negated, pad_;
+} cw_fmi1;
+
+CW_EXPORT size_t cw_sizeof_fmi1(void) { return sizeof(cw_fmi1); }
+
+enum { CW1_CHUNK = 64 };  /* value references translated at a time */
+
+/* The FMU's value references for vr[0..n) (n <= CW1_CHUNK) and which are negated. */
+static void cw1_own(const cw_fmi1 *a, const unsigned *vr, size_t n, unsigned *own, int *negated)
+{
+    for (size_t k = 0; k < n; k++) {
+        own[k] = vr[k];
+        negated[k] = 0;
+        for (int j = 0; j < a->n_negated; j++)
+            if (a->negated_vr[j] == vr[k]) {
+                own[k] = a->base_vr[j];
+                negated[k] = 1;
+                break;
+            }
+    }
+}
+
+CW_EXPORT int cw1_doStep(void *comp, double t, double h, int no_set_prior)
+{
+    cw_fmi1 *a = comp;
+    (void)no_set_prior;  /* FMI 1.0 has no FMU state to set */
+    return a->doStep(a->instance, t, h, (fmi1_boolean)1);
+}
+
+CW_EXPORT int cw1_getReal(void *comp, const unsigned *vr, size_t n, double *out)
+{
+    cw_fmi1 *a = comp;
+    if (!a->n_negated)
+        return a->getReal(a->instance, vr, n, out);
+    int worst = FMI_OK;
+    for (size_t at = 0; at < n; at += CW1_CHUNK) {
+        size_t m = n - at < CW1_CHUNK ? n - at : CW1_CHUNK;
+        unsigned own[CW1_CHUNK];
+        int negated[CW1_CHUNK];
+        cw1_own(a, vr + at, m, own, negated);
+        int st = a->getReal(a->instance, own, m, out + at);
+        if (st > FMI_WARNING)
+            return st;
+        worst = st > worst ? st : worst;
+        for (size_t k = 0; k < m; k++)
+            if (negated[k])
+                out[at + k] = -out[at + k];
+    }
+    return worst;
+}
+
+CW_EXPORT int cw1_setReal(void *comp, const unsigned *vr, size_t n, const double *values)
+{
+    cw_fmi1 *a = comp;
+    if (!a->n_negated)
+        return a->setReal(a->instance, vr, n, values);
+    int worst = FMI_OK;
+    for (size_t at = 0; at < n; at += CW1_CHUNK) {
+        size_t m = n - at < CW1_CHUNK ? n - at : CW1_CHUNK;
+        unsigned own[CW1_CHUNK];
+        int negated[CW1_CHUNK];
+        double given[CW1_CHUNK];
+        cw1_own(a, vr + at, m, own, negated);
+        for (size_t k = 0; k < m; k++)
+            given[k] = negated[k] ? -values[at + k] : values[at + k];
+        int st = a->setReal(a->instance, own, m, given);
+        if (st > FMI_WARNING)
+            return st;
+        worst = st > worst ? st : worst;
+    }
+    return worst;
+}
+
+CW_EXPORT int cw1_setInputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order,
+                                      const double *values)
+{
+    cw_fmi1 *a = comp;
+    if (!a->n_negated)
+        return a->setInputDerivatives(a->instance, vr, n, order, values);
+    int worst = FMI_OK;
+    for (size_t at = 0; at < n; at += CW1_CHUNK) {
+        size_t m = n - at < CW1_CHUNK ? n - at : CW1_CHUNK;
+        unsigned own[CW1_CHUNK];
+        int negated[CW1_CHUNK];
+        double given[CW1_CHUNK];
+        cw1_own(a, vr + at, m, own, negated);
+        for (size_t k = 0; k < m; k++)
+            given[k] = negated[k] ? -values[at + k] : values[at + k];
+        int st = a->setInputDerivatives(a->instance, own, m, order + at, given);
+        if (st > FMI_WARNING)
+            return st;
+        worst = st > worst ? st : worst;
+    }
+    return worst;
+}
+
+CW_EXPORT int cw1_getOutputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order, double *out)
+{
+    cw_fmi1 *a = comp;
+    if (!a->n_negated)
+        return a->getOutputDerivatives(a->instance, vr, n, order, out);
+    int worst = FMI_OK;
+    for (size_t at = 0; at < n; at += CW1_CHUNK) {
+        size_t m = n - at < CW1_CHUNK ? n - at : CW1_CHUNK;
+        unsigned own[CW1_CHUNK];
+        int negated[CW1_CHUNK];
+        cw1_own(a, vr + at, m, own, negated);
+        int st = a->getOutputDerivatives(a->instance, own, m, order + at, out + at);
+        if (st > FMI_WARNING)
+            return st;
+        worst = st > worst ? st : worst;
+        for (size_t k = 0; k < m; k++)
+            if (negated[k])
+                out[at + k] = -out[at + k];
+    }
+    return worst;
+}
+
+/* Never called: the master refuses rollback for FMI 1.0 before the first step. */
+CW_EXPORT int cw1_getState(void *comp, void **state)
+{
+    (void)comp;
+    (void)state;
+    return FMI_ERROR;
+}
+
+CW_EXPORT int cw1_setState(void *comp, void *state)
+{
+    (void)comp;
+    (void)state;
+    return FMI_ERROR;
 }

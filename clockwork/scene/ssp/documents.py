@@ -204,12 +204,13 @@ def unit_table(doc: Doc, parent) -> dict[str, Unit]:
 
 
 def fmu_units(md) -> dict[str, Unit]:
+    """The FMU's units that its BaseUnit defines in SI terms. A unit without
+    one (every unit of FMI 1.0, which names units only) converts to itself
+    alone, as in scene/units.py: it is left out, never taken as 1."""
     out = {}
     for u in getattr(md, "unitDefinitions", None) or []:
         b = u.baseUnit
-        if b is None:
-            out[u.name] = Unit((0,) * len(_EXPONENTS), 1.0, 0.0)
-        else:
+        if b is not None:
             out[u.name] = Unit(tuple(int(getattr(b, k, 0) or 0) for k in _EXPONENTS), float(b.factor),
                                 float(b.offset))
     return out
