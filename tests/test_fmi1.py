@@ -368,6 +368,47 @@ def test_a_bad_capability_is_refused_in_one_line(tmp_path, capsys):
     assert_one_line_error(rc, err, "Bad.fmu", "maxOutputDerivativeOrder='two'")
 
 
+TYPES_SCENE = """
+connections = ["a.y_real -> b.u_real", "a.y_int -> b.u_int", "a.y_enum -> b.u_enum", "a.y_str -> b.u_str",
+               "a.y_bool -> b.u_bool"]
+[scene]
+title = "types"
+[components.a]
+fmu = "{a}"
+parameters = {{ p_real = 1.25, p_enum = "high", p_str = "tick", p_bool = true, p_int = 7 }}
+[components.b]
+fmu = "{b}"
+[experiment]
+stop = 0.5
+[master]
+step = 0.1
+[record]
+outputs = ["a.y_str", "a.y_bool", "a.y_enum", "b.y_real", "b.y_int", "b.y_enum", "b.y_str", "b.y_bool"]
+"""
+
+
+def test_every_type_in_a_scene_and_its_exported_ssp(tmp_path, capsys):
+    """A scene with an FMI 1.0 component: parameters of every type (an
+    Enumeration by its item's name), links and recorded outputs of every
+    type, String included; the FMI 2.0 twin's CSV byte for byte, and the
+    same again from the SSP that export-ssp writes of it."""
+    csv = {}
+    for name, a in (("fmi1", fmi1("TestTypes")), ("fmi2", str(test_fmu("TestTypes")))):
+        toml = tmp_path / f"{name}.toml"
+        toml.write_text(TYPES_SCENE.format(a=a, b=test_fmu("TestTypes")))
+        rc, _, err = run_cli(capsys, ["run", toml, "--out", tmp_path / name])
+        assert rc == 0, err
+        csv[name] = (tmp_path / name / "timeseries.csv").read_text()
+    assert csv["fmi1"] == csv["fmi2"]
+    assert csv["fmi1"].splitlines()[-1] == "0.5,tick,1.0,3.0,2.25,9.0,3.0,ticktick,1.0"
+    ssp = tmp_path / "types.ssp"
+    rc, _, err = run_cli(capsys, ["export-ssp", tmp_path / "fmi1.toml", "--out", ssp])
+    assert rc == 0, err
+    rc, _, err = run_cli(capsys, ["run", ssp, "--out", tmp_path / "ssp"])
+    assert rc == 0, err
+    assert (tmp_path / "ssp" / "timeseries.csv").read_text() == csv["fmi1"]
+
+
 def _types_fixture(tmp_path: Path, a_fmu: str) -> Path:
     """tests/data/ssp/types without its unit conversions (FMI 1.0 units are
     names only), component a from `a_fmu`."""
