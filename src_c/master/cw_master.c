@@ -1625,93 +1625,68 @@ CW_EXPORT int cw1_doStep(void *comp, double t, double h, int no_set_prior)
     return a->doStep(a->instance, t, h, (fmi1_boolean)1);
 }
 
-CW_EXPORT int cw1_getReal(void *comp, const unsigned *vr, size_t n, double *out)
+/* A call with negated aliases among vr: through the FMU's value references,
+ * CW1_CHUNK at a time, values given negated and values read negated back. */
+enum { CW1_GET_REAL, CW1_SET_REAL, CW1_SET_DER, CW1_GET_DER };
+
+static int cw1_translated(cw_fmi1 *a, int call, const unsigned *vr, size_t n, const int *order,
+                          const double *given, double *out)
 {
-    cw_fmi1 *a = comp;
-    if (!a->n_negated)
-        return a->getReal(a->instance, vr, n, out);
     int worst = FMI_OK;
     for (size_t at = 0; at < n; at += CW1_CHUNK) {
         size_t m = n - at < CW1_CHUNK ? n - at : CW1_CHUNK;
         unsigned own[CW1_CHUNK];
         int negated[CW1_CHUNK];
+        double values[CW1_CHUNK];
         cw1_own(a, vr + at, m, own, negated);
-        int st = a->getReal(a->instance, own, m, out + at);
+        if (given)
+            for (size_t k = 0; k < m; k++)
+                values[k] = negated[k] ? -given[at + k] : given[at + k];
+        int st;
+        switch (call) {
+        case CW1_GET_REAL: st = a->getReal(a->instance, own, m, out + at); break;
+        case CW1_SET_REAL: st = a->setReal(a->instance, own, m, values); break;
+        case CW1_SET_DER: st = a->setInputDerivatives(a->instance, own, m, order + at, values); break;
+        default: st = a->getOutputDerivatives(a->instance, own, m, order + at, out + at); break;
+        }
         if (st > FMI_WARNING)
             return st;
         worst = st > worst ? st : worst;
-        for (size_t k = 0; k < m; k++)
-            if (negated[k])
-                out[at + k] = -out[at + k];
+        if (out)
+            for (size_t k = 0; k < m; k++)
+                if (negated[k])
+                    out[at + k] = -out[at + k];
     }
     return worst;
+}
+
+CW_EXPORT int cw1_getReal(void *comp, const unsigned *vr, size_t n, double *out)
+{
+    cw_fmi1 *a = comp;
+    return a->n_negated ? cw1_translated(a, CW1_GET_REAL, vr, n, NULL, NULL, out)
+                        : a->getReal(a->instance, vr, n, out);
 }
 
 CW_EXPORT int cw1_setReal(void *comp, const unsigned *vr, size_t n, const double *values)
 {
     cw_fmi1 *a = comp;
-    if (!a->n_negated)
-        return a->setReal(a->instance, vr, n, values);
-    int worst = FMI_OK;
-    for (size_t at = 0; at < n; at += CW1_CHUNK) {
-        size_t m = n - at < CW1_CHUNK ? n - at : CW1_CHUNK;
-        unsigned own[CW1_CHUNK];
-        int negated[CW1_CHUNK];
-        double given[CW1_CHUNK];
-        cw1_own(a, vr + at, m, own, negated);
-        for (size_t k = 0; k < m; k++)
-            given[k] = negated[k] ? -values[at + k] : values[at + k];
-        int st = a->setReal(a->instance, own, m, given);
-        if (st > FMI_WARNING)
-            return st;
-        worst = st > worst ? st : worst;
-    }
-    return worst;
+    return a->n_negated ? cw1_translated(a, CW1_SET_REAL, vr, n, NULL, values, NULL)
+                        : a->setReal(a->instance, vr, n, values);
 }
 
 CW_EXPORT int cw1_setInputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order,
                                       const double *values)
 {
     cw_fmi1 *a = comp;
-    if (!a->n_negated)
-        return a->setInputDerivatives(a->instance, vr, n, order, values);
-    int worst = FMI_OK;
-    for (size_t at = 0; at < n; at += CW1_CHUNK) {
-        size_t m = n - at < CW1_CHUNK ? n - at : CW1_CHUNK;
-        unsigned own[CW1_CHUNK];
-        int negated[CW1_CHUNK];
-        double given[CW1_CHUNK];
-        cw1_own(a, vr + at, m, own, negated);
-        for (size_t k = 0; k < m; k++)
-            given[k] = negated[k] ? -values[at + k] : values[at + k];
-        int st = a->setInputDerivatives(a->instance, own, m, order + at, given);
-        if (st > FMI_WARNING)
-            return st;
-        worst = st > worst ? st : worst;
-    }
-    return worst;
+    return a->n_negated ? cw1_translated(a, CW1_SET_DER, vr, n, order, values, NULL)
+                        : a->setInputDerivatives(a->instance, vr, n, order, values);
 }
 
 CW_EXPORT int cw1_getOutputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order, double *out)
 {
     cw_fmi1 *a = comp;
-    if (!a->n_negated)
-        return a->getOutputDerivatives(a->instance, vr, n, order, out);
-    int worst = FMI_OK;
-    for (size_t at = 0; at < n; at += CW1_CHUNK) {
-        size_t m = n - at < CW1_CHUNK ? n - at : CW1_CHUNK;
-        unsigned own[CW1_CHUNK];
-        int negated[CW1_CHUNK];
-        cw1_own(a, vr + at, m, own, negated);
-        int st = a->getOutputDerivatives(a->instance, own, m, order + at, out + at);
-        if (st > FMI_WARNING)
-            return st;
-        worst = st > worst ? st : worst;
-        for (size_t k = 0; k < m; k++)
-            if (negated[k])
-                out[at + k] = -out[at + k];
-    }
-    return worst;
+    return a->n_negated ? cw1_translated(a, CW1_GET_DER, vr, n, order, NULL, out)
+                        : a->getOutputDerivatives(a->instance, vr, n, order, out);
 }
 
 /* Never called: the master refuses rollback for FMI 1.0 before the first step. */
