@@ -361,6 +361,18 @@ def test_model_exchange_only_is_refused_in_one_line(tmp_path, capsys):
     assert_one_line_error(rc, err, "ME.fmu", "expected a Co-Simulation FMU (no <Implementation> element)")
 
 
+def test_a_guid_the_binary_refuses_is_one_line(tmp_path, capsys):
+    """fmiInstantiateSlave returns no instance: bad input, with the FMU's
+    own message; nothing is left to free."""
+    other = edited(fmi1("TestDecay"), tmp_path / "Other.fmu", lambda x: re.sub(r'guid="[^"]*"', 'guid="{x}"', x))
+    toml = tmp_path / "other.toml"
+    toml.write_text(f'[scene]\ntitle = "g"\n[components.d]\nfmu = "{other}"\n[experiment]\nstop = 0.1\n'
+                    '[master]\nstep = 0.1\n[record]\noutputs = ["d.x"]\n')
+    rc, _, err = run_cli(capsys, ["run", toml, "--out", tmp_path / "out"])
+    assert_one_line_error(rc, err, "Other.fmu: fmiInstantiateSlave made no instance (GUID {x})",
+                          "GUID '{x}' does not match")
+
+
 def test_a_bad_capability_is_refused_in_one_line(tmp_path, capsys):
     bad = edited(fmi1("TestTypes"), tmp_path / "Bad.fmu",
                  lambda x: x.replace('maxOutputDerivativeOrder="0"', 'maxOutputDerivativeOrder="two"'))

@@ -128,6 +128,7 @@ class Instance1(Instance):
         component = instantiate(self.name.encode(), self.md.guid.encode(), Path(unzip).as_uri().encode(),
                                 self.details.mime_type.encode(), 0.0, FALSE, FALSE, callbacks, FALSE)
         if not component:
+            self._slave = None  # nothing to free
             raise SceneError(f"{self.path}: fmiInstantiateSlave made no instance (GUID {self.md.guid}): "
                              f"{self.last_message() or 'it logged no message'}")
         self._slave.component = self.component = component
@@ -259,7 +260,8 @@ class Instance1(Instance):
 
     def reset(self) -> None:
         """fmiResetSlave: back to the state right after instantiation."""
-        super().reset()
+        self.check(self.c_reset(self.component), "fmiResetSlave")
+        del self.messages[:]  # an error after the reset must not quote one from before
         self._initialized = self._failed = self._pending = False
 
     def terminated(self) -> bool:
