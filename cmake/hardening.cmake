@@ -3,7 +3,8 @@
 # For every model, a C driver (tests/c/fmu_driver.c) that loads the model's
 # binary with dlopen and drives it through the FMI API with its own logger
 # and a counting allocator, and one for its FMI 3.0 build
-# (tests/c/fmu_driver3.c); ctest runs both per model. With
+# (tests/c/fmu_driver3.c) and its FMI 1.0 build (tests/c/fmu_driver1.c);
+# ctest runs the three per model. With
 # CW_SANITIZE=ON the drivers and the FMUs are built with
 # -fsanitize=address,undefined, the drivers run with LeakSanitizer on, and
 # the pytest FMU suite (test fmu_tests) runs with the AddressSanitizer
@@ -42,8 +43,18 @@ foreach(table ${MODEL_TABLES})
   add_dependencies(fmu_driver3_${model} ${model}_fmi3)
   add_test(NAME driver3_${model}
            COMMAND fmu_driver3_${model} "$<TARGET_FILE:${model}_fmi3>")
+  # The FMI 1.0 build (tests/c/fmu_driver1.c): the runtime's fmi1 face.
+  add_executable(fmu_driver1_${model} "${CMAKE_SOURCE_DIR}/tests/c/fmu_driver1.c"
+                                      "${gen_dir}/cw_vars.h")
+  target_include_directories(fmu_driver1_${model} PRIVATE "${gen_dir}" "${RUNTIME_DIR}" "${FMI_HEADERS}")
+  target_compile_options(fmu_driver1_${model} PRIVATE ${CW_WARNINGS} ${CW_SAN_FLAGS})
+  target_link_options(fmu_driver1_${model} PRIVATE ${CW_SAN_FLAGS})
+  target_link_libraries(fmu_driver1_${model} PRIVATE m ${CMAKE_DL_LIBS})
+  add_dependencies(fmu_driver1_${model} ${model}_fmi1)
+  add_test(NAME driver1_${model}
+           COMMAND fmu_driver1_${model} "$<TARGET_FILE:${model}_fmi1>")
   if(CW_SAN_ENV)
-    set_tests_properties(driver_${model} driver3_${model} PROPERTIES ENVIRONMENT "${CW_SAN_ENV}")
+    set_tests_properties(driver_${model} driver3_${model} driver1_${model} PROPERTIES ENVIRONMENT "${CW_SAN_ENV}")
   endif()
 endforeach()
 
