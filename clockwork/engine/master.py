@@ -54,12 +54,12 @@ class Master:
                  extra_outputs: dict[str, list[str]] | None = None):
         self.instances = instances
         self.settings = settings
-        self.wiring = build(instances, links, step_order)
         settings.check()
+        self.wiring = build(instances, links, step_order, settings.algebraic_loops)
         self.t = start_time  # the current communication point, s
         self.start_time = start_time
         self.stats = Statistics()
-        self.ports = Ports(instances, links, self.wiring, extra_outputs, settings.event_location)
+        self.ports = Ports(instances, links, self.wiring, extra_outputs, settings.event_location, self)
         self.discrete_outputs = self.ports.discrete_outputs
         self.coupling = InputCoupling(self.ports.dynamic, settings.extrapolation)
         self.locator = EventLocator(self, self.ports.all)
@@ -88,6 +88,11 @@ class Master:
     def notes(self) -> list[str]:
         """What the master changed of the settings, said once each (e.g. a lowered extrapolation order)."""
         return self.coupling.notes
+
+    def count_loop(self, iterations: int, fallbacks: int) -> None:
+        """Algebraic loops (loops.Loop) count their iterations and fallbacks here."""
+        self.stats.loop_iterations += iterations
+        self.stats.loop_fallbacks += fallbacks
 
     def _check_rollback(self) -> None:
         """A rollback needs every FMU's state: refuse before the first step."""
@@ -129,7 +134,9 @@ class Master:
         for name, inst in self.instances.items():
             inst.setup(self.start_time, parameters.get(name, {}), self.settings.tolerance)
         # Outputs in initialization mode follow from parameters; two sweeps
-        # settle feedthrough chains of any depth found in these scenes.
+        # settle feedthrough chains of any depth found in these scenes
+        # (algebraic loops: engine/loops.py).
+        ports.start_loops()
         for _ in range(2):
             ports.propagate(ports.order, self.t)
         for inst in self.instances.values():

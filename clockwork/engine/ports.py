@@ -16,7 +16,8 @@ from ctypes import c_double, c_int, c_uint
 from ..errors import SceneError, SimulationError
 from .description import int_range, types_connect
 from .fmu import WARNING, Instance
-from .wiring import Link, Wiring
+from .loops import Loop
+from .wiring import Link, Wiring, loop_name
 
 
 class Port:
@@ -52,6 +53,7 @@ class Port:
         self.dout: list = []
         self.din_names: list[str] = []
         self.din_sources: list[tuple["Port", int]] = []
+        self.din_sent: dict = {}  # the discrete inputs' values last set
         self.has_inputs = self.n_in > 0  # Real or discrete
         # Order of the input polynomials this FMU gets (master.extrapolation,
         # 0 where it cannot interpolate inputs; lowered where it refuses one).
@@ -67,8 +69,8 @@ class Port:
             self.dout = self.inst.get_values(self.dout_names)
         self.out_time = t
 
-    def set_discrete(self) -> None:
-        """Set the discrete inputs to their sources' values (Python engine only)."""
+    def discrete_values(self) -> dict:
+        """The discrete inputs' values from their sources (Python engine only)."""
         values = {}
         for n, (src, j) in zip(self.din_names, self.din_sources):
             x = src.dout[j]
@@ -80,22 +82,39 @@ class Port:
                                       f"the value {x} is out of the range of {kind} [{bounds[0]}, {bounds[1]}]",
                                       instance=self.inst.name)
             values[n] = x
-        self.inst.set_values(values, "fmi2Set* of inputs")
+        return values
 
-    def pull(self, t: float) -> None:
-        """Set the inputs to their sources' outputs, then read the outputs, at t."""
-        if self.din_names:
-            self.set_discrete()
+    def set_discrete(self, values: dict | None = None) -> None:
+        """Set the discrete inputs to `values`, else to their sources' values."""
+        values = self.discrete_values() if values is None else values
+        self.inst.set_values(values, "fmi2Set* of inputs")
+        self.din_sent = values
+
+    def stage(self) -> dict | None:
+        """The inputs from their sources' outputs, into `inp`, not yet given
+        to the FMU; returns the discrete ones' values (None: none)."""
+        values = self.discrete_values() if self.din_names else None
         if self.n_in:
             inp = self.inp
             for k, src, j in self.sources:
                 inp[k] = src.out[j]
             for k, f, o in self.scale:
                 inp[k] = f * inp[k] + o
-            st = self.setReal(self.comp, self.in_vr, self.n_in, inp)
+        return values
+
+    def send(self, t: float, discrete: dict | None) -> None:
+        """Give the FMU the staged inputs (and the discrete `values`)."""
+        if discrete is not None:
+            self.set_discrete(discrete)
+        if self.n_in:
+            st = self.setReal(self.comp, self.in_vr, self.n_in, self.inp)
             if st > WARNING:
                 raise self.inst.fail("fmi2SetReal of inputs", st, t)
             self.sent_valid = False
+
+    def pull(self, t: float) -> None:
+        """Set the inputs to their sources' outputs, then read the outputs, at t."""
+        self.send(t, self.stage())
         self.read(t)
 
 
@@ -122,7 +141,9 @@ class Ports(dict):
     the orders in which a communication step visits them."""
 
     def __init__(self, instances: dict[str, Instance], links: list[Link], wiring: Wiring,
-                 extra_outputs: dict[str, list[str]] | None, event_location: bool):
+                 extra_outputs: dict[str, list[str]] | None, event_location: bool, owner=None):
+        """`owner`: the master whose settings (algebraic_loops,
+        iteration_tolerance) and statistics the algebraic loops use."""
         super().__init__()
         inputs: dict[str, list[str]] = {n: [] for n in instances}
         outputs: dict[str, list[str]] = {n: [] for n in instances}
@@ -174,15 +195,63 @@ class Ports(dict):
         self.all = list(self.values())
         self.first = [self[n] for n in wiring.feedthrough_only]  # stepped first: they commit modes
         self.dynamic = [self[n] for n in wiring.dynamic]
-        self.order = [self[n] for n in wiring.evaluation_order]  # output updates, in dependency order
-        self.first_in_order = [p for p in self.order if p in self.first]
+        mode = owner.settings.algebraic_loops if owner is not None else "solve"
+        in_loop = {n: i for i, members in enumerate(wiring.loops) for n in members}
+        loop_discrete: list[list[Link]] = [[] for _ in wiring.loops]
+        for link in discrete_links:
+            i = in_loop.get(link.src)
+            if i is not None and in_loop.get(link.dst) == i and wiring.feedthrough_outputs[(link.src, link.output)]:
+                loop_discrete[i].append(link)
+        self.loops = [self._loop(owner, i, wiring, loop_discrete[i], mode, len(instances))
+                      for i in range(len(wiring.loops))]
+        # Output updates, in dependency order; a loop stands where its members would.
+        loop_of = {p: loop for loop in self.loops for p in loop.members}
+        self.order: list = []
+        placed: set[int] = set()
+        for n in wiring.evaluation_order:
+            item = loop_of.get(self[n], self[n])
+            if id(item) not in placed:
+                placed.add(id(item))
+                self.order.append(item)
+        first = set(self.first)
+        self.first_in_order = [x for x in self.order if x in first
+                               or (isinstance(x, Loop) and x.mode == "solve" and not first.isdisjoint(x.members))]
         # After a step, only feedthrough outputs need an update at t + h;
         # a dynamic instance's own inputs are set when its next step starts.
+        # A loop broken by a delay keeps what its members gave after their step.
         self.final_order = [
-            p for p in self.order
-            if p in self.first or any(
-                wiring.feedthrough_outputs.get((p.inst.name, n), feeds(p.inst, n)) for n in p.out_names)
+            x for x in self.order
+            if (x.mode == "solve" if isinstance(x, Loop) else x in first or any(
+                wiring.feedthrough_outputs.get((x.inst.name, n), feeds(x.inst, n)) for n in x.out_names))
         ]
+
+    def _loop(self, owner, index: int, wiring: Wiring, discrete_links: list[Link], mode: str,
+              n_instances: int) -> Loop:
+        """Loop `index` of the wiring; `discrete_links`: its feedthrough links that are not Real."""
+        members = wiring.loops[index]
+        inside = set(members)
+        ports = [self[n] for n in members]
+        feeding = wiring.feedthrough_outputs
+        unknowns = []
+        for p in ports:
+            scale = {k: (f, o) for k, f, o in p.scale}
+            for k, src, j in p.sources:
+                if src.inst.name in inside and feeding[(src.inst.name, src.out_names[j])]:
+                    f, o = scale.get(k, (1.0, 0.0))
+                    unknowns.append((p, k, src, j, f, o, k in scale))
+        discrete = []
+        for link in discrete_links:
+            src = self[link.src]
+            discrete.append((self[link.dst], link.input, src, src.dout_names.index(link.output),
+                             f"{link.src}.{link.output} -> {link.dst}.{link.input}",
+                             src.inst.variables[link.output].type))
+        return Loop(owner, loop_name(members, wiring.loop_links[index]), ports, unknowns, discrete, mode,
+                    n_instances)
+
+    def start_loops(self) -> None:
+        """Initialization Mode begins: the loops broken by a delay start as the peers do."""
+        for loop in self.loops:
+            loop.starting = True
 
     def propagate(self, ports: list[Port], t: float) -> None:
         """Set inputs from their sources and read outputs, in order, at t."""

@@ -15,7 +15,7 @@ from pathlib import Path
 from ..engine.description import FLOAT32_MAX, INTEGER_TYPES, int_range, var_limit, var_unit
 from ..engine.description import variables as variables_of
 from ..engine.names import split_ref
-from ..engine.settings import ENGINES
+from ..engine.settings import ENGINES, LOOP_MODES
 from ..errors import SceneError
 from .model import Component, show
 from .units import UnitError, fmt, parse_quantity, to_seconds, to_unit
@@ -169,6 +169,10 @@ def master_value(ctx: Ctx, key: str, value: object):
     if key == "order":
         if value not in ("gauss-seidel", "jacobi"):
             raise ctx.bad(full, value, '"gauss-seidel" or "jacobi"')
+        return value
+    if key == "algebraic_loops":
+        if value not in LOOP_MODES:
+            raise ctx.bad(full, value, '"solve" (iterate each loop to a fixed point) or "delay" (break it by one step)')
         return value
     if key == "engine":
         if value not in ENGINES:

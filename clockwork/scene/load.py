@@ -26,7 +26,7 @@ from ..engine.description import (TEXT_TYPES, FmuError, read_fmu, resolve_fmu, t
 from ..engine.description import variables as variables_of
 from ..engine.fmu3 import make_instance
 from ..engine.names import instance_name_problem, split_link, split_ref
-from ..engine.wiring import Link
+from ..engine.wiring import Link, loop_name
 from ..engine.wiring import build as build_wiring
 from ..errors import SceneError
 from .checks import TOP_KEYS, Ctx, article, component, convert_value, lookup, master_value, names_of, parse_ref
@@ -231,9 +231,10 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     else:
         components, connections = prebuilt
         notes = ()
-    _check_wiring(ctx, components, connections)
+    loops = _check_wiring(ctx, components, connections)
     experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
     master, max_step_given = _master(ctx, master_t)
+    notes = tuple(notes) + tuple(_loop_note(name, links, master.algebraic_loops) for name, links in loops)
     problem = consistency(master, experiment, components) or _fmi3_inputs(master, components, connections)
     if problem:
         raise ctx.fail(*problem)
@@ -318,14 +319,23 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
     return out, input_params
 
 
-def _check_wiring(ctx: Ctx, components: dict[str, Component], connections) -> None:
-    """What the master refuses before it steps (an algebraic loop through
-    direct-feedthrough outputs), refused now, by the engine's own wiring code."""
+def _check_wiring(ctx: Ctx, components: dict[str, Component], connections) -> list[tuple[str, list[Link]]]:
+    """The wiring as the master will build it, by the engine's own code:
+    what it refuses is refused now. Returns the algebraic loops (name,
+    links inside)."""
     try:
         instances = {n: make_instance(n, c.fmu_path, c.model_description) for n, c in components.items()}
-        build_wiring(instances, [Link(*c) for c in connections])
+        wiring = build_wiring(instances, [Link(*c) for c in connections])
     except SceneError as e:
         raise ctx.fail("connections", e.detail) from None
+    return [(loop_name(m, links), links) for m, links in zip(wiring.loops, wiring.loop_links)]
+
+
+def _loop_note(name: str, links: list[Link], mode: str) -> str:
+    through = ", ".join(f"{k.src}.{k.output} -> {k.dst}.{k.input}" for k in links)
+    how = ("solved to a fixed point at every communication point" if mode == "solve"
+           else "broken by a one-step delay")
+    return f'algebraic loop {name} (through {through}): {how} (master.algebraic_loops = "{mode}")'
 
 
 def _connections(ctx: Ctx, conns, components: dict[str, Component],
