@@ -84,10 +84,11 @@ class Loop:
         for p in members:
             p.read(t)
         for sweep in range(self.start_sweeps):
-            staged = [p.stage() for p in members]
-            for p, discrete in zip(members, staged):
-                p.send(t, discrete)
-                if sweep < self.start_sweeps - 1:
+            # Jacobi: every member's inputs from the outputs before the sweep.
+            for p in members:
+                p.pull(t, read=False)
+            if sweep < self.start_sweeps - 1:
+                for p in members:
                     p.read(t)
 
     # -- "solve" ---------------------------------------------------------------

@@ -84,38 +84,29 @@ class Port:
             values[n] = x
         return values
 
-    def set_discrete(self, values: dict | None = None) -> None:
-        """Set the discrete inputs to `values`, else to their sources' values."""
-        values = self.discrete_values() if values is None else values
+    def set_discrete(self) -> None:
+        """Set the discrete inputs to their sources' values (Python engine only)."""
+        values = self.discrete_values()
         self.inst.set_values(values, "fmi2Set* of inputs")
         self.din_sent = values
 
-    def stage(self) -> dict | None:
-        """The inputs from their sources' outputs, into `inp`, not yet given
-        to the FMU; returns the discrete ones' values (None: none)."""
-        values = self.discrete_values() if self.din_names else None
+    def pull(self, t: float, read: bool = True) -> None:
+        """Set the inputs to their sources' outputs, then read the outputs
+        (unless `read` is false), at t."""
+        if self.din_names:
+            self.set_discrete()
         if self.n_in:
             inp = self.inp
             for k, src, j in self.sources:
                 inp[k] = src.out[j]
             for k, f, o in self.scale:
                 inp[k] = f * inp[k] + o
-        return values
-
-    def send(self, t: float, discrete: dict | None) -> None:
-        """Give the FMU the staged inputs (and the discrete `values`)."""
-        if discrete is not None:
-            self.set_discrete(discrete)
-        if self.n_in:
-            st = self.setReal(self.comp, self.in_vr, self.n_in, self.inp)
+            st = self.setReal(self.comp, self.in_vr, self.n_in, inp)
             if st > WARNING:
                 raise self.inst.fail("fmi2SetReal of inputs", st, t)
             self.sent_valid = False
-
-    def pull(self, t: float) -> None:
-        """Set the inputs to their sources' outputs, then read the outputs, at t."""
-        self.send(t, self.stage())
-        self.read(t)
+        if read:
+            self.read(t)
 
 
 def link_type(instances: dict[str, Instance], link: Link) -> str:
