@@ -6,7 +6,9 @@ escapements and the drag. Such instances carry no dynamics the master must
 step in a Gauss-Seidel sequence; they are stepped first in a communication
 step, while their inputs still hold the values of the step's start, which
 is when they commit discrete modes. Outputs are then propagated at the new
-communication point in dependency order.
+communication point in dependency order. Instances whose feedthrough
+outputs feed each other form an algebraic loop (a strongly connected
+component of the feedthrough graph), which engine/loops.py brings up to date.
 """
 
 from __future__ import annotations

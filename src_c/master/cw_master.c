@@ -15,6 +15,8 @@
  *
  * Not covered (the Python master serves them): strong coupling
  * (master.iterations > 0) and step doubling (master.richardson).
+ * Algebraic loops are solved in the steps as loops.py solves them
+ * (loop_solve); their start in Initialization Mode is Python's.
  *
  * FMI 3.0 instances are called through the adapter at the end of this
  * file (cw3_*): fmi2-shaped functions whose first argument is a cw_fmi3,
