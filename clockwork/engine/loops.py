@@ -22,12 +22,14 @@ them, so such a loop has no fallback.
 
 ``"delay"``: the members are stepped as dynamic instances and read once,
 after their step, so that what a member gives reaches the others one step
-late, as libcosim and ecos do with every link. They start as those two do:
-in Initialization Mode the members' outputs are read with the inputs they
-start with, then ``len(instances)`` Jacobi sweeps (each computes every
+late, as libcosim and ecos do with every link. They start as libcosim
+does: in Initialization Mode the members' outputs are read with the inputs
+they start with, then ``len(instances)`` Jacobi sweeps (each computes every
 member's inputs from the outputs of the sweep before, then sets them and
 reads the outputs) of which the last sets the inputs without reading; the
-outputs are read again after Initialization Mode.
+outputs are read again after Initialization Mode. (The master starts them
+in its second sweep over the system, once every output feeding the loop
+has been read.)
 
 ``src_c/master/cw_master.c`` solves loops in its steps the same way
 (``loop_solve``), operation for operation; initialization is Python's in

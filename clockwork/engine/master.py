@@ -134,10 +134,15 @@ class Master:
         for name, inst in self.instances.items():
             inst.setup(self.start_time, parameters.get(name, {}), self.settings.tolerance)
         # Outputs in initialization mode follow from parameters; two sweeps
-        # settle feedthrough chains of any depth found in these scenes
-        # (algebraic loops: engine/loops.py).
-        ports.start_loops()
-        for _ in range(2):
+        # settle feedthrough chains of any depth found in these scenes.
+        # An algebraic loop (engine/loops.py) reads outputs of the last run
+        # before they are read again: forgotten, as in a new master. A loop
+        # broken by a delay starts in the second sweep, once every output
+        # feeding it has been read.
+        ports.forget_outputs()
+        for sweep in range(2):
+            if sweep == 1:
+                ports.start_loops()
             ports.propagate(ports.order, self.t)
         for inst in self.instances.values():
             inst.exit_init()

@@ -10,6 +10,7 @@ communication step visits them (from the wiring graph).
 
 from __future__ import annotations
 
+import ctypes
 import math
 from ctypes import c_double, c_int, c_uint
 
@@ -109,6 +110,11 @@ class Port:
             self.read(t)
 
 
+def _unread(inst: Instance, name: str):
+    """A discrete output's value before it is first read: zero, or empty text."""
+    return "" if inst.variables[name].type == "String" else 0
+
+
 def link_type(instances: dict[str, Instance], link: Link) -> str:
     """The FMI type of a link's two ends (the output's, or the input's where
     that is not Real: a Float32 end goes through the discrete path);
@@ -171,7 +177,7 @@ class Ports(dict):
             if link.output not in src.dout_names:
                 src.dout_names.append(link.output)
                 # Until the source is first read, as a Real output's buffer: zero (or empty text).
-                src.dout.append("" if src.inst.variables[link.output].type == "String" else 0)
+                src.dout.append(_unread(src.inst, link.output))
             dst.din_names.append(link.input)
             dst.din_sources.append((src, src.dout_names.index(link.output)))
             dst.has_inputs = True
@@ -238,6 +244,12 @@ class Ports(dict):
                              src.inst.variables[link.output].type))
         return Loop(owner, loop_name(members, wiring.loop_links[index]), ports, unknowns, discrete, mode,
                     n_instances)
+
+    def forget_outputs(self) -> None:
+        """Every output as before the first read: zero (or empty text)."""
+        ctypes.memset(self.buffer, 0, ctypes.sizeof(self.buffer))
+        for p in self.all:
+            p.dout = [_unread(p.inst, n) for n in p.dout_names]
 
     def start_loops(self) -> None:
         """Initialization Mode begins: the loops broken by a delay start as the peers do."""
