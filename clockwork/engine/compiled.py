@@ -89,8 +89,8 @@ class _Master(_Strict):
 
 class _Loop(_Strict):
     _fields_ = _fields(
-        ["members", "u_port", "u_pos", "u_src", "u_src_pos", "u_factor", "u_offset", "u_scaled",
-         "x", "xn", "r", "rj", "dx", "jac"], ["fail_worst"], [],
+        ["members", "u_port", "u_pos", "u_src", "u_src_pos", "u_factor", "u_offset", "u_scaled", "r"],
+        ["fail_worst"], [],
         ["n_members", "n", "fail_why", "fail_at", "fail_sweeps", "fail_newton"])
 
 
@@ -363,9 +363,7 @@ class CompiledMaster(Master):
             c.u_factor = ref(_array(c_double, (x[4] for x in u)))
             c.u_offset = ref(_array(c_double, (x[5] for x in u)))
             c.u_scaled = ref(_array(c_int, (int(x[6]) for x in u)))
-            for name in ("x", "xn", "r", "rj", "dx"):
-                setattr(c, name, ref(_array(c_double, [], n)))
-            c.jac = ref(_array(c_double, [], n * n))
+            c.r = ref(_array(c_double, [], n))  # Newton's work the core takes when it needs it
             c.n_members, c.n = len(loop.members), n
         self._keep.append(cl)
         lc = self._loops = _Loops(loop=ctypes.addressof(cl), tolerance=self.settings.iteration_tolerance,

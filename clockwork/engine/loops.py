@@ -47,7 +47,7 @@ HALVINGS = 10  # step halvings along one Newton direction
 FD_STEP = 2.0 ** -26  # forward-difference step, relative to max(1, |x|) (about sqrt of the machine epsilon)
 
 # Why a loop failed (the compiled core returns the same codes).
-NOT_CONVERGED, SINGULAR, NO_DECREASE, DISCRETE = 0, 1, 2, 3
+NOT_CONVERGED, SINGULAR, NO_DECREASE, DISCRETE, NO_MEMORY = 0, 1, 2, 3, 4
 
 
 class Loop:
@@ -136,7 +136,10 @@ class Loop:
         if self.discrete:
             raise self.failure(t, DISCRETE, worst, at, sweeps, 0)
         self.owner.count_loop(0, 1)
-        self._newton(t, sweeps)
+        try:
+            self._newton(t, sweeps)
+        except MemoryError:
+            raise self.failure(t, NO_MEMORY, worst, -1, sweeps, 0) from None
 
     def _evaluate(self, x: list, r: list, t: float) -> tuple[float, int]:
         """Set the loop's inputs to x, read the members' outputs; r = g(x) - x."""
@@ -213,6 +216,9 @@ class Loop:
                         f"the Newton fallback")
         elif why == SINGULAR:
             what = f"the Newton fallback met a singular Jacobian (residual {worst:.6g}{where}) after {done}"
+        elif why == NO_MEMORY:
+            what = (f"residual {worst:.6g} after {done}, and the Newton fallback's {self.n} x {self.n} "
+                    f"Jacobian does not fit in memory")
         elif why == NO_DECREASE:
             what = f"no Newton step reduces the residual {worst:.6g}{where} after {done}"
         else:

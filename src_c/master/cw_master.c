@@ -120,8 +120,7 @@ typedef struct {
     const double *u_factor;   /* ... and its link's transformation, where u_scaled */
     const double *u_offset;
     const int *u_scaled;
-    double *x, *xn, *r, *rj, *dx;  /* n each: Newton's work */
-    double *jac;              /* n * n, row-major */
+    double *r;                /* n: the residual of the sweeps */
     double fail_worst;        /* a failure: the largest residual, where, after what */
     int n_members, n;
     int fail_why, fail_at, fail_sweeps, fail_newton;
@@ -272,7 +271,7 @@ static int propagate(cw_master *m, const int *order, int n, double t)
 
 enum { LOOP_PLAIN_SWEEPS = 50, LOOP_NEWTON_ITERATIONS = 20, LOOP_HALVINGS = 10 };
 #define LOOP_FD_STEP 1.4901161193847656e-08  /* 2 ** -26 */
-enum { LOOP_NOT_CONVERGED = 0, LOOP_SINGULAR = 1, LOOP_NO_DECREASE = 2 };
+enum { LOOP_NOT_CONVERGED = 0, LOOP_SINGULAR = 1, LOOP_NO_DECREASE = 2, LOOP_NO_MEMORY = 4 };
 
 /* r = what the sources give minus the inputs (x, else those set); the
  * largest |r| into *worst and where into *at (-1: none larger than zero). */
@@ -379,10 +378,27 @@ static int loop_fail(cw_master *m, int i, cw_loop *L, int why, double worst, int
     return CW_ERR_LOOP;
 }
 
-static int loop_newton(cw_master *m, int li, cw_loop *L, double t, int sweeps)
+static int newton_iterate(cw_master *m, int li, cw_loop *L, double t, int sweeps, double *work);
+
+/* Newton's work arrays (5 n + n * n doubles) are taken only when a loop
+ * needs the fallback, and given back after it: a large formal loop never
+ * pays for an n x n Jacobian. */
+static int loop_newton(cw_master *m, int li, cw_loop *L, double t, int sweeps, double worst)
+{
+    size_t n = (size_t)L->n;
+    double *work = malloc((5 * n + n * n) * sizeof(double) + 1);
+    if (!work)
+        return loop_fail(m, li, L, LOOP_NO_MEMORY, worst, -1, sweeps, 0, t);
+    int rc = newton_iterate(m, li, L, t, sweeps, work);
+    free(work);
+    return rc;
+}
+
+static int newton_iterate(cw_master *m, int li, cw_loop *L, double t, int sweeps, double *work)
 {
     int n = L->n;
-    double *x = L->x, *xn = L->xn, *r = L->r, *rj = L->rj, *dx = L->dx, *jac = L->jac;
+    double *x = work, *xn = work + n, *r = work + 2 * n, *rj = work + 3 * n, *dx = work + 4 * n;
+    double *jac = work + 5 * n;
     double worst, worst_n = 0.0;
     int at, at_n = -1;
     for (int i = 0; i < n; i++)
@@ -455,7 +471,7 @@ static int loop_solve(cw_master *m, int i, double t)
         prev = worst;
     }
     m->loops->fallbacks++;
-    return loop_newton(m, i, L, t, sweeps);
+    return loop_newton(m, i, L, t, sweeps, worst);
 }
 
 static void indicators(cw_master *m, double *z)
