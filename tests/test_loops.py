@@ -73,6 +73,24 @@ def test_a_real_loop_is_solved_to_its_fixed_point(K, fallback):
     assert (stats["loop_fallbacks"] > 0) == fallback
 
 
+def test_a_loop_of_an_fmi2_and_an_fmi3_instance_is_solved():
+    # FMI 3.0 allows setting inputs and getting outputs in Step Mode and in
+    # Initialization Mode as FMI 2.0 does: TestSum's FMI 3.0 build as the gain.
+    K, c = 3.0, 1.0
+    comps = {"add": (str(test_fmu("TestSum")), {"c": c}),
+             "gain": (str(test_fmu("TestSum").parent / "fmi3" / "TestSum.fmu"), {"k1": K, "k2": 0.0})}
+    cols, stats = _both(comps, LOOP, 4, {"add": ["y"], "gain": ["y"]})
+    assert all(abs(a - c / (1.0 - K)) <= 1e-12 for a in cols["add.y"]), cols["add.y"]
+    assert stats["loop_fallbacks"] > 0
+
+
+def test_the_loop_test_fmus_are_valid():
+    from fmpy.validation import validate_fmu
+
+    for fmu in (test_fmu("TestSum"), test_fmu("TestIntegrator"), test_fmu("TestSum").parent / "fmi3" / "TestSum.fmu"):
+        assert validate_fmu(str(fmu)) == [], fmu
+
+
 def test_a_loop_through_a_linear_transformation_is_solved():
     # One adder feeding itself through a link of factor K and offset d:
     # a = c + K a + d.
