@@ -7,7 +7,9 @@ members would, and ``pull`` brings them up to date at a communication point.
 ``master.algebraic_loops = "solve"``: the loop's inputs are iterated to a
 fixed point, by setting inputs and getting outputs with no step (FMI 2.0
 and 3.0 allow both, any number of times, in Initialization Mode and
-between steps). First plain fixed-point iteration: Gauss-Seidel sweeps over
+between steps; FMI 1.0 Co-Simulation between steps too, and it has no
+Initialization Mode: what stands for it is the FMI 1.0 instance's own
+face, the loop only calls the port's set and get). First plain fixed-point iteration: Gauss-Seidel sweeps over
 the members (each takes its inputs from the newest outputs), until every
 loop input differs from what its source now gives by at most
 ``iteration_tolerance * max(1, |input|)``; a loop whose residual stops
