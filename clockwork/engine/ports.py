@@ -70,8 +70,8 @@ class Port:
             self.dout = self.inst.get_values(self.dout_names)
         self.out_time = t
 
-    def discrete_values(self) -> dict:
-        """The discrete inputs' values from their sources (Python engine only)."""
+    def set_discrete(self) -> None:
+        """Set the discrete inputs to their sources' values (Python engine only)."""
         values = {}
         for n, (src, j) in zip(self.din_names, self.din_sources):
             x = src.dout[j]
@@ -83,11 +83,6 @@ class Port:
                                       f"the value {x} is out of the range of {kind} [{bounds[0]}, {bounds[1]}]",
                                       instance=self.inst.name)
             values[n] = x
-        return values
-
-    def set_discrete(self) -> None:
-        """Set the discrete inputs to their sources' values (Python engine only)."""
-        values = self.discrete_values()
         self.inst.set_values(values, "fmi2Set* of inputs")
         self.din_sent = values
 
@@ -252,7 +247,7 @@ class Ports(dict):
             p.dout = [_unread(p.inst, n) for n in p.dout_names]
 
     def start_loops(self) -> None:
-        """Initialization Mode begins: the loops broken by a delay start as the peers do."""
+        """The loops broken by a delay start as the peers do at their next update."""
         for loop in self.loops:
             loop.starting = True
 
