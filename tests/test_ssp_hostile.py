@@ -47,9 +47,8 @@ def _both(tmp_path, d: Path, as_archive: bool) -> Path:
 # ------------------------------------------------------------- numbers
 
 
-# Spellings Python's float() or int() take and xs:double / xs:int have not,
-# and the non-finite ones where a finite number is due.
-SPELLINGS = ["1_0", " 2", "2 ", "\u0662", "\uff12", "infinity", "nan", "0x10", "1e", "INF", ""]
+# Spellings Python's float() takes and xs:double has not.
+SPELLINGS = ["1_0", " 2", "2 ", "\u0662", "\uff12", "infinity", "nan", "+nan", "Infinity"]
 # (file, the attribute as written in the fixture, its name)
 NUMBER_ATTRIBUTES = [
     (SSD, 'factor="2"', "factor"),  # ssc:LinearTransformation on a connection
@@ -59,7 +58,7 @@ NUMBER_ATTRIBUTES = [
     (SSV, 'kg="1" m="2" s="-2" factor="0.01"', "factor"),  # an .ssv's unit
     (SSV, 'name="torque"><ssv:Real value="0.4"', "value"),
 ]
-INTEGER_SPELLINGS = ["1_0", " 1", "\u0661", "1.0", "+", ""]
+INTEGER_SPELLINGS = ["1_0", " 1", "1 ", "\u0661"]
 
 
 def _set_attr(file: str, written: str, attr: str, value: str):
@@ -73,8 +72,8 @@ def _set_attr(file: str, written: str, attr: str, value: str):
 def test_a_number_xml_does_not_spell_is_refused(tmp_path, capsys, spelling, file, written, attr, as_archive):
     d = fixture_dir(tmp_path, "flat10")
     _set_attr(file, written, attr, spelling)(d)
-    expected = "finite" if spelling in ("INF",) else "expected a number"
-    _refused(tmp_path, capsys, _both(tmp_path, d, as_archive), [Path(file).name, f"{attr}={spelling!r}", expected])
+    _refused(tmp_path, capsys, _both(tmp_path, d, as_archive), [Path(file).name, f"{attr}={spelling!r}",
+                                                                "expected a number"])
 
 
 @pytest.mark.parametrize("spelling", INTEGER_SPELLINGS, ids=repr)
@@ -101,7 +100,6 @@ TRANSFORMATIONS = {
     "a foreign namespace": ('<x:LinearTransformation xmlns:x="urn:other" factor="2"/>',
                             ["{urn:other}LinearTransformation", "not supported"]),
     "no namespace": ('<LinearTransformation factor="2"/>', ["LinearTransformation", "not supported"]),
-    "integer mapping": ("<ssc:IntegerMappingTransformation/>", ["mapping transformations", "not supported"]),
     "two linear": (_LINEAR + '<ssc:LinearTransformation factor="3"/>', ["ssc:LinearTransformation",
                                                                        "one transformation"]),
     "an unknown ssd element": ("<ssd:Transformation/>", ["ssd:Transformation", "not supported"]),
@@ -117,7 +115,7 @@ def test_a_connection_transformation_is_applied_or_refused_never_dropped(tmp_pat
     _refused(tmp_path, capsys, _both(tmp_path, d, as_archive), [SSD, *needles])
 
 
-@pytest.mark.parametrize("case", ["unknown ssc element", "a foreign namespace", "two linear"])
+@pytest.mark.parametrize("case", ["a foreign namespace", "no namespace", "two linear"])
 def test_a_mapping_entry_transformation_is_applied_or_refused(tmp_path, capsys, case):
     written, needles = TRANSFORMATIONS[case]
     d = fixture_dir(tmp_path, "nested")
@@ -443,14 +441,18 @@ def test_systems_nested_as_deep_as_xml_allows_are_read(tmp_path):
 
 
 HUGE = "x" * (4 << 20)
+LONG_NAME = "x" * 40_000  # an XML name: libxml2 refuses names of more than 50,000 characters
 ECHOED = {
     "a connector name": _edit('endConnector="phi"/>', f'endConnector="{HUGE}"/>'),
     "an element name": _edit('endElement="escapement" endConnector="phi"', f'endElement="{HUGE}" endConnector="phi"'),
     "a source": _edit('source="resources/Pendulum.fmu"', f'source="{HUGE}"'),
     "a unit": _edit('<ssv:Real value="0.4" unit="N.cm"/>', f'<ssv:Real value="0.4" unit="{HUGE}"/>', SSV),
     "a number": _edit('factor="2"', f'factor="{HUGE}"'),
-    "an attribute name": _edit("<ssc:LinearTransformation", f"<ssc:LinearTransformation {HUGE}='1'"),
-    "a tag": _edit(_LINEAR, f"<ssc:{HUGE}/>"),
+    "a tag": _edit(_LINEAR, f"<ssc:{LONG_NAME}/>"),
+    "an attribute name": _edit('<ssd:System name="root">', '<ssd:System name="root"><ssd:Annotations><ssc:Annotation '
+                               'type="clockwork"><cw:Settings xmlns:cw="urn:clockwork:ssp:1"><cw:Master '
+                               f'{LONG_NAME}="1"/></cw:Settings></ssc:Annotation></ssd:Annotations>'),
+    "a tag in another namespace": _edit(_LINEAR, f'<x:{LONG_NAME} xmlns:x="{HUGE}"/>'),
 }
 
 
