@@ -126,7 +126,7 @@ class _Element:
     connectors: dict[str, _Connector]
     children: dict[str, "_Element"] = field(default_factory=dict)
     fmu_path: Path | None = None
-    fmu_label: str = ""  # the FMU as messages name it: archive/member, or its path
+    fmu_label: str = ""  # an archive's FMU as messages name it (archive/member); "": its path
     md: object = None
     digest: str = ""
     indicators: tuple = ()
@@ -319,7 +319,7 @@ class _Reader:
                                "sub-systems: not read")
         where = self.store.resolve(doc, el, "source")
         fmu = self.store.fmu(where)
-        label = self.store.label(where) if self.store.zip is not None else str(fmu)
+        label = self.store.label(where) if self.store.zip is not None else None  # None: its own path
         try:
             md, digest, indicators = read_fmu(fmu, label=label)
         except FmuError as e:
@@ -337,7 +337,7 @@ class _Reader:
                       "components that ask for Model Exchange (run through Co-Simulation)")
         node = _Element(el.get("name"), path, False, doc, el, self._connectors(doc, el, md))
         node.fmu_path, node.md, node.digest, node.indicators = fmu, md, digest, indicators
-        node.fmu_label = label
+        node.fmu_label = label or ""
         hint = self._step_hint(doc, el)
         if hint is not None:
             self.step_hints[path] = hint
@@ -734,8 +734,8 @@ class _Reader:
             params[inst][var] = self._value(v, variable, elem, label, key)
         out = {}
         for inst, elem in self.instances.items():
-            label = elem.fmu_label if self.store.zip is not None else ""
-            out[inst] = Component(inst, elem.fmu_path, elem.digest, elem.md, params[inst], elem.indicators, label)
+            out[inst] = Component(inst, elem.fmu_path, elem.digest, elem.md, params[inst], elem.indicators,
+                                  elem.fmu_label)
         return out
 
     def _value(self, v: tuple, variable, elem: _Element, label: str, key: str):
