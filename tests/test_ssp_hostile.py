@@ -44,6 +44,14 @@ def _both(tmp_path, d: Path, as_archive: bool) -> Path:
     return d / SSD
 
 
+def _refused_edited(tmp_path, capsys, needles, as_archive: bool, *edits, fixture: str = "flat10"):
+    """The fixture with `edits` applied, as an .ssd or an .ssp, refused in one line."""
+    d = fixture_dir(tmp_path, fixture)
+    for edit in edits:
+        edit(d)
+    _refused(tmp_path, capsys, _both(tmp_path, d, as_archive), needles)
+
+
 # ------------------------------------------------------------- numbers
 
 
@@ -70,10 +78,8 @@ def _set_attr(file: str, written: str, attr: str, value: str):
 @pytest.mark.parametrize("file, written, attr", NUMBER_ATTRIBUTES, ids=[f"{f}:{a}" for f, w, a in NUMBER_ATTRIBUTES])
 @pytest.mark.parametrize("spelling", SPELLINGS, ids=repr)
 def test_a_number_xml_does_not_spell_is_refused(tmp_path, capsys, spelling, file, written, attr, as_archive):
-    d = fixture_dir(tmp_path, "flat10")
-    _set_attr(file, written, attr, spelling)(d)
-    _refused(tmp_path, capsys, _both(tmp_path, d, as_archive), [Path(file).name, f"{attr}={spelling!r}",
-                                                                "expected a number"])
+    _refused_edited(tmp_path, capsys, [Path(file).name, f"{attr}={spelling!r}", "expected a number"], as_archive,
+                    _set_attr(file, written, attr, spelling))
 
 
 @pytest.mark.parametrize("spelling", INTEGER_SPELLINGS, ids=repr)
@@ -110,17 +116,15 @@ TRANSFORMATIONS = {
 @pytest.mark.parametrize("case", list(TRANSFORMATIONS))
 def test_a_connection_transformation_is_applied_or_refused_never_dropped(tmp_path, capsys, case, as_archive):
     written, needles = TRANSFORMATIONS[case]
-    d = fixture_dir(tmp_path, "flat10")
-    _edit(_LINEAR, written)(d)
-    _refused(tmp_path, capsys, _both(tmp_path, d, as_archive), [SSD, *needles])
+    _refused_edited(tmp_path, capsys, [SSD, *needles], as_archive, _edit(_LINEAR, written))
 
 
 @pytest.mark.parametrize("case", ["a foreign namespace", "no namespace", "two linear"])
 def test_a_mapping_entry_transformation_is_applied_or_refused(tmp_path, capsys, case):
     written, needles = TRANSFORMATIONS[case]
-    d = fixture_dir(tmp_path, "nested")
-    _edit('<ssc:LinearTransformation factor="2" offset="0"/>', written, "resources/drive.ssm")(d)
-    _refused(tmp_path, capsys, d / SSD, ["drive.ssm", *needles])
+    _refused_edited(tmp_path, capsys, ["drive.ssm", *needles], False,
+                    _edit('<ssc:LinearTransformation factor="2" offset="0"/>', written, "resources/drive.ssm"),
+                    fixture="nested")
 
 
 def test_inert_children_of_a_connection_change_nothing(tmp_path):
@@ -152,9 +156,7 @@ TWICE = {
 @pytest.mark.parametrize("case", list(TWICE))
 def test_one_thing_said_twice_is_refused(tmp_path, capsys, case, as_archive):
     edit, needles = TWICE[case]
-    d = fixture_dir(tmp_path, "flat10")
-    edit(d)
-    _refused(tmp_path, capsys, _both(tmp_path, d, as_archive), needles)
+    _refused_edited(tmp_path, capsys, needles, as_archive, edit)
 
 
 def test_a_parameter_said_twice_alike_is_one_value(tmp_path):
@@ -221,10 +223,8 @@ SCHEMES = {
 @pytest.mark.parametrize("as_archive", [False, True], ids=["ssd", "ssp"])
 @pytest.mark.parametrize("uri", list(SCHEMES))
 def test_an_unsupported_uri_scheme_is_named(tmp_path, capsys, uri, as_archive):
-    d = fixture_dir(tmp_path, "flat10")
-    _edit('source="resources/Pendulum.fmu"', f'source="{uri.replace("&", "&amp;")}"')(d)
-    _refused(tmp_path, capsys, _both(tmp_path, d, as_archive),
-             [SSD, "source=", f"the URI scheme {SCHEMES[uri]} is not supported"])
+    _refused_edited(tmp_path, capsys, [SSD, "source=", f"the URI scheme {SCHEMES[uri]} is not supported"], as_archive,
+                    _edit('source="resources/Pendulum.fmu"', f'source="{uri.replace("&", "&amp;")}"'))
 
 
 def test_a_windows_drive_path_is_named(tmp_path, capsys):
@@ -360,10 +360,7 @@ BAD_OSP = {
 @pytest.mark.parametrize("case", list(BAD_OSP))
 def test_an_osp_annotation_the_master_cannot_honour_is_one_line(tmp_path, capsys, case, as_archive):
     edit, needles = BAD_OSP[case]
-    d = fixture_dir(tmp_path, "flat10")
-    _with_osp_ns(d)
-    edit(d)
-    _refused(tmp_path, capsys, _both(tmp_path, d, as_archive), [SSD, *needles])
+    _refused_edited(tmp_path, capsys, [SSD, *needles], as_archive, _with_osp_ns, edit)
 
 
 # ------------------------------------------------------------- no stopTime
