@@ -114,6 +114,8 @@ class _Pass:
         self.version = version
         self.fmi3 = version == "3.0"
         self.types: dict[str, str] = {}  # declared type name -> its variable type
+        # FMI 3.0's Enumeration is an Int64, FMI 1.0/2.0's an Integer
+        self.enum_range = INT_RANGES["Int64" if self.fmi3 else "Integer"]
 
     def run(self) -> None:
         root = self.root
@@ -175,7 +177,7 @@ class _Pass:
                     x = parse_int(tok)
                 except ValueError:
                     raise _fail(el, f"expected an integer{' list' * array} ({vtype})", attr) from None
-                lo, hi = INT_RANGES.get(vtype, INT_RANGES["Integer"])
+                lo, hi = INT_RANGES.get(vtype) or self.enum_range
                 if not lo <= x <= hi:
                     raise _fail(el, f"expected a {vtype} value, in [{lo}, {hi}]", attr)
             elif vtype == "Boolean":
@@ -258,7 +260,7 @@ class _Pass:
                 seen = set()
                 for item in items:
                     if self.version != "1.0":
-                        self.integer(item, "value", *INT_RANGES["Integer"])
+                        self.integer(item, "value", *self.enum_range)
                     if item.get("name") in seen:
                         raise _fail(item, "expected a unique item name in the enumeration", "name")
                     seen.add(item.get("name"))
