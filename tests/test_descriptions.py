@@ -139,6 +139,14 @@ def test_a_hostile_description_is_one_line_exit_2(tmp_path, capsys, version, cas
     assert not out.exists()
 
 
+def test_a_4_mib_model_identifier_is_echoed_shortened(tmp_path, capsys):
+    fmu = _edited(tmp_path, fmu_file("Pendulum"), lambda xml: xml.replace('modelIdentifier="Pendulum"',
+                                                                          f'modelIdentifier="{"x/" * (2 << 20)}"'))
+    rc, _, err = run_cli(capsys, ["info", fmu])
+    assert_one_line_error(rc, err, "Edited.fmu", "modelIdentifier", "characters", "plain name")
+    assert len(err) < 1000, len(err)
+
+
 def test_aliases_by_value_reference_stay_allowed_in_fmi2(tmp_path, capsys):
     """FMI 2.0 makes variables of one type on one valueReference aliases; FMI 3.0 has Alias elements instead."""
     edit = _sub(r'<ScalarVariable name="m" valueReference="1"', '<ScalarVariable name="m" valueReference="0"')

@@ -28,6 +28,7 @@ from typing import Any
 
 from ..errors import SceneError
 from ..hashing import sha256_file
+from ..numbers import shorten
 from ..paths import REPO, fmu_dir, in_checkout
 from .description_check import FLOAT32_MAX, INT_RANGES, DescriptionProblem, check_description
 
@@ -134,7 +135,11 @@ _MD_CACHE: dict[tuple, tuple] = {}
 
 
 class FmuError(SceneError):
-    """A missing or unusable FMU (bad input); str() is the reason."""
+    """A missing or unusable FMU (bad input); str() is the reason, its echoes
+    of the FMU's names and values bounded (a 4 MiB attribute is no line)."""
+
+    def __init__(self, detail: str, path: object = None, key: str | None = None):
+        super().__init__(shorten(detail, 1000), path, key)
 
 
 def resolve_fmu(spec: str, base_dir: Path | None = None, fmi_version: int = 2) -> Path:
@@ -223,7 +228,7 @@ def read_fmu(path: Path, need_binary: bool = True,
         ident = md.coSimulation.modelIdentifier
         if not isinstance(ident, str) or not NAME_RE.match(ident):
             # fmpy loads binaries/<platform>/<modelIdentifier>.so: a path here would load a file outside the FMU.
-            raise FmuError(f"{shown}: modelDescription.xml: CoSimulation modelIdentifier {ident!r}: expected a "
+            raise FmuError(f"{shown}: modelDescription.xml: CoSimulation modelIdentifier {shorten(ident, 100)!r}: expected a "
                            "plain name (letters, digits, underscores), the binary's file name")
         indicators = event_indicator_names(xml)
         digest = sha256_file(path)
