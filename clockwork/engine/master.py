@@ -45,6 +45,28 @@ from .wiring import Link, build
 
 
 class Master:
+    """The stepping loop over a set of wired FMU instances: the Python
+    reference; ``CompiledMaster`` (engine/compiled.py) runs the same
+    algorithm in C, with the same methods and the same bits.
+
+    A `System` builds and initializes one (``System.master``); its public
+    methods raise `ClosedError` once the System is freed.
+
+    Attributes:
+        t: The current communication point, s.
+        start_time: Where the run started, s (the grid is
+            ``start_time + k * settings.step``).
+        settings: The `MasterSettings` it runs.
+        stats: Counts of the run (``Statistics``): steps, events, rollbacks,
+            replays, saved states, rejected steps, coupling and loop
+            iterations.
+        engine: ``"python"`` or ``"compiled"``.
+        engine_reason: Why ``engine = "auto"`` chose the Python loop, or None.
+        ended: None, or the `SimulationEnded` of an FMU that ended the
+            simulation (then the run stopped cleanly at its last
+            communication point).
+    """
+
     MAX_REPLAY_STEPS = 64  # a forced checkpoint after this many steps bounds replay work and memory
     engine = "python"
 
@@ -284,7 +306,21 @@ class Master:
     # -- the accurate step ---------------------------------------------
 
     def step(self, h: float) -> float:
-        """Advance by at most h (less when an event is located). Returns the step taken, s."""
+        """Advance by at most h (less when an event is located). Returns the step taken, s.
+
+        One communication step from ``t``, with everything of the settings
+        that makes it accurate (event location, rollback, strong coupling,
+        step doubling). `run_until` is the usual way to step.
+
+        Args:
+            h: The largest step to take, s (> 0).
+
+        Raises:
+            SimulationError: An FMU failed, or an output is NaN, infinite or
+                beyond ``divergence_limit``.
+            SimulationEnded: An FMU ended the simulation (`run_until`
+                catches it into ``ended``).
+        """
         s = self.settings
         t = self.t
         loc = self.locator
@@ -398,7 +434,22 @@ class Master:
         Grid points are computed as start + k*step, never by summing steps,
         so that time does not drift. An FMU that ends the simulation ends
         the run cleanly at the last communication point: ``ended`` says
-        when and which, and later calls return at once.
+        when and which, and later calls return at once. Called again with a
+        later time, it goes on from where it stopped.
+
+        Args:
+            t_stop: Where to stop, s: finite and not before ``t``.
+            on_point (Callable[[Master], None] | None): Called as
+                ``on_point(master)`` at every communication point reached
+                (grid points and located events), or None.
+
+        Raises:
+            UsageError: ``t_stop`` NaN, infinite, not a number or before the
+                current time.
+            ClosedError: The System was freed.
+            SimulationError: An FMU failed (with its own message), or an
+                output became NaN, infinite or diverged; the message names
+                the time, the instance and the variable.
         """
         t_stop = check_run(self.instances, self.t, t_stop)
         if self.ended is not None:
