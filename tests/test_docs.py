@@ -156,11 +156,14 @@ def documented(doc: str, section: str) -> list[str]:
 def test_every_argument_and_setting_is_documented():
     from clockwork.engine import Master, MasterSettings, System
 
-    assert documented(MasterSettings.__doc__, "Attributes") == [f.name for f in dataclasses.fields(MasterSettings)]
+    fields = {f.name for f in dataclasses.fields(MasterSettings)}
+    listed = set(documented(MasterSettings.__doc__, "Attributes"))
+    assert listed == fields, f"MasterSettings' Attributes: missing {fields - listed}, not fields {listed - fields}"
     for function, doc in ((System.__init__, System.__doc__), (System.restart, None), (System.value, None),
                           (System.output, None), (Master.run_until, None), (Master.step, None)):
-        wanted = [p for p in inspect.signature(function).parameters if p != "self"]
-        assert documented(doc or function.__doc__, "Args") == wanted, function.__qualname__
+        wanted = {p for p in inspect.signature(function).parameters if p != "self"}
+        listed = set(documented(doc or function.__doc__, "Args"))
+        assert listed == wanted, f"{function.__qualname__}: missing {wanted - listed}, not arguments {listed - wanted}"
 
 
 def test_documented_reads_a_docstring():
