@@ -46,6 +46,28 @@ from .wiring import Link, build
 
 
 class Master:
+    """The stepping loop over a set of wired FMU instances: the Python
+    reference; ``CompiledMaster`` (engine/compiled.py) runs the same
+    algorithm in C, with the same methods and the same bits.
+
+    A `System` builds and initializes one (``System.master``); its public
+    methods raise `ClosedError` once the System is freed.
+
+    Attributes:
+        t: The current communication point, s.
+        start_time: Where the run started, s (the grid is
+            ``start_time + k * settings.step``).
+        settings: The `MasterSettings` it runs.
+        stats: Counts of the run (``Statistics``): steps, events, rollbacks,
+            replays, saved states, rejected steps, coupling and loop
+            iterations.
+        engine: ``"python"`` or ``"compiled"``.
+        engine_reason: Why ``engine = "auto"`` chose the Python loop, or None.
+        ended: None, or the `SimulationEnded` of an FMU that ended the
+            simulation (then the run stopped cleanly at its last
+            communication point).
+    """
+
     MAX_REPLAY_STEPS = 64  # a forced checkpoint after this many steps bounds replay work and memory
     engine = "python"
 
@@ -55,12 +77,12 @@ class Master:
                  extra_outputs: dict[str, list[str]] | None = None):
         self.instances = instances
         self.settings = settings
-        self.wiring = build(instances, links, step_order)
         settings.check()
+        self.wiring = build(instances, links, step_order, settings.algebraic_loops)
         self.t = start_time  # the current communication point, s
         self.start_time = start_time
         self.stats = Statistics()
-        self.ports = Ports(instances, links, self.wiring, extra_outputs, settings.event_location)
+        self.ports = Ports(instances, links, self.wiring, extra_outputs, settings.event_location, self)
         self.discrete_outputs = self.ports.discrete_outputs
         self.coupling = InputCoupling(self.ports.dynamic, settings.extrapolation)
         self.locator = EventLocator(self, self.ports.all)
@@ -89,6 +111,11 @@ class Master:
     def notes(self) -> list[str]:
         """What the master changed of the settings, said once each (e.g. a lowered extrapolation order)."""
         return self.coupling.notes
+
+    def count_loop(self, iterations: int, fallbacks: int) -> None:
+        """Algebraic loops (loops.Loop) count their iterations and fallbacks here."""
+        self.stats.loop_iterations += iterations
+        self.stats.loop_fallbacks += fallbacks
 
     def _check_rollback(self) -> None:
         """A rollback needs every FMU's state: refuse before the first step."""
@@ -130,7 +157,14 @@ class Master:
             inst.setup(self.start_time, parameters.get(name, {}), self.settings.tolerance)
         # Outputs in initialization mode follow from parameters; two sweeps
         # settle feedthrough chains of any depth found in these scenes.
-        for _ in range(2):
+        # An algebraic loop (engine/loops.py) reads outputs of the last run
+        # before they are read again: forgotten, as in a new master. A loop
+        # broken by a delay starts in the second sweep, once every output
+        # feeding it has been read.
+        ports.forget_outputs()
+        for sweep in range(2):
+            if sweep == 1:
+                ports.start_loops()
             ports.propagate(ports.order, self.t)
         for inst in self.instances.values():
             inst.exit_init()
@@ -273,7 +307,21 @@ class Master:
     # -- the accurate step ---------------------------------------------
 
     def step(self, h: float) -> float:
-        """Advance by at most h (less when an event is located). Returns the step taken, s."""
+        """Advance by at most h (less when an event is located). Returns the step taken, s.
+
+        One communication step from ``t``, with everything of the settings
+        that makes it accurate (event location, rollback, strong coupling,
+        step doubling). `run_until` is the usual way to step.
+
+        Args:
+            h: The largest step to take, s (> 0).
+
+        Raises:
+            SimulationError: An FMU failed, or an output is NaN, infinite or
+                beyond ``divergence_limit``.
+            SimulationEnded: An FMU ended the simulation (`run_until`
+                catches it into ``ended``).
+        """
         s = self.settings
         t = self.t
         loc = self.locator
@@ -387,7 +435,22 @@ class Master:
         Grid points are computed as start + k*step, never by summing steps,
         so that time does not drift. An FMU that ends the simulation ends
         the run cleanly at the last communication point: ``ended`` says
-        when and which, and later calls return at once.
+        when and which, and later calls return at once. Called again with a
+        later time, it goes on from where it stopped.
+
+        Args:
+            t_stop: Where to stop, s: finite and not before ``t``.
+            on_point (Callable[[Master], None] | None): Called as
+                ``on_point(master)`` at every communication point reached
+                (grid points and located events), or None.
+
+        Raises:
+            UsageError: ``t_stop`` NaN, infinite, not a number or before the
+                current time.
+            ClosedError: The System was freed.
+            SimulationError: An FMU failed (with its own message), or an
+                output became NaN, infinite or diverged; the message names
+                the time, the instance and the variable.
         """
         t_stop = check_run(self.instances, self.t, t_stop)
         if self.ended is not None:
