@@ -25,6 +25,7 @@
 /* The table only: CW_MODEL is defined by the model's own model.c. */
 #define CW_VARS_TABLE_ONLY
 #include "cw_vars.h"
+#include "driver_checks.h"
 
 /* A counting allocator: every block the FMU takes must come back. */
 static long h_live_blocks;
@@ -55,21 +56,7 @@ static struct {
 #undef FIELD
 } api;
 
-static long n_checks, n_failures, n_messages, n_errors;
-static char last[1100];
-static const char *section = "";
 static fmi1Component current; /* the instance a logged message must name (NULL: any) */
-
-#define CHECK(cond, ...)                                                     \
-    do {                                                                     \
-        n_checks++;                                                          \
-        if (!(cond)) {                                                       \
-            n_failures++;                                                    \
-            fprintf(stderr, "FAIL [%s] line %d: ", section, __LINE__);       \
-            fprintf(stderr, __VA_ARGS__);                                    \
-            fprintf(stderr, " (last message: %s)\n", last);                  \
-        }                                                                    \
-    } while (0)
 
 /* FMI 1.0's logger gets the component (NULL while it is being made). */
 static void logger(fmi1Component c, fmi1String instance, fmi1Status status, fmi1String category,
@@ -90,20 +77,6 @@ static fmi1CallbackFunctions callbacks(void) {
 static fmi1Component instantiate(const char *name) {
     return api.InstantiateSlave(name, CW_MODEL_GUID, "file:///nowhere", "application/x-fmu-sharedlibrary",
                                 0.0, fmi1False, fmi1False, callbacks(), fmi1False);
-}
-
-#define REFUSED(call, ...)                                                   \
-    do {                                                                     \
-        long before_ = n_errors;                                             \
-        fmi1Status st_ = (call);                                             \
-        CHECK(st_ == fmi1Error && n_errors > before_, __VA_ARGS__);          \
-    } while (0)
-
-static double input_value(const cw_var_info *v, double t) {
-    if (strcmp(v->name, "phi") == 0) return 0.3 * sin(3.14159 * t);
-    if (strcmp(v->name, "w") == 0) return 0.94 * cos(3.14159 * t);
-    double x = v->start + 1e-3 * sin(3 * t + v->vr);
-    return fmin(fmax(x, v->min), v->max);
 }
 
 static void set_inputs(fmi1Component c, double t) {
