@@ -174,6 +174,26 @@ def test_an_algebraic_loop_of_fmi1_instances(engine, settings):
         assert stats.loop_fallbacks > 0 and all(abs(a + 0.5) <= 1e-12 for a, _ in reference)
 
 
+@pytest.mark.parametrize("engine", ENGINES)
+def test_outputs_of_new_inputs_take_a_zero_step(engine):
+    """FMI 1.0 computes outputs in fmiDoStep. Hold (tests/data/fmi1/hold.c)
+    gives y = u as of its last step only; where the master sets u at a
+    communication point and then reads y, the instance takes a step of size
+    0 there first (FMI 1.0's iteration), so y is the pendulum's angle at the
+    same point, not at the point before, on both engines alike."""
+    comps = {"pendulum": ("Pendulum", dict(phi_start=0.1)), "hold": (fmi1("Hold"), {})}
+    with System(comps, ["pendulum.phi -> hold.u"], MasterSettings(engine=engine, step=0.01),
+                record={"pendulum": ["phi"], "hold": ["y"]}) as s:
+        seen = []
+        for k in range(1, 21):
+            s.master.run_until(0.01 * k)
+            seen.append((s.output("pendulum", "phi"), s.output("hold", "y")))
+        zero_steps = s.instances["hold"].get_values(["zero_steps"])[0]
+        counted = s.instances["hold"].adapter.zero_steps
+    assert all(phi == y for phi, y in seen) and len({phi for phi, _ in seen}) == 20
+    assert zero_steps == counted >= 20  # one per point at least, counted alike by the FMU and the adapter
+
+
 # --- aliases and DirectDependency ---------------------------------------------------
 
 NEGATED = """

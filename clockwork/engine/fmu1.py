@@ -17,6 +17,12 @@ library):
   (``cw1_*`` in src_c/master/cw_master.c, on this instance's ``_Fmi1``);
 - steps run synchronously (no stepFinished callback); an FMU that answers
   fmiPending anyway fails the run in one line, its step cancelled;
+- FMI 1.0 computes outputs in fmiDoStep: outputs read after inputs were
+  set, with no step between, are computed first by a step of size 0 at the
+  communication point (FMI 1.0's iteration, which FMI 2.0 replaced by
+  computing them on the get): the master's feedthrough and its algebraic
+  loops see the outputs of the inputs it set (``_zero_step``; the core's
+  ``cw1_fresh``);
 - fmiBoolean values are chars, converted to and from the master's ints;
 - a negatedAlias variable shares its value reference with the variable
   it negates: it gets a value reference of its own, above every one the
@@ -35,7 +41,7 @@ this instance.
 from __future__ import annotations
 
 import ctypes
-from ctypes import POINTER, Structure, c_char, c_char_p, c_double, c_int, c_size_t, c_uint, c_void_p
+from ctypes import POINTER, Structure, c_char, c_char_p, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
 from pathlib import Path
 
 from fmpy import calloc, free
@@ -44,7 +50,7 @@ from fmpy.fmi1 import (FMU1Slave, fmi1CallbackAllocateMemoryTYPE, fmi1CallbackFr
 
 from ..errors import ParametersRefused, SceneError, SimulationError
 from .description import fmi1_details, read_fmu
-from .fmu import ERROR, Instance, extract
+from .fmu import ERROR, OK, WARNING, Instance, extract
 
 PENDING = 5  # fmiPending: an asynchronous step
 TRUE, FALSE = b"\x01", b"\x00"  # fmiBoolean (a char)
@@ -56,7 +62,13 @@ class _Fmi1(Structure):
 
     _fields_ = [(n, c_void_p) for n in (
         "instance", "doStep", "getReal", "setReal", "setInputDerivatives", "getOutputDerivatives",
-        "negated_vr", "base_vr")] + [("n_negated", c_int), ("pad_", c_int)]
+        "negated_vr", "base_vr")] + [
+        ("time", c_double),         # the FMU's communication point, s
+        ("zero_steps", c_longlong),  # steps of size 0 taken to compute outputs
+        ("n_negated", c_int),
+        ("stale", c_int),           # inputs set since fmiDoStep last computed the outputs
+        ("failed_zero", c_int),     # the last zero step failed
+        ("pad_", c_int)]
 
 
 def _free_references(used: set[int], count: int) -> list[int]:
@@ -172,22 +184,62 @@ class Instance1(Instance):
                          ("setInputDerivatives", f_setDer), ("getOutputDerivatives", f_getDer)):
             setattr(a, field, ctypes.cast(f, c_void_p).value)
 
-        self.c_doStep = lambda comp, t, h, _no_set_prior=1: f_doStep(comp, t, h, TRUE)
-        self.c_getString = lambda comp, vr, n, out: f_getString(comp, self._own(vr, n)[0], n, out)
-        self.c_setString = lambda comp, vr, n, values: f_setString(comp, self._own(vr, n)[0], n, values)
-        self.c_getBoolean = self._booleans_out(f_getBoolean)
-        self.c_setBoolean = self._booleans_in(f_setBoolean)
-        if not self._negated:  # the FMU's own functions: the same shape as FMI 2.0's
-            self.c_getReal, self.c_setReal = f_getReal, f_setReal
-            self.c_getInteger, self.c_setInteger = f_getInteger, f_setInteger
-            self.c_setInputDerivatives, self.c_getOutputDerivatives = f_setDer, f_getDer
-            return
-        self.c_getReal = self._numbers_out(f_getReal)
-        self.c_setReal = self._numbers_in(f_setReal, c_double)
-        self.c_getInteger = self._numbers_out(f_getInteger)
-        self.c_setInteger = self._numbers_in(f_setInteger, c_int)
-        self.c_getOutputDerivatives = self._numbers_out(f_getDer)  # (comp, vr, n, orders, out)
-        self.c_setInputDerivatives = self._numbers_in(f_setDer, c_double)
+        self._f_doStep = f_doStep
+
+        def do_step(comp, t, h, _no_set_prior=1):
+            st = f_doStep(comp, t, h, TRUE)
+            if st <= WARNING:
+                a.time, a.stale = t + h, 0
+            return st
+
+        self.c_doStep = do_step
+        get_string = lambda comp, vr, n, out: f_getString(comp, self._own(vr, n)[0], n, out)
+        set_string = lambda comp, vr, n, values: f_setString(comp, self._own(vr, n)[0], n, values)
+        if self._negated:
+            getters = (self._numbers_out(f_getReal), self._numbers_out(f_getInteger),
+                       self._numbers_out(f_getDer))  # the last: (comp, vr, n, orders, out)
+            setters = (self._numbers_in(f_setReal, c_double), self._numbers_in(f_setInteger, c_int))
+            self.c_setInputDerivatives = self._numbers_in(f_setDer, c_double)
+        else:  # the FMU's own functions: the same shape as FMI 2.0's
+            getters, setters = (f_getReal, f_getInteger, f_getDer), (f_setReal, f_setInteger)
+            self.c_setInputDerivatives = f_setDer
+        self.c_getReal, self.c_getInteger, self.c_getOutputDerivatives, self.c_getBoolean, self.c_getString = (
+            self._fresh(f) for f in (*getters, self._booleans_out(f_getBoolean), get_string))
+        self.c_setReal, self.c_setInteger, self.c_setBoolean, self.c_setString = (
+            self._staling(f) for f in (*setters, self._booleans_in(f_setBoolean), set_string))
+
+    # -- outputs of new inputs: FMI 1.0 computes them in fmiDoStep ---------------
+
+    def _zero_step(self, comp) -> int:
+        """Where inputs were set since the last step, a step of size 0 at the
+        communication point (FMI 1.0's iteration), which computes the outputs
+        of those inputs, as FMI 2.0 does on the get (cw_master.c: cw1_fresh)."""
+        a = self.adapter
+        if not a.stale:
+            return OK
+        st = self._f_doStep(comp, a.time, 0.0, TRUE)
+        if st > WARNING:
+            a.failed_zero = 1
+            return st
+        a.stale = 0
+        a.zero_steps += 1
+        return st
+
+    def _fresh(self, get):
+        def call(comp, *args):
+            fresh = self._zero_step(comp)
+            if fresh > WARNING:
+                return fresh
+            return max(get(comp, *args), fresh)
+        return call
+
+    def _staling(self, set_):
+        def call(comp, vr, n, values):
+            st = set_(comp, vr, n, values)
+            if n:
+                self.adapter.stale = 1
+            return st
+        return call
 
     # -- negated aliases and fmiBoolean ---------------------------------------
 
@@ -254,6 +306,8 @@ class Instance1(Instance):
         self.set_values(parameters, "setting parameters", ParametersRefused)
         self.check(self._f_init(self.component, start, FALSE, 0.0), "fmiInitializeSlave", error=ParametersRefused)
         self._initialized = True
+        a = self.adapter
+        a.time, a.stale = start, 0  # fmiInitializeSlave computed the outputs of the parameters and start values
 
     def exit_init(self) -> None:
         """Nothing: fmiInitializeSlave has left initialization already."""
@@ -263,6 +317,7 @@ class Instance1(Instance):
         self.check(self.c_reset(self.component), "fmiResetSlave")
         del self.messages[:]  # an error after the reset must not quote one from before
         self._initialized = self._failed = self._pending = False
+        self.adapter.stale = self.adapter.failed_zero = 0
 
     def terminated(self) -> bool:
         return False  # FMI 1.0 has no fmiTerminated status: a discarded step fails the run
@@ -272,6 +327,10 @@ class Instance1(Instance):
         self._failed = True
         what = what.replace("fmi2", "fmi")
         error = error or SimulationError
+        if self.adapter.failed_zero:  # the step of size 0 before the get failed, not the get
+            self.adapter.failed_zero = 0
+            what = (f"fmiDoStep({self.adapter.time!r}, 0) (a step of size 0, FMI 1.0's way to compute the "
+                    f"outputs of inputs set since the last step, before {what.split('(')[0]})")
         if status != PENDING:
             return super().fail(what, status, time, error)
         self._pending = True  # cancelled when the instance is freed

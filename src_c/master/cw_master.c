@@ -1820,7 +1820,10 @@ CW_EXPORT int cw3_setState(void *comp, void *state)
  * its component. fmiDoStep's last argument is FMI 1.0's newStep, an
  * fmiBoolean (a char), where fmi2DoStep has an int: cw1_doStep calls it
  * through its own type, always with newStep = true (a step of an FMU
- * without state is never repeated). A negated alias has a value reference
+ * without state is never repeated). FMI 1.0 computes outputs in fmiDoStep:
+ * outputs read after inputs were set (no step between) are computed first
+ * by a step of size 0 at the communication point (cw1_fresh), FMI 1.0's
+ * iteration, as FMI 2.0 computes them on the get. A negated alias has a value reference
  * of its own (negated_vr), turned into the FMU's (base_vr) with its value
  * negated both ways. FMI 1.0 has no FMU state: the master refuses every
  * setting that needs one before the first step.
@@ -1838,7 +1841,12 @@ typedef struct cw_fmi1 {
     cw_getDer_t getOutputDerivatives;
     const unsigned *negated_vr; /* the master's value references of negated aliases */
     const unsigned *base_vr;    /* the FMU's, whose value they negate */
-    int n_negated, pad_;
+    double time;                /* the FMU's communication point, s */
+    long long zero_steps;       /* steps of size 0 taken to compute outputs */
+    int n_negated;
+    int stale;                  /* inputs set since fmiDoStep last computed the outputs */
+    int failed_zero;            /* the last zero step failed (fmu1.Instance1.fail says so) */
+    int pad_;
 } cw_fmi1;
 
 CW_EXPORT size_t cw_sizeof_fmi1(void) { return sizeof(cw_fmi1); }
@@ -1864,7 +1872,29 @@ CW_EXPORT int cw1_doStep(void *comp, double t, double h, int no_set_prior)
 {
     cw_fmi1 *a = comp;
     (void)no_set_prior;  /* FMI 1.0 has no FMU state to set */
-    return a->doStep(a->instance, t, h, (fmi1_boolean)1);
+    int st = a->doStep(a->instance, t, h, (fmi1_boolean)1);
+    if (st <= FMI_WARNING) {
+        a->time = t + h;
+        a->stale = 0;
+    }
+    return st;
+}
+
+/* FMI 1.0 computes outputs in fmiDoStep: where inputs were set since the
+ * last step, a step of size 0 at the communication point first (FMI 1.0's
+ * iteration; FMI 2.0 computes them on the get). */
+static int cw1_fresh(cw_fmi1 *a)
+{
+    if (!a->stale)
+        return FMI_OK;
+    int st = a->doStep(a->instance, a->time, 0.0, (fmi1_boolean)1);
+    if (st > FMI_WARNING) {
+        a->failed_zero = 1;
+        return st;
+    }
+    a->stale = 0;
+    a->zero_steps++;
+    return st;
 }
 
 /* A call with negated aliases among vr: through the FMU's value references,
@@ -1905,15 +1935,22 @@ static int cw1_translated(cw_fmi1 *a, int call, const unsigned *vr, size_t n, co
 CW_EXPORT int cw1_getReal(void *comp, const unsigned *vr, size_t n, double *out)
 {
     cw_fmi1 *a = comp;
-    return a->n_negated ? cw1_translated(a, CW1_GET_REAL, vr, n, NULL, NULL, out)
-                        : a->getReal(a->instance, vr, n, out);
+    int fresh = cw1_fresh(a);
+    if (fresh > FMI_WARNING)
+        return fresh;
+    int st = a->n_negated ? cw1_translated(a, CW1_GET_REAL, vr, n, NULL, NULL, out)
+                          : a->getReal(a->instance, vr, n, out);
+    return st > fresh ? st : fresh;
 }
 
 CW_EXPORT int cw1_setReal(void *comp, const unsigned *vr, size_t n, const double *values)
 {
     cw_fmi1 *a = comp;
-    return a->n_negated ? cw1_translated(a, CW1_SET_REAL, vr, n, NULL, values, NULL)
-                        : a->setReal(a->instance, vr, n, values);
+    int st = a->n_negated ? cw1_translated(a, CW1_SET_REAL, vr, n, NULL, values, NULL)
+                          : a->setReal(a->instance, vr, n, values);
+    if (n)
+        a->stale = 1;
+    return st;
 }
 
 CW_EXPORT int cw1_setInputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order,
@@ -1927,8 +1964,12 @@ CW_EXPORT int cw1_setInputDerivatives(void *comp, const unsigned *vr, size_t n, 
 CW_EXPORT int cw1_getOutputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order, double *out)
 {
     cw_fmi1 *a = comp;
-    return a->n_negated ? cw1_translated(a, CW1_GET_DER, vr, n, order, NULL, out)
-                        : a->getOutputDerivatives(a->instance, vr, n, order, out);
+    int fresh = cw1_fresh(a);
+    if (fresh > FMI_WARNING)
+        return fresh;
+    int st = a->n_negated ? cw1_translated(a, CW1_GET_DER, vr, n, order, NULL, out)
+                          : a->getOutputDerivatives(a->instance, vr, n, order, out);
+    return st > fresh ? st : fresh;
 }
 
 /* Never called: the master refuses rollback for FMI 1.0 before the first step. */

@@ -5,8 +5,10 @@
  * fmiInitializeSlave is FMI 2.0's setup, initialization mode and its exit
  * in one call; fmiBoolean is a char; there is no FMU state, so a step is
  * never repeated (newStep = false is refused: canRejectSteps is false) and
- * the model is always told that no earlier state will be set; the callbacks
- * come by value and the logger gets the component, not an environment.
+ * the model is always told that no earlier state will be set; a step of
+ * size 0 is FMI 1.0's iteration at a communication point (the outputs of
+ * new inputs); the callbacks come by value and the logger gets the
+ * component, not an environment.
  * Built for the tests only (build/test-fmus/fmi1/). */
 #include <stdint.h>
 #include <string.h>
@@ -215,6 +217,18 @@ EXPORT fmi1Status FMI1(fmiDoStep)(fmi1Component c,
         return fmi1Error;
     }
     INST->no_set_prior = 1; /* FMI 1.0 has no FMU state to set */
+    if (communicationStepSize == 0.0) {
+        /* FMI 1.0's iteration at a communication point: the importer asks
+         * for the outputs of the inputs it set. The runtime's outputs
+         * follow the inputs already; time does not move. */
+        if (currentCommunicationPoint != INST->time) {
+            cw_log(INST, fmi2Error, "logStatusError",
+                   "%s: a zero step at %.17g, where the FMU stands at %.17g.", fn,
+                   currentCommunicationPoint, INST->time);
+            return fmi1Error;
+        }
+        return fmi1OK;
+    }
     return S(cw_core_do_step(INST, fn, currentCommunicationPoint,
                              communicationStepSize));
 }
