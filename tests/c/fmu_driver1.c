@@ -7,7 +7,8 @@
  * <modelIdentifier>_fmi* functions: refused instantiations; the lifecycle
  * (start values, fmiInitializeSlave, steps, every variable of every type,
  * fmiBoolean as a char both ways, also more of them than the face converts
- * on its stack, the status functions, newStep = false refused,
+ * on its stack, the status functions, newStep = false refused, a step of
+ * size 0 where the FMU stands (FMI 1.0's iteration) and nowhere else,
  * fmiResetSlave giving the first run's bits again); and a long random
  * sequence of calls in any order (every status OK, Discard or Error, and
  * every Error with a logged message). A counting allocator checks that
@@ -147,6 +148,10 @@ static void run(fmi1Component c, double *out, int *n) {
         fmi1Real last_t = -1;
         CHECK(api.GetRealStatus(c, fmi1LastSuccessfulTime, &last_t) == fmi1OK && last_t == t, "last time");
     }
+    /* FMI 1.0's iteration: a step of size 0 where the FMU stands, nowhere else. */
+    set_inputs(c, t);
+    CHECK(api.DoStep(c, t, 0.0, fmi1True) == fmi1OK, "a zero step");
+    REFUSED(api.DoStep(c, t + 1.0, 0.0, fmi1True), "a zero step elsewhere");
     *n = values(c, out);
 }
 
