@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from ..errors import SceneError
+from .description import link_shape_problem
 from .fmu import Instance
 from .names import split_link, split_ref
 
@@ -61,7 +62,43 @@ class Wiring:
     feedthrough_outputs: dict[tuple[str, str], bool]  # (instance, output) -> has direct feedthrough
 
 
+def expand_arrays(instances: dict[str, Instance], links: list[Link]) -> list[Link]:
+    """Links between FMI 3.0 arrays as links between their elements, in
+    order (arrays of the same shape only); SceneError where shapes differ or
+    where an input array would be connected in part (FMI 3.0 sets an array
+    whole)."""
+    if not any(inst.arrays for inst in instances.values()):
+        return list(links)
+    out = []
+    for link in links:
+        src, dst = instances[link.src], instances[link.dst]
+        s, d = src.variables[link.output], dst.variables[link.input]
+        if not s.shape and not d.shape:
+            out.append(link)
+            continue
+        problem = link_shape_problem(f"{link.src}.{link.output}", s, f"{link.dst}.{link.input}", d)
+        if problem:
+            raise SceneError(f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: {problem}")
+        for a, b in zip(src.elements[link.output], dst.elements[link.input]):
+            out.append(Link(link.src, a, link.dst, b, link.factor, link.offset))
+    connected: dict[tuple[str, str], list[str]] = {}
+    for link in out:
+        v = instances[link.dst].variables[link.input]
+        if v.array is not None:
+            connected.setdefault((link.dst, v.array), []).append(link.input)
+    for (dst, array), names in connected.items():
+        size = instances[dst].arrays[array][1]
+        if len(set(names)) < size:
+            raise SceneError(f"connection to {dst}.{names[0]}: {dst}.{array} is an input array of {size} values "
+                             f"and {len(set(names))} of them are connected; FMI 3.0 sets an array whole: "
+                             f"connect {dst}.{array} (or every element of it)")
+    return out
+
+
 def build(instances: dict[str, Instance], links: list[Link], step_order: list[str] | None = None) -> Wiring:
+    """The wiring of these links (links between whole arrays become links
+    between their elements: ``Wiring.links``)."""
+    links = expand_arrays(instances, links)
     feeds: dict[tuple[str, str], bool] = {}
     for link in links:
         var = instances[link.src].variables[link.output]
