@@ -411,7 +411,8 @@ def _check_arrays(path: Path, md, xml: bytes) -> None:
     for v in arrays:
         where = f"{path}: modelDescription.xml: {v.name}"
         if v.type in ("Binary", "Clock"):
-            raise FmuError(f"{where}: an array of {v.type} values, which the master does not support")
+            raise FmuError(f"{path}: {md.modelName} has an array of {v.type} values ({v.name}), which the master "
+                           "does not support")
         for d in v.dimensions:
             if d.start is None:
                 size_var = by_vr.get(d.valueReference)

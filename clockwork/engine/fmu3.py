@@ -228,7 +228,7 @@ class Instance3(Instance):
                 var.dependencies = [x for d in var.dependencies for x in elements.get(d, [d])]
         n = len(code_vr)
         cap = 2 * len(self.variables) + 2
-        largest = max(code_size)
+        largest = max(code_size, default=1)
         self._code_arrays = ((c_uint * n)(*code_vr), (c_int * n)(*code_off), (c_int * n)(*code_size),
                              (c_uint * cap)(), (c_int * cap)(), (c_double * max(1, largest))())
         ev = self.events
@@ -462,13 +462,14 @@ class Instance3(Instance):
         hexadecimal digits; an array element's value, an array's values as a
         list (row-major)."""
         values = []
+        arrays: dict[str, list] = {}  # each array read once per call
         for n in names:
             v = self.variables[n]
-            if v.shape:
-                values.append(self._get_array(n))
-                continue
-            if v.array is not None:
-                values.append(self._get_array(v.array)[v.index])
+            if v.shape or v.array is not None:
+                name = n if v.shape else v.array
+                if name not in arrays:
+                    arrays[name] = self._get_array(name)
+                values.append(list(arrays[name]) if v.shape else arrays[name][v.index])
                 continue
             kind = type_name(self.md, v)
             get = self._value_functions(kind)[0]

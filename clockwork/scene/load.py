@@ -252,6 +252,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     sweep = parse_sweep(ctx, ctx.table(raw, "sweep", ""), components, connected_inputs)
     plots = _plots(ctx, raw.get("plot", []), kinds)
     if (analysis or {}).get("kind", "time_series") == "time_series":
+        plots = _plot_array_elements(plots, components)
         _check_series_plots(ctx, plots, record, components)
 
     scene = Scene(
@@ -417,7 +418,7 @@ def _takes_intermediate_update(md, name: str) -> bool:
     replacement for input derivatives)."""
     if not md.coSimulation or not md.coSimulation.providesIntermediateUpdate:
         return False
-    return any(v.name == name and v.intermediateUpdate for v in md.modelVariables)
+    return any(v.name == name and v.intermediateUpdate and not v.shape for v in md.modelVariables)  # arrays: no
 
 
 def _fmi3_inputs(m: MasterConfig, components: dict[str, Component], connections) -> tuple[str, str] | None:
@@ -523,6 +524,27 @@ def _column_type(name: str, variables: dict) -> str | None:
     """The FMI type of a recorded column "instance.variable" (None: not a variable)."""
     split = split_ref(name, variables)
     return None if split is None or split[1] not in variables[split[0]] else variables[split[0]][split[1]].type
+
+
+def _plot_array_elements(plots: tuple[dict, ...], components: dict) -> tuple[dict, ...]:
+    """A series plot's `y` naming an FMI 3.0 array draws each of its elements."""
+    variables = {n: variables_of(c.model_description) for n, c in components.items()}
+
+    def elements(name: str) -> list[str]:
+        split = split_ref(name, variables)
+        v = variables[split[0]].get(split[1]) if split else None
+        return [f"{split[0]}.{e}" for e in element_names(v)] if v is not None and v.shape else [name]
+
+    out = []
+    for spec in plots:
+        ys = spec.get("y")
+        if spec["kind"] in _SERIES_PLOTS and isinstance(ys, (str, list)):
+            names = [ys] if isinstance(ys, str) else ys
+            expanded = [e for y in names if isinstance(y, str) for e in elements(y)]
+            if expanded != names:
+                spec = {**spec, "y": expanded}
+        out.append(spec)
+    return tuple(out)
 
 
 def _check_series_plots(ctx: Ctx, plots: tuple[dict, ...], record: Record, components: dict) -> None:
