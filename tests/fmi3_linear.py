@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from fmi3_bouncer import pack
 
 SOURCE = Path(__file__).parent / "data" / "fmi3" / "linear.c"
@@ -71,3 +73,9 @@ def build(folder: Path, name: str = "Linear") -> Path:
     """Compile and zip the FMU into folder/<name>.fmu; returns its path."""
     source = SOURCE.read_text()
     return pack(folder, name, "Linear", source, source, MODEL_DESCRIPTION, ("-Wall",))
+
+
+@pytest.fixture(scope="module")
+def fmu(tmp_path_factory):
+    """The test FMU, built once per test module."""
+    return build(tmp_path_factory.mktemp("linear"))

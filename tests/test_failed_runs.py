@@ -25,27 +25,16 @@ from pathlib import Path
 
 import pytest
 
-from clockwork.engine.compiled import core_problem
 from clockwork.engine.recording import Recorder
 from clockwork.engine.settings import MasterSettings
 from clockwork.engine.system import System
 from clockwork.errors import SimulationError
 from clockwork.results.outdir import OutputDir
 from cwtest import assert_one_line_error, run_cli
-import fmi3_linear
+from fmi3_linear import fmu  # noqa: F401 (the test FMU, a fixture)
 
 ENGINES = ["python", "compiled"]
 ROOT = Path(__file__).resolve().parents[1]
-
-
-@pytest.fixture(scope="module")
-def fmu(tmp_path_factory):
-    return fmi3_linear.build(tmp_path_factory.mktemp("linear"))
-
-
-def needs_core(engine):
-    if engine == "compiled" and core_problem():
-        pytest.skip(core_problem())
 
 
 def scene(tmp_path, fmu, params="t_nan = 0.45", engine="auto", extra="", name="s.toml"):
@@ -81,7 +70,6 @@ def test_the_engines_keep_the_points_before_a_nan_only(fmu, engine):
     """The recorder holds every point before the one where y[0] turned NaN,
     not that one (the compiled core records a point after its divergence
     check), on both engines alike."""
-    needs_core(engine)
     with System({"a": (str(fmu), {"t_nan": 0.45})}, [], MasterSettings(step=0.1, engine=engine),
                 record={"a": ["y"]}) as s:
         rec = Recorder(s.master, [("a", "y")])
@@ -98,7 +86,6 @@ def test_the_engines_keep_the_points_before_a_nan_only(fmu, engine):
 def test_a_false_alarm_of_the_divergence_check_is_recorded(fmu, engine):
     """A sum of legal outputs above the limit (each below it) is no failure:
     every point is recorded, on both engines the same."""
-    needs_core(engine)
     runs = {}
     for e in ("python", engine):
         with System({"a": (str(fmu), {})}, [], MasterSettings(step=0.1, engine=e, divergence_limit=2.5),
@@ -117,7 +104,6 @@ def test_a_run_that_turns_nan_keeps_its_series_and_says_failed(capsys, tmp_path,
     both engines."""
     csvs = {}
     for engine in ENGINES:
-        needs_core(engine)
         out = tmp_path / engine
         rc, stdout, err = run_cli(capsys, ["run", scene(tmp_path, fmu, engine=engine), "--out", out,
                                            "--no-progress"])
@@ -135,7 +121,6 @@ def test_a_run_that_turns_nan_keeps_its_series_and_says_failed(capsys, tmp_path,
 
 @pytest.mark.parametrize("engine", ENGINES)
 def test_an_fmu_that_fails_keeps_the_series_until_its_failed_step(capsys, tmp_path, fmu, engine):
-    needs_core(engine)
     out = tmp_path / "out"
     rc, _, err = run_cli(capsys, ["run", scene(tmp_path, fmu, "t_fail = 0.35", engine), "--out", out,
                                   "--no-progress"])
@@ -196,22 +181,14 @@ def test_the_python_api_gets_the_error_with_the_summary_and_the_history(tmp_path
 
 
 _KILLER = textwrap.dedent("""
-    import os, signal, sys
-    sys.path.insert(0, {root!r})
+    import sys
+    sys.path.insert(0, {root!r}); sys.path.insert(0, {tests!r})
+    from test_commit import kill_at
     from clockwork.results import outdir
     from clockwork.run import load_scene, run_scene
-    k = int(sys.argv[3]); n = [0]
-    def wrap(real):
-        def call(*a, **kw):
-            n[0] += 1
-            if n[0] == k:
-                os.kill(os.getpid(), signal.SIGKILL)
-            return real(*a, **kw)
-        return call
     commit = outdir.OutputDir.commit
     def killing_commit(self):
-        for name in ("replace", "rename", "mkdir", "fsync", "unlink", "rmdir"):
-            setattr(os, name, wrap(getattr(os, name)))
+        kill_at(int(sys.argv[3]))
         commit(self)
     outdir.OutputDir.commit = killing_commit
     try:
@@ -226,6 +203,7 @@ def _commit_calls(tmp_path, monkeypatch, good, bad) -> int:
     """How many file-system calls the failed run's commit makes (as the killer counts them)."""
     from clockwork.results import outdir
     from clockwork.run import load_scene, run_scene
+    from test_commit import STEP_CALLS
 
     d = tmp_path / "count"
     run_scene(load_scene(good), d, progress=False)
@@ -233,7 +211,7 @@ def _commit_calls(tmp_path, monkeypatch, good, bad) -> int:
     commit = outdir.OutputDir.commit
 
     def counting_commit(self):
-        for name in ("replace", "rename", "mkdir", "fsync", "unlink", "rmdir"):
+        for name in STEP_CALLS:
             real = getattr(os, name)
 
             def call(*a, real=real, **kw):
@@ -259,7 +237,7 @@ def test_a_kill_while_a_failed_run_commits_leaves_old_or_new(capsys, tmp_path, f
     total = _commit_calls(tmp_path, monkeypatch, good, bad)
     assert total >= 8
     script = tmp_path / "killer.py"
-    script.write_text(_KILLER.format(root=str(ROOT)))
+    script.write_text(_KILLER.format(root=str(ROOT), tests=str(ROOT / "tests")))
     template = tmp_path / "template"
     rc, _, err = run_cli(capsys, ["run", good, "--out", template, "--no-progress"])
     assert rc == 0, err

@@ -176,14 +176,6 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
 }
 
 void fmi3FreeInstance(fmi3Instance instance) { free(instance); }
-const char *fmi3GetVersion(void) { return fmi3Version; }
-
-fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
-                               const fmi3String categories[])
-{
-    (void)instance; (void)loggingOn; (void)nCategories; (void)categories;
-    return fmi3OK;
-}
 
 fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,
                                        fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime)
