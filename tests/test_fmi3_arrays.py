@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 
 import fmpy
 import numpy as np
@@ -215,3 +216,54 @@ def test_fmpy_validates_the_test_fmu(fmu):
     from fmpy.validation import validate_fmu
 
     assert validate_fmu(str(fmu)) == []
+
+
+def _description_only(tmp_path, name, body):
+    import zipfile
+
+    path = tmp_path / f"{name}.fmu"
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("modelDescription.xml", f"""<?xml version="1.0"?>
+<fmiModelDescription fmiVersion="3.0" modelName="{name}" instantiationToken="x">
+  <CoSimulation modelIdentifier="M"/><ModelVariables>{body}</ModelVariables><ModelStructure/>
+</fmiModelDescription>""")
+    return path
+
+
+OUT = '<Float64 name="a" valueReference="1" causality="output">{}</Float64>'
+SIZE = '<UInt64 name="n" valueReference="2" causality="structuralParameter" variability="fixed"{}/>'
+
+
+@pytest.mark.parametrize("body, needle", [
+    (OUT.format('<Dimension valueReference="99"/>'), 'a: <Dimension valueReference="99"> names no variable'),
+    (OUT.format('<Dimension start="-1"/>'), 'a: <Dimension start="-1">: expected a size, an integer >= 0'),
+    (OUT.format('<Dimension start="2.5"/>'), 'a: <Dimension start="2.5">: expected a size'),
+    (OUT.format("<Dimension/>"), "a: a <Dimension> without start or valueReference"),
+    (SIZE.format("") + OUT.format('<Dimension valueReference="2"/>'), "the size n, whose start value (none)"),
+    (SIZE.format(' start="x"') + OUT.format('<Dimension valueReference="2"/>'), "the size n, whose start value (x)"),
+    ('<Float64 name="p" valueReference="2" causality="parameter" variability="fixed" start="2"/>'
+     + OUT.format('<Dimension valueReference="2"/>'), "must name a structural parameter"),
+    (OUT.format('<Dimension start="1000"/><Dimension start="1001"/>'), "more than 100,000 elements"),
+    (OUT.format('<Dimension start="2"/>') + '<Float64 name="a[1]" valueReference="2" causality="output"/>',
+     "the element a[1] of the array a has the name of another variable"),
+    ('<Binary name="a" valueReference="1" causality="output"><Dimension start="2"/></Binary>',
+     "an array of Binary values (a)"),
+])
+def test_a_broken_array_declaration_is_one_line(capsys, tmp_path, body, needle):
+    """Every way a <Dimension> can fail to give a size, an element name that
+    is taken, too many elements and an unsupported element type: one line
+    naming the FMU, from read_fmu and from validate."""
+    from clockwork.engine.description import FmuError
+
+    path = _description_only(tmp_path, "Broken", body)
+    with pytest.raises(FmuError, match=re.escape(needle)):
+        read_fmu(path, need_binary=False)
+    f = tmp_path / "s.toml"
+    f.write_text(f'[scene]\ntitle = "t"\n[components.a]\nfmu = "{path.name}"\n[experiment]\nstop = 1\n')
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, "components.a.fmu", str(path), needle)
+
+
+def test_an_empty_array_loads_with_no_elements(tmp_path):
+    md = read_fmu(_description_only(tmp_path, "Empty", OUT.format('<Dimension start="0"/>')), need_binary=False)[0]
+    assert variables(md)["a"].shape == (0,) and not [n for n in variables(md) if n.startswith("a[")]

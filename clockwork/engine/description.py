@@ -189,6 +189,9 @@ def read_fmu(path: Path, need_binary: bool = True,
                          if n.startswith((f"binaries/{fmpy.platform}/", f"binaries/{fmpy.platform_tuple}/"))}
         except (zipfile.BadZipFile, OSError) as e:
             raise FmuError(f"{path} is not a readable FMU: {e}") from None
+        problem = _dimension_problem(xml) if b"<Dimension" in xml else None
+        if problem:  # said here: fmpy's own error would be a bare KeyError or int() message
+            raise FmuError(f"{path}: modelDescription.xml: {problem}")
         try:
             md = fmpy.read_model_description(str(path), validate=False)
         except Exception as e:  # fmpy raises bare Exceptions and lxml errors
@@ -319,7 +322,7 @@ def variables(md) -> dict:
 
 # -- FMI 3.0 arrays ---------------------------------------------------------------
 
-MAX_ARRAY_ELEMENTS = 1_000_000  # elements of one FMU's arrays; more is not a model a master steps
+MAX_ARRAY_ELEMENTS = 100_000  # elements of one FMU's arrays: each is a variable of its own (some 40 us and 1 kB)
 
 
 @attrs.define(eq=False)
@@ -398,6 +401,33 @@ def link_shape_problem(source: str, output, destination: str, input_) -> str | N
                 f"same shape, or one element (e.g. {element_name(source, (0,) * len(a))})")
     return (f"{destination} is an array ({shape_text(b)}) and {source} a scalar: connect arrays of the same "
             "shape (FMI 3.0 sets an input array whole)")
+
+
+def _dimension_problem(xml: bytes) -> str | None:
+    """What is wrong with an array's <Dimension> (a start that is no size, a
+    valueReference that names no variable with an integer start), or None."""
+    try:
+        root = ET.fromstring(xml)
+    except ET.ParseError:
+        return None  # fmpy says what is wrong with the XML
+    variables = list(root.iterfind("ModelVariables/*"))
+    starts = {v.get("valueReference"): (v.get("name"), v.get("start")) for v in variables}
+    for v in variables:
+        for d in v.iterfind("Dimension"):
+            start, vr = d.get("start"), d.get("valueReference")
+            if start is not None:
+                if not re.fullmatch(r"\+?[0-9]+", start.strip()):
+                    return f"{v.get('name')}: <Dimension start=\"{start}\">: expected a size, an integer >= 0"
+            elif vr is None:
+                return f"{v.get('name')}: a <Dimension> without start or valueReference"
+            elif vr.strip() not in starts:
+                return f"{v.get('name')}: <Dimension valueReference=\"{vr}\"> names no variable"
+            else:
+                name, size = starts[vr.strip()]
+                if size is None or not re.fullmatch(r"\+?[0-9]+", size.strip()):
+                    return (f"{v.get('name')}: its <Dimension> is the size {name}, whose start value "
+                            f"({size if size is not None else 'none'}) is not an integer >= 0")
+    return None
 
 
 def _check_arrays(path: Path, md, xml: bytes) -> None:
