@@ -118,6 +118,25 @@ def test_arrays_connect_element_by_element_in_order(fmu, engine):
     assert c["a.y[0]"] != c["a.y[1]"]
 
 
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_part_of_an_array_is_read_element_by_element(fmu, engine):
+    """Elements recorded out of order or alone (not whole arrays in order)
+    are read one by one, beside scalars and whole arrays: the same values
+    as a whole-array read."""
+    def run(record):
+        with System({"a": (str(fmu), {"A": A, "u": [1.0, -2.0]})}, [], MasterSettings(step=0.1, engine=engine),
+                    record={"a": [name for name in record]}) as s:
+            rec = Recorder(s.master, [("a", name) for name in record])
+            rec.start()
+            s.master.run_until(1.0, rec)
+        return rec.columns
+
+    whole = run(["y", "x", "s"])
+    parts = run(["x[2]", "s", "y[1]", "x[0]"])
+    for name in ("x[2]", "s", "y[1]", "x[0]"):
+        assert parts[f"a.{name}"] == whole[f"a.{name}"], name
+
+
 def test_both_engines_give_the_same_bits_through_a_scene(capsys, tmp_path, fmu):
     """A scene: array parameters from the file and from --set (a whole
     array and one element), array links, every element recorded."""
