@@ -4,8 +4,8 @@ master's array tests: dx/dt = A x + B u, y = C x + D u with n = 3 states (a
 structural parameter), A (3x3), B (3x2), C (2x3), D (2x2) and x0 (3) array
 parameters, an array input u (2) and array outputs y (2) and x (3), a
 scalar input w and output s = sum(x) + w, an Int32 array input k (3)
-mirrored by the output kk, and the faults of failed runs (t_nan, t_fail).
-See linear.c."""
+mirrored by the output kk, the first and second derivatives of x and y,
+and the faults of failed runs (t_nan, t_fail). See linear.c."""
 
 from __future__ import annotations
 
@@ -20,7 +20,8 @@ SOURCE = Path(__file__).parent / "data" / "fmi3" / "linear.c"
 MODEL_DESCRIPTION = """<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription fmiVersion="3.0" modelName="Linear" instantiationToken="{cw-fmi3-linear}"
     description="clockwork's FMI 3.0 test FMU with arrays: dx/dt = A x + B u, y = C x + D u">
-  <CoSimulation modelIdentifier="Linear" canHandleVariableCommunicationStepSize="true"/>
+  <CoSimulation modelIdentifier="Linear" canHandleVariableCommunicationStepSize="true"
+      maxOutputDerivativeOrder="2"/>
   <UnitDefinitions>
     <Unit name="m"><BaseUnit m="1"/></Unit>
     <Unit name="s"><BaseUnit s="1"/></Unit>

@@ -137,6 +137,48 @@ def test_a_part_of_an_array_is_read_element_by_element(fmu, engine):
         assert parts[f"a.{name}"] == whole[f"a.{name}"], name
 
 
+def test_both_adapters_serve_output_derivatives_of_elements(fmu):
+    """fmi3GetOutputDerivatives on element codes, through the Python
+    adapter and the core's cw3_getOutputDerivatives: whole arrays in order
+    (one call, orders per array) and anything else (element by element)
+    give the FMU's own values of whole-array calls."""
+    import ctypes
+    from ctypes import POINTER, c_double, c_int, c_size_t, c_uint, c_void_p
+
+    from clockwork.engine.compiled import load_core
+
+    core = load_core().cw3_getOutputDerivatives
+    core.argtypes = [c_void_p, POINTER(c_uint), c_size_t, POINTER(c_int), POINTER(c_double)]
+    core.restype = c_int
+    with System({"a": (str(fmu), {"A": A, "u": [1.0, -2.0]})}, [], MasterSettings(step=0.1, engine="python")) as s:
+        s.master.run_until(0.3)
+        inst = s.instances["a"]
+        direct = inst._slave.dll.fmi3GetOutputDerivatives
+        direct.argtypes = [c_void_p, POINTER(c_uint), c_size_t, POINTER(c_int), POINTER(c_double), c_size_t]
+        ref = {}
+        for name, size in (("x", 3), ("y", 2)):
+            for order in (1, 2):
+                out = (c_double * size)()
+                vr = (c_uint * 1)(inst.arrays[name][0])
+                assert direct(inst.component, vr, 1, (c_int * 1)(order), out, size) == 0
+                ref[(name, order)] = list(out)
+        requests = [[("x[0]", 1), ("x[1]", 1), ("x[2]", 1)],
+                    [("x[2]", 2), ("x[0]", 1)],
+                    [("y[0]", 1), ("y[1]", 1), ("x[0]", 2), ("x[1]", 2), ("x[2]", 2)],
+                    [("y[1]", 2), ("y[0]", 2), ("x[1]", 1)]]
+        for request in requests:
+            n = len(request)
+            vrs = (c_uint * n)(*[inst.variables[name].vr for name, _ in request])
+            orders = (c_int * n)(*[order for _, order in request])
+            want = [ref[(name[0], order)][inst.variables[name].index] for name, order in request]
+            for adapter in (lambda out: inst.c_getOutputDerivatives(inst.component, vrs, n, orders, out),
+                            lambda out: core(ctypes.addressof(inst.events), vrs, n, orders, out)):
+                out = (c_double * n)()
+                assert adapter(out) == 0
+                assert list(out) == want, request
+        assert len({tuple(v) for v in ref.values()}) == 4  # the four are not alike
+
+
 def test_both_engines_give_the_same_bits_through_a_scene(capsys, tmp_path, fmu):
     """A scene: array parameters from the file and from --set (a whole
     array and one element), array links, every element recorded."""

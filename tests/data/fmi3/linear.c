@@ -14,6 +14,8 @@
  * Faults for the tests of failed runs: from t >= t_nan on, y[0] is NaN; a
  * step that would end after t_fail returns fmi3Error (with a message).
  *
+ * x and y offer their first and second time derivatives.
+ *
  * Every get and set checks nValues against the sizes of the variables
  * named, so that a master that passes nValues wrong sees an error.
  */
@@ -269,6 +271,54 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
     if (at != nValues)
         return fail(a, "fmi3SetFloat64: nValues is more than the sizes of the variables");
     outputs(a);
+    return fmi3OK;
+}
+
+/* d^order x/dt^order (order 1 or 2, the input held): dx = A x + B u, ddx = A dx. */
+static void state_derivative(const Linear *a, int order, double *out)
+{
+    const size_t n = (size_t)a->n;
+    double dx[N_MAX];
+    derivative(a, a->x, dx);
+    for (size_t i = 0; i < n; i++) {
+        double s = dx[i];
+        if (order == 2) {
+            s = 0.0;
+            for (size_t j = 0; j < n; j++)
+                s += a->A[i * n + j] * dx[j];
+        }
+        out[i] = s;
+    }
+}
+
+/* Derivatives of x and of y = C x + D u (orders 1 and 2); checks nValues as the getters do. */
+fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
+                                    const fmi3Int32 orders[], fmi3Float64 values[], size_t nValues)
+{
+    Linear *a = instance;
+    const size_t n = (size_t)a->n;
+    size_t at = 0;
+    for (size_t i = 0; i < nvr; i++) {
+        double d[N_MAX];
+        if ((vr[i] != VR_X && vr[i] != VR_Y) || orders[i] < 1 || orders[i] > 2)
+            return fail(a, "fmi3GetOutputDerivatives: only x and y, of order 1 or 2");
+        const size_t size = vr[i] == VR_X ? n : N_OUT;
+        if (at + size > nValues)
+            return fail(a, "fmi3GetOutputDerivatives: nValues is less than the sizes of the variables");
+        state_derivative(a, orders[i], d);
+        for (size_t k = 0; k < size; k++) {
+            double s = d[k];
+            if (vr[i] == VR_Y) {
+                s = 0.0;
+                for (size_t j = 0; j < n; j++)
+                    s += a->C[k * n + j] * d[j];
+            }
+            values[at + k] = s;
+        }
+        at += size;
+    }
+    if (at != nValues)
+        return fail(a, "fmi3GetOutputDerivatives: nValues is more than the sizes of the variables");
     return fmi3OK;
 }
 
