@@ -296,12 +296,12 @@ SIZE = '<UInt64 name="n" valueReference="2" causality="structuralParameter" vari
 
 
 @pytest.mark.parametrize("body, needle", [
-    (OUT.format('<Dimension valueReference="99"/>'), 'a: <Dimension valueReference="99"> names no variable'),
-    (OUT.format('<Dimension start="-1"/>'), 'a: <Dimension start="-1">: expected a size, an integer >= 0'),
-    (OUT.format('<Dimension start="2.5"/>'), 'a: <Dimension start="2.5">: expected a size'),
-    (OUT.format("<Dimension/>"), "a: a <Dimension> without start or valueReference"),
+    (OUT.format('<Dimension valueReference="99"/>'), "Dimension valueReference='99': 99 is not the valueReference of a variable"),
+    (OUT.format('<Dimension start="-1"/>'), "Dimension start='-1': expected an integer in [0, 4294967295]"),
+    (OUT.format('<Dimension start="2.5"/>'), "Dimension start='2.5': expected an integer"),
+    (OUT.format("<Dimension/>"), "Dimension: expected either start or valueReference"),
     (SIZE.format("") + OUT.format('<Dimension valueReference="2"/>'), "the size n, whose start value (none)"),
-    (SIZE.format(' start="x"') + OUT.format('<Dimension valueReference="2"/>'), "the size n, whose start value (x)"),
+    (SIZE.format(' start="x"') + OUT.format('<Dimension valueReference="2"/>'), "UInt64 'n' start='x': expected an integer (UInt64)"),
     ('<Float64 name="p" valueReference="2" causality="parameter" variability="fixed" start="2"/>'
      + OUT.format('<Dimension valueReference="2"/>'), "must name a structural parameter"),
     (OUT.format('<Dimension start="1000"/><Dimension start="1001"/>'), "more than 100,000 elements"),
@@ -311,9 +311,11 @@ SIZE = '<UInt64 name="n" valueReference="2" causality="structuralParameter" vari
      "an array of Binary values (a)"),
 ])
 def test_a_broken_array_declaration_is_one_line(capsys, tmp_path, body, needle):
-    """Every way a <Dimension> can fail to give a size, an element name that
-    is taken, too many elements and an unsupported element type: one line
-    naming the FMU, from read_fmu and from validate."""
+    """Every way a <Dimension> can fail to give a size (most of them said by
+    engine/description_check.py, a size variable without a start by
+    description._dimension_problem), an element name that is taken, too
+    many elements and an unsupported element type: one line naming the FMU,
+    from read_fmu and from validate."""
     from clockwork.engine.description import FmuError
 
     path = _description_only(tmp_path, "Broken", body)

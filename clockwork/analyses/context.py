@@ -164,7 +164,8 @@ def build_system(scene, point: dict | None = None, record: dict[str, list[str]] 
         components = {n: (str(c.fmu_path), params[n]) for n, c in scene.components.items()}
         mds = {n: c.model_description for n, c in scene.components.items()}
         system = System(components, [tuple(c) for c in scene.connections], settings,
-                        record=record, start_time=start, model_descriptions=mds)
+                        record=record, start_time=start, model_descriptions=mds,
+                        labels={n: c.fmu_label for n, c in scene.components.items() if c.fmu_label})
     if idle is not None:
         system.release = lambda s: idle.keep(key, s)
     return system
