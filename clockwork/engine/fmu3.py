@@ -221,7 +221,7 @@ class Instance3(Instance):
                 code_off.append(e.index)
                 code_size.append(size)
         if base + len(code_vr) > 2**32:
-            raise SceneError(f"{self.path}: the value references leave no room to number the array elements")
+            raise SceneError(f"{self.shown}: the value references leave no room to number the array elements")
         elements = self.elements
         for var in self.variables.values():
             if var.dependencies and any(d in elements for d in var.dependencies):
