@@ -362,7 +362,7 @@ def _info_ssp(path: str) -> int:
 
 
 def cmd_info(args) -> int:
-    from .engine.description import FmuError, read_fmu, resolve_fmu, type_name, var_unit
+    from .engine.description import FmuError, read_fmu, resolve_fmu, shape_text, type_name, var_unit
 
     if Path(args.fmu).suffix.lower() in (".ssp", ".ssd"):
         return _info_ssp(args.fmu)
@@ -390,8 +390,10 @@ def cmd_info(args) -> int:
         print(f"  {cap:<40} {_flag(getattr(cs, cap, None))}")
     rows = [("name", "causality", "variability", "type", "unit", "start", "min", "max", "description")]
     for v in md.modelVariables:
-        rows.append((v.name, v.causality or "-", v.variability or "-", type_name(md, v), var_unit(v) or "-",
-                     _flag(v.start), _flag(v.min), _flag(v.max), v.description or ""))
+        kind = type_name(md, v) + (f"[{shape_text(v.shape)}]" if v.shape else "")  # an FMI 3.0 array: its shape
+        start = " ".join(v.start) if isinstance(v.start, list) else v.start
+        rows.append((v.name, v.causality or "-", v.variability or "-", kind, var_unit(v) or "-",
+                     _flag(start), _flag(v.min), _flag(v.max), v.description or ""))
     widths = [max(len(r[k]) for r in rows) for k in range(len(rows[0]) - 1)]
     print(f"variables ({len(md.modelVariables)}):")
     for r in rows:

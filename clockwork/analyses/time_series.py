@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from ..engine.recording import Recorder
+from ..errors import SimulationError
 from .context import build_system, experiment, find_component, parameters
 from .registry import register
 
@@ -53,7 +54,13 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
         m = system.master
         recorder = Recorder(m, outputs, scene.record.interval, tick_inst)
         recorder.start()
-        run_with_progress(m, stop, recorder, progress, label=scene.path.stem)
+        try:
+            run_with_progress(m, stop, recorder, progress, label=scene.path.stem)
+        except SimulationError as e:
+            # A failed run keeps its history: what was recorded until the
+            # last good communication point goes with the error (run.points).
+            keep_history(e, "ticks" if ticks_only else "time_series", recorder, m, outputs, tick_inst)
+            raise
         stats = vars(m.stats).copy()
         stall = _stall_check(scene, point, system) if m.ended is None else None
         ended, t_end = m.ended, m.t
@@ -83,6 +90,22 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
     if tick_inst:
         out["ticks"] = ticks
     return out
+
+
+def keep_history(e: SimulationError, kind: str, recorder: Recorder, master, outputs, tick_inst) -> None:
+    """Give a failed run's error what the run recorded (``e.history``: the
+    data of a result without its "result", the series up to the last good
+    communication point) and where it stopped (``e.last_point``, s)."""
+    last = getattr(e, "last_point", None)
+    if last is None:  # a failed step (or call) leaves the master at its last good point
+        last = master.t
+    e.last_point = last
+    history: dict = {"kind": kind, "statistics": vars(master.stats).copy(), "engine": master.engine}
+    if outputs:
+        history["series"] = recorder.columns
+    if tick_inst:
+        history["ticks"] = recorder.ticks
+    e.history = history
 
 
 def run_with_progress(master, stop: float, on_point, progress: bool, label: str) -> None:

@@ -142,6 +142,8 @@ def load_core():
             lib.cw_run_watch.restype = c_int
             lib.cw_discontinuity.argtypes = [POINTER(_Master)]
             lib.cw_discontinuity.restype = None
+            lib.cw_record_point.argtypes = [POINTER(_Master), POINTER(_Recorder)]
+            lib.cw_record_point.restype = None
             _lib = lib
         return _lib
 
@@ -441,7 +443,12 @@ class CompiledMaster(Master):
                 self._drain(on_point, rec, columns)
             if rc == _DONE:
                 return
-            if rc != _BUFFER_FULL and rc != _SLICE_OVER:
+            if rc == _CHECK_DIVERGENCE:
+                # Raises for an output that is not finite or too large; else
+                # the point is legal after all and is recorded now.
+                self._handle(rc)
+                self._lib.cw_record_point(self._core_ptr, byref(rec))
+            elif rc != _BUFFER_FULL and rc != _SLICE_OVER:
                 self._handle(rc)
 
     def run_watch(self, t_stop, mark, margin, watched, remember=()):
@@ -505,7 +512,7 @@ class CompiledMaster(Master):
         """Raise the error the Python master would raise (or name a divergence)."""
         m = self._core
         if rc == _CHECK_DIVERGENCE:
-            self.ports.name_divergence(m.t, self.settings.divergence_limit)
+            self.ports.name_divergence(m.t, self.settings.divergence_limit, last_point=m.err_t)
             return
         if rc == _ENDED:
             raise self._fmi3_ended()

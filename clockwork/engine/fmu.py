@@ -174,6 +174,9 @@ class Variable:
     variability: str
     unit: str | None
     dependencies: list[str] | None  # the inputs an output depends on directly (outputs only; else None)
+    shape: tuple[int, ...] = ()  # an FMI 3.0 array's shape; () for a scalar or an element
+    array: str | None = None  # an array element's array (its vr is the element's code, fmu3.Instance3)
+    index: int = 0  # an array element's place in its array's values (row-major)
 
 
 def direct_feedthrough(md) -> dict[str, list[str]]:
@@ -195,6 +198,8 @@ class Instance:
     """An instantiated FMU with fast access to its fmi2 functions."""
 
     fmi_version = 2  # fmu3.Instance3 says 3
+    arrays: dict[str, tuple[int, int]] = {}  # FMI 3.0 array variables: name -> (vr, values) (fmu3.Instance3)
+    elements: dict[str, list[str]] = {}  # FMI 3.0 array variables: name -> its element names, row-major
     # What messages call the FMU where its path is a copy (an SSP archive's
     # member, "x.ssp/resources/m.fmu"); None: its path.
     label: str | None = None

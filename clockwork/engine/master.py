@@ -81,7 +81,7 @@ class Master:
         self.t = start_time  # the current communication point, s
         self.start_time = start_time
         self.stats = Statistics()
-        self.ports = Ports(instances, links, self.wiring, extra_outputs, settings.event_location, self)
+        self.ports = Ports(instances, self.wiring.links, self.wiring, extra_outputs, settings.event_location, self)
         self.discrete_outputs = self.ports.discrete_outputs
         self.coupling = InputCoupling(self.ports.dynamic, settings.extrapolation)
         self.locator = EventLocator(self, self.ports.all)
@@ -377,7 +377,7 @@ class Master:
         self.stats.steps += 1
         # 5. NaN, infinities, divergence.
         if self.ports.diverged(s.divergence_limit):
-            self.ports.name_divergence(self.t, s.divergence_limit)
+            self.ports.name_divergence(self.t, s.divergence_limit, last_point=t)
         if self._extrapolating:
             self.record_history()
         if self.on_step is not None:

@@ -188,8 +188,9 @@ class System:
             raise UsageError(f"{what} {instance}.{name}: expected an {causality}, {name} is a {v.causality}")
         return v
 
-    def value(self, instance: str, name: str) -> float:
-        """Current value of a Real variable (not on the hot path).
+    def value(self, instance: str, name: str) -> float | list:
+        """Current value of a Real variable (not on the hot path); of an FMI
+        3.0 array, the list of its values (row-major).
 
         Args:
             instance: The instance name.
@@ -200,11 +201,14 @@ class System:
             UsageError: No such instance or variable.
             ClosedError: The System was freed.
         """
-        self._variable(instance, name, None, "value")
+        v = self._variable(instance, name, None, "value")
+        if v.shape:
+            return self.instances[instance].get_values([name])[0]
         return self.instances[instance].get_real([name])[0]
 
-    def output(self, instance: str, name: str) -> float:
-        """Cached value of a connected or recorded output at the current point.
+    def output(self, instance: str, name: str) -> float | list:
+        """Cached value of a connected or recorded output at the current point
+        (of an FMI 3.0 array, the list of its elements' values).
 
         Reads no FMU: the value the master keeps from the last communication
         point, in the output's declared unit.
@@ -220,6 +224,9 @@ class System:
         """
         self._variable(instance, name, None, "output")
         port = self.master.ports[instance]
+        elements = self.instances[instance].elements.get(name)
+        if elements is not None and all(e in port.out_names for e in elements):  # an FMI 3.0 array: a list
+            return [port.out[port.out_names.index(e)] for e in elements]
         if name not in port.out_names:
             raise UsageError(f"output {instance}.{name}: neither connected nor recorded; "
                              f"record it (record={{{instance!r}: [{name!r}]}}) or use value()")

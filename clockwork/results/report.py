@@ -32,7 +32,10 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
     files = []
     if scene.sweep is None:
         r = results[0]
-        summary["result"] = r.get("result", {})
+        # A failed run: "result" says when, where and why; the data are what it recorded until then.
+        summary["result"] = {"failed": r["failed"]} if "failed" in r else r.get("result", {})
+        if "error" in r:
+            summary["error"] = r["error"]
         summary["statistics"] = r.get("statistics", {})
         if "series" in r:
             cols = r["series"]
@@ -49,7 +52,8 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
             files.append("ticks.csv")
     else:
         summary["points"] = [{"point": r.get("point"), **({"error": r["error"]} if "error" in r else {}),
-                              **r.get("result", {})} for r in results]
+                              **({"failed": r["failed"]} if "failed" in r else {}), **r.get("result", {})}
+                             for r in results]
         axes = [f"{a}.{b}" for a, b in (ax.parameter for ax in scene.sweep.axes)]
         rkeys = sorted({k for r in results for k, v in r.get("result", {}).items() if isinstance(v, _SCALARS)})
         cols = [[r["point"][k] for r in results] for k in axes]
@@ -63,7 +67,8 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
         summary["plots_failed"] = failed
     if empty:
         summary["plots_not_drawn"] = empty
-    summary["headlines"] = headlines_for(scene, summary, results)
+    failed = scene.sweep is None and "error" in results[0]
+    summary["headlines"] = [] if failed else headlines_for(scene, summary, results)
     summary["files"] = files + ["summary.json"]
     summary["wall_time_s"] = time.perf_counter() - t_start
     write_json_atomic(out / "summary.json", clean_json(summary))

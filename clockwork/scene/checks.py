@@ -12,7 +12,8 @@ import difflib
 import math
 from pathlib import Path
 
-from ..engine.description import FLOAT32_MAX, INTEGER_TYPES, int_range, var_limit, var_unit
+from ..engine.description import (FLOAT32_MAX, INTEGER_TYPES, ArrayElement, int_range, shape_text, var_limit,
+                                  var_unit)
 from ..engine.description import variables as variables_of
 from ..engine.names import instance_name_problem, split_ref
 from ..engine.settings import ENGINES, LOOP_MODES
@@ -89,7 +90,12 @@ def article(word: str) -> str:
 
 
 def names_of(variables: dict, *causalities: str) -> list[str]:
-    return [n for n, v in variables.items() if v.causality in causalities]
+    """Names of the variables of these causalities (an array by its own name, not its elements')."""
+    return [n for n, v in variables.items() if v.causality in causalities and not isinstance(v, ArrayElement)]
+
+
+STRUCTURAL = ("is a structural parameter (an array size): clockwork does not change structural parameters "
+              "(FMI 3.0 configuration mode), the arrays keep the sizes of their start values")
 
 
 def lookup(ctx: Ctx, key: str, variables: dict, name: str, instance: str, model: str, want: str):
@@ -107,7 +113,27 @@ def lookup(ctx: Ctx, key: str, variables: dict, name: str, instance: str, model:
 
 
 def convert_value(ctx: Ctx, key: str, value: object, v, md):
-    """A TOML value -> the variable's type and unit, range-checked."""
+    """A TOML value -> the variable's type and unit, range-checked; an FMI
+    3.0 array's value is a TOML array nested as its shape (row by row), each
+    element checked (``key[i,j]`` in errors), kept as nested tuples."""
+    shape = tuple(getattr(v, "shape", None) or ())
+    if not shape:
+        return _convert_scalar(ctx, key, value, v, md)
+
+    def walk(x, dims: tuple[int, ...], index: tuple[int, ...]):
+        if not dims:
+            return _convert_scalar(ctx, f"{key}[{','.join(map(str, index))}]", x, v, md)
+        if not isinstance(x, list) or len(x) != dims[0]:
+            where = f"{key}[{','.join(map(str, index))}]" if index else key
+            what = (f"an array of {dims[0]} values" if len(dims) == 1 else
+                    f"an array of {dims[0]} arrays of {shape_text(dims[1:])} values")
+            raise ctx.bad(where, x, f"{what} ({v.name} is {shape_text(shape)}, row by row)")
+        return tuple(walk(y, dims[1:], (*index, i)) for i, y in enumerate(x))
+
+    return walk(value, shape, ())
+
+
+def _convert_scalar(ctx: Ctx, key: str, value: object, v, md):
     unit = var_unit(v)
     if v.type == "Real":
         try:

@@ -21,16 +21,16 @@ import tomllib
 from pathlib import Path
 
 from ..engine import compiled
-from ..engine.description import (TEXT_TYPES, FmuError, read_fmu, resolve_fmu, type_name, types_connect,
-                                  var_unit)
+from ..engine.description import (TEXT_TYPES, FmuError, element_names, link_shape_problem, read_fmu, resolve_fmu,
+                                  type_name, types_connect, var_unit)
 from ..engine.description import variables as variables_of
 from ..engine.fmu3 import make_instance
 from ..engine.names import split_link, split_ref
 from ..engine.wiring import Link, loop_name
 from ..engine.wiring import build as build_wiring
 from ..errors import SceneError
-from .checks import (TOP_KEYS, Ctx, article, component, convert_value, instance_problem, lookup, master_value,
-                     names_of, parse_ref)
+from .checks import (STRUCTURAL, TOP_KEYS, Ctx, article, component, convert_value, instance_problem, lookup,
+                     master_value, names_of, parse_ref)
 from .kinds import NO_KINDS, Invalid, Kinds
 from .model import (Component, Connection, Experiment, MasterConfig, Record, Scene, consistency)
 from .ssp.read import read_ssp
@@ -185,6 +185,8 @@ def _load_ssp(path: Path, overrides, kinds: Kinds) -> Scene:
         comp, var = components[inst], name
         ctx = Ctx(path, {})
         v = lookup(ctx, label, variables_of(comp.model_description), var, inst, comp.model_name, want="parameter")
+        if v.causality == "structuralParameter":
+            raise SceneError(f"{inst}.{var} {STRUCTURAL}", path, label)
         if v.causality not in ("parameter", "input") or (inst, var) in connected:
             what = "a connected input" if v.causality == "input" else f"{article(v.causality)} {v.causality}"
             raise SceneError(f"{inst}.{var} is {what}; expected a parameter or an unconnected input", path, label)
@@ -299,6 +301,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     sweep = parse_sweep(ctx, ctx.table(raw, "sweep", ""), components, connected_inputs)
     plots = _plots(ctx, raw.get("plot", []), kinds)
     if (analysis or {}).get("kind", "time_series") == "time_series":
+        plots = _plot_array_elements(plots, components)
         _check_series_plots(ctx, plots, record, components)
 
     scene = Scene(
@@ -357,6 +360,8 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
             v = lookup(ctx, key, variables, pname, name, md.modelName, want="parameter")
             if v.causality == "input":
                 input_params.add((name, pname, key))
+            elif v.causality == "structuralParameter":
+                raise ctx.fail(key, f"{md.modelName}.{pname} {STRUCTURAL}")
             elif v.causality != "parameter":
                 raise ctx.fail(
                     key, f"{md.modelName}.{pname} is {article(v.causality)} {v.causality}, not a parameter; "
@@ -435,6 +440,9 @@ def _connections(ctx: Ctx, conns, components: dict[str, Component],
         if not types_connect(s.type, d.type):
             raise ctx.fail(key, f"type mismatch: {si}.{sv} is {type_name(sc.model_description, s)}, "
                                 f"{di}.{dv} is {type_name(dc.model_description, d)}")
+        problem = link_shape_problem(f"{si}.{sv}", s, f"{di}.{dv}", d)
+        if problem:
+            raise ctx.fail(key, problem)
         su, du = var_unit(s), var_unit(d)
         factor, offset = 1.0, 0.0
         if su != du and (su is None or du is None):
@@ -466,7 +474,7 @@ def _takes_intermediate_update(md, name: str) -> bool:
     replacement for input derivatives)."""
     if not md.coSimulation or not md.coSimulation.providesIntermediateUpdate:
         return False
-    return any(v.name == name and v.intermediateUpdate for v in md.modelVariables)
+    return any(v.name == name and v.intermediateUpdate and not v.shape for v in md.modelVariables)  # arrays: no
 
 
 def _fmi3_inputs(m: MasterConfig, components: dict[str, Component], connections) -> tuple[str, str] | None:
@@ -514,13 +522,15 @@ def _record(ctx: Ctx, t: dict | None, components: dict[str, Component]) -> Recor
             if v.causality not in ("output", "input", "parameter", "calculatedParameter", "local"):
                 raise ctx.fail(key, f"{ref} is {article(v.causality)} {v.causality} variable; "
                                     "expected an output, input, parameter or local variable (such as der(x))")
-            pair = (comp.name, v.name)
-            if pair in outputs:
-                raise ctx.fail(key, f"{ref} is listed twice")
-            outputs.append(pair)
+            for name in element_names(v):  # an FMI 3.0 array: each element
+                pair = (comp.name, name)
+                if pair in outputs:
+                    raise ctx.fail(key, f"{comp.name}.{name} is listed twice")
+                outputs.append(pair)
     else:
-        outputs = [(n, v.name) for n, c in components.items()
-                   for v in c.model_description.modelVariables if v.causality == "output"]
+        outputs = [(n, name) for n, c in components.items()
+                   for v in c.model_description.modelVariables if v.causality == "output"
+                   for name in element_names(v)]
     interval = None
     if "interval" in t:
         interval = ctx.time("record.interval", t["interval"])
@@ -570,6 +580,27 @@ def _column_type(name: str, variables: dict) -> str | None:
     """The FMI type of a recorded column "instance.variable" (None: not a variable)."""
     split = split_ref(name, variables)
     return None if split is None or split[1] not in variables[split[0]] else variables[split[0]][split[1]].type
+
+
+def _plot_array_elements(plots: tuple[dict, ...], components: dict) -> tuple[dict, ...]:
+    """A series plot's `y` naming an FMI 3.0 array draws each of its elements."""
+    variables = {n: variables_of(c.model_description) for n, c in components.items()}
+
+    def elements(name: str) -> list[str]:
+        split = split_ref(name, variables)
+        v = variables[split[0]].get(split[1]) if split else None
+        return [f"{split[0]}.{e}" for e in element_names(v)] if v is not None and v.shape else [name]
+
+    out = []
+    for spec in plots:
+        ys = spec.get("y")
+        if spec["kind"] in _SERIES_PLOTS and isinstance(ys, (str, list)):
+            names = [ys] if isinstance(ys, str) else ys
+            expanded = [e for y in names if isinstance(y, str) for e in elements(y)]
+            if expanded != names:
+                spec = {**spec, "y": expanded}
+        out.append(spec)
+    return tuple(out)
 
 
 def _check_series_plots(ctx: Ctx, plots: tuple[dict, ...], record: Record, components: dict) -> None:

@@ -1296,8 +1296,11 @@ static int step(cw_master *m, double h, double *taken_out)
     }
     m->after_event = m->after_event_step;
     m->steps++;
-    /* 5. NaN, infinities, divergence: Python names the output. */
+    /* 5. NaN, infinities, divergence: Python names the output (err_t: the
+     * last good communication point, the step's start). */
     m->diverged = diverged(m);
+    if (m->diverged)
+        m->err_t = t;
     if (m->extrapolation)
         record_history(m);
     *taken_out = taken;
@@ -1392,6 +1395,12 @@ static void record_point(cw_master *m, cw_recorder *r)
     r->n_rows++;
 }
 
+/* Record the current point (after a divergence check that found every output legal). */
+CW_EXPORT void cw_record_point(cw_master *m, cw_recorder *r)
+{
+    record_point(m, r);
+}
+
 /* Step to t_stop on the grid start + k * step, plus located events
  * (Master.run_until), recording into r when given. Returns CW_BUFFER_FULL,
  * CW_SLICE_OVER or CW_CHECK_DIVERGENCE to be called again, r->grid_k keeping
@@ -1425,15 +1434,18 @@ CW_EXPORT int cw_run_until(cw_master *m, double t_stop, cw_recorder *r, double s
         int rc = step(m, h, &taken);
         if (rc < 0 || rc == CW_ENDED)
             return rc;
-        if (r)
-            record_point(m, r);
         if (m->t >= grid - eps)
             k++;
         if (rc == CW_CHECK_DIVERGENCE) {
+            /* Not recorded yet: a failed run keeps the points before this
+             * one only; where Python finds every output legal, it records
+             * the point (cw_record_point) and calls again. */
             if (r)
                 r->grid_k = k;
             return rc;
         }
+        if (r)
+            record_point(m, r);
     }
     if (r)
         r->grid_k = -1;
@@ -1576,6 +1588,19 @@ typedef struct cw_fmi3 {
     long long iu_calls;           /* callbacks that set inputs */
     double *iu_saved;             /* u0, d1, d2, tref (4 n_iu) with the saved FMU state, */
     int *iu_saved_fed;            /* as FMI 2.0 saves its polynomials in its state */
+    /* Array elements (fmu3.Instance3._number_elements): the code
+     * code_base + k names value code_off[k] of the code_size[k] values of
+     * the array variable code_vr[k]. A request whose codes cover whole
+     * arrays in order is one fmi3 call with nValues > nValueReferences;
+     * any other is served element by element. */
+    unsigned code_base;
+    int n_codes;
+    const unsigned *code_vr;
+    const int *code_off, *code_size;
+    unsigned *scratch_vr;         /* the value references of one call, translated */
+    int *scratch_order;           /* and their derivative orders */
+    double *scratch_val;          /* one array's values */
+    int scratch_cap, scratch_val_cap;
 } cw_fmi3;
 
 CW_EXPORT size_t cw_sizeof_fmi3(void) { return sizeof(cw_fmi3); }
@@ -1715,16 +1740,87 @@ CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
     }
 }
 
+/* The element number of a code, or -1 for a plain value reference. */
+static int code_element(const cw_fmi3 *a, unsigned code)
+{
+    unsigned e = code - a->code_base;  /* wraps for codes below the base */
+    return e < (unsigned)a->n_codes ? (int)e : -1;
+}
+
+/* Translate n codes into a->scratch_vr (and their orders, when given, into
+ * a->scratch_order): *m value references, each array whole. 0 when the
+ * request holds part of an array, an array out of order, an array with
+ * orders that differ, or more references than the scratch holds. */
+static int code_runs(cw_fmi3 *a, const unsigned *vr, size_t n, const int *order, size_t *m)
+{
+    size_t k = 0, j = 0;
+    while (k < n) {
+        if (j >= (size_t)a->scratch_cap)
+            return 0;
+        int e = code_element(a, vr[k]);
+        size_t size = 1;
+        if (e >= 0) {
+            size = (size_t)a->code_size[e];
+            if (a->code_off[e] != 0 || k + size > n)
+                return 0;
+            for (size_t i = 1; i < size; i++)
+                if (vr[k + i] != vr[k] + i || (order && order[k + i] != order[k]))
+                    return 0;
+            a->scratch_vr[j] = a->code_vr[e];
+        } else {
+            a->scratch_vr[j] = vr[k];
+        }
+        if (order)
+            a->scratch_order[j] = order[k];
+        j++;
+        k += size;
+    }
+    *m = j;
+    return 1;
+}
+
+/* fmi3GetFloat64 (order NULL) or fmi3GetOutputDerivatives of n codes,
+ * element by element: each element's whole array, then its value. */
+static int get_elementwise(cw_fmi3 *a, const unsigned *vr, size_t n, const int *order, double *out)
+{
+    int worst = FMI_OK;
+    for (size_t k = 0; k < n; k++) {
+        int e = code_element(a, vr[k]);
+        unsigned one = e >= 0 ? a->code_vr[e] : vr[k];
+        size_t size = e >= 0 ? (size_t)a->code_size[e] : 1;
+        int st = order ? a->getOutputDerivatives(a->instance, &one, 1, &order[k], a->scratch_val, size)
+                       : a->getFloat64(a->instance, &one, 1, a->scratch_val, size);
+        worst = st > worst ? st : worst;
+        if (st > FMI_WARNING)
+            return st;
+        out[k] = a->scratch_val[e >= 0 ? a->code_off[e] : 0];
+    }
+    return worst;
+}
+
 CW_EXPORT int cw3_getReal(void *comp, const unsigned *vr, size_t n, double *out)
 {
     cw_fmi3 *a = comp;
-    return a->getFloat64(a->instance, vr, n, out, n);
+    if (!a->n_codes)
+        return a->getFloat64(a->instance, vr, n, out, n);
+    size_t m;
+    if (code_runs(a, vr, n, NULL, &m))
+        return a->getFloat64(a->instance, a->scratch_vr, m, out, n);
+    return get_elementwise(a, vr, n, NULL, out);
 }
 
 CW_EXPORT int cw3_setReal(void *comp, const unsigned *vr, size_t n, const double *values)
 {
     cw_fmi3 *a = comp;
-    int st = a->setFloat64(a->instance, vr, n, values, n);
+    int st;
+    if (!a->n_codes) {
+        st = a->setFloat64(a->instance, vr, n, values, n);
+    } else {
+        size_t m;
+        if (!code_runs(a, vr, n, NULL, &m))
+            return FMI_ERROR;  /* part of an array: the ports set arrays whole */
+        st = a->setFloat64(a->instance, a->scratch_vr, m, values, n);
+    }
     if (st <= FMI_WARNING && a->n_iu) {
         /* A value without derivatives is held (as fmi2SetReal on FMI 2.0). */
         for (size_t k = 0; k < n; k++) {
@@ -1774,7 +1870,12 @@ CW_EXPORT int cw3_setInputDerivatives(void *comp, const unsigned *vr, size_t n, 
 CW_EXPORT int cw3_getOutputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order, double *out)
 {
     cw_fmi3 *a = comp;
-    return a->getOutputDerivatives(a->instance, vr, n, order, out, n);
+    if (!a->n_codes)
+        return a->getOutputDerivatives(a->instance, vr, n, order, out, n);
+    size_t m;
+    if (code_runs(a, vr, n, order, &m))
+        return a->getOutputDerivatives(a->instance, a->scratch_vr, m, a->scratch_order, out, n);
+    return get_elementwise(a, vr, n, order, out);
 }
 
 CW_EXPORT int cw3_getState(void *comp, void **state)
