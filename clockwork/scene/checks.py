@@ -20,7 +20,8 @@ from ..errors import SceneError
 from .model import Component, show
 from .units import UnitError, fmt, parse_quantity, to_seconds, to_unit
 
-TOP_KEYS = ("scene", "components", "connections", "experiment", "master", "record", "analysis", "sweep", "plot")
+TOP_KEYS = ("scene", "components", "connections", "experiment", "master", "record", "analysis", "sweep", "plot",
+            "inputs")
 
 
 class Ctx:
