@@ -455,14 +455,13 @@ def cmd_info(args) -> int:
     for r in rows:
         print("  " + "  ".join(c.ljust(w) for c, w in zip(r, widths)) + "  " + r[-1])
     print(f"event indicators: {', '.join(indicators) if indicators else 'none'}")
-    if md.coSimulation is not None:
-        from .scene.fmu import experiment_times, instance_name
+    from .scene.fmu import experiment_times, instance_name
 
-        times, step = experiment_times(md, path)
-        tol = getattr(md.defaultExperiment, "tolerance", None) if md.defaultExperiment is not None else None
-        print(f"clockwork run {path.name}: instance {instance_name(md)}, start {times['start']:g} s, "
-              f"stop {times['stop']:g} s, step {step:g} s, tolerance {tol if tol not in (None, '') else '-'} "
-              "(the DefaultExperiment, else fmpy's defaults)")
+    times, step = experiment_times(md, path)
+    tol = getattr(md.defaultExperiment, "tolerance", None) if md.defaultExperiment is not None else None
+    print(f"clockwork run {path.name}: instance {instance_name(md)}, start {times['start']:g} s, "
+          f"stop {times['stop']:g} s, step {step:g} s, tolerance {tol if tol not in (None, '') else '-'} "
+          "(the DefaultExperiment, else fmpy's defaults)")
     return 0
 
 

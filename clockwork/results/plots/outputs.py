@@ -31,7 +31,7 @@ from .registry import check_keys, register, subplots
 
 MAX_AXES = 6  # per page: with the title and the time axis, about 950 pixels high
 MAX_LINES = 8  # per axes: a legend that stays beside its axes
-SPREAD = 100.0  # one unit, sizes further apart than this: separate axes
+SPREAD = 30.0  # one unit, sizes further apart than this: separate axes (a signal fills at least 1/30 of its axes)
 _HEIGHT_IN = 1.35  # per axes
 # Units shown as the papers show them: (unit, factor, shown unit)
 _DISPLAY = {"rad": (180.0 / math.pi, "deg"), "rad/s": (180.0 / math.pi, "deg/s"), "N.m": (100.0, "N.cm")}
