@@ -76,11 +76,19 @@ def test_set_experiment_and_master(capsys, tmp_path):
     ("k=fast", "expected"),
     ("experiment.stop=-1", "experiment.stop"),
     ("master.step=0", "master.step"),
-    ("Other.k=2", "has no variable Other.k"),
+    ("Other.k=2", "no component named Other; components: TestDecay"),
 ])
 def test_a_bad_set_on_an_fmu_is_one_line(capsys, tmp_path, setting, needle):
     rc, _, err = run_cli(capsys, ["validate", test_fmu("TestDecay"), "--set", setting])
     assert_one_line_error(rc, err, "TestDecay.fmu", needle, code=2)
+
+
+def test_a_dotted_variable_of_an_fmu_alone_needs_no_prefix_and_a_typo_is_named(capsys, tmp_path):
+    fmu = _edited(test_fmu("TestDecay"), tmp_path / "dotted.fmu", 'name="k"', 'name="decay.k"')
+    assert load_scene(fmu, ["decay.k=2"]).components["TestDecay"].parameters == {"decay.k": 2.0}
+    assert load_scene(fmu, ["TestDecay.decay.k=3"]).components["TestDecay"].parameters == {"decay.k": 3.0}
+    rc, _, err = run_cli(capsys, ["validate", fmu, "--set", "TestDecy.k=2"])
+    assert_one_line_error(rc, err, "--set TestDecy.k", "no component named TestDecy (did you mean TestDecay?)")
 
 
 def test_a_scene_of_one_component_takes_sets_without_the_prefix(tmp_path):
@@ -117,11 +125,18 @@ def _with_experiment(src, dst, element: str):
     """A copy of the FMU `src` whose modelDescription.xml has `element` as its DefaultExperiment."""
     import re
 
+    return _edited(src, dst, re.compile(r"<DefaultExperiment[^>]*/>"), "", element)
+
+
+def _edited(src, dst, old, new: str, experiment: str | None = None):
+    """A copy of the FMU `src` with `old` (text or a pattern) replaced in its
+    modelDescription.xml (and `experiment` put before its ModelVariables)."""
     with zipfile.ZipFile(src) as z:
         files = {i.filename: z.read(i.filename) for i in z.infolist()}
     xml = files["modelDescription.xml"].decode()
-    xml = re.sub(r"<DefaultExperiment[^>]*/>", "", xml)
-    xml = xml.replace("<ModelVariables>", element + "<ModelVariables>", 1)
+    xml = old.sub(new, xml) if hasattr(old, "sub") else xml.replace(old, new, 1)
+    if experiment is not None:
+        xml = xml.replace("<ModelVariables>", experiment + "<ModelVariables>", 1)
     files["modelDescription.xml"] = xml.encode()
     with zipfile.ZipFile(dst, "w") as z:
         for name, data in files.items():

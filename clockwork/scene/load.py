@@ -59,7 +59,7 @@ def parse_override(text: str, instances=()) -> tuple[str, str, object]:
     lhs = lhs.strip()
     owner = lhs.partition(".")[0]
     split = None if owner in _OVERRIDABLE else split_ref(lhs, list(instances))
-    if split is None and len(instances) == 1 and owner not in _OVERRIDABLE and owner not in TOP_KEYS:
+    if split is None and len(instances) == 1 and "." not in lhs:
         split = (next(iter(instances)), lhs)  # one component: the instance prefix is optional
     if split is None:
         head, dot, tail = lhs.partition(".")
@@ -189,6 +189,11 @@ def _load_system(path: Path, ssp, overrides, kinds: Kinds, input_file) -> Scene:
             raw.setdefault(owner, {})[name] = value
             labels[f"{owner}.{name}"] = label
             continue
+        if owner not in components and len(components) == 1:
+            # one component: a dotted variable name needs no prefix either (`--set MLoad.k=2`)
+            (only, comp), = components.items()
+            if f"{owner}.{name}" in variables_of(comp.model_description):
+                owner, name = only, f"{owner}.{name}"
         if owner not in components:
             raise _no_component(owner, list(components), path, label)
         inst = owner
