@@ -32,6 +32,7 @@ from ..engine.names import split_ref
 from ..engine.samples import Samples, Signal, is_continuous
 from ..errors import SceneError
 from ..numbers import parse_int, parse_real, shorten
+from .checks import read_bounded
 from .units import fmt
 
 MAX_INPUT_BYTES = 1 << 30  # a sample table of about 10^8 numbers; beyond that, not an input file
@@ -164,17 +165,7 @@ def make_samples(times, columns: list, bound: list) -> Samples:
 def read_inputs(path: Path, components: dict, connected: set = frozenset(), parameters: set = frozenset()) -> Inputs:
     """An input file, read and checked against the scene's components."""
     path = Path(path)
-    try:
-        with open(path, "rb") as f:
-            data = f.read(MAX_INPUT_BYTES + 1)
-    except FileNotFoundError:
-        raise SceneError("no such input file", path) from None
-    except IsADirectoryError:
-        raise SceneError("is a directory, expected a CSV input file", path) from None
-    except OSError as e:
-        raise SceneError(f"cannot read: {e.strerror}", path) from None
-    if len(data) > MAX_INPUT_BYTES:
-        raise SceneError(f"more than {MAX_INPUT_BYTES} bytes: an input file is at most that", path)
+    data = read_bounded(path, MAX_INPUT_BYTES, "input file", "a CSV input file")
     digest = hashlib.sha256(data).hexdigest()
     try:
         text = data.decode("utf-8-sig")

@@ -32,7 +32,8 @@ from ..engine.names import instance_name_problem, split_link, split_ref
 from ..engine.wiring import Link
 from ..engine.wiring import build as build_wiring
 from ..errors import SceneError
-from .checks import TOP_KEYS, Ctx, article, component, convert_value, lookup, master_value, names_of, parse_ref
+from .checks import (TOP_KEYS, Ctx, article, component, convert_value, lookup, master_value, names_of, parse_ref,
+                     read_bounded)
 from .fmu import read_fmu_scene
 from .inputs import Inputs, read_inputs
 from .kinds import NO_KINDS, Invalid, Kinds
@@ -88,20 +89,7 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
         return _load_system(path, read_ssp(path), overrides, kinds, input_file)
     if path.suffix.lower() == ".fmu":
         return _load_system(path, read_fmu_scene(path), overrides, kinds, input_file)
-    try:
-        # Read at most one byte past the limit: a device or a pipe reports no size.
-        with open(path, "rb") as f:
-            data = f.read(MAX_SCENE_BYTES + 1)
-        if len(data) > MAX_SCENE_BYTES:
-            size = path.stat().st_size if path.is_file() else None
-            raise SceneError(f"{size if size else 'more than ' + str(MAX_SCENE_BYTES)} bytes: "
-                             f"a scene file is at most {MAX_SCENE_BYTES} bytes", path)
-    except FileNotFoundError:
-        raise SceneError("no such scene file", path) from None
-    except IsADirectoryError:
-        raise SceneError("is a directory, expected a .toml scene file", path) from None
-    except OSError as e:
-        raise SceneError(f"cannot read: {e.strerror}", path) from None
+    data = read_bounded(path, MAX_SCENE_BYTES, "scene file", "a .toml scene file")
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as e:
