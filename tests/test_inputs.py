@@ -308,3 +308,26 @@ def test_a_bad_inputs_table_is_one_line(capsys, tmp_path, table, key, needle):
     (tmp_path / "s.toml").write_text(text)
     rc, _, err = run_cli(capsys, ["validate", tmp_path / "s.toml"])
     assert_one_line_error(rc, err, "s.toml", key, needle, code=2)
+
+
+def test_a_sweep_with_inputs_runs_in_workers_and_its_points_know_the_file(capsys, tmp_path):
+    """Points in worker processes get the samples; a changed file is a new point (its content address)."""
+    from clockwork.run.points import point_key
+
+    (tmp_path / "v.csv").write_text("time,d.v\n0,0\n0.5,3\n")
+    (tmp_path / "s.toml").write_text(
+        '[scene]\ntitle = "t"\n[components.d]\nfmu = "%s"\n[experiment]\nstop = 1\n[inputs]\nfile = "v.csv"\n'
+        '[record]\noutputs = ["d.x"]\n[sweep]\naxes = [{ parameter = "d.k", values = [0.5, 1.0, 2.0] }]\n'
+        % test_fmu("TestDecay"))
+    rc, _, err = run_cli(capsys, ["run", tmp_path / "s.toml", "--out", tmp_path / "r", "--workers", "2",
+                                  "--no-progress"])
+    assert rc == 0, err
+    scene = load_scene(tmp_path / "s.toml")
+    here = [run_point(scene.variant(p), {})["series"]["d.x"][-1] for p in scene.points()]
+    stored = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert stored["points_failed"] == 0 and stored["inputs"]["columns"] == ["d.v"]
+    keys = [point_key(scene, p) for p in scene.points()]
+    loaded = [json.loads((tmp_path / "r" / "points" / f"{k}.json").read_text()) for k in keys]
+    assert [r["series"]["d.x"][-1] for r in loaded] == here
+    (tmp_path / "v.csv").write_text("time,d.v\n0,0\n0.5,4\n")
+    assert point_key(load_scene(tmp_path / "s.toml"), scene.points()[0]) != keys[0]
