@@ -24,6 +24,7 @@ import numpy as np
 
 from .analyses.time_series import time_series
 from .engine.description import variables as variables_of
+from .engine.names import split_ref
 from .engine.settings import MasterSettings
 from .errors import ParametersRefused, SceneError, UsageError
 from .run.catalog import load_scene
@@ -205,13 +206,11 @@ def _structured(scene, series: dict, only: str | None) -> np.ndarray:
     """The recorded columns as fmpy's result: a structured array, `time` first."""
     fields = [("time", np.float64)]
     data = [np.asarray(series.get("time", []), dtype=np.float64)]
+    found = {n: variables_of(c.model_description) for n, c in scene.components.items()}
     for name, values in series.items():
         if name == "time":
             continue
-        inst, _, var = name.partition(".")
-        for n, c in scene.components.items():
-            if name.startswith(n + "."):
-                inst, var = n, name[len(n) + 1:]
+        inst, var = split_ref(name, found)
         kind = scene.components[inst].variable(var).type
         dtype = _DTYPES.get(kind, np.float64)
         if kind == "Enumeration":

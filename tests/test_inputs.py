@@ -326,6 +326,7 @@ def test_a_sweep_with_inputs_runs_in_workers_and_its_points_know_the_file(capsys
     here = [run_point(scene.variant(p), {})["series"]["d.x"][-1] for p in scene.points()]
     stored = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert stored["points_failed"] == 0 and stored["inputs"]["columns"] == ["d.v"]
+    assert stored["files"] == ["sweep.csv", "summary.json"]  # no default plot of one point's series
     keys = [point_key(scene, p) for p in scene.points()]
     loaded = [json.loads((tmp_path / "r" / "points" / f"{k}.json").read_text()) for k in keys]
     assert [r["series"]["d.x"][-1] for r in loaded] == here

@@ -245,7 +245,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     sweep = parse_sweep(ctx, ctx.table(raw, "sweep", ""), components, connected_inputs)
     plots = _plots(ctx, raw.get("plot", []), kinds)
     if (analysis or {}).get("kind", "time_series") == "time_series":
-        if not plots:
+        if not plots and sweep is None:  # a sweep's points are not one series
             plots = _default_plot(ctx, record, components, kinds)
         _check_series_plots(ctx, plots, record, components)
     inputs = _inputs(ctx, ctx.table(raw, "inputs", ""), components, connections, input_file)
