@@ -406,7 +406,7 @@ def _info_ssp(path: str) -> int:
     width = max(len(c) for c in scene.components)
     for name, c in scene.components.items():
         params = ", ".join(f"{k} = {v!r}" for k, v in c.parameters.items())
-        print(f"  {name:<{width}}  {c.model_name}  {c.fmu_path}")
+        print(f"  {name:<{width}}  {c.model_name}  {c.fmu_shown}")
         if params:
             print(f"  {'':<{width}}  parameters: {params}")
     print("connections:")

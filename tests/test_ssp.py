@@ -265,8 +265,6 @@ BAD_SSD = {
                                                      '<ssc:BooleanMappingTransformation/>'),
                                                ["not supported", "mapping transformations"]),
     "Model Exchange only": (_me_only, ["source", "Model Exchange only"]),
-    "no stop time": (_edit('<ssd:DefaultExperiment startTime="0" stopTime="20"/>', ""),
-                     ["DefaultExperiment", "--set experiment.stop"]),
     "parameters inside the FMU": (_edit('source="resources/escapement.ssv"',
                                         'source="resources/escapement.ssv" sourceBase="component"'),
                                   ["sourceBase", "not supported"]),

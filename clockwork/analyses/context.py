@@ -166,7 +166,8 @@ def build_system(scene, point: dict | None = None, record: dict[str, list[str]] 
         mds = {n: c.model_description for n, c in scene.components.items()}
         system = System(components, [tuple(c) for c in scene.connections], settings,
                         record=record, start_time=start, model_descriptions=mds,
-                        inputs=scene.inputs.samples if scene.inputs is not None else None)
+                        inputs=scene.inputs.samples if scene.inputs is not None else None,
+                        labels={n: c.fmu_label for n, c in scene.components.items() if c.fmu_label})
     if idle is not None:
         system.release = lambda s: idle.keep(key, s)
     return system

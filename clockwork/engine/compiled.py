@@ -40,7 +40,7 @@ ROWS_PER_CALL = 4096  # recording buffer, rows
 MAX_SINCE = 256  # steps kept since a checkpoint (the master forces one after 64)
 
 _DONE, _BUFFER_FULL, _CHECK_DIVERGENCE, _WATCHED, _ENDED, _SLICE_OVER = 0, 1, 2, 3, 4, 5
-_ERR_FMI, _ERR_NO_CHECKPOINT, _ERR_REPLAY, _ERR_LOCATE, _ERR_CAPACITY = -1, -2, -3, -4, -5
+_ERR_FMI, _ERR_NO_CHECKPOINT, _ERR_REPLAY, _ERR_LOCATE, _ERR_CAPACITY, _ERR_LOOP = -1, -2, -3, -4, -5, -6
 _CALLS = ["fmi2DoStep", "fmi2GetReal", "fmi2SetReal of inputs", "fmi2SetRealInputDerivatives",
           "fmi2GetFMUstate", "fmi2SetFMUstate"]
 
@@ -86,7 +86,19 @@ class _Master(_Strict):
          "snap_after_event", "n_since", "max_replay_steps", "diverged", "err_port", "err_call", "err_status",
          "orders_lowered"]
     ) + [("n_fmi3", c_int), ("fmi3", c_void_p),  # FMI 3.0 adapters (fmu3._Events), whose time events cap the step
+         ("loops", c_void_p),  # _Loops: the algebraic loops solved in the orders
          ("inputs", c_void_p)]  # a _Inputs: inputs driven from samples, or NULL
+
+
+class _Loop(_Strict):
+    _fields_ = _fields(
+        ["members", "u_port", "u_pos", "u_src", "u_src_pos", "u_factor", "u_offset", "u_scaled", "r"],
+        ["fail_worst"], [],
+        ["n_members", "n", "fail_why", "fail_at", "fail_sweeps", "fail_newton"])
+
+
+class _Loops(_Strict):
+    _fields_ = _fields(["loop"], ["tolerance"], ["iterations", "fallbacks"], ["n_loops", "pad_"])
 
 
 class _Inputs(_Strict):
@@ -103,7 +115,7 @@ class _Recorder(_Strict):
          "tick_pos", "has_interval", "pad_"])
 
 
-for _struct in (_Port, _Master, _Recorder, _Inputs):
+for _struct in (_Port, _Master, _Recorder, _Loop, _Loops, _Inputs):
     _struct._names = frozenset(n for n, _ in _struct._fields_)
 
 _lib = None
@@ -123,7 +135,7 @@ def load_core():
                 _lib_error = f"the compiled core {path} cannot be loaded ({e}); build it with tools/setup.sh"
                 return None
             for name, struct in (("port", _Port), ("master", _Master), ("recorder", _Recorder), ("fmi3", _Events),
-                                 ("inputs", _Inputs)):
+                                 ("loop", _Loop), ("loops", _Loops), ("inputs", _Inputs)):
                 size = getattr(lib, f"cw_sizeof_{name}")
                 size.restype = c_size_t
                 if size() != ctypes.sizeof(struct):
@@ -254,9 +266,10 @@ class CompiledMaster(Master):
 
     @property
     def stats(self) -> Statistics:
-        c = self._core
+        c, lc = self._core, self._loops
         return Statistics(steps=c.steps, events=c.events, event_iterations=c.event_iterations,
-                          rollbacks=c.rollbacks, replays=c.replays, states_saved=c.states_saved)
+                          rollbacks=c.rollbacks, replays=c.replays, states_saved=c.states_saved,
+                          loop_iterations=lc.iterations, loop_fallbacks=lc.fallbacks)
 
     @stats.setter
     def stats(self, value: Statistics) -> None:
@@ -264,6 +277,11 @@ class CompiledMaster(Master):
         if core is not None:
             for name in ("steps", "events", "event_iterations", "rollbacks", "replays", "states_saved"):
                 setattr(core, name, getattr(value, name))
+            self._loops.iterations, self._loops.fallbacks = value.loop_iterations, value.loop_fallbacks
+
+    def count_loop(self, iterations: int, fallbacks: int) -> None:
+        self._loops.iterations += iterations
+        self._loops.fallbacks += fallbacks
 
     def _build(self) -> None:
         """Hand the ports' arrays to a C master struct (kept alive here)."""
@@ -318,11 +336,14 @@ class CompiledMaster(Master):
         nz = len(z_port)
         m = self._core = _Master()
         m.ports = ctypes.addressof(cports)
+        # An order's loop is -(its index + 1).
+        index.update({id(loop): -(i + 1) for i, loop in enumerate(ports.loops)})
         for name, count, order in (("first", "n_first", ports.first), ("dynamic", "n_dynamic", ports.dynamic),
                                    ("first_in_order", "n_first_in_order", ports.first_in_order),
                                    ("final_order", "n_final", ports.final_order)):
             setattr(m, name, ref(_array(c_int, (index[id(p)] for p in order))))
             setattr(m, count, len(order))
+        m.loops = ctypes.addressof(self._build_loops(index, ref))
         m.buffer, m.n_buffer = ctypes.addressof(ports.buffer), len(ports.buffer)
         m.z_port, m.z_pos = ref(_array(c_int, z_port)), ref(_array(c_int, z_pos))
         m.zs_port, m.zs_pos = ref(_array(c_int, (a for a, _, _ in zs))), ref(_array(c_int, (b for _, b, _ in zs)))
@@ -376,6 +397,28 @@ class CompiledMaster(Master):
                     value=ref(_array(c_double, [], len(vrs))),
                     n_times=n, n_signals=len(samples.signals), n_events=len(samples.events))
         return ref(c)
+
+    def _build_loops(self, index: dict, ref) -> _Loops:
+        """The algebraic loops for the core (those broken by a delay are never in its orders)."""
+        loops = self.ports.loops
+        cl = (_Loop * max(1, len(loops)))()
+        for c, loop in zip(cl, loops):
+            n = loop.n
+            u = loop.unknowns
+            c.members = ref(_array(c_int, (index[id(p)] for p in loop.members)))
+            c.u_port = ref(_array(c_int, (index[id(p)] for p, *_ in u)))
+            c.u_pos = ref(_array(c_int, (k for _, k, *_ in u)))
+            c.u_src = ref(_array(c_int, (index[id(src)] for _, _, src, *_ in u)))
+            c.u_src_pos = ref(_array(c_int, (x[3] for x in u)))
+            c.u_factor = ref(_array(c_double, (x[4] for x in u)))
+            c.u_offset = ref(_array(c_double, (x[5] for x in u)))
+            c.u_scaled = ref(_array(c_int, (int(x[6]) for x in u)))
+            c.r = ref(_array(c_double, [], n))  # Newton's work the core takes when it needs it
+            c.n_members, c.n = len(loop.members), n
+        self._keep.append(cl)
+        lc = self._loops = _Loops(loop=ctypes.addressof(cl), tolerance=self.settings.iteration_tolerance,
+                                  n_loops=len(loops))
+        return lc
 
     # -- the soft state, in C --------------------------------------------------
 
@@ -522,6 +565,10 @@ class CompiledMaster(Master):
                 raise self._step_failure(p, m.err_status, m.err_t, m.err_h)
             raise p.inst.fail(_CALLS[m.err_call], m.err_status, m.err_t)
         t = m.err_t
+        if rc == _ERR_LOOP:
+            c = ctypes.cast(self._loops.loop, POINTER(_Loop))[m.err_port]
+            raise self.ports.loops[m.err_port].failure(t, c.fail_why, c.fail_worst, c.fail_at, c.fail_sweeps,
+                                                       c.fail_newton)
         if rc == _ERR_NO_CHECKPOINT:
             raise SimulationError(
                 f"an event indicator changed sign at t = {t!r} s in a step without a checkpoint", time=t)

@@ -28,7 +28,9 @@ from typing import Any
 
 from ..errors import SceneError
 from ..hashing import sha256_file
+from ..numbers import shorten
 from ..paths import REPO, fmu_dir, in_checkout
+from .description_check import FLOAT32_MAX, INT_RANGES, DescriptionProblem, check_description
 
 NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
@@ -48,8 +50,14 @@ def max_unzipped_bytes() -> int:
     return int(mb * 2**20) if mb > 0 else int(DEFAULT_MAX_UNZIPPED_MB * 2**20)
 
 
-def check_archive(path: Path, infos: list) -> None:
-    """Refuse an archive whose unzipped size, entry count or description size is over the bounds."""
+def check_archive(path: Path | str, infos: list) -> None:
+    """Refuse an archive whose unzipped size, entry count or description size
+    is over the bounds, or whose entries zipfile cannot read (encrypted, or
+    compressed with a method this Python lacks). `path`: as messages name it."""
+    for i in infos:
+        problem = entry_problem(i)
+        if problem:
+            raise FmuError(f"{path}: {i.filename}: {problem}")
     if len(infos) > MAX_ENTRIES:
         raise FmuError(f"{path}: {len(infos)} entries in the archive, more than {MAX_ENTRIES}: not unzipped")
     total = sum(i.file_size for i in infos)
@@ -61,6 +69,27 @@ def check_archive(path: Path, infos: list) -> None:
     if md is not None and md.file_size > MAX_DESCRIPTION_BYTES:
         raise FmuError(f"{path}: modelDescription.xml is {md.file_size:,} bytes, more than "
                        f"{MAX_DESCRIPTION_BYTES:,} ({MAX_DESCRIPTION_BYTES // 2**20} MiB): not read")
+
+
+# zipfile's methods, each usable where Python has its module.
+_METHODS = {zipfile.ZIP_STORED: "stored", zipfile.ZIP_DEFLATED: "zlib", zipfile.ZIP_BZIP2: "bz2",
+            zipfile.ZIP_LZMA: "lzma"}
+
+
+def entry_problem(info: zipfile.ZipInfo) -> str | None:
+    """Why zipfile cannot read an archive entry, or None."""
+    if info.flag_bits & 0x1:
+        return "an encrypted entry: expected an unencrypted archive"
+    module = _METHODS.get(info.compress_type)
+    if module is None:
+        return (f"compressed with method {info.compress_type}, which zipfile cannot read; expected stored, "
+                "deflate, bzip2 or lzma")
+    if module != "stored":
+        try:
+            __import__(module)
+        except ImportError:
+            return f"compressed with {module}, which this Python lacks"
+    return None
 
 
 # The first bytes of a shared library for this platform (checked without loading it).
@@ -106,7 +135,11 @@ _MD_CACHE: dict[tuple, tuple] = {}
 
 
 class FmuError(SceneError):
-    """A missing or unusable FMU (bad input); str() is the reason."""
+    """A missing or unusable FMU (bad input); str() is the reason, its echoes
+    of the FMU's names and values bounded (a 4 MiB attribute is no line)."""
+
+    def __init__(self, detail: str, path: object = None, key: str | None = None):
+        super().__init__(shorten(detail, 1000), path, key)
 
 
 def resolve_fmu(spec: str, base_dir: Path | None = None, fmi_version: int = 2) -> Path:
@@ -148,48 +181,54 @@ def resolve_fmu(spec: str, base_dir: Path | None = None, fmi_version: int = 2) -
 
 
 def read_fmu(path: Path, need_binary: bool = True,
-             versions: tuple[str, ...] = ("2.0", "3.0")) -> tuple[Any, str, tuple[str, ...]]:
+             versions: tuple[str, ...] = ("2.0", "3.0"), label: str | None = None) -> tuple[Any, str, tuple[str, ...]]:
     """(model description, sha256, event indicators) of an FMU, cached by
-    (path, mtime, size); its FMI version must be one of `versions`."""
+    (path, mtime, size); its FMI version must be one of `versions`.
+    `label`: what messages call the FMU (an SSP archive's member), else its path."""
     import fmpy
 
     path = Path(path).resolve()
+    shown = label or path
     try:
         st = path.stat()
     except OSError as e:
-        raise FmuError(f"cannot read {path}: {e.strerror}") from None
+        raise FmuError(f"cannot read {shown}: {e.strerror}") from None
     key = (str(path), st.st_mtime_ns, st.st_size)
     hit = _MD_CACHE.get(key)
     if hit is None:
         if not zipfile.is_zipfile(path):
-            raise FmuError(f"{path} is not an FMU: not a zip archive")
+            raise FmuError(f"{shown} is not an FMU: not a zip archive")
         try:
             with zipfile.ZipFile(path) as z:
                 infos = z.infolist()
                 names = {i.filename for i in infos}
                 if "modelDescription.xml" not in names:
-                    raise FmuError(f"{path} is not an FMU: no modelDescription.xml in the archive")
-                check_archive(path, infos)
+                    raise FmuError(f"{shown} is not an FMU: no modelDescription.xml in the archive")
+                check_archive(shown, infos)
                 xml = z.read("modelDescription.xml")
                 # FMI 3.0 names binary folders by platform tuple (x86_64-linux), FMI 2.0 by platform (linux64).
                 heads = {n: _head(z, n) for n in names
                          if n.startswith((f"binaries/{fmpy.platform}/", f"binaries/{fmpy.platform_tuple}/"))}
         except (zipfile.BadZipFile, OSError) as e:
-            raise FmuError(f"{path} is not a readable FMU: {e}") from None
+            raise FmuError(f"{shown} is not a readable FMU: {e}") from None
+        try:
+            check_description(xml)
+        except DescriptionProblem as e:
+            raise FmuError(f"{shown}: modelDescription.xml: {e}") from None
         try:
             md = fmpy.read_model_description(str(path), validate=False)
         except Exception as e:  # fmpy raises bare Exceptions and lxml errors
-            raise FmuError(f"{path}: unreadable modelDescription.xml: {e}") from None
+            raise FmuError(f"{shown}: unreadable modelDescription.xml: {e}") from None
         if md.fmiVersion not in ("2.0", "3.0"):
-            raise FmuError(f"{path}: expected an FMI 2.0 or 3.0 FMU, found FMI {md.fmiVersion}")
+            raise FmuError(f"{shown}: expected an FMI 2.0 or 3.0 FMU, found FMI {md.fmiVersion}")
         if md.fmiVersion == "3.0":
-            _check_fmi3(path, md, xml)
+            _check_fmi3(shown, md, xml)
         if md.coSimulation is None:
-            raise FmuError(f"{path}: expected a Co-Simulation FMU (no <CoSimulation> element)")
+            raise FmuError(f"{shown}: expected a Co-Simulation FMU (no <CoSimulation> element)")
         ident = md.coSimulation.modelIdentifier
         if not isinstance(ident, str) or not NAME_RE.match(ident):
             # fmpy loads binaries/<platform>/<modelIdentifier>.so: a path here would load a file outside the FMU.
-            raise FmuError(f"{path}: modelDescription.xml: CoSimulation modelIdentifier {ident!r}: expected a "
+            raise FmuError(f"{shown}: modelDescription.xml: CoSimulation modelIdentifier {shorten(ident, 100)!r}: expected a "
                            "plain name (letters, digits, underscores), the binary's file name")
         indicators = event_indicator_names(xml)
         digest = sha256_file(path)
@@ -201,11 +240,11 @@ def read_fmu(path: Path, need_binary: bool = True,
         _MD_CACHE[key] = hit
     md, digest, indicators, problem, binary = hit
     if md.fmiVersion not in versions:
-        raise FmuError(f"{path}: expected an FMI {' or '.join(versions)} FMU, found FMI {md.fmiVersion}")
+        raise FmuError(f"{shown}: expected an FMI {' or '.join(versions)} FMU, found FMI {md.fmiVersion}")
     if need_binary and problem == "missing":
-        raise FmuError(f"{path} has no binary for this platform ({binary}); {_rebuild_advice(path)}")
+        raise FmuError(f"{shown} has no binary for this platform ({binary}); {_rebuild_advice(path)}")
     if need_binary and problem is not None:
-        raise FmuError(f"{path}: {binary}: {problem}; {_rebuild_advice(path)}")
+        raise FmuError(f"{shown}: {binary}: {problem}; {_rebuild_advice(path)}")
     return md, digest, indicators
 
 
@@ -246,7 +285,7 @@ def _intermediate_update_names(xml: bytes) -> set[str]:
     return {v.get("name") for v in root.iterfind("ModelVariables/*") if v.get("intermediateUpdate") == "true"}
 
 
-def _check_fmi3(path: Path, md, xml: bytes) -> None:
+def _check_fmi3(path: Path | str, md, xml: bytes) -> None:
     """Refuse what the master does not serve; rename the types it does."""
     clocks = [v.name for v in md.modelVariables if v.type == "Clock"]
     if clocks:
@@ -294,17 +333,13 @@ def variables(md) -> dict:
     return cache
 
 
-# The integer types and their ranges: FMI 2.0's Integer is a C int, FMI
-# 3.0's sized types keep their own names (and fmi3Get/Set* functions).
-_INT_RANGES = {"Integer": (-2**31, 2**31 - 1), "Int32": (-2**31, 2**31 - 1),
-               **{f"Int{b}": (-2**(b - 1), 2**(b - 1) - 1) for b in (8, 16, 64)},
-               **{f"UInt{b}": (0, 2**b - 1) for b in (8, 16, 32, 64)}}
+# The integer types and their ranges (description_check.INT_RANGES).
+_INT_RANGES = INT_RANGES
 INTEGER_TYPES = (*_INT_RANGES, "Enumeration")
 # Float32 is a Real exchanged through fmi3Get/SetFloat32.
 REAL_TYPES = ("Real", "Float32")
 # Recorded as text: Binary as hexadecimal digits (FMI 3.0).
 TEXT_TYPES = ("String", "Binary")
-FLOAT32_MAX = 3.4028234663852886e38
 
 
 def int_range(var_type: str) -> tuple[int, int] | None:

@@ -195,6 +195,13 @@ class Instance:
     """An instantiated FMU with fast access to its fmi2 functions."""
 
     fmi_version = 2  # fmu3.Instance3 says 3
+    # What messages call the FMU where its path is a copy (an SSP archive's
+    # member, "x.ssp/resources/m.fmu"); None: its path.
+    label: str | None = None
+
+    @property
+    def shown(self) -> str:
+        return self.label or str(self.path)
 
     def __init__(self, name: str, path: Path, model_description=None):
         self.name = name
@@ -235,7 +242,7 @@ class Instance:
                 instanceName=self.name,
             )
         except Exception as e:  # fmpy raises a bare Exception for a bad library
-            raise SceneError(f"{self.path}: cannot load the FMU's binary for this platform: {e}") from None
+            raise SceneError(f"{self.shown}: cannot load the FMU's binary for this platform: {e}") from None
         messages = self.messages
 
         def keep(status, message):
@@ -263,7 +270,7 @@ class Instance:
             # The binary refused its own model description (another build or
             # another model): the FMU file is broken, which is bad input.
             raise SceneError(
-                f"{self.path}: fmi2Instantiate refused the model description's GUID "
+                f"{self.shown}: fmi2Instantiate refused the model description's GUID "
                 f"{self.md.guid}: {self.last_message() or e}") from None
         self.component = self._slave.component
         dll = self._slave.dll

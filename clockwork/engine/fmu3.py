@@ -186,7 +186,7 @@ class Instance3(Instance):
                                     modelIdentifier=self.md.coSimulation.modelIdentifier,
                                     instanceName=self.name)
         except Exception as e:  # fmpy raises a bare Exception for a bad library
-            raise SceneError(f"{self.path}: cannot load the FMU's binary for this platform: {e}") from None
+            raise SceneError(f"{self.shown}: cannot load the FMU's binary for this platform: {e}") from None
         messages = self.messages
 
         def logger(env, status, category, message):
@@ -201,7 +201,7 @@ class Instance3(Instance):
                                         earlyReturnAllowed=self.early_return_allowed, logMessage=logger)
         except Exception as e:
             raise SceneError(
-                f"{self.path}: fmi3InstantiateCoSimulation refused the model description's instantiation "
+                f"{self.shown}: fmi3InstantiateCoSimulation refused the model description's instantiation "
                 f"token {self.md.guid}: {self.last_message() or e}") from None
         self.component = self._slave.component
         self._bind(self._slave.dll)

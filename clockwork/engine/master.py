@@ -56,15 +56,15 @@ class Master:
                  inputs: Samples | None = None):
         self.instances = instances
         self.settings = settings
-        self.wiring = build(instances, links, step_order)
+        settings.check()
+        self.wiring = build(instances, links, step_order, settings.algebraic_loops)
         # Inputs driven from samples (an input file): set at every step.
         self.file_inputs = None if inputs is None else FileInputs(
             inputs, instances, {(k.dst, k.input) for k in links})
-        settings.check()
         self.t = start_time  # the current communication point, s
         self.start_time = start_time
         self.stats = Statistics()
-        self.ports = Ports(instances, links, self.wiring, extra_outputs, settings.event_location)
+        self.ports = Ports(instances, links, self.wiring, extra_outputs, settings.event_location, self)
         self.discrete_outputs = self.ports.discrete_outputs
         self.coupling = InputCoupling(self.ports.dynamic, settings.extrapolation)
         self.locator = EventLocator(self, self.ports.all)
@@ -93,6 +93,11 @@ class Master:
     def notes(self) -> list[str]:
         """What the master changed of the settings, said once each (e.g. a lowered extrapolation order)."""
         return self.coupling.notes
+
+    def count_loop(self, iterations: int, fallbacks: int) -> None:
+        """Algebraic loops (loops.Loop) count their iterations and fallbacks here."""
+        self.stats.loop_iterations += iterations
+        self.stats.loop_fallbacks += fallbacks
 
     def _check_rollback(self) -> None:
         """A rollback needs every FMU's state: refuse before the first step."""
@@ -137,7 +142,14 @@ class Master:
             self.file_inputs.set(ports.all, self.start_time, False)
         # Outputs in initialization mode follow from parameters; two sweeps
         # settle feedthrough chains of any depth found in these scenes.
-        for _ in range(2):
+        # An algebraic loop (engine/loops.py) reads outputs of the last run
+        # before they are read again: forgotten, as in a new master. A loop
+        # broken by a delay starts in the second sweep, once every output
+        # feeding it has been read.
+        ports.forget_outputs()
+        for sweep in range(2):
+            if sweep == 1:
+                ports.start_loops()
             ports.propagate(ports.order, self.t)
         for inst in self.instances.values():
             inst.exit_init()

@@ -10,6 +10,7 @@ from ..errors import ClosedError, SceneError, UsageError
 
 
 ENGINES = ("auto", "python", "compiled")
+LOOP_MODES = ("solve", "delay")
 
 
 @dataclass
@@ -41,6 +42,11 @@ class MasterSettings:
     # to return early at their own events (handled there in event mode);
     # false: they handle them inside fmi3DoStep, as an FMI 2.0 FMU does.
     early_return: bool = True
+    # Algebraic loops (outputs with direct feedthrough that feed each other):
+    # "solve" iterates each loop's inputs to a fixed point wherever outputs
+    # are brought up to date, to iteration_tolerance; "delay" breaks it by a
+    # one-step delay (the loop's members are read once, after their step).
+    algebraic_loops: str = "solve"
 
     def __post_init__(self) -> None:
         self.check()  # a bad setting is refused where it is made, not in an endless run_until
@@ -70,6 +76,8 @@ class MasterSettings:
             raise SceneError(f"master.tolerance = {self.tolerance!r}: expected a number > 0")
         if self.fmi_version not in (2, 3):
             raise SceneError(f"master.fmi_version = {self.fmi_version!r}: expected 2 or 3")
+        if self.algebraic_loops not in LOOP_MODES:
+            raise SceneError(f"master.algebraic_loops = {self.algebraic_loops!r}: expected 'solve' or 'delay'")
         if self.extrapolation not in (0, 1, 2):
             raise SceneError(f"master.extrapolation = {self.extrapolation}: expected 0, 1 or 2")
 
@@ -116,3 +124,5 @@ class Statistics:
     states_saved: int = 0
     rejected: int = 0
     coupling_iterations: int = 0
+    loop_iterations: int = 0  # algebraic loops: fixed-point sweeps and Newton iterations
+    loop_fallbacks: int = 0  # algebraic loops solved by the Newton fallback

@@ -27,7 +27,7 @@ class System:
     def __init__(self, components: dict[str, tuple[str, dict]], connections: list[str],
                  settings: MasterSettings | None = None, record: dict[str, list[str]] | None = None,
                  start_time: float = 0.0, model_descriptions: dict | None = None,
-                 inputs: Samples | None = None):
+                 labels: dict[str, str] | None = None, inputs: Samples | None = None):
         if not isinstance(components, dict) or not all(
                 isinstance(c, (tuple, list)) and len(c) == 2 and isinstance(c[1], dict) for c in components.values()):
             raise UsageError("System: components must be {instance: (model name or .fmu path, {parameter: value})}")
@@ -44,6 +44,7 @@ class System:
                 inst = make_instance(name, resolve_fmu(str(fmu), Path.cwd(), settings.fmi_version), md,
                                      settings.early_return,
                                      bool(settings.extrapolation) or settings.iterations > 0)
+                inst.label = (labels or {}).get(name) or None  # what messages call a copied FMU
                 inst.instantiate()
                 self.instances[name] = inst
             known = {n: inst.variables for n, inst in self.instances.items()}

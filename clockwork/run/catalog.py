@@ -57,6 +57,7 @@ def check_loadable(scene) -> None:
     by `validate` too, under the component's key."""
     for name, c in scene.components.items():
         inst = make_instance(name, c.fmu_path, c.model_description)
+        inst.label = c.fmu_label or None
         try:
             inst.instantiate()
         except SceneError as e:  # nothing instantiated: nothing to free

@@ -14,8 +14,8 @@ from pathlib import Path
 
 from ..engine.description import FLOAT32_MAX, INTEGER_TYPES, int_range, var_limit, var_unit
 from ..engine.description import variables as variables_of
-from ..engine.names import split_ref
-from ..engine.settings import ENGINES
+from ..engine.names import instance_name_problem, split_ref
+from ..engine.settings import ENGINES, LOOP_MODES
 from ..errors import SceneError
 from .model import Component, show
 from .units import UnitError, fmt, parse_quantity, to_seconds, to_unit
@@ -94,6 +94,16 @@ def read_bounded(path: Path, limit: int, noun: str, expected: str) -> bytes:
     except OSError as e:
         raise SceneError(f"cannot read: {e.strerror}", path) from None
     return data
+
+
+def instance_problem(name: object) -> str | None:
+    """What is wrong with an instance name, in a scene file or an SSP
+    (docs/scenes.md, "Components"), or None: the engine's name rule, and
+    not the name of a scene section (--set master.step must mean the master)."""
+    problem = instance_name_problem(name)
+    if problem is None and name in TOP_KEYS:
+        problem = f"the instance name {name} is reserved (it names a scene section)"
+    return problem
 
 
 def article(word: str) -> str:
@@ -191,6 +201,10 @@ def master_value(ctx: Ctx, key: str, value: object):
     if key == "order":
         if value not in ("gauss-seidel", "jacobi"):
             raise ctx.bad(full, value, '"gauss-seidel" or "jacobi"')
+        return value
+    if key == "algebraic_loops":
+        if value not in LOOP_MODES:
+            raise ctx.bad(full, value, '"solve" (iterate each loop to a fixed point) or "delay" (break it by one step)')
         return value
     if key == "engine":
         if value not in ENGINES:

@@ -28,10 +28,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..engine.description import FmuError, TEXT_TYPES, read_fmu
-from ..engine.names import instance_name_problem
 from ..errors import SceneError
 from ..numbers import parse_real
-from .checks import TOP_KEYS
+from .checks import instance_problem
 from .model import Component
 from .ssp.read import SspScene
 
@@ -42,7 +41,7 @@ def instance_name(md) -> str:
     """The one instance's name: the model's name, where it is a usable instance name."""
     ident = md.coSimulation.modelIdentifier if md.coSimulation is not None else None
     for name in (md.modelName, ident, "model"):
-        if isinstance(name, str) and instance_name_problem(name) is None and name not in TOP_KEYS:
+        if isinstance(name, str) and instance_problem(name) is None:
             return name
     return "model"
 

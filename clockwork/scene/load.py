@@ -28,19 +28,19 @@ from ..engine.description import (TEXT_TYPES, FmuError, read_fmu, resolve_fmu, t
                                   var_unit)
 from ..engine.description import variables as variables_of
 from ..engine.fmu3 import make_instance
-from ..engine.names import instance_name_problem, split_link, split_ref
-from ..engine.wiring import Link
+from ..engine.names import split_link, split_ref
+from ..engine.wiring import Link, loop_name
 from ..engine.wiring import build as build_wiring
 from ..errors import SceneError
-from .checks import (TOP_KEYS, Ctx, article, component, convert_value, lookup, master_value, names_of, parse_ref,
-                     read_bounded)
+from .checks import (TOP_KEYS, Ctx, article, component, convert_value, instance_problem, lookup, master_value,
+                     names_of, parse_ref, read_bounded)
 from .fmu import read_fmu_scene
 from .inputs import Inputs, read_inputs
 from .kinds import NO_KINDS, Invalid, Kinds
 from .model import (Component, Connection, Experiment, MasterConfig, Record, Scene, consistency)
 from .ssp.read import read_ssp
 from .sweep import parse_sweep
-from .units import fmt, link_conversion
+from .units import UnitError, fmt, link_conversion, to_seconds
 
 MAX_SCENE_BYTES = 1 << 20  # scene files are a few kB; a larger one is not a scene
 _OVERRIDABLE = ("scene", "experiment", "master", "record", "analysis")
@@ -193,9 +193,8 @@ def _load_system(path: Path, ssp, overrides, kinds: Kinds, input_file) -> Scene:
             raise SceneError(f"{inst}.{var} is {what}; expected a parameter or an unconnected input", path, label)
         value = convert_value(ctx, label, value, v, comp.model_description)
         components[inst] = dataclasses.replace(comp, parameters={**comp.parameters, var: value})
-    if "stop" not in raw.get("experiment", {}):
-        raise SceneError("missing: the SSD has no ssd:DefaultExperiment stopTime; expected one, or "
-                         "--set experiment.stop=<time>", path, "ssd:DefaultExperiment stopTime")
+    _ssp_stop(ssp, raw)
+    _ssp_step_hints(ssp, raw, components, labels)
     outputs = raw.get("record", {}).get("outputs")
     if isinstance(outputs, list) and all(isinstance(o, str) for o in outputs):
         # a system connector records the component output it passes on
@@ -203,6 +202,55 @@ def _load_system(path: Path, ssp, overrides, kinds: Kinds, input_file) -> Scene:
     raw.setdefault("analysis", {"kind": "time_series"})  # --set analysis.kind=... may choose another
     ctx = Ctx(path, labels)
     return _build(ctx, raw, tuple(applied), ssp.sha256, kinds, (components, ssp.connections), input_file)
+
+
+def _ssp_stop(ssp, raw: dict) -> None:
+    """An SSD without a stopTime (and no --set experiment.stop) stops 1 s
+    after its start, as fmpy does (and OMSimulator, from 0 s), with a note."""
+    experiment = raw.setdefault("experiment", {})
+    if "stop" in experiment or ssp.no_stop is None:
+        return
+    try:
+        start = to_seconds(experiment.get("start", 0.0))
+    except UnitError:
+        return  # refused under experiment.start
+    experiment["stop"] = start + 1.0
+    label, key = ssp.no_stop
+    print(f"clockwork: note: {label}: {key}: no ssd:DefaultExperiment stopTime: the run stops 1 s after the start, at "
+          f"{fmt(start + 1.0)} s, as fmpy does (--set experiment.stop=<time> for another)", file=sys.stderr)
+
+
+def _ssp_step_hints(ssp, raw: dict, components: dict, labels: dict) -> None:
+    """The components' osp:StepSizeHint: libcosim and ecos step a component
+    every k-th base step (k = hint / base step, rounded down in libcosim, up
+    in ecos). clockwork's master steps every FMU at every communication
+    point (a per-component multiple would be a master feature in both
+    engines), so it honours hints that give every component the same step,
+    by taking that step, and refuses the others in one line. A --set
+    master.step chooses the step for all, with a note."""
+    hints = ssp.step_hints
+    if not hints:
+        return
+    if "master.step" in labels:
+        label, key = next(iter(hints.values()))[1:]
+        print(f"clockwork: note: {label}: {key}: --set master.step steps every component alike; the "
+              f"components' osp:StepSizeHint ({len(hints)}) are not applied", file=sys.stderr)
+        return
+    master = raw.setdefault("master", {})
+    base = master.get("step", _MASTER_DEFAULTS["step"])
+    steps = {inst: hints[inst][0] if inst in hints else base for inst in components}
+    first = next(iter(steps))
+    odd = next((inst for inst, h in steps.items() if h != steps[first]), None)
+    if odd is None:
+        master["step"] = steps[first]
+        return
+    inst = odd if odd in hints else first
+    label, key = hints[inst][1:]
+    other = first if inst == odd else odd
+    raise SceneError(f"{inst} would step every {fmt(steps[inst])} s and {other} every {fmt(steps[other])} s: "
+                     "clockwork's master steps every FMU at every communication point (no per-component "
+                     "decimation); expected the same osp:StepSizeHint on every component, or --set "
+                     "master.step=<s> to step all alike", label, key)
 
 
 def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: Kinds,
@@ -227,9 +275,10 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     else:
         components, connections = prebuilt
         notes = ()
-    _check_wiring(ctx, components, connections)
+    loops = _check_wiring(ctx, components, connections)
     experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
     master, max_step_given = _master(ctx, master_t)
+    notes = tuple(notes) + tuple(_loop_note(name, links, master.algebraic_loops) for name, links in loops)
     problem = consistency(master, experiment, components) or _fmi3_inputs(master, components, connections)
     if problem:
         raise ctx.fail(*problem)
@@ -321,11 +370,9 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
     input_params = set()
     for name, t in table.items():
         where = f"components.{name}"
-        problem = instance_name_problem(name)
+        problem = instance_problem(name)
         if problem:
             raise ctx.fail(where, problem)
-        if name in TOP_KEYS:
-            raise ctx.fail(where, f"the instance name {name} is reserved (it names a scene section)")
         if not isinstance(t, dict):
             raise ctx.bad(where, t, f"a table [components.{name}] with keys fmu, parameters")
         ctx.check_keys(t, ("fmu", "parameters"), where, required=("fmu",))
@@ -354,14 +401,23 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
     return out, input_params
 
 
-def _check_wiring(ctx: Ctx, components: dict[str, Component], connections) -> None:
-    """What the master refuses before it steps (an algebraic loop through
-    direct-feedthrough outputs), refused now, by the engine's own wiring code."""
+def _check_wiring(ctx: Ctx, components: dict[str, Component], connections) -> list[tuple[str, list[Link]]]:
+    """The wiring as the master will build it, by the engine's own code:
+    what it refuses is refused now. Returns the algebraic loops (name,
+    links inside)."""
     try:
         instances = {n: make_instance(n, c.fmu_path, c.model_description) for n, c in components.items()}
-        build_wiring(instances, [Link(*c) for c in connections])
+        wiring = build_wiring(instances, [Link(*c) for c in connections])
     except SceneError as e:
         raise ctx.fail("connections", e.detail) from None
+    return [(loop_name(m, links), links) for m, links in zip(wiring.loops, wiring.loop_links)]
+
+
+def _loop_note(name: str, links: list[Link], mode: str) -> str:
+    through = ", ".join(f"{k.src}.{k.output} -> {k.dst}.{k.input}" for k in links)
+    how = ("solved to a fixed point at every communication point" if mode == "solve"
+           else "broken by a one-step delay")
+    return f'algebraic loop {name} (through {through}): {how} (master.algebraic_loops = "{mode}")'
 
 
 def _connections(ctx: Ctx, conns, components: dict[str, Component],
@@ -462,7 +518,7 @@ def _fmi3_inputs(m: MasterConfig, components: dict[str, Component], connections)
         md = comp.model_description
         dynamic = any(o.dependencies is not None and not o.dependencies for o in md.outputs)
         if md.fmiVersion == "3.0" and dynamic and not _takes_intermediate_update(md, c.dst_var):
-            return (f"master.{key}", f"{c.dst_instance} ({comp.fmu_path.name}) is an FMI 3.0 FMU with dynamics "
+            return (f"master.{key}", f"{c.dst_instance} ({Path(comp.fmu_shown).name}) is an FMI 3.0 FMU with dynamics "
                     f"whose {c.dst_var} has no intermediate update, and its Co-Simulation interface takes no "
                     f"input derivatives: {key} needs them for {c.dst_instance}.{c.dst_var}; use "
                     f"master.{key} = 0 or an FMI 2.0 build")

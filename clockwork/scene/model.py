@@ -28,10 +28,18 @@ class Component:
     model_description: Any  # fmpy.model_description.ModelDescription
     parameters: dict[str, float | int | bool | str]  # in the variable's unit (SI)
     event_indicators: tuple[str, ...] = ()  # from the `clockwork` vendor annotation
+    # What messages call the FMU: an SSP archive's member ("x.ssp/resources/m.fmu")
+    # rather than its copy in the cache; "" for the file itself.
+    fmu_label: str = ""
 
     @property
     def model_name(self) -> str:
         return self.model_description.modelName
+
+    @property
+    def fmu_shown(self) -> str:
+        """The FMU as messages name it."""
+        return self.fmu_label or str(self.fmu_path)
 
     def variable(self, name: str):
         return variables_of(self.model_description)[name]
@@ -78,6 +86,7 @@ class MasterConfig:
     tolerance: float | None = None  # relative, passed to every FMU; None: each FMU's DefaultExperiment's
     fmi_version: int = 2  # which build of the bundled FMUs model names load: 2 or 3
     early_return: bool = True  # FMI 3.0 FMUs may return early from fmi3DoStep at their own events
+    algebraic_loops: str = "solve"  # "solve" (fixed point at every communication point) or "delay"
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -213,7 +222,7 @@ def rollback_problem(m: MasterConfig, components: dict[str, Component]) -> tuple
     for c in components.values():
         if not c.model_description.coSimulation.canGetAndSetFMUstate:
             return key, (f"expected {'0' if key == 'master.iterations' else 'false'} here: components.{c.name} "
-                         f"({c.fmu_path.name}) cannot save and restore its state (its modelDescription.xml "
+                         f"({Path(c.fmu_shown).name}) cannot save and restore its state (its modelDescription.xml "
                          f"does not declare canGetAndSetFMUstate), and {why} rolls every FMU back")
     return None
 
