@@ -115,13 +115,15 @@ def run_with_progress(master, stop: float, on_point, progress: bool, label: str)
     with tqdm(total=span, disable=not progress, delay=1.0, desc=label, unit="s sim",
               bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]") as bar:
         step = master.settings.step
-        # Chunks are whole multiples of the step so that the grid is kept.
-        chunk = step * max(1, round(span / 200.0 / step))
+        # Chunks end on grid points, computed as run_until computes them
+        # (start + k * step): an end an ulp short of one would cut a step there.
+        per_chunk = max(1, round(span / 200.0 / step))
+        origin = master.start_time
+        k = math.floor((master.t - origin) / step + 1e-9)
         t0 = master.t
-        n = 0
         while master.t < stop - 1e-12 * max(1.0, abs(stop)) and master.ended is None:
-            n += 1
-            master.run_until(min(stop, t0 + n * chunk), on_point)
+            k += per_chunk
+            master.run_until(min(stop, origin + k * step), on_point)
             bar.update(master.t - t0 - bar.n)
 
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import ctypes
 import threading
+from array import array
 from ctypes import POINTER, Structure, byref, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
 
 from ..errors import SceneError, SimulationError
@@ -30,6 +31,7 @@ from .fmu3 import _Events
 from .master import Master
 from .ports import link_type
 from .recording import Recorder, _DiscreteOutput
+from .samples import Samples
 from .settings import MasterSettings, Statistics
 from .wiring import Link
 
@@ -84,7 +86,8 @@ class _Master(_Strict):
          "snap_after_event", "n_since", "max_replay_steps", "diverged", "err_port", "err_call", "err_status",
          "orders_lowered"]
     ) + [("n_fmi3", c_int), ("fmi3", c_void_p),  # FMI 3.0 adapters (fmu3._Events), whose time events cap the step
-         ("loops", c_void_p)]  # _Loops: the algebraic loops solved in the orders
+         ("loops", c_void_p),  # _Loops: the algebraic loops solved in the orders
+         ("inputs", c_void_p)]  # a _Inputs: inputs driven from samples, or NULL
 
 
 class _Loop(_Strict):
@@ -98,6 +101,13 @@ class _Loops(_Strict):
     _fields_ = _fields(["loop"], ["tolerance"], ["iterations", "fallbacks"], ["n_loops", "pad_"])
 
 
+class _Inputs(_Strict):
+    """The sample table and the Real inputs it drives (engine/samples.py)."""
+
+    _fields_ = _fields(["times", "values", "continuous", "events", "port_start", "vr", "signal", "value"],
+                       [], [], ["n_times", "n_signals", "n_events", "pad_"])
+
+
 class _Recorder(_Strict):
     _fields_ = _fields(
         ["col_port", "col_pos", "rows", "ticks"], ["last_tick"], ["grid_seen", "grid_k"],
@@ -105,7 +115,7 @@ class _Recorder(_Strict):
          "tick_pos", "has_interval", "pad_"])
 
 
-for _struct in (_Port, _Master, _Recorder, _Loop, _Loops):
+for _struct in (_Port, _Master, _Recorder, _Loop, _Loops, _Inputs):
     _struct._names = frozenset(n for n, _ in _struct._fields_)
 
 _lib = None
@@ -125,7 +135,7 @@ def load_core():
                 _lib_error = f"the compiled core {path} cannot be loaded ({e}); build it with tools/setup.sh"
                 return None
             for name, struct in (("port", _Port), ("master", _Master), ("recorder", _Recorder), ("fmi3", _Events),
-                                 ("loop", _Loop), ("loops", _Loops)):
+                                 ("loop", _Loop), ("loops", _Loops), ("inputs", _Inputs)):
                 size = getattr(lib, f"cw_sizeof_{name}")
                 size.restype = c_size_t
                 if size() != ctypes.sizeof(struct):
@@ -171,20 +181,32 @@ def unsupported_links(types) -> str | None:
     return None
 
 
+def unsupported_inputs(types) -> str | None:
+    """Why the core cannot set these sampled inputs, or None. `types`:
+    ("instance.variable", FMI type) pairs; the core sets Real inputs only."""
+    for name, kind in types:
+        if kind != "Real":
+            return f"the compiled core sets sampled Real inputs only ({name} is {kind})"
+    return None
+
+
 def make_master(instances: dict[str, Instance], links: list[Link], settings: MasterSettings,
                 start_time: float = 0.0, step_order: list[str] | None = None,
-                extra_outputs: dict[str, list[str]] | None = None) -> Master:
+                extra_outputs: dict[str, list[str]] | None = None, inputs: Samples | None = None) -> Master:
     """The master that ``settings.engine`` asks for (see the module's docstring)."""
     settings.check()
     reason = None
     if settings.engine != "python":
         types = [(f"{k.src}.{k.output} -> {k.dst}.{k.input}", link_type(instances, k)) for k in links]
-        reason = unsupported(settings) or unsupported_links(types) or core_problem()
+        sampled = [] if inputs is None else [
+            (s.name, instances[s.instance].variables[s.variable].type) for s in inputs.signals
+            if s.instance in instances and s.variable in instances[s.instance].variables]
+        reason = unsupported(settings) or unsupported_links(types) or unsupported_inputs(sampled) or core_problem()
         if reason is None:
-            return CompiledMaster(instances, links, settings, start_time, step_order, extra_outputs)
+            return CompiledMaster(instances, links, settings, start_time, step_order, extra_outputs, inputs)
         if settings.engine == "compiled":
             raise SceneError(f"master.engine = 'compiled': {reason} (use 'auto' or 'python')")
-    master = Master(instances, links, settings, start_time, step_order, extra_outputs)
+    master = Master(instances, links, settings, start_time, step_order, extra_outputs, inputs)
     master.engine_reason = reason
     return master
 
@@ -215,9 +237,10 @@ class CompiledMaster(Master):
     # between calls). 0 returns every 16 steps (the tests compare the bits).
     slice_s = 0.05
 
-    def __init__(self, instances, links, settings, start_time=0.0, step_order=None, extra_outputs=None):
+    def __init__(self, instances, links, settings, start_time=0.0, step_order=None, extra_outputs=None,
+                 inputs=None):
         self._lib = load_core()
-        super().__init__(instances, links, settings, start_time, step_order, extra_outputs)
+        super().__init__(instances, links, settings, start_time, step_order, extra_outputs, inputs)
         self._build()
 
     # The master's state lives in the C struct; before it exists (inside
@@ -344,11 +367,38 @@ class CompiledMaster(Master):
         m.locating, m.has_sources = int(self._locating), int(loc.has_sources)
         m.after_event = 1
         m.max_replay_steps = Master.MAX_REPLAY_STEPS
+        if self.file_inputs is not None:
+            m.inputs = self._inputs()
         self._core_ptr = byref(m)
         self._taken = c_double()
         self._taken_ptr = byref(self._taken)
         self._watch_args = {}
         self._empty_recorder = _Recorder(grid_k=-1, tick_port=-1, capacity=1, tick_capacity=1, stride=1)
+
+    def _inputs(self) -> int:
+        """The core's table of sampled inputs (Real ones: make_master chose
+        Python for the others), as a _Inputs struct's address."""
+        fi = self.file_inputs
+        samples = fi.samples
+        n = len(samples.times)
+        values = array("d")
+        for s in samples.signals:
+            values.extend(float(x) for x in s.values)
+        starts, vrs, signals = [], [], []
+        for p in self.ports.all:
+            starts.append(len(vrs))
+            cols, vr, _ = fi.real.get(p.inst.name, ([], [], None))
+            vrs += list(vr)
+            signals += cols
+        starts.append(len(vrs))
+        ref = self._ref
+        c = _Inputs(times=ref(_array(c_double, samples.times)), values=ref(_array(c_double, values)),
+                    continuous=ref(_array(c_int, (int(s.continuous) for s in samples.signals))),
+                    events=ref(_array(c_double, samples.events)), port_start=ref(_array(c_int, starts)),
+                    vr=ref(_array(c_uint, vrs)), signal=ref(_array(c_int, signals)),
+                    value=ref(_array(c_double, [], len(vrs))),
+                    n_times=n, n_signals=len(samples.signals), n_events=len(samples.events))
+        return ref(c)
 
     def _build_loops(self, index: dict, ref) -> _Loops:
         """The algebraic loops for the core (those broken by a delay are never in its orders)."""

@@ -39,6 +39,7 @@ from .fmu import DISCARD, NO_MESSAGE, WARNING, Instance, free_all
 from .location import EventLocator, crossed, scan
 from .ports import Port, Ports
 from .richardson import StepDoubling
+from .samples import FileInputs, Samples, isclose
 from .settings import MasterSettings, Statistics, check_run, rollback_need
 from ..errors import SceneError, SimulationEnded, SimulationError
 from .wiring import Link, build
@@ -73,11 +74,15 @@ class Master:
     def __init__(self, instances: dict[str, Instance], links: list[Link],
                  settings: MasterSettings, start_time: float = 0.0,
                  step_order: list[str] | None = None,
-                 extra_outputs: dict[str, list[str]] | None = None):
+                 extra_outputs: dict[str, list[str]] | None = None,
+                 inputs: Samples | None = None):
         self.instances = instances
         self.settings = settings
         settings.check()
         self.wiring = build(instances, links, step_order, settings.algebraic_loops)
+        # Inputs driven from samples (an input file): set at every step.
+        self.file_inputs = None if inputs is None else FileInputs(
+            inputs, instances, {(k.dst, k.input) for k in links})
         self.t = start_time  # the current communication point, s
         self.start_time = start_time
         self.stats = Statistics()
@@ -155,6 +160,8 @@ class Master:
         self.ended = None
         for name, inst in self.instances.items():
             inst.setup(self.start_time, parameters.get(name, {}), self.settings.tolerance)
+        if self.file_inputs is not None:
+            self.file_inputs.set(ports.all, self.start_time, False)
         # Outputs in initialization mode follow from parameters; two sweeps
         # settle feedthrough chains of any depth found in these scenes.
         # An algebraic loop (engine/loops.py) reads outputs of the last run
@@ -232,6 +239,9 @@ class Master:
         t_new = t + h
         ports = self.ports
         loc = self.locator
+        inputs = self.file_inputs
+        if inputs is not None:  # sampled inputs at t, after an event there
+            inputs.set(ports.all, t, True)
         # 1. Feedthrough-only instances commit the mode decided at t.
         for p in ports.first:
             st = p.doStep(p.comp, t, h, 0)
@@ -240,6 +250,8 @@ class Master:
             if p.z_pos and self.after_event:
                 # A commit may have switched the mode: read z at t+.
                 p.getReal(p.comp, p.out_vr, p.n_out, p.out)
+        if inputs is not None:  # their outputs are next read at t + h: sampled inputs there, before an event
+            inputs.set(ports.first, t_new, False)
         if self._locating:
             # Without a commit of a new mode, z at t+ is z at t.
             loc.z_start = loc.indicators() if self.after_event else loc.z_end
@@ -259,6 +271,8 @@ class Master:
             st = p.doStep(p.comp, t, h, 0)
             if st > WARNING:
                 raise self._step_failure(p, st, t, h)
+            if inputs is not None:
+                inputs.set((p,), t_new, False)
             p.read(t_new)
             if not jacobi and p is not last:
                 # Newest values flow on to the instances stepped later.
@@ -331,6 +345,15 @@ class Master:
                 raise self._fmi3_ended()
             if t < ev.next_event_time < t + h:
                 h = ev.next_event_time - t
+        # A sampled input's event is a discontinuity at the step's start
+        # and ends a step that would pass it.
+        if self.file_inputs is not None:
+            samples = self.file_inputs.samples
+            if samples.event_at(t):
+                self.discontinuity()
+            te = samples.next_event(t)
+            if t + h > te and not isclose(t + h, te):
+                h = te - t
         # 1. The indicators' sources cap the step.
         if loc.has_sources:
             if loc.sources_prev is None:

@@ -5,6 +5,7 @@ tests, benchmarks and the Python API build one directly:
 ``System({"pendulum": ("Pendulum", {...})}, ["pendulum.phi -> escapement.phi", ...],
 MasterSettings(...))``. A model name is looked up in $CLOCKWORK_FMU_DIR
 (else the repository's fmus/); a path ending .fmu is taken as it is.
+``inputs`` (engine.samples.Samples) drives unconnected inputs from samples.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from .description import resolve_fmu
 from .fmu import Instance, free_all
 from .fmu3 import make_instance
 from .compiled import make_master
+from .samples import Samples
 from .settings import MasterSettings
 from .wiring import Link, parse_link
 
@@ -98,7 +100,7 @@ class System:
     def __init__(self, components: dict[str, tuple[str, dict]], connections: list[str],
                  settings: MasterSettings | None = None, record: dict[str, list[str]] | None = None,
                  start_time: float = 0.0, model_descriptions: dict | None = None,
-                 labels: dict[str, str] | None = None):
+                 labels: dict[str, str] | None = None, inputs: Samples | None = None):
         if not isinstance(components, dict) or not all(
                 isinstance(c, (tuple, list)) and len(c) == 2 and isinstance(c[1], dict) for c in components.values()):
             raise UsageError("System: components must be {instance: (model name or .fmu path, {parameter: value})}")
@@ -129,7 +131,7 @@ class System:
                     for var in names:
                         self._variable(inst, var, None, what)
             self.master = make_master(self.instances, links, settings,
-                                 start_time=start_time, extra_outputs=record)
+                                      start_time=start_time, extra_outputs=record, inputs=inputs)
             self.master.initialize(self.parameters)
         except BaseException:
             self.free()

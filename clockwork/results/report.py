@@ -19,6 +19,7 @@ import numpy as np
 from .files import clean_json, write_csv_atomic, write_json_atomic
 from .headlines import headlines_for
 from .plots import Plotter
+from .plots.outputs import column_info
 
 _SCALARS = (int, float, bool, str, type(None))
 
@@ -44,6 +45,8 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
                               else np.asarray([math.nan if x is None else x for x in v], dtype=float)
                               for v in cols.values()])
             files.append("timeseries.csv")
+            # Units and types of the columns: `clockwork plot` redraws from the files alone.
+            summary["columns"] = column_info(scene, [n for n in cols if n != "time"])
         if r.get("ticks"):
             t = np.asarray(r["ticks"], dtype=float)
             periods = np.concatenate([[np.nan], np.diff(t)])

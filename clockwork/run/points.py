@@ -2,7 +2,7 @@
 
 ``point_key`` hashes everything that determines a point's result (FMU
 hashes, parameters, connections, master settings, experiment, analysis,
-recorded outputs, the tool's version and code): the name under which the
+recorded outputs, input samples, the tool's version and code): the name under which the
 point is stored in an output directory and in the cache.
 """
 
@@ -13,7 +13,7 @@ import json
 import time
 from dataclasses import asdict
 
-from .. import __version__
+from ..version import __version__
 from ..analyses import run_analysis
 from ..analyses.context import experiment, master_settings, parameters
 from ..errors import SimulationError
@@ -35,6 +35,7 @@ def point_key(scene, point: dict) -> str:
         "experiment": experiment(scene, point),
         "analysis": scene.analysis,
         "record": [list(scene.record.outputs), scene.record.interval, scene.record.ticks],
+        "inputs": None if scene.inputs is None else [scene.inputs.sha256, scene.inputs.columns],
         "version": __version__,
         "code": source_digest(),
     }

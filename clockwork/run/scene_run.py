@@ -14,7 +14,7 @@ import time
 from dataclasses import asdict
 from pathlib import Path
 
-from .. import __version__
+from ..version import __version__
 from ..analyses.context import reusing_systems
 from ..errors import ParametersRefused, SceneError, SimulationError
 from ..results.cache import cache_load, cache_store, read_point
@@ -110,6 +110,8 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
                  for n, c in scene.components.items()},
         "settings": {"master": scene.master.as_dict(), "experiment": asdict(scene.experiment),
                      "analysis": scene.analysis, "overrides": list(scene.overrides)},
+        **({"inputs": {"file": str(scene.inputs.file), "sha256": scene.inputs.sha256,
+                       "columns": scene.inputs.columns}} if scene.inputs is not None else {}),
         "points_total": len(points),
         "points_reused": reused,
     }

@@ -21,7 +21,8 @@ from ..errors import SceneError
 from .model import Component, show
 from .units import UnitError, fmt, parse_quantity, to_seconds, to_unit
 
-TOP_KEYS = ("scene", "components", "connections", "experiment", "master", "record", "analysis", "sweep", "plot")
+TOP_KEYS = ("scene", "components", "connections", "experiment", "master", "record", "analysis", "sweep", "plot",
+            "inputs")
 
 
 class Ctx:
@@ -73,6 +74,27 @@ class Ctx:
             return to_seconds(value)
         except UnitError as e:
             raise self.bad(key, value, str(e)) from None
+
+
+def read_bounded(path: Path, limit: int, noun: str, expected: str) -> bytes:
+    """The bytes of a file clockwork reads whole (a scene, an input file), at
+    most `limit` of them; SceneError naming it otherwise (`noun`: "scene
+    file"; `expected`: what a directory is not, "a .toml scene file")."""
+    try:
+        # Read at most one byte past the limit: a device or a pipe reports no size.
+        with open(path, "rb") as f:
+            data = f.read(limit + 1)
+        if len(data) > limit:
+            size = path.stat().st_size if path.is_file() else None
+            raise SceneError(f"{size if size else 'more than ' + str(limit)} bytes: "
+                             f"{article(noun)} {noun} is at most {limit} bytes", path)
+    except FileNotFoundError:
+        raise SceneError(f"no such {noun}", path) from None
+    except IsADirectoryError:
+        raise SceneError(f"is a directory, expected {expected}", path) from None
+    except OSError as e:
+        raise SceneError(f"cannot read: {e.strerror}", path) from None
+    return data
 
 
 def instance_problem(name: object) -> str | None:

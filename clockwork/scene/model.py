@@ -144,6 +144,7 @@ class Scene:
     sha256: str = ""  # of the scene file's bytes
     max_step_given: bool = field(default=False, repr=False, compare=False)
     notes: tuple[str, ...] = field(default=(), repr=False, compare=False)  # what `validate` says beside "ok"
+    inputs: Any = None  # scene.inputs.Inputs: samples that drive unconnected inputs, or None
 
     def parameters(self) -> dict[str, dict[str, object]]:
         """{instance: {variable: value}} for every component."""

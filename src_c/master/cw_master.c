@@ -171,7 +171,22 @@ typedef struct {
     int n_fmi3;                /* FMI 3.0 instances, whose announced time events cap the step */
     struct cw_fmi3 **fmi3;
     cw_loops *loops;           /* algebraic loops: an order's entry -(i + 1) is loop i */
+    struct cw_inputs *inputs;  /* inputs driven from samples, or NULL */
 } cw_master;
+
+/* Inputs driven from samples (engine/samples.py): the sample table, its
+ * input events, and per port the Real inputs it drives. */
+typedef struct cw_inputs {
+    const double *times;      /* n_times sample times, s, non-decreasing */
+    const double *values;     /* n_signals * n_times values, signal after signal */
+    const int *continuous;    /* per signal: interpolated (1) or held (0) */
+    const double *events;     /* n_events input events, s, sorted */
+    const int *port_start;    /* per port, its first target; n_ports + 1 entries */
+    const unsigned *vr;       /* per target: the input's value reference */
+    const int *signal;        /* per target: its signal */
+    double *value;            /* per target: the value set */
+    int n_times, n_signals, n_events, pad_;
+} cw_inputs;
 
 typedef struct {
     const int *col_port;  /* per recorded column: port and output position */
@@ -190,6 +205,7 @@ CW_EXPORT size_t cw_sizeof_master(void) { return sizeof(cw_master); }
 CW_EXPORT size_t cw_sizeof_recorder(void) { return sizeof(cw_recorder); }
 CW_EXPORT size_t cw_sizeof_loop(void) { return sizeof(cw_loop); }
 CW_EXPORT size_t cw_sizeof_loops(void) { return sizeof(cw_loops); }
+CW_EXPORT size_t cw_sizeof_inputs(void) { return sizeof(cw_inputs); }
 
 static double py_min(double a, double b) { return b < a ? b : a; }
 static double py_max(double a, double b) { return b > a ? b : a; }
@@ -480,6 +496,122 @@ static void indicators(cw_master *m, double *z)
         z[k] = m->ports[m->z_port[k]].out[m->z_pos[k]];
 }
 
+/* -- inputs from samples (engine/samples.py) --------------------------- */
+
+/* math.isclose(a, b) with its defaults (relative 1e-9), as fmpy compares times. */
+static int cw_isclose(double a, double b)
+{
+    if (a == b)
+        return 1;
+    if (isinf(a) || isinf(b))
+        return 0;
+    double diff = fabs(b - a);
+    return diff <= fabs(1e-9 * b) || diff <= fabs(1e-9 * a) || diff <= 0.0;
+}
+
+static int bisect_left(const double *a, int n, double x)
+{
+    int lo = 0, hi = n;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (a[mid] < x)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+static int bisect_right(const double *a, int n, double x)
+{
+    int lo = 0, hi = n;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (x < a[mid])
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
+    return lo;
+}
+
+/* Samples.next_event */
+static double inputs_next_event(const cw_inputs *in, double t)
+{
+    for (int i = bisect_right(in->events, in->n_events, t); i < in->n_events; i++)
+        if (!cw_isclose(in->events[i], t))
+            return in->events[i];
+    return INFINITY;
+}
+
+/* Samples.event_at */
+static int inputs_event_at(const cw_inputs *in, double t)
+{
+    int i = bisect_left(in->events, in->n_events, t);
+    for (int j = i - 1; j <= i; j++)
+        if (j >= 0 && j < in->n_events && cw_isclose(in->events[j], t))
+            return 1;
+    return 0;
+}
+
+/* Samples.at for the targets [from, to): their values at `time`, after an
+ * event there when after_event, else before it. */
+static void inputs_at(const cw_inputs *in, int from, int to, double time, int after_event, double *out)
+{
+    const double *t = in->times;
+    int n = in->n_times;
+    int first = n < 2, i0 = 0;
+    if (!first) {
+        i0 = bisect_left(t, n, time);
+        first = i0 == 0;
+    }
+    if (first || i0 == n) {
+        for (int k = from; k < to; k++)
+            out[k] = in->values[(size_t)in->signal[k] * (size_t)n + (size_t)(first ? 0 : n - 1)];
+        return;
+    }
+    int held = i0 - 1;
+    if (after_event)
+        while (held + 1 < n && (t[held + 1] < time || cw_isclose(time, t[held + 1])))
+            held++;
+    int row = -1;
+    double w0 = 0.0, w1 = 0.0;
+    if (cw_isclose(time, t[i0]) && i0 < n - 1 && cw_isclose(t[i0], t[i0 + 1])) {
+        row = i0;
+        if (after_event)
+            while (row < n - 1 && cw_isclose(t[row], t[row + 1]))
+                row++;
+    } else {
+        double t0 = t[i0 - 1], t1 = t[i0];
+        w0 = (t1 - time) / (t1 - t0);
+        w1 = 1 - w0;
+    }
+    for (int k = from; k < to; k++) {
+        const double *v = &in->values[(size_t)in->signal[k] * (size_t)n];
+        if (!in->continuous[in->signal[k]])
+            out[k] = v[held];
+        else if (row >= 0)
+            out[k] = v[row];
+        else
+            out[k] = w0 * v[i0 - 1] + w1 * v[i0];
+    }
+}
+
+/* FileInputs.set for port i */
+static int inputs_set(cw_master *m, int i, double t, int after_event)
+{
+    const cw_inputs *in = m->inputs;
+    int from = in->port_start[i], to = in->port_start[i + 1];
+    if (from == to)
+        return 0;
+    inputs_at(in, from, to, t, after_event, in->value);
+    cw_port *p = &m->ports[i];
+    int st = p->setReal(p->comp, &in->vr[from], (size_t)(to - from), &in->value[from]);
+    if (st > FMI_WARNING)
+        return fail(m, i, CALL_SET_INPUTS, st, t, 0.0);
+    return 0;
+}
+
 /* -- coupling ------------------------------------------------------------- */
 
 static void history_forget(cw_master *m)
@@ -623,6 +755,10 @@ again:
 static int advance(cw_master *m, double t, double h)
 {
     double t_new = t + h;
+    /* Sampled inputs at t, after an event there. */
+    if (m->inputs)
+        for (int i = 0; i < m->n_ports; i++)
+            TRY(inputs_set(m, i, t, 1));
     /* 1. Feedthrough-only instances commit the mode decided at t. */
     for (int a = 0; a < m->n_first; a++) {
         cw_port *p = &m->ports[m->first[a]];
@@ -632,6 +768,9 @@ static int advance(cw_master *m, double t, double h)
         if (p->n_z && m->after_event)  /* a commit may have switched the mode: z at t+ */
             p->getReal(p->comp, p->out_vr, (size_t)p->n_out, p->out);
     }
+    if (m->inputs)  /* their outputs are next read at t + h: sampled inputs there, before an event */
+        for (int a = 0; a < m->n_first; a++)
+            TRY(inputs_set(m, m->first[a], t_new, 0));
     if (m->locating) {
         if (m->after_event)
             indicators(m, m->z_start);
@@ -652,6 +791,8 @@ static int advance(cw_master *m, double t, double h)
         int st = p->doStep(p->comp, t, h, 0);
         if (st > FMI_WARNING)
             return fail(m, i, CALL_DO_STEP, st, t, h);
+        if (m->inputs)
+            TRY(inputs_set(m, i, t_new, 0));
         TRY(port_read(m, i, t_new));
         if (!m->jacobi && a != m->n_dynamic - 1)  /* newest values flow on */
             TRY(propagate(m, m->first_in_order, m->n_first_in_order, t_new));
@@ -1247,6 +1388,15 @@ static int diverged(const cw_master *m)
 static double fmi3_next_event_time(const struct cw_fmi3 *a);
 static int fmi3_terminated(const struct cw_fmi3 *a);
 
+/* Something changed outside the wiring (Master.discontinuity). */
+static void discontinuity(cw_master *m)
+{
+    m->after_event = 1;
+    m->time_to_zero = 0.0;
+    history_forget(m);
+    record_history(m);
+}
+
 static int step(cw_master *m, double h, double *taken_out)
 {
     double t = m->t;
@@ -1258,6 +1408,15 @@ static int step(cw_master *m, double h, double *taken_out)
     for (int i = 0; i < m->n_fmi3; i++) {
         double te = fmi3_next_event_time(m->fmi3[i]);
         if (t < te && te < t + h)
+            h = te - t;
+    }
+    /* A sampled input's event is a discontinuity at the step's start and
+     * ends a step that would pass it. */
+    if (m->inputs) {
+        if (inputs_event_at(m->inputs, t))
+            discontinuity(m);
+        double te = inputs_next_event(m->inputs, t);
+        if (t + h > te && !cw_isclose(t + h, te))
             h = te - t;
     }
     /* 1. The indicators' sources cap the step. */
@@ -1346,10 +1505,7 @@ CW_EXPORT void cw_start(cw_master *m)
 /* Something changed outside the wiring (Master.discontinuity). */
 CW_EXPORT void cw_discontinuity(cw_master *m)
 {
-    m->after_event = 1;
-    m->time_to_zero = 0.0;
-    history_forget(m);
-    record_history(m);
+    discontinuity(m);
 }
 
 /* Long runs return to Python after `slice_s` of wall time (Python passes

@@ -42,7 +42,7 @@ from pathlib import Path
 
 from lxml import etree
 
-from ... import __version__
+from ...version import __version__
 from ...atomic import write_bytes_atomic, write_text_atomic
 from ...engine.description import INTEGER_TYPES, REAL_TYPES, var_unit
 from ...errors import SceneError
