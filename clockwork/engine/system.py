@@ -60,6 +60,11 @@ class System:
             passes them).
         labels: ``{instance name: text}``: what messages call an instance's
             FMU (the scene layer: a copied FMU by its original name).
+        inputs: Signals given as samples (``engine.samples.Samples``, read
+            from an input file or fmpy's ``input=`` array) that drive
+            unconnected inputs at every communication point: continuous
+            Real inputs interpolated linearly, the others held, as fmpy
+            does; a communication step ends at each input event.
 
     Attributes:
         master: The master (``Master``, or its compiled twin with the same
