@@ -211,10 +211,7 @@ class Instance:
                 var_unit(v),
                 deps.get(v.name),
             )
-        cs = self.md.coSimulation
-        self.max_output_derivative_order = int(cs.maxOutputDerivativeOrder or 0)
-        self.can_interpolate_inputs = bool(cs.canInterpolateInputs)
-        self.can_get_set_state = bool(cs.canGetAndSetFMUstate)
+        self._read_capabilities()
         experiment = self.md.defaultExperiment
         tol = getattr(experiment, "tolerance", None) if experiment is not None else None
         self.default_tolerance = float(tol) if tol not in (None, "") else None
@@ -222,6 +219,13 @@ class Instance:
         self.messages: list[tuple[int, str]] = []
         self._slave = None
         self._state = c_void_p()
+
+    def _read_capabilities(self) -> None:
+        """What the FMU's <CoSimulation> element declares (a Model Exchange wrapper says its own)."""
+        cs = self.md.coSimulation
+        self.max_output_derivative_order = int(cs.maxOutputDerivativeOrder or 0)
+        self.can_interpolate_inputs = bool(cs.canInterpolateInputs)
+        self.can_get_set_state = bool(cs.canGetAndSetFMUstate)
 
     # -- loading -------------------------------------------------------
 

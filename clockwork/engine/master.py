@@ -39,7 +39,7 @@ from .fmu import DISCARD, NO_MESSAGE, WARNING, Instance, free_all
 from .location import EventLocator, crossed, scan
 from .ports import Port, Ports
 from .richardson import StepDoubling
-from .settings import MasterSettings, Statistics, check_run, rollback_need
+from .settings import MasterSettings, Statistics, check_run, rollback_need, with_model_exchange
 from ..errors import SceneError, SimulationEnded, SimulationError
 from .wiring import Link, build
 
@@ -54,6 +54,8 @@ class Master:
                  extra_outputs: dict[str, list[str]] | None = None):
         self.instances = instances
         self.settings = settings
+        # Model Exchange instances, whose own counts join the master's (stats.model_exchange).
+        self._model_exchange = [inst for inst in instances.values() if getattr(inst, "model_exchange", False)]
         self.wiring = build(instances, links, step_order)
         settings.check()
         self.t = start_time  # the current communication point, s
@@ -83,6 +85,14 @@ class Master:
         self._reset_soft_state()
         self.engine_reason: str | None = None  # why "auto" chose this engine, when not the core
         self.ended: SimulationEnded | None = None  # an FMU ended the simulation (a clean end)
+
+    @property
+    def stats(self) -> Statistics:
+        return with_model_exchange(self._stats, self._model_exchange)
+
+    @stats.setter
+    def stats(self, value: Statistics) -> None:
+        self._stats = value
 
     @property
     def notes(self) -> list[str]:
