@@ -15,7 +15,7 @@ from pathlib import Path
 from ..engine.description import FLOAT32_MAX, INTEGER_TYPES, int_range, var_limit, var_unit
 from ..engine.description import variables as variables_of
 from ..engine.names import split_ref
-from ..engine.settings import ENGINES
+from ..engine.settings import ENGINES, ME_SOLVERS
 from ..errors import SceneError
 from .model import Component, show
 from .units import UnitError, fmt, parse_quantity, to_seconds, to_unit
@@ -173,6 +173,11 @@ def master_value(ctx: Ctx, key: str, value: object):
     if key == "engine":
         if value not in ENGINES:
             raise ctx.bad(full, value, '"auto", "python" or "compiled"')
+        return value
+    if key == "me_solver":
+        if value not in ME_SOLVERS:
+            raise ctx.bad(full, value, " or ".join(f'"{s}"' for s in ME_SOLVERS)
+                          + " (the integrator of Model Exchange FMUs)")
         return value
     if key == "fmi_version":
         if isinstance(value, bool) or value not in (2, 3) or not isinstance(value, int):

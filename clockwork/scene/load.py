@@ -24,7 +24,7 @@ from ..engine import compiled
 from ..engine.description import (TEXT_TYPES, FmuError, read_fmu, resolve_fmu, type_name, types_connect,
                                   var_unit)
 from ..engine.description import variables as variables_of
-from ..engine.fmu3 import make_instance
+from ..engine.model_exchange import INTERFACES, interface_of, make_instance
 from ..engine.names import instance_name_problem, split_link, split_ref
 from ..engine.wiring import Link
 from ..engine.wiring import build as build_wiring
@@ -292,7 +292,7 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
             raise ctx.fail(where, f"the instance name {name} is reserved (it names a scene section)")
         if not isinstance(t, dict):
             raise ctx.bad(where, t, f"a table [components.{name}] with keys fmu, parameters")
-        ctx.check_keys(t, ("fmu", "parameters"), where, required=("fmu",))
+        ctx.check_keys(t, ("fmu", "parameters", "interface"), where, required=("fmu",))
         spec = t["fmu"]
         if not isinstance(spec, str):
             raise ctx.bad(f"{where}.fmu", spec, "a model name or a path ending .fmu")
@@ -301,6 +301,16 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
             md, digest, indicators = read_fmu(fpath)
         except FmuError as e:
             raise ctx.fail(f"{where}.fmu", str(e)) from None
+        interface = t.get("interface")
+        if interface is not None:
+            if interface not in INTERFACES:
+                raise ctx.bad(f"{where}.interface", interface, " or ".join(f'"{i}"' for i in INTERFACES))
+            try:
+                interface_of(md, interface)
+            except SceneError as e:
+                raise ctx.fail(f"{where}.interface", e.detail) from None
+        if interface_of(md, interface) == "model-exchange":
+            indicators = ()  # the FMU's own event indicators are located inside its wrapper
         params_t = ctx.table(t, "parameters", where) or {}
         params = {}
         variables = variables_of(md)
@@ -314,7 +324,7 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
                     key, f"{md.modelName}.{pname} is {article(v.causality)} {v.causality}, not a parameter; "
                     f"parameters: {', '.join(names_of(variables, 'parameter'))}")
             params[pname] = convert_value(ctx, key, value, v, md)
-        out[name] = Component(name, fpath, digest, md, params, indicators)
+        out[name] = Component(name, fpath, digest, md, params, indicators, interface)
     return out, input_params
 
 
@@ -322,7 +332,8 @@ def _check_wiring(ctx: Ctx, components: dict[str, Component], connections) -> No
     """What the master refuses before it steps (an algebraic loop through
     direct-feedthrough outputs), refused now, by the engine's own wiring code."""
     try:
-        instances = {n: make_instance(n, c.fmu_path, c.model_description) for n, c in components.items()}
+        instances = {n: make_instance(n, c.fmu_path, c.model_description, interface=c.interface)
+                     for n, c in components.items()}
         build_wiring(instances, [Link(*c) for c in connections])
     except SceneError as e:
         raise ctx.fail("connections", e.detail) from None
@@ -424,6 +435,8 @@ def _fmi3_inputs(m: MasterConfig, components: dict[str, Component], connections)
     for c in connections:
         comp = components[c.dst_instance]
         md = comp.model_description
+        if comp.model_exchange:
+            continue  # the Model Exchange wrapper takes input derivatives
         dynamic = any(o.dependencies is not None and not o.dependencies for o in md.outputs)
         if md.fmiVersion == "3.0" and dynamic and not _takes_intermediate_update(md, c.dst_var):
             return (f"master.{key}", f"{c.dst_instance} ({comp.fmu_path.name}) is an FMI 3.0 FMU with dynamics "
