@@ -1,0 +1,396 @@
+"""Model Exchange FMUs, integrated by the master's own wrapper, in both engines.
+
+The FMUs are tests/me_models (hand-written C against fmpy's headers, built
+by CMake as FMI 2.0 into build/test-fmus/ and as FMI 3.0 into
+build/test-fmus/fmi3/): a linear oscillator, a bouncing ball, time and
+step events, a stiff problem, a lag with an input and the clock's
+pendulum. Each is held against its closed form or a high-accuracy scipy
+solution, and the compiled core against the Python reference, bit for bit.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from clockwork.engine import MasterSettings, System
+from clockwork.engine import rk
+from clockwork.engine.recording import Recorder
+from clockwork.errors import SceneError, SimulationEnded
+from cwtest import ROOT, fmu_file, run_cli, test_fmu
+
+ENGINES = ("python", "compiled")
+VERSIONS = ("", "fmi3/")
+
+
+def me(name: str, version: str = "") -> str:
+    return str(test_fmu(version + name))
+
+
+def run(components, links=(), stop=1.0, step=0.01, record=None, interfaces=None, **settings):
+    """(series, statistics, ended, master.engine) of a run on the grid."""
+    settings.setdefault("engine", "python")
+    record = record or {}
+    with System(components, list(links), MasterSettings(step=step, **settings), record=record,
+                interfaces=interfaces) as s:
+        outputs = [(i, v) for i, names in record.items() for v in names]
+        rec = Recorder(s.master, outputs)
+        rec.start()
+        s.master.run_until(stop, rec)
+        return rec.columns, vars(s.master.stats).copy(), s.master.ended, s.master.engine
+
+
+def me_stats(stats, name):
+    return stats["model_exchange"][name]
+
+
+# -- the integrators ------------------------------------------------------------
+
+
+def oscillator(t, omega=2 * math.pi, zeta=0.05, x0=1.0, v0=0.0):
+    wd = omega * math.sqrt(1 - zeta * zeta)
+    return math.exp(-zeta * omega * t) * (x0 * math.cos(wd * t) + (v0 + zeta * omega * x0) / wd * math.sin(wd * t))
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("solver", ["dp54", "dop853", "cvode"])
+def test_a_linear_ode_follows_its_closed_form(version, solver):
+    cols, stats, _, _ = run({"o": (me("MeOscillator", version), {})}, stop=5.0, step=0.1,
+                            record={"o": ["x"]}, tolerance=1e-10, me_solver=solver)
+    err = max(abs(x - oscillator(t)) for t, x in zip(cols["time"], cols["o.x"]))
+    # CVode's error runs ahead of its tolerance more than the pairs' do.
+    assert err < (1e-7 if solver == "cvode" else 1e-8), err
+    s = me_stats(stats, "o")
+    assert s["solver"] == {"dp54": "DP5(4)", "dop853": "DOP853", "cvode": "CVode BDF"}[solver]
+    assert s["tolerance"] == 1e-10 and s["steps"] >= 50 and s["rhs"] > s["steps"]
+
+
+def test_the_tolerance_is_the_default_experiments_unless_the_master_sets_one():
+    """MeBall declares 1e-8 in its DefaultExperiment; a tighter master.tolerance makes the error smaller."""
+    _, stats, _, _ = run({"o": (me("MeBall"), {})}, stop=0.1)
+    assert me_stats(stats, "o")["tolerance"] == 1e-8
+    errors = {}
+    for tol in (1e-5, 1e-9):
+        cols, stats, _, _ = run({"o": (me("MeOscillator"), {})}, stop=5.0, step=0.5, record={"o": ["x"]},
+                                tolerance=tol, me_solver="dp54")
+        assert me_stats(stats, "o")["tolerance"] == tol
+        errors[tol] = max(abs(x - oscillator(t)) for t, x in zip(cols["time"], cols["o.x"]))
+    assert errors[1e-9] < 1e-3 * errors[1e-5], errors
+
+
+def test_the_python_pairs_are_cw_rk_c_coefficient_for_coefficient():
+    """rk.py's DOP853 tables are the literals of src_c/runtime/cw_rk.c (the twins compute the same bits)."""
+    src = (ROOT / "src_c" / "runtime" / "cw_rk.c").read_text()
+
+    def table(name):
+        body = src[src.index(name):]
+        body = body[body.index("{") + 1:body.index("};")]
+        body = re.sub(r"\[\d+\]\s*=", "", body)
+        return [eval(x) for x in re.findall(r"-?[\d.]+(?:e[+-]?\d+)?(?:\s*/\s*[\d.]+)?", body)]
+
+    assert table("P8C[CW_RK_MAXSTAGES] =") == list(rk._C8)
+    assert table("P8A[CW_RK_MAXSTAGES][CW_RK_MAXSTAGES - 1] =") == [a for row in rk._A8 for a in row]
+    assert table("P8E5[12] =") == list(rk._E8)
+    assert table("P8D[4][CW_RK_MAXSTAGES] =") == [d for row in rk._D8 for d in row]
+
+
+# -- events ----------------------------------------------------------------------
+
+
+def bounce_times(n, h0=1.0, g=9.81, e=0.8):
+    t = math.sqrt(2 * h0 / g)
+    v = g * t
+    times = [t]
+    for _ in range(n - 1):
+        v *= e
+        t += 2 * v / g
+        times.append(t)
+    return times
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("engine", ENGINES)
+def test_the_bouncing_ball_bounces_at_its_closed_form_times(version, engine):
+    cols, stats, _, _ = run({"b": (me("MeBall", version), {})}, stop=3.0, step=0.01,
+                            record={"b": ["h", "t_bounce"]}, engine=engine, tolerance=1e-10)
+    seen = sorted(set(cols["b.t_bounce"]) - {0.0})
+    expected = bounce_times(len(seen))
+    assert len(seen) >= 6
+    # Located to the event time tolerance (1e-10 s) past the crossing, with the integration's error.
+    assert max(abs(a - b) for a, b in zip(seen, expected)) < 1e-8
+    assert min(h for h in cols["b.h"]) > -1e-8  # never below the floor at a communication point
+    s = me_stats(stats, "b")
+    assert s["state_events"] == len(seen) and s["event_iterations"] > 0
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("engine", ENGINES)
+def test_terminate_simulation_ends_the_run_cleanly(version, engine):
+    cols, _, ended, _ = run({"b": (me("MeBall", version), {"n_stop": 3})}, stop=3.0, step=0.05,
+                            record={"b": ["h"]}, engine=engine, tolerance=1e-10)
+    assert isinstance(ended, SimulationEnded) and ended.instance == "b"
+    assert abs(ended.fmu_time - bounce_times(3)[-1]) < 1e-8
+    assert ended.time <= ended.fmu_time and cols["time"][-1] == ended.time
+
+
+def timer(t, tau=0.3, A=1.0, period=0.7):
+    """x of MeTimer: relaxes with tau towards a level that switches 0 <-> A at k * period."""
+    x, level, t0 = 0.0, 0.0, 0.0
+    k = 1
+    while k * period <= t:
+        x = level + (x - level) * math.exp(-(k * period - t0) / tau)
+        t0 = k * period
+        level = A if k % 2 else 0.0
+        k += 1
+    return level + (x - level) * math.exp(-(t - t0) / tau)
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("engine", ENGINES)
+def test_time_events_switch_at_the_announced_times(version, engine):
+    cols, stats, _, _ = run({"t": (me("MeTimer", version), {})}, stop=5.0, step=0.25,
+                            record={"t": ["x", "switches"]}, engine=engine, tolerance=1e-10)
+    err = max(abs(x - timer(t)) for t, x in zip(cols["time"], cols["t.x"]))
+    assert err < 1e-8, err
+    assert cols["t.switches"][-1] == int(5.0 / 0.7)
+    # A switch that falls on a step event (the angle's) is handled there.
+    assert me_stats(stats, "t")["time_events"] >= int(5.0 / 0.7) - 2
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("engine", ENGINES)
+def test_step_events_wrap_the_angle(version, engine):
+    """fmi2CompletedIntegratorStep asks for event mode after a step that
+    left the angle above pi; there it drops by 2 pi: phase + 2 pi turns =
+    omega t, and the angle never runs far past pi."""
+    cols, stats, _, _ = run({"t": (me("MeTimer", version), {})}, stop=5.0, step=0.25,
+                            record={"t": ["phase", "turns"]}, engine=engine, tolerance=1e-10)
+    for t, phase, turns in zip(cols["time"], cols["t.phase"], cols["t.turns"]):
+        assert abs(phase + 2 * math.pi * turns - 5.0 * t) < 1e-8
+        assert -math.pi <= phase <= math.pi + 5.0 * 0.25
+    assert cols["t.turns"][-1] == round(5.0 * 5.0 / (2 * math.pi))
+    assert me_stats(stats, "t")["step_events"] == cols["t.turns"][-1]
+
+
+# -- stiffness ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_a_stiff_model_goes_to_cvode_and_follows_its_closed_form(version):
+    lam = 1e4
+    results = {}
+    for solver in ("auto", "dp54", "cvode"):
+        cols, stats, _, _ = run({"s": (me("MeStiff", version), {"lambda": lam})}, stop=1.0, step=0.1,
+                                record={"s": ["y"]}, tolerance=1e-8, me_solver=solver)
+        err = max(abs(y - (math.cos(t) + math.exp(-lam * t))) for t, y in zip(cols["time"], cols["s.y"]))
+        results[solver] = (err, me_stats(stats, "s"))
+    auto = results["auto"][1]
+    assert auto["switches"] == 1 and auto["solver"] == "CVode BDF"
+    assert results["dp54"][1]["switches"] == 0
+    # The explicit pair is held to its stability limit, h < 3.3 / lambda: an order of magnitude more work.
+    assert auto["rhs"] * 10 < results["dp54"][1]["rhs"]
+    for solver, (err, _) in results.items():
+        assert err < 1e-6, (solver, err)
+
+
+# -- inputs, in a system with Co-Simulation FMUs ------------------------------------------
+
+
+PENDULUM = {"phi_start": 0.2, "Q": 50.0}
+
+
+def lag_reference(t_end, k=1.0, T=0.5, L=1.0, g=9.81, Q=50.0, phi0=0.2):
+    """MeLag driven by the Co-Simulation Pendulum's angle (in vacuum, no
+    torque): scipy at rtol 1e-12 on both."""
+    w0 = math.sqrt(g / L)
+
+    def f(t, y):
+        phi, w, x = y
+        return [w, -(g / L) * math.sin(phi) - w0 / Q * w, (k * phi - x) / T]
+
+    sol = solve_ivp(f, (0.0, t_end), [phi0, 0.0, 0.0], rtol=1e-12, atol=1e-14, dense_output=True, method="DOP853")
+    return lambda t: sol.sol(t)[2]
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_inputs_reach_the_integrator_as_the_couplings_polynomials(version):
+    """A Co-Simulation FMU (the Pendulum) drives MeLag's input. With
+    extrapolation of order 2 the wrapper evaluates the input polynomials at
+    every right-hand side: the coupling error falls with the cube of the
+    step (held inputs: with the step itself), and follows scipy's solution."""
+    ref = lag_reference(3.0)
+    errors = {}
+    for order in (0, 2):
+        for step in (0.05, 0.025):
+            cols, _, _, _ = run({"p": (str(fmu_file("Pendulum")), PENDULUM), "lag": (me("MeLag", version), {})},
+                                ["p.phi -> lag.u"], stop=3.0, step=step, record={"lag": ["y", "e"]},
+                                extrapolation=order, tolerance=1e-10)
+            errors[order, step] = max(abs(y - ref(t)) for t, y in zip(cols["time"], cols["lag.y"]))
+    assert errors[0, 0.05] / errors[0, 0.025] < 2.5, errors
+    assert errors[2, 0.05] / errors[2, 0.025] > 6, errors
+    assert errors[2, 0.025] < 0.01 * errors[0, 0.025], errors
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("version", VERSIONS)
+def test_the_clock_with_a_model_exchange_pendulum_ticks_as_the_co_simulation_one(engine, version):
+    """The clock's pendulum as a Model Exchange FMU (MePendulum, the same
+    equations) with the Co-Simulation grasshopper escapement: the master
+    locates the escapement's switches with rollbacks of the wrapper (FMU
+    state and the wrapper's own), and the clock runs as with the
+    Co-Simulation pendulum, tick for tick."""
+    links = ["pendulum.phi -> escapement.phi", "pendulum.w -> escapement.w",
+             "escapement.tau -> pendulum.tau_escapement"]
+    esc = (str(fmu_file("GrasshopperEscapement")), {"torque": 0.004, "phi_r": math.radians(2)})
+    phi0 = math.radians(6)
+    common = dict(links=links, stop=10.0, step=0.01, engine=engine, tolerance=1e-11,
+                  record={"pendulum": ["phi", "tick_time"]})
+    cs_cols, _, _, _ = run({"pendulum": (str(fmu_file("Pendulum")), {"phi_start": phi0, "rtol": 1e-11,
+                                                                     "atol": 1e-13}), "escapement": esc},
+                           **common)
+    me_cols, stats, _, used = run({"pendulum": (me("MePendulum", version), {"phi_start": phi0}),
+                                   "escapement": esc}, **common)
+    assert used == engine
+    assert stats["rollbacks"] > 0 and stats["events"] > 0
+    err = max(abs(a - b) for a, b in zip(cs_cols["pendulum.phi"], me_cols["pendulum.phi"]))
+    assert err < 1e-7, err
+    ticks_cs = sorted(set(cs_cols["pendulum.tick_time"]) - {0.0})
+    ticks_me = sorted(set(me_cols["pendulum.tick_time"]) - {0.0})
+    assert len(ticks_me) == len(ticks_cs) >= 4  # a period of 2 s
+    assert max(abs(a - b) for a, b in zip(ticks_cs, ticks_me)) < 1e-8
+
+
+# -- both engines ------------------------------------------------------------------------------
+
+
+CASES = {
+    "oscillator": ({"o": ("MeOscillator", {})}, [], {"o": ["x", "v"]}, {}),
+    "ball": ({"b": ("MeBall", {})}, [], {"b": ["h", "v", "t_bounce"]}, {}),
+    "timer": ({"t": ("MeTimer", {})}, [], {"t": ["x", "phase", "turns"]}, {}),
+    "stiff": ({"s": ("MeStiff", {"lambda": 1e4})}, [], {"s": ["y"]}, {}),
+    "lag": ({"p": ("Pendulum", PENDULUM), "lag": ("MeLag", {})}, ["p.phi -> lag.u"],
+            {"lag": ["y", "e"]}, {"extrapolation": 2}),
+    "clock": ({"pendulum": ("MePendulum", {}),
+               "escapement": ("GrasshopperEscapement", {"torque": 0.004, "phi_r": 0.035})},
+              ["pendulum.phi -> escapement.phi", "pendulum.w -> escapement.w",
+               "escapement.tau -> pendulum.tau_escapement"], {"pendulum": ["phi", "w", "tick_time"]}, {}),
+}
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("case", list(CASES))
+def test_both_engines_give_the_same_bits(case, version):
+    components, links, record, extra = CASES[case]
+
+    def path(name):
+        return me(name, version) if name.startswith("Me") else str(fmu_file(name))
+
+    comps = {n: (path(f), p) for n, (f, p) in components.items()}
+    out = {engine: run(comps, links, stop=2.0, step=0.05, record=record, engine=engine, tolerance=1e-9, **extra)
+           for engine in ENGINES}
+    assert out["compiled"][3] == "compiled"
+    (cols_py, stats_py, _, _), (cols_c, stats_c, _, _) = out["python"], out["compiled"]
+    assert cols_py == cols_c
+    assert stats_py == stats_c
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_a_saved_state_replays_the_same_bits(version):
+    """fmi2GetFMUstate with the wrapper's own state: a step repeated from a restored state gives the same bits."""
+    with System({"b": (me("MeBall", version), {})}, [], MasterSettings(step=0.05, engine="python"),
+                record={"b": ["h", "v"]}) as s:
+        m = s.master
+        m.run_until(0.4)
+        inst = s.instances["b"]
+        inst.save_state(m.t)
+        t = m.t
+        first = []
+        for _ in range(4):
+            m.advance(m.t, 0.05)
+            first.append(inst.get_real(["h", "v"]))
+        inst.restore_state(t)
+        m.t = t
+        again = []
+        for _ in range(4):
+            m.advance(m.t, 0.05)
+            again.append(inst.get_real(["h", "v"]))
+        assert first == again
+
+
+# -- scenes, settings, bad input --------------------------------------------------------------------
+
+
+def write_scene(tmp_path, fmu, extra="", interface='interface = "model-exchange"'):
+    scene = tmp_path / "me.toml"
+    scene.write_text(f"""
+[scene]
+title = "a Model Exchange FMU"
+
+[components.ball]
+fmu = "{fmu}"
+{interface}
+
+[experiment]
+stop = "1 s"
+
+[master]
+step = "0.05 s"
+{extra}
+
+[record]
+outputs = ["ball.h"]
+
+[analysis]
+kind = "time_series"
+""")
+    return scene
+
+
+def test_a_scene_runs_a_model_exchange_component_and_reports_its_statistics(tmp_path, capsys):
+    import json
+
+    scene = write_scene(tmp_path, me("MeBall"), 'me_solver = "dop853"')
+    rc, _, err = run_cli(capsys, ["run", scene, "--out", tmp_path / "out", "--no-progress"])
+    assert rc == 0, err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    s = summary["statistics"]["model_exchange"]["ball"]
+    assert s["solver"] == "DOP853" and s["state_events"] == 1 and s["tolerance"] == 1e-8  # a bounce at 0.45 s
+
+
+@pytest.mark.parametrize("bad, needle", [
+    ('interface = "me"', '"co-simulation" or "model-exchange"'),
+    ('interface = "co-simulation"', "no Co Simulation interface"),
+])
+def test_a_bad_interface_is_one_line(tmp_path, capsys, bad, needle):
+    scene = write_scene(tmp_path, me("MeBall"), interface=bad)
+    rc, _, err = run_cli(capsys, ["validate", scene])
+    assert rc == 2 and len(err.strip().splitlines()) == 1 and "components.ball.interface" in err
+    assert needle in err
+
+
+def test_a_bad_solver_is_one_line(tmp_path, capsys):
+    scene = write_scene(tmp_path, me("MeBall"), 'me_solver = "euler"')
+    rc, _, err = run_cli(capsys, ["validate", scene])
+    assert rc == 2 and len(err.strip().splitlines()) == 1 and "master.me_solver" in err and '"cvode"' in err
+
+
+def test_a_model_exchange_only_fmu_runs_without_asking():
+    cols, stats, _, _ = run({"b": (me("MeBall"), {})}, stop=0.5, record={"b": ["h"]})
+    assert "b" in stats["model_exchange"] and cols["b.h"][-1] < 1.0
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_failing_integration_names_the_fmu_and_the_step(engine):
+    """Derivatives that are not finite (lambda = NaN) stop the pair: one
+    line naming the instance, the integrator and where."""
+    from clockwork.errors import SimulationError
+
+    with pytest.raises(SimulationError) as e:
+        run({"s": (me("MeStiff"), {"lambda": float("nan")})}, stop=0.5, engine=engine, me_solver="dp54")
+    text = str(e.value)
+    assert "s: MeStiff" in text and "DP5(4)" in text and "not finite" in text and "\n" not in text
