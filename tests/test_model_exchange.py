@@ -394,3 +394,76 @@ def test_a_failing_integration_names_the_fmu_and_the_step(engine):
         run({"s": (me("MeStiff"), {"lambda": float("nan")})}, stop=0.5, engine=engine, me_solver="dp54")
     text = str(e.value)
     assert "s: MeStiff" in text and "DP5(4)" in text and "not finite" in text and "\n" not in text
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_shooting_finds_the_same_orbit_with_a_model_exchange_pendulum(engine):
+    """Shooting resets every FMU and runs one-period maps (fmi2Reset and
+    initialization again, event location with rollback): the grasshopper
+    clock's periodic orbit with MePendulum is the one with the
+    Co-Simulation Pendulum."""
+    from clockwork.analyses.steady_state import find_steady_state
+    from clockwork.engine.shooting import Shooter
+
+    links = ["pendulum.phi -> escapement.phi", "pendulum.w -> escapement.w",
+             "escapement.tau -> pendulum.tau_escapement"]
+    esc = (str(fmu_file("GrasshopperEscapement")), {"torque": 0.004, "phi_r": math.radians(2)})
+    orbits = {}
+    for kind, pendulum in (("cs", (str(fmu_file("Pendulum")), {"rtol": 1e-11, "atol": 1e-13})),
+                           ("me", (me("MePendulum"), {}))):
+        comps = {"pendulum": pendulum, "escapement": esc}
+        with System(comps, links, MasterSettings(step=0.01, engine=engine, tolerance=1e-11),
+                    record={"pendulum": ["tick_time", "tick_w", "amplitude"]}) as s:
+            shooter = Shooter(s.master, {k: dict(v) for k, (_, v) in comps.items()}, "pendulum",
+                              {"L": 1.0, "g": 9.81})
+            orbits[kind] = find_steady_state(shooter, math.radians(5), math.radians(2), tolerance=1e-9)
+    cs, me_ = orbits["cs"], orbits["me"]
+    assert not me_.stalled and me_.iterations > 2
+    assert abs(me_.period - cs.period) < 1e-10 and abs(me_.amplitude - cs.amplitude) < 1e-10
+
+
+def test_an_ssp_runs_a_model_exchange_only_fmu(tmp_path, capsys):
+    """An SSD whose pendulum is a Model Exchange only FMU (once refused) runs, mixed with a Co-Simulation escapement."""
+    import json
+    import shutil
+
+    res = tmp_path / "resources"
+    res.mkdir()
+    shutil.copy(me("MePendulum"), res / "MePendulum.fmu")
+    shutil.copy(fmu_file("GrasshopperEscapement"), res / "GrasshopperEscapement.fmu")
+    ssd = tmp_path / "SystemStructure.ssd"
+    ssd.write_text("""<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="1.0" name="me"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">
+  <ssd:System name="root">
+    <ssd:Elements>
+      <ssd:Component name="pendulum" source="resources/MePendulum.fmu">
+        <ssd:Connectors>
+          <ssd:Connector name="phi" kind="output"><ssc:Real/></ssd:Connector>
+          <ssd:Connector name="w" kind="output"><ssc:Real/></ssd:Connector>
+          <ssd:Connector name="tau_escapement" kind="input"><ssc:Real/></ssd:Connector>
+        </ssd:Connectors>
+      </ssd:Component>
+      <ssd:Component name="escapement" source="resources/GrasshopperEscapement.fmu">
+        <ssd:Connectors>
+          <ssd:Connector name="phi" kind="input"><ssc:Real unit="rad"/></ssd:Connector>
+          <ssd:Connector name="w" kind="input"><ssc:Real unit="rad/s"/></ssd:Connector>
+          <ssd:Connector name="tau" kind="output"><ssc:Real unit="N.m"/></ssd:Connector>
+        </ssd:Connectors>
+      </ssd:Component>
+    </ssd:Elements>
+    <ssd:Connections>
+      <ssd:Connection startElement="pendulum" startConnector="phi" endElement="escapement" endConnector="phi"/>
+      <ssd:Connection startElement="pendulum" startConnector="w" endElement="escapement" endConnector="w"/>
+      <ssd:Connection startElement="escapement" startConnector="tau" endElement="pendulum" endConnector="tau_escapement"/>
+    </ssd:Connections>
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0" stopTime="3"/>
+</ssd:SystemStructureDescription>
+""")
+    rc, _, err = run_cli(capsys, ["run", ssd, "--out", tmp_path / "out", "--no-progress"])
+    assert rc == 0, err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["statistics"]["model_exchange"]["pendulum"]["state_events"] >= 2
