@@ -1,6 +1,5 @@
 /* A bouncing ball (see MeBall.toml). The bounce is a state event on h; the
- * ball stands at h = 0 exactly after it (v > 0), so the indicator leaves
- * zero upwards. */
+ * ball stands at h = lift after it (v > 0). */
 #include "me_model.h"
 
 #define MODEL_GUID "{cw-me-ball-1}"
@@ -8,7 +7,7 @@
 #define N_INDICATORS 1
 #define N_INPUTS 0
 #define N_TUNABLE 1
-enum { VR_h = 1, VR_v, VR_der_h, VR_der_v, VR_g, VR_e, VR_h0, VR_n_stop, VR_bounces, VR_t_bounce };
+enum { VR_h = 1, VR_v, VR_der_h, VR_der_v, VR_g, VR_e, VR_h0, VR_n_stop, VR_bounces, VR_t_bounce, VR_lift };
 static const unsigned STATE_VR[N_STATES] = {VR_h, VR_v};
 static const unsigned DER_VR[N_STATES] = {VR_der_h, VR_der_v};
 static const unsigned INPUT_VR[1] = {0};
@@ -37,7 +36,7 @@ static void model_indicators(const me_instance *m, double *z) { z[0] = m->r[VR_h
 
 static int model_event(me_instance *m) {
     if (m->r[VR_h] <= 0.0 && m->r[VR_v] < 0.0) {
-        m->r[VR_h] = 0.0;
+        m->r[VR_h] = m->r[VR_lift];
         m->r[VR_v] = -m->r[VR_e] * m->r[VR_v];
         m->i[VR_bounces] += 1;
         m->r[VR_t_bounce] = m->time;
