@@ -53,7 +53,7 @@ NONSTIFF_RESET = 6  # steps inside it that clear the count
 MAX_EVENT_ITERATIONS = 1000  # event-mode updates per event, and events at one time
 MAX_CVODE_STEPS = 1000000  # per step of the master, as cw_rk's bound
 MAX_TRIALS = 200  # event location
-SAFEGUARD_TRIALS = 5  # trials that must halve the bracket, else a bisection
+SAFEGUARD_TRIALS = 4  # trials that must halve the bracket, else a bisection
 
 # Modes of the FMU (the struct's `mode`).
 INSTANTIATED, INITIALIZATION, CONTINUOUS, EVENT = 0, 1, 2, 3
