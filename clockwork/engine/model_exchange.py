@@ -536,7 +536,8 @@ class MEInstance(ModelExchangeSteps, Instance):
     def statistics(self) -> dict:
         """The integration's counts and settings for the summary."""
         me = self.me
-        out = {"interface": "model-exchange", "solver": METHOD_NAMES.get(me.method, "none"),
+        solver = METHOD_NAMES.get(me.method, "none") if me.n else "none (no continuous states)"
+        out = {"interface": "model-exchange", "solver": solver,
                "requested_solver": self.options.solver, "tolerance": me.rtol,
                "continuous_states": me.n, "event_indicators": me.nz}
         out.update({name: int(getattr(me, name)) for name in STATS})
