@@ -372,7 +372,8 @@ def cmd_info(args) -> int:
     except FmuError as e:
         raise UsageError(str(e)) from None
     cs = md.coSimulation
-    print(f"{md.modelName} (FMI {md.fmiVersion} Co-Simulation)")
+    faces = [n for n, i in (("Co-Simulation", cs), ("Model Exchange", md.modelExchange)) if i is not None]
+    print(f"{md.modelName} (FMI {md.fmiVersion} {' and '.join(faces)})")
     print(f"  file         {path}")
     print(f"  sha256       {digest}")
     fmi3 = md.fmiVersion.startswith("3.")
@@ -386,8 +387,14 @@ def cmd_info(args) -> int:
     if fmi3:  # FMI 3.0 has no input derivatives, and adds events
         caps = caps[:3] + ("maxOutputDerivativeOrder", "hasEventMode", "mightReturnEarlyFromDoStep",
                            "providesIntermediateUpdate")
+    if cs is None:  # Model Exchange only: what the master's wrapper reads
+        cs = md.modelExchange
+        caps = ("canGetAndSetFMUstate", "canSerializeFMUstate", "needsCompletedIntegratorStep")
     for cap in caps:
         print(f"  {cap:<40} {_flag(getattr(cs, cap, None))}")
+    if md.modelExchange is not None:
+        print(f"  {'continuous states (Model Exchange)':<40} {len(md.derivatives)}")
+        print(f"  {'event indicators (Model Exchange)':<40} {md.numberOfEventIndicators or 0}")
     rows = [("name", "causality", "variability", "type", "unit", "start", "min", "max", "description")]
     for v in md.modelVariables:
         rows.append((v.name, v.causality or "-", v.variability or "-", type_name(md, v), var_unit(v) or "-",

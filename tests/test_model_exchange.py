@@ -501,3 +501,10 @@ def test_an_ssp_runs_a_model_exchange_only_fmu(tmp_path, capsys):
     assert rc == 0, err
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["statistics"]["model_exchange"]["pendulum"]["state_events"] >= 2
+
+
+def test_info_describes_a_model_exchange_fmu(capsys):
+    rc, out, _ = run_cli(capsys, ["info", me("MeBall")])
+    assert rc == 0
+    assert "MeBall (FMI 2.0 Model Exchange)" in out and "needsCompletedIntegratorStep" in out
+    assert re.search(r"continuous states \(Model Exchange\)\s+2", out)
