@@ -195,6 +195,11 @@ class Instance:
     """An instantiated FMU with fast access to its fmi2 functions."""
 
     fmi_version = 2  # fmu3.Instance3 says 3
+    _fmpy_class = FMU2Slave  # model_exchange.MEInstance: FMU2Model
+
+    def _interface(self):
+        """The modelDescription element of the interface it runs through."""
+        return self.md.coSimulation
 
     def __init__(self, name: str, path: Path, model_description=None):
         self.name = name
@@ -232,10 +237,10 @@ class Instance:
     def instantiate(self) -> None:
         unzip = extract(self.path)
         try:
-            self._slave = FMU2Slave(
+            self._slave = self._fmpy_class(
                 guid=self.md.guid,
                 unzipDirectory=str(unzip),
-                modelIdentifier=self.md.coSimulation.modelIdentifier,
+                modelIdentifier=self._interface().modelIdentifier,
                 instanceName=self.name,
             )
         except Exception as e:  # fmpy raises a bare Exception for a bad library

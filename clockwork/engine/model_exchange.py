@@ -43,15 +43,13 @@ from ctypes import (POINTER, Structure, byref, c_bool, c_char, c_char_p, c_doubl
                     c_uint, c_void_p)
 from dataclasses import dataclass
 
-from fmpy.fmi2 import FMU2Model, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2EventInfo
-from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
-from fmpy.fmi3 import FMU3Model, fmi3LogMessageCallback
-from fmpy import calloc, free
+from fmpy.fmi2 import FMU2Model, fmi2EventInfo
+from fmpy.fmi3 import FMU3Model
 
 from ..errors import SceneError, SimulationError
 from . import cvode, rk
 from .description import fmi_version, read_fmu
-from .fmu import _SINK, ERROR, OK, WARNING, Instance, extract, formatting_logger
+from .fmu import ERROR, OK, WARNING, Instance, extract
 from .fmu3 import Instance3, make_instance as make_cs_instance
 from .me_step import (AUTO, CALLS, CONTINUOUS, CVODE, DEFAULT_RTOL, EVENT, FAIL_CVODE, FAIL_LOCATE, FAIL_RK,
                       FAIL_SETTLE, FAIL_TIME, FAIL_TIME_EVENTS, INITIALIZATION, INSTANTIATED, MAX_CVODE_STEPS,
@@ -92,11 +90,25 @@ class _ME(Structure):
             "saved_terminated", "saved_poly", "saved_mode")]
 
 
+def _binder(dll):
+    """fn(name, *argtypes): the FMU's C function `name` with its argument types, returning a status."""
+    def fn(name, *argtypes):
+        f = getattr(dll, name)
+        f.argtypes = list(argtypes)
+        f.restype = c_int
+        return f
+    return fn
+
+
 class MEInstance(ModelExchangeSteps, Instance):
     """An FMI 2.0 Model Exchange FMU behind the calls of a Co-Simulation instance."""
 
     model_exchange = True
     fmi_version = 2  # the face the master sees: an FMI 2.0 Co-Simulation instance (see the module's docstring)
+    _fmpy_class = FMU2Model
+
+    def _interface(self):
+        return self.md.modelExchange
 
     def __init__(self, name, path, model_description=None, options: MEOptions | None = None):
         super().__init__(name, path, model_description)
@@ -159,49 +171,9 @@ class MEInstance(ModelExchangeSteps, Instance):
 
     # -- loading -------------------------------------------------------------
 
-    def instantiate(self) -> None:
-        unzip = extract(self.path)
-        try:
-            self._slave = FMU2Model(guid=self.md.guid, unzipDirectory=str(unzip),
-                                    modelIdentifier=self.md.modelExchange.modelIdentifier,
-                                    instanceName=self.name)
-        except Exception as e:  # fmpy raises a bare Exception for a bad library
-            raise SceneError(f"{self.path}: cannot load the FMU's binary for this platform: {e}") from None
-        messages = self.messages
-
-        def keep(status, message):
-            messages.append((status, message.decode("utf-8", "replace") if message else ""))
-            del messages[:-50]
-
-        self._callbacks = fmi2CallbackFunctions()
-        formatter = formatting_logger()
-        if formatter is not None:
-            self._sink = _SINK(lambda instance, status, category, text: keep(status, text))
-            self._callbacks.logger = formatter
-            self._callbacks.componentEnvironment = ctypes.cast(self._sink, c_void_p)
-        else:
-            self._callbacks.logger = fmi2CallbackLoggerTYPE(
-                lambda env, instance, status, category, message: keep(status, message))
-        self._callbacks.allocateMemory = ctypes.cast(calloc, fmi2CallbackAllocateMemoryTYPE)
-        self._callbacks.freeMemory = ctypes.cast(free, fmi2CallbackFreeMemoryTYPE)
-        try:
-            self._slave.instantiate(callbacks=self._callbacks)
-        except Exception as e:
-            raise SceneError(
-                f"{self.path}: fmi2Instantiate (Model Exchange) refused the model description's GUID "
-                f"{self.md.guid}: {self.last_message() or e}") from None
-        self.component = self._slave.component
-        self._bind(self._slave.dll)
-
     def _bind(self, dll) -> None:
         """The FMU's fmi2 functions (raw, with argtypes) and the wrapper's calls for the master."""
-
-        def fn(name, *argtypes):
-            f = getattr(dll, name)
-            f.argtypes = list(argtypes)
-            f.restype = c_int
-            return f
-
+        fn = _binder(dll)
         comp = c_void_p
         vrs, reals, ints = POINTER(c_uint), POINTER(c_double), POINTER(c_int)
         f = {
@@ -616,12 +588,7 @@ class MEInstance3(MEInstance):
         self._bind(self._slave.dll)
 
     def _bind(self, dll) -> None:
-        def fn(name, *argtypes):
-            f = getattr(dll, name)
-            f.argtypes = list(argtypes)
-            f.restype = c_int
-            return f
-
+        fn = _binder(dll)
         inst = c_void_p
         vrs, reals, pb = POINTER(c_uint), POINTER(c_double), POINTER(c_bool)
         get_f64 = fn("fmi3GetFloat64", inst, vrs, c_size_t, reals, c_size_t)
