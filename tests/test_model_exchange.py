@@ -508,3 +508,14 @@ def test_info_describes_a_model_exchange_fmu(capsys):
     assert rc == 0
     assert "MeBall (FMI 2.0 Model Exchange)" in out and "needsCompletedIntegratorStep" in out
     assert re.search(r"continuous states \(Model Exchange\)\s+2", out)
+
+
+def test_export_ssp_keeps_the_interface_a_scene_asks_for(tmp_path, capsys):
+    """A component run as Model Exchange is exported with implementation="ModelExchange"."""
+    import zipfile
+
+    scene = write_scene(tmp_path, me("MeBall"))
+    rc, _, err = run_cli(capsys, ["export-ssp", scene, "--out", tmp_path / "ball.ssp"])
+    assert rc == 0, err
+    ssd = zipfile.ZipFile(tmp_path / "ball.ssp").read("SystemStructure.ssd").decode()
+    assert 'implementation="ModelExchange"' in ssd

@@ -161,6 +161,8 @@ def build_ssp(scene, point: dict | None = None) -> dict[str, bytes]:
     for inst, comp in scene.components.items():
         md = comp.model_description
         el = _sub(elements, "ssd", "Component", name=inst, type=FMU_TYPE, source=fmu_names[comp.sha256])
+        if comp.interface == "model-exchange":  # asked for where the FMU has both interfaces
+            el.set("implementation", "ModelExchange")
         connectors = []
         for v in md.modelVariables:
             if v.causality == "output" or (v.causality == "input" and (inst, v.name) in connected_inputs):
