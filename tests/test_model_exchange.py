@@ -519,3 +519,26 @@ def test_export_ssp_keeps_the_interface_a_scene_asks_for(tmp_path, capsys):
     assert rc == 0, err
     ssd = zipfile.ZipFile(tmp_path / "ball.ssp").read("SystemStructure.ssd").decode()
     assert 'implementation="ModelExchange"' in ssd
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_tunable_parameter_set_during_the_run_goes_through_event_mode(version, engine):
+    """Model Exchange takes a tunable parameter in event mode only (the test
+    FMUs refuse it otherwise): the wrapper enters event mode, sets it and
+    settles, and the bounces follow the new restitution."""
+    with System({"b": (me("MeBall", version), {})}, [], MasterSettings(step=0.05, engine=engine, tolerance=1e-10),
+                record={"b": ["t_bounce"]}) as s:
+        m = s.master
+        m.run_until(0.3)  # before the first bounce
+        s.instances["b"].set_values({"e": 0.5})
+        m.discontinuity()
+        seen = set()
+        while m.t < 2.0 - 1e-12:
+            m.run_until(min(2.0, m.t + 0.05))
+            seen.add(s.output("b", "t_bounce"))
+        stats = vars(m.stats)["model_exchange"]["b"]
+    seen = sorted(seen - {0.0})
+    expected = bounce_times(len(seen), e=0.5)
+    assert len(seen) >= 3 and max(abs(a - b) for a, b in zip(seen, expected)) < 1e-8
+    assert stats["input_events"] == 1

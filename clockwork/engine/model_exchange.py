@@ -423,7 +423,7 @@ class MEInstance(ModelExchangeSteps, Instance):
         if me.mode != CONTINUOUS or all(self.variables[n].vr in self.continuous_inputs for n in values):
             self._set_values_now(values, what, error)
             return
-        self.check(self._enter_event(), "fmi2EnterEventMode", me.time)
+        self.check(self._enter_event(), CALLS[6][0 if self.fmu_version == 2 else 1], me.time)
         me.mode = EVENT
         try:
             self._set_values_now(values, what, error)
