@@ -542,3 +542,25 @@ def test_a_tunable_parameter_set_during_the_run_goes_through_event_mode(version,
     expected = bounce_times(len(seen), e=0.5)
     assert len(seen) >= 3 and max(abs(a - b) for a, b in zip(seen, expected)) < 1e-8
     assert stats["input_events"] == 1
+
+
+def test_a_model_exchange_element_whose_binary_lacks_the_functions_is_one_line(tmp_path, capsys):
+    """The Pendulum declared Model Exchange only: its binary has no fmi2CompletedIntegratorStep."""
+    import zipfile
+
+    fmu = tmp_path / "PendulumME.fmu"
+    with zipfile.ZipFile(fmu_file("Pendulum")) as src, zipfile.ZipFile(fmu, "w") as dst:
+        for info in src.infolist():
+            data = src.read(info)
+            if info.filename == "modelDescription.xml":
+                text = re.sub(r"<CoSimulation\b.*?</CoSimulation>|<CoSimulation\b[^>]*/>",
+                              '<ModelExchange modelIdentifier="Pendulum"/>', data.decode(), count=1, flags=re.S)
+                assert "<CoSimulation" not in text
+                data = text.encode()
+            dst.writestr(info, data)
+    scene = write_scene(tmp_path, fmu, interface="")
+    scene.write_text(scene.read_text().replace('"ball.h"', '"ball.phi"'))
+    rc, _, err = run_cli(capsys, ["run", scene, "--out", tmp_path / "out", "--no-progress"])
+    assert rc == 2 and len(err.strip().splitlines()) == 1
+    assert "PendulumME.fmu" in err and "undefined symbol: fmi2" in err
+    assert not (tmp_path / "out").exists()
