@@ -309,6 +309,9 @@ CASES = {
     "stiff": ({"s": ("MeStiff", {"lambda": 1e4})}, [], {"s": ["y"]}, {}),
     "lag": ({"p": ("Pendulum", PENDULUM), "lag": ("MeLag", {})}, ["p.phi -> lag.u"],
             {"lag": ["y", "e"]}, {"extrapolation": 2}),
+    # a Model Exchange output (with its derivatives, cwme_getOutputDerivatives) into a Model Exchange input
+    "me_to_me": ({"o": ("MeOscillator", {}), "lag": ("MeLag", {})}, ["o.x -> lag.u"], {"lag": ["y"]},
+                 {"extrapolation": 2}),
     "clock": ({"pendulum": ("MePendulum", {}),
                "escapement": ("GrasshopperEscapement", {"torque": 0.004, "phi_r": 0.035})},
               ["pendulum.phi -> escapement.phi", "pendulum.w -> escapement.w",
@@ -564,3 +567,22 @@ def test_a_model_exchange_element_whose_binary_lacks_the_functions_is_one_line(t
     rc, _, err = run_cli(capsys, ["run", scene, "--out", tmp_path / "out", "--no-progress"])
     assert rc == 2 and len(err.strip().splitlines()) == 1
     assert "PendulumME.fmu" in err and "undefined symbol: fmi2" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_outputs_that_are_states_have_their_derivatives(version):
+    """dx/dt = v and d2x/dt2 = a of the oscillator (v is a state too), as the
+    master's extrapolation and event location ask for them; an output that
+    is no state has none."""
+    with System({"o": (me("MeOscillator", version), {})}, [], MasterSettings(step=0.1, engine="python",
+                                                                             tolerance=1e-10),
+                record={"o": ["x", "v"]}) as s:
+        s.master.run_until(1.0)
+        inst = s.instances["o"]
+        x, v = inst.get_real(["x", "v"])
+        w, zeta = 2 * math.pi, 0.05
+        assert inst.max_output_derivative_order == 2
+        assert inst.output_derivatives(["x"], 1) == [v]
+        assert inst.output_derivatives(["x"], 2) == pytest.approx([-w * w * x - 2 * zeta * w * v], rel=1e-12)
+        assert inst.output_derivatives(["v"], 1) == pytest.approx([-w * w * x - 2 * zeta * w * v], rel=1e-12)
+        assert inst.output_derivatives(["v"], 2) is None  # a is no state
