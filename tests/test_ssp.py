@@ -248,8 +248,6 @@ BAD_SSD = {
     "mapping transformation on a connection": (_edit('<ssc:LinearTransformation factor="2"/>',
                                                      '<ssc:BooleanMappingTransformation/>'),
                                                ["not supported", "mapping transformations"]),
-    "no stop time": (_edit('<ssd:DefaultExperiment startTime="0" stopTime="20"/>', ""),
-                     ["DefaultExperiment", "--set experiment.stop"]),
     "parameters inside the FMU": (_edit('source="resources/escapement.ssv"',
                                         'source="resources/escapement.ssv" sourceBase="component"'),
                                   ["sourceBase", "not supported"]),

@@ -41,6 +41,9 @@ VAR_KEYS = {
 # linear factor and so apply to Real unknowns only; InitialUnknowns use
 # "dependent" alone.
 DEPENDENCY_KINDS = {"dependent", "constant", "fixed", "tunable", "discrete"}
+# depends_on = "undeclared": no dependencies attribute, which FMI 2.0 and 3.0
+# read as "depends on every Known" (test FMUs that form formal loops).
+UNDECLARED = "undeclared"
 MODEL_KEYS = {
     "name", "description", "author", "version", "callbacks", "real_state",
     "uint_state", "interpolates_inputs", "max_input_order", "early_return",
@@ -205,8 +208,11 @@ def check(t: dict) -> None:
             if key in v and v["causality"] != "output" and "derivative_of" not in v:
                 raise TableError(f"{where}: {key} is for outputs and state derivatives only")
         deps = v.get("depends_on", [])
-        if not isinstance(deps, (list, dict)):
-            raise TableError(f"{where}: depends_on must be a list of inputs or a table input = kind")
+        if deps == UNDECLARED:
+            deps = []
+        elif not isinstance(deps, (list, dict)):
+            raise TableError(f"{where}: depends_on must be a list of inputs, a table input = kind "
+                             f"or {UNDECLARED!r}")
         for dep in deps:
             # Knowns of an output at a communication point: inputs and states (FMI 2.0, 3.3.2).
             if dep not in inputs and dep not in states:
@@ -414,9 +420,11 @@ def _unit_and_range_attrs(v: dict) -> list[str]:
     return attrs
 
 
-def _unknown_xml(index: dict, v: dict, kinds: dict) -> str:
+def _unknown_xml(index: dict, v: dict, kinds) -> str:
     """An <Unknown> with its dependencies in ScalarVariable index order, as
-    FMI 2.0 requires."""
+    FMI 2.0 requires (none given: UNDECLARED)."""
+    if kinds == UNDECLARED:
+        return f'      <Unknown index="{index[v["name"]]}"/>'
     deps = sorted((index[name], kind) for name, kind in kinds.items())
     if not deps:
         return f'      <Unknown index="{index[v["name"]]}" dependencies=""/>'
@@ -508,7 +516,7 @@ def generate_xml(t: dict, sources: list[str]) -> str:
         x.append("    <Outputs>")
         for v in outputs:
             deps = v.get("depends_on", [])
-            kinds = deps if isinstance(deps, dict) else dict.fromkeys(deps, "dependent")
+            kinds = deps if isinstance(deps, dict) or deps == UNDECLARED else dict.fromkeys(deps, "dependent")
             x.append(_unknown_xml(index, v, kinds))
         x.append("    </Outputs>")
     if derivatives:
@@ -532,9 +540,11 @@ def generate_xml(t: dict, sources: list[str]) -> str:
     return "\n".join(x) + "\n"
 
 
-def _dependencies3(kinds: dict, vr_of: dict) -> str:
+def _dependencies3(kinds, vr_of: dict) -> str:
     """dependencies (value references, ascending) and dependenciesKind
-    attributes of an FMI 3.0 unknown."""
+    attributes of an FMI 3.0 unknown (none given: UNDECLARED)."""
+    if kinds == UNDECLARED:
+        return ""
     deps = sorted((vr_of[name], kind) for name, kind in kinds.items())
     if not deps:
         return 'dependencies=""'
@@ -627,8 +637,8 @@ def generate_xml3(t: dict) -> str:
     # elements do not apply): they are listed in the annotation below.
     for v in outputs:
         deps = v.get("depends_on", [])
-        kinds = deps if isinstance(deps, dict) else dict.fromkeys(deps, "dependent")
-        x.append(f'    <Output valueReference="{v["vr"]}" {_dependencies3(kinds, vr_of)}/>')
+        kinds = deps if isinstance(deps, dict) or deps == UNDECLARED else dict.fromkeys(deps, "dependent")
+        x.append(f'    <Output valueReference="{v["vr"]}" {_dependencies3(kinds, vr_of)}'.rstrip() + "/>")
     for v in outputs:
         if "initial_depends_on" in v:
             deps = _dependencies3(dict.fromkeys(v["initial_depends_on"], "dependent"), vr_of)

@@ -1,6 +1,7 @@
 """The engine: co-simulation of FMI 2.0 Co-Simulation FMUs, and nothing else.
 
-It loads FMUs (``fmu``, ``description``), wires them (``wiring``, ``ports``),
+It loads FMUs (``fmu``, ``description``), wires them (``wiring``, ``ports``,
+``loops``: algebraic loops),
 steps them (``master``: the loop; ``coupling``, ``location``,
 ``checkpoints``, ``richardson``: what makes a step accurate; ``recording``:
 what is kept of a run) and shoots for periodic orbits (``shooting``). It

@@ -174,6 +174,9 @@ class Variable:
     variability: str
     unit: str | None
     dependencies: list[str] | None  # the inputs an output depends on directly (outputs only; else None)
+    shape: tuple[int, ...] = ()  # an FMI 3.0 array's shape; () for a scalar or an element
+    array: str | None = None  # an array element's array (its vr is the element's code, fmu3.Instance3)
+    index: int = 0  # an array element's place in its array's values (row-major)
 
 
 def direct_feedthrough(md) -> dict[str, list[str]]:
@@ -200,6 +203,15 @@ class Instance:
     def _interface(self):
         """The modelDescription element of the interface it runs through."""
         return self.md.coSimulation
+    arrays: dict[str, tuple[int, int]] = {}  # FMI 3.0 array variables: name -> (vr, values) (fmu3.Instance3)
+    elements: dict[str, list[str]] = {}  # FMI 3.0 array variables: name -> its element names, row-major
+    # What messages call the FMU where its path is a copy (an SSP archive's
+    # member, "x.ssp/resources/m.fmu"); None: its path.
+    label: str | None = None
+
+    @property
+    def shown(self) -> str:
+        return self.label or str(self.path)
 
     def __init__(self, name: str, path: Path, model_description=None):
         self.name = name
@@ -244,7 +256,7 @@ class Instance:
                 instanceName=self.name,
             )
         except Exception as e:  # fmpy raises a bare Exception for a bad library
-            raise SceneError(f"{self.path}: cannot load the FMU's binary for this platform: {e}") from None
+            raise SceneError(f"{self.shown}: cannot load the FMU's binary for this platform: {e}") from None
         messages = self.messages
 
         def keep(status, message):
@@ -272,7 +284,7 @@ class Instance:
             # The binary refused its own model description (another build or
             # another model): the FMU file is broken, which is bad input.
             raise SceneError(
-                f"{self.path}: fmi2Instantiate refused the model description's GUID "
+                f"{self.shown}: fmi2Instantiate refused the model description's GUID "
                 f"{self.md.guid}: {self.last_message() or e}") from None
         self.component = self._slave.component
         dll = self._slave.dll

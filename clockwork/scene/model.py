@@ -31,6 +31,9 @@ class Component:
     event_indicators: tuple[str, ...] = ()  # from the `clockwork` vendor annotation
     # "co-simulation" or "model-exchange"; None: Co-Simulation where the FMU has it
     interface: str | None = None
+    # What messages call the FMU: an SSP archive's member ("x.ssp/resources/m.fmu")
+    # rather than its copy in the cache; "" for the file itself.
+    fmu_label: str = ""
 
     @property
     def model_name(self) -> str:
@@ -46,6 +49,9 @@ class Component:
         """The <CoSimulation> or <ModelExchange> element it runs through."""
         md = self.model_description
         return md.modelExchange if self.model_exchange else md.coSimulation
+    def fmu_shown(self) -> str:
+        """The FMU as messages name it."""
+        return self.fmu_label or str(self.fmu_path)
 
     def variable(self, name: str):
         return variables_of(self.model_description)[name]
@@ -93,6 +99,7 @@ class MasterConfig:
     fmi_version: int = 2  # which build of the bundled FMUs model names load: 2 or 3
     early_return: bool = True  # FMI 3.0 FMUs may return early from fmi3DoStep at their own events
     me_solver: str = "auto"  # integrator of Model Exchange FMUs: "auto", "dp54", "dop853" or "cvode"
+    algebraic_loops: str = "solve"  # "solve" (fixed point at every communication point) or "delay"
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -150,6 +157,7 @@ class Scene:
     sha256: str = ""  # of the scene file's bytes
     max_step_given: bool = field(default=False, repr=False, compare=False)
     notes: tuple[str, ...] = field(default=(), repr=False, compare=False)  # what `validate` says beside "ok"
+    inputs: Any = None  # scene.inputs.Inputs: samples that drive unconnected inputs, or None
 
     def parameters(self) -> dict[str, dict[str, object]]:
         """{instance: {variable: value}} for every component."""
@@ -227,7 +235,7 @@ def rollback_problem(m: MasterConfig, components: dict[str, Component]) -> tuple
     for c in components.values():
         if not c.capabilities.canGetAndSetFMUstate:
             return key, (f"expected {'0' if key == 'master.iterations' else 'false'} here: components.{c.name} "
-                         f"({c.fmu_path.name}) cannot save and restore its state (its modelDescription.xml "
+                         f"({Path(c.fmu_shown).name}) cannot save and restore its state (its modelDescription.xml "
                          f"does not declare canGetAndSetFMUstate), and {why} rolls every FMU back")
     return None
 

@@ -15,6 +15,8 @@
  *
  * Not covered (the Python master serves them): strong coupling
  * (master.iterations > 0) and step doubling (master.richardson).
+ * Algebraic loops are solved in the steps as loops.py solves them
+ * (loop_solve); their start in Initialization Mode is Python's.
  *
  * FMI 3.0 instances are called through the adapter at the end of this
  * file (cw3_*): fmi2-shaped functions whose first argument is a cw_fmi3,
@@ -58,6 +60,7 @@ enum {
     CW_ERR_REPLAY = -3,
     CW_ERR_LOCATE = -4,
     CW_ERR_CAPACITY = -5,
+    CW_ERR_LOOP = -6,       /* an algebraic loop did not converge: err_port is the loop, see its fail_* */
 };
 
 /* Which call failed (err_call). */
@@ -109,6 +112,29 @@ typedef struct {
     int pad_;
 } cw_port;
 
+/* One algebraic loop solved at communication points (clockwork/engine/loops.py). */
+typedef struct {
+    const int *members;       /* its ports, in instance order */
+    const int *u_port;        /* per unknown (a Real input fed from inside the loop): port and input position */
+    const int *u_pos;
+    const int *u_src;         /* ... its source port and output position */
+    const int *u_src_pos;
+    const double *u_factor;   /* ... and its link's transformation, where u_scaled */
+    const double *u_offset;
+    const int *u_scaled;
+    double *r;                /* n: the residual of the sweeps */
+    double fail_worst;        /* a failure: the largest residual, where, after what */
+    int n_members, n;
+    int fail_why, fail_at, fail_sweeps, fail_newton;
+} cw_loop;
+
+typedef struct {
+    cw_loop *loop;
+    double tolerance;         /* master.iteration_tolerance */
+    long long iterations, fallbacks;
+    int n_loops, pad_;
+} cw_loops;
+
 typedef struct {
     cw_port *ports;
     const int *first;          /* feedthrough-only ports, stepped first */
@@ -146,7 +172,23 @@ typedef struct {
     int orders_lowered;        /* a port's ext_order was lowered: Python says so */
     int n_fmi3;                /* FMI 3.0 instances, whose announced time events cap the step */
     struct cw_fmi3 **fmi3;
+    cw_loops *loops;           /* algebraic loops: an order's entry -(i + 1) is loop i */
+    struct cw_inputs *inputs;  /* inputs driven from samples, or NULL */
 } cw_master;
+
+/* Inputs driven from samples (engine/samples.py): the sample table, its
+ * input events, and per port the Real inputs it drives. */
+typedef struct cw_inputs {
+    const double *times;      /* n_times sample times, s, non-decreasing */
+    const double *values;     /* n_signals * n_times values, signal after signal */
+    const int *continuous;    /* per signal: interpolated (1) or held (0) */
+    const double *events;     /* n_events input events, s, sorted */
+    const int *port_start;    /* per port, its first target; n_ports + 1 entries */
+    const unsigned *vr;       /* per target: the input's value reference */
+    const int *signal;        /* per target: its signal */
+    double *value;            /* per target: the value set */
+    int n_times, n_signals, n_events, pad_;
+} cw_inputs;
 
 typedef struct {
     const int *col_port;  /* per recorded column: port and output position */
@@ -163,6 +205,9 @@ typedef struct {
 CW_EXPORT size_t cw_sizeof_port(void) { return sizeof(cw_port); }
 CW_EXPORT size_t cw_sizeof_master(void) { return sizeof(cw_master); }
 CW_EXPORT size_t cw_sizeof_recorder(void) { return sizeof(cw_recorder); }
+CW_EXPORT size_t cw_sizeof_loop(void) { return sizeof(cw_loop); }
+CW_EXPORT size_t cw_sizeof_loops(void) { return sizeof(cw_loops); }
+CW_EXPORT size_t cw_sizeof_inputs(void) { return sizeof(cw_inputs); }
 
 static double py_min(double a, double b) { return b < a ? b : a; }
 static double py_max(double a, double b) { return b > a ? b : a; }
@@ -227,17 +272,346 @@ static int port_pull(cw_master *m, int i, double t)
     return port_read(m, i, t);
 }
 
+static int loop_solve(cw_master *m, int i, double t);
+
 static int propagate(cw_master *m, const int *order, int n, double t)
 {
-    for (int a = 0; a < n; a++)
-        TRY(port_pull(m, order[a], t));
+    for (int a = 0; a < n; a++) {
+        if (order[a] < 0)
+            TRY(loop_solve(m, -order[a] - 1, t));
+        else
+            TRY(port_pull(m, order[a], t));
+    }
     return 0;
+}
+
+/* -- algebraic loops (loops.py) ------------------------------------------------------ */
+
+enum { LOOP_PLAIN_SWEEPS = 50, LOOP_NEWTON_ITERATIONS = 20, LOOP_HALVINGS = 10 };
+#define LOOP_FD_STEP 1.4901161193847656e-08  /* 2 ** -26 */
+enum { LOOP_NOT_CONVERGED = 0, LOOP_SINGULAR = 1, LOOP_NO_DECREASE = 2, LOOP_NO_MEMORY = 4 };
+
+/* r = what the sources give minus the inputs (x, else those set); the
+ * largest |r| into *worst and where into *at (-1: none larger than zero). */
+static void loop_residual(cw_master *m, const cw_loop *L, const double *x, double *r, double *worst, int *at)
+{
+    double w = 0.0;
+    int where = -1;
+    for (int i = 0; i < L->n; i++) {
+        double g = m->ports[L->u_src[i]].out[L->u_src_pos[i]];
+        if (L->u_scaled[i])
+            g = L->u_factor[i] * g + L->u_offset[i];
+        r[i] = g - (x ? x[i] : m->ports[L->u_port[i]].inp[L->u_pos[i]]);
+        double a = fabs(r[i]);
+        if (a > w || a != a) {
+            w = a;
+            where = i;
+        }
+    }
+    *worst = w;
+    *at = where;
+}
+
+static int loop_small(cw_master *m, const cw_loop *L, const double *r)
+{
+    double tol = m->loops->tolerance;
+    for (int i = 0; i < L->n; i++)
+        if (!(fabs(r[i]) <= tol * py_max(1.0, fabs(m->ports[L->u_port[i]].inp[L->u_pos[i]]))))
+            return 0;
+    return 1;
+}
+
+/* Set the loop's inputs to x, read the members' outputs; r = g(x) - x. */
+static int loop_evaluate(cw_master *m, const cw_loop *L, const double *x, double *r, double t,
+                         double *worst, int *at)
+{
+    for (int i = 0; i < L->n; i++)
+        m->ports[L->u_port[i]].inp[L->u_pos[i]] = x[i];
+    for (int a = 0; a < L->n_members; a++) {
+        int i = L->members[a];
+        cw_port *p = &m->ports[i];
+        if (p->n_in) {
+            int st = p->setReal(p->comp, p->in_vr, (size_t)p->n_in, p->inp);
+            if (st > FMI_WARNING)
+                return fail(m, i, CALL_SET_INPUTS, st, t, 0.0);
+            p->sent_valid = 0;
+        }
+        TRY(port_read(m, i, t));
+    }
+    loop_residual(m, L, x, r, worst, at);
+    return 0;
+}
+
+/* Gaussian elimination with partial pivoting (loops.solve_linear). */
+static int solve_linear(double *a, double *b, int n)
+{
+    for (int c = 0; c < n; c++) {
+        int piv = c;
+        double best = fabs(a[c * n + c]);
+        for (int row = c + 1; row < n; row++) {
+            double v = fabs(a[row * n + c]);
+            if (v > best) {
+                piv = row;
+                best = v;
+            }
+        }
+        if (!(best > 0.0 && best < INFINITY))
+            return 0;
+        if (piv != c) {
+            for (int k = 0; k < n; k++) {
+                double tmp = a[c * n + k];
+                a[c * n + k] = a[piv * n + k];
+                a[piv * n + k] = tmp;
+            }
+            double tmp = b[c];
+            b[c] = b[piv];
+            b[piv] = tmp;
+        }
+        for (int row = c + 1; row < n; row++) {
+            double f = a[row * n + c] / a[c * n + c];
+            for (int k = c; k < n; k++)
+                a[row * n + k] = a[row * n + k] - f * a[c * n + k];
+            b[row] = b[row] - f * b[c];
+        }
+    }
+    for (int row = n - 1; row >= 0; row--) {
+        double s = b[row];
+        for (int k = row + 1; k < n; k++)
+            s = s - a[row * n + k] * b[k];
+        b[row] = s / a[row * n + row];
+    }
+    return 1;
+}
+
+static int loop_fail(cw_master *m, int i, cw_loop *L, int why, double worst, int at, int sweeps, int newton,
+                     double t)
+{
+    L->fail_why = why;
+    L->fail_worst = worst;
+    L->fail_at = at;
+    L->fail_sweeps = sweeps;
+    L->fail_newton = newton;
+    m->err_port = i;
+    m->err_t = t;
+    return CW_ERR_LOOP;
+}
+
+static int newton_iterate(cw_master *m, int li, cw_loop *L, double t, int sweeps, double *work);
+
+/* Newton's work arrays (5 n + n * n doubles) are taken only when a loop
+ * needs the fallback, and given back after it: a large formal loop never
+ * pays for an n x n Jacobian. */
+static int loop_newton(cw_master *m, int li, cw_loop *L, double t, int sweeps, double worst)
+{
+    size_t n = (size_t)L->n;
+    double *work = malloc((5 * n + n * n) * sizeof(double) + 1);
+    if (!work)
+        return loop_fail(m, li, L, LOOP_NO_MEMORY, worst, -1, sweeps, 0, t);
+    int rc = newton_iterate(m, li, L, t, sweeps, work);
+    free(work);
+    return rc;
+}
+
+static int newton_iterate(cw_master *m, int li, cw_loop *L, double t, int sweeps, double *work)
+{
+    int n = L->n;
+    double *x = work, *xn = work + n, *r = work + 2 * n, *rj = work + 3 * n, *dx = work + 4 * n;
+    double *jac = work + 5 * n;
+    double worst, worst_n = 0.0;
+    int at, at_n = -1;
+    for (int i = 0; i < n; i++)
+        x[i] = m->ports[L->u_port[i]].inp[L->u_pos[i]];
+    TRY(loop_evaluate(m, L, x, r, t, &worst, &at));
+    int iterations = 0;
+    while (!loop_small(m, L, r)) {
+        if (iterations == LOOP_NEWTON_ITERATIONS)
+            return loop_fail(m, li, L, LOOP_NOT_CONVERGED, worst, at, sweeps, iterations, t);
+        iterations++;
+        m->loops->iterations++;
+        for (int j = 0; j < n; j++) {
+            double xj = x[j];
+            x[j] = xj + LOOP_FD_STEP * py_max(1.0, fabs(xj));
+            double d = x[j] - xj;
+            double w;
+            int a;
+            TRY(loop_evaluate(m, L, x, rj, t, &w, &a));
+            x[j] = xj;
+            for (int i = 0; i < n; i++)
+                jac[i * n + j] = (rj[i] - r[i]) / d;
+        }
+        for (int i = 0; i < n; i++)
+            dx[i] = -r[i];
+        if (!solve_linear(jac, dx, n))
+            return loop_fail(m, li, L, LOOP_SINGULAR, worst, at, sweeps, iterations, t);
+        double lam = 1.0;
+        int accepted = 0;
+        for (int h = 0; h < LOOP_HALVINGS; h++) {
+            for (int i = 0; i < n; i++)
+                xn[i] = x[i] + lam * dx[i];
+            TRY(loop_evaluate(m, L, xn, rj, t, &worst_n, &at_n));
+            if (worst_n < worst) {
+                accepted = 1;
+                break;
+            }
+            lam *= 0.5;
+        }
+        if (!accepted)
+            return loop_fail(m, li, L, LOOP_NO_DECREASE, worst, at, sweeps, iterations, t);
+        double *swap = x;
+        x = xn;
+        xn = swap;
+        swap = r;
+        r = rj;
+        rj = swap;
+        worst = worst_n;
+        at = at_n;
+    }
+    return 0;
+}
+
+/* Loop i's inputs to a fixed point at t: Gauss-Seidel sweeps over its
+ * members, then Newton's method where they do not contract (Loop.solve). */
+static int loop_solve(cw_master *m, int i, double t)
+{
+    cw_loop *L = &m->loops->loop[i];
+    double prev = INFINITY, worst = 0.0;
+    int at = -1, sweeps = 0;
+    while (sweeps < LOOP_PLAIN_SWEEPS) {
+        for (int a = 0; a < L->n_members; a++)
+            TRY(port_pull(m, L->members[a], t));
+        sweeps++;
+        m->loops->iterations++;
+        loop_residual(m, L, NULL, L->r, &worst, &at);
+        if (loop_small(m, L, L->r))
+            return 0;
+        if (!(worst < prev))
+            break;  /* not contracting: growing, stalled or NaN */
+        prev = worst;
+    }
+    m->loops->fallbacks++;
+    return loop_newton(m, i, L, t, sweeps, worst);
 }
 
 static void indicators(cw_master *m, double *z)
 {
     for (int k = 0; k < m->n_z; k++)
         z[k] = m->ports[m->z_port[k]].out[m->z_pos[k]];
+}
+
+/* -- inputs from samples (engine/samples.py) --------------------------- */
+
+/* math.isclose(a, b) with its defaults (relative 1e-9), as fmpy compares times. */
+static int cw_isclose(double a, double b)
+{
+    if (a == b)
+        return 1;
+    if (isinf(a) || isinf(b))
+        return 0;
+    double diff = fabs(b - a);
+    return diff <= fabs(1e-9 * b) || diff <= fabs(1e-9 * a) || diff <= 0.0;
+}
+
+static int bisect_left(const double *a, int n, double x)
+{
+    int lo = 0, hi = n;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (a[mid] < x)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+static int bisect_right(const double *a, int n, double x)
+{
+    int lo = 0, hi = n;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (x < a[mid])
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
+    return lo;
+}
+
+/* Samples.next_event */
+static double inputs_next_event(const cw_inputs *in, double t)
+{
+    for (int i = bisect_right(in->events, in->n_events, t); i < in->n_events; i++)
+        if (!cw_isclose(in->events[i], t))
+            return in->events[i];
+    return INFINITY;
+}
+
+/* Samples.event_at */
+static int inputs_event_at(const cw_inputs *in, double t)
+{
+    int i = bisect_left(in->events, in->n_events, t);
+    for (int j = i - 1; j <= i; j++)
+        if (j >= 0 && j < in->n_events && cw_isclose(in->events[j], t))
+            return 1;
+    return 0;
+}
+
+/* Samples.at for the targets [from, to): their values at `time`, after an
+ * event there when after_event, else before it. */
+static void inputs_at(const cw_inputs *in, int from, int to, double time, int after_event, double *out)
+{
+    const double *t = in->times;
+    int n = in->n_times;
+    int first = n < 2, i0 = 0;
+    if (!first) {
+        i0 = bisect_left(t, n, time);
+        first = i0 == 0;
+    }
+    if (first || i0 == n) {
+        for (int k = from; k < to; k++)
+            out[k] = in->values[(size_t)in->signal[k] * (size_t)n + (size_t)(first ? 0 : n - 1)];
+        return;
+    }
+    int held = i0 - 1;
+    if (after_event)
+        while (held + 1 < n && (t[held + 1] < time || cw_isclose(time, t[held + 1])))
+            held++;
+    int row = -1;
+    double w0 = 0.0, w1 = 0.0;
+    if (cw_isclose(time, t[i0]) && i0 < n - 1 && cw_isclose(t[i0], t[i0 + 1])) {
+        row = i0;
+        if (after_event)
+            while (row < n - 1 && cw_isclose(t[row], t[row + 1]))
+                row++;
+    } else {
+        double t0 = t[i0 - 1], t1 = t[i0];
+        w0 = (t1 - time) / (t1 - t0);
+        w1 = 1 - w0;
+    }
+    for (int k = from; k < to; k++) {
+        const double *v = &in->values[(size_t)in->signal[k] * (size_t)n];
+        if (!in->continuous[in->signal[k]])
+            out[k] = v[held];
+        else if (row >= 0)
+            out[k] = v[row];
+        else
+            out[k] = w0 * v[i0 - 1] + w1 * v[i0];
+    }
+}
+
+/* FileInputs.set for port i */
+static int inputs_set(cw_master *m, int i, double t, int after_event)
+{
+    const cw_inputs *in = m->inputs;
+    int from = in->port_start[i], to = in->port_start[i + 1];
+    if (from == to)
+        return 0;
+    inputs_at(in, from, to, t, after_event, in->value);
+    cw_port *p = &m->ports[i];
+    int st = p->setReal(p->comp, &in->vr[from], (size_t)(to - from), &in->value[from]);
+    if (st > FMI_WARNING)
+        return fail(m, i, CALL_SET_INPUTS, st, t, 0.0);
+    return 0;
 }
 
 /* -- coupling ------------------------------------------------------------- */
@@ -383,6 +757,10 @@ again:
 static int advance(cw_master *m, double t, double h)
 {
     double t_new = t + h;
+    /* Sampled inputs at t, after an event there. */
+    if (m->inputs)
+        for (int i = 0; i < m->n_ports; i++)
+            TRY(inputs_set(m, i, t, 1));
     /* 1. Feedthrough-only instances commit the mode decided at t. */
     for (int a = 0; a < m->n_first; a++) {
         cw_port *p = &m->ports[m->first[a]];
@@ -392,6 +770,9 @@ static int advance(cw_master *m, double t, double h)
         if (p->n_z && m->after_event)  /* a commit may have switched the mode: z at t+ */
             p->getReal(p->comp, p->out_vr, (size_t)p->n_out, p->out);
     }
+    if (m->inputs)  /* their outputs are next read at t + h: sampled inputs there, before an event */
+        for (int a = 0; a < m->n_first; a++)
+            TRY(inputs_set(m, m->first[a], t_new, 0));
     if (m->locating) {
         if (m->after_event)
             indicators(m, m->z_start);
@@ -412,6 +793,8 @@ static int advance(cw_master *m, double t, double h)
         int st = p->doStep(p->comp, t, h, 0);
         if (st > FMI_WARNING)
             return fail(m, i, CALL_DO_STEP, st, t, h);
+        if (m->inputs)
+            TRY(inputs_set(m, i, t_new, 0));
         TRY(port_read(m, i, t_new));
         if (!m->jacobi && a != m->n_dynamic - 1)  /* newest values flow on */
             TRY(propagate(m, m->first_in_order, m->n_first_in_order, t_new));
@@ -970,6 +1353,15 @@ static int diverged(const cw_master *m)
 static double fmi3_next_event_time(const struct cw_fmi3 *a);
 static int fmi3_terminated(const struct cw_fmi3 *a);
 
+/* Something changed outside the wiring (Master.discontinuity). */
+static void discontinuity(cw_master *m)
+{
+    m->after_event = 1;
+    m->time_to_zero = 0.0;
+    history_forget(m);
+    record_history(m);
+}
+
 static int step(cw_master *m, double h, double *taken_out)
 {
     double t = m->t;
@@ -981,6 +1373,15 @@ static int step(cw_master *m, double h, double *taken_out)
     for (int i = 0; i < m->n_fmi3; i++) {
         double te = fmi3_next_event_time(m->fmi3[i]);
         if (t < te && te < t + h)
+            h = te - t;
+    }
+    /* A sampled input's event is a discontinuity at the step's start and
+     * ends a step that would pass it. */
+    if (m->inputs) {
+        if (inputs_event_at(m->inputs, t))
+            discontinuity(m);
+        double te = inputs_next_event(m->inputs, t);
+        if (t + h > te && !cw_isclose(t + h, te))
             h = te - t;
     }
     /* 1. The indicators' sources cap the step. */
@@ -1019,8 +1420,11 @@ static int step(cw_master *m, double h, double *taken_out)
     }
     m->after_event = m->after_event_step;
     m->steps++;
-    /* 5. NaN, infinities, divergence: Python names the output. */
+    /* 5. NaN, infinities, divergence: Python names the output (err_t: the
+     * last good communication point, the step's start). */
     m->diverged = diverged(m);
+    if (m->diverged)
+        m->err_t = t;
     if (m->extrapolation)
         record_history(m);
     *taken_out = taken;
@@ -1066,10 +1470,7 @@ CW_EXPORT void cw_start(cw_master *m)
 /* Something changed outside the wiring (Master.discontinuity). */
 CW_EXPORT void cw_discontinuity(cw_master *m)
 {
-    m->after_event = 1;
-    m->time_to_zero = 0.0;
-    history_forget(m);
-    record_history(m);
+    discontinuity(m);
 }
 
 /* Long runs return to Python after `slice_s` of wall time (Python passes
@@ -1115,6 +1516,12 @@ static void record_point(cw_master *m, cw_recorder *r)
     r->n_rows++;
 }
 
+/* Record the current point (after a divergence check that found every output legal). */
+CW_EXPORT void cw_record_point(cw_master *m, cw_recorder *r)
+{
+    record_point(m, r);
+}
+
 /* Step to t_stop on the grid start + k * step, plus located events
  * (Master.run_until), recording into r when given. Returns CW_BUFFER_FULL,
  * CW_SLICE_OVER or CW_CHECK_DIVERGENCE to be called again, r->grid_k keeping
@@ -1148,15 +1555,18 @@ CW_EXPORT int cw_run_until(cw_master *m, double t_stop, cw_recorder *r, double s
         int rc = step(m, h, &taken);
         if (rc < 0 || rc == CW_ENDED)
             return rc;
-        if (r)
-            record_point(m, r);
         if (m->t >= grid - eps)
             k++;
         if (rc == CW_CHECK_DIVERGENCE) {
+            /* Not recorded yet: a failed run keeps the points before this
+             * one only; where Python finds every output legal, it records
+             * the point (cw_record_point) and calls again. */
             if (r)
                 r->grid_k = k;
             return rc;
         }
+        if (r)
+            record_point(m, r);
     }
     if (r)
         r->grid_k = -1;
@@ -1299,6 +1709,19 @@ typedef struct cw_fmi3 {
     long long iu_calls;           /* callbacks that set inputs */
     double *iu_saved;             /* u0, d1, d2, tref (4 n_iu) with the saved FMU state, */
     int *iu_saved_fed;            /* as FMI 2.0 saves its polynomials in its state */
+    /* Array elements (fmu3.Instance3._number_elements): the code
+     * code_base + k names value code_off[k] of the code_size[k] values of
+     * the array variable code_vr[k]. A request whose codes cover whole
+     * arrays in order is one fmi3 call with nValues > nValueReferences;
+     * any other is served element by element. */
+    unsigned code_base;
+    int n_codes;
+    const unsigned *code_vr;
+    const int *code_off, *code_size;
+    unsigned *scratch_vr;         /* the value references of one call, translated */
+    int *scratch_order;           /* and their derivative orders */
+    double *scratch_val;          /* one array's values */
+    int scratch_cap, scratch_val_cap;
 } cw_fmi3;
 
 CW_EXPORT size_t cw_sizeof_fmi3(void) { return sizeof(cw_fmi3); }
@@ -1438,16 +1861,87 @@ CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
     }
 }
 
+/* The element number of a code, or -1 for a plain value reference. */
+static int code_element(const cw_fmi3 *a, unsigned code)
+{
+    unsigned e = code - a->code_base;  /* wraps for codes below the base */
+    return e < (unsigned)a->n_codes ? (int)e : -1;
+}
+
+/* Translate n codes into a->scratch_vr (and their orders, when given, into
+ * a->scratch_order): *m value references, each array whole. 0 when the
+ * request holds part of an array, an array out of order, an array with
+ * orders that differ, or more references than the scratch holds. */
+static int code_runs(cw_fmi3 *a, const unsigned *vr, size_t n, const int *order, size_t *m)
+{
+    size_t k = 0, j = 0;
+    while (k < n) {
+        if (j >= (size_t)a->scratch_cap)
+            return 0;
+        int e = code_element(a, vr[k]);
+        size_t size = 1;
+        if (e >= 0) {
+            size = (size_t)a->code_size[e];
+            if (a->code_off[e] != 0 || k + size > n)
+                return 0;
+            for (size_t i = 1; i < size; i++)
+                if (vr[k + i] != vr[k] + i || (order && order[k + i] != order[k]))
+                    return 0;
+            a->scratch_vr[j] = a->code_vr[e];
+        } else {
+            a->scratch_vr[j] = vr[k];
+        }
+        if (order)
+            a->scratch_order[j] = order[k];
+        j++;
+        k += size;
+    }
+    *m = j;
+    return 1;
+}
+
+/* fmi3GetFloat64 (order NULL) or fmi3GetOutputDerivatives of n codes,
+ * element by element: each element's whole array, then its value. */
+static int get_elementwise(cw_fmi3 *a, const unsigned *vr, size_t n, const int *order, double *out)
+{
+    int worst = FMI_OK;
+    for (size_t k = 0; k < n; k++) {
+        int e = code_element(a, vr[k]);
+        unsigned one = e >= 0 ? a->code_vr[e] : vr[k];
+        size_t size = e >= 0 ? (size_t)a->code_size[e] : 1;
+        int st = order ? a->getOutputDerivatives(a->instance, &one, 1, &order[k], a->scratch_val, size)
+                       : a->getFloat64(a->instance, &one, 1, a->scratch_val, size);
+        worst = st > worst ? st : worst;
+        if (st > FMI_WARNING)
+            return st;
+        out[k] = a->scratch_val[e >= 0 ? a->code_off[e] : 0];
+    }
+    return worst;
+}
+
 CW_EXPORT int cw3_getReal(void *comp, const unsigned *vr, size_t n, double *out)
 {
     cw_fmi3 *a = comp;
-    return a->getFloat64(a->instance, vr, n, out, n);
+    if (!a->n_codes)
+        return a->getFloat64(a->instance, vr, n, out, n);
+    size_t m;
+    if (code_runs(a, vr, n, NULL, &m))
+        return a->getFloat64(a->instance, a->scratch_vr, m, out, n);
+    return get_elementwise(a, vr, n, NULL, out);
 }
 
 CW_EXPORT int cw3_setReal(void *comp, const unsigned *vr, size_t n, const double *values)
 {
     cw_fmi3 *a = comp;
-    int st = a->setFloat64(a->instance, vr, n, values, n);
+    int st;
+    if (!a->n_codes) {
+        st = a->setFloat64(a->instance, vr, n, values, n);
+    } else {
+        size_t m;
+        if (!code_runs(a, vr, n, NULL, &m))
+            return FMI_ERROR;  /* part of an array: the ports set arrays whole */
+        st = a->setFloat64(a->instance, a->scratch_vr, m, values, n);
+    }
     if (st <= FMI_WARNING && a->n_iu) {
         /* A value without derivatives is held (as fmi2SetReal on FMI 2.0). */
         for (size_t k = 0; k < n; k++) {
@@ -1497,7 +1991,12 @@ CW_EXPORT int cw3_setInputDerivatives(void *comp, const unsigned *vr, size_t n, 
 CW_EXPORT int cw3_getOutputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order, double *out)
 {
     cw_fmi3 *a = comp;
-    return a->getOutputDerivatives(a->instance, vr, n, order, out, n);
+    if (!a->n_codes)
+        return a->getOutputDerivatives(a->instance, vr, n, order, out, n);
+    size_t m;
+    if (code_runs(a, vr, n, order, &m))
+        return a->getOutputDerivatives(a->instance, a->scratch_vr, m, a->scratch_order, out, n);
+    return get_elementwise(a, vr, n, order, out);
 }
 
 CW_EXPORT int cw3_getState(void *comp, void **state)
