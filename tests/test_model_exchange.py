@@ -401,7 +401,7 @@ def test_a_scene_runs_a_model_exchange_component_and_reports_its_statistics(tmp_
 
 @pytest.mark.parametrize("bad, needle", [
     ('interface = "me"', '"co-simulation" or "model-exchange"'),
-    ('interface = "co-simulation"', "no Co Simulation interface"),
+    ('interface = "co-simulation"', "no Co-Simulation interface"),
 ])
 def test_a_bad_interface_is_one_line(tmp_path, capsys, bad, needle):
     scene = write_scene(tmp_path, me("MeBall"), interface=bad)
@@ -459,8 +459,10 @@ def test_shooting_finds_the_same_orbit_with_a_model_exchange_pendulum(engine):
     assert abs(me_.period - cs.period) < 1e-10 and abs(me_.amplitude - cs.amplitude) < 1e-10
 
 
-def test_an_ssp_runs_a_model_exchange_only_fmu(tmp_path, capsys):
-    """An SSD whose pendulum is a Model Exchange only FMU (once refused) runs, mixed with a Co-Simulation escapement."""
+@pytest.mark.parametrize("implementation", ["", ' implementation="ModelExchange"', ' implementation="CoSimulation"'])
+def test_an_ssp_runs_a_model_exchange_only_fmu(tmp_path, capsys, implementation):
+    """An SSD whose pendulum is a Model Exchange only FMU (once refused) runs, mixed with a Co-Simulation
+    escapement; asked for through an interface it lacks, it is one line naming the attribute."""
     import json
     import shutil
 
@@ -476,7 +478,7 @@ def test_an_ssp_runs_a_model_exchange_only_fmu(tmp_path, capsys):
     xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">
   <ssd:System name="root">
     <ssd:Elements>
-      <ssd:Component name="pendulum" source="resources/MePendulum.fmu">
+      <ssd:Component name="pendulum" source="resources/MePendulum.fmu"IMPL>
         <ssd:Connectors>
           <ssd:Connector name="phi" kind="output"><ssc:Real/></ssd:Connector>
           <ssd:Connector name="w" kind="output"><ssc:Real/></ssd:Connector>
@@ -499,8 +501,12 @@ def test_an_ssp_runs_a_model_exchange_only_fmu(tmp_path, capsys):
   </ssd:System>
   <ssd:DefaultExperiment startTime="0" stopTime="3"/>
 </ssd:SystemStructureDescription>
-""")
+""".replace("IMPL", implementation))
     rc, _, err = run_cli(capsys, ["run", ssd, "--out", tmp_path / "out", "--no-progress"])
+    if "CoSimulation" in implementation:
+        assert rc == 2 and len(err.strip().splitlines()) == 1
+        assert "implementation" in err and "no Co-Simulation interface" in err
+        return
     assert rc == 0, err
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["statistics"]["model_exchange"]["pendulum"]["state_events"] >= 2

@@ -563,6 +563,7 @@ class MEInstance3(MEInstance):
     _value_functions = Instance3._value_functions
     get_values = Instance3.get_values
     _set_values_now = Instance3.set_values
+    _merge_elements = Instance3._merge_elements
 
     def instantiate(self) -> None:
         unzip = extract(self.path)
@@ -665,9 +666,21 @@ def interface_of(md, requested: str | None) -> str:
             raise SceneError(f"interface = {requested!r}: expected one of {', '.join(map(repr, INTERFACES))}")
         if not has[requested]:
             other = "no <CoSimulation> element" if requested == "co-simulation" else "no <ModelExchange> element"
-            raise SceneError(f"{md.modelName} has no {requested.replace('-', ' ').title()} interface ({other})")
+            shown = {"co-simulation": "Co-Simulation", "model-exchange": "Model Exchange"}[requested]
+            raise SceneError(f"{md.modelName} has no {shown} interface ({other})")
         return requested
     return "co-simulation" if has["co-simulation"] else "model-exchange"
+
+
+def model_exchange_problem(md) -> str | None:
+    """Why the Model Exchange wrapper cannot run this FMU, or None: FMI 3.0
+    array variables (the Co-Simulation adapter serves them, the wrapper's
+    states and inputs are scalars)."""
+    arrays = [v.name for v in md.modelVariables if getattr(v, "shape", None)]
+    if arrays:
+        return (f"Model Exchange with FMI 3.0 array variables is not supported ({', '.join(arrays[:8])}"
+                f"{', ...' if len(arrays) > 8 else ''}); run it through its Co-Simulation interface if it has one")
+    return None
 
 
 def make_instance(name, path, model_description=None, early_return: bool = True, intermediate_update: bool = False,
@@ -677,6 +690,9 @@ def make_instance(name, path, model_description=None, early_return: bool = True,
     Co-Simulation instance of ``fmu3.make_instance``."""
     md = model_description or read_fmu(path, need_binary=False)[0]
     if interface_of(md, interface) == "model-exchange":
+        problem = model_exchange_problem(md)
+        if problem:
+            raise SceneError(f"{path}: {problem}")
         cls = MEInstance3 if fmi_version(md) == 3 else MEInstance
         return cls(name, path, md, options)
     return make_cs_instance(name, path, md, early_return, intermediate_update)

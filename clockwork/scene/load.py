@@ -27,7 +27,7 @@ from ..engine import compiled
 from ..engine.description import (TEXT_TYPES, FmuError, element_names, link_shape_problem, read_fmu, resolve_fmu,
                                   type_name, types_connect, var_unit)
 from ..engine.description import variables as variables_of
-from ..engine.model_exchange import INTERFACES, interface_of, make_instance
+from ..engine.model_exchange import INTERFACES, interface_of, make_instance, model_exchange_problem
 from ..engine.names import split_link, split_ref
 from ..engine.wiring import Link, loop_name
 from ..engine.wiring import build as build_wiring
@@ -396,6 +396,9 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
             except SceneError as e:
                 raise ctx.fail(f"{where}.interface", e.detail) from None
         if interface_of(md, interface) == "model-exchange":
+            problem = model_exchange_problem(md)
+            if problem:
+                raise ctx.fail(f"{where}.fmu", f"{fpath.name}: {problem}")
             indicators = ()  # the FMU's own event indicators are located inside its wrapper
         params_t = ctx.table(t, "parameters", where) or {}
         params = {}
