@@ -430,7 +430,8 @@ def cmd_info(args) -> int:
     except FmuError as e:
         raise UsageError(str(e)) from None
     cs = md.coSimulation
-    print(f"{md.modelName} (FMI {md.fmiVersion} Co-Simulation)")
+    faces = [n for n, i in (("Co-Simulation", cs), ("Model Exchange", md.modelExchange)) if i is not None]
+    print(f"{md.modelName} (FMI {md.fmiVersion} {' and '.join(faces)})")
     print(f"  file         {path}")
     print(f"  sha256       {digest}")
     fmi3 = md.fmiVersion.startswith("3.")
@@ -444,8 +445,14 @@ def cmd_info(args) -> int:
     if fmi3:  # FMI 3.0 has no input derivatives, and adds events
         caps = caps[:3] + ("maxOutputDerivativeOrder", "hasEventMode", "mightReturnEarlyFromDoStep",
                            "providesIntermediateUpdate")
+    if cs is None:  # Model Exchange only: what the master's wrapper reads
+        cs = md.modelExchange
+        caps = ("canGetAndSetFMUstate", "canSerializeFMUstate", "needsCompletedIntegratorStep")
     for cap in caps:
         print(f"  {cap:<40} {_flag(getattr(cs, cap, None))}")
+    if md.modelExchange is not None:
+        print(f"  {'continuous states (Model Exchange)':<40} {len(md.derivatives)}")
+        print(f"  {'event indicators (Model Exchange)':<40} {md.numberOfEventIndicators or 0}")
     rows = [("name", "causality", "variability", "type", "unit", "start", "min", "max", "description")]
     for v in md.modelVariables:
         kind = type_name(md, v) + (f"[{shape_text(v.shape)}]" if v.shape else "")  # an FMI 3.0 array: its shape

@@ -29,10 +29,11 @@ from ..paths import core_library
 from .fmu import Instance
 from .fmu3 import _Events
 from .master import Master
+from .model_exchange import _ME
 from .ports import link_type
 from .recording import Recorder, _DiscreteOutput
 from .samples import Samples
-from .settings import MasterSettings, Statistics
+from .settings import MasterSettings, Statistics, with_model_exchange
 from .wiring import Link
 
 HISTORY = 3  # input history for divided differences (HISTORY in cw_master.c)
@@ -135,7 +136,7 @@ def load_core():
                 _lib_error = f"the compiled core {path} cannot be loaded ({e}); build it with tools/setup.sh"
                 return None
             for name, struct in (("port", _Port), ("master", _Master), ("recorder", _Recorder), ("fmi3", _Events),
-                                 ("loop", _Loop), ("loops", _Loops), ("inputs", _Inputs)):
+                                 ("me", _ME), ("loop", _Loop), ("loops", _Loops), ("inputs", _Inputs)):
                 size = getattr(lib, f"cw_sizeof_{name}")
                 size.restype = c_size_t
                 if size() != ctypes.sizeof(struct):
@@ -269,9 +270,11 @@ class CompiledMaster(Master):
     @property
     def stats(self) -> Statistics:
         c, lc = self._core, self._loops
-        return Statistics(steps=c.steps, events=c.events, event_iterations=c.event_iterations,
-                          rollbacks=c.rollbacks, replays=c.replays, states_saved=c.states_saved,
-                          loop_iterations=lc.iterations, loop_fallbacks=lc.fallbacks)
+        return with_model_exchange(
+            Statistics(steps=c.steps, events=c.events, event_iterations=c.event_iterations,
+                       rollbacks=c.rollbacks, replays=c.replays, states_saved=c.states_saved,
+                       loop_iterations=lc.iterations, loop_fallbacks=lc.fallbacks),
+            self._model_exchange)
 
     @stats.setter
     def stats(self, value: Statistics) -> None:
@@ -298,7 +301,11 @@ class CompiledMaster(Master):
         cports = (_Port * len(ports.all))()
         for i, p in enumerate(ports.all):
             inst, c = p.inst, cports[i]
-            if inst.fmi_version == 3:
+            if getattr(inst, "model_exchange", False):
+                # The core's Model Exchange wrapper (cwme_*, cw_me.c) on the instance's shared state.
+                dll, prefix, names = self._lib, "cwme_", _ADAPTER_NAMES
+                c.comp = inst.core_state(self._lib)
+            elif inst.fmi_version == 3:
                 # The core's FMI 3.0 adapter (cw3_*), on the instance's shared adapter state.
                 dll, prefix, names = self._lib, "cw3_", _ADAPTER_NAMES
                 c.comp = ctypes.addressof(inst.events)

@@ -2,8 +2,9 @@
 
 ``resolve_fmu`` finds an FMU by model name or path, ``read_fmu`` reads its
 model description (cached by path, modification time and size) and checks
-that it is an FMI 2.0 or 3.0 Co-Simulation FMU with a binary for this
-platform. An FMI 3.0 description is seen through FMI 2.0's type names
+that it is an FMI 2.0 or 3.0 Co-Simulation or Model Exchange FMU with a
+binary for this platform (Co-Simulation's where it has both). An FMI 3.0
+description is seen through FMI 2.0's type names
 where FMI 2.0 has the type (Float64 is "Real", Int32 "Integer"), so that
 the layers above read both alike; Float32, the other integer sizes and
 Binary keep their FMI 3.0 names (``INTEGER_TYPES``, ``REAL_TYPES``,
@@ -239,13 +240,18 @@ def read_fmu(path: Path, need_binary: bool = True,
             raise FmuError(f"{shown}: expected an FMI 2.0 or 3.0 FMU, found FMI {md.fmiVersion}")
         if md.fmiVersion == "3.0":
             _check_fmi3(shown, md, xml)
-        if md.coSimulation is None:
-            raise FmuError(f"{shown}: expected a Co-Simulation FMU (no <CoSimulation> element)")
-        ident = md.coSimulation.modelIdentifier
-        if not isinstance(ident, str) or not NAME_RE.match(ident):
-            # fmpy loads binaries/<platform>/<modelIdentifier>.so: a path here would load a file outside the FMU.
-            raise FmuError(f"{shown}: modelDescription.xml: CoSimulation modelIdentifier {shorten(ident, 100)!r}: expected a "
-                           "plain name (letters, digits, underscores), the binary's file name")
+        faces = [(n, i) for n, i in (("CoSimulation", md.coSimulation), ("ModelExchange", md.modelExchange))
+                 if i is not None]
+        if not faces:
+            raise FmuError(f"{shown}: expected a Co-Simulation or Model Exchange FMU (no <CoSimulation> or "
+                           "<ModelExchange> element)")
+        for face, interface in faces:
+            ident = interface.modelIdentifier
+            if not isinstance(ident, str) or not NAME_RE.match(ident):
+                # fmpy loads binaries/<platform>/<modelIdentifier>.so: a path here would load a file outside the FMU.
+                raise FmuError(f"{shown}: modelDescription.xml: {face} modelIdentifier {shorten(ident, 100)!r}: "
+                               "expected a plain name (letters, digits, underscores), the binary's file name")
+        ident = faces[0][1].modelIdentifier  # the binary of the interface it runs through by default
         indicators = event_indicator_names(xml)
         digest = sha256_file(path)
         folder = fmpy.platform_tuple if md.fmiVersion == "3.0" else fmpy.platform

@@ -198,6 +198,11 @@ class Instance:
     """An instantiated FMU with fast access to its fmi2 functions."""
 
     fmi_version = 2  # fmu3.Instance3 says 3
+    _fmpy_class = FMU2Slave  # model_exchange.MEInstance: FMU2Model
+
+    def _interface(self):
+        """The modelDescription element of the interface it runs through."""
+        return self.md.coSimulation
     arrays: dict[str, tuple[int, int]] = {}  # FMI 3.0 array variables: name -> (vr, values) (fmu3.Instance3)
     elements: dict[str, list[str]] = {}  # FMI 3.0 array variables: name -> its element names, row-major
     # What messages call the FMU where its path is a copy (an SSP archive's
@@ -223,10 +228,7 @@ class Instance:
                 var_unit(v),
                 deps.get(v.name),
             )
-        cs = self.md.coSimulation
-        self.max_output_derivative_order = int(cs.maxOutputDerivativeOrder or 0)
-        self.can_interpolate_inputs = bool(cs.canInterpolateInputs)
-        self.can_get_set_state = bool(cs.canGetAndSetFMUstate)
+        self._read_capabilities()
         experiment = self.md.defaultExperiment
         tol = getattr(experiment, "tolerance", None) if experiment is not None else None
         self.default_tolerance = float(tol) if tol not in (None, "") else None
@@ -235,15 +237,22 @@ class Instance:
         self._slave = None
         self._state = c_void_p()
 
+    def _read_capabilities(self) -> None:
+        """What the FMU's <CoSimulation> element declares (a Model Exchange wrapper says its own)."""
+        cs = self.md.coSimulation
+        self.max_output_derivative_order = int(cs.maxOutputDerivativeOrder or 0)
+        self.can_interpolate_inputs = bool(cs.canInterpolateInputs)
+        self.can_get_set_state = bool(cs.canGetAndSetFMUstate)
+
     # -- loading -------------------------------------------------------
 
     def instantiate(self) -> None:
         unzip = extract(self.path)
         try:
-            self._slave = FMU2Slave(
+            self._slave = self._fmpy_class(
                 guid=self.md.guid,
                 unzipDirectory=str(unzip),
-                modelIdentifier=self.md.coSimulation.modelIdentifier,
+                modelIdentifier=self._interface().modelIdentifier,
                 instanceName=self.name,
             )
         except Exception as e:  # fmpy raises a bare Exception for a bad library

@@ -40,7 +40,7 @@ from .location import EventLocator, crossed, scan
 from .ports import Port, Ports
 from .richardson import StepDoubling
 from .samples import FileInputs, Samples, isclose
-from .settings import MasterSettings, Statistics, check_run, rollback_need
+from .settings import MasterSettings, Statistics, check_run, rollback_need, with_model_exchange
 from ..errors import SceneError, SimulationEnded, SimulationError
 from .wiring import Link, build
 
@@ -78,6 +78,8 @@ class Master:
                  inputs: Samples | None = None):
         self.instances = instances
         self.settings = settings
+        # Model Exchange instances, whose own counts join the master's (stats.model_exchange).
+        self._model_exchange = [inst for inst in instances.values() if getattr(inst, "model_exchange", False)]
         settings.check()
         self.wiring = build(instances, links, step_order, settings.algebraic_loops)
         # Inputs driven from samples (an input file): set at every step.
@@ -110,6 +112,14 @@ class Master:
         self._reset_soft_state()
         self.engine_reason: str | None = None  # why "auto" chose this engine, when not the core
         self.ended: SimulationEnded | None = None  # an FMU ended the simulation (a clean end)
+
+    @property
+    def stats(self) -> Statistics:
+        return with_model_exchange(self._stats, self._model_exchange)
+
+    @stats.setter
+    def stats(self, value: Statistics) -> None:
+        self._stats = value
 
     @property
     def notes(self) -> list[str]:

@@ -16,7 +16,7 @@ from pathlib import Path
 from ..errors import ClosedError, SceneError, UsageError
 from .description import resolve_fmu
 from .fmu import Instance, free_all
-from .fmu3 import make_instance
+from .model_exchange import MEOptions, make_instance
 from .compiled import make_master
 from .samples import Samples
 from .settings import MasterSettings
@@ -105,7 +105,8 @@ class System:
     def __init__(self, components: dict[str, tuple[str, dict]], connections: list[str],
                  settings: MasterSettings | None = None, record: dict[str, list[str]] | None = None,
                  start_time: float = 0.0, model_descriptions: dict | None = None,
-                 labels: dict[str, str] | None = None, inputs: Samples | None = None):
+                 interfaces: dict[str, str | None] | None = None, labels: dict[str, str] | None = None,
+                 inputs: Samples | None = None):
         if not isinstance(components, dict) or not all(
                 isinstance(c, (tuple, list)) and len(c) == 2 and isinstance(c[1], dict) for c in components.values()):
             raise UsageError("System: components must be {instance: (model name or .fmu path, {parameter: value})}")
@@ -116,12 +117,14 @@ class System:
         # instead of freeing it (analyses.context.reusing_systems).
         self.release = None
         settings = settings or MasterSettings()
+        me_options = MEOptions(settings.me_solver, settings.event_time_tolerance)
         try:
             for name, (fmu, _) in components.items():
                 md = (model_descriptions or {}).get(name)
                 inst = make_instance(name, resolve_fmu(str(fmu), Path.cwd(), settings.fmi_version), md,
                                      settings.early_return,
-                                     bool(settings.extrapolation) or settings.iterations > 0)
+                                     bool(settings.extrapolation) or settings.iterations > 0,
+                                     (interfaces or {}).get(name), me_options)
                 inst.label = (labels or {}).get(name) or None  # what messages call a copied FMU
                 inst.instantiate()
                 self.instances[name] = inst

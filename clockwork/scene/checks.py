@@ -16,7 +16,7 @@ from ..engine.description import (FLOAT32_MAX, INTEGER_TYPES, ArrayElement, int_
                                   var_unit)
 from ..engine.description import variables as variables_of
 from ..engine.names import instance_name_problem, split_ref
-from ..engine.settings import ENGINES, LOOP_MODES
+from ..engine.settings import ENGINES, LOOP_MODES, ME_SOLVERS
 from ..errors import SceneError
 from .model import Component, show
 from .units import UnitError, fmt, parse_quantity, to_seconds, to_unit
@@ -235,6 +235,11 @@ def master_value(ctx: Ctx, key: str, value: object):
     if key == "engine":
         if value not in ENGINES:
             raise ctx.bad(full, value, '"auto", "python" or "compiled"')
+        return value
+    if key == "me_solver":
+        if value not in ME_SOLVERS:
+            raise ctx.bad(full, value, " or ".join(f'"{s}"' for s in ME_SOLVERS)
+                          + " (the integrator of Model Exchange FMUs)")
         return value
     if key == "fmi_version":
         if isinstance(value, bool) or value not in (2, 3) or not isinstance(value, int):

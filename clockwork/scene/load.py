@@ -27,7 +27,7 @@ from ..engine import compiled
 from ..engine.description import (TEXT_TYPES, FmuError, element_names, link_shape_problem, read_fmu, resolve_fmu,
                                   type_name, types_connect, var_unit)
 from ..engine.description import variables as variables_of
-from ..engine.fmu3 import make_instance
+from ..engine.model_exchange import INTERFACES, interface_of, make_instance, model_exchange_problem
 from ..engine.names import split_link, split_ref
 from ..engine.wiring import Link, loop_name
 from ..engine.wiring import build as build_wiring
@@ -378,7 +378,7 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
             raise ctx.fail(where, problem)
         if not isinstance(t, dict):
             raise ctx.bad(where, t, f"a table [components.{name}] with keys fmu, parameters")
-        ctx.check_keys(t, ("fmu", "parameters"), where, required=("fmu",))
+        ctx.check_keys(t, ("fmu", "parameters", "interface"), where, required=("fmu",))
         spec = t["fmu"]
         if not isinstance(spec, str):
             raise ctx.bad(f"{where}.fmu", spec, "a model name or a path ending .fmu")
@@ -387,6 +387,19 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
             md, digest, indicators = read_fmu(fpath)
         except FmuError as e:
             raise ctx.fail(f"{where}.fmu", str(e)) from None
+        interface = t.get("interface")
+        if interface is not None:
+            if interface not in INTERFACES:
+                raise ctx.bad(f"{where}.interface", interface, " or ".join(f'"{i}"' for i in INTERFACES))
+            try:
+                interface_of(md, interface)
+            except SceneError as e:
+                raise ctx.fail(f"{where}.interface", e.detail) from None
+        if interface_of(md, interface) == "model-exchange":
+            problem = model_exchange_problem(md)
+            if problem:
+                raise ctx.fail(f"{where}.fmu", f"{fpath.name}: {problem}")
+            indicators = ()  # the FMU's own event indicators are located inside its wrapper
         params_t = ctx.table(t, "parameters", where) or {}
         params = {}
         variables = variables_of(md)
@@ -402,7 +415,7 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
                     key, f"{md.modelName}.{pname} is {article(v.causality)} {v.causality}, not a parameter; "
                     f"parameters: {', '.join(names_of(variables, 'parameter'))}")
             params[pname] = convert_value(ctx, key, value, v, md)
-        out[name] = Component(name, fpath, digest, md, params, indicators)
+        out[name] = Component(name, fpath, digest, md, params, indicators, interface)
     return out, input_params
 
 
@@ -411,7 +424,8 @@ def _check_wiring(ctx: Ctx, components: dict[str, Component], connections) -> li
     what it refuses is refused now. Returns the algebraic loops (name,
     links inside)."""
     try:
-        instances = {n: make_instance(n, c.fmu_path, c.model_description) for n, c in components.items()}
+        instances = {n: make_instance(n, c.fmu_path, c.model_description, interface=c.interface)
+                     for n, c in components.items()}
         wiring = build_wiring(instances, [Link(*c) for c in connections])
     except SceneError as e:
         raise ctx.fail("connections", e.detail) from None
@@ -524,6 +538,8 @@ def _fmi3_inputs(m: MasterConfig, components: dict[str, Component], connections)
     for c in connections:
         comp = components[c.dst_instance]
         md = comp.model_description
+        if comp.model_exchange:
+            continue  # the Model Exchange wrapper takes input derivatives
         dynamic = any(o.dependencies is not None and not o.dependencies for o in md.outputs)
         if md.fmiVersion == "3.0" and dynamic and not _takes_intermediate_update(md, c.dst_var):
             return (f"master.{key}", f"{c.dst_instance} ({Path(comp.fmu_shown).name}) is an FMI 3.0 FMU with dynamics "

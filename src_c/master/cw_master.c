@@ -33,6 +33,8 @@
 #include <string.h>
 #include <time.h>
 
+#include "cw_illinois.h"
+
 #define CW_EXPORT __attribute__((visibility("default")))
 
 typedef int (*cw_doStep_t)(void *, double, double, int);
@@ -1132,43 +1134,6 @@ static double hidden_crossing(cw_master *m, double h, const double *z0, const do
             best = x;
     }
     return best;
-}
-
-typedef struct {
-    double lo, z_lo, hi, z_hi;
-    int kept, iterations;
-} illinois;
-
-static double illinois_next(const illinois *s)
-{
-    double dz = s->z_lo - s->z_hi;
-    if (dz == 0.0)
-        return 0.5 * (s->lo + s->hi);
-    return (s->z_lo * s->hi - s->z_hi * s->lo) / dz;
-}
-
-static void illinois_update(illinois *s, double x, double z, int was_crossed)
-{
-    s->iterations++;
-    if (was_crossed) {
-        s->hi = x;
-        s->z_hi = z;
-        if (s->kept == 1)
-            s->z_lo *= 0.5;
-        s->kept = 1;
-    } else {
-        s->lo = x;
-        s->z_lo = z;
-        if (s->kept == -1)
-            s->z_hi *= 0.5;
-        s->kept = -1;
-    }
-}
-
-static illinois illinois_new(double lo, double z_lo, double hi, double z_hi)
-{
-    illinois s = {lo, z_lo, hi, z_hi, 0, 0};
-    return s;
 }
 
 /* The indicator among the crossing ones whose linear interpolant crosses first. */

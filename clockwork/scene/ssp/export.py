@@ -166,6 +166,8 @@ def build_ssp(scene, point: dict | None = None) -> dict[str, bytes]:
                              f"{', ...' if len(arrays) > 4 else ''}), which SSP 1.0 connectors and parameter "
                              "sets cannot describe", scene.path, f"components.{inst}.fmu")
         el = _sub(elements, "ssd", "Component", name=inst, type=FMU_TYPE, source=fmu_names[comp.sha256])
+        if comp.interface == "model-exchange":  # asked for where the FMU has both interfaces
+            el.set("implementation", "ModelExchange")
         connectors = []
         for v in md.modelVariables:
             if v.causality == "output" or (v.causality == "input" and (inst, v.name) in connected_inputs):
