@@ -79,4 +79,12 @@ if(CW_SANITIZE)
            WORKING_DIRECTORY "${CMAKE_SOURCE_DIR}")
   set_tests_properties(core_tests PROPERTIES ENVIRONMENT
     "LD_PRELOAD=${CW_ASAN_RUNTIME};ASAN_OPTIONS=detect_leaks=0:abort_on_error=1;UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1:abort_on_error=1;PYTHONPATH=${CMAKE_SOURCE_DIR}/tests/c;PYTEST_ADDOPTS=-p asan_fmpy;CLOCKWORK_CORE_LIB=${CW_LIB_DIR}/libcw_master.so;CLOCKWORK_FMU_DIR=${CW_FMU_DIR};CW_FMU_DIR=${CW_FMU_DIR};CLOCKWORK_CACHE=off")
+  # The core's Model Exchange wrapper (cw_me.c, with cw_rk.c and CVode) on
+  # the instrumented Model Exchange test FMUs; the scenes are left out (plots).
+  add_test(NAME me_tests
+           COMMAND "${Python3_EXECUTABLE}" -m pytest -q -p no:cacheprovider
+                   "${CMAKE_SOURCE_DIR}/tests/test_model_exchange.py" -k "not scene and not ssp and not info"
+           WORKING_DIRECTORY "${CMAKE_SOURCE_DIR}")
+  set_tests_properties(me_tests PROPERTIES ENVIRONMENT
+    "LD_PRELOAD=${CW_ASAN_RUNTIME};ASAN_OPTIONS=detect_leaks=0:abort_on_error=1;UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1:abort_on_error=1;PYTHONPATH=${CMAKE_SOURCE_DIR}/tests/c;PYTEST_ADDOPTS=-p asan_fmpy;CLOCKWORK_CORE_LIB=${CW_LIB_DIR}/libcw_master.so;CLOCKWORK_FMU_DIR=${CW_FMU_DIR};CW_FMU_DIR=${CW_FMU_DIR};CW_TEST_FMU_DIR=${CMAKE_BINARY_DIR}/test-fmus;CLOCKWORK_CACHE=off")
 endif()

@@ -2,8 +2,9 @@
 
 ``resolve_fmu`` finds an FMU by model name or path, ``read_fmu`` reads its
 model description (cached by path, modification time and size) and checks
-that it is an FMI 1.0, 2.0 or 3.0 Co-Simulation FMU with a binary for this
-platform. An FMI 1.0 description is completed where fmpy leaves it bare
+that it is an FMI 1.0, 2.0 or 3.0 Co-Simulation FMU, or an FMI 2.0 or 3.0
+Model Exchange FMU, with a binary for this platform (Co-Simulation's where
+it has both). An FMI 1.0 description is completed where fmpy leaves it bare
 (``_check_fmi1``): its Capabilities go into ``coSimulation``, each output's
 DirectDependency into ``outputs`` (absent: every input), a causality of
 "none" reads as "local", and its negated aliases and MIME type are
@@ -13,13 +14,22 @@ the layers above read both alike; Float32, the other integer sizes and
 Binary keep their FMI 3.0 names (``INTEGER_TYPES``, ``REAL_TYPES``,
 ``TEXT_TYPES`` and ``types_connect`` group them); ``fmi_version`` tells
 the versions apart. FMI 3.0 features the master does
-not serve (clocks, arrays, scheduled execution only) are refused here with
+not serve (clocks, scheduled execution only) are refused here with
 one line naming the FMU and the feature.
+
+FMI 3.0 array variables (``<Dimension>``) are served element by element:
+``variables(md)`` holds, beside each array variable, one ``ArrayElement``
+per element, named as fmpy names them (``y[0]``, ``A[1,2]``: indices from
+0, in FMI 3.0's row-major order). An array's shape comes from its
+Dimensions: a fixed ``start``, or the start value of the structural
+parameter a ``valueReference`` names (structural parameters keep their
+start values: clockwork does not enter configuration mode).
 """
 
 from __future__ import annotations
 
 import difflib
+import math
 import os
 import platform
 import re
@@ -31,6 +41,9 @@ import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import attrs
+from fmpy.model_description import ModelVariable
 
 from ..errors import SceneError
 from ..hashing import sha256_file
@@ -225,6 +238,9 @@ def read_fmu(path: Path, need_binary: bool = True,
             check_description(xml)
         except DescriptionProblem as e:
             raise FmuError(f"{shown}: modelDescription.xml: {e}") from None
+        problem = _dimension_problem(xml) if b"<Dimension" in xml else None
+        if problem:  # said here: fmpy's own error would be a bare int() message
+            raise FmuError(f"{shown}: modelDescription.xml: {problem}")
         try:
             md = fmpy.read_model_description(str(path), validate=False)
         except Exception as e:  # fmpy raises bare Exceptions and lxml errors
@@ -233,16 +249,23 @@ def read_fmu(path: Path, need_binary: bool = True,
             raise FmuError(f"{shown}: expected an FMI 1.0, 2.0 or 3.0 FMU, found FMI {md.fmiVersion}")
         if md.fmiVersion == "3.0":
             _check_fmi3(shown, md, xml)
-        if md.coSimulation is None:
-            element = "<Implementation>" if md.fmiVersion == "1.0" else "<CoSimulation>"
-            raise FmuError(f"{shown}: expected a Co-Simulation FMU (no {element} element)")
+        if md.fmiVersion == "1.0" and md.coSimulation is None:
+            raise FmuError(f"{shown}: expected an FMI 1.0 Co-Simulation FMU (no <Implementation> element): "
+                           "FMI 1.0 Model Exchange is not supported")
+        faces = [(n, i) for n, i in (("CoSimulation", md.coSimulation), ("ModelExchange", md.modelExchange))
+                 if i is not None]
+        if not faces:
+            raise FmuError(f"{shown}: expected a Co-Simulation or Model Exchange FMU (no <CoSimulation> or "
+                           "<ModelExchange> element)")
+        for face, interface in faces:
+            ident = interface.modelIdentifier
+            if not isinstance(ident, str) or not NAME_RE.match(ident):
+                # fmpy loads binaries/<platform>/<modelIdentifier>.so: a path here would load a file outside the FMU.
+                raise FmuError(f"{shown}: modelDescription.xml: {face} modelIdentifier {shorten(ident, 100)!r}: "
+                               "expected a plain name (letters, digits, underscores), the binary's file name")
         if md.fmiVersion == "1.0":
             _check_fmi1(shown, md, xml)
-        ident = md.coSimulation.modelIdentifier
-        if not isinstance(ident, str) or not NAME_RE.match(ident):
-            # fmpy loads binaries/<platform>/<modelIdentifier>.so: a path here would load a file outside the FMU.
-            raise FmuError(f"{shown}: modelDescription.xml: CoSimulation modelIdentifier {shorten(ident, 100)!r}: expected a "
-                           "plain name (letters, digits, underscores), the binary's file name")
+        ident = faces[0][1].modelIdentifier  # the binary of the interface it runs through by default
         indicators = event_indicator_names(xml)
         digest = sha256_file(path)
         folder = fmpy.platform_tuple if md.fmiVersion == "3.0" else fmpy.platform
@@ -306,10 +329,7 @@ def _check_fmi3(path: Path | str, md, xml: bytes) -> None:
                        f"{', ...' if len(clocks) > 3 else ''}), which the master does not support")
     if md.coSimulation is None and getattr(md, "scheduledExecution", None) is not None:
         raise FmuError(f"{path}: {md.modelName} is a Scheduled Execution FMU, which the master does not support")
-    arrays = [v.name for v in md.modelVariables if v.dimensions]
-    if arrays:
-        raise FmuError(f"{path}: {md.modelName} has array variables ({', '.join(arrays)}), "
-                       f"which the master does not support")
+    _check_arrays(path, md, xml)
     intermediate = _intermediate_update_names(xml)
     for v in md.modelVariables:
         v.type = _FMI3_AS_FMI2.get(v.type, v.type)
@@ -438,16 +458,178 @@ def event_indicators(path: Path) -> tuple[str, ...]:
     return read_fmu(path, need_binary=False)[2]
 
 
+_VARIABLES: "weakref.WeakKeyDictionary[Any, dict]" = weakref.WeakKeyDictionary()
+
+
 def variables(md) -> dict:
-    """{name: ScalarVariable} of a model description, built once."""
-    cache = getattr(md, "_cw_vars", None)
+    """{name: variable} of a model description, built once per description:
+    its variables and, after each FMI 3.0 array variable, its elements
+    (``ArrayElement``, named ``y[0]``, ``A[1,2]``)."""
+    try:
+        cache = _VARIABLES.get(md)
+    except TypeError:  # not weakly referable: built each time
+        cache = None
     if cache is None:
-        cache = {v.name: v for v in md.modelVariables}
+        cache = {}
+        for v in md.modelVariables:
+            cache[v.name] = v
+            if v.shape:
+                for e in array_elements(v):
+                    cache.setdefault(e.name, e)
         try:
-            md._cw_vars = cache
-        except AttributeError:
+            _VARIABLES[md] = cache
+        except TypeError:
             pass
     return cache
+
+
+# -- FMI 3.0 arrays ---------------------------------------------------------------
+
+MAX_ARRAY_ELEMENTS = 100_000  # elements of one FMU's arrays: each is a variable of its own (some 40 us and 1 kB)
+
+
+@attrs.define(eq=False)
+class ArrayElement(ModelVariable):
+    """One element of an FMI 3.0 array variable, seen as a scalar variable:
+    `array` is the array variable, `index` the element's place in its
+    values (row-major), `start` the element's own start value."""
+
+    array: Any = None
+    index: int = 0
+
+
+def element_name(name: str, indices: tuple[int, ...]) -> str:
+    """fmpy's name of an array element: ``y[0]``, ``A[1,2]`` (0-based)."""
+    return f"{name}[{','.join(map(str, indices))}]"
+
+
+def shape_text(shape: tuple[int, ...]) -> str:
+    """A shape as the messages say it: "3" or "2x3"; a scalar is "a scalar"."""
+    return "x".join(map(str, shape)) if shape else "a scalar"
+
+
+def array_size(v) -> int:
+    """How many values a variable holds (1 for a scalar)."""
+    return math.prod(v.shape) if getattr(v, "shape", None) else 1
+
+
+def array_elements(v) -> list:
+    """The ArrayElements of an array variable, in row-major order (built once per variable)."""
+    made = _ELEMENTS.get(v)
+    if made is None:
+        starts = v.start if isinstance(v.start, list) else str(v.start).split() if v.start is not None else []
+        fields = {a.alias: getattr(v, a.name) for a in attrs.fields(ModelVariable) if a.init}
+        made = []
+        for k, idx in enumerate(_indices(v.shape)):
+            e = ArrayElement(**{**fields, "name": element_name(v.name, idx), "shape": (), "dimensions": [],
+                                "start": starts[k] if k < len(starts) else None})
+            e.array, e.index = v, k
+            made.append(e)
+        _ELEMENTS[v] = made
+    return made
+
+
+_ELEMENTS: "weakref.WeakKeyDictionary[Any, list]" = weakref.WeakKeyDictionary()
+
+
+def _indices(shape: tuple[int, ...]):
+    """Index tuples of a shape in row-major order (the last index fastest)."""
+    if not shape:
+        return
+    if len(shape) == 1:
+        yield from ((i,) for i in range(shape[0]))
+        return
+    for i in range(shape[0]):
+        for rest in _indices(shape[1:]):
+            yield (i, *rest)
+
+
+def element_names(v) -> list[str]:
+    """A variable's element names (its own name for a scalar)."""
+    return [e.name for e in array_elements(v)] if getattr(v, "shape", None) else [v.name]
+
+
+def link_shape_problem(source: str, output, destination: str, input_) -> str | None:
+    """Why a connection between these two variables cannot be made element
+    by element (shapes that differ), or None: arrays connect to arrays of
+    the same shape, scalars (and elements) to scalars."""
+    a, b = tuple(getattr(output, "shape", None) or ()), tuple(getattr(input_, "shape", None) or ())
+    if a == b:
+        return None
+    if a and b:
+        return (f"the arrays differ in shape: {source} is {shape_text(a)}, {destination} is {shape_text(b)}; "
+                "arrays connect to arrays of the same shape")
+    if a:
+        return (f"{source} is an array ({shape_text(a)}) and {destination} a scalar: connect arrays of the "
+                f"same shape, or one element (e.g. {element_name(source, (0,) * len(a))})")
+    return (f"{destination} is an array ({shape_text(b)}) and {source} a scalar: connect arrays of the same "
+            "shape (FMI 3.0 sets an input array whole)")
+
+
+def _dimension_problem(xml: bytes) -> str | None:
+    """What check_description leaves to fmpy's int(): a <Dimension
+    valueReference> naming a variable whose start value is no size (none,
+    or not an integer >= 0), or None."""
+    try:
+        root = ET.fromstring(xml)
+    except ET.ParseError:
+        return None  # check_description has said what is wrong with the XML
+    variables = list(root.iterfind("ModelVariables/*"))
+    starts = {v.get("valueReference"): (v.get("name"), v.get("start")) for v in variables}
+    for v in variables:
+        for d in v.iterfind("Dimension"):
+            vr = d.get("valueReference")
+            if d.get("start") is None and vr is not None and vr.strip() in starts:
+                name, size = starts[vr.strip()]
+                if size is None or not re.fullmatch(r"\+?[0-9]+", size.strip()):
+                    return (f"{v.get('name')}: its <Dimension> is the size {name}, whose start value "
+                            f"({size if size is not None else 'none'}) is not an integer >= 0")
+    return None
+
+
+def _check_arrays(path: Path | str, md, xml: bytes) -> None:
+    """Array variables: their Dimensions resolve to sizes, the element names
+    are free, the total is bounded; a String array's start values are read
+    from its <Start> elements (fmpy keeps the first only)."""
+    by_vr = {v.valueReference: v for v in md.modelVariables}
+    names = {v.name for v in md.modelVariables}
+    arrays = [v for v in md.modelVariables if v.dimensions]
+    total = 0
+    for v in arrays:
+        where = f"{path}: modelDescription.xml: {v.name}"
+        if v.type in ("Binary", "Clock"):
+            raise FmuError(f"{path}: {md.modelName} has an array of {v.type} values ({v.name}), which the master "
+                           "does not support")
+        for d in v.dimensions:
+            if d.start is None:
+                size_var = by_vr.get(d.valueReference)
+                if size_var is None or size_var.causality != "structuralParameter" and \
+                        size_var.variability != "constant":
+                    raise FmuError(f"{where}: a <Dimension valueReference=\"{d.valueReference}\"> must name a "
+                                   "structural parameter (or a constant) that gives the size")
+                if size_var.type not in INTEGER_TYPES or size_var.start is None:
+                    raise FmuError(f"{where}: its size comes from {size_var.name}, which is not an integer with a "
+                                   "start value")
+        if any(n < 0 for n in v.shape):
+            raise FmuError(f"{where}: a negative array size ({shape_text(v.shape)})")
+        total += array_size(v)
+        if total > MAX_ARRAY_ELEMENTS:
+            raise FmuError(f"{path}: {md.modelName}'s arrays hold more than {MAX_ARRAY_ELEMENTS:,} elements: "
+                           "not loaded")
+    if not arrays:
+        return
+    strings = {v.name for v in arrays if v.type == "String"}
+    if strings:
+        root = ET.fromstring(xml)
+        for elem in root.iterfind("ModelVariables/String"):
+            if elem.get("name") in strings:
+                md_var = next(v for v in arrays if v.name == elem.get("name"))
+                md_var.start = [s.get("value") or "" for s in elem.iterfind("Start")]
+    for v in arrays:  # (the elements themselves are made later, with the types renamed)
+        clash = next((n for n in (element_name(v.name, i) for i in _indices(v.shape)) if n in names), None)
+        if clash is not None:
+            raise FmuError(f"{path}: modelDescription.xml: the element {clash} of the array {v.name} has the "
+                           "name of another variable")
 
 
 # The integer types and their ranges (description_check.INT_RANGES).

@@ -40,7 +40,8 @@ from .fmu import DISCARD, NO_MESSAGE, WARNING, Instance, free_all
 from .location import EventLocator, crossed, scan
 from .ports import Port, Ports
 from .richardson import StepDoubling
-from .settings import MasterSettings, Statistics, check_run, rollback_need
+from .samples import FileInputs, Samples, isclose
+from .settings import MasterSettings, Statistics, check_run, rollback_need, with_model_exchange
 from ..errors import SceneError, SimulationEnded, SimulationError
 from .wiring import Link, build
 
@@ -74,15 +75,21 @@ class Master:
     def __init__(self, instances: dict[str, Instance], links: list[Link],
                  settings: MasterSettings, start_time: float = 0.0,
                  step_order: list[str] | None = None,
-                 extra_outputs: dict[str, list[str]] | None = None):
+                 extra_outputs: dict[str, list[str]] | None = None,
+                 inputs: Samples | None = None):
         self.instances = instances
         self.settings = settings
+        # Model Exchange instances, whose own counts join the master's (stats.model_exchange).
+        self._model_exchange = [inst for inst in instances.values() if getattr(inst, "model_exchange", False)]
         settings.check()
         self.wiring = build(instances, links, step_order, settings.algebraic_loops)
+        # Inputs driven from samples (an input file): set at every step.
+        self.file_inputs = None if inputs is None else FileInputs(
+            inputs, instances, {(k.dst, k.input) for k in links})
         self.t = start_time  # the current communication point, s
         self.start_time = start_time
         self.stats = Statistics()
-        self.ports = Ports(instances, links, self.wiring, extra_outputs, settings.event_location, self)
+        self.ports = Ports(instances, self.wiring.links, self.wiring, extra_outputs, settings.event_location, self)
         self.discrete_outputs = self.ports.discrete_outputs
         self.coupling = InputCoupling(self.ports.dynamic, settings.extrapolation)
         self.locator = EventLocator(self, self.ports.all)
@@ -106,6 +113,14 @@ class Master:
         self._reset_soft_state()
         self.engine_reason: str | None = None  # why "auto" chose this engine, when not the core
         self.ended: SimulationEnded | None = None  # an FMU ended the simulation (a clean end)
+
+    @property
+    def stats(self) -> Statistics:
+        return with_model_exchange(self._stats, self._model_exchange)
+
+    @stats.setter
+    def stats(self, value: Statistics) -> None:
+        self._stats = value
 
     @property
     def notes(self) -> list[str]:
@@ -155,6 +170,8 @@ class Master:
         self.ended = None
         for name, inst in self.instances.items():
             inst.setup(self.start_time, parameters.get(name, {}), self.settings.tolerance)
+        if self.file_inputs is not None:
+            self.file_inputs.set(ports.all, self.start_time, False)
         # Outputs in initialization mode follow from parameters; two sweeps
         # settle feedthrough chains of any depth found in these scenes.
         # An algebraic loop (engine/loops.py) reads outputs of the last run
@@ -233,6 +250,9 @@ class Master:
         ports = self.ports
         loc = self.locator
         no_set_prior = 0 if self.checkpoints.held else 1  # noSetFMUStatePriorToCurrentPoint
+        inputs = self.file_inputs
+        if inputs is not None:  # sampled inputs at t, after an event there
+            inputs.set(ports.all, t, True)
         # 1. Feedthrough-only instances commit the mode decided at t.
         for p in ports.first:
             st = p.doStep(p.comp, t, h, no_set_prior)
@@ -241,6 +261,8 @@ class Master:
             if p.z_pos and self.after_event:
                 # A commit may have switched the mode: read z at t+.
                 p.getReal(p.comp, p.out_vr, p.n_out, p.out)
+        if inputs is not None:  # their outputs are next read at t + h: sampled inputs there, before an event
+            inputs.set(ports.first, t_new, False)
         if self._locating:
             # Without a commit of a new mode, z at t+ is z at t.
             loc.z_start = loc.indicators() if self.after_event else loc.z_end
@@ -260,6 +282,8 @@ class Master:
             st = p.doStep(p.comp, t, h, no_set_prior)
             if st > WARNING:
                 raise self._step_failure(p, st, t, h)
+            if inputs is not None:
+                inputs.set((p,), t_new, False)
             p.read(t_new)
             if not jacobi and p is not last:
                 # Newest values flow on to the instances stepped later.
@@ -332,6 +356,15 @@ class Master:
                 raise self._fmi3_ended()
             if t < ev.next_event_time < t + h:
                 h = ev.next_event_time - t
+        # A sampled input's event is a discontinuity at the step's start
+        # and ends a step that would pass it.
+        if self.file_inputs is not None:
+            samples = self.file_inputs.samples
+            if samples.event_at(t):
+                self.discontinuity()
+            te = samples.next_event(t)
+            if t + h > te and not isclose(t + h, te):
+                h = te - t
         # 1. The indicators' sources cap the step.
         if loc.has_sources:
             if loc.sources_prev is None:
@@ -378,7 +411,7 @@ class Master:
         self.stats.steps += 1
         # 5. NaN, infinities, divergence.
         if self.ports.diverged(s.divergence_limit):
-            self.ports.name_divergence(self.t, s.divergence_limit)
+            self.ports.name_divergence(self.t, s.divergence_limit, last_point=t)
         if self._extrapolating:
             self.record_history()
         if self.on_step is not None:

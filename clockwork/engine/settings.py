@@ -10,6 +10,10 @@ from ..errors import ClosedError, SceneError, UsageError
 
 
 ENGINES = ("auto", "python", "compiled")
+# How Model Exchange FMUs are integrated (engine/me_step.py): "auto" (the
+# Runge-Kutta pair the tolerance asks for, CVode once the model proves
+# stiff), a pair ("dp54", "dop853") or CVode's BDF ("cvode").
+ME_SOLVERS = ("auto", "dp54", "dop853", "cvode")
 LOOP_MODES = ("solve", "delay")
 
 
@@ -123,6 +127,8 @@ class MasterSettings:
     # to return early at their own events (handled there in event mode);
     # false: they handle them inside fmi3DoStep, as an FMI 2.0 FMU does.
     early_return: bool = True
+    # The integrator of Model Exchange FMUs (ME_SOLVERS).
+    me_solver: str = "auto"
     # Algebraic loops (outputs with direct feedthrough that feed each other):
     # "solve" iterates each loop's inputs to a fixed point wherever outputs
     # are brought up to date, to iteration_tolerance; "delay" breaks it by a
@@ -164,6 +170,9 @@ class MasterSettings:
             raise SceneError(f"master.tolerance = {self.tolerance!r}: expected a number > 0")
         if self.fmi_version not in (2, 3):
             raise SceneError(f"master.fmi_version = {self.fmi_version!r}: expected 2 or 3")
+        if self.me_solver not in ME_SOLVERS:
+            raise SceneError(f"master.me_solver = {self.me_solver!r}: expected one of "
+                             f"{', '.join(map(repr, ME_SOLVERS))}")
         if self.algebraic_loops not in LOOP_MODES:
             raise SceneError(f"master.algebraic_loops = {self.algebraic_loops!r}: expected 'solve' or 'delay'")
         if self.extrapolation not in (0, 1, 2):
@@ -200,6 +209,16 @@ def rollback_need(settings, indicators: bool) -> tuple[str, str] | None:
     if settings.event_location and indicators:
         return "master.event_location", "locating events"
     return None
+
+
+def with_model_exchange(stats: "Statistics", instances: list) -> "Statistics":
+    """`stats` with each Model Exchange instance's own counts (its
+    integrator's steps, right-hand sides, events...) as ``model_exchange``,
+    {instance name: counts}, where there are any (else no such attribute, so
+    that the statistics of other scenes stay as they are)."""
+    if instances:
+        stats.model_exchange = {inst.name: inst.statistics() for inst in instances}
+    return stats
 
 
 @dataclass

@@ -5,6 +5,7 @@ tests, benchmarks and the Python API build one directly:
 ``System({"pendulum": ("Pendulum", {...})}, ["pendulum.phi -> escapement.phi", ...],
 MasterSettings(...))``. A model name is looked up in $CLOCKWORK_FMU_DIR
 (else the repository's fmus/); a path ending .fmu is taken as it is.
+``inputs`` (engine.samples.Samples) drives unconnected inputs from samples.
 """
 
 from __future__ import annotations
@@ -15,8 +16,9 @@ from pathlib import Path
 from ..errors import ClosedError, SceneError, UsageError
 from .description import resolve_fmu
 from .fmu import Instance, free_all
-from .fmu3 import make_instance
+from .model_exchange import MEOptions, make_instance
 from .compiled import make_master
+from .samples import Samples
 from .settings import MasterSettings
 from .wiring import Link, parse_link
 
@@ -58,6 +60,11 @@ class System:
             passes them).
         labels: ``{instance name: text}``: what messages call an instance's
             FMU (the scene layer: a copied FMU by its original name).
+        inputs: Signals given as samples (``engine.samples.Samples``, read
+            from an input file or fmpy's ``input=`` array) that drive
+            unconnected inputs at every communication point: continuous
+            Real inputs interpolated linearly, the others held, as fmpy
+            does; a communication step ends at each input event.
 
     Attributes:
         master: The master (``Master``, or its compiled twin with the same
@@ -98,7 +105,8 @@ class System:
     def __init__(self, components: dict[str, tuple[str, dict]], connections: list[str],
                  settings: MasterSettings | None = None, record: dict[str, list[str]] | None = None,
                  start_time: float = 0.0, model_descriptions: dict | None = None,
-                 labels: dict[str, str] | None = None):
+                 interfaces: dict[str, str | None] | None = None, labels: dict[str, str] | None = None,
+                 inputs: Samples | None = None):
         if not isinstance(components, dict) or not all(
                 isinstance(c, (tuple, list)) and len(c) == 2 and isinstance(c[1], dict) for c in components.values()):
             raise UsageError("System: components must be {instance: (model name or .fmu path, {parameter: value})}")
@@ -109,12 +117,14 @@ class System:
         # instead of freeing it (analyses.context.reusing_systems).
         self.release = None
         settings = settings or MasterSettings()
+        me_options = MEOptions(settings.me_solver, settings.event_time_tolerance)
         try:
             for name, (fmu, _) in components.items():
                 md = (model_descriptions or {}).get(name)
                 inst = make_instance(name, resolve_fmu(str(fmu), Path.cwd(), settings.fmi_version), md,
                                      settings.early_return,
-                                     bool(settings.extrapolation) or settings.iterations > 0)
+                                     bool(settings.extrapolation) or settings.iterations > 0,
+                                     (interfaces or {}).get(name), me_options)
                 inst.label = (labels or {}).get(name) or None  # what messages call a copied FMU
                 inst.instantiate()
                 self.instances[name] = inst
@@ -129,7 +139,7 @@ class System:
                     for var in names:
                         self._variable(inst, var, None, what)
             self.master = make_master(self.instances, links, settings,
-                                 start_time=start_time, extra_outputs=record)
+                                      start_time=start_time, extra_outputs=record, inputs=inputs)
             self.master.initialize(self.parameters)
         except BaseException:
             self.free()
@@ -188,8 +198,9 @@ class System:
             raise UsageError(f"{what} {instance}.{name}: expected an {causality}, {name} is a {v.causality}")
         return v
 
-    def value(self, instance: str, name: str) -> float:
-        """Current value of a Real variable (not on the hot path).
+    def value(self, instance: str, name: str) -> float | list:
+        """Current value of a Real variable (not on the hot path); of an FMI
+        3.0 array, the list of its values (row-major).
 
         Args:
             instance: The instance name.
@@ -200,11 +211,14 @@ class System:
             UsageError: No such instance or variable.
             ClosedError: The System was freed.
         """
-        self._variable(instance, name, None, "value")
+        v = self._variable(instance, name, None, "value")
+        if v.shape:
+            return self.instances[instance].get_values([name])[0]
         return self.instances[instance].get_real([name])[0]
 
-    def output(self, instance: str, name: str) -> float:
-        """Cached value of a connected or recorded output at the current point.
+    def output(self, instance: str, name: str) -> float | list:
+        """Cached value of a connected or recorded output at the current point
+        (of an FMI 3.0 array, the list of its elements' values).
 
         Reads no FMU: the value the master keeps from the last communication
         point, in the output's declared unit.
@@ -220,6 +234,9 @@ class System:
         """
         self._variable(instance, name, None, "output")
         port = self.master.ports[instance]
+        elements = self.instances[instance].elements.get(name)
+        if elements is not None and all(e in port.out_names for e in elements):  # an FMI 3.0 array: a list
+            return [port.out[port.out_names.index(e)] for e in elements]
         if name not in port.out_names:
             raise UsageError(f"output {instance}.{name}: neither connected nor recorded; "
                              f"record it (record={{{instance!r}: [{name!r}]}}) or use value()")

@@ -33,6 +33,8 @@
 #include <string.h>
 #include <time.h>
 
+#include "cw_illinois.h"
+
 #define CW_EXPORT __attribute__((visibility("default")))
 
 typedef int (*cw_doStep_t)(void *, double, double, int);
@@ -171,7 +173,22 @@ typedef struct {
     int n_fmi3;                /* FMI 3.0 instances, whose announced time events cap the step */
     struct cw_fmi3 **fmi3;
     cw_loops *loops;           /* algebraic loops: an order's entry -(i + 1) is loop i */
+    struct cw_inputs *inputs;  /* inputs driven from samples, or NULL */
 } cw_master;
+
+/* Inputs driven from samples (engine/samples.py): the sample table, its
+ * input events, and per port the Real inputs it drives. */
+typedef struct cw_inputs {
+    const double *times;      /* n_times sample times, s, non-decreasing */
+    const double *values;     /* n_signals * n_times values, signal after signal */
+    const int *continuous;    /* per signal: interpolated (1) or held (0) */
+    const double *events;     /* n_events input events, s, sorted */
+    const int *port_start;    /* per port, its first target; n_ports + 1 entries */
+    const unsigned *vr;       /* per target: the input's value reference */
+    const int *signal;        /* per target: its signal */
+    double *value;            /* per target: the value set */
+    int n_times, n_signals, n_events, pad_;
+} cw_inputs;
 
 typedef struct {
     const int *col_port;  /* per recorded column: port and output position */
@@ -190,6 +207,7 @@ CW_EXPORT size_t cw_sizeof_master(void) { return sizeof(cw_master); }
 CW_EXPORT size_t cw_sizeof_recorder(void) { return sizeof(cw_recorder); }
 CW_EXPORT size_t cw_sizeof_loop(void) { return sizeof(cw_loop); }
 CW_EXPORT size_t cw_sizeof_loops(void) { return sizeof(cw_loops); }
+CW_EXPORT size_t cw_sizeof_inputs(void) { return sizeof(cw_inputs); }
 
 static double py_min(double a, double b) { return b < a ? b : a; }
 static double py_max(double a, double b) { return b > a ? b : a; }
@@ -480,6 +498,122 @@ static void indicators(cw_master *m, double *z)
         z[k] = m->ports[m->z_port[k]].out[m->z_pos[k]];
 }
 
+/* -- inputs from samples (engine/samples.py) --------------------------- */
+
+/* math.isclose(a, b) with its defaults (relative 1e-9), as fmpy compares times. */
+static int cw_isclose(double a, double b)
+{
+    if (a == b)
+        return 1;
+    if (isinf(a) || isinf(b))
+        return 0;
+    double diff = fabs(b - a);
+    return diff <= fabs(1e-9 * b) || diff <= fabs(1e-9 * a) || diff <= 0.0;
+}
+
+static int bisect_left(const double *a, int n, double x)
+{
+    int lo = 0, hi = n;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (a[mid] < x)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+static int bisect_right(const double *a, int n, double x)
+{
+    int lo = 0, hi = n;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (x < a[mid])
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
+    return lo;
+}
+
+/* Samples.next_event */
+static double inputs_next_event(const cw_inputs *in, double t)
+{
+    for (int i = bisect_right(in->events, in->n_events, t); i < in->n_events; i++)
+        if (!cw_isclose(in->events[i], t))
+            return in->events[i];
+    return INFINITY;
+}
+
+/* Samples.event_at */
+static int inputs_event_at(const cw_inputs *in, double t)
+{
+    int i = bisect_left(in->events, in->n_events, t);
+    for (int j = i - 1; j <= i; j++)
+        if (j >= 0 && j < in->n_events && cw_isclose(in->events[j], t))
+            return 1;
+    return 0;
+}
+
+/* Samples.at for the targets [from, to): their values at `time`, after an
+ * event there when after_event, else before it. */
+static void inputs_at(const cw_inputs *in, int from, int to, double time, int after_event, double *out)
+{
+    const double *t = in->times;
+    int n = in->n_times;
+    int first = n < 2, i0 = 0;
+    if (!first) {
+        i0 = bisect_left(t, n, time);
+        first = i0 == 0;
+    }
+    if (first || i0 == n) {
+        for (int k = from; k < to; k++)
+            out[k] = in->values[(size_t)in->signal[k] * (size_t)n + (size_t)(first ? 0 : n - 1)];
+        return;
+    }
+    int held = i0 - 1;
+    if (after_event)
+        while (held + 1 < n && (t[held + 1] < time || cw_isclose(time, t[held + 1])))
+            held++;
+    int row = -1;
+    double w0 = 0.0, w1 = 0.0;
+    if (cw_isclose(time, t[i0]) && i0 < n - 1 && cw_isclose(t[i0], t[i0 + 1])) {
+        row = i0;
+        if (after_event)
+            while (row < n - 1 && cw_isclose(t[row], t[row + 1]))
+                row++;
+    } else {
+        double t0 = t[i0 - 1], t1 = t[i0];
+        w0 = (t1 - time) / (t1 - t0);
+        w1 = 1 - w0;
+    }
+    for (int k = from; k < to; k++) {
+        const double *v = &in->values[(size_t)in->signal[k] * (size_t)n];
+        if (!in->continuous[in->signal[k]])
+            out[k] = v[held];
+        else if (row >= 0)
+            out[k] = v[row];
+        else
+            out[k] = w0 * v[i0 - 1] + w1 * v[i0];
+    }
+}
+
+/* FileInputs.set for port i */
+static int inputs_set(cw_master *m, int i, double t, int after_event)
+{
+    const cw_inputs *in = m->inputs;
+    int from = in->port_start[i], to = in->port_start[i + 1];
+    if (from == to)
+        return 0;
+    inputs_at(in, from, to, t, after_event, in->value);
+    cw_port *p = &m->ports[i];
+    int st = p->setReal(p->comp, &in->vr[from], (size_t)(to - from), &in->value[from]);
+    if (st > FMI_WARNING)
+        return fail(m, i, CALL_SET_INPUTS, st, t, 0.0);
+    return 0;
+}
+
 /* -- coupling ------------------------------------------------------------- */
 
 static void history_forget(cw_master *m)
@@ -626,6 +760,10 @@ static int advance(cw_master *m, double t, double h)
     /* noSetFMUStatePriorToCurrentPoint: true only while no checkpoint is
      * held that a rollback or replay may set again (Checkpoints.held). */
     const int no_set_prior = !m->snap_valid;
+    /* Sampled inputs at t, after an event there. */
+    if (m->inputs)
+        for (int i = 0; i < m->n_ports; i++)
+            TRY(inputs_set(m, i, t, 1));
     /* 1. Feedthrough-only instances commit the mode decided at t. */
     for (int a = 0; a < m->n_first; a++) {
         cw_port *p = &m->ports[m->first[a]];
@@ -635,6 +773,9 @@ static int advance(cw_master *m, double t, double h)
         if (p->n_z && m->after_event)  /* a commit may have switched the mode: z at t+ */
             p->getReal(p->comp, p->out_vr, (size_t)p->n_out, p->out);
     }
+    if (m->inputs)  /* their outputs are next read at t + h: sampled inputs there, before an event */
+        for (int a = 0; a < m->n_first; a++)
+            TRY(inputs_set(m, m->first[a], t_new, 0));
     if (m->locating) {
         if (m->after_event)
             indicators(m, m->z_start);
@@ -655,6 +796,8 @@ static int advance(cw_master *m, double t, double h)
         int st = p->doStep(p->comp, t, h, no_set_prior);
         if (st > FMI_WARNING)
             return fail(m, i, CALL_DO_STEP, st, t, h);
+        if (m->inputs)
+            TRY(inputs_set(m, i, t_new, 0));
         TRY(port_read(m, i, t_new));
         if (!m->jacobi && a != m->n_dynamic - 1)  /* newest values flow on */
             TRY(propagate(m, m->first_in_order, m->n_first_in_order, t_new));
@@ -996,43 +1139,6 @@ static double hidden_crossing(cw_master *m, double h, const double *z0, const do
     return best;
 }
 
-typedef struct {
-    double lo, z_lo, hi, z_hi;
-    int kept, iterations;
-} illinois;
-
-static double illinois_next(const illinois *s)
-{
-    double dz = s->z_lo - s->z_hi;
-    if (dz == 0.0)
-        return 0.5 * (s->lo + s->hi);
-    return (s->z_lo * s->hi - s->z_hi * s->lo) / dz;
-}
-
-static void illinois_update(illinois *s, double x, double z, int was_crossed)
-{
-    s->iterations++;
-    if (was_crossed) {
-        s->hi = x;
-        s->z_hi = z;
-        if (s->kept == 1)
-            s->z_lo *= 0.5;
-        s->kept = 1;
-    } else {
-        s->lo = x;
-        s->z_lo = z;
-        if (s->kept == -1)
-            s->z_hi *= 0.5;
-        s->kept = -1;
-    }
-}
-
-static illinois illinois_new(double lo, double z_lo, double hi, double z_hi)
-{
-    illinois s = {lo, z_lo, hi, z_hi, 0, 0};
-    return s;
-}
-
 /* The indicator among the crossing ones whose linear interpolant crosses first. */
 static int earliest(const int *crossing, const double *z0, const double *z1, int n)
 {
@@ -1250,6 +1356,15 @@ static int diverged(const cw_master *m)
 static double fmi3_next_event_time(const struct cw_fmi3 *a);
 static int fmi3_terminated(const struct cw_fmi3 *a);
 
+/* Something changed outside the wiring (Master.discontinuity). */
+static void discontinuity(cw_master *m)
+{
+    m->after_event = 1;
+    m->time_to_zero = 0.0;
+    history_forget(m);
+    record_history(m);
+}
+
 static int step(cw_master *m, double h, double *taken_out)
 {
     double t = m->t;
@@ -1261,6 +1376,15 @@ static int step(cw_master *m, double h, double *taken_out)
     for (int i = 0; i < m->n_fmi3; i++) {
         double te = fmi3_next_event_time(m->fmi3[i]);
         if (t < te && te < t + h)
+            h = te - t;
+    }
+    /* A sampled input's event is a discontinuity at the step's start and
+     * ends a step that would pass it. */
+    if (m->inputs) {
+        if (inputs_event_at(m->inputs, t))
+            discontinuity(m);
+        double te = inputs_next_event(m->inputs, t);
+        if (t + h > te && !cw_isclose(t + h, te))
             h = te - t;
     }
     /* 1. The indicators' sources cap the step. */
@@ -1299,8 +1423,11 @@ static int step(cw_master *m, double h, double *taken_out)
     }
     m->after_event = m->after_event_step;
     m->steps++;
-    /* 5. NaN, infinities, divergence: Python names the output. */
+    /* 5. NaN, infinities, divergence: Python names the output (err_t: the
+     * last good communication point, the step's start). */
     m->diverged = diverged(m);
+    if (m->diverged)
+        m->err_t = t;
     if (m->extrapolation)
         record_history(m);
     *taken_out = taken;
@@ -1346,10 +1473,7 @@ CW_EXPORT void cw_start(cw_master *m)
 /* Something changed outside the wiring (Master.discontinuity). */
 CW_EXPORT void cw_discontinuity(cw_master *m)
 {
-    m->after_event = 1;
-    m->time_to_zero = 0.0;
-    history_forget(m);
-    record_history(m);
+    discontinuity(m);
 }
 
 /* Long runs return to Python after `slice_s` of wall time (Python passes
@@ -1395,6 +1519,12 @@ static void record_point(cw_master *m, cw_recorder *r)
     r->n_rows++;
 }
 
+/* Record the current point (after a divergence check that found every output legal). */
+CW_EXPORT void cw_record_point(cw_master *m, cw_recorder *r)
+{
+    record_point(m, r);
+}
+
 /* Step to t_stop on the grid start + k * step, plus located events
  * (Master.run_until), recording into r when given. Returns CW_BUFFER_FULL,
  * CW_SLICE_OVER or CW_CHECK_DIVERGENCE to be called again, r->grid_k keeping
@@ -1428,15 +1558,18 @@ CW_EXPORT int cw_run_until(cw_master *m, double t_stop, cw_recorder *r, double s
         int rc = step(m, h, &taken);
         if (rc < 0 || rc == CW_ENDED)
             return rc;
-        if (r)
-            record_point(m, r);
         if (m->t >= grid - eps)
             k++;
         if (rc == CW_CHECK_DIVERGENCE) {
+            /* Not recorded yet: a failed run keeps the points before this
+             * one only; where Python finds every output legal, it records
+             * the point (cw_record_point) and calls again. */
             if (r)
                 r->grid_k = k;
             return rc;
         }
+        if (r)
+            record_point(m, r);
     }
     if (r)
         r->grid_k = -1;
@@ -1579,6 +1712,19 @@ typedef struct cw_fmi3 {
     long long iu_calls;           /* callbacks that set inputs */
     double *iu_saved;             /* u0, d1, d2, tref (4 n_iu) with the saved FMU state, */
     int *iu_saved_fed;            /* as FMI 2.0 saves its polynomials in its state */
+    /* Array elements (fmu3.Instance3._number_elements): the code
+     * code_base + k names value code_off[k] of the code_size[k] values of
+     * the array variable code_vr[k]. A request whose codes cover whole
+     * arrays in order is one fmi3 call with nValues > nValueReferences;
+     * any other is served element by element. */
+    unsigned code_base;
+    int n_codes;
+    const unsigned *code_vr;
+    const int *code_off, *code_size;
+    unsigned *scratch_vr;         /* the value references of one call, translated */
+    int *scratch_order;           /* and their derivative orders */
+    double *scratch_val;          /* one array's values */
+    int scratch_cap, scratch_val_cap;
 } cw_fmi3;
 
 CW_EXPORT size_t cw_sizeof_fmi3(void) { return sizeof(cw_fmi3); }
@@ -1717,16 +1863,87 @@ CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
     }
 }
 
+/* The element number of a code, or -1 for a plain value reference. */
+static int code_element(const cw_fmi3 *a, unsigned code)
+{
+    unsigned e = code - a->code_base;  /* wraps for codes below the base */
+    return e < (unsigned)a->n_codes ? (int)e : -1;
+}
+
+/* Translate n codes into a->scratch_vr (and their orders, when given, into
+ * a->scratch_order): *m value references, each array whole. 0 when the
+ * request holds part of an array, an array out of order, an array with
+ * orders that differ, or more references than the scratch holds. */
+static int code_runs(cw_fmi3 *a, const unsigned *vr, size_t n, const int *order, size_t *m)
+{
+    size_t k = 0, j = 0;
+    while (k < n) {
+        if (j >= (size_t)a->scratch_cap)
+            return 0;
+        int e = code_element(a, vr[k]);
+        size_t size = 1;
+        if (e >= 0) {
+            size = (size_t)a->code_size[e];
+            if (a->code_off[e] != 0 || k + size > n)
+                return 0;
+            for (size_t i = 1; i < size; i++)
+                if (vr[k + i] != vr[k] + i || (order && order[k + i] != order[k]))
+                    return 0;
+            a->scratch_vr[j] = a->code_vr[e];
+        } else {
+            a->scratch_vr[j] = vr[k];
+        }
+        if (order)
+            a->scratch_order[j] = order[k];
+        j++;
+        k += size;
+    }
+    *m = j;
+    return 1;
+}
+
+/* fmi3GetFloat64 (order NULL) or fmi3GetOutputDerivatives of n codes,
+ * element by element: each element's whole array, then its value. */
+static int get_elementwise(cw_fmi3 *a, const unsigned *vr, size_t n, const int *order, double *out)
+{
+    int worst = FMI_OK;
+    for (size_t k = 0; k < n; k++) {
+        int e = code_element(a, vr[k]);
+        unsigned one = e >= 0 ? a->code_vr[e] : vr[k];
+        size_t size = e >= 0 ? (size_t)a->code_size[e] : 1;
+        int st = order ? a->getOutputDerivatives(a->instance, &one, 1, &order[k], a->scratch_val, size)
+                       : a->getFloat64(a->instance, &one, 1, a->scratch_val, size);
+        worst = st > worst ? st : worst;
+        if (st > FMI_WARNING)
+            return st;
+        out[k] = a->scratch_val[e >= 0 ? a->code_off[e] : 0];
+    }
+    return worst;
+}
+
 CW_EXPORT int cw3_getReal(void *comp, const unsigned *vr, size_t n, double *out)
 {
     cw_fmi3 *a = comp;
-    return a->getFloat64(a->instance, vr, n, out, n);
+    if (!a->n_codes)
+        return a->getFloat64(a->instance, vr, n, out, n);
+    size_t m;
+    if (code_runs(a, vr, n, NULL, &m))
+        return a->getFloat64(a->instance, a->scratch_vr, m, out, n);
+    return get_elementwise(a, vr, n, NULL, out);
 }
 
 CW_EXPORT int cw3_setReal(void *comp, const unsigned *vr, size_t n, const double *values)
 {
     cw_fmi3 *a = comp;
-    int st = a->setFloat64(a->instance, vr, n, values, n);
+    int st;
+    if (!a->n_codes) {
+        st = a->setFloat64(a->instance, vr, n, values, n);
+    } else {
+        size_t m;
+        if (!code_runs(a, vr, n, NULL, &m))
+            return FMI_ERROR;  /* part of an array: the ports set arrays whole */
+        st = a->setFloat64(a->instance, a->scratch_vr, m, values, n);
+    }
     if (st <= FMI_WARNING && a->n_iu) {
         /* A value without derivatives is held (as fmi2SetReal on FMI 2.0). */
         for (size_t k = 0; k < n; k++) {
@@ -1776,7 +1993,12 @@ CW_EXPORT int cw3_setInputDerivatives(void *comp, const unsigned *vr, size_t n, 
 CW_EXPORT int cw3_getOutputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order, double *out)
 {
     cw_fmi3 *a = comp;
-    return a->getOutputDerivatives(a->instance, vr, n, order, out, n);
+    if (!a->n_codes)
+        return a->getOutputDerivatives(a->instance, vr, n, order, out, n);
+    size_t m;
+    if (code_runs(a, vr, n, order, &m))
+        return a->getOutputDerivatives(a->instance, a->scratch_vr, m, a->scratch_order, out, n);
+    return get_elementwise(a, vr, n, order, out);
 }
 
 CW_EXPORT int cw3_getState(void *comp, void **state)

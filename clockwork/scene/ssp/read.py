@@ -37,6 +37,7 @@ from pathlib import Path
 
 from ...engine.description import FmuError, read_fmu, types_connect, var_unit
 from ...engine.description import variables as variables_of
+from ...engine.model_exchange import interface_of, model_exchange_problem
 from ...errors import SceneError
 from ...numbers import parse_int, parse_real, shorten
 from ..checks import Ctx, convert_value, instance_problem
@@ -127,6 +128,7 @@ class _Element:
     children: dict[str, "_Element"] = field(default_factory=dict)
     fmu_path: Path | None = None
     fmu_label: str = ""  # an archive's FMU as messages name it (archive/member); "": its path
+    interface: str | None = None  # "model-exchange" or "co-simulation" as implementation= asks; None: any
     md: object = None
     digest: str = ""
     indicators: tuple = ()
@@ -323,21 +325,24 @@ class _Reader:
         try:
             md, digest, indicators = read_fmu(fmu, label=label)
         except FmuError as e:
-            detail = str(e)
-            if "Co-Simulation" in detail:
-                detail = ("expected an FMU with Co-Simulation: this one is Model Exchange only "
-                          "(clockwork is a co-simulation master)")
-            raise doc.fail(el, detail, "source") from None
+            raise doc.fail(el, str(e), "source") from None
         impl = el.get("implementation", "any")
         if impl == "ScheduledExecution":
             raise doc.fail(el, "expected any or CoSimulation: scheduled execution is FMI 3.0", "implementation")
-        if impl == "ModelExchange":
-            self.warn(doc.label, doc.key(el, "implementation"),
-                      "asks for Model Exchange; clockwork runs the FMU's Co-Simulation interface",
-                      "components that ask for Model Exchange (run through Co-Simulation)")
+        interface = {"ModelExchange": "model-exchange", "CoSimulation": "co-simulation"}.get(impl)
+        if interface is not None or md.coSimulation is None:
+            try:
+                if interface_of(md, interface) == "model-exchange":
+                    indicators = ()  # the FMU's own event indicators are located inside its wrapper
+                    problem = model_exchange_problem(md)
+                    if problem:
+                        raise SceneError(problem)
+            except SceneError as e:
+                raise doc.fail(el, e.detail, "implementation" if interface else "source") from None
         node = _Element(el.get("name"), path, False, doc, el, self._connectors(doc, el, md))
         node.fmu_path, node.md, node.digest, node.indicators = fmu, md, digest, indicators
         node.fmu_label = label or ""
+        node.interface = interface
         hint = self._step_hint(doc, el)
         if hint is not None:
             self.step_hints[path] = hint
@@ -735,7 +740,7 @@ class _Reader:
         out = {}
         for inst, elem in self.instances.items():
             out[inst] = Component(inst, elem.fmu_path, elem.digest, elem.md, params[inst], elem.indicators,
-                                  elem.fmu_label)
+                                  interface=elem.interface, fmu_label=elem.fmu_label)
         return out
 
     def _value(self, v: tuple, variable, elem: _Element, label: str, key: str):
