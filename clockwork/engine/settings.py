@@ -83,6 +83,10 @@ class MasterSettings:
             ``mightReturnEarlyFromDoStep`` return early at their own events,
             which the master handles in Event Mode; False: they handle them
             inside ``fmi3DoStep``, as an FMI 2.0 FMU does.
+        me_solver: The integrator of Model Exchange FMUs: ``"auto"`` (the
+            Runge-Kutta pair the tolerance asks for, DOP853 at rtol <= 1e-6,
+            else Dormand-Prince 5(4); CVode's BDF from the step its
+            stiffness test fires), ``"dp54"``, ``"dop853"`` or ``"cvode"``.
         algebraic_loops: How a loop of outputs with direct feedthrough runs:
             ``"solve"`` iterates it to a fixed point wherever outputs are
             brought up to date (to ``iteration_tolerance``), ``"delay"``

@@ -58,6 +58,10 @@ class System:
         model_descriptions: ``{instance name: fmpy ModelDescription}``
             already read, so that they are not read again (the scene layer
             passes them).
+        interfaces: ``{instance name: "co-simulation" or "model-exchange"}``:
+            the interface of an FMU that has both (default Co-Simulation);
+            a Model Exchange FMU is integrated by the master's wrapper
+            (``master.me_solver``, ``master.tolerance``).
         labels: ``{instance name: text}``: what messages call an instance's
             FMU (the scene layer: a copied FMU by its original name).
         inputs: Signals given as samples (``engine.samples.Samples``, read
