@@ -415,7 +415,8 @@ def test_model_exchange_only_is_refused_in_one_line(tmp_path, capsys):
     me = edited(fmi1("TestTypes"), tmp_path / "ME.fmu",
                 lambda x: re.sub(r"\s*<Implementation>.*</Implementation>", "", x, flags=re.S))
     rc, _, err = run_cli(capsys, ["info", me])
-    assert_one_line_error(rc, err, "ME.fmu", "expected a Co-Simulation FMU (no <Implementation> element)")
+    assert_one_line_error(rc, err, "ME.fmu", "expected an FMI 1.0 Co-Simulation FMU (no <Implementation> element)",
+                          "FMI 1.0 Model Exchange is not supported")
 
 
 def test_a_guid_the_binary_refuses_is_one_line(tmp_path, capsys):

@@ -49,6 +49,8 @@ class Component:
         """The <CoSimulation> or <ModelExchange> element it runs through."""
         md = self.model_description
         return md.modelExchange if self.model_exchange else md.coSimulation
+
+    @property
     def fmu_shown(self) -> str:
         """The FMU as messages name it."""
         return self.fmu_label or str(self.fmu_path)
