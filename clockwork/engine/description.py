@@ -21,6 +21,7 @@ import platform
 import re
 import struct
 import sys
+import weakref
 import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
@@ -103,6 +104,22 @@ def event_indicator_names(xml: bytes) -> tuple[str, ...]:
 
 
 _MD_CACHE: dict[tuple, tuple] = {}
+_RESOLVED: dict[tuple[str, str], Path] = {}
+
+
+def resolved(path) -> Path:
+    """The file a path names: absolute, symbolic links followed. Remembered
+    per path text and working directory: a system names one FMU file for
+    each of its hundreds of components, and resolving walks every folder of
+    the path."""
+    text = os.fspath(path)
+    key = ("" if os.path.isabs(text) else os.getcwd(), text)
+    hit = _RESOLVED.get(key)
+    if hit is None:
+        if len(_RESOLVED) > 4096:
+            _RESOLVED.clear()
+        hit = _RESOLVED[key] = Path(text).resolve()
+    return hit
 
 
 class FmuError(SceneError):
@@ -153,7 +170,7 @@ def read_fmu(path: Path, need_binary: bool = True,
     (path, mtime, size); its FMI version must be one of `versions`."""
     import fmpy
 
-    path = Path(path).resolve()
+    path = resolved(path)
     try:
         st = path.stat()
     except OSError as e:
@@ -282,16 +299,19 @@ def event_indicators(path: Path) -> tuple[str, ...]:
     return read_fmu(path, need_binary=False)[2]
 
 
+# One index of the variables per model description (read_fmu reads each FMU
+# file once, so per FMU file): every component, connection end and check
+# looks names up here. Weak keys: an index goes with its description.
+_VARIABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
 def variables(md) -> dict:
-    """{name: ScalarVariable} of a model description, built once."""
-    cache = getattr(md, "_cw_vars", None)
-    if cache is None:
-        cache = {v.name: v for v in md.modelVariables}
-        try:
-            md._cw_vars = cache
-        except AttributeError:
-            pass
-    return cache
+    """{name: ScalarVariable} of a model description, built on first use
+    and kept as long as the description lives."""
+    index = _VARIABLES.get(md)
+    if index is None:
+        index = _VARIABLES[md] = {v.name: v for v in md.modelVariables}
+    return index
 
 
 # The integer types and their ranges: FMI 2.0's Integer is a C int, FMI

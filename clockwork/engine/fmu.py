@@ -7,6 +7,7 @@ communication step costs a few ctypes calls and no Python-side allocation.
 
 from __future__ import annotations
 
+import copy
 import ctypes
 import json
 import os
@@ -14,10 +15,12 @@ import shutil
 import sys
 import tempfile
 import threading
+import weakref
 import zipfile
 from ctypes import CFUNCTYPE, POINTER, byref, c_char_p, c_double, c_int, c_size_t, c_uint, c_void_p
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
@@ -27,7 +30,7 @@ from ..atomic import alive
 from ..errors import ParametersRefused, SceneError, SimulationError
 from ..hashing import sha256_file
 from ..paths import cache_root, core_library, scratch_dir
-from .description import check_archive, read_fmu, var_unit
+from .description import check_archive, read_fmu, resolved, var_unit
 
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
 STATUS_NAMES = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
@@ -70,7 +73,7 @@ def extract(path: Path) -> Path:
     sizes) before reuse. With the cache off (or unwritable), FMUs go to the
     process's scratch folder (clockwork.paths.scratch_dir), removed at exit.
     """
-    path = Path(path).resolve()
+    path = resolved(path)
     st = path.stat()
     key = (str(path), st.st_mtime_ns, st.st_size)
     with _extract_lock:
@@ -191,6 +194,57 @@ def direct_feedthrough(md) -> dict[str, list[str]]:
             else [d.name for d in u.dependencies if d.causality == "input"] for u in md.outputs}
 
 
+# fmpy's slave object for the first instance of each binary; later
+# instances get a copy. fmpy's constructor loads the library (the dynamic
+# loader gives every instance of one path the same one anyway) and
+# declares each FMI function's argument types from its Python signature,
+# milliseconds per instance, which a system of hundreds of FMUs would pay
+# hundreds of times.
+_slaves: dict[tuple, object] = {}
+_slaves_lock = threading.Lock()
+
+
+def new_slave(kind: type, unzip: Path, md, name: str):
+    """A fmpy slave object (`kind`: FMU2Slave, FMU3Slave) named `name`,
+    not yet instantiated, on the FMU's library as loaded once."""
+    key = (kind, str(unzip), md.coSimulation.modelIdentifier)
+    with _slaves_lock:
+        first = _slaves.get(key)
+        if first is None:
+            first = _slaves[key] = kind(guid=md.guid, unzipDirectory=str(unzip),
+                                        modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+    slave = copy.copy(first)
+    slave.guid, slave.instanceName, slave.component, slave.callbacks = md.guid, name, None, None
+    return slave
+
+
+def declared(dll, name: str, argtypes: tuple):
+    """The C function `name` of a loaded library, with these argument types
+    and an int status, declared once: the instances of one FMU share its
+    library's function objects."""
+    f = getattr(dll, name)
+    if f.argtypes != argtypes or f.restype is not c_int:
+        f.argtypes, f.restype = argtypes, c_int
+    return f
+
+
+# The variables as the master sees them, one table per model description
+# (per FMU file), shared read-only by all its instances.
+_INSTANCE_VARIABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def instance_variables(md) -> MappingProxyType:
+    """{name: Variable} of a model description, built on first use."""
+    table = _INSTANCE_VARIABLES.get(md)
+    if table is None:
+        deps = direct_feedthrough(md)
+        table = _INSTANCE_VARIABLES[md] = MappingProxyType({
+            v.name: Variable(v.name, v.valueReference, v.type, v.causality, v.variability, var_unit(v),
+                             deps.get(v.name))
+            for v in md.modelVariables})
+    return table
+
+
 class Instance:
     """An instantiated FMU with fast access to its fmi2 functions."""
 
@@ -202,15 +256,7 @@ class Instance:
         described = read_fmu(self.path, need_binary=False)
         self.md = model_description or described[0]
         self.model_name = self.md.modelName
-        self.variables: dict[str, Variable] = {}
-        by_index = list(self.md.modelVariables)
-        deps = direct_feedthrough(self.md)
-        for v in by_index:
-            self.variables[v.name] = Variable(
-                v.name, v.valueReference, v.type, v.causality, v.variability,
-                var_unit(v),
-                deps.get(v.name),
-            )
+        self.variables = instance_variables(self.md)
         cs = self.md.coSimulation
         self.max_output_derivative_order = int(cs.maxOutputDerivativeOrder or 0)
         self.can_interpolate_inputs = bool(cs.canInterpolateInputs)
@@ -228,12 +274,7 @@ class Instance:
     def instantiate(self) -> None:
         unzip = extract(self.path)
         try:
-            self._slave = FMU2Slave(
-                guid=self.md.guid,
-                unzipDirectory=str(unzip),
-                modelIdentifier=self.md.coSimulation.modelIdentifier,
-                instanceName=self.name,
-            )
+            self._slave = new_slave(FMU2Slave, unzip, self.md, self.name)
         except Exception as e:  # fmpy raises a bare Exception for a bad library
             raise SceneError(f"{self.path}: cannot load the FMU's binary for this platform: {e}") from None
         messages = self.messages
@@ -273,10 +314,7 @@ class Instance:
         """Raw C symbols with argtypes, bypassing fmpy's per-call wrappers."""
 
         def fn(name, *argtypes):
-            f = getattr(dll, name)
-            f.argtypes = list(argtypes)
-            f.restype = c_int
-            return f
+            return declared(dll, name, argtypes)
 
         comp = c_void_p
         self.c_doStep = fn("fmi2DoStep", comp, c_double, c_double, c_int)

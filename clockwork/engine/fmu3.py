@@ -58,7 +58,7 @@ from fmpy.fmi3 import FMU3Slave, fmi3IntermediateUpdateCallback, fmi3LogMessageC
 from ..errors import SceneError, SimulationError
 from ..paths import core_library
 from .description import fmi_version, int_range, read_fmu, type_name
-from .fmu import DISCARD, ERROR, OK, WARNING, Instance, extract
+from .fmu import DISCARD, ERROR, OK, WARNING, Instance, declared, extract, new_slave
 
 MAX_EVENT_ITERATIONS = 1000  # fmi3UpdateDiscreteStates calls per event before giving up
 MAX_STALLED_RETURNS = 100  # early returns in a row that do not move the FMU's time
@@ -182,9 +182,7 @@ class Instance3(Instance):
     def instantiate(self) -> None:
         unzip = extract(self.path)
         try:
-            self._slave = FMU3Slave(guid=self.md.guid, unzipDirectory=str(unzip),
-                                    modelIdentifier=self.md.coSimulation.modelIdentifier,
-                                    instanceName=self.name)
+            self._slave = new_slave(FMU3Slave, unzip, self.md, self.name)
         except Exception as e:  # fmpy raises a bare Exception for a bad library
             raise SceneError(f"{self.path}: cannot load the FMU's binary for this platform: {e}") from None
         messages = self.messages
@@ -222,10 +220,7 @@ class Instance3(Instance):
 
     def _bind(self, dll) -> None:
         def fn(name, *argtypes):
-            f = getattr(dll, name)
-            f.argtypes = list(argtypes)
-            f.restype = c_int
-            return f
+            return declared(dll, name, argtypes)
 
         inst = c_void_p
         vrs = POINTER(c_uint)

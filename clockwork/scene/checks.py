@@ -17,7 +17,7 @@ from ..engine.description import variables as variables_of
 from ..engine.names import split_ref
 from ..engine.settings import ENGINES, LOOP_MODES
 from ..errors import SceneError
-from .model import Component, show
+from .model import Component, ComponentVariables, show
 from .units import UnitError, fmt, parse_quantity, to_seconds, to_unit
 
 TOP_KEYS = ("scene", "components", "connections", "experiment", "master", "record", "analysis", "sweep", "plot")
@@ -205,8 +205,7 @@ def master_value(ctx: Ctx, key: str, value: object):
 
 
 def parse_ref(ctx: Ctx, key: str, ref: object, components: dict[str, Component], what: str):
-    split = split_ref(ref, {n: variables_of(c.model_description) for n, c in components.items()}) \
-        if isinstance(ref, str) else None
+    split = split_ref(ref, ComponentVariables(components)) if isinstance(ref, str) else None
     if split is None:
         if isinstance(ref, str) and "." in ref.strip():
             component(ctx, key, components, ref.strip().partition(".")[0])  # no such component: name them

@@ -31,7 +31,7 @@ from ..engine.wiring import build as build_wiring
 from ..errors import SceneError
 from .checks import TOP_KEYS, Ctx, article, component, convert_value, lookup, master_value, names_of, parse_ref
 from .kinds import NO_KINDS, Invalid, Kinds
-from .model import (Component, Connection, Experiment, MasterConfig, Record, Scene, consistency)
+from .model import (Component, ComponentVariables, Connection, Experiment, MasterConfig, Record, Scene, consistency)
 from .ssp.read import read_ssp
 from .sweep import parse_sweep
 from .units import fmt, link_conversion
@@ -200,7 +200,7 @@ def _load_ssp(path: Path, overrides, kinds: Kinds) -> Scene:
     series = isinstance(raw["analysis"], dict) and raw["analysis"].get("kind") == "time_series"
     if series and isinstance(outputs, list) and outputs and all(isinstance(o, str) for o in outputs):
         # Strings are recorded as text, not drawn.
-        variables = {n: variables_of(c.model_description) for n, c in components.items()}
+        variables = ComponentVariables(components)
         numbers = [o for o in outputs if _column_type(o, variables) not in TEXT_TYPES]
         if numbers:
             raw["plot"] = [{"kind": "time_series", "x": "time", "y": numbers, "title": ssp.name,
@@ -346,6 +346,7 @@ def _connections(ctx: Ctx, conns, components: dict[str, Component],
     seen: dict[tuple[str, str], int] = {}
     set_inputs = {(inst, var): key for inst, var, key in input_params}
     checked = []
+    known = ComponentVariables(components)
     for i, c in enumerate(conns):
         key = f"connections[{i}]"
         if not isinstance(c, str):
@@ -355,7 +356,7 @@ def _connections(ctx: Ctx, conns, components: dict[str, Component],
             raise ctx.bad(key, c, 'a string "src.output -> dst.input"')
         refs = []
         for ref in ends_text:
-            split = split_ref(ref, {n: variables_of(comp.model_description) for n, comp in components.items()})
+            split = split_ref(ref, known)
             if split is None:
                 inst = ref.partition(".")[0]
                 component(ctx, key, components, inst if "." in ref else ref)  # names the components

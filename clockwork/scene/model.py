@@ -10,6 +10,7 @@ import dataclasses
 import itertools
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -35,6 +36,24 @@ class Component:
 
     def variable(self, name: str):
         return variables_of(self.model_description)[name]
+
+
+class ComponentVariables(Mapping):
+    """{instance: its variables by name} over a scene's components, each
+    looked up when asked (engine.names.split_ref splits references against
+    it): made once per scene, not once per reference."""
+
+    def __init__(self, components: Mapping[str, Component]):
+        self._components = components
+
+    def __getitem__(self, name: str) -> dict:
+        return variables_of(self._components[name].model_description)
+
+    def __iter__(self):
+        return iter(self._components)
+
+    def __len__(self) -> int:
+        return len(self._components)
 
 
 class Connection(NamedTuple):
