@@ -14,6 +14,7 @@ was recorded is kept, and the result says when and which FMU (``"ended"``).
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
@@ -85,21 +86,33 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
     return out
 
 
-def run_with_progress(master, stop: float, on_point, progress: bool, label: str) -> None:
-    from tqdm import tqdm
+PROGRESS_DELAY_S = 1.0  # a run shorter than this shows no bar
 
+
+def run_with_progress(master, stop: float, on_point, progress: bool, label: str) -> None:
     span = stop - master.t
-    with tqdm(total=span, disable=not progress, delay=1.0, desc=label, unit="s sim",
-              bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]") as bar:
-        step = master.settings.step
-        # Chunks are whole multiples of the step so that the grid is kept.
-        chunk = step * max(1, round(span / 200.0 / step))
-        t0 = master.t
-        n = 0
+    step = master.settings.step
+    # Chunks are whole multiples of the step so that the grid is kept.
+    chunk = step * max(1, round(span / 200.0 / step))
+    t0 = master.t
+    n = 0
+    bar = None
+    began = time.perf_counter()
+    try:
         while master.t < stop - 1e-12 * max(1.0, abs(stop)) and master.ended is None:
             n += 1
             master.run_until(min(stop, t0 + n * chunk), on_point)
-            bar.update(master.t - t0 - bar.n)
+            if bar is None and progress and time.perf_counter() - began >= PROGRESS_DELAY_S:
+                # Made (and tqdm imported) only once the run outlasts the delay: start-up time.
+                from tqdm import tqdm
+
+                bar = tqdm(total=span, desc=label, unit="s sim",
+                           bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]")
+            if bar is not None:
+                bar.update(master.t - t0 - bar.n)
+    finally:
+        if bar is not None:
+            bar.close()
 
 
 def _stall_check(scene, point: dict, system) -> dict | None:

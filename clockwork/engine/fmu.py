@@ -249,6 +249,9 @@ class Instance:
     """An instantiated FMU with fast access to its fmi2 functions."""
 
     fmi_version = 2  # fmu3.Instance3 says 3
+    # Instances freed in this process: a master looks for a freed instance
+    # of its own before a run only when this changed (systems have thousands).
+    frees = 0
 
     def __init__(self, name: str, path: Path, model_description=None):
         self.name = name
@@ -357,6 +360,7 @@ class Instance:
             self._free_instance()
         finally:
             self._slave = None
+            Instance.frees += 1
 
     def _free_instance(self) -> None:
         self._slave.fmi2FreeInstance(self.component)

@@ -15,7 +15,7 @@ from pathlib import Path
 from ..engine.description import FLOAT32_MAX, INTEGER_TYPES, int_range, var_limit, var_unit
 from ..engine.description import variables as variables_of
 from ..engine.names import split_ref
-from ..engine.settings import ENGINES, LOOP_MODES
+from ..engine.settings import ENGINES, LOOP_MODES, MAX_THREADS
 from ..errors import SceneError
 from .model import Component, ComponentVariables, show
 from .units import UnitError, fmt, parse_quantity, to_seconds, to_unit
@@ -197,6 +197,11 @@ def master_value(ctx: Ctx, key: str, value: object):
     if key == "iterations":
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
             raise ctx.bad(full, value, "an integer >= 0 (0 = no fixed-point iteration)")
+        return value
+    if key == "threads":
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_THREADS:
+            raise ctx.bad(full, value, f"a whole number from 1 to {MAX_THREADS} (threads the compiled core steps "
+                                       "independent instances on)")
         return value
     # the remaining tolerances are bare positive numbers
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:

@@ -98,6 +98,7 @@ class MasterConfig:
     fmi_version: int = 2  # which build of the bundled FMUs model names load: 2 or 3
     early_return: bool = True  # FMI 3.0 FMUs may return early from fmi3DoStep at their own events
     algebraic_loops: str = "solve"  # "solve" (fixed point at every communication point) or "delay"
+    threads: int = 1  # the compiled core steps independent instances on this many threads
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)

@@ -1,0 +1,224 @@
+"""Systems of many FMUs: loading in linear time, and stepping on threads
+(master.threads) with the bits of one thread.
+
+Work is counted, not timed: the number of variable indexes built, of
+lookups and of port updates as the system grows.
+"""
+
+from __future__ import annotations
+
+import textwrap
+import weakref
+
+import pytest
+
+from clockwork.engine import MasterSettings, System
+from clockwork.engine import description, parallel
+from clockwork.engine.fmu3 import make_instance
+from clockwork.engine.ports import Port
+from clockwork.engine.recording import Recorder
+from clockwork.errors import SceneError, SimulationError
+from clockwork.scene import load_scene
+from cwtest import fmu_file, test_fmu
+
+H = 0.125  # s
+
+
+def _chain_scene(tmp_path, n: int) -> object:
+    """A TestDecay feeding n - 1 TestSums in a row."""
+    decay, total = test_fmu("TestDecay"), test_fmu("TestSum")
+    lines = ['connections = [' + ", ".join(
+        f'"{"d" if i == 1 else f"s{i - 1}"}.{"x" if i == 1 else "y"} -> s{i}.u1"' for i in range(1, n)) + "]",
+        "[scene]", 'title = "chain"', "[experiment]", "stop = 1.0", "[master]", "step = 0.1",
+        "[components.d]", f'fmu = "{decay}"']
+    for i in range(1, n):
+        lines += [f"[components.s{i}]", f'fmu = "{total}"']
+    path = tmp_path / f"chain{n}.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+class _Counting(weakref.WeakKeyDictionary):
+    built = 0
+
+    def __setitem__(self, key, value):
+        type(self).built += 1
+        super().__setitem__(key, value)
+
+
+def test_the_variable_index_is_built_once_per_fmu_file(tmp_path, monkeypatch):
+    monkeypatch.setattr(description, "_VARIABLES", _Counting())
+    _Counting.built = 0
+    scene = load_scene(_chain_scene(tmp_path, 60))
+    assert _Counting.built == 2  # TestDecay and TestSum, not one per component or connection end
+    md = scene.components["s1"].model_description
+    assert description.variables(md) is description.variables(md)
+    assert scene.components["s1"].model_description is scene.components["s59"].model_description
+
+
+def test_loading_does_work_linear_in_the_components(tmp_path, monkeypatch):
+    """Lookups of an FMU's variables while a chain loads: proportional to
+    its length (a map over all components per connection end made them
+    grow with its square)."""
+    calls = {"n": 0}
+    real = description.variables
+
+    def counted(md):
+        calls["n"] += 1
+        return real(md)
+
+    monkeypatch.setattr("clockwork.engine.description.variables", counted)
+    for module in ("load", "checks", "model"):
+        monkeypatch.setattr(f"clockwork.scene.{module}.variables_of", counted)
+    work = {}
+    for n in (50, 100, 200):
+        calls["n"] = 0
+        load_scene(_chain_scene(tmp_path, n))
+        work[n] = calls["n"]
+    assert work[200] <= 2.1 * work[100] and work[100] <= 2.1 * work[50], work
+
+
+def test_instances_of_one_fmu_share_its_table_and_its_library():
+    path = test_fmu("TestSum")
+    a, b = make_instance("a", path), make_instance("b", path)
+    try:
+        a.instantiate()
+        b.instantiate()
+        assert a.variables is b.variables
+        assert a._slave.dll is b._slave.dll
+        assert a.component != b.component  # two instances all the same
+        a.setup(0.0, {"k1": 2.0})
+        b.setup(0.0, {})
+        assert a.get_real(["k1"]) == [2.0] and b.get_real(["k1"]) == [1.0]
+        assert b._slave.instanceName == "b"
+        with pytest.raises(TypeError):
+            a.variables["k1"] = None  # shared: read-only
+    finally:
+        a.free()
+        b.free()
+
+
+# -- stepping on threads ---------------------------------------------------------------------
+
+
+def _clocks(k: int) -> tuple[dict, list[str]]:
+    """k grasshopper clocks side by side (each pendulum dynamic, each escapement feedthrough-only)."""
+    comps, links = {}, []
+    for i in range(k):
+        comps[f"p{i}"] = (str(fmu_file("Pendulum")), {"Q": 1000.0, "phi_start": 0.1 + 0.002 * i})
+        comps[f"e{i}"] = (str(fmu_file("GrasshopperEscapement")), {"torque": 0.004, "phi_r": 0.035})
+        links += [f"p{i}.phi -> e{i}.phi", f"p{i}.w -> e{i}.w", f"e{i}.tau -> p{i}.tau_escapement"]
+    return comps, links
+
+
+def _mixed() -> tuple[dict, list[str]]:
+    """Dynamic instances that depend on each other through feedthrough-only
+    ones (d0 -> t0 -> d2, d3 -> t3 -> d1), beside independent ones."""
+    decay, total = str(test_fmu("TestDecay")), str(test_fmu("TestSum"))
+    comps = {f"d{i}": (decay, {"k": 0.5 + 0.1 * i, "x0": 1.0 + i}) for i in range(6)}
+    comps.update({"t0": (total, {"k1": 2.0}), "t3": (total, {"k1": -1.0}), "t5": (total, {})})
+    links = ["d0.x -> t0.u1", "t0.y -> d2.v", "d3.x -> t3.u1", "t3.y -> d1.v", "d4.x -> d5.v", "d5.x -> t5.u1",
+             "d1.x -> t5.u2"]
+    return comps, links
+
+
+def _run(system: tuple[dict, list[str]], steps: int, **settings):
+    comps, links = system
+    with System(comps, links, MasterSettings(**settings)) as s:
+        m = s.master
+        outputs = list(dict.fromkeys((n, name) for n, p in m.ports.items() for name in p.out_names))
+        rec = Recorder(m, outputs)
+        rec.start()
+        m.run_until(steps * settings["step"], rec)
+        return rec.columns, vars(m.stats), m.engine, list(m.notes)
+
+
+@pytest.mark.parametrize("order", ["gauss-seidel", "jacobi"])
+@pytest.mark.parametrize("system, step, steps", [("clocks", 0.01, 300), ("mixed", H, 40)])
+def test_threads_give_the_bits_of_one_thread(system, step, steps, order):
+    build = {"clocks": lambda: _clocks(6), "mixed": _mixed}[system]
+    one = _run(build(), steps, step=step, order=order, engine="compiled")
+    for threads in (2, 3, 16):
+        many = _run(build(), steps, step=step, order=order, engine="compiled", threads=threads)
+        assert many[:3] == one[:3], threads
+    python = _run(build(), steps, step=step, order=order, engine="python", threads=2)
+    assert python[:2] == one[:2]
+    assert any("master.threads = 2: the Python engine steps one instance at a time" in n for n in python[3])
+    if system == "clocks":
+        assert one[1]["events"] > 0 and one[1]["rollbacks"] > 0  # the threads stepped rollbacks and replays too
+
+
+def test_the_runs_that_step_at_once():
+    comps, links = _mixed()
+    with System(comps, links, MasterSettings(step=H, engine="python")) as s:
+        ports = s.master.ports
+        names = [p.inst.name for p in ports.dynamic]
+        ends = parallel.group_ends(ports, jacobi=False)
+        runs, a = [], 0
+        while a < len(ends):
+            runs.append(names[a:ends[a]])
+            a = ends[a]
+        # d1 reads t3 (a feedthrough-only instance: not in the first run), d2 reads t0,
+        # which depends on d0 in the run before it; d5 reads d4 in its own run.
+        assert names == [f"d{i}" for i in range(6)]
+        assert runs == [["d0"], ["d1", "d2", "d3", "d4"], ["d5"]]
+        assert parallel.group_ends(ports, jacobi=True) == [6] * 6
+        after = parallel.updates_after(ports)
+        assert after[0] == ports.first_in_order
+        assert [[p.inst.name for p in x] for x in after[1:]] == [["t5"], [], ["t3"], [], ["t5"]]
+
+
+def test_port_updates_per_step_grow_linearly_with_the_clocks(monkeypatch):
+    """Each pendulum's step updates its own escapement, not every one (a
+    system of k clocks made k x k updates per step)."""
+    pulls = {"n": 0}
+    real = Port.pull
+
+    def counted(self, t, read=True):
+        pulls["n"] += 1
+        return real(self, t, read)
+
+    monkeypatch.setattr(Port, "pull", counted)
+    work = {}
+    for k in (4, 8):
+        comps, links = _clocks(k)
+        with System(comps, links, MasterSettings(step=0.01, engine="python", event_location=False)) as s:
+            pulls["n"] = 0
+            s.master.run_until(0.1)
+            work[k] = pulls["n"]
+    assert work[8] <= 2 * work[4] + 20, work
+
+
+def test_a_failed_step_on_threads_names_the_instance_one_thread_names():
+    stair = str(test_fmu("TestStair"))
+    comps = {"a": (stair, {"end_time": 0.5, "terminate": False}),
+             "b": (stair, {"end_time": 0.25, "terminate": False}),
+             "c": (stair, {"end_time": 0.25, "terminate": False})}
+    errors = []
+    for threads in (1, 2):
+        with System(comps, [], MasterSettings(step=H, engine="compiled", threads=threads)) as s:
+            with pytest.raises(SimulationError) as e:
+                s.master.run_until(1.0)
+            errors.append((str(e.value), e.value.instance))
+    assert errors[0] == errors[1]
+    assert errors[0][1] == "b"  # b and c fail in the same step: b comes first
+
+
+@pytest.mark.parametrize("value", [0, -1, 257, 1.5, True, "2"])
+def test_a_bad_thread_count_is_refused(tmp_path, value):
+    with pytest.raises(SceneError, match="master.threads"):
+        MasterSettings(threads=value)
+    scene = tmp_path / "s.toml"
+    scene.write_text(textwrap.dedent(f"""\
+        [scene]
+        title = "t"
+        [components.d]
+        fmu = "{test_fmu('TestDecay')}"
+        [experiment]
+        stop = 1.0
+        [master]
+        threads = {value!r}
+        """).replace("'", '"').replace("True", "true"))
+    with pytest.raises(SceneError, match="master.threads") as e:
+        load_scene(scene)
+    assert "\n" not in str(e.value)
