@@ -219,12 +219,12 @@ def run_fmpy(folder: Path, recorded: str) -> list[float]:
     # stepping v first, then each feedthrough after its input is set, is the
     # exact Gauss-Seidel order.
     values = []
-    t = 0.0
     for k in range(STEPS):
-        t = k * STEP_S
+        # clockwork's grid: the points are k h, each step the difference of two
+        t, t_next = k * STEP_S, (k + 1) * STEP_S
         for name in order:
             s = slaves[name]
-            s.fmi2DoStep(s.component, t, STEP_S, 1)
+            s.fmi2DoStep(s.component, t, t_next - t, 1)
             for vr, dst, dvr in feeds.get(name, ()):
                 s.fmi2GetReal(s.component, vr, 1, value)
                 dst.fmi2SetReal(dst.component, dvr, 1, value)
@@ -292,6 +292,9 @@ def main(argv=None) -> int:
     p.add_argument("--rounds", type=int, default=3)
     p.add_argument("--work", type=Path, default=Path("out/bench_scale"))
     p.add_argument("--json", type=Path, help="write the measurements here too")
+    p.add_argument("--load", action="store_true",
+                   help="time loading instead: `clockwork validate` of the SSD and of the scene file, and "
+                        "`clockwork run` to the first step, of the chain at each size")
     p.add_argument("--child", nargs=4, metavar=("TOOL", "FOLDER", "RECORDED", "OUT"), help=argparse.SUPPRESS)
     a = p.parse_args(argv)
     if a.child:
@@ -304,6 +307,8 @@ def main(argv=None) -> int:
         fmu = models[role][0]
         if not fmu.is_file():
             p.error(f"{fmu} ({role}) is missing: build the project (cmake --build build) or give --fmus")
+    if a.load:
+        return load_times(a.work, a.sizes, a.rounds, models)
     tools = [t for t in a.tools if t in CLOCKWORK or t == "fmpy" or _installed(t)]
     results = {}
     for kind in a.systems:
@@ -333,10 +338,56 @@ def main(argv=None) -> int:
                 print(f"{kind:5} N={n:5} {tool:18} {statistics.median(runs[tool]):7.3f} s  "
                       f"cpu {statistics.median(cpu[tool]):7.3f} s  "
                       f"{memory[tool] / 1024:6.1f} MiB  diff {diff:.3g}  lag {lag}", flush=True)
-    _table(results, a.systems, a.sizes, tools)
+    for metric in ("median_s", "cpu_s"):
+        _table(results, a.systems, a.sizes, tools, metric)
+    _ratios(results, a.systems, a.sizes, tools)
     if a.json:
         a.json.write_text(json.dumps({"|".join(map(str, k)): v for k, v in results.items()}, indent=1))
     return 0
+
+
+def load_times(work: Path, sizes: list[int], rounds: int, models: dict) -> int:
+    """Loading alone: validate (SSD and scene file) and a run of one step, per chain size."""
+    clockwork = [sys.executable, "-m", "clockwork"]
+    kinds = {"validate SSD": lambda f: clockwork + ["validate", str(f / "SystemStructure.ssd")],
+             "validate scene": lambda f: clockwork + ["validate", str(f / "scene.toml")],
+             "run 1 step": lambda f: clockwork + ["run", str(f / "scene.toml"), "--out", str(f / "out-first"),
+                                                  "--no-progress", "--set", f"experiment.stop={STEP_S!r}"]}
+    times: dict[tuple[str, int], list[tuple[float, float]]] = {}
+    for n in sizes:
+        folder = work / f"chain{n}"
+        write_system(folder, "chain", n, models)
+        for r in range(rounds):
+            names = list(kinds)
+            for what in names[r % len(names):] + names[:r % len(names)]:
+                wall, used, _ = timed(kinds[what](folder))
+                times.setdefault((what, n), []).append((wall, used))
+    lo, hi = min(sizes), max(sizes)
+    mid = sorted(sizes)[-2] if len(sizes) > 1 else lo
+    print("| what | " + " | ".join(f"N = {n}" for n in sizes)
+          + f" | exponent {lo}->{hi} | ms per component ({mid}->{hi}) |")
+    print("|---|" + "---|" * len(sizes) + "---|---|")
+    for what in kinds:
+        for label, k in (("wall", 0), ("CPU", 1)):
+            med = [statistics.median(x[k] for x in times[(what, n)]) for n in sizes]
+            exp = math.log(med[-1] / med[0]) / math.log(hi / lo) if hi > lo else math.nan
+            slope = (med[-1] - med[-2]) / (hi - mid) * 1e3 if hi > mid else math.nan
+            print(f"| {what} ({label}) | " + " | ".join(f"{m:.3f} s" for m in med) + f" | {exp:.2f} | {slope:.3f} |")
+    return 0
+
+
+def _ratios(results: dict, systems, sizes, tools) -> None:
+    """clockwork's time over each peer's, round by round (the two ran side by side), and their median."""
+    print()
+    for kind in systems:
+        for n in sizes:
+            for mine in [t for t in tools if t.startswith("clockwork")]:
+                for peer in [t for t in tools if not t.startswith("clockwork")]:
+                    for key, what in (("runs_s", "wall"), ("cpu_runs_s", "cpu")):
+                        per_round = [x / y for x, y in zip(results[(kind, n, mine)][key],
+                                                           results[(kind, n, peer)][key])]
+                        print(f"{kind} N={n} {mine}/{peer} ({what}): median {statistics.median(per_round):.3f} "
+                              f"(rounds {', '.join(f'{r:.3f}' for r in per_round)})")
 
 
 def _installed(tool: str) -> bool:
@@ -345,24 +396,25 @@ def _installed(tool: str) -> bool:
     return importlib.util.find_spec({"libcosim": "libcosimpy", "ecos": "ecospy"}[tool]) is not None
 
 
-def _table(results: dict, systems, sizes, tools) -> None:
+def _table(results: dict, systems, sizes, tools, metric: str) -> None:
     lo, hi = min(sizes), max(sizes)
     mid = sorted(sizes)[-2] if len(sizes) > 1 else lo
     print()
+    print("whole-process wall time (median)" if metric == "median_s" else "CPU time, user + system (median)")
     print("| system | tool | " + " | ".join(f"N = {n}" for n in sizes)
           + f" | exponent {lo}->{hi} | us per FMU-step | peak MiB at {hi} | result vs clockwork |")
     print("|---|---|" + "---|" * len(sizes) + "---|---|---|---|")
     for kind in systems:
         for tool in tools:
             r = [results[(kind, n, tool)] for n in sizes]
-            exp = (math.log(r[-1]["median_s"] / r[0]["median_s"]) / math.log(hi / lo)) if hi > lo else math.nan
-            marginal = ((results[(kind, hi, tool)]["median_s"] - results[(kind, mid, tool)]["median_s"])
+            exp = (math.log(r[-1][metric] / r[0][metric]) / math.log(hi / lo)) if hi > lo else math.nan
+            marginal = ((results[(kind, hi, tool)][metric] - results[(kind, mid, tool)][metric])
                         / (hi - mid) / STEPS * 1e6) if hi > mid else math.nan
             last = r[-1]
             agree = ("the same bits" if last["max_diff"] == 0 else
                      f"max diff {last['max_diff']:.3g}" + (f", equal {last['lag_steps']} steps later"
                                                             if last["lag_steps"] else ""))
-            print(f"| {kind} | {tool} | " + " | ".join(f"{x['median_s']:.3f} s" for x in r)
+            print(f"| {kind} | {tool} | " + " | ".join(f"{x[metric]:.3f} s" for x in r)
                   + f" | {exp:.2f} | {marginal:.2f} | {last['peak_kib'] / 1024:.0f} | {agree} |")
 
 

@@ -222,3 +222,17 @@ def test_a_bad_thread_count_is_refused(tmp_path, value):
     with pytest.raises(SceneError, match="master.threads") as e:
         load_scene(scene)
     assert "\n" not in str(e.value)
+
+
+def test_threads_reach_the_scene_and_its_ssp_and_leave_the_point_key(tmp_path):
+    from clockwork.run.catalog import load_scene as load_with_kinds
+    from clockwork.run.points import point_key
+    from clockwork.scene.ssp import export_ssp
+
+    path = _chain_scene(tmp_path, 3)
+    one, two = load_scene(path), load_scene(path, ["master.threads=2"])
+    assert (one.master.threads, two.master.threads) == (1, 2)
+    assert point_key(one, {}) == point_key(two, {})  # the same bits on any number of threads
+    assert point_key(one, {}) != point_key(load_scene(path, ["master.order=jacobi"]), {})
+    export_ssp(two, tmp_path / "x.ssp")
+    assert load_with_kinds(tmp_path / "x.ssp").master.threads == 2

@@ -461,7 +461,7 @@ def _record(ctx: Ctx, t: dict | None, components: dict[str, Component]) -> Recor
         refs = t["outputs"]
         if not isinstance(refs, list):
             raise ctx.bad("record.outputs", refs, 'an array of "instance.variable" strings')
-        outputs = []
+        outputs = {}  # (instance, variable) -> its position: a dict, for the duplicate check of thousands
         for i, ref in enumerate(refs):
             key = f"record.outputs[{i}]"
             comp, v = parse_ref(ctx, key, ref, components, "a variable")
@@ -471,7 +471,7 @@ def _record(ctx: Ctx, t: dict | None, components: dict[str, Component]) -> Recor
             pair = (comp.name, v.name)
             if pair in outputs:
                 raise ctx.fail(key, f"{ref} is listed twice")
-            outputs.append(pair)
+            outputs[pair] = i
     else:
         outputs = [(n, v.name) for n, c in components.items()
                    for v in c.model_description.modelVariables if v.causality == "output"]
