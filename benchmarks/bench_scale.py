@@ -200,7 +200,9 @@ def run_fmpy(folder: Path, recorded: str) -> list[float]:
         s = FMU2Slave(guid=md.guid, unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier,
                       instanceName=c.get("name"))
         s.instantiate()
-        s.setupExperiment(startTime=0.0)
+        # the DefaultExperiment's tolerance, as clockwork passes it (TestDecay's steps depend on it)
+        tol = md.defaultExperiment.tolerance if md.defaultExperiment is not None else None
+        s.setupExperiment(tolerance=float(tol) if tol else None, startTime=0.0)
         s.enterInitializationMode()
         s.exitInitializationMode()
         slaves[c.get("name")] = s

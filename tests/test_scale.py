@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import textwrap
 import weakref
+from pathlib import Path
 
 import pytest
 
@@ -236,3 +237,39 @@ def test_threads_reach_the_scene_and_its_ssp_and_leave_the_point_key(tmp_path):
     assert point_key(one, {}) != point_key(load_scene(path, ["master.order=jacobi"]), {})
     export_ssp(two, tmp_path / "x.ssp")
     assert load_with_kinds(tmp_path / "x.ssp").master.threads == 2
+
+
+def test_the_scaling_benchmark_runs_its_reduced_form_and_agrees_with_an_fmpy_loop(tmp_path):
+    """benchmarks/bench_scale.py on the project's stand-ins: clockwork (one
+    thread and two) gives the bits of a hand-written Gauss-Seidel loop over
+    fmpy, on the chain and on the wide system."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    from cwtest import ROOT, TEST_FMU_DIR
+
+    out = tmp_path / "bench.json"
+    proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_scale.py"), "--sizes", "3", "6",
+                           "--rounds", "1", "--tools", "clockwork", "clockwork-threads", "fmpy",
+                           "--work", str(tmp_path / "work"), "--json", str(out)],
+                          capture_output=True, text=True, env={**os.environ, "CW_TEST_FMU_DIR": str(TEST_FMU_DIR)})
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    results = json.loads(out.read_text())
+    assert len(results) == 2 * 2 * 3
+    assert all(r["max_diff"] == 0 and r["lag_steps"] == 0 for r in results.values()), results
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="counts the process's threads in /proc")
+def test_freeing_a_system_stops_its_threads():
+    def threads_now() -> int:  # the core's pthreads, which Python's threading module does not see
+        return len(list(Path("/proc/self/task").iterdir()))
+
+    start = threads_now()
+    comps, links = _clocks(2)
+    s = System(comps, links, MasterSettings(step=0.01, engine="compiled", threads=3))
+    assert threads_now() == start + 2  # and the calling thread
+    s.master.run_until(0.05)
+    s.free()
+    assert threads_now() == start

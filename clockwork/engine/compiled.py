@@ -372,10 +372,17 @@ class CompiledMaster(Master):
             self.coupling.note(f"master.threads = {threads}: the system refused to start the threads; "
                                "stepping on one")
             return
-        weakref.finalize(self, self._lib.cw_pool_free, pool)  # the workers stop with the master
+        self._pool_free = weakref.finalize(self, self._lib.cw_pool_free, pool)  # at the latest with the master
         m.pool = pool
         m.par_end = ref(_array(c_int, group_ends(self.ports, self._jacobi)))
         m.par_status = ref(_array(c_int, [], 2 * len(self.ports.all)))
+
+    def stop_threads(self) -> None:
+        """Stop the core's threads (System.free calls it); the master steps on one from then on."""
+        stop = self.__dict__.get("_pool_free")
+        if stop is not None:
+            self._core.pool = None
+            stop()
 
     def _build_loops(self, index: dict, ref) -> _Loops:
         """The algebraic loops for the core (those broken by a delay are never in its orders)."""

@@ -464,5 +464,8 @@ class Master:
                 break
         return before
 
+    def stop_threads(self) -> None:
+        """Stop the threads master.threads started (the compiled core's); here, none."""
+
     def terminate(self) -> None:
         free_all(self.instances)
