@@ -443,7 +443,10 @@ def test_int32_and_boolean_links_into_and_out_of_an_fmi3_fmu(capsys, tmp_path, e
 def test_a_discard_that_is_no_end_fails_with_the_fmus_message(capsys, tmp_path, engine, extra, needle):
     rc, out, err = _run(capsys, tmp_path, _scene(tmp_path, STAIR_SCENE), *extra, engine=engine)
     assert_one_line_error(rc, err, "discarded", needle, code=1)
-    assert not (out / "timeseries.csv").exists()
+    # A failed run keeps its history: the series until the last good point, and a summary that says so.
+    failed = json.loads((out / "summary.json").read_text())["result"]["failed"]
+    assert failed["instance"] == "s" and failed["time_s"] == failed["last_point_s"] == 2.5 and needle in failed["message"]
+    assert _csv(out)["time"][-1] == "2.5"
 
 
 # 4. The DefaultExperiment tolerance, and master.tolerance.

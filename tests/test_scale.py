@@ -12,6 +12,7 @@ import weakref
 from pathlib import Path
 
 import pytest
+from fmpy import read_model_description
 
 from clockwork.engine import MasterSettings, System
 from clockwork.engine import description, parallel
@@ -123,26 +124,72 @@ def _mixed() -> tuple[dict, list[str]]:
     return comps, links
 
 
-def _run(system: tuple[dict, list[str]], steps: int, **settings):
+def _loop_beside() -> tuple[dict, list[str]]:
+    """An algebraic loop among feedthrough-only instances (add <-> gain), fed
+    by one dynamic instance and feeding another, beside independent ones."""
+    decay, total = str(test_fmu("TestDecay")), str(test_fmu("TestSum"))
+    comps = {f"d{i}": (decay, {"k": 0.5 + 0.1 * i, "x0": 1.0 + i}) for i in range(4)}
+    comps.update({"add": (total, {"c": 1.0}), "gain": (total, {"k1": 0.5, "k2": 0.0})})
+    return comps, ["add.y -> gain.u1", "gain.y -> add.u2", "d0.x -> add.u1", "add.y -> d2.v"]
+
+
+def _faces() -> tuple[dict, list[str]]:
+    """Model Exchange instances (FMI 2.0 and 3.0, the core's solvers) beside
+    FMI 1.0 and FMI 3.0 Co-Simulation ones, coupled in a row and side by side."""
+    comps = {"b2": (str(test_fmu("MeBall")), {}), "b3": (str(test_fmu("fmi3/MeBall")), {}),
+             "osc": (str(test_fmu("MeOscillator")), {}), "lag": (str(test_fmu("MeLag")), {}),
+             "d1": (str(test_fmu("fmi1/TestDecay")), {"k": 0.3}), "d3": (str(test_fmu("fmi3/TestDecay")), {}),
+             "s3": (str(test_fmu("fmi3/TestSum")), {"k1": 2.0})}
+    return comps, ["osc.x -> lag.u", "lag.y -> d1.v", "b2.h -> s3.u1", "s3.y -> d3.v"]
+
+
+def _lags() -> tuple[dict, list[str]]:
+    """Dynamic instances whose outputs depend on their sampled inputs
+    (MeLag's e = u - y), read after the step."""
+    lag = str(test_fmu("MeLag"))
+    return {f"l{i}": (lag, {"T": 0.2 + 0.1 * i}) for i in range(4)}, ["l0.y -> l3.u"]
+
+
+def _lag_samples():
+    from clockwork.engine.samples import Samples, Signal
+
+    times = [0.0, 0.3, 0.6, 0.6, 1.0, 2.0]
+    return Samples(times, [Signal(f"l{i}", "u", tuple((1 + i) * t * t for t in times), True) for i in range(3)])
+
+
+SYSTEMS = {"clocks": lambda: _clocks(6), "mixed": _mixed, "loop": _loop_beside, "faces": _faces,
+           "lags": _lags}
+
+
+def _run(system: tuple[dict, list[str]], steps: int, inputs=None, **settings):
     comps, links = system
-    with System(comps, links, MasterSettings(**settings)) as s:
+    # Every Real output, connected or not (an unconnected one is read after the step too).
+    record = {n: [v.name for v in read_model_description(path).modelVariables
+                  if v.causality == "output" and v.type in ("Real", "Float64")] for n, (path, _) in comps.items()}
+    with System(comps, links, MasterSettings(**settings), record=record, inputs=inputs) as s:
         m = s.master
-        outputs = list(dict.fromkeys((n, name) for n, p in m.ports.items() for name in p.out_names))
+        outputs = [(n, name) for n, names in record.items() for name in names]
         rec = Recorder(m, outputs)
         rec.start()
         m.run_until(steps * settings["step"], rec)
+        assert len(rec.columns) == len(outputs) + 1 and len(rec.columns["time"]) >= steps + 1  # events add points
         return rec.columns, vars(m.stats), m.engine, list(m.notes)
 
 
 @pytest.mark.parametrize("order", ["gauss-seidel", "jacobi"])
-@pytest.mark.parametrize("system, step, steps", [("clocks", 0.01, 300), ("mixed", H, 40)])
+@pytest.mark.parametrize("system, step, steps", [("clocks", 0.01, 300), ("mixed", H, 40), ("loop", H, 24),
+                                                 ("faces", 0.05, 40), ("faces-cvode", 0.05, 40),
+                                                 ("lags", H, 24)])
 def test_threads_give_the_bits_of_one_thread(system, step, steps, order):
-    build = {"clocks": lambda: _clocks(6), "mixed": _mixed}[system]
-    one = _run(build(), steps, step=step, order=order, engine="compiled")
+    build = SYSTEMS[system.removesuffix("-cvode")]
+    inputs = _lag_samples() if system == "lags" else None
+    settings = {"step": step, "order": order, "me_solver": "cvode" if system.endswith("-cvode") else "auto"}
+    one = _run(build(), steps, inputs, engine="compiled", **settings)
+    assert one[2] == "compiled", one[3]
     for threads in (2, 3, 16):
-        many = _run(build(), steps, step=step, order=order, engine="compiled", threads=threads)
+        many = _run(build(), steps, inputs, engine="compiled", threads=threads, **settings)
         assert many[:3] == one[:3], threads
-    python = _run(build(), steps, step=step, order=order, engine="python", threads=2)
+    python = _run(build(), steps, inputs, engine="python", threads=2, **settings)
     assert python[:2] == one[:2]
     assert any("master.threads = 2: the Python engine steps one instance at a time" in n for n in python[3])
     if system == "clocks":

@@ -4,7 +4,8 @@
 src_c/master/cw_master.c, a line-for-line twin of master.py with
 coupling.py, location.py, checkpoints.py and recording.py. It calls each
 FMU's fmi2 functions through the pointers of the library fmpy loaded, so
-it steps any FMI 2.0 Co-Simulation FMU. Loading, initialization, the
+it steps any FMI 2.0 Co-Simulation FMU, and FMI 1.0 and 3.0 ones through
+the core's adapters (cw1_*, cw3_*) with the same fmi2 shape. Loading, initialization, the
 wiring and everything a scene or an analysis asks for stay in Python: the
 core gets the ports' preallocated arrays and runs as many steps as it can
 before Python is needed again (the stop time, a full recording buffer, an
@@ -23,17 +24,21 @@ import ctypes
 import itertools
 import threading
 import weakref
+from array import array
 from ctypes import POINTER, Structure, byref, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
 
 from ..errors import SceneError, SimulationError
 from ..paths import core_library
 from .fmu import Instance
+from .fmu1 import _Fmi1
 from .fmu3 import _Events
 from .master import Master
 from .parallel import group_ends
+from .model_exchange import _ME
 from .ports import link_type
 from .recording import Recorder, _DiscreteOutput
-from .settings import MasterSettings, Statistics
+from .samples import Samples
+from .settings import MasterSettings, Statistics, with_model_exchange
 from .wiring import Link
 
 HISTORY = 3  # input history for divided differences (HISTORY in cw_master.c)
@@ -89,7 +94,8 @@ class _Master(_Strict):
     ) + [("n_fmi3", c_int), ("fmi3", c_void_p),  # FMI 3.0 adapters (fmu3._Events), whose time events cap the step
          ("loops", c_void_p),  # _Loops: the algebraic loops solved in the orders
          ("pool", c_void_p), ("par_end", c_void_p), ("par_status", c_void_p),  # master.threads (engine/parallel.py)
-         ("after_start", c_void_p), ("after_order", c_void_p)]  # per dynamic instance, the updates after its step
+         ("after_start", c_void_p), ("after_order", c_void_p),  # per dynamic instance, the updates after its step
+         ("inputs", c_void_p)]  # a _Inputs: inputs driven from samples, or NULL
 
 
 class _Loop(_Strict):
@@ -103,6 +109,13 @@ class _Loops(_Strict):
     _fields_ = _fields(["loop"], ["tolerance"], ["iterations", "fallbacks"], ["n_loops", "pad_"])
 
 
+class _Inputs(_Strict):
+    """The sample table and the Real inputs it drives (engine/samples.py)."""
+
+    _fields_ = _fields(["times", "values", "continuous", "events", "port_start", "vr", "signal", "value"],
+                       [], [], ["n_times", "n_signals", "n_events", "pad_"])
+
+
 class _Recorder(_Strict):
     _fields_ = _fields(
         ["col_port", "col_pos", "rows", "ticks"], ["last_tick"], ["grid_seen", "grid_k"],
@@ -110,7 +123,7 @@ class _Recorder(_Strict):
          "tick_pos", "has_interval", "pad_"])
 
 
-for _struct in (_Port, _Master, _Recorder, _Loop, _Loops):
+for _struct in (_Port, _Master, _Recorder, _Loop, _Loops, _Inputs):
     _struct._names = frozenset(n for n, _ in _struct._fields_)
 
 _lib = None
@@ -130,7 +143,8 @@ def load_core():
                 _lib_error = f"the compiled core {path} cannot be loaded ({e}); build it with tools/setup.sh"
                 return None
             for name, struct in (("port", _Port), ("master", _Master), ("recorder", _Recorder), ("fmi3", _Events),
-                                 ("loop", _Loop), ("loops", _Loops)):
+                                 ("fmi1", _Fmi1), ("me", _ME), ("loop", _Loop), ("loops", _Loops),
+                                 ("inputs", _Inputs)):
                 size = getattr(lib, f"cw_sizeof_{name}")
                 size.restype = c_size_t
                 if size() != ctypes.sizeof(struct):
@@ -151,6 +165,8 @@ def load_core():
             lib.cw_pool_new.restype = c_void_p
             lib.cw_pool_free.argtypes = [c_void_p]
             lib.cw_pool_free.restype = None
+            lib.cw_record_point.argtypes = [POINTER(_Master), POINTER(_Recorder)]
+            lib.cw_record_point.restype = None
             _lib = lib
         return _lib
 
@@ -178,20 +194,32 @@ def unsupported_links(types) -> str | None:
     return None
 
 
+def unsupported_inputs(types) -> str | None:
+    """Why the core cannot set these sampled inputs, or None. `types`:
+    ("instance.variable", FMI type) pairs; the core sets Real inputs only."""
+    for name, kind in types:
+        if kind != "Real":
+            return f"the compiled core sets sampled Real inputs only ({name} is {kind})"
+    return None
+
+
 def make_master(instances: dict[str, Instance], links: list[Link], settings: MasterSettings,
                 start_time: float = 0.0, step_order: list[str] | None = None,
-                extra_outputs: dict[str, list[str]] | None = None) -> Master:
+                extra_outputs: dict[str, list[str]] | None = None, inputs: Samples | None = None) -> Master:
     """The master that ``settings.engine`` asks for (see the module's docstring)."""
     settings.check()
     reason = None
     if settings.engine != "python":
         types = [(f"{k.src}.{k.output} -> {k.dst}.{k.input}", link_type(instances, k)) for k in links]
-        reason = unsupported(settings) or unsupported_links(types) or core_problem()
+        sampled = [] if inputs is None else [
+            (s.name, instances[s.instance].variables[s.variable].type) for s in inputs.signals
+            if s.instance in instances and s.variable in instances[s.instance].variables]
+        reason = unsupported(settings) or unsupported_links(types) or unsupported_inputs(sampled) or core_problem()
         if reason is None:
-            return CompiledMaster(instances, links, settings, start_time, step_order, extra_outputs)
+            return CompiledMaster(instances, links, settings, start_time, step_order, extra_outputs, inputs)
         if settings.engine == "compiled":
             raise SceneError(f"master.engine = 'compiled': {reason} (use 'auto' or 'python')")
-    master = Master(instances, links, settings, start_time, step_order, extra_outputs)
+    master = Master(instances, links, settings, start_time, step_order, extra_outputs, inputs)
     master.engine_reason = reason
     return master
 
@@ -222,9 +250,10 @@ class CompiledMaster(Master):
     # between calls). 0 returns every 16 steps (the tests compare the bits).
     slice_s = 0.05
 
-    def __init__(self, instances, links, settings, start_time=0.0, step_order=None, extra_outputs=None):
+    def __init__(self, instances, links, settings, start_time=0.0, step_order=None, extra_outputs=None,
+                 inputs=None):
         self._lib = load_core()
-        super().__init__(instances, links, settings, start_time, step_order, extra_outputs)
+        super().__init__(instances, links, settings, start_time, step_order, extra_outputs, inputs)
         self._build()
 
     # The master's state lives in the C struct; before it exists (inside
@@ -253,9 +282,11 @@ class CompiledMaster(Master):
     @property
     def stats(self) -> Statistics:
         c, lc = self._core, self._loops
-        return Statistics(steps=c.steps, events=c.events, event_iterations=c.event_iterations,
-                          rollbacks=c.rollbacks, replays=c.replays, states_saved=c.states_saved,
-                          loop_iterations=lc.iterations, loop_fallbacks=lc.fallbacks)
+        return with_model_exchange(
+            Statistics(steps=c.steps, events=c.events, event_iterations=c.event_iterations,
+                       rollbacks=c.rollbacks, replays=c.replays, states_saved=c.states_saved,
+                       loop_iterations=lc.iterations, loop_fallbacks=lc.fallbacks),
+            self._model_exchange)
 
     @stats.setter
     def stats(self, value: Statistics) -> None:
@@ -282,10 +313,18 @@ class CompiledMaster(Master):
         cports = (_Port * len(ports.all))()
         for i, p in enumerate(ports.all):
             inst, c = p.inst, cports[i]
-            if inst.fmi_version == 3:
+            if getattr(inst, "model_exchange", False):
+                # The core's Model Exchange wrapper (cwme_*, cw_me.c) on the instance's shared state.
+                dll, prefix, names = self._lib, "cwme_", _ADAPTER_NAMES
+                c.comp = inst.core_state(self._lib)
+            elif inst.fmi_version == 3:
                 # The core's FMI 3.0 adapter (cw3_*), on the instance's shared adapter state.
                 dll, prefix, names = self._lib, "cw3_", _ADAPTER_NAMES
                 c.comp = ctypes.addressof(inst.events)
+            elif inst.fmi_version == 1:
+                # The core's FMI 1.0 adapter (cw1_*: fmiDoStep's char newStep, negated aliases).
+                dll, prefix, names = self._lib, "cw1_", _ADAPTER_NAMES
+                c.comp = ctypes.addressof(inst.adapter)
             else:
                 dll, prefix, names = inst._slave.dll, "fmi2", _FMI2_NAMES
                 c.comp = inst.component
@@ -355,6 +394,8 @@ class CompiledMaster(Master):
         m.after_event = 1
         m.max_replay_steps = Master.MAX_REPLAY_STEPS
         self._start_threads(m, ref)
+        if self.file_inputs is not None:
+            m.inputs = self._inputs()
         self._core_ptr = byref(m)
         self._taken = c_double()
         self._taken_ptr = byref(self._taken)
@@ -374,7 +415,11 @@ class CompiledMaster(Master):
             return
         self._pool_free = weakref.finalize(self, self._lib.cw_pool_free, pool)  # at the latest with the master
         m.pool = pool
-        m.par_end = ref(_array(c_int, group_ends(self.ports, self._jacobi)))
+        if self.file_inputs is None:
+            ends = group_ends(self.ports, self._jacobi)
+        else:  # sampled inputs are set between an instance's step and its outputs' read: one at a time
+            ends = [a + 1 for a in range(len(self.ports.dynamic))]
+        m.par_end = ref(_array(c_int, ends))
         m.par_status = ref(_array(c_int, [], 2 * len(self.ports.all)))
 
     def stop_threads(self) -> None:
@@ -383,6 +428,30 @@ class CompiledMaster(Master):
         if stop is not None:
             self._core.pool = None
             stop()
+    def _inputs(self) -> int:
+        """The core's table of sampled inputs (Real ones: make_master chose
+        Python for the others), as a _Inputs struct's address."""
+        fi = self.file_inputs
+        samples = fi.samples
+        n = len(samples.times)
+        values = array("d")
+        for s in samples.signals:
+            values.extend(float(x) for x in s.values)
+        starts, vrs, signals = [], [], []
+        for p in self.ports.all:
+            starts.append(len(vrs))
+            cols, vr, _ = fi.real.get(p.inst.name, ([], [], None))
+            vrs += list(vr)
+            signals += cols
+        starts.append(len(vrs))
+        ref = self._ref
+        c = _Inputs(times=ref(_array(c_double, samples.times)), values=ref(_array(c_double, values)),
+                    continuous=ref(_array(c_int, (int(s.continuous) for s in samples.signals))),
+                    events=ref(_array(c_double, samples.events)), port_start=ref(_array(c_int, starts)),
+                    vr=ref(_array(c_uint, vrs)), signal=ref(_array(c_int, signals)),
+                    value=ref(_array(c_double, [], len(vrs))),
+                    n_times=n, n_signals=len(samples.signals), n_events=len(samples.events))
+        return ref(c)
 
     def _build_loops(self, index: dict, ref) -> _Loops:
         """The algebraic loops for the core (those broken by a delay are never in its orders)."""
@@ -477,7 +546,12 @@ class CompiledMaster(Master):
                 self._drain(on_point, rec, columns)
             if rc == _DONE:
                 return
-            if rc != _BUFFER_FULL and rc != _SLICE_OVER:
+            if rc == _CHECK_DIVERGENCE:
+                # Raises for an output that is not finite or too large; else
+                # the point is legal after all and is recorded now.
+                self._handle(rc)
+                self._lib.cw_record_point(self._core_ptr, byref(rec))
+            elif rc != _BUFFER_FULL and rc != _SLICE_OVER:
                 self._handle(rc)
 
     def run_watch(self, t_stop, mark, margin, watched, remember=()):
@@ -550,7 +624,7 @@ class CompiledMaster(Master):
         """Raise the error the Python master would raise (or name a divergence)."""
         m = self._core
         if rc == _CHECK_DIVERGENCE:
-            self.ports.name_divergence(m.t, self.settings.divergence_limit)
+            self.ports.name_divergence(m.t, self.settings.divergence_limit, last_point=m.err_t)
             return
         if rc == _ENDED:
             raise self._fmi3_ended()

@@ -177,6 +177,9 @@ class Variable:
     variability: str
     unit: str | None
     dependencies: list[str] | None  # the inputs an output depends on directly (outputs only; else None)
+    shape: tuple[int, ...] = ()  # an FMI 3.0 array's shape; () for a scalar or an element
+    array: str | None = None  # an array element's array (its vr is the element's code, fmu3.Instance3)
+    index: int = 0  # an array element's place in its array's values (row-major)
 
 
 def direct_feedthrough(md) -> dict[str, list[str]]:
@@ -204,15 +207,16 @@ _slaves: dict[tuple, object] = {}
 _slaves_lock = threading.Lock()
 
 
-def new_slave(kind: type, unzip: Path, md, name: str):
-    """A fmpy slave object (`kind`: FMU2Slave, FMU3Slave) named `name`,
-    not yet instantiated, on the FMU's library as loaded once."""
-    key = (kind, str(unzip), md.coSimulation.modelIdentifier)
+def new_slave(kind: type, unzip: Path, md, name: str, model_identifier: str):
+    """A fmpy object (`kind`: FMU2Slave, FMU3Slave, FMU2Model) named `name`,
+    not yet instantiated, on the FMU's library (`model_identifier`: of the
+    interface it runs through) as loaded once."""
+    key = (kind, str(unzip), model_identifier)
     with _slaves_lock:
         first = _slaves.get(key)
         if first is None:
             first = _slaves[key] = kind(guid=md.guid, unzipDirectory=str(unzip),
-                                        modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+                                        modelIdentifier=model_identifier, instanceName=name)
     slave = copy.copy(first)
     slave.guid, slave.instanceName, slave.component, slave.callbacks = md.guid, name, None, None
     return slave
@@ -248,10 +252,25 @@ def instance_variables(md) -> MappingProxyType:
 class Instance:
     """An instantiated FMU with fast access to its fmi2 functions."""
 
-    fmi_version = 2  # fmu3.Instance3 says 3
+    fmi_version = 2  # fmu3.Instance3 says 3, fmu1.Instance1 1
+    do_step_name = "fmi2DoStep"  # in messages
+    _fmpy_class = FMU2Slave  # model_exchange.MEInstance: FMU2Model
     # Instances freed in this process: a master looks for a freed instance
     # of its own before a run only when this changed (systems have thousands).
     frees = 0
+
+    def _interface(self):
+        """The modelDescription element of the interface it runs through."""
+        return self.md.coSimulation
+    arrays: dict[str, tuple[int, int]] = {}  # FMI 3.0 array variables: name -> (vr, values) (fmu3.Instance3)
+    elements: dict[str, list[str]] = {}  # FMI 3.0 array variables: name -> its element names, row-major
+    # What messages call the FMU where its path is a copy (an SSP archive's
+    # member, "x.ssp/resources/m.fmu"); None: its path.
+    label: str | None = None
+
+    @property
+    def shown(self) -> str:
+        return self.label or str(self.path)
 
     def __init__(self, name: str, path: Path, model_description=None):
         self.name = name
@@ -260,10 +279,7 @@ class Instance:
         self.md = model_description or described[0]
         self.model_name = self.md.modelName
         self.variables = instance_variables(self.md)
-        cs = self.md.coSimulation
-        self.max_output_derivative_order = int(cs.maxOutputDerivativeOrder or 0)
-        self.can_interpolate_inputs = bool(cs.canInterpolateInputs)
-        self.can_get_set_state = bool(cs.canGetAndSetFMUstate)
+        self._read_capabilities()
         experiment = self.md.defaultExperiment
         tol = getattr(experiment, "tolerance", None) if experiment is not None else None
         self.default_tolerance = float(tol) if tol not in (None, "") else None
@@ -272,14 +288,21 @@ class Instance:
         self._slave = None
         self._state = c_void_p()
 
+    def _read_capabilities(self) -> None:
+        """What the FMU's <CoSimulation> element declares (a Model Exchange wrapper says its own)."""
+        cs = self.md.coSimulation
+        self.max_output_derivative_order = int(cs.maxOutputDerivativeOrder or 0)
+        self.can_interpolate_inputs = bool(cs.canInterpolateInputs)
+        self.can_get_set_state = bool(cs.canGetAndSetFMUstate)
+
     # -- loading -------------------------------------------------------
 
     def instantiate(self) -> None:
         unzip = extract(self.path)
         try:
-            self._slave = new_slave(FMU2Slave, unzip, self.md, self.name)
+            self._slave = new_slave(self._fmpy_class, unzip, self.md, self.name, self._interface().modelIdentifier)
         except Exception as e:  # fmpy raises a bare Exception for a bad library
-            raise SceneError(f"{self.path}: cannot load the FMU's binary for this platform: {e}") from None
+            raise SceneError(f"{self.shown}: cannot load the FMU's binary for this platform: {e}") from None
         messages = self.messages
 
         def keep(status, message):
@@ -307,7 +330,7 @@ class Instance:
             # The binary refused its own model description (another build or
             # another model): the FMU file is broken, which is bad input.
             raise SceneError(
-                f"{self.path}: fmi2Instantiate refused the model description's GUID "
+                f"{self.shown}: fmi2Instantiate refused the model description's GUID "
                 f"{self.md.guid}: {self.last_message() or e}") from None
         self.component = self._slave.component
         dll = self._slave.dll

@@ -118,6 +118,17 @@ def _unread(inst: Instance, name: str):
     return "" if inst.variables[name].type == "String" else 0
 
 
+def _arrays_together(inst: Instance, names: list[str]) -> list[str]:
+    """Input names with each array's elements side by side in index order,
+    where its first element is (a request of whole arrays is one fmi3 call)."""
+    if not inst.arrays:
+        return names
+    first: dict[str, int] = {}
+    for pos, n in enumerate(names):
+        first.setdefault(inst.variables[n].array or n, pos)
+    return sorted(names, key=lambda n: (first[inst.variables[n].array or n], inst.variables[n].index))
+
+
 def link_type(instances: dict[str, Instance], link: Link) -> str:
     """The FMI type of a link's two ends (the output's, or the input's where
     that is not Real: a Float32 end goes through the discrete path);
@@ -159,10 +170,12 @@ class Ports(dict):
             inputs[link.dst].append(link.input)
             if link.output not in outputs[link.src]:
                 outputs[link.src].append(link.output)
+        # An input array's elements go together, in order: FMI 3.0 sets an array whole.
+        inputs = {n: _arrays_together(instances[n], names) for n, names in inputs.items()}
         # Integer and Boolean outputs are discrete: read on demand, not per step.
         self.discrete_outputs: dict[str, list[str]] = {n: [] for n in instances}
         for n, names in (extra_outputs or {}).items():
-            for x in names:
+            for x in (y for name in names for y in instances[n].elements.get(name, [name])):
                 if instances[n].variables[x].type != "Real":
                     self.discrete_outputs[n].append(x)
                 elif x not in outputs[n]:
@@ -194,6 +207,9 @@ class Ports(dict):
             dst.sources.append((k, src, out_pos[link.src][link.output]))
             if not link.identity:
                 dst.scale.append((k, float(link.factor), float(link.offset)))
+        for p in self.values():  # in input order
+            p.sources.sort(key=lambda source: source[0])
+            p.scale.sort(key=lambda scale: scale[0])
 
         self.all = list(self.values())
         self.first = [self[n] for n in wiring.feedthrough_only]  # stepped first: they commit modes
@@ -274,9 +290,10 @@ class Ports(dict):
         """One pass over every output: False while all are finite and below `limit`."""
         return not sum(map(abs, self.buffer)) < limit  # NaN fails too
 
-    def name_divergence(self, t: float, limit: float) -> None:
+    def name_divergence(self, t: float, limit: float, last_point: float | None = None) -> None:
         """Raise for the output that failed ``diverged`` (a sum of large but
-        legal outputs can fail it too: then nothing)."""
+        legal outputs can fail it too: then nothing); the error's
+        ``last_point`` is the last good communication point, s."""
         for p in self.all:
             if sum(map(abs, p.out)) < limit:
                 continue
@@ -285,6 +302,7 @@ class Ports(dict):
                 x = out[k]
                 if not (-limit < x < limit):
                     what = "is not finite" if not math.isfinite(x) else f"exceeds the divergence limit {limit:g}"
-                    raise SimulationError(
-                        f"{p.inst.name}.{p.out_names[k]} = {x!r} {what} at t = {t!r} s",
-                        time=t, instance=p.inst.name, variable=p.out_names[k])
+                    e = SimulationError(f"{p.inst.name}.{p.out_names[k]} = {x!r} {what} at t = {t!r} s",
+                                        time=t, instance=p.inst.name, variable=p.out_names[k])
+                    e.last_point = last_point
+                    raise e

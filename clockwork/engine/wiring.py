@@ -17,6 +17,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from ..errors import SceneError
+from .description import link_shape_problem
 from .fmu import Instance
 from .names import split_link, split_ref
 
@@ -68,11 +69,47 @@ class Wiring:
     loop_links: list[list[Link]] = field(default_factory=list)  # per loop, the feedthrough links inside it
 
 
+def expand_arrays(instances: dict[str, Instance], links: list[Link]) -> list[Link]:
+    """Links between FMI 3.0 arrays as links between their elements, in
+    order (arrays of the same shape only); SceneError where shapes differ or
+    where an input array would be connected in part (FMI 3.0 sets an array
+    whole)."""
+    if not any(getattr(inst, "arrays", None) for inst in instances.values()):  # (tests wire stand-ins too)
+        return list(links)
+    out = []
+    for link in links:
+        src, dst = instances[link.src], instances[link.dst]
+        s, d = src.variables[link.output], dst.variables[link.input]
+        if not s.shape and not d.shape:
+            out.append(link)
+            continue
+        problem = link_shape_problem(f"{link.src}.{link.output}", s, f"{link.dst}.{link.input}", d)
+        if problem:
+            raise SceneError(f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: {problem}")
+        for a, b in zip(src.elements[link.output], dst.elements[link.input]):
+            out.append(Link(link.src, a, link.dst, b, link.factor, link.offset))
+    connected: dict[tuple[str, str], list[str]] = {}
+    for link in out:
+        v = instances[link.dst].variables[link.input]
+        if v.array is not None:
+            connected.setdefault((link.dst, v.array), []).append(link.input)
+    for (dst, array), names in connected.items():
+        size = instances[dst].arrays[array][1]
+        if len(set(names)) < size:
+            raise SceneError(f"connection to {dst}.{names[0]}: {dst}.{array} is an input array of {size} values "
+                             f"and {len(set(names))} of them are connected; FMI 3.0 sets an array whole: "
+                             f"connect {dst}.{array} (or every element of it)")
+    return out
+
+
 def build(instances: dict[str, Instance], links: list[Link], step_order: list[str] | None = None,
           algebraic_loops: str = "solve") -> Wiring:
-    """The wiring of `links` between `instances`. With algebraic_loops =
-    "delay", the members of a loop are stepped as dynamic instances whose
-    outputs are read once, after their step (a one-step delay)."""
+    """The wiring of `links` between `instances` (links between whole arrays
+    become links between their elements: ``Wiring.links``). With
+    algebraic_loops = "delay", the members of a loop are stepped as dynamic
+    instances whose outputs are read once, after their step (a one-step
+    delay)."""
+    links = expand_arrays(instances, links)
     feeds: dict[tuple[str, str], bool] = {}
     for link in links:
         var = instances[link.src].variables[link.output]

@@ -18,10 +18,10 @@
  * Algebraic loops are solved in the steps as loops.py solves them
  * (loop_solve); their start in Initialization Mode is Python's.
  *
- * FMI 3.0 instances are called through the adapter at the end of this
- * file (cw3_*): fmi2-shaped functions whose first argument is a cw_fmi3,
- * the twin of clockwork/engine/fmu3.py, so the stepping code above never
- * asks which version an FMU is.
+ * FMI 3.0 and FMI 1.0 instances are called through the adapters at the
+ * end of this file (cw3_*, cw1_*): fmi2-shaped functions whose first
+ * argument is a cw_fmi3 or a cw_fmi1, the twins of clockwork/engine/fmu3.py
+ * and fmu1.py, so the stepping code above never asks which version an FMU is.
  */
 
 #include <math.h>
@@ -34,6 +34,7 @@
 #include <time.h>
 
 #include "cw_pool.h"
+#include "cw_illinois.h"
 
 #define CW_EXPORT __attribute__((visibility("default")))
 
@@ -179,7 +180,22 @@ typedef struct {
     int *par_status;           /* 2 per port: fmi2DoStep's and fmi2GetReal's status, stepped at once */
     const int *after_start;    /* per dynamic position a: after_order[after_start[a] .. after_start[a + 1]) */
     const int *after_order;    /* ... is the part of first_in_order updated after it steps (parallel.py) */
+    struct cw_inputs *inputs;  /* inputs driven from samples, or NULL */
 } cw_master;
+
+/* Inputs driven from samples (engine/samples.py): the sample table, its
+ * input events, and per port the Real inputs it drives. */
+typedef struct cw_inputs {
+    const double *times;      /* n_times sample times, s, non-decreasing */
+    const double *values;     /* n_signals * n_times values, signal after signal */
+    const int *continuous;    /* per signal: interpolated (1) or held (0) */
+    const double *events;     /* n_events input events, s, sorted */
+    const int *port_start;    /* per port, its first target; n_ports + 1 entries */
+    const unsigned *vr;       /* per target: the input's value reference */
+    const int *signal;        /* per target: its signal */
+    double *value;            /* per target: the value set */
+    int n_times, n_signals, n_events, pad_;
+} cw_inputs;
 
 typedef struct {
     const int *col_port;  /* per recorded column: port and output position */
@@ -198,6 +214,7 @@ CW_EXPORT size_t cw_sizeof_master(void) { return sizeof(cw_master); }
 CW_EXPORT size_t cw_sizeof_recorder(void) { return sizeof(cw_recorder); }
 CW_EXPORT size_t cw_sizeof_loop(void) { return sizeof(cw_loop); }
 CW_EXPORT size_t cw_sizeof_loops(void) { return sizeof(cw_loops); }
+CW_EXPORT size_t cw_sizeof_inputs(void) { return sizeof(cw_inputs); }
 
 static double py_min(double a, double b) { return b < a ? b : a; }
 static double py_max(double a, double b) { return b > a ? b : a; }
@@ -488,6 +505,122 @@ static void indicators(cw_master *m, double *z)
         z[k] = m->ports[m->z_port[k]].out[m->z_pos[k]];
 }
 
+/* -- inputs from samples (engine/samples.py) --------------------------- */
+
+/* math.isclose(a, b) with its defaults (relative 1e-9), as fmpy compares times. */
+static int cw_isclose(double a, double b)
+{
+    if (a == b)
+        return 1;
+    if (isinf(a) || isinf(b))
+        return 0;
+    double diff = fabs(b - a);
+    return diff <= fabs(1e-9 * b) || diff <= fabs(1e-9 * a) || diff <= 0.0;
+}
+
+static int bisect_left(const double *a, int n, double x)
+{
+    int lo = 0, hi = n;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (a[mid] < x)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+static int bisect_right(const double *a, int n, double x)
+{
+    int lo = 0, hi = n;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (x < a[mid])
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
+    return lo;
+}
+
+/* Samples.next_event */
+static double inputs_next_event(const cw_inputs *in, double t)
+{
+    for (int i = bisect_right(in->events, in->n_events, t); i < in->n_events; i++)
+        if (!cw_isclose(in->events[i], t))
+            return in->events[i];
+    return INFINITY;
+}
+
+/* Samples.event_at */
+static int inputs_event_at(const cw_inputs *in, double t)
+{
+    int i = bisect_left(in->events, in->n_events, t);
+    for (int j = i - 1; j <= i; j++)
+        if (j >= 0 && j < in->n_events && cw_isclose(in->events[j], t))
+            return 1;
+    return 0;
+}
+
+/* Samples.at for the targets [from, to): their values at `time`, after an
+ * event there when after_event, else before it. */
+static void inputs_at(const cw_inputs *in, int from, int to, double time, int after_event, double *out)
+{
+    const double *t = in->times;
+    int n = in->n_times;
+    int first = n < 2, i0 = 0;
+    if (!first) {
+        i0 = bisect_left(t, n, time);
+        first = i0 == 0;
+    }
+    if (first || i0 == n) {
+        for (int k = from; k < to; k++)
+            out[k] = in->values[(size_t)in->signal[k] * (size_t)n + (size_t)(first ? 0 : n - 1)];
+        return;
+    }
+    int held = i0 - 1;
+    if (after_event)
+        while (held + 1 < n && (t[held + 1] < time || cw_isclose(time, t[held + 1])))
+            held++;
+    int row = -1;
+    double w0 = 0.0, w1 = 0.0;
+    if (cw_isclose(time, t[i0]) && i0 < n - 1 && cw_isclose(t[i0], t[i0 + 1])) {
+        row = i0;
+        if (after_event)
+            while (row < n - 1 && cw_isclose(t[row], t[row + 1]))
+                row++;
+    } else {
+        double t0 = t[i0 - 1], t1 = t[i0];
+        w0 = (t1 - time) / (t1 - t0);
+        w1 = 1 - w0;
+    }
+    for (int k = from; k < to; k++) {
+        const double *v = &in->values[(size_t)in->signal[k] * (size_t)n];
+        if (!in->continuous[in->signal[k]])
+            out[k] = v[held];
+        else if (row >= 0)
+            out[k] = v[row];
+        else
+            out[k] = w0 * v[i0 - 1] + w1 * v[i0];
+    }
+}
+
+/* FileInputs.set for port i */
+static int inputs_set(cw_master *m, int i, double t, int after_event)
+{
+    const cw_inputs *in = m->inputs;
+    int from = in->port_start[i], to = in->port_start[i + 1];
+    if (from == to)
+        return 0;
+    inputs_at(in, from, to, t, after_event, in->value);
+    cw_port *p = &m->ports[i];
+    int st = p->setReal(p->comp, &in->vr[from], (size_t)(to - from), &in->value[from]);
+    if (st > FMI_WARNING)
+        return fail(m, i, CALL_SET_INPUTS, st, t, 0.0);
+    return 0;
+}
+
 /* -- coupling ------------------------------------------------------------- */
 
 static void history_forget(cw_master *m)
@@ -633,6 +766,7 @@ typedef struct {
     const int *ports;
     double t, h;
     int first;  /* feedthrough-only instances (advance's part 1), else dynamic ones */
+    int no_set_prior;  /* noSetFMUStatePriorToCurrentPoint, as advance passes it */
 } par_job;
 
 /* One instance of a par_step, on whichever thread takes it: what advance
@@ -643,7 +777,7 @@ static void par_item(void *ctx, int a)
     cw_master *m = job->m;
     cw_port *p = &m->ports[job->ports[a]];
     int *st = &m->par_status[2 * a];
-    st[0] = p->doStep(p->comp, job->t, job->h, 0);
+    st[0] = p->doStep(p->comp, job->t, job->h, job->no_set_prior);
     st[1] = FMI_OK;
     if (st[0] > FMI_WARNING)
         return;
@@ -661,9 +795,9 @@ static void par_item(void *ctx, int a)
 
 /* ports[0..n) step from t by h at once, then are checked in their order:
  * the first failure is the one the serial loop would meet. */
-static int par_step(cw_master *m, const int *ports, int n, double t, double h, int first)
+static int par_step(cw_master *m, const int *ports, int n, double t, double h, int first, int no_set_prior)
 {
-    par_job job = {m, ports, t, h, first};
+    par_job job = {m, ports, t, h, first, no_set_prior};
     cw_pool_run(m->pool, n, par_item, &job);
     for (int a = 0; a < n; a++) {
         const int *st = &m->par_status[2 * a];
@@ -678,7 +812,7 @@ static int par_step(cw_master *m, const int *ports, int n, double t, double h, i
 /* dynamic[a..e), which depend on none of each other within the step: their
  * inputs set in order (Gauss-Seidel; Jacobi's are set already), then they
  * step at once. A refused input stops there, after the ones before it. */
-static int par_group(cw_master *m, int a, int e, double t, double h, int smooth)
+static int par_group(cw_master *m, int a, int e, double t, double h, int smooth, int no_set_prior)
 {
     int set = e, rc = 0;
     if (!m->jacobi)
@@ -686,7 +820,7 @@ static int par_group(cw_master *m, int a, int e, double t, double h, int smooth)
             if (m->ports[m->dynamic[b]].n_in && (rc = set_inputs(m, m->dynamic[b], t, h, smooth)) < 0)
                 set = b;
     if (set > a)
-        TRY(par_step(m, m->dynamic + a, set - a, t, h, 0));
+        TRY(par_step(m, m->dynamic + a, set - a, t, h, 0, no_set_prior));
     return rc;
 }
 
@@ -695,18 +829,28 @@ static int par_group(cw_master *m, int a, int e, double t, double h, int smooth)
 static int advance(cw_master *m, double t, double h)
 {
     double t_new = t + h;
+    /* noSetFMUStatePriorToCurrentPoint: true only while no checkpoint is
+     * held that a rollback or replay may set again (Checkpoints.held). */
+    const int no_set_prior = !m->snap_valid;
+    /* Sampled inputs at t, after an event there. */
+    if (m->inputs)
+        for (int i = 0; i < m->n_ports; i++)
+            TRY(inputs_set(m, i, t, 1));
     /* 1. Feedthrough-only instances commit the mode decided at t. */
     if (m->pool && m->n_first > 1)
-        TRY(par_step(m, m->first, m->n_first, t, h, 1));
+        TRY(par_step(m, m->first, m->n_first, t, h, 1, no_set_prior));
     else
     for (int a = 0; a < m->n_first; a++) {
         cw_port *p = &m->ports[m->first[a]];
-        int st = p->doStep(p->comp, t, h, 0);
+        int st = p->doStep(p->comp, t, h, no_set_prior);
         if (st > FMI_WARNING)
             return fail(m, m->first[a], CALL_DO_STEP, st, t, h);
         if (p->n_z && m->after_event)  /* a commit may have switched the mode: z at t+ */
             p->getReal(p->comp, p->out_vr, (size_t)p->n_out, p->out);
     }
+    if (m->inputs)  /* their outputs are next read at t + h: sampled inputs there, before an event */
+        for (int a = 0; a < m->n_first; a++)
+            TRY(inputs_set(m, m->first[a], t_new, 0));
     if (m->locating) {
         if (m->after_event)
             indicators(m, m->z_start);
@@ -722,7 +866,7 @@ static int advance(cw_master *m, double t, double h)
     for (int a = 0; a < m->n_dynamic; a++) {
         int e = m->pool ? m->par_end[a] : a + 1;
         if (e > a + 1) {  /* instances independent within the step, stepped at once */
-            TRY(par_group(m, a, e, t, h, smooth));
+            TRY(par_group(m, a, e, t, h, smooth, no_set_prior));
             a = e - 1;
             if (!m->jacobi && e != m->n_dynamic)
                 TRY(propagate(m, m->first_in_order, m->n_first_in_order, t_new));
@@ -732,9 +876,11 @@ static int advance(cw_master *m, double t, double h)
         cw_port *p = &m->ports[i];
         if (!m->jacobi && p->n_in)
             TRY(set_inputs(m, i, t, h, smooth));
-        int st = p->doStep(p->comp, t, h, 0);
+        int st = p->doStep(p->comp, t, h, no_set_prior);
         if (st > FMI_WARNING)
             return fail(m, i, CALL_DO_STEP, st, t, h);
+        if (m->inputs)
+            TRY(inputs_set(m, i, t_new, 0));
         TRY(port_read(m, i, t_new));
         if (!m->jacobi && a != m->n_dynamic - 1)  /* newest values flow on, where they reach */
             TRY(propagate(m, m->after_order + m->after_start[a], m->after_start[a + 1] - m->after_start[a],
@@ -1077,43 +1223,6 @@ static double hidden_crossing(cw_master *m, double h, const double *z0, const do
     return best;
 }
 
-typedef struct {
-    double lo, z_lo, hi, z_hi;
-    int kept, iterations;
-} illinois;
-
-static double illinois_next(const illinois *s)
-{
-    double dz = s->z_lo - s->z_hi;
-    if (dz == 0.0)
-        return 0.5 * (s->lo + s->hi);
-    return (s->z_lo * s->hi - s->z_hi * s->lo) / dz;
-}
-
-static void illinois_update(illinois *s, double x, double z, int was_crossed)
-{
-    s->iterations++;
-    if (was_crossed) {
-        s->hi = x;
-        s->z_hi = z;
-        if (s->kept == 1)
-            s->z_lo *= 0.5;
-        s->kept = 1;
-    } else {
-        s->lo = x;
-        s->z_lo = z;
-        if (s->kept == -1)
-            s->z_hi *= 0.5;
-        s->kept = -1;
-    }
-}
-
-static illinois illinois_new(double lo, double z_lo, double hi, double z_hi)
-{
-    illinois s = {lo, z_lo, hi, z_hi, 0, 0};
-    return s;
-}
-
 /* The indicator among the crossing ones whose linear interpolant crosses first. */
 static int earliest(const int *crossing, const double *z0, const double *z1, int n)
 {
@@ -1331,6 +1440,15 @@ static int diverged(const cw_master *m)
 static double fmi3_next_event_time(const struct cw_fmi3 *a);
 static int fmi3_terminated(const struct cw_fmi3 *a);
 
+/* Something changed outside the wiring (Master.discontinuity). */
+static void discontinuity(cw_master *m)
+{
+    m->after_event = 1;
+    m->time_to_zero = 0.0;
+    history_forget(m);
+    record_history(m);
+}
+
 static int step(cw_master *m, double h, double *taken_out)
 {
     double t = m->t;
@@ -1342,6 +1460,15 @@ static int step(cw_master *m, double h, double *taken_out)
     for (int i = 0; i < m->n_fmi3; i++) {
         double te = fmi3_next_event_time(m->fmi3[i]);
         if (t < te && te < t + h)
+            h = te - t;
+    }
+    /* A sampled input's event is a discontinuity at the step's start and
+     * ends a step that would pass it. */
+    if (m->inputs) {
+        if (inputs_event_at(m->inputs, t))
+            discontinuity(m);
+        double te = inputs_next_event(m->inputs, t);
+        if (t + h > te && !cw_isclose(t + h, te))
             h = te - t;
     }
     /* 1. The indicators' sources cap the step. */
@@ -1380,8 +1507,11 @@ static int step(cw_master *m, double h, double *taken_out)
     }
     m->after_event = m->after_event_step;
     m->steps++;
-    /* 5. NaN, infinities, divergence: Python names the output. */
+    /* 5. NaN, infinities, divergence: Python names the output (err_t: the
+     * last good communication point, the step's start). */
     m->diverged = diverged(m);
+    if (m->diverged)
+        m->err_t = t;
     if (m->extrapolation)
         record_history(m);
     *taken_out = taken;
@@ -1427,10 +1557,7 @@ CW_EXPORT void cw_start(cw_master *m)
 /* Something changed outside the wiring (Master.discontinuity). */
 CW_EXPORT void cw_discontinuity(cw_master *m)
 {
-    m->after_event = 1;
-    m->time_to_zero = 0.0;
-    history_forget(m);
-    record_history(m);
+    discontinuity(m);
 }
 
 /* Long runs return to Python after `slice_s` of wall time (Python passes
@@ -1476,6 +1603,12 @@ static void record_point(cw_master *m, cw_recorder *r)
     r->n_rows++;
 }
 
+/* Record the current point (after a divergence check that found every output legal). */
+CW_EXPORT void cw_record_point(cw_master *m, cw_recorder *r)
+{
+    record_point(m, r);
+}
+
 /* Step to t_stop on the grid start + k * step, plus located events
  * (Master.run_until), recording into r when given. Returns CW_BUFFER_FULL,
  * CW_SLICE_OVER or CW_CHECK_DIVERGENCE to be called again, r->grid_k keeping
@@ -1509,15 +1642,18 @@ CW_EXPORT int cw_run_until(cw_master *m, double t_stop, cw_recorder *r, double s
         int rc = step(m, h, &taken);
         if (rc < 0 || rc == CW_ENDED)
             return rc;
-        if (r)
-            record_point(m, r);
         if (m->t >= grid - eps)
             k++;
         if (rc == CW_CHECK_DIVERGENCE) {
+            /* Not recorded yet: a failed run keeps the points before this
+             * one only; where Python finds every output legal, it records
+             * the point (cw_record_point) and calls again. */
             if (r)
                 r->grid_k = k;
             return rc;
         }
+        if (r)
+            record_point(m, r);
     }
     if (r)
         r->grid_k = -1;
@@ -1660,6 +1796,19 @@ typedef struct cw_fmi3 {
     long long iu_calls;           /* callbacks that set inputs */
     double *iu_saved;             /* u0, d1, d2, tref (4 n_iu) with the saved FMU state, */
     int *iu_saved_fed;            /* as FMI 2.0 saves its polynomials in its state */
+    /* Array elements (fmu3.Instance3._number_elements): the code
+     * code_base + k names value code_off[k] of the code_size[k] values of
+     * the array variable code_vr[k]. A request whose codes cover whole
+     * arrays in order is one fmi3 call with nValues > nValueReferences;
+     * any other is served element by element. */
+    unsigned code_base;
+    int n_codes;
+    const unsigned *code_vr;
+    const int *code_off, *code_size;
+    unsigned *scratch_vr;         /* the value references of one call, translated */
+    int *scratch_order;           /* and their derivative orders */
+    double *scratch_val;          /* one array's values */
+    int scratch_cap, scratch_val_cap;
 } cw_fmi3;
 
 CW_EXPORT size_t cw_sizeof_fmi3(void) { return sizeof(cw_fmi3); }
@@ -1750,14 +1899,13 @@ static void iu_recheck(cw_fmi3 *a)
 
 CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
 {
-    (void)no_set_prior;
     cw_fmi3 *a = comp;
     double end = t + h, now = t, step_size = h;
     int worst = FMI_OK, stalled = 0;
     for (;;) {
         bool handling = false, term = false, early = false;
         double last = 0.0;
-        int st = a->doStep(a->instance, now, step_size, false, &handling, &term, &early, &last);
+        int st = a->doStep(a->instance, now, step_size, no_set_prior != 0, &handling, &term, &early, &last);
         if (st > FMI_WARNING) {
             a->failed_call = 1;
             return st;
@@ -1799,16 +1947,87 @@ CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
     }
 }
 
+/* The element number of a code, or -1 for a plain value reference. */
+static int code_element(const cw_fmi3 *a, unsigned code)
+{
+    unsigned e = code - a->code_base;  /* wraps for codes below the base */
+    return e < (unsigned)a->n_codes ? (int)e : -1;
+}
+
+/* Translate n codes into a->scratch_vr (and their orders, when given, into
+ * a->scratch_order): *m value references, each array whole. 0 when the
+ * request holds part of an array, an array out of order, an array with
+ * orders that differ, or more references than the scratch holds. */
+static int code_runs(cw_fmi3 *a, const unsigned *vr, size_t n, const int *order, size_t *m)
+{
+    size_t k = 0, j = 0;
+    while (k < n) {
+        if (j >= (size_t)a->scratch_cap)
+            return 0;
+        int e = code_element(a, vr[k]);
+        size_t size = 1;
+        if (e >= 0) {
+            size = (size_t)a->code_size[e];
+            if (a->code_off[e] != 0 || k + size > n)
+                return 0;
+            for (size_t i = 1; i < size; i++)
+                if (vr[k + i] != vr[k] + i || (order && order[k + i] != order[k]))
+                    return 0;
+            a->scratch_vr[j] = a->code_vr[e];
+        } else {
+            a->scratch_vr[j] = vr[k];
+        }
+        if (order)
+            a->scratch_order[j] = order[k];
+        j++;
+        k += size;
+    }
+    *m = j;
+    return 1;
+}
+
+/* fmi3GetFloat64 (order NULL) or fmi3GetOutputDerivatives of n codes,
+ * element by element: each element's whole array, then its value. */
+static int get_elementwise(cw_fmi3 *a, const unsigned *vr, size_t n, const int *order, double *out)
+{
+    int worst = FMI_OK;
+    for (size_t k = 0; k < n; k++) {
+        int e = code_element(a, vr[k]);
+        unsigned one = e >= 0 ? a->code_vr[e] : vr[k];
+        size_t size = e >= 0 ? (size_t)a->code_size[e] : 1;
+        int st = order ? a->getOutputDerivatives(a->instance, &one, 1, &order[k], a->scratch_val, size)
+                       : a->getFloat64(a->instance, &one, 1, a->scratch_val, size);
+        worst = st > worst ? st : worst;
+        if (st > FMI_WARNING)
+            return st;
+        out[k] = a->scratch_val[e >= 0 ? a->code_off[e] : 0];
+    }
+    return worst;
+}
+
 CW_EXPORT int cw3_getReal(void *comp, const unsigned *vr, size_t n, double *out)
 {
     cw_fmi3 *a = comp;
-    return a->getFloat64(a->instance, vr, n, out, n);
+    if (!a->n_codes)
+        return a->getFloat64(a->instance, vr, n, out, n);
+    size_t m;
+    if (code_runs(a, vr, n, NULL, &m))
+        return a->getFloat64(a->instance, a->scratch_vr, m, out, n);
+    return get_elementwise(a, vr, n, NULL, out);
 }
 
 CW_EXPORT int cw3_setReal(void *comp, const unsigned *vr, size_t n, const double *values)
 {
     cw_fmi3 *a = comp;
-    int st = a->setFloat64(a->instance, vr, n, values, n);
+    int st;
+    if (!a->n_codes) {
+        st = a->setFloat64(a->instance, vr, n, values, n);
+    } else {
+        size_t m;
+        if (!code_runs(a, vr, n, NULL, &m))
+            return FMI_ERROR;  /* part of an array: the ports set arrays whole */
+        st = a->setFloat64(a->instance, a->scratch_vr, m, values, n);
+    }
     if (st <= FMI_WARNING && a->n_iu) {
         /* A value without derivatives is held (as fmi2SetReal on FMI 2.0). */
         for (size_t k = 0; k < n; k++) {
@@ -1858,7 +2077,12 @@ CW_EXPORT int cw3_setInputDerivatives(void *comp, const unsigned *vr, size_t n, 
 CW_EXPORT int cw3_getOutputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order, double *out)
 {
     cw_fmi3 *a = comp;
-    return a->getOutputDerivatives(a->instance, vr, n, order, out, n);
+    if (!a->n_codes)
+        return a->getOutputDerivatives(a->instance, vr, n, order, out, n);
+    size_t m;
+    if (code_runs(a, vr, n, order, &m))
+        return a->getOutputDerivatives(a->instance, a->scratch_vr, m, a->scratch_order, out, n);
+    return get_elementwise(a, vr, n, order, out);
 }
 
 CW_EXPORT int cw3_getState(void *comp, void **state)
@@ -1894,4 +2118,177 @@ CW_EXPORT int cw3_setState(void *comp, void *state)
         iu_recheck(a);
     }
     return st;
+}
+
+/* ---- FMI 1.0: the adapter (the twin of clockwork/engine/fmu1.py) ----------
+ *
+ * Each function has the fmi2 shape the core calls and takes a cw_fmi1 as
+ * its component. fmiDoStep's last argument is FMI 1.0's newStep, an
+ * fmiBoolean (a char), where fmi2DoStep has an int: cw1_doStep calls it
+ * through its own type, always with newStep = true (a step of an FMU
+ * without state is never repeated). FMI 1.0 computes outputs in fmiDoStep:
+ * outputs read after inputs were set (no step between) are computed first
+ * by a step of size 0 at the communication point (cw1_fresh), FMI 1.0's
+ * iteration, as FMI 2.0 computes them on the get. A negated alias has a value reference
+ * of its own (negated_vr), turned into the FMU's (base_vr) with its value
+ * negated both ways. FMI 1.0 has no FMU state: the master refuses every
+ * setting that needs one before the first step.
+ */
+
+typedef char fmi1_boolean;
+typedef int (*fmi1DoStep_t)(void *, double, double, fmi1_boolean);
+
+typedef struct cw_fmi1 {
+    void *instance;
+    fmi1DoStep_t doStep;
+    cw_getReal_t getReal;
+    cw_setReal_t setReal;
+    cw_setDer_t setInputDerivatives;
+    cw_getDer_t getOutputDerivatives;
+    const unsigned *negated_vr; /* the master's value references of negated aliases */
+    const unsigned *base_vr;    /* the FMU's, whose value they negate */
+    double time;                /* the FMU's communication point, s */
+    long long zero_steps;       /* steps of size 0 taken to compute outputs */
+    int n_negated;
+    int stale;                  /* inputs set since fmiDoStep last computed the outputs */
+    int failed_zero;            /* the last zero step failed (fmu1.Instance1.fail says so) */
+    int pad_;
+} cw_fmi1;
+
+CW_EXPORT size_t cw_sizeof_fmi1(void) { return sizeof(cw_fmi1); }
+
+enum { CW1_CHUNK = 64 };  /* value references translated at a time */
+
+/* The FMU's value references for vr[0..n) (n <= CW1_CHUNK) and which are negated. */
+static void cw1_own(const cw_fmi1 *a, const unsigned *vr, size_t n, unsigned *own, int *negated)
+{
+    for (size_t k = 0; k < n; k++) {
+        own[k] = vr[k];
+        negated[k] = 0;
+        for (int j = 0; j < a->n_negated; j++)
+            if (a->negated_vr[j] == vr[k]) {
+                own[k] = a->base_vr[j];
+                negated[k] = 1;
+                break;
+            }
+    }
+}
+
+CW_EXPORT int cw1_doStep(void *comp, double t, double h, int no_set_prior)
+{
+    cw_fmi1 *a = comp;
+    (void)no_set_prior;  /* FMI 1.0 has no FMU state to set */
+    int st = a->doStep(a->instance, t, h, (fmi1_boolean)1);
+    if (st <= FMI_WARNING) {
+        a->time = t + h;
+        a->stale = 0;
+    }
+    return st;
+}
+
+/* FMI 1.0 computes outputs in fmiDoStep: where inputs were set since the
+ * last step, a step of size 0 at the communication point first (FMI 1.0's
+ * iteration; FMI 2.0 computes them on the get). */
+static int cw1_fresh(cw_fmi1 *a)
+{
+    if (!a->stale)
+        return FMI_OK;
+    int st = a->doStep(a->instance, a->time, 0.0, (fmi1_boolean)1);
+    if (st > FMI_WARNING) {
+        a->failed_zero = 1;
+        return st;
+    }
+    a->stale = 0;
+    a->zero_steps++;
+    return st;
+}
+
+/* A call with negated aliases among vr: through the FMU's value references,
+ * CW1_CHUNK at a time, values given negated and values read negated back. */
+enum { CW1_GET_REAL, CW1_SET_REAL, CW1_SET_DER, CW1_GET_DER };
+
+static int cw1_translated(cw_fmi1 *a, int call, const unsigned *vr, size_t n, const int *order,
+                          const double *given, double *out)
+{
+    int worst = FMI_OK;
+    for (size_t at = 0; at < n; at += CW1_CHUNK) {
+        size_t m = n - at < CW1_CHUNK ? n - at : CW1_CHUNK;
+        unsigned own[CW1_CHUNK];
+        int negated[CW1_CHUNK];
+        double values[CW1_CHUNK];
+        cw1_own(a, vr + at, m, own, negated);
+        if (given)
+            for (size_t k = 0; k < m; k++)
+                values[k] = negated[k] ? -given[at + k] : given[at + k];
+        int st;
+        switch (call) {
+        case CW1_GET_REAL: st = a->getReal(a->instance, own, m, out + at); break;
+        case CW1_SET_REAL: st = a->setReal(a->instance, own, m, values); break;
+        case CW1_SET_DER: st = a->setInputDerivatives(a->instance, own, m, order + at, values); break;
+        default: st = a->getOutputDerivatives(a->instance, own, m, order + at, out + at); break;
+        }
+        if (st > FMI_WARNING)
+            return st;
+        worst = st > worst ? st : worst;
+        if (out)
+            for (size_t k = 0; k < m; k++)
+                if (negated[k])
+                    out[at + k] = -out[at + k];
+    }
+    return worst;
+}
+
+CW_EXPORT int cw1_getReal(void *comp, const unsigned *vr, size_t n, double *out)
+{
+    cw_fmi1 *a = comp;
+    int fresh = cw1_fresh(a);
+    if (fresh > FMI_WARNING)
+        return fresh;
+    int st = a->n_negated ? cw1_translated(a, CW1_GET_REAL, vr, n, NULL, NULL, out)
+                          : a->getReal(a->instance, vr, n, out);
+    return st > fresh ? st : fresh;
+}
+
+CW_EXPORT int cw1_setReal(void *comp, const unsigned *vr, size_t n, const double *values)
+{
+    cw_fmi1 *a = comp;
+    int st = a->n_negated ? cw1_translated(a, CW1_SET_REAL, vr, n, NULL, values, NULL)
+                          : a->setReal(a->instance, vr, n, values);
+    if (n)
+        a->stale = 1;
+    return st;
+}
+
+CW_EXPORT int cw1_setInputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order,
+                                      const double *values)
+{
+    cw_fmi1 *a = comp;
+    return a->n_negated ? cw1_translated(a, CW1_SET_DER, vr, n, order, values, NULL)
+                        : a->setInputDerivatives(a->instance, vr, n, order, values);
+}
+
+CW_EXPORT int cw1_getOutputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order, double *out)
+{
+    cw_fmi1 *a = comp;
+    int fresh = cw1_fresh(a);
+    if (fresh > FMI_WARNING)
+        return fresh;
+    int st = a->n_negated ? cw1_translated(a, CW1_GET_DER, vr, n, order, NULL, out)
+                          : a->getOutputDerivatives(a->instance, vr, n, order, out);
+    return st > fresh ? st : fresh;
+}
+
+/* Never called: the master refuses rollback for FMI 1.0 before the first step. */
+CW_EXPORT int cw1_getState(void *comp, void **state)
+{
+    (void)comp;
+    (void)state;
+    return FMI_ERROR;
+}
+
+CW_EXPORT int cw1_setState(void *comp, void *state)
+{
+    (void)comp;
+    (void)state;
+    return FMI_ERROR;
 }
