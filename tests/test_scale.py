@@ -80,6 +80,37 @@ def test_loading_does_work_linear_in_the_components(tmp_path, monkeypatch):
     assert work[200] <= 2.1 * work[100] and work[100] <= 2.1 * work[50], work
 
 
+def test_reading_an_ssp_does_work_linear_in_the_components(tmp_path, monkeypatch):
+    """The same for an SSP archive (the SSP reader, then the scene's load
+    and checks): lookups of an FMU's variables proportional to the chain's
+    length, one variable index per FMU file."""
+    from clockwork.run.catalog import load_scene as load_any
+    from clockwork.scene.ssp import export_ssp
+
+    archives = {n: export_ssp(load_scene(_chain_scene(tmp_path, n)), tmp_path / f"chain{n}.ssp")
+                for n in (50, 100, 200)}
+    calls = {"n": 0}
+    real = description.variables
+
+    def counted(md):
+        calls["n"] += 1
+        return real(md)
+
+    monkeypatch.setattr("clockwork.engine.description.variables", counted)
+    for module in ("scene.load", "scene.checks", "scene.model", "scene.ssp.read"):
+        monkeypatch.setattr(f"clockwork.{module}.variables_of", counted)
+    monkeypatch.setattr(description, "_VARIABLES", _Counting())
+    work = {}
+    _Counting.built = 0
+    for n, archive in archives.items():
+        calls["n"] = 0
+        scene = load_any(archive)
+        assert len(scene.components) == n
+        work[n] = calls["n"]
+    assert _Counting.built == 2  # TestDecay and TestSum, whose descriptions the three archives share
+    assert work[50] > 0 and work[200] <= 2.1 * work[100] and work[100] <= 2.1 * work[50], work
+
+
 def test_instances_of_one_fmu_share_its_table_and_its_library():
     path = test_fmu("TestSum")
     a, b = make_instance("a", path), make_instance("b", path)
