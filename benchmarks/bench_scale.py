@@ -245,9 +245,10 @@ CLOCKWORK = {"clockwork": (), "clockwork-threads": ("--set", "master.threads=2")
 
 def child_command(tool: str, folder: Path, recorded: str, out: Path) -> list[str]:
     if tool in CLOCKWORK:
-        # The scene file: `clockwork run` on an SSD also draws the recorded outputs (outputs.png).
+        # The scene file, and no plot: the peers draw none, and a run's default
+        # plot (matplotlib in a process of its own) would be most of a small run's time.
         return [sys.executable, "-m", "clockwork", "run", str(folder / "scene.toml"), "--out", str(out),
-                "--no-progress", *CLOCKWORK[tool]]
+                "--no-progress", "--no-plot", *CLOCKWORK[tool]]
     return [sys.executable, __file__, "--child", tool, str(folder), recorded, str(out)]
 
 
@@ -309,6 +310,14 @@ def main(argv=None) -> int:
         fmu = models[role][0]
         if not fmu.is_file():
             p.error(f"{fmu} ({role}) is missing: build the project (cmake --build build) or give --fmus")
+    # clockwork's bytecode up to date, as pip leaves an installed package: a
+    # checkout run with PYTHONDONTWRITEBYTECODE set would compile some 45
+    # modules from source in every timed process (~0.3 s each run).
+    import compileall
+
+    import clockwork
+
+    compileall.compile_dir(Path(clockwork.__file__).parent, quiet=1)
     if a.load:
         return load_times(a.work, a.sizes, a.rounds, models)
     tools = [t for t in a.tools if t in CLOCKWORK or t == "fmpy" or _installed(t)]
@@ -354,7 +363,7 @@ def load_times(work: Path, sizes: list[int], rounds: int, models: dict) -> int:
     kinds = {"validate SSD": lambda f: clockwork + ["validate", str(f / "SystemStructure.ssd")],
              "validate scene": lambda f: clockwork + ["validate", str(f / "scene.toml")],
              "run 1 step": lambda f: clockwork + ["run", str(f / "scene.toml"), "--out", str(f / "out-first"),
-                                                  "--no-progress", "--set", f"experiment.stop={STEP_S!r}"]}
+                                                  "--no-progress", "--no-plot", "--set", f"experiment.stop={STEP_S!r}"]}
     times: dict[tuple[str, int], list[tuple[float, float]]] = {}
     for n in sizes:
         folder = work / f"chain{n}"

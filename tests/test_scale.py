@@ -351,3 +351,19 @@ def test_freeing_a_system_stops_its_threads():
     s.master.run_until(0.05)
     s.free()
     assert threads_now() == start
+
+
+def test_a_run_without_plots_draws_none_and_plot_draws_them_later(tmp_path, capsys):
+    """clockwork run --no-plot: no plot process, no plot file (the default
+    plot a time series gets included); clockwork plot DIR draws it after."""
+    import json
+
+    from cwtest import run_cli
+
+    scene = _chain_scene(tmp_path, 3)
+    rc, out, err = run_cli(capsys, ["run", scene, "--out", tmp_path / "run", "--no-progress", "--no-plot"])
+    assert rc == 0, err
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["summary.json", "timeseries.csv"]
+    assert json.loads((tmp_path / "run" / "summary.json").read_text())["files"] == ["timeseries.csv", "summary.json"]
+    rc, out, err = run_cli(capsys, ["plot", tmp_path / "run"])
+    assert rc == 0 and (tmp_path / "run" / "outputs.png").is_file(), err
