@@ -58,10 +58,9 @@ def test_the_variable_index_is_built_once_per_fmu_file(tmp_path, monkeypatch):
     assert scene.components["s1"].model_description is scene.components["s59"].model_description
 
 
-def test_loading_does_work_linear_in_the_components(tmp_path, monkeypatch):
-    """Lookups of an FMU's variables while a chain loads: proportional to
-    its length (a map over all components per connection end made them
-    grow with its square)."""
+def _count_lookups(monkeypatch) -> dict:
+    """Count every lookup of an FMU's variables (engine.description.variables,
+    under each name the loaders import it as): {"n": calls so far}."""
     calls = {"n": 0}
     real = description.variables
 
@@ -70,14 +69,27 @@ def test_loading_does_work_linear_in_the_components(tmp_path, monkeypatch):
         return real(md)
 
     monkeypatch.setattr("clockwork.engine.description.variables", counted)
-    for module in ("load", "checks", "model"):
-        monkeypatch.setattr(f"clockwork.scene.{module}.variables_of", counted)
+    for module in ("scene.load", "scene.checks", "scene.model", "scene.ssp.read"):
+        monkeypatch.setattr(f"clockwork.{module}.variables_of", counted)
+    return calls
+
+
+def _linear(work: dict) -> bool:
+    """Work at 50, 100, 200 components that doubles (at most) with them."""
+    return work[50] > 0 and work[200] <= 2.1 * work[100] and work[100] <= 2.1 * work[50]
+
+
+def test_loading_does_work_linear_in_the_components(tmp_path, monkeypatch):
+    """Lookups of an FMU's variables while a chain loads: proportional to
+    its length (a map over all components per connection end made them
+    grow with its square)."""
+    calls = _count_lookups(monkeypatch)
     work = {}
     for n in (50, 100, 200):
         calls["n"] = 0
         load_scene(_chain_scene(tmp_path, n))
         work[n] = calls["n"]
-    assert work[200] <= 2.1 * work[100] and work[100] <= 2.1 * work[50], work
+    assert _linear(work), work
 
 
 def test_reading_an_ssp_does_work_linear_in_the_components(tmp_path, monkeypatch):
@@ -89,16 +101,7 @@ def test_reading_an_ssp_does_work_linear_in_the_components(tmp_path, monkeypatch
 
     archives = {n: export_ssp(load_scene(_chain_scene(tmp_path, n)), tmp_path / f"chain{n}.ssp")
                 for n in (50, 100, 200)}
-    calls = {"n": 0}
-    real = description.variables
-
-    def counted(md):
-        calls["n"] += 1
-        return real(md)
-
-    monkeypatch.setattr("clockwork.engine.description.variables", counted)
-    for module in ("scene.load", "scene.checks", "scene.model", "scene.ssp.read"):
-        monkeypatch.setattr(f"clockwork.{module}.variables_of", counted)
+    calls = _count_lookups(monkeypatch)
     monkeypatch.setattr(description, "_VARIABLES", _Counting())
     work = {}
     _Counting.built = 0
@@ -108,7 +111,7 @@ def test_reading_an_ssp_does_work_linear_in_the_components(tmp_path, monkeypatch
         assert len(scene.components) == n
         work[n] = calls["n"]
     assert _Counting.built == 2  # TestDecay and TestSum, whose descriptions the three archives share
-    assert work[50] > 0 and work[200] <= 2.1 * work[100] and work[100] <= 2.1 * work[50], work
+    assert _linear(work), work
 
 
 def test_instances_of_one_fmu_share_its_table_and_its_library():
