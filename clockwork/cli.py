@@ -142,7 +142,10 @@ def cmd_compare(args) -> int:
 
     from .atomic import write_text_atomic
     from .kit.grade import compare
+    from .results.files import check_output_file
 
+    if args.json is not None:
+        check_output_file(args.json, "--json")
     g = compare(args.result, args.case)
     for line in g.table():
         print(line)
@@ -286,6 +289,7 @@ def cmd_list(args) -> int:
 
 
 def cmd_export_ssp(args) -> int:
+    from .results.files import check_output_file
     from .run.catalog import load_scene
     from .scene.ssp import PARAMETER_SET, export_ssp
 
@@ -297,6 +301,7 @@ def cmd_export_ssp(args) -> int:
         if not out.parent.parent.is_dir():  # like `run --out`: one missing level is created
             raise UsageError(f"--out {out}: no such directory: {out.parent}")
         out.parent.mkdir()
+    check_output_file(out, "--out")
     points = scene.points()
     point = None
     if scene.sweep is not None:

@@ -26,6 +26,7 @@ from fmpy import calloc, free
 from ..atomic import alive
 from ..errors import ParametersRefused, SceneError, SimulationError
 from ..hashing import sha256_file
+from ..numbers import parse_json
 from ..paths import cache_root, core_library, scratch_dir
 from .description import check_archive, read_fmu, var_unit
 
@@ -140,7 +141,7 @@ def _unzip(path: Path, target: Path) -> None:
 def _intact(folder: Path) -> bool:
     """Every file of the manifest is there with its size."""
     try:
-        manifest = json.loads((folder / _MANIFEST).read_text())
+        manifest = parse_json((folder / _MANIFEST).read_bytes())
         return isinstance(manifest, dict) and all(
             (folder / name).stat().st_size == size for name, size in manifest.items())
     except (OSError, ValueError, TypeError):
