@@ -49,7 +49,10 @@ def quick_overrides(scenarios: Path) -> dict[str, list[str]]:
 
 
 def run_gallery(out: Path, scenarios: Path | None = None, quick: bool = False, only: list[str] | None = None,
-                workers: int | None = None, progress: bool = True) -> dict:
+                workers: int | None = None, progress: bool = True, bars: bool | None = None) -> dict:
+    """Run every scene (or `only` these stems) into out/<stem>/ and write the
+    index. `progress`: a line per scene; `bars`: the runs' progress bars
+    (default: as `progress`)."""
     out = Path(out)
     scenarios = Path(scenarios) if scenarios else scenarios_dir()
     out.mkdir(parents=True, exist_ok=True)
@@ -73,7 +76,7 @@ def run_gallery(out: Path, scenarios: Path | None = None, quick: bool = False, o
             entry["reproduces"] = scene.reproduces
             if progress:
                 print(f"gallery: {f.stem} ...", flush=True)
-            summary = run_scene(scene, out / f.stem, workers=workers, progress=progress)
+            summary = run_scene(scene, out / f.stem, workers=workers, progress=progress if bars is None else bars)
             s = parse_json((out / f.stem / "summary.json").read_bytes())
             entry["status"] = "ok"
             entry["headlines"] = s.get("headlines", [])
