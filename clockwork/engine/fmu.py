@@ -24,7 +24,7 @@ from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
 from fmpy import calloc, free
 
 from ..atomic import alive
-from ..errors import ParametersRefused, SceneError, SimulationError
+from ..errors import ParametersRefused, SceneError, SimulationError, UsageError
 from ..hashing import sha256_file
 from ..numbers import parse_json
 from ..paths import cache_root, core_library, scratch_dir
@@ -196,6 +196,10 @@ class Instance:
     """An instantiated FMU with fast access to its fmi2 functions."""
 
     fmi_version = 2  # fmu3.Instance3 says 3
+
+    def __reduce_ex__(self, protocol):
+        raise UsageError(f"the FMU instance {self.name} cannot be pickled or copied: it is a loaded library "
+                         "and its C state")
 
     def __init__(self, name: str, path: Path, model_description=None):
         self.name = name

@@ -40,7 +40,7 @@ from .location import EventLocator, crossed, scan
 from .ports import Port, Ports
 from .richardson import StepDoubling
 from .settings import MasterSettings, Statistics, check_run, rollback_need
-from ..errors import SceneError, SimulationEnded, SimulationError
+from ..errors import SceneError, SimulationEnded, SimulationError, UsageError
 from .wiring import Link, build
 
 
@@ -83,6 +83,10 @@ class Master:
         self._reset_soft_state()
         self.engine_reason: str | None = None  # why "auto" chose this engine, when not the core
         self.ended: SimulationEnded | None = None  # an FMU ended the simulation (a clean end)
+
+    def __reduce_ex__(self, protocol):
+        raise UsageError("a master cannot be pickled or copied: it holds loaded FMU libraries and their "
+                         "instances' C state; build a System in the other process")
 
     @property
     def notes(self) -> list[str]:

@@ -10,10 +10,16 @@ MasterSettings(...))``. A model name is looked up in $CLOCKWORK_FMU_DIR
 from __future__ import annotations
 
 import difflib
+import math
+import numbers
+import threading
 from pathlib import Path
 
+from ..arguments import Anything, Call, Either, Instance as Of, Mapping, Optional, Path as PathSpec, Real, Sequence, Text, \
+    Tuple, checked, show
 from ..errors import ClosedError, SceneError, UsageError
-from .description import resolve_fmu
+from .description import INTEGER_TYPES, REAL_TYPES, int_range, resolve_fmu
+from .description import variables as described
 from .fmu import Instance, free_all
 from .fmu3 import make_instance
 from .compiled import make_master
@@ -21,13 +27,34 @@ from .settings import MasterSettings
 from .wiring import Link, parse_link
 
 
+_NAME = Text("an instance name (a non-empty string)")
+_PARAMETERS = Mapping(Text("a variable name (a non-empty string)"), Anything(), "{parameter: value}")
+_COMPONENTS = Mapping(_NAME, Tuple(PathSpec("a model name or a path to an .fmu file"), _PARAMETERS,
+                                   what="a pair (model name or .fmu path, {parameter: value})"),
+                      "{instance: (model name or .fmu path, {parameter: value})}")
+_LINK = Either(Text("a link 'instance.output -> instance.input'"), Of(Link, "a Link"),
+               Tuple(Text(), Text(), Text(), Text(), Real(), Real(), optional=2,
+                     what="(source, output, target, input[, factor[, offset]])"),
+               what="a link: 'instance.output -> instance.input', a Link or (source, output, target, input)")
+_RECORD = Optional(Mapping(_NAME, Sequence(Text("an output name"), "a list of output names"),
+                           "{instance: [output name, ...]}"))
+
+
 class System:
+    """FMU instances wired and initialized, with their master
+    (``System.master``). Arguments are checked as they enter (a UsageError
+    naming the argument, instance and variable). A System belongs to one
+    thread at a time: a call while another thread is inside one of its
+    methods (or its master's) is refused with a UsageError, on both engines.
+    It cannot be pickled or copied: it holds loaded FMU libraries."""
+
+    @checked(components=_COMPONENTS, connections=Sequence(_LINK, "a list of links"),
+             settings=Optional(Of(MasterSettings, "a MasterSettings (clockwork.engine.MasterSettings(...))")),
+             record=_RECORD, start_time=Real("a finite start time in s"),
+             model_descriptions=Optional(Mapping(_NAME, Anything(), "{instance: model description}")))
     def __init__(self, components: dict[str, tuple[str, dict]], connections: list[str],
                  settings: MasterSettings | None = None, record: dict[str, list[str]] | None = None,
                  start_time: float = 0.0, model_descriptions: dict | None = None):
-        if not isinstance(components, dict) or not all(
-                isinstance(c, (tuple, list)) and len(c) == 2 and isinstance(c[1], dict) for c in components.values()):
-            raise UsageError("System: components must be {instance: (model name or .fmu path, {parameter: value})}")
         self.parameters = {name: dict(params) for name, (_, params) in components.items()}
         self.instances: dict[str, Instance] = {}
         self._freed = False
@@ -53,15 +80,19 @@ class System:
                 for inst, names in table.items():
                     for var in names:
                         self._variable(inst, var, None, what)
+            self._check_values(self.parameters, "System(): components")
             self.master = make_master(self.instances, links, settings,
-                                 start_time=start_time, extra_outputs=record)
+                                 start_time=float(start_time), extra_outputs=record)
+            self._guard = _guard_master(self.master)
             self.master.initialize(self.parameters)
         except BaseException:
             self.free()
             raise
 
     master = None  # until built
+    _guard = None
 
+    @checked(parameters=Mapping(_NAME, _PARAMETERS, "{instance: {parameter: value}}"))
     def restart(self, parameters: dict[str, dict[str, object]]) -> None:
         """Start again from `parameters` on the same instances and wiring:
         fmi2Reset every FMU, initialize again, statistics from zero. The
@@ -72,8 +103,22 @@ class System:
         for inst, names in parameters.items():
             for var in names:
                 self._variable(inst, var, None, "a parameter")
-        self.parameters = {name: dict(p) for name, p in parameters.items()}
-        self.master.restart(self.parameters)
+        self._check_values(parameters, "System.restart(): parameters")
+        with self._guard:
+            self.parameters = {name: dict(p) for name, p in parameters.items()}
+            self.master.restart(self.parameters)
+
+    def _check_values(self, parameters: dict, where: str) -> None:
+        """Each value of the type and within the range its variable declares:
+        a UsageError naming the instance and the variable, before any FMU
+        call (else a float('abc') deep inside, or the FMU's own refusal)."""
+        for inst, values in parameters.items():
+            for name, value in values.items():
+                v = described(self.instances[inst].md)[name]
+                problem = value_problem(v, value)
+                if problem:
+                    raise UsageError(f"{where}[{inst!r}] {inst}.{name} = {show(value)}: expected {problem} "
+                                     f"({self.instances[inst].model_name}'s {name} is {v.type})")
 
     @staticmethod
     def _parse_link(text: str, known: dict) -> Link:
@@ -103,11 +148,14 @@ class System:
             raise UsageError(f"{what} {instance}.{name}: expected an {causality}, {name} is a {v.causality}")
         return v
 
+    @checked(instance=_NAME, name=Text("a variable name (a non-empty string)"))
     def value(self, instance: str, name: str) -> float:
         """Current value of a Real variable (not on the hot path)."""
         self._variable(instance, name, None, "value")
-        return self.instances[instance].get_real([name])[0]
+        with self._guard:
+            return self.instances[instance].get_real([name])[0]
 
+    @checked(instance=_NAME, name=Text("an output name (a non-empty string)"))
     def output(self, instance: str, name: str) -> float:
         """Cached value of a connected or recorded output at the current point."""
         self._variable(instance, name, None, "output")
@@ -118,11 +166,17 @@ class System:
         return port.out[port.out_names.index(name)]
 
     def free(self) -> None:
-        free_all(self.instances)
-        self.instances = {}
-        self._freed = True
-        if self.master is not None:
-            _close(self.master)
+        with self._guard or _NO_GUARD:
+            free_all(self.instances)
+            self.instances = {}
+            self._freed = True
+            if self.master is not None:
+                _close(self.master)
+
+    def __reduce_ex__(self, protocol):
+        raise UsageError("a System cannot be pickled or copied: it holds loaded FMU libraries and their "
+                         "instances' C state; pass its components and settings to the other process and build "
+                         "a System there")
 
     def __enter__(self):
         return self
@@ -133,6 +187,112 @@ class System:
             release(self)
         else:
             self.free()
+
+
+def value_problem(v, value) -> str | None:
+    """What a value for variable `v` (a model description's ScalarVariable)
+    should have been, or None when it is of the variable's type. The declared
+    min and max are the FMU's to enforce (a refusal is ParametersRefused)."""
+    t = v.type
+    if t in REAL_TYPES:
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) or math.isnan(value):
+            return "a number"
+        return None
+    if t in INTEGER_TYPES:
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+            return "a whole number (an int)"
+        lo, hi = int_range(t) or (-2**31, 2**31 - 1)  # what the C type holds: never wrapped
+        if not lo <= value <= hi:
+            return f"a whole number in [{lo}, {hi}] ({t})"
+        return None
+    if t == "Boolean":
+        return None if isinstance(value, bool) or type(value).__name__ == "bool_" else "True or False (a bool)"
+    if t == "String":
+        return None if isinstance(value, str) else "a string"
+    if t == "Binary":
+        try:
+            bytes.fromhex(value)
+        except (TypeError, ValueError):
+            return "hexadecimal digits (a string)"
+    return None
+
+
+class _Guard:
+    """One thread at a time inside a System and its master: entering from
+    a second thread while the first is inside is refused (a UsageError),
+    re-entering from the same thread (the master's own calls) is free."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._owner: int | None = None
+        self._depth = 0
+
+    def __enter__(self):
+        me = threading.get_ident()
+        if self._owner == me:
+            self._depth += 1
+            return self
+        if not self._lock.acquire(blocking=False):
+            raise UsageError("this System is in use by another thread: a System (and its master) runs in one "
+                             "thread at a time; build one System per thread, or wait for the other call to return")
+        self._owner, self._depth = me, 1
+        return self
+
+    def __exit__(self, *exc):
+        self._depth -= 1
+        if self._depth == 0:
+            self._owner = None
+            self._lock.release()
+
+
+class _NoGuard:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return None
+
+
+_NO_GUARD = _NoGuard()
+
+
+# The master's public methods and their arguments, checked when called from
+# outside (a System's master; its own calls to itself are not checked again).
+MASTER_ARGUMENTS = {
+    "step": {"h": Real("a step > 0 in s (a finite number)", positive=True)},
+    "run_until": {"on_point": Optional(Call())},
+    "run_watch": {"t_stop": Real("a finite time in s"), "mark": Real("a finite time in s"),
+                  "margin": Real("a step > 0 in s", positive=True)},
+    "advance": {"t": Real("a finite time in s"), "h": Real("a step > 0 in s", positive=True)},
+    "initialize": {"parameters": Mapping(_NAME, _PARAMETERS, "{instance: {parameter: value}}")},
+    "reinitialize": {"parameters": Mapping(_NAME, _PARAMETERS, "{instance: {parameter: value}}")},
+    "restart": {"parameters": Mapping(_NAME, _PARAMETERS, "{instance: {parameter: value}}")},
+}
+
+
+def _guard_master(master) -> _Guard:
+    """Every public method of the master enters the System's guard, so that
+    two threads never step one set of FMUs at once (the compiled core
+    releases the GIL while it steps), and checks its arguments when called
+    from outside; the master's calls to itself (inside the guard) go
+    straight through."""
+    guard = _Guard()
+    for name in dir(type(master)):
+        if name.startswith("_") or not callable(getattr(type(master), name, None)):
+            continue
+        method = getattr(master, name)
+        entry = checked(**MASTER_ARGUMENTS[name])(method) if name in MASTER_ARGUMENTS else method
+
+        def guarded(*args, _method=method, _entry=entry, **kwargs):
+            if guard._owner == threading.get_ident():
+                return _method(*args, **kwargs)
+            with guard:
+                return _entry(*args, **kwargs)
+
+        guarded.__name__ = guarded.__qualname__ = name
+        guarded.__doc__ = method.__doc__
+        setattr(master, name, guarded)
+    return guard
 
 
 def _close(master) -> None:
