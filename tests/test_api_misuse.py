@@ -173,7 +173,7 @@ def test_numpy_numbers_are_numbers():
 # naming the call and the argument, and nothing happened.
 
 from clockwork.arguments import public_calls  # noqa: E402
-from clockwork.engine.system import MASTER_ARGUMENTS  # noqa: E402
+from clockwork.engine.system import MASTER_ARGUMENTS, STEP_PARTS  # noqa: E402
 
 GOOD_SYSTEM = {"components": COMPONENTS, "connections": LINKS, "settings": MasterSettings(step=0.5),
                "record": {"pendulum": ["tick_time"]}, "start_time": 0.0, "model_descriptions": None}
@@ -184,7 +184,6 @@ GOOD_CALLS = {
     "step": {"h": 0.5},
     "run_until": {"t_stop": 1.0, "on_point": None},
     "run_watch": {"t_stop": 1.0, "mark": 0.5, "margin": 0.1, "watched": []},
-    "advance": {"t": 0.0, "h": 0.5},
     "initialize": {"parameters": {"pendulum": {"Q": 1000.0}}},
     "reinitialize": {"parameters": {"pendulum": {"Q": 1000.0}}},
     "restart": {"parameters": {"pendulum": {"Q": 1000.0}}},
@@ -213,7 +212,7 @@ def test_every_public_method_declares_its_arguments():
     for cls in (Master, CompiledMaster):
         for name in dir(cls):
             f = getattr(cls, name)
-            if name.startswith("_") or not callable(f) or isinstance(f, type):
+            if name.startswith("_") or name in STEP_PARTS or not callable(f) or isinstance(f, type):
                 continue
             numbers_or_maps = [p for p in list(inspect.signature(f).parameters)[1:]]
             if numbers_or_maps:
