@@ -253,7 +253,7 @@ def test_bad_scene(name, key, expected):
     ('[scene]\ntitle = "t"\n[components.p]\nfmu = "Pendulum"\n[experiment]\nstop = 1\n[master]\nmax_step = 0.01\n'
      '[sweep]\naxes = [{ parameter = "master.step", values = [0.001, 0.1] }]\n', "sweep", "max_step >= step"),
     ('[scene]\ntitle = "t"\n[components.p]\nfmu = "Pendulum"\n[experiment]\nstop = 1\n[analysis]\n'
-     'kind = "steady_state"\nmax_periods = 0\n', "analysis.max_periods = 0", "a positive integer"),
+     'kind = "steady_state"\nmax_periods = 0\n', "analysis.max_periods = 0", "an integer in [2, 1,000]"),
     ('[scene]\ntitle = "t"\n[components.p]\nfmu = "Pendulum"\n[experiment]\nstop = 1\n[[plot]]\nkind = "sweep"\n'
      'file = "../x.png"\n', "plot[0].file", "without a directory"),
     ('[scene]\ntitle = "t"\n[components.p]\nfmu = "Pendulum"\nparameters = { Q = nan }\n[experiment]\nstop = 1\n',

@@ -21,6 +21,7 @@ import platform
 import re
 import struct
 import sys
+import weakref
 import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
@@ -282,15 +283,20 @@ def event_indicators(path: Path) -> tuple[str, ...]:
     return read_fmu(path, need_binary=False)[2]
 
 
+_VARIABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
 def variables(md) -> dict:
-    """{name: ScalarVariable} of a model description, built once."""
-    cache = getattr(md, "_cw_vars", None)
-    if cache is None:
+    """{name: ScalarVariable} of a model description, built once per
+    description (fmpy's ModelDescription has __slots__: the table is kept
+    beside it, not on it)."""
+    try:
+        cache = _VARIABLES.get(md)
+    except TypeError:  # not weakly referenceable: build it each time
+        return {v.name: v for v in md.modelVariables}
+    if cache is None or len(cache) != len(md.modelVariables):
         cache = {v.name: v for v in md.modelVariables}
-        try:
-            md._cw_vars = cache
-        except AttributeError:
-            pass
+        _VARIABLES[md] = cache
     return cache
 
 

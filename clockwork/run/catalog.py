@@ -44,6 +44,7 @@ def find_scene(spec: str | os.PathLike) -> Path:
 def load_scene(path: str | os.PathLike, overrides=()):
     """Load, override and validate a scene file (or a bundled scene by name); raises SceneError."""
     scene = _load_scene(find_scene(path), overrides, kinds())
+    analyses.check_analysis(scene)
     check_recording_bound(scene)
     check_plot_axes(scene)
     return scene
