@@ -147,6 +147,7 @@ def test_a_plot_process_that_dies_leaves_the_plots_to_this_process(tmp_path, who
         assert err == ""
 
 
+@pytest.mark.serial  # a SIGINT to the process group at a moment the run has reached
 def test_an_interrupted_run_leaves_no_plot_process_and_one_line(tmp_path):
     """Ctrl-C at a terminal signals the whole process group: the run says
     "interrupted" once, the plot process says nothing, and nobody stays."""

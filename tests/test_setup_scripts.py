@@ -78,3 +78,22 @@ def test_the_commands_source_it_before_any_python(script):
 
     assert not any(re.search(r"python|\bpip\b|clockwork", ln, re.I) for ln in body[:at]), body[:at]
     assert not any("python3" in ln for ln in body[at + 1:]), "a bare python3 after the choice"
+
+
+def test_the_test_command_runs_the_serial_tests_alone_after_the_parallel_pass():
+    """pytest-xdist runs modules side by side; the tests marked serial (a
+    signal sent after a fixed start-up wait, a bound on how soon a run
+    ends) run afterwards with no worker beside them."""
+    lines = [ln for ln in (ROOT / "tools" / "test.sh").read_text().splitlines() if "-m pytest" in ln]
+    assert len(lines) == 2, lines
+    parallel, serial = lines
+    assert "-n " in parallel and '-m "not serial"' in parallel, parallel
+    assert "no:xdist" in serial and "-m serial" in serial, serial
+
+
+def test_every_signal_test_is_marked_serial():
+    r = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider",
+                        "-m", "not serial", str(ROOT / "tests" / "test_signals.py")],
+                       capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert "test_signals.py::" not in r.stdout, r.stdout
+    assert "deselected" in r.stdout, r.stdout

@@ -26,6 +26,10 @@ from cwtest import CLOCK_SCENE, FMU_DIR, ROOT, default_stop_signals, fmu_file
 sys.path.insert(0, str(ROOT / "tools"))
 from kill_sweep import descendants, running  # noqa: E402
 
+# Signals sent after a fixed start-up wait, and a bound on how soon a run ends:
+# run alone, not beside pytest-xdist workers that slow every start-up.
+pytestmark = pytest.mark.serial
+
 SWEEP = ('\n[sweep]\naxes = [ { parameter = "escapement.torque", start = "0.3 N.cm", stop = "0.6 N.cm", '
          'num = 8 } ]\n\n[[plot]]\nkind = "sweep"\nx = "escapement.torque"\ny = "ticks"\n')
 
