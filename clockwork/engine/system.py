@@ -327,10 +327,33 @@ class System:
 def value_problem(v, value) -> str | None:
     """What a value for variable `v` (a model description's ScalarVariable)
     should have been, or None when it is of the variable's type. The declared
-    min and max are the FMU's to enforce (a refusal is ParametersRefused)."""
-    t = v.type
+    min and max are the FMU's to enforce (a refusal is ParametersRefused);
+    so is a NaN (a Real may hold one: the run then fails as a simulation).
+    An FMI 3.0 array takes a list or tuple (nested or not) whose every
+    element is of its type; its length is the adapter's to check."""
+    if getattr(v, "shape", None):
+        if not isinstance(value, (list, tuple)):
+            return "a list of values (nested by the array's shape, or flat; a NumPy array: .tolist())"
+        for x in _elements(value):
+            problem = _scalar_problem(v.type, x)
+            if problem:
+                return f"a list whose every element is {problem}, got an element {show(x)}"
+        return None
+    return _scalar_problem(v.type, value)
+
+
+def _elements(value):
+    """The scalars of a nested list or tuple, in row-major order."""
+    if isinstance(value, (list, tuple)):
+        for item in value:
+            yield from _elements(item)
+    else:
+        yield value
+
+
+def _scalar_problem(t: str, value) -> str | None:
     if t in REAL_TYPES:
-        if isinstance(value, bool) or not isinstance(value, numbers.Real) or math.isnan(value):
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
             return "a number"
         return None
     if t in INTEGER_TYPES:
