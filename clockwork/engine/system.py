@@ -22,6 +22,7 @@ from ..errors import ClosedError, SceneError, UsageError
 from .description import INTEGER_TYPES, REAL_TYPES, int_range, resolve_fmu
 from .description import variables as described
 from .fmu import Instance, free_all
+from .fmu3 import flat_values
 from .model_exchange import MEOptions, make_instance
 from .compiled import make_master
 from .samples import Samples
@@ -334,21 +335,12 @@ def value_problem(v, value) -> str | None:
     if getattr(v, "shape", None):
         if not isinstance(value, (list, tuple)):
             return "a list of values (nested by the array's shape, or flat; a NumPy array: .tolist())"
-        for x in _elements(value):
+        for x in flat_values(value):
             problem = _scalar_problem(v.type, x)
             if problem:
                 return f"a list whose every element is {problem}, got an element {show(x)}"
         return None
     return _scalar_problem(v.type, value)
-
-
-def _elements(value):
-    """The scalars of a nested list or tuple, in row-major order."""
-    if isinstance(value, (list, tuple)):
-        for item in value:
-            yield from _elements(item)
-    else:
-        yield value
 
 
 def _scalar_problem(t: str, value) -> str | None:
