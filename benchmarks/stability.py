@@ -235,7 +235,11 @@ def amplification(c: Coupling, config: Config, step: float, periods: int = 40,
     span = 0.5 * periods
 
     def growth(x, x_ref, stat):
-        return ((stat(x[late]) / stat(x[early])) / (stat(x_ref[late]) / stat(x_ref[early]))) ** (1.0 / span)
+        ratio = (stat(x[late]) / stat(x[early])) / (stat(x_ref[late]) / stat(x_ref[early]))
+        # H changed sign between the windows (the coupling term C1 C2 phi a2
+        # outgrew the rest): a co-simulation that far off is unstable. The
+        # power of a negative ratio would be NaN, which max() below drops.
+        return ratio ** (1.0 / span) if ratio > 0 else math.inf
 
     a_vib = growth(ef, ef_ref, np.max)
     a_h = growth(h, h_ref, np.mean)

@@ -70,7 +70,8 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
             os.unlink(tmp)
         except FileNotFoundError:
             pass
-        if isinstance(e, OSError) and e.filename is None:  # a failed write names no file: name it
+        if isinstance(e, OSError) and e.filename in (None, tmp):
+            # A failed write names no file, a failed rename the .part file: name the target.
             raise OSError(e.errno, e.strerror, str(path)) from None
         raise
     fsync_dir(path.parent)

@@ -169,7 +169,10 @@ def cmd_compare(args) -> int:
 
     from .atomic import write_text_atomic
     from .kit.grade import compare
+    from .results.files import check_output_file
 
+    if args.json is not None:
+        check_output_file(args.json, "--json")
     g = compare(args.result, args.case)
     for line in g.table():
         print(line)
@@ -195,6 +198,13 @@ def cmd_bench(args) -> int:
     return 1 if bad else 0
 
 
+def _bars(args) -> bool:
+    """Progress bars only where someone watches them: on a terminal. In a
+    pipe or a CI log every update would be a line of carriage-return noise
+    before the one line that matters."""
+    return not args.no_progress and sys.stderr.isatty()
+
+
 def cmd_gallery(args) -> int:
     from .results.files import check_output_dir
     from .run.gallery import run_gallery
@@ -204,7 +214,7 @@ def cmd_gallery(args) -> int:
         raise UsageError(f"no such directory: {scenarios}")
     out = check_output_dir(args.out)
     g = run_gallery(out, scenarios, quick=args.quick, only=args.only, workers=args.workers,
-                    progress=not args.no_progress)
+                    progress=not args.no_progress, bars=_bars(args))
     n = len(g["scenes"])
     print(f"gallery: {n - len(g['failed'])} of {n} scenes in {g['wall_time_s']:.1f} s -> {out / 'index.md'}")
     for stem in g["failed"]:
@@ -231,7 +241,7 @@ def cmd_run(args) -> int:
     out = check_output_dir(args.out)
     from .run.scene_run import run_scene
 
-    summary = run_scene(scene, out, workers=args.workers, scheduler=args.scheduler, progress=not args.no_progress)
+    summary = run_scene(scene, out, workers=args.workers, scheduler=args.scheduler, progress=_bars(args))
     for line in _run_report(scene, out, summary):
         print(line)
     failed = summary.get("points_failed", 0)
@@ -347,6 +357,7 @@ def cmd_list(args) -> int:
 
 
 def cmd_export_ssp(args) -> int:
+    from .results.files import check_output_file
     from .run.catalog import load_scene
     from .scene.ssp import PARAMETER_SET, export_ssp
 
@@ -361,6 +372,7 @@ def cmd_export_ssp(args) -> int:
         if not out.parent.parent.is_dir():  # like `run --out`: one missing level is created
             raise UsageError(f"--out {out}: no such directory: {out.parent}")
         out.parent.mkdir()
+    check_output_file(out, "--out")
     points = scene.points()
     point = None
     if scene.sweep is not None:

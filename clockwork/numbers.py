@@ -11,6 +11,7 @@ clockwork computed itself.
 
 from __future__ import annotations
 
+import json
 import math
 import re
 
@@ -66,3 +67,37 @@ def shorten(text: object, limit: int = 200) -> str:
         return s
     keep = max(limit - 30, 10)
     return f"{s[:keep]}... ({len(s)} characters)"
+
+
+def parse_json(text: str | bytes):
+    """The JSON value `text` holds, read as RFC 8259 has it, else ValueError.
+
+    Python's ``json.loads`` also accepts ``NaN``, ``Infinity`` and
+    ``-Infinity``, numbers that overflow a double (``1e400`` reads as
+    infinity) and an object that names a key twice (the last one wins);
+    each is refused here, so that no file read by clockwork holds a number
+    that no strict reader would see, or a value that silently replaced
+    another.
+    """
+    return json.loads(text, parse_constant=_no_constant, parse_float=_finite_float,
+                      object_pairs_hook=_unique_keys)
+
+
+def _no_constant(name: str):
+    raise ValueError(f"{name} is not JSON (JSON has no NaN or infinity)")
+
+
+def _finite_float(text: str) -> float:
+    x = float(text)
+    if not math.isfinite(x):
+        raise ValueError(f"the number {shorten(text, 60)} is beyond the range of a double")
+    return x
+
+
+def _unique_keys(pairs: list) -> dict:
+    out = {}
+    for key, value in pairs:
+        if key in out:
+            raise ValueError(f"the key {shorten(key, 60)!r} is given twice in one object")
+        out[key] = value
+    return out

@@ -5,6 +5,7 @@ A module with its own name: several test folders have a conftest.py, and
 """
 
 import os
+import signal
 import textwrap
 from pathlib import Path
 
@@ -91,3 +92,13 @@ def assert_one_line_error(rc, err, *needles, code=2):
     assert "Traceback" not in err
     for n in needles:
         assert n in lines[0], (n, lines[0])
+
+
+def default_stop_signals() -> None:
+    """preexec_fn of a child that a test sends SIGINT, SIGTERM or SIGHUP:
+    the three at their defaults, as in a terminal. The test run itself may
+    ignore them (nohup ignores SIGHUP; a background job of a shell without
+    job control ignores SIGINT), a child inherits an ignored signal, and
+    clockwork rightly keeps an ignored signal ignored."""
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, signal.SIG_DFL)

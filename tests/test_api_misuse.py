@@ -163,3 +163,232 @@ def test_numpy_numbers_are_numbers():
     with _system("auto") as sys_:
         sys_.master.run_until(np.int64(1))
         assert sys_.master.t == 1.0
+
+
+# --- every public entry point, every argument, every other kind of value ---------------
+#
+# The entry points declare their arguments (clockwork.arguments.checked, and
+# the master's in engine.system.MASTER_ARGUMENTS); each argument is given, in
+# turn, every sample value its spec refuses, the others good: one UsageError
+# naming the call and the argument, and nothing happened.
+
+from clockwork.arguments import public_calls  # noqa: E402
+from clockwork.engine.system import MASTER_ARGUMENTS, STEP_PARTS  # noqa: E402
+
+GOOD_SYSTEM = {"components": COMPONENTS, "connections": LINKS, "settings": MasterSettings(step=0.5),
+               "record": {"pendulum": ["tick_time"]}, "start_time": 0.0, "model_descriptions": None}
+GOOD_CALLS = {
+    "System.restart": {"parameters": {"pendulum": {"Q": 1000.0, "phi_start": 0.1}}},
+    "System.value": {"instance": "pendulum", "name": "phi"},
+    "System.output": {"instance": "pendulum", "name": "phi"},
+    "step": {"h": 0.5},
+    "run_until": {"t_stop": 1.0, "on_point": None},
+    "run_watch": {"t_stop": 1.0, "mark": 0.5, "margin": 0.1, "watched": []},
+    "initialize": {"parameters": {"pendulum": {"Q": 1000.0}}},
+    "reinitialize": {"parameters": {"pendulum": {"Q": 1000.0}}},
+    "restart": {"parameters": {"pendulum": {"Q": 1000.0}}},
+}
+SYSTEM_CALLS = public_calls(System)
+
+
+def _cases(calls: dict) -> list:
+    return [pytest.param(call, arg, bad, id=f"{call}-{arg}-{type(bad).__name__}:{str(bad)[:12]}")
+            for call, specs in calls.items() for arg, spec in specs.items() for bad in spec.refused()]
+
+
+def test_every_public_method_declares_its_arguments():
+    """A public method of System or of either master that takes arguments
+    and declares none would let any value through: the class is covered,
+    not the examples."""
+    import inspect
+
+    from clockwork.engine.compiled import CompiledMaster
+    from clockwork.engine.master import Master
+
+    for name, f in vars(System).items():
+        if not name.startswith("_") and callable(f) and len(inspect.signature(f).parameters) > 1:
+            assert hasattr(f, "__arguments__"), f"System.{name}"
+    assert hasattr(System.__init__, "__arguments__")
+    for cls in (Master, CompiledMaster):
+        for name in dir(cls):
+            f = getattr(cls, name)
+            if name.startswith("_") or name in STEP_PARTS or not callable(f) or isinstance(f, type):
+                continue
+            numbers_or_maps = [p for p in list(inspect.signature(f).parameters)[1:]]
+            if numbers_or_maps:
+                assert name in MASTER_ARGUMENTS, f"{cls.__name__}.{name}"
+    assert set(GOOD_CALLS) >= {c for c in SYSTEM_CALLS if c != "System.__init__"} | set(MASTER_ARGUMENTS)
+
+
+@pytest.mark.parametrize("call, arg, bad", _cases({"System.__init__": System.__init__.__arguments__}))
+def test_system_refuses_every_other_kind_of_argument(call, arg, bad):
+    kwargs = dict(GOOD_SYSTEM, **{arg: bad})
+    with pytest.raises(UsageError) as e:
+        System(**kwargs)
+    assert f"System(): {arg}" in str(e.value), str(e.value)
+
+
+@pytest.fixture(scope="module", params=["python", "compiled"])
+def live(request):
+    import os
+
+    fmu_file("Pendulum")
+    before = os.environ.get("CLOCKWORK_FMU_DIR")
+    os.environ["CLOCKWORK_FMU_DIR"] = str(FMU_DIR)
+    try:
+        with System(COMPONENTS, LINKS, MasterSettings(step=0.5, engine=request.param),
+                    record={"pendulum": ["tick_time"]}) as s:
+            yield s
+    finally:
+        if before is None:
+            os.environ.pop("CLOCKWORK_FMU_DIR", None)
+        else:
+            os.environ["CLOCKWORK_FMU_DIR"] = before
+
+
+@pytest.mark.parametrize("call, arg, bad", _cases({c: f.__arguments__ for c, f in SYSTEM_CALLS.items()
+                                                   if c != "System.__init__"}
+                                                  | MASTER_ARGUMENTS))
+def test_methods_refuse_every_other_kind_of_argument(live, call, arg, bad):
+    t, steps = live.master.t, live.master.stats.steps
+    if call.startswith("System."):
+        method = getattr(live, call.split(".")[1])
+    else:
+        method = getattr(live.master, call)
+    kwargs = dict(GOOD_CALLS[call], **{arg: bad})
+    with pytest.raises(UsageError) as e:
+        method(**kwargs)
+    assert f"{arg} = " in str(e.value) or f"{arg}[" in str(e.value), str(e.value)
+    assert live.master.t == t and live.master.stats.steps == steps  # nothing happened
+
+
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_a_call_of_the_wrong_shape_is_a_usage_error(engine):
+    with _system(engine) as s:
+        for call in (lambda: s.value("pendulum"), lambda: s.value("pendulum", "phi", "x"),
+                     lambda: s.value(instance="pendulum", nam="phi"),
+                     lambda: s.value("pendulum", instance="pendulum"),
+                     lambda: s.master.step(), lambda: s.master.step(0.1, 0.2), lambda: s.master.run_until(),
+                     lambda: s.restart()):
+            with pytest.raises(UsageError):
+                call()
+    for call in (lambda: System(), lambda: System(COMPONENTS), lambda: System(COMPONENTS, LINKS, settingz=1)):
+        with pytest.raises(UsageError):
+            call()
+
+
+# --- values of the type their variable declares ------------------------------------------
+
+def _types_fmu():
+    from cwtest import test_fmu
+
+    return str(test_fmu("TestTypes"))
+
+
+WRONG_VALUES = {
+    # (a NaN is a Real's value: the FMU takes or refuses it, and a run that turns NaN fails as a simulation)
+    "p_real": ["abc", "1.5", [1.0], None, True, {"x": 1}],
+    "p_int": [1.5, "2", True, None, 2**40, [1]],
+    "p_bool": [1, 0, "true", None, 1.0],
+    "p_enum": [1.5, "2", True, None],
+    "p_str": [1, None, b"tick", ["tick"]],
+}
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("name, bad", [(n, v) for n, vs in WRONG_VALUES.items() for v in vs],
+                         ids=[f"{n}={v!r}" for n, vs in WRONG_VALUES.items() for v in vs])
+def test_a_parameter_of_the_wrong_type_names_instance_and_variable(engine, name, bad):
+    with pytest.raises(UsageError) as e:
+        System({"types": (_types_fmu(), {name: bad})}, [], MasterSettings(step=0.1, engine=engine))
+    assert f"types.{name}" in str(e.value), str(e.value)
+    with System({"types": (_types_fmu(), {})}, [], MasterSettings(step=0.1, engine=engine)) as s:
+        with pytest.raises(UsageError) as e:
+            s.restart({"types": {name: bad}})
+        assert f"types.{name}" in str(e.value)
+        s.master.run_until(0.2)  # the refused restart changed nothing
+
+
+def test_fmi3_parameters_of_every_type_are_checked(tmp_path):
+    import fmi3_alltypes
+
+    fmu = str(fmi3_alltypes.build(tmp_path))
+    bad = {"Float32": "x", "Float64": [1.0], "Int8": 200, "UInt8": -1, "Int16": 1.5, "UInt16": 2**16,
+           "Int32": 2**31, "UInt32": -1, "Int64": 2**63, "UInt64": -1, "Boolean": 1, "String": 3,
+           "Binary": "xyz", "Enumeration": 1.0}
+    for kind, value in bad.items():
+        with pytest.raises(UsageError) as e:
+            System({"all": (fmu, {f"p_{kind}": value})}, [], MasterSettings(step=0.1, engine="python"))
+        assert f"all.p_{kind}" in str(e.value), str(e.value)
+    good = {"Float32": 1.5, "Int8": -100, "UInt64": 2**64 - 1, "Boolean": True, "String": "s", "Binary": "0aff"}
+    with System({"all": (fmu, {f"p_{k}": v for k, v in good.items()})}, [], MasterSettings(step=0.1)) as s:
+        s.master.run_until(0.1)
+
+
+# --- pickling and copying -----------------------------------------------------------------
+
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_a_system_says_it_cannot_be_pickled_or_copied(engine):
+    import copy
+    import pickle
+
+    with _system(engine) as s:
+        for obj in (s, s.master, s.instances["pendulum"]):
+            for how in (pickle.dumps, copy.copy, copy.deepcopy):
+                with pytest.raises(ClockworkError) as e:
+                    how(obj)
+                assert "cannot be pickled" in str(e.value)
+        s.master.run_until(1.0)  # still usable
+
+
+# --- one System, two threads ---------------------------------------------------------------
+
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_a_second_thread_is_refused_not_interleaved(engine):
+    """Two threads drive one System: the second is refused with a
+    UsageError while the first is inside a call; neither sees an FMU error,
+    a negative step or a communication point that does not match; the
+    system stays consistent and a lone thread can go on with it."""
+    import threading
+
+    errors: list[BaseException] = []
+    ready = threading.Barrier(2)
+    with System(COMPONENTS, LINKS, MasterSettings(step=0.01, engine=engine)) as s:
+        def drive():
+            ready.wait()
+            for _ in range(300):
+                try:
+                    s.master.run_until(s.master.t + 0.5)
+                    s.value("pendulum", "phi")
+                except UsageError as e:
+                    errors.append(e)
+                except BaseException as e:  # noqa: BLE001 (any other error fails the test)
+                    errors.append(e)
+                    return
+
+        threads = [threading.Thread(target=drive) for _ in range(2)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(120)
+        others = [e for e in errors if not isinstance(e, UsageError)]
+        assert not others, others
+        assert any("another thread" in str(e) for e in errors)
+        assert s.master.stats.steps > 0
+        t0 = s.master.t
+        s.master.run_until(t0 + 1.0)
+        assert s.master.t == t0 + 1.0
+
+
+def test_a_system_can_be_handed_to_another_thread():
+    """Refused is only use at the same time: a System built in one thread
+    and used in another after it is done is fine."""
+    import threading
+
+    with _system("auto") as s:
+        s.master.run_until(1.0)
+        result = []
+        t = threading.Thread(target=lambda: (s.master.run_until(2.0), result.append(s.master.t)))
+        t.start()
+        t.join(60)
+        assert result == [2.0]

@@ -120,6 +120,14 @@ KIND_CASES = {
                                          "analysis.max_periods"),
     "hoyng_stationary, measure_periods = 1e15": ("hoyng_fig3", ["analysis.measure_periods=1000000000000000"],
                                                  "analysis.measure_periods"),
+    # Steady-state searches step a period per map evaluation in a Python loop.
+    "steady_state, a step that makes each search take days": ("ziemkiewicz_fig4a", ["master.step=1e-7"],
+                                                              "master.step"),
+    "escapement_steady_state, the same": ("ziemkiewicz_fig2a", ["master.step=1e-7"], "master.step"),
+    "weather_year, a check of 1e5 hours (1.3e10 steps)": ("air_weather_year", ["analysis.check_hours=100000"],
+                                                          "analysis.check_hours"),
+    "weather_year, a year's check at its step (2.5e10 steps)": ("air_weather_year", ["analysis.check_hours=8760"],
+                                                                "analysis.check_hours"),
 }
 
 

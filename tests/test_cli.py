@@ -233,3 +233,60 @@ def test_unwritable_output_dir_simulated(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(results.tempfile, "mkstemp", denied)
     rc, out, err = run(capsys, ["run", GOOD, "--out", tmp_path])
     assert_one_line_error(rc, err, str(tmp_path), "not writable")
+
+
+# --- progress bars: on a terminal only --------------------------------------------------
+
+def _long_run(tmp_path, stderr):
+    """A run of about 3 s (the bars appear after 1 s), its stderr on `stderr`."""
+    import subprocess
+
+    from cwtest import CLOCK_SCENE, ROOT
+
+    scene = tmp_path / "long.toml"
+    scene.write_text(CLOCK_SCENE.format(stop=6000.0, sweep="").replace('ticks = "pendulum"\n', 'interval = "10 s"\n'))
+    env = dict(os.environ, CLOCKWORK_FMU_DIR=str(FMU_DIR), CLOCKWORK_CACHE="off", PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", "clockwork", "run", str(scene), "--out", str(tmp_path / "o")],
+                          env=env, stdout=subprocess.PIPE, stderr=stderr, timeout=300)
+
+
+def test_no_progress_bar_into_a_pipe_or_a_file(tmp_path):
+    """stderr in a pipe (a CI log): nothing at all on it for a good run."""
+    import subprocess
+
+    r = _long_run(tmp_path, subprocess.PIPE)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr == b"", r.stderr[:300]
+
+
+def test_a_progress_bar_on_a_terminal(tmp_path):
+    import fcntl
+    import pty
+    import struct
+    import termios
+    import threading
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # 0 columns: an empty bar
+    seen = bytearray()
+
+    def drain():  # read while it runs: a full terminal buffer would stop the run
+        while True:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:  # EIO: the other end is closed
+                return
+            if not chunk:
+                return
+            seen.extend(chunk)
+
+    reader = threading.Thread(target=drain, daemon=True)
+    reader.start()
+    try:
+        r = _long_run(tmp_path, slave)
+    finally:
+        os.close(slave)
+        reader.join(10)
+        os.close(master)
+    assert r.returncode == 0
+    assert b"6000/6000 s" in seen and b"\r" in seen, bytes(seen[:300])

@@ -273,6 +273,34 @@ def test_a_structural_parameter_is_refused_through_the_python_api_too(fmu):
         System({"a": (str(fmu), {"n": 2})}, [], MasterSettings(step=0.1))
 
 
+@pytest.mark.parametrize("params, needle", [
+    ({"A": [[-1.0, 0.5, 0.0], [0.0, "x", 0.25], [0.1, 0.0, -3.0]]}, "a.A = "),
+    ({"A": A, "u": [1.0, None]}, "a.u = "),
+    ({"A": A, "u": (1.0, True)}, "a.u = "),
+    ({"A": A, "k": [7, 8.5, 9]}, "a.k = "),
+])
+def test_an_array_parameter_with_an_element_of_another_type_is_a_usage_error(fmu, params, needle):
+    """The Python API checks an array's every element against its type
+    (lists, tuples, nested or not), as it checks a scalar's value."""
+    from clockwork.errors import UsageError
+
+    with pytest.raises(UsageError, match="every element is") as info:
+        System({"a": (str(fmu), params)}, [], MasterSettings(step=0.1))
+    assert needle in str(info.value)
+
+
+def test_an_array_parameter_given_a_scalar_or_a_numpy_array_is_a_usage_error(fmu):
+    import numpy as np
+
+    from clockwork.errors import UsageError
+
+    for value in (1.0, np.array(A)):
+        with pytest.raises(UsageError, match="a.A = .*expected a list of values"):
+            System({"a": (str(fmu), {"A": value})}, [], MasterSettings(step=0.1))
+    with System({"a": (str(fmu), {"A": tuple(map(tuple, A)), "u": (1.0, -2.0)})}, [], MasterSettings(step=0.1)) as s:
+        assert s.value("a", "u") == [1.0, -2.0]
+
+
 def test_fmpy_validates_the_test_fmu(fmu):
     from fmpy.validation import validate_fmu
 

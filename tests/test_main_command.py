@@ -38,7 +38,9 @@ def test_main_command_on_a_fresh_copy(tmp_path):
     venv = tmp_path / "venv"
     subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "CLOCKWORK_FMU_DIR", "VIRTUAL_ENV")}
-    env.update(PATH=f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}", PYTHON=str(venv / "bin" / "python"),
+    # The venv active, as `source venv/bin/activate` leaves it: setup installs into it (tools/python.sh).
+    env.pop("PYTHON", None)
+    env.update(PATH=f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}", VIRTUAL_ENV=str(venv),
                CLOCKWORK_CACHE=str(tmp_path / "cache"), TMPDIR=str(tmp_path))
     r = subprocess.run(["bash", "tools/main.sh"], cwd=clone, env=env, capture_output=True, text=True, timeout=1800)
     assert r.returncode == 0, (r.stdout[-3000:], r.stderr[-3000:])
@@ -51,3 +53,4 @@ def test_main_command_on_a_fresh_copy(tmp_path):
     which = subprocess.run([str(venv / "bin" / "python"), "-c", "import clockwork; print(clockwork.__file__)"],
                            cwd=elsewhere, env=env, capture_output=True, text=True)
     assert str(clone) in which.stdout, which  # the copy's package ran, not this checkout's
+    assert not (clone / ".venv").exists()  # the active venv was used, no other made

@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from clockwork.numbers import CSV_SPECIAL, XSD_SPECIAL, parse_int, parse_real, shorten
+from clockwork.numbers import CSV_SPECIAL, XSD_SPECIAL, parse_int, parse_json, parse_real, shorten
 
 
 @pytest.mark.parametrize("text, value", [
@@ -53,3 +53,35 @@ def test_shorten_bounds_an_echoed_value():
     s = shorten(long)
     assert len(s) <= 200 and str(len(long)) in s
 
+
+
+# --- JSON ------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("text", ['{"a": NaN}', '[Infinity]', '[-Infinity]', '[1e400]', '[-1e309]',
+                                  '{"a": 1, "a": 2}', '{"x": {"b": [], "b": {}}}'])
+def test_json_that_python_reads_and_rfc_8259_does_not_is_refused(text):
+    import json
+
+    json.loads(text)  # Python reads it
+    with pytest.raises(ValueError):
+        parse_json(text)
+
+
+def test_strict_json_reads_json():
+    assert parse_json(b'{"a": [1, 2.5e-3, -0.0, null, true, "x"], "b": {"c": 1e308}}') == \
+        {"a": [1, 0.0025, -0.0, None, True, "x"], "b": {"c": 1e308}}
+
+
+def test_clockwork_reads_json_only_through_the_strict_reader():
+    """Every JSON file clockwork reads (case files, the cache, points, the
+    commit journal, summaries, quick.json, FMU manifests) goes through
+    numbers.parse_json: no json.load(s) anywhere else in the package."""
+    import re
+    from pathlib import Path
+
+    import clockwork
+
+    root = Path(clockwork.__file__).parent
+    found = [f"{p.relative_to(root)}:{i}" for p in root.rglob("*.py") if p.name != "numbers.py"
+             for i, line in enumerate(p.read_text().splitlines(), 1) if re.search(r"\bjson\.loads?\(", line)]
+    assert not found, found

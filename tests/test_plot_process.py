@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from cwtest import CLOCK_SCENE, FMU_DIR, ROOT, fmu_file
+from cwtest import CLOCK_SCENE, FMU_DIR, ROOT, default_stop_signals, fmu_file
 
 sys.path.insert(0, str(ROOT / "tools"))
 from kill_sweep import descendants, running  # noqa: E402
@@ -147,6 +147,7 @@ def test_a_plot_process_that_dies_leaves_the_plots_to_this_process(tmp_path, who
         assert err == ""
 
 
+@pytest.mark.serial  # a SIGINT to the process group at a moment the run has reached
 def test_an_interrupted_run_leaves_no_plot_process_and_one_line(tmp_path):
     """Ctrl-C at a terminal signals the whole process group: the run says
     "interrupted" once, the plot process says nothing, and nobody stays."""
@@ -163,7 +164,8 @@ def test_an_interrupted_run_leaves_no_plot_process_and_one_line(tmp_path):
     out = tmp_path / "out"
     proc = subprocess.Popen([sys.executable, "-m", "clockwork", "run", str(scene), "--out", str(out),
                              "--workers", "1", "--no-progress"], env=env, start_new_session=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=default_stop_signals)
     family: set[int] = set()
     try:
         deadline = time.monotonic() + 60

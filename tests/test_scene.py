@@ -254,7 +254,7 @@ def test_bad_scene(name, key, expected):
     ('[scene]\ntitle = "t"\n[components.p]\nfmu = "Pendulum"\n[experiment]\nstop = 1\n[master]\nmax_step = 0.01\n'
      '[sweep]\naxes = [{ parameter = "master.step", values = [0.001, 0.1] }]\n', "sweep", "max_step >= step"),
     ('[scene]\ntitle = "t"\n[components.p]\nfmu = "Pendulum"\n[experiment]\nstop = 1\n[analysis]\n'
-     'kind = "steady_state"\nmax_periods = 0\n', "analysis.max_periods = 0", "a positive integer"),
+     'kind = "steady_state"\nmax_periods = 0\n', "analysis.max_periods = 0", "an integer in [2, 1,000]"),
     ('[scene]\ntitle = "t"\n[components.p]\nfmu = "Pendulum"\n[experiment]\nstop = 1\n[[plot]]\nkind = "sweep"\n'
      'file = "../x.png"\n', "plot[0].file", "without a directory"),
     ('[scene]\ntitle = "t"\n[components.p]\nfmu = "Pendulum"\nparameters = { Q = nan }\n[experiment]\nstop = 1\n',
@@ -346,3 +346,37 @@ def test_docs_example_validates(tmp_path):
     assert len(s.components) == 2 and len(s.connections) == 3
     assert s.components["escapement"].parameters["torque"] == pytest.approx(0.004, rel=1e-15)
     assert s.sweep.shape == (2, 4)
+
+
+# --- master settings: what the master refuses, validate refuses -----------------
+
+CORE = Path(__file__).resolve().parents[1] / "scenarios" / "core_grasshopper.toml"
+
+
+@pytest.mark.parametrize("how", ["file", "set", "sweep"])
+@pytest.mark.parametrize("values, key", [
+    ({"iterations": 2, "richardson": "true"}, "master.iterations"),
+    ({"iterations": 1, "richardson": "true", "event_location": "false"}, "master.iterations"),
+])
+def test_a_combination_the_master_refuses_is_refused_at_validate(tmp_path, how, values, key):
+    """Every combination of master settings that MasterSettings refuses
+    (issue 28, E: richardson with iterations passed validate, and the run's
+    line named no file) is refused when the scene loads, naming the file and
+    the key, whether it comes from the file, a --set or a sweep point."""
+    text = CORE.read_text()
+    overrides = ()
+    if how == "file":
+        text = text.replace("[master]\n", "[master]\n" + "".join(f"{k} = {v}\n" for k, v in values.items()))
+        text = text.replace("event_location = true\n", "", 1) if "event_location" in values else text
+    elif how == "set":
+        overrides = tuple(f"master.{k}={v}" for k, v in values.items())
+    else:
+        rest = {k: v for k, v in values.items() if k != "iterations"}
+        text = text.replace("[master]\n", "[master]\n" + "".join(f"{k} = {v}\n" for k, v in rest.items()))
+        text = text.replace("event_location = true\n", "", 1) if "event_location" in values else text
+        text += f'\n[sweep]\naxes = [{{ parameter = "master.iterations", values = [0, {values["iterations"]}] }}]\n'
+    scene = tmp_path / "s.toml"
+    scene.write_text(text)
+    e = error_of(scene, overrides)
+    assert e.path == str(scene), str(e)
+    assert key in str(e) and "richardson" in str(e), str(e)

@@ -3,7 +3,10 @@
 Each ends the run like Ctrl-C: one stderr line, exit code 128 + the
 signal's number, no worker or plot process left, nothing in $TMPDIR, no
 staging folder or .part file in the result directory, and the finished
-points kept: a rerun reuses them and finishes.
+points kept: a rerun reuses them and finishes. The runs start with the
+three signals at their defaults, whatever the test run has (under nohup it
+ignores SIGHUP); a signal the run was started ignoring stays ignored, in
+the run and its workers.
 """
 
 from __future__ import annotations
@@ -18,10 +21,14 @@ from pathlib import Path
 
 import pytest
 
-from cwtest import CLOCK_SCENE, FMU_DIR, ROOT, fmu_file
+from cwtest import CLOCK_SCENE, FMU_DIR, ROOT, default_stop_signals, fmu_file
 
 sys.path.insert(0, str(ROOT / "tools"))
 from kill_sweep import descendants, running  # noqa: E402
+
+# Signals sent after a fixed start-up wait, and a bound on how soon a run ends:
+# run alone, not beside pytest-xdist workers that slow every start-up.
+pytestmark = pytest.mark.serial
 
 SWEEP = ('\n[sweep]\naxes = [ { parameter = "escapement.torque", start = "0.3 N.cm", stop = "0.6 N.cm", '
          'num = 8 } ]\n\n[[plot]]\nkind = "sweep"\nx = "escapement.torque"\ny = "ticks"\n')
@@ -49,7 +56,7 @@ def _start(tmp_path: Path, workers: int, cache: str):
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT], ids=lambda s: s.name)
 def test_a_signal_to_the_parent_alone_leaves_nothing_and_keeps_the_points(tmp_path, sig, workers, cache):
     argv, env, tmp = _start(tmp_path, workers, cache)
-    proc = subprocess.Popen(argv, env=env, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(argv, env=env, stderr=subprocess.PIPE, text=True, preexec_fn=default_stop_signals)
     points = tmp_path / "out" / "points"
     deadline = time.monotonic() + 60
     while not list(points.glob("*.json")) and time.monotonic() < deadline and proc.poll() is None:
@@ -87,7 +94,7 @@ def test_a_signal_ends_a_long_compiled_run_inside_one_core_call(tmp_path, sig):
         "[master]\n", '[master]\nengine = "compiled"\n')
     (tmp_path / "s.toml").write_text(scene)
     argv = argv[:argv.index("--workers")]  # a single run: no pool, and no warning about one
-    proc = subprocess.Popen(argv, env=env, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(argv, env=env, stderr=subprocess.PIPE, text=True, preexec_fn=default_stop_signals)
     time.sleep(1.5)  # start-up takes ~0.5 s; then the run is inside the core
     assert proc.poll() is None, proc.communicate()[1]
     os.kill(proc.pid, sig)
@@ -103,3 +110,27 @@ def test_a_signal_ends_a_long_compiled_run_inside_one_core_call(tmp_path, sig):
     out = tmp_path / "out"
     assert not [p for p in out.rglob("*") if p.name.endswith(".part") or p.name.startswith(".staging")]
     assert not (out / "summary.json").exists()
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_run_started_under_nohup_outlives_a_hang_up(tmp_path, workers):
+    """SIGHUP ignored at the start (nohup) stays ignored: a hang-up sent to
+    the whole process group, as a closing terminal sends it, ends neither
+    the run nor its workers; the sweep finishes with every point."""
+    def nohup():
+        default_stop_signals()
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
+
+    argv, env, tmp = _start(tmp_path, workers, "off")
+    proc = subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=nohup, start_new_session=True)
+    points = tmp_path / "out" / "points"
+    deadline = time.monotonic() + 60
+    while not list(points.glob("*.json")) and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.02)
+    assert proc.poll() is None, "the run ended before the hang-up"
+    os.killpg(proc.pid, signal.SIGHUP)
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 0, err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["points_total"] == 8 and not summary.get("points_failed"), summary

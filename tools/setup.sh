@@ -1,8 +1,11 @@
 #!/usr/bin/env bash
 # Install the project and build the FMUs into fmus/. Safe to run repeatedly.
+# Packages go into the active virtual environment, else into the checkout's
+# .venv (created when missing; tools/python.sh), never into the system's Python.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-PY=${PYTHON:-python3}
+source tools/python.sh
+PY=$PYTHON
 "$PY" -m pip install --quiet --disable-pip-version-check -e ".[test,interop,docs]"
 # Bytecode, as pip writes it for an installed wheel: an editable install
 # leaves it to the first import, which never writes it where
@@ -22,3 +25,4 @@ cmake -S . -B build -G Ninja -DPython3_EXECUTABLE="$(command -v "$PY")" > build.
 cmake --build build >> build.log 2>&1 || { cat build.log; exit 1; }
 rm -f build.log
 echo "setup: FMUs in $(pwd)/fmus: $(ls fmus | tr '\n' ' ')"
+echo "setup: Python packages in $("$PY" -c 'import sys; print(sys.prefix)')"

@@ -71,11 +71,32 @@ def nominal_period(scene, point: dict | None = None) -> float | None:
     return 2.0 * math.pi * math.sqrt(L / g)
 
 
+# The kinds that search steady states by shooting: each map evaluation steps
+# one period in a Python loop (engine.shooting), a search takes up to
+# SHOOTING_EVALUATIONS of them, and a kind several searches.
+STEADY_KINDS = ("steady_state", "escapement_steady_state", "steady_orbit", "disturbance", "hoyng_stationary",
+                "barometric_coefficient", "thermal_coefficient", "weather_year")
+SHOOTING_EVALUATIONS = 31  # find_steady_state: a first map and 30 secant steps
+# Steps of one steady-state search: each a master.step() called from Python
+# (7-25 us with the FMUs' work), so 1e8 is about an hour.
+MAX_SHOOTING_STEPS = 100_000_000
+
+
 def check_bounds(scene, kind: str) -> None:
     """Refuse a point whose analysis would keep more than MAX_KEPT_VALUES or
-    take more than MAX_STEPS communication steps, naming the key to change."""
+    take more than MAX_STEPS communication steps (a steady-state search more
+    than MAX_SHOOTING_STEPS steps of the shooting's Python loop), naming the
+    key to change."""
     cfg = scene.analysis or {}
     kept = KEPT.get(kind)
+    if kind in STEADY_KINDS:
+        T0 = nominal_period(scene)
+        search = SHOOTING_EVALUATIONS * T0 / scene.master.step if T0 else 0.0
+        if search > MAX_SHOOTING_STEPS:
+            raise SceneError(f"one steady-state search of {kind} takes up to {SHOOTING_EVALUATIONS} periods of "
+                             f"{T0:.4g} s in steps of {scene.master.step:g} s, about {search:.3g} steps in Python, "
+                             f"more than {MAX_SHOOTING_STEPS:.0e} (hours): give a longer master.step",
+                             scene.path, "master.step")
     if kept is None and kind not in ("time_series", "ticks"):
         return  # steady-state searches: no span-long run
     step = scene.master.step

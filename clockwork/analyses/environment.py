@@ -29,6 +29,7 @@ ticks counted against the regulated period.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -39,15 +40,33 @@ from ..physics import air as airphys
 from ..physics import analytic
 from ..scene.kinds import Invalid
 from . import keys
-from .context import build_system, find_component
+from .bounds import MAX_STEPS
+from .context import ESCAPEMENTS, build_system, find_component, master_settings, parameters
 from .registry import register
-from .steady_state import Clock, SteadyState, clock_at, find_steady_state
+from .steady_state import AMPLITUDE_GUESS, MAX_PERIODS, TOLERANCE, Clock, SteadyState, clock_at, clock_check, \
+    find_steady_state
 
 DAY = analytic.SECONDS_PER_DAY
 HPA = airphys.PA_PER_HPA
 
-_COMMON = {"tolerance_s_per_day": keys.positive_number, "max_periods": keys.positive_int,
-           "amplitude_guess": keys.angle}
+_COMMON = {"tolerance_s_per_day": TOLERANCE, "max_periods": MAX_PERIODS, "amplitude_guess": AMPLITUDE_GUESS}
+
+# Moves of the Air's conditions: positive, bounded by what the Air FMU takes
+# (checked at each point by _check_*: the scene's pressure and temperature
+# moved by the key must stay inside the FMUs' declared ranges).
+_IN_AIR_P = "the Air's pressure ± it within the Air FMU's pressure range"
+_IN_AIR_T = "the Air's (and the Pendulum's) temperature ± it within their FMUs' temperature ranges"
+DELTA_HPA = keys.number(0, 1000, lo_open=True, unit="hPa", also=_IN_AIR_P)
+DELTA_K = keys.number(0, 100, lo_open=True, unit="K", also=_IN_AIR_T)
+GRID_HPA = keys.number(0, 1000, lo_open=True, unit="hPa", also=_IN_AIR_P)
+GRID_K = keys.number(0, 100, lo_open=True, unit="K", also=_IN_AIR_T)
+# The weather's excursions: the year's pressures and temperatures must lie
+# on the grid the rates are fitted on (p0 +- grid_hPa, T0 +- grid_K) with
+# half of it to spare (the quadratic beyond its nodes), and in the FMUs' ranges.
+WEATHER_SPARE = 1.5
+_ON_GRID_P = f"the year's pressures within {WEATHER_SPARE:g} grid_hPa of the Air's and in the Air FMU's range"
+_ON_GRID_T = (f"the year's temperatures within {WEATHER_SPARE:g} grid_K of the Air's and in the Air's and the "
+              "Pendulum's ranges")
 
 
 def _air(scene, analysis: str) -> str:
@@ -150,11 +169,38 @@ def barometric_point(clock: Clock, rates: _Rates, air: str, delta_hpa: float) ->
     return out
 
 
-_BARO_KEYS = dict(_COMMON, delta_hPa=keys.positive_number)
+_BARO_KEYS = dict(_COMMON, delta_hPa=DELTA_HPA)
+
+
+def _air_at(scene, point: dict, analysis: str) -> tuple[str, str, dict]:
+    """(Air instance, Pendulum instance, effective parameters) at a point, else
+    Invalid naming what the scene lacks (the run would refuse it)."""
+    clock_check(scene, point, analysis)
+    air = find_component(scene, "Air")
+    if air is None:
+        raise Invalid("kind", f"a scene with an Air component for {analysis}")
+    return air, find_component(scene, "Pendulum"), parameters(scene, point)
+
+
+def _check_pressure(scene, key: str, air: str, p0: float, delta_hpa: float) -> None:
+    keys.within_fmu(scene, key, air, "pressure", (p0 - delta_hpa * HPA, p0 + delta_hpa * HPA),
+                    f"the Air's pressure ({p0 / HPA:g} hPa) ± {key}")
+
+
+def _check_temperature(scene, key: str, air: str, pend: str, T_air: float, T_rod: float, delta_k: float) -> None:
+    keys.within_fmu(scene, key, air, "temperature", (T_air - delta_k, T_air + delta_k),
+                    f"the Air's temperature ({T_air:g} K) ± {key}")
+    keys.within_fmu(scene, key, pend, "temperature", (T_rod - delta_k, T_rod + delta_k),
+                    f"the Pendulum's temperature ({T_rod:g} K) ± {key}")
+
+
+def _check_barometric(scene, point: dict) -> None:
+    air, _, params = _air_at(scene, point, "barometric_coefficient")
+    _check_pressure(scene, "delta_hPa", air, params[air]["pressure"], (scene.analysis or {}).get("delta_hPa", 10.0))
 
 
 @register("barometric_coefficient", set(_BARO_KEYS), keys.table_converter(_BARO_KEYS), columns=BAROMETRIC_COLUMNS,
-          series=set())
+          series=set(), check=_check_barometric)
 def barometric_coefficient(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     air = _air(scene, "barometric_coefficient")
@@ -169,7 +215,13 @@ def barometric_coefficient(scene, point: dict, progress: bool = False) -> dict:
     return {"kind": "barometric_coefficient", "result": out, "statistics": stats}
 
 
-_THERMAL_KEYS = dict(_COMMON, delta_K=keys.positive_number)
+_THERMAL_KEYS = dict(_COMMON, delta_K=DELTA_K)
+
+
+def _check_thermal(scene, point: dict) -> None:
+    air, pend, params = _air_at(scene, point, "thermal_coefficient")
+    _check_temperature(scene, "delta_K", air, pend, params[air]["temperature"], params[pend]["temperature"],
+                       (scene.analysis or {}).get("delta_K", 2.0))
 
 
 # What thermal_coefficient adds to the steady state's keys (a stalled clock: the state's alone).
@@ -179,7 +231,7 @@ THERMAL_COLUMNS = SteadyState.COLUMNS | {"rate_s_per_day", "alpha_per_K", "therm
 
 
 @register("thermal_coefficient", set(_THERMAL_KEYS), keys.table_converter(_THERMAL_KEYS), columns=THERMAL_COLUMNS,
-          series=set())
+          series=set(), check=_check_thermal)
 def thermal_coefficient(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     air = _air(scene, "thermal_coefficient")
@@ -361,18 +413,78 @@ def _cosimulate(clock: Clock, rates: _Rates, air: str, weather: dict, hours: int
     return ticks * regulated_period - (last - t0), last - t0, ticks
 
 
-def _days(key: str, v) -> float:
-    """A positive number of days, at most ten years (an hourly series)."""
-    days = keys.positive_number(key, v)
-    if days > 3660:
-        raise Invalid(key, "a number of days in (0, 3660]")
-    return days
+_YEAR_KEYS = dict(_COMMON, delta_hPa=DELTA_HPA, days=keys.number(1, 3660, unit="days"),
+                  seed=keys.count(0, 2**63 - 1),
+                  check_hours=keys.count(0, 24 * 3660, also="at most 24 x days, and its co-simulation (two clocks, "
+                                         "check_hours x 3600 s / master.step steps each) within the 1e10 steps bound"),
+                  grid_hPa=GRID_HPA, grid_K=GRID_K,
+                  seasonal_hPa=keys.number(0, 1000, unit="hPa", also=_ON_GRID_P),
+                  synoptic_hPa=keys.number(0, 1000, unit="hPa", also=_ON_GRID_P),
+                  seasonal_K=keys.number(0, 100, unit="K", also=_ON_GRID_T),
+                  synoptic_K=keys.number(0, 100, unit="K", also=_ON_GRID_T))
+_YEAR_DEFAULTS = {"delta_hPa": 10.0, "days": 365.0, "seed": 1, "check_hours": 3, "grid_hPa": 30.0, "grid_K": 8.0,
+                  "seasonal_hPa": 3.0, "synoptic_hPa": 9.0, "seasonal_K": 4.0, "synoptic_K": 1.0}
 
 
-_YEAR_KEYS = dict(_COMMON, delta_hPa=keys.positive_number, days=_days, seed=keys.nonnegative_int,
-                  check_hours=keys.nonnegative_int, grid_hPa=keys.positive_number, grid_K=keys.positive_number,
-                  seasonal_hPa=keys.nonnegative_number, synoptic_hPa=keys.nonnegative_number,
-                  seasonal_K=keys.nonnegative_number, synoptic_K=keys.nonnegative_number)
+@functools.lru_cache(maxsize=16)
+def _weather_span(days: float, seed: int, seasonal_hpa: float, synoptic_hpa: float, seasonal_k: float,
+                  synoptic_k: float) -> tuple[float, float, float, float]:
+    """(lowest, highest) pressure change (hPa) and temperature change (K) of
+    the year of weather about the scene's conditions: they do not depend on
+    the conditions, so one year serves every sweep point."""
+    w = airphys.weather_year(days=days, seed=seed, pressure_hpa=0.0, temperature_c=-273.15,
+                             seasonal_hpa=seasonal_hpa, synoptic_hpa=synoptic_hpa, seasonal_k=seasonal_k,
+                             synoptic_k=synoptic_k)
+    p, T = w["pressure"] / HPA, w["temperature"]
+    return float(p.min()), float(p.max()), float(T.min()), float(T.max())
+
+
+def _check_year(scene, point: dict) -> None:
+    """weather_year's keys against the scene: the steady states it takes
+    (delta_hPa, the grid) and the year's weather inside the FMUs' ranges,
+    the weather on the fitted grid, and the check's co-simulation bounded."""
+    air, pend, params = _air_at(scene, point, "weather_year")
+    esc = find_component(scene, ESCAPEMENTS)
+    if esc is None or scene.components[esc].model_description.modelName != "GrasshopperEscapement":
+        raise Invalid("kind", "a scene with a GrasshopperEscapement for weather_year (its torque sets the arc)")
+    cfg = {**_YEAR_DEFAULTS, **(scene.analysis or {})}
+    p0, T0 = params[air]["pressure"], params[air]["temperature"]
+    _check_pressure(scene, "delta_hPa", air, p0, cfg["delta_hPa"])
+    _check_pressure(scene, "grid_hPa", air, p0, cfg["grid_hPa"])
+    # The grid moves the rod with the air: both at T0 +- grid_K.
+    _check_temperature(scene, "grid_K", air, pend, T0, T0, cfg["grid_K"])
+    lo_p, hi_p, lo_T, hi_T = _weather_span(cfg["days"], cfg["seed"], cfg["seasonal_hPa"], cfg["synoptic_hPa"],
+                                           cfg["seasonal_K"], cfg["synoptic_K"])
+    for unit, lo, hi, grid, grid_key, moved in (("hPa", lo_p, hi_p, cfg["grid_hPa"], "grid_hPa", "pressure"),
+                                                ("K", lo_T, hi_T, cfg["grid_K"], "grid_K", "temperature")):
+        blamed = _blamed(scene.analysis or {}, unit)
+        reach = WEATHER_SPARE * grid
+        if lo < -reach or hi > reach:
+            raise Invalid(blamed or grid_key,
+                          f"weather within {WEATHER_SPARE:g} x grid_{'hPa' if unit == 'hPa' else 'K'} = {reach:g} {unit} "
+                          f"of the Air's {moved}, the grid the rates are fitted on (this year's {moved} moves by "
+                          f"{lo:+.4g} to {hi:+.4g} {unit}): smaller seasonal_{unit}/synoptic_{unit} or a larger "
+                          f"grid_{unit}")
+    keys.within_fmu(scene, _blamed(scene.analysis or {}, "hPa") or "seasonal_hPa", air, "pressure",
+                    (p0 + lo_p * HPA, p0 + hi_p * HPA), "the year's pressure")
+    for inst, name in ((air, "the Air's"), (pend, "the Pendulum's")):
+        keys.within_fmu(scene, _blamed(scene.analysis or {}, "K") or "seasonal_K", inst, "temperature",
+                        (T0 + lo_T, T0 + hi_T), f"the year's temperature ({name})")
+    hours = cfg["check_hours"]
+    if hours > 24 * cfg["days"]:
+        raise Invalid("check_hours", f"at most 24 x days = {24 * cfg['days']:g} hours (the year's weather is "
+                                     f"{cfg['days']:g} days long)")
+    steps = 2 * hours * 3600.0 / master_settings(scene, point).step
+    if steps > MAX_STEPS:
+        raise Invalid("check_hours", f"a check that takes at most {MAX_STEPS:.0e} communication steps (two clocks "
+                                     f"over {hours} hours in steps of {master_settings(scene, point).step:g} s take "
+                                     f"{steps:.3g}, hours of stepping): fewer check_hours or a longer master.step")
+
+
+def _blamed(table: dict, unit: str) -> str | None:
+    """Of seasonal_<unit> and synoptic_<unit>, the larger one the table sets."""
+    given = [k for k in (f"seasonal_{unit}", f"synoptic_{unit}") if k in table]
+    return max(given, key=lambda k: table[k]) if given else None
 
 
 # The year's result: per clock (the scene's torque, the compensating one) the
@@ -395,7 +507,7 @@ YEAR_SERIES = {"time", "pressure_hPa", "temperature_C", "day", *(c for n in _CLO
 
 
 @register("weather_year", set(_YEAR_KEYS), keys.table_converter(_YEAR_KEYS), columns=YEAR_COLUMNS,
-          series=YEAR_SERIES)
+          series=YEAR_SERIES, check=_check_year)
 def weather_year(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     air = _air(scene, "weather_year")

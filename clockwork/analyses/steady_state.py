@@ -17,6 +17,7 @@ from typing import ClassVar
 from ..engine.shooting import Shooter, shoot
 from ..errors import SimulationError
 from ..physics import analytic
+from ..scene.kinds import Invalid
 from . import keys
 from .context import ESCAPEMENTS, build_system, find_component, parameters
 from .registry import register
@@ -121,8 +122,31 @@ def find_steady_state(shooter: Shooter, amplitude_guess: float, phi_r: float | N
     )
 
 
-_KEYS = {"tolerance_s_per_day": keys.positive_number, "max_periods": keys.positive_int,
-         "measure_periods": keys.positive_int, "amplitude_guess": keys.angle}
+# The keys of every steady-state search (shared by the kinds built on it).
+# A map evaluation waits max_periods nominal periods for the pendulum's next
+# tick: a swing of 150 deg takes 1.76 of them, so from 2 periods on every
+# allowed guess ticks in time (a guess that did not would read as a stall).
+TOLERANCE = keys.number(1e-9, 864, unit="s/day")  # from ~10x what a double resolves of a period to 1 % of a day
+MAX_PERIODS = keys.count(2, 1000)
+AMPLITUDE_GUESS = keys.angle_in(0, 150)
+_KEYS = {"tolerance_s_per_day": TOLERANCE, "max_periods": MAX_PERIODS, "amplitude_guess": AMPLITUDE_GUESS}
+
+
+def clock_check(scene, point: dict, analysis: str) -> None:
+    """What a steady-state kind needs of the scene at a point (as clock_at
+    does at run time), else Invalid: a Pendulum, and a first amplitude
+    guess, analysis.amplitude_guess or the escapement's energy balance."""
+    pendulum = find_component(scene, "Pendulum")
+    if pendulum is None:
+        raise Invalid("kind", f"a scene with a Pendulum component for {analysis}")
+    if (scene.analysis or {}).get("amplitude_guess"):
+        return
+    escapement = find_component(scene, ESCAPEMENTS)
+    params = parameters(scene, point)
+    model = scene.components[escapement].model_description.modelName if escapement else None
+    if energy_balance_amplitude(params[pendulum], model, params.get(escapement, {})) is None:
+        raise Invalid("amplitude_guess", "an amplitude guess: this clock has no energy balance to start from "
+                                         "(no escapement of a known kind, or Q = 0)")
 
 
 @dataclass
@@ -165,8 +189,8 @@ def clock_at(scene, point: dict, analysis: str) -> Clock:
 COLUMNS = SteadyState.COLUMNS | {"torque_Nm", "energy_balance_amplitude_deg", "E_E_B7_s_per_day"}
 
 
-@register("steady_state", {"tolerance_s_per_day", "max_periods", "measure_periods", "amplitude_guess"},
-          keys.table_converter(_KEYS), columns=COLUMNS, series=set())
+@register("steady_state", set(_KEYS), keys.table_converter(_KEYS), columns=COLUMNS, series=set(),
+          check=lambda scene, point: clock_check(scene, point, "steady_state"))
 def steady_state(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     clock = clock_at(scene, point, "steady_state")

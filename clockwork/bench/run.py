@@ -52,6 +52,7 @@ import time
 from pathlib import Path
 
 
+from ..results.files import clean_json
 from .config import BenchConfig, DAY, Row, fmt, full_config
 from .checks import reference_checks
 from .problems import steady_point
@@ -141,7 +142,18 @@ def run_bench(out: Path, cfg: BenchConfig | None = None, progress: bool = True, 
     write_markdown(out / "bench.md", cfg, rows, checks, info, targets, command)
     blob = {"config": cfg.name, "command": command, "info": info, "checks": checks,
             "rows": [dataclasses.asdict(r) for r in rows],
-            "targets": json.loads(json.dumps(targets, default=lambda o: dataclasses.asdict(o)
-                                             if dataclasses.is_dataclass(o) else repr(o)))}
-    (out / "bench.json").write_text(json.dumps(blob, indent=1, default=repr) + "\n")
+            "targets": _as_data(targets)}
+    # Strict JSON, as every file clockwork writes: a failed row's NaN is null.
+    (out / "bench.json").write_text(json.dumps(clean_json(blob), indent=1, default=repr, allow_nan=False) + "\n")
     return blob
+
+
+def _as_data(x):
+    """Dataclasses as dicts, all the way down (the targets' summary)."""
+    if dataclasses.is_dataclass(x) and not isinstance(x, type):
+        return _as_data(dataclasses.asdict(x))
+    if isinstance(x, dict):
+        return {k: _as_data(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_as_data(v) for v in x]
+    return x

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import shutil
@@ -13,6 +12,7 @@ import time
 from pathlib import Path
 
 
+from ..numbers import parse_json
 from ..physics import reference
 from .config import BenchConfig, DAY, DEFAULT_FAMILY, DEG, PEER_MODULES, ROOT, Row, TARGET_S_PER_DAY, TWO_PI
 
@@ -38,7 +38,7 @@ def target_fig4a(cfg: BenchConfig, work: Path, log) -> dict:
             return {"status": f"clockwork run failed: {p.stderr.strip()[-300:]}"}
         walls.append(wall)
         log(f"fig4a run {k + 1}: {wall:.2f} s")
-    summary = json.loads((out / "summary.json").read_text())
+    summary = parse_json((out / "summary.json").read_bytes())
     points = summary["points"]
     errors = []
     for pnt in points:

@@ -27,8 +27,9 @@ from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
 from fmpy import calloc, free
 
 from ..atomic import alive
-from ..errors import ParametersRefused, SceneError, SimulationError
+from ..errors import ParametersRefused, SceneError, SimulationError, UsageError
 from ..hashing import sha256_file
+from ..numbers import parse_json
 from ..paths import cache_root, core_library, scratch_dir
 from .description import check_archive, read_fmu, resolved, var_unit
 
@@ -143,7 +144,7 @@ def _unzip(path: Path, target: Path) -> None:
 def _intact(folder: Path) -> bool:
     """Every file of the manifest is there with its size."""
     try:
-        manifest = json.loads((folder / _MANIFEST).read_text())
+        manifest = parse_json((folder / _MANIFEST).read_bytes())
         return isinstance(manifest, dict) and all(
             (folder / name).stat().st_size == size for name, size in manifest.items())
     except (OSError, ValueError, TypeError):
@@ -271,6 +272,10 @@ class Instance:
     @property
     def shown(self) -> str:
         return self.label or str(self.path)
+
+    def __reduce_ex__(self, protocol):
+        raise UsageError(f"the FMU instance {self.name} cannot be pickled or copied: it is a loaded library "
+                         "and its C state")
 
     def __init__(self, name: str, path: Path, model_description=None):
         self.name = name

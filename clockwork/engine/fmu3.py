@@ -545,7 +545,7 @@ class Instance3(Instance):
         for name, pairs in elements.items():
             size = self.arrays[name][1]
             if name in values:
-                merged = list(_flat(values[name]))
+                merged = list(flat_values(values[name]))
             elif len({k for k, _ in pairs}) == size:  # every element given
                 merged = [None] * size
             else:
@@ -575,7 +575,7 @@ class Instance3(Instance):
     def _set_array(self, name: str, kind: str, value, what: str, error: type[SimulationError]) -> None:
         """Set every value of an array variable through the fmi3Set* of its type."""
         vr, size = self.arrays[name]
-        flat = list(_flat(value))
+        flat = list(flat_values(value))
         if len(flat) != size:
             raise error(f"{what}: {self.name}.{name} is an array of {size} values, given {len(flat)}",
                         instance=self.name)
@@ -716,11 +716,11 @@ class Instance3(Instance):
         return super().fail(what.replace("fmi2", "fmi3"), status, time, error or SimulationError)
 
 
-def _flat(value):
+def flat_values(value):
     """The values of a nested list (or tuple), row-major; a scalar as itself."""
     if isinstance(value, (list, tuple)):
         for x in value:
-            yield from _flat(x)
+            yield from flat_values(x)
     else:
         yield value
 

@@ -43,7 +43,7 @@ from .ports import Port, Ports
 from .richardson import StepDoubling
 from .samples import FileInputs, Samples, isclose
 from .settings import MasterSettings, Statistics, check_run, rollback_need, with_model_exchange
-from ..errors import SceneError, SimulationEnded, SimulationError
+from ..errors import SceneError, SimulationEnded, SimulationError, UsageError
 from .wiring import Link, build
 
 
@@ -119,6 +119,10 @@ class Master:
         self.engine_reason: str | None = None  # why "auto" chose this engine, when not the core
         self.ended: SimulationEnded | None = None  # an FMU ended the simulation (a clean end)
         self._frees_seen = -1  # Instance.frees when run_until last found every instance alive
+
+    def __reduce_ex__(self, protocol):
+        raise UsageError("a master cannot be pickled or copied: it holds loaded FMU libraries and their "
+                         "instances' C state; build a System in the other process")
 
     @property
     def stats(self) -> Statistics:

@@ -176,8 +176,8 @@ class MasterSettings:
         if self.order not in ("gauss-seidel", "jacobi"):
             raise SceneError(f"master.order = {self.order!r}: expected 'gauss-seidel' or 'jacobi'")
         if self.richardson and self.iterations > 0:
-            raise SceneError("master.richardson and master.iterations cannot be combined: "
-                             "step doubling does not iterate the coupling")
+            raise SceneError(f"expected 0 with master.richardson = true, got {self.iterations!r}: "
+                             "step doubling does not iterate the coupling", key="master.iterations")
         if self.engine not in ENGINES:
             raise SceneError(f"master.engine = {self.engine!r}: expected one of {', '.join(map(repr, ENGINES))}")
         if self.tolerance is not None and not (isinstance(self.tolerance, (int, float)) and self.tolerance > 0):

@@ -30,6 +30,7 @@ import numpy as np
 
 from ..atomic import write_text_atomic
 from ..errors import UsageError
+from ..numbers import CSV_SPECIAL, parse_real, shorten
 
 _TIME = ("time", "t")
 _COUNTERS = ("stepcount", "iterations", "step")
@@ -61,43 +62,111 @@ def _read_table(path: Path) -> tuple[list[str], np.ndarray]:
         raise UsageError(f"{path}: cannot read: {getattr(e, 'strerror', None) or e}") from None
 
 
+# A line of a result CSV: far more than a row of numbers needs (40,000
+# columns of 25 characters), and a bound on what one line costs in memory.
+MAX_LINE = 1 << 20
+
+
+def _numbered_lines(path: Path, f):
+    """(line number, text) of the lines that are neither blank nor comments,
+    each read up to MAX_LINE characters."""
+    k = 0
+    while True:
+        line = f.readline(MAX_LINE + 1)
+        if not line:
+            return
+        k += 1
+        if len(line) > MAX_LINE:
+            raise UsageError(f"{path}: line {k}: longer than {MAX_LINE:,} characters: expected a header line and "
+                             "rows of numbers")
+        if line.strip() and not line.lstrip().startswith("#"):
+            yield k, line
+
+
+def _cells(path: Path, k: int, line: str, delim: str) -> list[str]:
+    """The fields of one line; the csv module's own complaints (a field over
+    its limit of 131,072 characters, a NUL byte) as one line naming it."""
+    try:
+        return next(csv.reader([line], delimiter=delim), [])
+    except csv.Error as e:
+        raise UsageError(f"{path}: line {k}: not a CSV line of numbers ({e})") from None
+
+
 def _parse(path: Path, f) -> tuple[list[str], np.ndarray]:
-    lines = ((k, ln) for k, ln in enumerate(f, start=1) if ln.strip() and not ln.lstrip().startswith("#"))
+    lines = _numbered_lines(path, f)
     first = next(lines, None)
     if first is None:
         raise UsageError(f"{path}: expected a header line and at least one row of numbers")
     try:
-        delim = csv.Sniffer().sniff(first[1], delimiters=",;\t").delimiter
+        delim = csv.Sniffer().sniff(first[1][:4096], delimiters=",;\t").delimiter
     except csv.Error:
         delim = ","
-    header = [_clean(h) for h in next(csv.reader([first[1]], delimiter=delim))]
+    header = [_clean(h) for h in _cells(path, first[0], first[1], delim)]
     seen: dict[str, int] = {}
     for j, name in enumerate(header):
         if name in seen:
-            raise UsageError(f"{path}: line {first[0]}: column {name!r} appears twice (columns {seen[name] + 1} "
-                             f"and {j + 1}): expected each signal once")
+            raise UsageError(f"{path}: line {first[0]}: column {shorten(name, 80)!r} appears twice (columns "
+                             f"{seen[name] + 1} and {j + 1}): expected each signal once")
         seen[name] = j
     values = array("d")
     n_rows = 0
+    plain = _plain_row(delim)
     for k, line in lines:
-        cells = next(csv.reader([line], delimiter=delim))
+        if plain.fullmatch(line):  # the common row: decimal numbers only, checked by one regex
+            cells = line.split(delim)
+            if len(cells) == len(header):
+                values.extend(map(float, cells))  # what float() reads beyond the regex cannot be here
+                n_rows += 1
+                continue
+        else:
+            cells = _cells(path, k, line, delim)
         if len(cells) != len(header):
             raise UsageError(f"{path}: line {k}: {len(cells)} values for {len(header)} columns")
         try:
-            values.extend(_number(c) for c in cells)
+            values.extend(map(_number, cells))
         except ValueError:
-            raise UsageError(f"{path}: line {k}: not a number in {line.strip()[:60]!r}") from None
+            j = next(j for j, c in enumerate(cells) if not _is_number(c))
+            raise UsageError(f"{path}: line {k}: not a number in column {j + 1} ({shorten(header[j], 80)}): "
+                             f"{shorten(cells[j], 60)!r}: expected a decimal number within a double's range, "
+                             "nan, inf or true/false") from None
         n_rows += 1
     if n_rows == 0:
         raise UsageError(f"{path}: expected a header line and at least one row of numbers")
     return header, np.frombuffer(values, dtype=float).reshape(n_rows, len(header))
 
 
+def _plain_row(delim: str) -> re.Pattern:
+    """A line of decimal numbers (clockwork.numbers' syntax) between `delim`,
+    blanks around each allowed, ending in a newline or not; at most 30
+    digits before and after the point and a two-digit exponent, so that none
+    overflows a double (the rest take the slow path, _number)."""
+    number = r"[ \t]*[+-]?(?:[0-9]{1,30}(?:\.[0-9]{0,30})?|\.[0-9]{1,30})(?:[eE][+-]?[0-9]{1,2})?[ \t]*"
+    return re.compile(f"{number}(?:{re.escape(delim)}{number})*\r?\n?")
+
+
+_BLANKS = " \t\r\n"  # what CSV writers put around a field (not Unicode's other spaces)
+
+
 def _number(cell: str) -> float:
-    c = cell.strip().strip('"').lower()
-    if c in ("true", "false"):
-        return 1.0 if c == "true" else 0.0
-    return float(c)
+    """A field as a number: a decimal number as CSV writers print it
+    (clockwork.numbers, no "1_0"), nan and inf in any case, true/false;
+    blanks and quotes around it are the CSV's, not the number's."""
+    c = cell.strip(_BLANKS).strip('"').strip(_BLANKS)
+    low = c.lower()
+    if low in ("true", "false"):
+        return 1.0 if low == "true" else 0.0
+    x = parse_real(c, CSV_SPECIAL, special_case_insensitive=True)
+    if math.isinf(x) and low not in CSV_SPECIAL:
+        raise ValueError(f"{c} is beyond the range of a double")
+    return x
+
+
+def _is_number(cell: str) -> bool:
+    try:
+        _number(cell)
+    except ValueError:
+        return False
+    return True
 
 
 class Result:

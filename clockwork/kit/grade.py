@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UsageError
+from ..numbers import parse_json, shorten
 from . import events
 from .csvio import Result, read_result
 
@@ -51,6 +52,12 @@ class Check:
     worst: float
     ok: bool
     detail: str = ""
+
+    def __post_init__(self):
+        # NaN compares false both ways, so a check built on it could pass
+        # (a NaN width makes a tube that nothing lies outside): never.
+        if not math.isfinite(self.tolerance) or math.isnan(self.worst):
+            self.ok = False
 
 
 @dataclass
@@ -124,19 +131,83 @@ def load_case(spec: str | Path) -> CaseData:
 
 def _read_case(path: Path) -> CaseData:
     try:
-        meta = json.loads(path.read_text())
-        name = meta["name"]
-        ref_csv = path.parent / meta["reference"]
-        res = read_result(ref_csv)
-        data = CaseData(name=name, stop=float(meta["stop"]), grid=float(meta["grid"]), time=res.time,
-                        columns={s: res.columns[s] for s in meta["tolerances"]["tube"]},
-                        ticks=np.array(meta["events"]["ticks"], float),
-                        switches=np.array(meta["events"].get("switches", []), float),
-                        tolerances=meta["tolerances"], phi=meta["signals"]["phi"], w=meta["signals"]["w"],
-                        switch_signal=meta["signals"].get("switch"), path=str(path.parent))
-    except (OSError, ValueError, KeyError, TypeError) as e:
-        raise UsageError(f"{path}: not a readable case file ({type(e).__name__}: {e})") from None
-    return data
+        meta = parse_json(path.read_bytes())
+    except (OSError, ValueError) as e:
+        raise UsageError(f"{path}: not a readable case file: {getattr(e, 'strerror', None) or e}") from None
+    field = _CaseField(path, meta)
+    name = field.text("name")
+    stop, grid = field.positive("stop"), field.positive("grid")
+    tube_widths = field.table("tolerances", "tube")
+    tolerances = {"tube": {s: field.positive("tolerances", "tube", s) for s in tube_widths},
+                  "ticks_s": field.positive("tolerances", "ticks_s"),
+                  "switches_s": field.positive("tolerances", "switches_s", optional=True)}
+    ticks, switches = field.times("events", "ticks"), field.times("events", "switches", optional=True)
+    phi, w = field.text("signals", "phi"), field.text("signals", "w")
+    switch = field.text("signals", "switch", optional=True)
+    res = read_result(path.parent / field.text("reference"))
+    missing = [s for s in tube_widths if s not in res.columns]
+    if missing:
+        raise UsageError(f"{path}: tolerances.tube.{missing[0]}: the reference {res.source} has no column "
+                         f"{missing[0]!r}")
+    return CaseData(name=name, stop=stop, grid=grid, time=res.time,
+                    columns={s: res.columns[s] for s in tube_widths}, ticks=ticks, switches=switches,
+                    tolerances=tolerances, phi=phi, w=w, switch_signal=switch, path=str(path.parent))
+
+
+class _CaseField:
+    """The fields of a case file by their path of keys, each checked for its
+    type: one line naming the file, the dotted key and what was expected."""
+
+    def __init__(self, path: Path, meta):
+        self.path, self.meta = path, meta
+
+    def get(self, *keys: str, optional: bool = False):
+        node = self.meta
+        for part in keys:
+            if not isinstance(node, dict) or part not in node:
+                if optional:
+                    return None
+                raise UsageError(f"{self.path}: {'.'.join(keys)}: missing: expected a case file of "
+                                 "clockwork export-suite")
+            node = node[part]
+        return node
+
+    def bad(self, keys: tuple, value, expected: str) -> UsageError:
+        return UsageError(f"{self.path}: {'.'.join(keys)} = {shorten(json.dumps(value), 80)}: expected {expected}")
+
+    def positive(self, *keys: str, optional: bool = False) -> float | None:
+        v = self.get(*keys, optional=optional)
+        if v is None and optional:
+            return None
+        if not _is_number(v) or not v > 0:  # JSON numbers only: "1_0", NaN and infinity never get here
+            raise self.bad(keys, v, "a number > 0")
+        return float(v)
+
+    def text(self, *keys: str, optional: bool = False) -> str | None:
+        v = self.get(*keys, optional=optional)
+        if v is None and optional:
+            return None
+        if not isinstance(v, str) or not v:
+            raise self.bad(keys, v, "a non-empty string")
+        return v
+
+    def table(self, *keys: str) -> dict:
+        v = self.get(*keys)
+        if not isinstance(v, dict) or not v:
+            raise self.bad(keys, v, "an object {signal: width}")
+        return v
+
+    def times(self, *keys: str, optional: bool = False) -> np.ndarray:
+        v = self.get(*keys, optional=optional)
+        if v is None and optional:
+            return np.array([], float)
+        if not isinstance(v, list) or not all(_is_number(x) for x in v):
+            raise self.bad(keys, v, "a list of times (s)")
+        return np.array(v, float)
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
 # --- grading ----------------------------------------------------------------------

@@ -20,7 +20,6 @@ a crash in native code must not take the caller down.
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
 import sys
 import tempfile
@@ -29,10 +28,11 @@ from pathlib import Path
 import numpy as np
 
 from ..engine.names import split_ref
+from ..numbers import parse_json
 
 
 def _meta(case_dir: Path) -> dict:
-    return json.loads(next(case_dir.glob("*_case.json")).read_text())
+    return parse_json(next(case_dir.glob("*_case.json")).read_bytes())
 
 
 def _steps(meta: dict, h: float) -> int:

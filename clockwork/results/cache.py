@@ -17,12 +17,12 @@ cached nor reused: a rerun tries them again.
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 from pathlib import Path
 
 from ..hashing import source_digest
+from ..numbers import parse_json
 from ..paths import cache_root
 from ..atomic import remove_stale_parts
 from .files import write_json_atomic
@@ -110,10 +110,6 @@ def _first_bad_number(x, where: str = "") -> str | None:
     return where or "/"
 
 
-def _reject_constant(name: str):
-    raise ValueError(f"{name} is not JSON")
-
-
 def read_point(path: Path, label: dict, kind: str) -> dict | None:
     """A stored point's result, or None (missing; or damaged, with one warning line)."""
     try:
@@ -124,7 +120,7 @@ def read_point(path: Path, label: dict, kind: str) -> dict | None:
         _warn(path, f"cannot read it ({e.strerror})")
         return None
     try:
-        data = json.loads(text, parse_constant=_reject_constant)
+        data = parse_json(text)
     except ValueError as e:
         _warn(path, f"not strict JSON ({' '.join(str(e).split())})")
         return None

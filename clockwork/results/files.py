@@ -139,3 +139,24 @@ def check_output_dir(path: str | os.PathLike) -> Path:
             except OSError:
                 pass
     return path
+
+
+def check_output_file(path: str | os.PathLike, option: str) -> Path:
+    """Make sure a file can be written at `path` (given as `option`, e.g.
+    ``--json``) before any work: not a directory, in a directory that exists
+    and is writable. Refused as bad input naming the option and the path,
+    never as the failed rename of a temporary .part file."""
+    if not str(path).strip():
+        raise UsageError(f"{option}: an empty file name: give a file, e.g. {option} out/grade.json")
+    path = Path(path)
+    if path.is_dir():
+        raise UsageError(f"{option} {path}: is a directory: expected a file name")
+    if not path.parent.is_dir():
+        raise UsageError(f"{option} {path}: no such directory: {path.parent}")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=f".clockwork-probe.{os.getpid()}.", suffix=PART, dir=path.parent)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as e:
+        raise UsageError(f"{option} {path}: its directory {path.parent} is not writable: {e.strerror or e}") from None
+    return path

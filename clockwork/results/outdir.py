@@ -39,6 +39,7 @@ from pathlib import Path
 
 from ..errors import SimulationError, UsageError
 from ..atomic import PART, fsync_dir, remove_stale_parts, write_text_atomic
+from ..numbers import parse_json
 from .files import check_output_dir
 
 SUMMARY = "summary.json"
@@ -142,7 +143,7 @@ class OutputDir:
 def _recover(directory: Path, staging: Path) -> None:
     """Finish (new summary.json in place) or undo a journaled commit."""
     try:
-        journal = json.loads((staging / _JOURNAL).read_text())
+        journal = parse_json((staging / _JOURNAL).read_bytes())
         new, old = [_plain(n) for n in journal["new"]], [_plain(n) for n in journal["old"]]
     except (OSError, ValueError, KeyError, TypeError):
         # Written atomically, so not a cut-short write: a hand-damaged journal.
@@ -171,7 +172,7 @@ def _plain(name) -> str:
 def _earlier_files(directory: Path) -> set[str]:
     names = set(RESULT_FILES)
     try:
-        listed = json.loads((directory / SUMMARY).read_text()).get("files", [])
+        listed = parse_json((directory / SUMMARY).read_bytes()).get("files", [])
     except (OSError, ValueError, AttributeError):
         return names  # no earlier result, or one that a killed run cut short
     # Only plain file names: a hand-edited summary must not reach elsewhere.

@@ -45,6 +45,7 @@ def load_scene(path: str | os.PathLike, overrides=(), input_file: str | os.PathL
     """Load, override and validate a scene file (or a bundled scene by name,
     an SSP, an FMU), with an input file when given; raises SceneError."""
     scene = _load_scene(find_scene(path), overrides, kinds(), input_file)
+    analyses.check_analysis(scene)
     check_recording_bound(scene)
     check_plot_axes(scene)
     return scene

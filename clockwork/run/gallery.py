@@ -18,12 +18,12 @@ experiment for a long run. Scenes without an entry run in full.
 
 from __future__ import annotations
 
-import json
 import time
 import traceback
 from pathlib import Path
 
 from ..errors import SceneError, SimulationError, UsageError
+from ..numbers import parse_json
 from ..paths import scenarios_dir
 from ..results.files import clean_json, write_json_atomic, write_text_atomic
 from ..results.gallery import index_markdown
@@ -36,9 +36,9 @@ def quick_overrides(scenarios: Path) -> dict[str, list[str]]:
     if not f.is_file():
         return {}
     try:
-        data = json.loads(f.read_text())
-    except json.JSONDecodeError as e:
-        raise SceneError(f"not JSON: {e}", f) from None
+        data = parse_json(f.read_bytes())
+    except (OSError, ValueError) as e:
+        raise SceneError(f"not strict JSON: {getattr(e, 'strerror', None) or e}", f) from None
     if not isinstance(data, dict):
         raise SceneError('expected {"scene_stem": ["key=value", ...]}', f)
     data = {k: v for k, v in data.items() if not k.startswith("_")}  # "_comment" and the like
@@ -49,7 +49,10 @@ def quick_overrides(scenarios: Path) -> dict[str, list[str]]:
 
 
 def run_gallery(out: Path, scenarios: Path | None = None, quick: bool = False, only: list[str] | None = None,
-                workers: int | None = None, progress: bool = True) -> dict:
+                workers: int | None = None, progress: bool = True, bars: bool | None = None) -> dict:
+    """Run every scene (or `only` these stems) into out/<stem>/ and write the
+    index. `progress`: a line per scene; `bars`: the runs' progress bars
+    (default: as `progress`)."""
     out = Path(out)
     scenarios = Path(scenarios) if scenarios else scenarios_dir()
     out.mkdir(parents=True, exist_ok=True)
@@ -73,8 +76,8 @@ def run_gallery(out: Path, scenarios: Path | None = None, quick: bool = False, o
             entry["reproduces"] = scene.reproduces
             if progress:
                 print(f"gallery: {f.stem} ...", flush=True)
-            summary = run_scene(scene, out / f.stem, workers=workers, progress=progress)
-            s = json.loads((out / f.stem / "summary.json").read_text())
+            summary = run_scene(scene, out / f.stem, workers=workers, progress=progress if bars is None else bars)
+            s = parse_json((out / f.stem / "summary.json").read_bytes())
             entry["status"] = "ok"
             entry["headlines"] = s.get("headlines", [])
             entry["files"] = [x for x in s.get("files", []) if x.endswith(".png")]

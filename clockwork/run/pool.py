@@ -26,11 +26,15 @@ def _start_worker(parent: int, scratch: str) -> None:
     SIGKILL) the kernel sends the worker SIGKILL too (Linux prctl). Its
     scratch folder lies in the parent's, and SIGTERM and SIGHUP end it at
     once (it may be ended at any moment: nothing of it needs cleaning up).
-    Its points share their FMU instances for the worker's whole life."""
+    Its points share their FMU instances for the worker's whole life. A
+    signal the run ignores (SIGHUP under nohup) the worker ignores too: a
+    hang-up sent to the whole process group must not end the workers of a
+    run that outlives it."""
     die_with_parent(parent)
     scratch_inside(Path(scratch))
     for sig in (signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, signal.SIG_DFL)
+        if signal.getsignal(sig) is not signal.SIG_IGN:
+            signal.signal(sig, signal.SIG_DFL)
     reuse = reusing_systems()
     reuse.__enter__()
     atexit.register(reuse.__exit__, None, None, None)

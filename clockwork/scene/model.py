@@ -19,7 +19,7 @@ from ..errors import SceneError
 from ..engine import compiled
 from ..engine.description import no_state_reason, variables as variables_of
 from ..engine.model_exchange import interface_of
-from ..engine.settings import rollback_need
+from ..engine.settings import MasterSettings, rollback_need
 from .units import fmt
 
 @dataclass(frozen=True)
@@ -230,6 +230,10 @@ def consistency(m: MasterConfig, e: Experiment, components: dict[str, Component]
         return "master.min_step", f"expected min_step <= step ({fmt(m.step)} s), got {fmt(m.min_step)} s"
     if m.max_step < m.step:
         return "master.max_step", f"expected max_step >= step ({fmt(m.step)} s), got {fmt(m.max_step)} s"
+    try:  # every value and combination the master itself refuses, now rather than at the run
+        MasterSettings(**m.as_dict())
+    except SceneError as e:
+        return e.key or "master", e.detail
     if m.engine == "compiled":
         # Asked for by name: where the core cannot serve, say so before the run.
         reason = compiled.unsupported(m) or compiled.core_problem()

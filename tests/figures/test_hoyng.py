@@ -296,11 +296,12 @@ def test_escapement_noise_replica_is_bit_exact(tmp_path):
 
 
 def test_fig6_averaged_refuses_samples_between_block_ends():
-    scene = load_scene(SCENES / "hoyng_fig6_averaged.toml", [
-        f"experiment.stop={periods(200)}", f"analysis.noise_start={periods(100)}",
-        "analysis.block_periods=16", "analysis.sample_periods=500"])
-    with pytest.raises(SceneError, match="sample_periods = 500 is not a multiple of analysis.block_periods = 16"):
-        run_point(scene, {})
+    """Refused when the scene is loaded (validate and run alike), not when the point runs."""
+    with pytest.raises(SceneError, match=r"analysis.sample_periods = 500: expected a multiple of "
+                                         r"block_periods = 16"):
+        load_scene(SCENES / "hoyng_fig6_averaged.toml", [
+            f"experiment.stop={periods(200)}", f"analysis.noise_start={periods(100)}",
+            "analysis.block_periods=16", "analysis.sample_periods=500"])
 
 
 def test_fig6_averaged_scene_reduced(tmp_path):

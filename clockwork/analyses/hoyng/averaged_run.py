@@ -18,15 +18,42 @@ import numpy as np
 
 from ...errors import SceneError, SimulationError
 from ...physics import analytic
+from ...scene.kinds import Invalid
 from .. import keys
 from ..context import build_system, experiment, parameters
 from ..registry import register
 from .common import AVERAGED, TWO_PI, escapement_noise, linfit, normalized
 
 
-_KEYS = {"torque": keys.torque, "noise_rms": keys.nonnegative_number, "noise_start": keys.nonnegative_time,
-         "noise_seed": keys.nonnegative_int, "block_periods": keys.positive_int,
-         "sample_periods": keys.positive_int}
+_KEYS = {"torque": keys.torque_in(0, None, also="required; its stationary amplitude (Hoyng Eq. 19) within the "
+                                                 "AveragedPendulum's range of amplitude_start, [0, 180] deg"),
+         # As GrasshopperEscapement's noise_rms, whose deviates it draws.
+         "noise_rms": keys.number(0, 10),
+         "noise_start": keys.duration(0, None, lo_open=False, also="before experiment.stop when noise_rms > 0"),
+         "noise_seed": keys.count(0, 2**32 - 1),  # the FMU's seed is 32 bits
+         "block_periods": keys.count(1, keys.MAX_COUNT),
+         "sample_periods": keys.count(1, keys.MAX_COUNT, also="a multiple of block_periods")}
+
+
+def _check(scene, point: dict) -> None:
+    """What hoyng_averaged_run refuses at run time, and noise that would never start."""
+    cfg = scene.analysis or {}
+    avgs = _twins(scene)
+    if len(avgs) != 1:
+        raise Invalid("kind", "a scene with one AveragedPendulum for hoyng_averaged_run")
+    if "torque" not in cfg:
+        raise Invalid("torque", "a value: hoyng_averaged_run needs analysis.torque")
+    block, sample = cfg.get("block_periods", 50), cfg.get("sample_periods", 500)
+    if sample % block:
+        raise Invalid("sample_periods", f"a multiple of block_periods = {block} (the samples fall on block ends)")
+    ap = parameters(scene, point)[avgs[0]]
+    n = normalized(ap)
+    lam0 = analytic.hoyng_stationary_amplitude(cfg["torque"] / n["mgl"], n["eps"], ap["phi_r"]) \
+        if n["eps"] > 0 and ap["phi_r"] > 0 else math.inf
+    keys.within_fmu(scene, "torque", avgs[0], "amplitude_start", (lam0,), "the stationary amplitude (Eq. 19)")
+    _, stop = experiment(scene, point)
+    if cfg.get("noise_rms", 0.0) > 0 and cfg.get("noise_start", 0.0) >= stop:
+        raise Invalid("noise_start", f"a start before experiment.stop = {stop:g} s, else the noise never starts")
 
 
 def _twins(scene) -> list[str]:
@@ -47,7 +74,7 @@ COLUMNS = {"eps", "mu0", "phi0_rad", "periods", "wall_time_run_s", "cpu_time_run
            "rate_eq20", "gain_no_noise", "rms_deviation_cycles", "max_deviation_cycles", "rms_gain"}
 
 
-@register("hoyng_averaged_run", set(_KEYS), keys.table_converter(_KEYS), columns=COLUMNS,
+@register("hoyng_averaged_run", set(_KEYS), keys.table_converter(_KEYS), columns=COLUMNS, check=_check,
           series=series_columns)
 def hoyng_averaged_run(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}

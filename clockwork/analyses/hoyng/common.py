@@ -17,6 +17,7 @@ import numpy as np
 
 from ...physics import analytic
 from ...errors import SimulationError
+from ...scene.kinds import Invalid
 from ..context import ESCAPEMENTS, find_component, parameters
 
 DAY = analytic.SECONDS_PER_DAY
@@ -65,6 +66,13 @@ def grasshopper_clock(scene, point: dict, kind: str):
     params = parameters(scene, point)
     pp, ep = params[pend], params[esc]
     return pend, esc, avgs, params, pp, ep, normalized(pp, "GrasshopperEscapement", ep)
+
+
+def check_grasshopper_clock(scene, kind: str) -> None:
+    """What grasshopper_clock refuses at run time, as Invalid for validate."""
+    pend, esc, _ = hoyng_components(scene)
+    if pend is None or esc is None or scene.components[esc].model_name != "GrasshopperEscapement":
+        raise Invalid("kind", f"a scene with a Pendulum and a GrasshopperEscapement for {kind}")
 
 
 def subscene(scene, keep):

@@ -19,11 +19,12 @@ from ...physics import analytic
 from .. import keys
 from ..context import build_system, experiment
 from ..registry import register
-from .common import TWO_PI, grasshopper_clock, hoyng_components, linfit, subscene, twin_values
+from .common import TWO_PI, check_grasshopper_clock, grasshopper_clock, hoyng_components, linfit, subscene, \
+    twin_values
 
 
-_KEYS = {"sample_every": keys.positive_int, "stationary_start": keys.boolean,
-         "twins": lambda k, v: keys.choice(k, v, ("replay", "cosimulate"))}
+_KEYS = {"sample_every": keys.count(1, keys.MAX_COUNT), "stationary_start": keys.flag(),
+         "twins": keys.one_of("replay", "cosimulate")}
 
 
 def _twin_columns(avg: str) -> tuple[str, str, str]:
@@ -52,6 +53,7 @@ def series_columns(scene) -> set[str]:
 
 
 @register("hoyng_long_run", set(_KEYS), keys.table_converter(_KEYS), columns=columns,
+          check=lambda scene, point: check_grasshopper_clock(scene, "hoyng_long_run"),
           series=series_columns)
 def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}

@@ -16,15 +16,22 @@ import math
 
 from ...errors import SimulationError
 from ...physics import analytic
+from ...scene.kinds import Invalid
 from .. import keys
 from ..context import build_system, parameters
 from ..registry import register
-from ..steady_state import COLUMNS as STEADY_COLUMNS, steady_state
+from ..steady_state import COLUMNS as STEADY_COLUMNS, MAX_PERIODS, TOLERANCE, clock_check, steady_state
 from .common import DAY, TWO_PI, hoyng_components, normalized, second_order, subscene, twin_values
 
 
-_KEYS = {"tolerance_s_per_day": keys.positive_number, "max_periods": keys.positive_int,
-         "measure_periods": keys.positive_int}
+_KEYS = {"tolerance_s_per_day": TOLERANCE, "max_periods": MAX_PERIODS}
+
+
+def _check(scene, point: dict) -> None:
+    pend, esc, avgs = hoyng_components(scene)
+    if pend is None or esc is None:
+        raise Invalid("kind", "a scene with a Pendulum and an escapement for hoyng_stationary")
+    clock_check(subscene(scene, set(scene.components) - set(avgs)), point, "hoyng_stationary")
 
 
 def _twin_columns(avg: str) -> tuple[str, str]:
@@ -43,7 +50,7 @@ def columns(scene) -> set[str]:
     return STEADY_COLUMNS | ADDED_COLUMNS | {c for a in hoyng_components(scene)[2] for c in _twin_columns(a)}
 
 
-@register("hoyng_stationary", set(_KEYS), keys.table_converter(_KEYS), columns=columns, series=set())
+@register("hoyng_stationary", set(_KEYS), keys.table_converter(_KEYS), columns=columns, series=set(), check=_check)
 def hoyng_stationary(scene, point: dict, progress: bool = False) -> dict:
     pend, esc, avgs = hoyng_components(scene)
     if pend is None or esc is None:

@@ -15,15 +15,36 @@ import numpy as np
 
 from ...errors import SimulationError
 from ...physics import analytic
+from ...scene.kinds import Invalid
 from .. import keys
 from ..context import build_system, experiment
 from ..registry import register
 from ..time_series import run_with_progress
-from .common import TWO_PI, grasshopper_clock, linfit, second_order
+from .common import TWO_PI, check_grasshopper_clock, grasshopper_clock, linfit, second_order
 
 
-_KEYS = {"jump_at_periods": keys.positive_number, "torque_after": keys.torque, "stationary_start": keys.boolean,
-         "tail_start_periods": keys.positive_number}
+_KEYS = {"jump_at_periods": keys.number(0, keys.MAX_COUNT, lo_open=True, also="required; the jump, "
+                                        "jump_at_periods nominal periods after experiment.start, inside the experiment"),
+         "torque_after": keys.torque_in(0, None, also="required; within the GrasshopperEscapement FMU's range of torque"),
+         "stationary_start": keys.flag(),
+         "tail_start_periods": keys.number(0, keys.MAX_COUNT, lo_open=True)}
+
+
+def _check(scene, point: dict) -> None:
+    """What hoyng_torque_jump refuses at run time: both keys given, the jump
+    inside the experiment, a torque the escapement takes."""
+    check_grasshopper_clock(scene, "hoyng_torque_jump")
+    cfg = scene.analysis or {}
+    for key in ("jump_at_periods", "torque_after"):
+        if key not in cfg:
+            raise Invalid(key, f"a value: hoyng_torque_jump needs analysis.{key}")
+    pend, esc, _, _, _, _, n = grasshopper_clock(scene, point, "hoyng_torque_jump")
+    start, stop = experiment(scene, point)
+    t_jump = start + cfg["jump_at_periods"] * n["T0"]
+    if not start < t_jump < stop:
+        raise Invalid("jump_at_periods", f"a jump inside the experiment: at most {(stop - start) / n['T0']:.6g} "
+                                         f"nominal periods of {n['T0']:.6g} s")
+    keys.within_fmu(scene, "torque_after", esc, "torque", (cfg["torque_after"],), "the torque after the jump")
 
 
 # The result's keys (the literal `res` below and what follows it).
@@ -34,7 +55,7 @@ COLUMNS = {"eps", "mu0", "mu1", "phi0_rad", "periods", "jump_at_periods", "rate_
            "next_order_bound_rate", "delta_psi_sim", "rate_final", "delta_psi_eq", "t_end_s"}
 
 
-@register("hoyng_torque_jump", set(_KEYS), keys.table_converter(_KEYS), columns=COLUMNS,
+@register("hoyng_torque_jump", set(_KEYS), keys.table_converter(_KEYS), columns=COLUMNS, check=_check,
           series={"tick_time_s", "periods", "rate", "rate_eq16_eq18", "amplitude_rad", "amplitude_eq18_rad"})
 def hoyng_torque_jump(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}

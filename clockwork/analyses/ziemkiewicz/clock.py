@@ -17,8 +17,8 @@ from ...errors import SimulationError
 from ...physics import analytic
 from ...scene.kinds import Invalid
 from .. import keys
-from ..context import ESCAPEMENTS, build_system, find_component, parameters
-from ..steady_state import SteadyState, find_steady_state
+from ..context import ESCAPEMENTS, build_system, experiment, find_component, parameters
+from ..steady_state import AMPLITUDE_GUESS, MAX_PERIODS, TOLERANCE, SteadyState, find_steady_state
 
 DAY = analytic.SECONDS_PER_DAY
 DEG = math.pi / 180.0
@@ -26,32 +26,57 @@ DEG = math.pi / 180.0
 PROFILE_NAMES = {0: "constant", 1: "increasing", 2: "decreasing", 3: "Harrison 2/3"}
 
 
-def convert_keys(t: dict) -> dict:
-    """The analysis keys shared by the Ziemkiewicz kinds (see docs/scenes.md)."""
-    out = {}
-    if "tolerance_s_per_day" in t:
-        out["tolerance_s_per_day"] = keys.positive_number("tolerance_s_per_day", t["tolerance_s_per_day"])
-    if "max_periods" in t:
-        out["max_periods"] = keys.positive_int("max_periods", t["max_periods"])
-    if "amplitude_guess" in t:
-        out["amplitude_guess"] = keys.angle("amplitude_guess", t["amplitude_guess"])
-    if "amplitude" in t:
-        v = t["amplitude"]
-        out["amplitude"] = "optimal" if v == "optimal" else keys.angle("amplitude", v)
-    if "periods" in t:
-        out["periods"] = keys.positive_int("periods", t["periods"])
-    if "kick_time" in t:
-        out["kick_time"] = keys.time("kick_time", t["kick_time"], positive=False)
-    if "kick_duration" in t:
-        out["kick_duration"] = keys.time("kick_duration", t["kick_duration"])
-    if "g_factor" in t:
-        v = t["g_factor"]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v <= 1000:
-            raise Invalid("g_factor", "a number in [0, 1000]")
-        out["g_factor"] = float(v)
-    if "kick_at" in t:
-        out["kick_at"] = keys.choice("kick_at", t["kick_at"], ("zero_crossing", "turning_point"))
-    return out
+# The analysis keys the Ziemkiewicz clock kinds share (see docs/scenes.md).
+_KICK = ("the kick ends 3 nominal periods 2 pi sqrt(L/g) before experiment.stop (it starts at the first "
+         "crossing after kick_time)")
+KEYS = {
+    "tolerance_s_per_day": TOLERANCE,
+    "max_periods": MAX_PERIODS,
+    "amplitude_guess": AMPLITUDE_GUESS,
+    "amplitude": keys.or_word("optimal", keys.angle_in(0, 150, also="above the GrasshopperEscapement's phi_r, "
+                                                                      "which a target amplitude needs")),
+    "periods": keys.count(1, keys.MAX_COUNT, also="the values they keep within the 2e7 values bound"),
+    "kick_time": keys.duration(0, None, lo_open=False, also=_KICK),
+    "kick_duration": keys.duration(0, None, also=_KICK),
+    "g_factor": keys.number(0, 1000, also="within the Pendulum FMU's range of g_factor"),
+    "kick_at": keys.one_of("zero_crossing", "turning_point"),
+}
+convert_keys = keys.table_converter(KEYS)
+
+
+def check_clock(scene, point: dict) -> None:
+    """The Ziemkiewicz clock kinds' keys against the scene at a point (what
+    Clock and steady_for refuse at run time): a Pendulum, an amplitude
+    target only with a GrasshopperEscapement and above its phi_r, and a kick
+    inside the experiment."""
+    cfg = scene.analysis or {}
+    kind = cfg.get("kind", "")
+    pendulum = find_component(scene, "Pendulum")
+    if pendulum is None:
+        raise Invalid("kind", f"a scene with a Pendulum component for {kind}")
+    escapement = find_component(scene, ESCAPEMENTS)
+    model = scene.components[escapement].model_description.modelName if escapement else None
+    params = parameters(scene, point)
+    target = cfg.get("amplitude")
+    if target is not None and model != "GrasshopperEscapement":
+        raise Invalid("amplitude", f"no amplitude target here: {kind} finds the torque for an amplitude of a "
+                                   "GrasshopperEscapement, and the scene has none")
+    if isinstance(target, float) and target <= params[escapement]["phi_r"]:
+        raise Invalid("amplitude", f"an amplitude above the escapement's phi_r = "
+                                   f"{math.degrees(params[escapement]['phi_r']):g} deg (a swing must pass it)")
+    if kind == "disturbance":
+        start, stop = experiment(scene, point)
+        pp = params[pendulum]
+        T0 = analytic.small_angle_period(pp["L"], pp["g"])
+        kick = cfg.get("kick_time", start)
+        duration = cfg.get("kick_duration", 1e-3)
+        if max(kick, start) + 3.0 * T0 + duration >= stop:
+            # The key to change: the duration when the kick alone would fit.
+            raise Invalid("kick_duration" if max(kick, start) + 3.0 * T0 < stop else "kick_time",
+                          f"a kick that ends 3 nominal periods ({3 * T0:.6g} s) before experiment.stop = {stop:g} s "
+                          f"(kick_time {kick:g} s + kick_duration {duration:g} s)")
+        g_factor = cfg.get("g_factor", 2.0)
+        keys.within_fmu(scene, "g_factor", pendulum, "g_factor", (g_factor, 1.0), "the kick's g_factor")
 
 
 def _profile_factor(esc: dict, phi: float, recoil: bool) -> float:

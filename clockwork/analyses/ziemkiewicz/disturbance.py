@@ -14,7 +14,7 @@ import numpy as np
 from ...errors import SimulationError
 from ..context import experiment
 from ..registry import register
-from .clock import DAY, Clock, advance_to, convert_keys, steady_for
+from .clock import DAY, Clock, advance_to, check_clock, convert_keys, steady_for
 
 
 SAMPLED = ("time", "period_s", "dT_over_T", "amplitude_deg", "time_error_s")  # per tick
@@ -26,7 +26,8 @@ KICK_COLUMNS = {"kick_start_s", "kick_at", "kick_duration_s", "g_factor", "phi_a
 
 
 @register("disturbance", {"amplitude", "kick_time", "kick_duration", "g_factor", "kick_at",
-                          "tolerance_s_per_day", "max_periods"}, convert_keys, columns=Clock.RESULT_COLUMNS | KICK_COLUMNS,
+                          "tolerance_s_per_day", "max_periods"}, convert_keys, check=check_clock,
+          columns=Clock.RESULT_COLUMNS | KICK_COLUMNS,
           series=SERIES)
 def disturbance(scene, point: dict, progress: bool = False) -> dict:
     """Point disturbance g' = g_factor g for kick_duration on the steady orbit (Fig. 7).

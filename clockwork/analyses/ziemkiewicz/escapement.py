@@ -17,10 +17,11 @@ import numpy as np
 
 from ..context import ESCAPEMENTS, find_component
 from ..registry import register
-from .clock import Clock, advance_to, convert_keys, steady_for
+from .clock import Clock, advance_to, check_clock, convert_keys, steady_for
 
 
 @register("escapement_steady_state", {"tolerance_s_per_day", "max_periods", "amplitude_guess"}, convert_keys,
+          check=check_clock,
           columns=Clock.RESULT_COLUMNS | {"energy_balance_amplitude_deg"}, series=set())
 def escapement_steady_state(scene, point: dict, progress: bool = False) -> dict:
     """Steady-state rate errors by shooting, for any escapement, profile and drag."""
@@ -48,6 +49,7 @@ def orbit_series_columns(scene) -> set[str]:
 
 
 @register("steady_orbit", {"amplitude", "periods", "tolerance_s_per_day", "max_periods"}, convert_keys,
+          check=check_clock,
           columns=Clock.RESULT_COLUMNS | ORBIT_COLUMNS, series=orbit_series_columns)
 def steady_orbit(scene, point: dict, progress: bool = False) -> dict:
     """A few periods of the steady orbit, for a given torque or amplitude (Fig. 3)."""

@@ -13,6 +13,7 @@ import numpy as np
 
 from ...errors import SimulationError
 from ...physics import analytic
+from ...scene.kinds import Invalid
 from ..context import build_system, find_component, parameters
 from ..registry import register
 from .clock import DAY, convert_keys
@@ -24,7 +25,17 @@ COLUMNS = {"amplitude_deg", "turning_amplitude_deg", "period_s", "period_agm_s",
            "E_C_agm_s_per_day", "periods"}
 
 
-@register("free_period", {"periods"}, convert_keys, columns=COLUMNS, series=set())
+def _check(scene, point: dict) -> None:
+    """What free_period refuses at run time: a Pendulum, released at rest."""
+    pendulum = find_component(scene, "Pendulum")
+    if pendulum is None:
+        raise Invalid("kind", "a scene with a Pendulum component for free_period")
+    if parameters(scene, point)[pendulum].get("w_start", 0.0) != 0.0:
+        raise Invalid("kind", f"a pendulum released at rest for free_period (components.{pendulum}.parameters."
+                              "w_start = 0)")
+
+
+@register("free_period", {"periods"}, convert_keys, columns=COLUMNS, series=set(), check=_check)
 def free_period(scene, point: dict, progress: bool = False) -> dict:
     """Period of a free pendulum from its tick times (Fig. 1)."""
     cfg = scene.analysis or {}

@@ -15,7 +15,7 @@ from ...errors import SimulationError
 from ..context import build_system, experiment, find_component
 from ..registry import register
 from ..time_series import run_with_progress
-from .parts import Parts, convert_keys, on_grid, stats_of
+from .parts import Parts, check_parts, convert_keys, on_grid, stats_of
 
 
 # The keys of the result built at the end of limit_cycle.
@@ -32,7 +32,8 @@ def series_columns(scene) -> set[str]:
     return set(_series(find_component(scene, "Pendulum"), find_component(scene, "GrasshopperEscapement")))
 
 
-@register("limit_cycle", {"sample_interval"}, convert_keys, columns=COLUMNS, series=series_columns)
+@register("limit_cycle", {"sample_interval"}, convert_keys, columns=COLUMNS, series=series_columns,
+          check=check_parts(escapement=True, on_grid=True))
 def limit_cycle(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
     parts = Parts(scene, point)

@@ -11,10 +11,11 @@ import math
 
 import numpy as np
 
+from .. import keys
 from ..context import build_system
 from ..registry import register
 from .clock import DEG
-from .parts import Parts, convert_keys, json_list, lockstep, stats_of
+from .parts import LYAPUNOV_KEYS, Parts, check_parts, json_list, lockstep, stats_of
 
 
 def running_exponent(t: np.ndarray, d: np.ndarray, t_from: float = 0.0) -> np.ndarray:
@@ -47,7 +48,9 @@ COLUMNS = {"C1", "C2", "perturbation_deg", "lambda1_end_per_s", "lambda2_end_per
            "lambda2_late_per_s", "d1_start_rad", "d1_end_rad", "d2_end_rad", "d1_growth", "d2_growth"}
 
 
-@register("lyapunov", {"perturbation", "sample_interval", "fit_start"}, convert_keys, columns=COLUMNS,
+@register("lyapunov", {"perturbation", "sample_interval", "fit_start"}, keys.table_converter(LYAPUNOV_KEYS),
+          columns=COLUMNS,
+          check=check_parts(needs_vibration=True),
           series={"time", "d1", "d2", "lambda1", "lambda2"})
 def lyapunov(scene, point: dict, progress: bool = False) -> dict:
     """Twin runs from phi_start and phi_start + perturbation (Ziemkiewicz Eq. 8).

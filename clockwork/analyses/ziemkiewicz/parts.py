@@ -13,24 +13,80 @@ import math
 import numpy as np
 
 from ...errors import SimulationError
+from ...scene.kinds import Invalid
 from .. import keys
-from ..context import experiment, find_component, parameters
+from ..context import experiment, find_component, master_settings, parameters
 
 
-_CONVERTERS = {
-    "transient": keys.nonnegative_time,
-    "sample_interval": keys.time,
-    "fit_start": keys.nonnegative_time,
-    "perturbation": keys.angle,
-    "amplitude": keys.angle,
-    "periods": keys.positive_int,
-    "fixed_steps": keys.times,
-    "comm_steps": keys.times,
-    "paper_steps": keys.times,
-    "paper_span": keys.time,
-    "rtols": lambda k, v: keys.numbers(k, v, 0.0, 0.1),
+_SPAN = "shorter than the experiment"
+_STEPS = "the runs over the periods within the 1e10 steps bound (the finest step)"
+_PYTHON_STEPS = "paper_span over the finest paper_steps within the 1e9 Python steps bound"
+_GRID = "a whole multiple of master.step, at most the experiment's span"
+KEYS = {
+    "transient": keys.duration(0, None, lo_open=False, also=f"{_SPAN}, leaving samples after it"),
+    "sample_interval": keys.duration(0, None, also=f"{_GRID} (taken at communication points)"),
+    "fit_start": keys.duration(0, None, lo_open=False, also=_SPAN),
+    "perturbation": keys.angle_in(0, 180, also="phi_start + perturbation within the Pendulum FMU's range "
+                                                "of phi_start"),
+    # A free swing of 150 deg takes 1.76 small-angle periods: within the
+    # 2 per period step_accuracy waits for its ticks.
+    "amplitude": keys.angle_in(0, 150),
+    "periods": keys.count(1, keys.MAX_COUNT, also=_STEPS),
+    "fixed_steps": keys.durations(0, None, also=f"each within the Pendulum FMU's range of h_max; {_STEPS}"),
+    "comm_steps": keys.durations(0, None, also=_STEPS),
+    "paper_steps": keys.durations(0, None, also=_PYTHON_STEPS),
+    "paper_span": keys.duration(0, None, also=_PYTHON_STEPS),
+    "rtols": keys.number_list(0.0, 0.1, also="each (and a hundredth of it, the atol) within the Pendulum FMU's "
+                                             "ranges of rtol and atol"),
 }
-convert_keys = keys.table_converter(_CONVERTERS)
+convert_keys = keys.table_converter(KEYS)
+# lyapunov samples by running both twins to each sample time: any interval.
+LYAPUNOV_KEYS = {**KEYS, "sample_interval": keys.duration(0, None, also="at most the experiment's span")}
+
+
+def check_parts(needs_vibration: bool = False, escapement: bool = False, on_grid: bool = False,
+                samples_after_transient: int = 1):
+    """The check of a chaos kind: the components Parts asks for, and its
+    keys against the span and the step at each point (each is what the run
+    would refuse, or a key that would be silently ignored)."""
+    def check(scene, point: dict) -> None:
+        cfg = scene.analysis or {}
+        kind = cfg.get("kind", "")
+        pendulum = find_component(scene, "Pendulum")
+        if pendulum is None:
+            raise Invalid("kind", f"a scene with a Pendulum component for {kind}")
+        if needs_vibration and (find_component(scene, "MechanismVibration") is None
+                                or find_component(scene, "GrasshopperEscapement") is None):
+            raise Invalid("kind", f"a scene with a GrasshopperEscapement and a MechanismVibration for {kind}")
+        if escapement and find_component(scene, "GrasshopperEscapement") is None:
+            raise Invalid("kind", f"a scene with a GrasshopperEscapement for {kind}")
+        start, stop = experiment(scene, point)
+        span = stop - start
+        step = master_settings(scene, point).step
+        interval = cfg.get("sample_interval")
+        if interval is not None:
+            if interval > span:
+                raise Invalid("sample_interval", f"at most the experiment's span, {span:g} s")
+            if on_grid and abs(interval / step - round(interval / step)) > 1e-6 * max(1.0, interval / step):
+                raise Invalid("sample_interval", f"a whole multiple of master.step = {step:g} s (samples are "
+                                                 "taken at communication points)")
+        every = interval or step
+        transient = cfg.get("transient", 0.0)
+        if transient and (span - transient) / every < samples_after_transient:
+            raise Invalid("transient", f"a transient that leaves {samples_after_transient} samples of "
+                                       f"{every:g} s before experiment.stop (the span is {span:g} s)")
+        if cfg.get("fit_start", 0.0) >= span:
+            raise Invalid("fit_start", f"a time before the end of the experiment, less than {span:g} s")
+        pp = parameters(scene, point)[pendulum]
+        if "perturbation" in cfg:
+            keys.within_fmu(scene, "perturbation", pendulum, "phi_start", (pp["phi_start"] + cfg["perturbation"],),
+                            "the twin's phi_start + perturbation")
+        for h in cfg.get("fixed_steps", ()):
+            keys.within_fmu(scene, "fixed_steps", pendulum, "h_max", (h,), "a fixed step")
+        for r in cfg.get("rtols", ()):
+            keys.within_fmu(scene, "rtols", pendulum, "rtol", (r,), "an rtol")
+            keys.within_fmu(scene, "rtols", pendulum, "atol", (r * 1e-2,), "its atol, rtol/100")
+    return check
 
 
 class Parts:

@@ -12,7 +12,7 @@ import numpy as np
 from ...errors import SimulationError
 from ..context import build_system
 from ..registry import register
-from .parts import Parts, convert_keys, lockstep, stats_of
+from .parts import Parts, check_parts, convert_keys, lockstep, stats_of
 from .clock import DAY
 
 
@@ -22,7 +22,7 @@ COLUMNS = {"transient_s", "periods", "momentary_mean_s_per_day", "momentary_std_
            "reference_period_end_s"}
 
 
-@register("rate_error", {"transient"}, convert_keys, columns=COLUMNS,
+@register("rate_error", {"transient"}, convert_keys, columns=COLUMNS, check=check_parts(needs_vibration=True),
           series={"time", "period_s", "reference_period_s", "momentary_s_per_day", "accumulated_s"})
 def rate_error(scene, point: dict, progress: bool = False) -> dict:
     """Periods of the clock with the vibrating mechanism against the same

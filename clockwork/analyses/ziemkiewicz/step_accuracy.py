@@ -12,10 +12,12 @@ import math
 
 from ...errors import SimulationError
 from ...physics import analytic
-from ..context import build_system
+from ...scene.kinds import Invalid
+from .. import keys
+from ..context import build_system, find_component, parameters
 from ..registry import register
 from .clock import DAY, DEG
-from .parts import Parts, convert_keys
+from .parts import Parts, check_parts, convert_keys
 
 
 def euler_a1_period(amplitude: float, dt: float, span: float, g_over_L: float = 9.81) -> tuple[float, float]:
@@ -110,8 +112,22 @@ def series_columns(scene) -> set[str]:
     return {"h_s", *(f"{name}_rel_err" for name in _curves(_steps(scene.analysis or {})[1]))}
 
 
+_check_keys = check_parts()
+
+
+def _check(scene, point: dict) -> None:
+    """step_accuracy's keys, and the lone free pendulum it measures."""
+    _check_keys(scene, point)
+    pendulum = find_component(scene, "Pendulum")
+    pp = parameters(scene, point)[pendulum]
+    if pp["Q"] != 0 or abs(pp.get("w_start", 0.0)) > 0 or len(scene.components) != 1:
+        raise Invalid("kind", "a lone free pendulum (Q = 0) released at rest for step_accuracy")
+    A = (scene.analysis or {}).get("amplitude", 5.0 * DEG)
+    keys.within_fmu(scene, "amplitude", pendulum, "phi_start", (A,), "the release angle")
+
+
 @register("step_accuracy", {"amplitude", "periods", "fixed_steps", "rtols", "comm_steps",
-                            "paper_steps", "paper_span"}, convert_keys, columns=columns,
+                            "paper_steps", "paper_span"}, convert_keys, columns=columns, check=_check,
           series=series_columns)
 def step_accuracy(scene, point: dict, progress: bool = False) -> dict:
     """E_C(simulated) - E_C(AGM) = (T - T_AGM)/T0 of a free pendulum (Fig. 11).

@@ -20,7 +20,7 @@ from ...errors import SimulationError
 from ..context import build_system, find_component
 from ..registry import register
 from ..time_series import run_with_progress
-from .parts import Parts, convert_keys, hermite, on_grid, stats_of
+from .parts import Parts, check_parts, convert_keys, hermite, on_grid, stats_of
 
 
 # The keys of the result built at the end of vibration_series.
@@ -41,6 +41,7 @@ def series_columns(scene) -> set[str]:
 
 
 @register("vibration_series", {"sample_interval", "transient"}, convert_keys, columns=COLUMNS,
+          check=check_parts(needs_vibration=True, on_grid=True, samples_after_transient=10),
           series=series_columns)
 def vibration_series(scene, point: dict, progress: bool = False) -> dict:
     cfg = scene.analysis or {}
@@ -153,7 +154,8 @@ def section_statistics(x: np.ndarray, y: np.ndarray, grid: int = 32) -> dict:
 POINCARE_SERIES = ("tick_time", "a2", "a2dot", "tick_w")
 
 
-@register("poincare", {"transient"}, convert_keys, columns=POINCARE_COLUMNS, series=POINCARE_SERIES)
+@register("poincare", {"transient"}, convert_keys, columns=POINCARE_COLUMNS, series=POINCARE_SERIES,
+          check=check_parts(needs_vibration=True))
 def poincare(scene, point: dict, progress: bool = False) -> dict:
     """(a2, a2dot) at each upward zero crossing of the pendulum angle.
 

@@ -10,12 +10,11 @@ now) are removed, so that the set of pages is one drawing's.
 from __future__ import annotations
 
 import csv
-import json
 import re
 from pathlib import Path
 
 from ...errors import UsageError
-from ...numbers import CSV_SPECIAL, parse_real, shorten
+from ...numbers import CSV_SPECIAL, parse_json, parse_real, shorten
 from .outputs import columns, draw_outputs
 from .registry import load_matplotlib, page_names, save
 
@@ -27,11 +26,8 @@ def _summary(folder: Path) -> dict:
     if not path.is_file():
         raise UsageError(f"{folder}: no summary.json: expected the --out directory of a clockwork run")
 
-    def refuse(name):
-        raise ValueError(f"{name} is not JSON")
-
     try:
-        summary = json.loads(path.read_text(encoding="utf-8"), parse_constant=refuse)
+        summary = parse_json(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError) as e:
         raise UsageError(f"{path}: not a summary clockwork wrote: {shorten(e, 120)}") from None
     if not isinstance(summary, dict):
