@@ -303,11 +303,12 @@ class System:
         master's methods raise `ClosedError`. Leaving the ``with`` block
         calls it; calling it twice is harmless."""
         with self._guard or _NO_GUARD:
+            if self.master is not None and not self._freed:
+                self.master.stop_threads()  # now, not when the collector finds the master
             free_all(self.instances)
             self.instances = {}
             self._freed = True
             if self.master is not None:
-                self.master.stop_threads()  # now, not when the collector finds the master
                 _close(self.master)
 
     def __reduce_ex__(self, protocol):
