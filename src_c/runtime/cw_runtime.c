@@ -95,13 +95,6 @@ int cw_core_allowed(cw_instance *inst, const char *fn, int mask) {
 }
 #define allowed cw_core_allowed
 
-double cw_input(const cw_instance *inst, unsigned vr, double t) {
-    if (inst->intermediate_update && t != inst->intermediate_time)
-        inst->intermediate_update((cw_instance *)inst, t);
-    double dt = t - inst->in_tref[vr];
-    return inst->r[vr] + dt * (inst->in_d1[vr] + 0.5 * dt * inst->in_d2[vr]);
-}
-
 double cw_input_rate(const cw_instance *inst, unsigned vr, double t) {
     return inst->in_d1[vr] + (t - inst->in_tref[vr]) * inst->in_d2[vr];
 }
@@ -193,10 +186,11 @@ static void refresh_outputs(cw_instance *inst) {
 static int outputs_finite(cw_instance *inst, const char *fn) {
     refresh_outputs(inst);
     const cw_model *m = inst->model;
-    for (int k = 0; k < m->nvars; k++) {
+    const int *outputs = inst->real_io + inst->n_real_in;
+    for (int a = 0; a < inst->n_real_out; a++) {
+        const int k = outputs[a];
         const cw_var_info *v = &m->vars[k];
-        if (v->name && v->type == CW_REAL && v->causality == CW_OUTPUT &&
-            !isfinite(inst->r[k])) {
+        if (!isfinite(inst->r[k])) {
             fail(inst,
                  "%s: output %s = %g at t = %.17g is not finite: the inputs "
                  "or parameters are beyond what %s can represent.",
@@ -272,8 +266,23 @@ cw_instance *cw_core_instantiate(const cw_instance *proto, const char *fn,
     inst->str = alloc(inst, nv, sizeof(char *));
     if (inst->str)
         for (int k = 0; k < nv; k++) inst->str[k] = NULL;
+    inst->real_io = alloc(inst, nv, sizeof(int));
+    if (inst->real_io) {
+        int n = 0;
+        for (int pass = 0; pass < 2; pass++) {
+            const cw_causality wanted = pass ? CW_OUTPUT : CW_INPUT;
+            for (int k = 0; k < nv; k++) {
+                const cw_var_info *v = &CW_MODEL.vars[k];
+                if (v->name && v->type == CW_REAL && v->causality == wanted)
+                    inst->real_io[n++] = k;
+            }
+            if (!pass) inst->n_real_in = n;
+        }
+        inst->n_real_out = n - inst->n_real_in;
+    }
     if (!inst->instance_name || !inst->r || !inst->i || !inst->in_d1 ||
-        !inst->in_d2 || !inst->in_tref || !inst->s || !inst->u || !inst->str) {
+        !inst->in_d2 || !inst->in_tref || !inst->s || !inst->u || !inst->str ||
+        !inst->real_io) {
         cw_log(&tmp, fmi2Error, "logStatusError", "%s: out of memory.", fn);
         cw_core_free_instance(inst);
         return NULL;
@@ -295,7 +304,7 @@ void cw_core_free_instance(cw_instance *inst) {
             if (inst->str[k]) free_mem(inst->str[k]);
     void *blocks[] = {inst->str, inst->r,     inst->i,       inst->in_d1, inst->in_d2,
                       inst->in_tref, inst->s,     inst->u,
-                      inst->instance_name, inst->scratch};
+                      inst->instance_name, inst->scratch, inst->real_io};
     for (size_t k = 0; k < sizeof blocks / sizeof *blocks; k++)
         if (blocks[k]) free_mem(blocks[k]);
     free_mem(inst);
@@ -1214,10 +1223,15 @@ fmi2Status cw_core_do_step(cw_instance *inst, const char *fn, double tc,
         return fmi2Error;
     }
     /* Input polynomials are checked where the model will evaluate them:
-     * huge derivatives can overflow them to inf over a step. */
-    for (int k = 0; k < inst->model->nvars; k++) {
+     * huge derivatives can overflow them to inf over a step. A held value
+     * (no derivatives, no intermediate update) is itself at both ends. */
+    for (int a = 0; a < inst->n_real_in; a++) {
+        const int k = inst->real_io[a];
         const cw_var_info *v = &inst->model->vars[k];
-        if (!v->name || v->type != CW_REAL || v->causality != CW_INPUT) continue;
+        if (!inst->intermediate_update && inst->in_d1[k] == 0.0 &&
+            inst->in_d2[k] == 0.0) {
+            if (isfinite(inst->r[k])) continue;
+        }
         const double u0 = cw_input(inst, (unsigned)k, tc),
                      u1 = cw_input(inst, (unsigned)k, t_end);
         if (!isfinite(u0) || !isfinite(u1))

@@ -78,22 +78,26 @@ static double acceleration(const cw_instance *inst, double t, double phi,
     return accelerate(inst, &f, t, phi, w);
 }
 
-/* What the right-hand side needs over one fmi2DoStep. */
+/* What the right-hand side needs over one fmi2DoStep: the factors, when
+ * they hold still over the step (rhs_steady), and the right-hand side
+ * chosen for the step. */
 typedef struct {
     cw_instance *inst;
-    int steady;       /* factors fixed over the step */
     air_factors fixed;
+    cw_rhs f;
 } step_context;
+
+static void rhs_steady(void *ctx, double t, const double *x, double *dx) {
+    const step_context *c = ctx;
+    dx[0] = x[1];
+    dx[1] = accelerate(c->inst, &c->fixed, t, x[0], x[1]);
+}
 
 static void rhs(void *ctx, double t, const double *x, double *dx) {
     const step_context *c = ctx;
+    const air_factors f = factors(c->inst, t);
     dx[0] = x[1];
-    if (c->steady) {
-        dx[1] = accelerate(c->inst, &c->fixed, t, x[0], x[1]);
-    } else {
-        const air_factors f = factors(c->inst, t);
-        dx[1] = accelerate(c->inst, &f, t, x[0], x[1]);
-    }
+    dx[1] = accelerate(c->inst, &f, t, x[0], x[1]);
 }
 
 static void initialize(cw_instance *inst) {
@@ -171,7 +175,7 @@ static void record_tick(cw_instance *inst, double t, double w) {
  * not find the same event again. */
 static void state_at_event(step_context *ctx, const cw_rk *rk, double t,
                            int c, double x[2]) {
-    cw_rk_single_step_with(rk->method, 2, rhs, ctx, rk->t0, rk->x0,
+    cw_rk_single_step_with(rk->method, 2, ctx->f, ctx, rk->t0, rk->x0,
                            t - rk->t0, x);
     x[c] = 0.0;
 }
@@ -193,7 +197,7 @@ static int observe_step(void *ctx, const cw_rk *rk) {
         /* Polish: integrate exactly to t and take Newton steps on phi. */
         double x[2] = {0.0, rk->x1[1]};
         for (int it = 0; it < 2; it++) {
-            cw_rk_single_step_with(rk->method, 2, rhs, watch->rhs_ctx, rk->t0, rk->x0,
+            cw_rk_single_step_with(rk->method, 2, watch->rhs_ctx->f, watch->rhs_ctx, rk->t0, rk->x0,
                                    t - rk->t0, x);
             if (x[1] == 0.0) break;
             double dt = -x[0] / x[1];
@@ -236,7 +240,7 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
         h_next = inst->resume_h;
     }
     inst->resume_valid = 0;
-    step_context ctx = {inst, air_is_steady(inst), factors(inst, t)};
+    step_context ctx = {inst, factors(inst, t), air_is_steady(inst) ? rhs_steady : rhs};
     /* Tick outputs are updated by the observer; keep them for a retry. */
     const int ticks = I(tick_count), turns = I(turn_count);
     const double tick_w = R(tick_w);
@@ -245,7 +249,7 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
     step_watch watch = {inst, &ctx, cw_may_return_early(inst), inst->time,
                         t_end, 0, 0.0, {0.0, 0.0}};
     cw_rk_result res =
-        cw_rk_advance(&rk, rhs, &ctx, &t, t_end, x, &h_next, observe_step, &watch);
+        cw_rk_advance(&rk, ctx.f, &ctx, &t, t_end, x, &h_next, observe_step, &watch);
     if (res == CW_RK_STOPPED && watch.stopped) {
         inst->resume_valid = 1;
         inst->resume_from = watch.t_event;
