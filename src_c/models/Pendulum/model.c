@@ -78,14 +78,35 @@ static double acceleration(const cw_instance *inst, double t, double phi,
     return accelerate(inst, &f, t, phi, w);
 }
 
+/* Every input holds still over the step (zero-order hold, the usual
+ * case): then the whole right-hand side but sin(phi) and w is fixed. */
+static int inputs_held(const cw_instance *inst) {
+    if (inst->intermediate_update) return 0;
+    for (int a = 0; a < inst->n_real_in; a++) {
+        const int k = inst->real_io[a];
+        if (inst->in_d1[k] != 0.0 || inst->in_d2[k] != 0.0) return 0;
+    }
+    return 1;
+}
+
 /* What the right-hand side needs over one fmi2DoStep: the factors, when
- * they hold still over the step (rhs_steady), and the right-hand side
- * chosen for the step. */
+ * they hold still over the step (rhs_steady), the terms of accelerate()
+ * when every input does (rhs_held; a held input has the same value at
+ * every time of the step, so these are its very numbers), and the
+ * right-hand side chosen for the step. */
 typedef struct {
     cw_instance *inst;
     air_factors fixed;
+    double gravity, damping, push; /* accelerate = -gravity sin(phi) - damping w + push */
     cw_rhs f;
 } step_context;
+
+static void rhs_held(void *ctx, double t, const double *x, double *dx) {
+    const step_context *c = ctx;
+    (void)t;
+    dx[0] = x[1];
+    dx[1] = -(c->gravity) * sin(x[0]) - c->damping * x[1] + c->push;
+}
 
 static void rhs_steady(void *ctx, double t, const double *x, double *dx) {
     const step_context *c = ctx;
@@ -240,7 +261,15 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
         h_next = inst->resume_h;
     }
     inst->resume_valid = 0;
-    step_context ctx = {inst, factors(inst, t), air_is_steady(inst) ? rhs_steady : rhs};
+    step_context ctx = {inst, factors(inst, t), 0.0, 0.0, 0.0,
+                        air_is_steady(inst) ? rhs_steady : rhs};
+    if (inputs_held(inst)) {
+        const air_factors *f = &ctx.fixed;
+        ctx.gravity = R(g) * IN(g_factor, t) * f->weight_ratio / f->length;
+        ctx.damping = damping_rate(inst);
+        ctx.push = torque(inst, t) / (f->inertial_mass * f->length * f->length);
+        ctx.f = rhs_held;
+    }
     /* Tick outputs are updated by the observer; keep them for a retry. */
     const int ticks = I(tick_count), turns = I(turn_count);
     const double tick_w = R(tick_w);
