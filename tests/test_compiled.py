@@ -22,7 +22,7 @@ from clockwork.engine.compiled import CompiledMaster
 from clockwork.engine.master import Master
 from clockwork.engine.recording import Recorder
 from clockwork.errors import SceneError, SimulationError
-from cwtest import assert_one_line_error, run_cli
+from cwtest import assert_one_line_error, run_cli, test_fmu
 
 CLOCK = {"pendulum": ("Pendulum", dict(Q=1000.0, phi_start=math.radians(6))),
          "escapement": ("GrasshopperEscapement", dict(torque=4e-3, phi_r=math.radians(2))),
@@ -68,7 +68,30 @@ def test_every_step_is_the_same_bits(settings):
             assert p.master.step(h) == c.master.step(h)
             _same_state(p, c)
         if settings.get("event_location", True):
-            assert c.master.stats.events > 0
+            assert c.master.stats.events > 0 and c.master.stats.predicted_landings > 0
+
+
+@pytest.mark.parametrize("derivative_error", [0.0, 0.3])
+def test_predicted_landings_and_missed_predictions_are_the_same_bits(derivative_error):
+    # Exact derivatives: every switch landed on by prediction; 30 % wrong
+    # ones: predictions miss, and the miss is replayed and located.
+    comps = {"osc": (str(test_fmu("TestOscillator")), dict(amplitude=0.1, omega=3.0,
+                                                          derivative_error=derivative_error)),
+             "escapement": ("GrasshopperEscapement", dict(torque=1e-3, phi_r=0.05))}
+    out = {}
+    for engine in ("python", "compiled"):
+        out[engine] = System(comps, ["osc.x -> escapement.phi", "osc.v -> escapement.w"],
+                             MasterSettings(step=0.3, engine=engine))
+    p, c = out["python"], out["compiled"]
+    with p, c:
+        for k in range(150):
+            assert p.master.step(0.3) == c.master.step(0.3)
+            _same_state(p, c)
+        st = c.master.stats
+        if derivative_error:
+            assert st.mispredicted > 5 and st.replays > 5
+        else:
+            assert st.predicted_landings == st.events > 10 and st.rollbacks == 0
 
 
 def test_replays_and_hidden_crossings_are_exercised_and_agree():

@@ -83,7 +83,10 @@ class _Master(_Strict):
          "after_event_step", "sample_countdown", "prev_valid", "stale_sources", "snap_valid",
          "snap_after_event", "n_since", "max_replay_steps", "diverged", "err_port", "err_call", "err_status",
          "orders_lowered"]
-    ) + [("n_fmi3", c_int), ("fmi3", c_void_p)]  # FMI 3.0 adapters (fmu3._Events), whose time events cap the step
+    ) + [("n_fmi3", c_int), ("fmi3", c_void_p)] + _fields(  # FMI 3.0 adapters (fmu3._Events), whose time events cap the step
+        ["pred_kind", "pred_u", "pred_du", "pred_ddu", "last_z"],  # prediction (EventLocator.sample, .plan)
+        ["sampled_t", "sampled_before_t", "last_t"], ["predicted_landings", "mispredicted"],
+        ["predicting", "last_valid"])
 
 
 class _Recorder(_Strict):
@@ -174,6 +177,11 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
     return master
 
 
+# The statistics the core counts (the others stay 0: the core neither
+# rejects steps nor iterates).
+_CORE_STATS = ("steps", "events", "event_iterations", "rollbacks", "replays", "states_saved",
+               "predicted_landings", "mispredicted")
+
 _CALL_FIELDS = ("doStep", "getReal", "setReal", "setInputDerivatives", "getOutputDerivatives",
                 "getState", "setState")
 _FMI2_NAMES = ("DoStep", "GetReal", "SetReal", "SetRealInputDerivatives", "GetRealOutputDerivatives",
@@ -231,14 +239,13 @@ class CompiledMaster(Master):
     @property
     def stats(self) -> Statistics:
         c = self._core
-        return Statistics(steps=c.steps, events=c.events, event_iterations=c.event_iterations,
-                          rollbacks=c.rollbacks, replays=c.replays, states_saved=c.states_saved)
+        return Statistics(**{name: getattr(c, name) for name in _CORE_STATS})
 
     @stats.setter
     def stats(self, value: Statistics) -> None:
         core = self.__dict__.get("_core")
         if core is not None:
-            for name in ("steps", "events", "event_iterations", "rollbacks", "replays", "states_saved"):
+            for name in _CORE_STATS:
                 setattr(core, name, getattr(value, name))
 
     def _build(self) -> None:
@@ -307,6 +314,11 @@ class CompiledMaster(Master):
                      "snap_z_end"):
             setattr(m, name, ref(_array(c_double, [], nz)))
         m.prev_kind, m.end_rate_set = ref(_array(c_int, [], nz)), ref(_array(c_int, [], nz))
+        m.pred_kind = ref(_array(c_int, [], 2 * nz))
+        for name in ("pred_u", "pred_du", "pred_ddu"):
+            setattr(m, name, ref(_array(c_double, [], 2 * nz)))
+        m.last_z = ref(_array(c_double, [], nz))
+        m.predicting = int(self._predicting)
         m.since, m.cap_since = ref(_array(c_double, [], MAX_SINCE)), MAX_SINCE
         m.n_ports, m.n_z = len(ports.all), nz
         fmi3 = [ctypes.addressof(ev) for ev in self.fmi3_events]

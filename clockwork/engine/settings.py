@@ -18,6 +18,9 @@ class MasterSettings:
     order: str = "gauss-seidel"  # or "jacobi"
     extrapolation: int = 0  # order of the input polynomials: 0, 1, 2
     event_location: bool = True
+    # Predict an indicator's crossing before the step from its source's
+    # output derivatives and land on it without a rollback (location.plan).
+    event_prediction: bool = True
     event_time_tolerance: float = 1e-10  # s
     event_indicator_tolerance: float = 1e-12  # in the indicator's unit (rad)
     iterations: int = 0  # strong coupling: fixed-point iterations per step (0 = off)
@@ -56,7 +59,7 @@ class MasterSettings:
             v = getattr(self, key)
             if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 0:
                 raise SceneError(f"master.{key} = {v!r}: expected a whole number >= 0")
-        for key in ("event_location", "richardson"):
+        for key in ("event_location", "event_prediction", "richardson"):
             if not isinstance(getattr(self, key), bool):
                 raise SceneError(f"master.{key} = {getattr(self, key)!r}: expected true or false")
         if self.order not in ("gauss-seidel", "jacobi"):
@@ -116,3 +119,5 @@ class Statistics:
     states_saved: int = 0
     rejected: int = 0
     coupling_iterations: int = 0
+    predicted_landings: int = 0  # events located by a predicted step, without a rollback
+    mispredicted: int = 0  # predicted steps that crossed beyond the tolerance (then replayed and located)

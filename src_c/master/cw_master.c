@@ -144,6 +144,15 @@ typedef struct {
     int orders_lowered;        /* a port's ext_order was lowered: Python says so */
     int n_fmi3;                /* FMI 3.0 instances, whose announced time events cap the step */
     struct cw_fmi3 **fmi3;
+    /* Prediction (EventLocator.sample and .plan): per indicator, the
+     * sources at the last two sampled step starts, [0, n_z) the newer and
+     * [n_z, 2 n_z) the older: kind 0 none, 1 (u, du/dt), 2 (u, du/dt, d2u/dt2). */
+    int *pred_kind;
+    double *pred_u, *pred_du, *pred_ddu;
+    double *last_z;            /* the indicators at the last step's start (t+) */
+    double sampled_t, sampled_before_t, last_t;
+    long long predicted_landings, mispredicted;
+    int predicting, last_valid;
 } cw_master;
 
 typedef struct {
@@ -641,6 +650,109 @@ static double hermite_extremum(double h, double z0, double dz0, double z1, doubl
     return NAN;
 }
 
+/* -- prediction: where an indicator will cross, before the step (events.py) -------- */
+
+#define PREDICTION_HORIZON 16.0 /* extrapolate at most this many times the last step */
+#define PREDICTION_SCAN 8       /* points scanned for the extrapolant's first sign change */
+
+/* The Hermite polynomials through the last step of h s (a: z0..., b: z1...)
+ * continued past b, in y = (time since b) / h: the higher order into high
+ * (n_high coefficients), the lower into low (events.extrapolants). */
+static void extrapolants(double h, double z0, double dz0, double z1, double dz1, int second, double ddz0,
+                         double ddz1, double *high, int *n_high, double *low, int *n_low)
+{
+    double c1 = h * dz1;
+    if (second) {
+        double hh = h * h;
+        double c2 = 0.5 * hh * ddz1;
+        double e0 = z0 - ((z1 - c1) + c2);
+        double e1 = h * dz0 - (c1 - hh * ddz1);
+        double e2 = hh * ddz0 - hh * ddz1;
+        high[0] = z1;
+        high[1] = c1;
+        high[2] = c2;
+        high[3] = -0.5 * (e2 + 8.0 * e1 + 20.0 * e0);
+        high[4] = -(e2 + 7.0 * e1 + 15.0 * e0);
+        high[5] = -0.5 * (e2 + 6.0 * e1 + 12.0 * e0);
+        *n_high = 6;
+        low[0] = z1;
+        low[1] = c1;
+        low[2] = c2;
+        low[3] = -(4.0 * e0 + e1);
+        low[4] = -(3.0 * e0 + e1);
+        *n_low = 5;
+    } else {
+        double e0 = z0 - (z1 - c1);
+        double e1 = h * dz0 - c1;
+        high[0] = z1;
+        high[1] = c1;
+        high[2] = 3.0 * e0 + e1;
+        high[3] = 2.0 * e0 + e1;
+        *n_high = 4;
+        low[0] = z1;
+        low[1] = c1;
+        low[2] = e0;
+        *n_low = 3;
+    }
+}
+
+static double slope_at(const double *coef, int n, double y)
+{
+    double slope[5];
+    for (int k = 1; k < n; k++)
+        slope[k - 1] = (double)k * coef[k];
+    return horner(slope, n - 1, y);
+}
+
+/* The first y in (0, y_max] where the polynomial leaves its sign at 0, or
+ * NAN (events.first_root). */
+static double first_root(const double *coef, int n, double y_max)
+{
+    double z0 = coef[0];
+    int positive = z0 > 0.0;
+    double lo = 0.0, f_lo = z0, hi = 0.0, f_hi = 0.0;
+    int found = 0;
+    for (int i = 1; i <= PREDICTION_SCAN; i++) {
+        double y = y_max * (double)i / (double)PREDICTION_SCAN;
+        double f = horner(coef, n, y);
+        if (f == 0.0 || (f > 0.0) != positive) {
+            hi = y;
+            f_hi = f;
+            found = 1;
+            break;
+        }
+        lo = y;
+        f_lo = f;
+    }
+    if (!found)
+        return NAN;
+    if (f_hi == 0.0)
+        return hi;
+    double slope[5];
+    for (int k = 1; k < n; k++)
+        slope[k - 1] = (double)k * coef[k];
+    double x = lo + (hi - lo) * (f_lo / (f_lo - f_hi));
+    for (int it = 0; it < 50; it++) {
+        double f = horner(coef, n, x);
+        if (f == 0.0)
+            break;
+        if ((f > 0.0) == positive)
+            lo = x;
+        else
+            hi = x;
+        double df = horner(slope, n - 1, x);
+        double x_new = df != 0.0 ? x - f / df : 0.5 * (lo + hi);
+        if (!(lo < x_new && x_new < hi))
+            x_new = 0.5 * (lo + hi);
+        if (fabs(x_new - x) <= 1e-15 * hi) {
+            x = x_new;
+            break;
+        }
+        x = x_new;
+    }
+    return x;
+}
+
 /* -- event location: the locator (location.py) ----------------------------------- */
 
 /* -1 when an indicator changed sign over the step; else the time until the
@@ -751,6 +863,123 @@ static double hidden_crossing(cw_master *m, double h, const double *z0, const do
     return best;
 }
 
+enum { PLAN_NONE = 0, PLAN_CLEAR = 1, PLAN_APPROACH = 2, PLAN_LAND = 3 };
+
+/* The sources' values and derivatives at t (EventLocator.sample). */
+static void sample_sources(cw_master *m, double t)
+{
+    int nz = m->n_z;
+    memcpy(m->pred_kind + nz, m->pred_kind, (size_t)nz * sizeof(int));
+    memcpy(m->pred_u + nz, m->pred_u, (size_t)nz * sizeof(double));
+    memcpy(m->pred_du + nz, m->pred_du, (size_t)nz * sizeof(double));
+    memcpy(m->pred_ddu + nz, m->pred_ddu, (size_t)nz * sizeof(double));
+    m->sampled_before_t = m->sampled_t;
+    for (int k = 0; k < nz; k++) {
+        m->pred_kind[k] = 0;
+        if (m->zs_port[k] < 0)
+            continue;
+        int same = -1;  /* an earlier indicator with the same source output: asked once */
+        for (int j = 0; j < k && same < 0; j++)
+            if (m->zs_port[j] == m->zs_port[k] && m->zs_vr[j] == m->zs_vr[k])
+                same = j;
+        if (same >= 0) {
+            m->pred_kind[k] = m->pred_kind[same];
+            m->pred_u[k] = m->pred_u[same];
+            m->pred_du[k] = m->pred_du[same];
+            m->pred_ddu[k] = m->pred_ddu[same];
+            continue;
+        }
+        cw_port *src = &m->ports[m->zs_port[k]];
+        if (src->max_output_derivative_order >= 2) {
+            /* d/dt and d2/dt2 in one call (EventLocator.output_rates) */
+            unsigned vr2[2] = {m->zs_vr[k], m->zs_vr[k]};
+            static const int orders[2] = {1, 2};
+            double got[2];
+            if (src->getOutputDerivatives(src->comp, vr2, 2, orders, got) <= FMI_WARNING) {
+                m->pred_u[k] = src->out[m->zs_pos[k]];
+                m->pred_du[k] = got[0];
+                m->pred_ddu[k] = got[1];
+                m->pred_kind[k] = 2;
+                continue;
+            }
+        }
+        double du;
+        if (output_rate(m, k, 1, &du)) {
+            m->pred_u[k] = src->out[m->zs_pos[k]];
+            m->pred_du[k] = du;
+            m->pred_kind[k] = 1;
+        }
+    }
+    m->sampled_t = t;
+}
+
+/* Before the step from t of h s: PLAN_CLEAR, PLAN_APPROACH or PLAN_LAND
+ * with *step, when every indicator's next crossing can be predicted from
+ * the Hermite polynomial through the last step; else PLAN_NONE
+ * (EventLocator.plan). */
+static int plan(cw_master *m, double t, double h, double *step_out)
+{
+    if (!m->last_valid || m->sampled_t != t || m->sampled_before_t != m->last_t)
+        return PLAN_NONE;
+    double span = t - m->last_t;
+    if (!(span > 0.0))
+        return PLAN_NONE;
+    int nz = m->n_z, kind = PLAN_CLEAR;
+    double step = h;
+    for (int k = 0; k < nz; k++) {
+        double za = m->last_z[k], zb = m->z_end[k];
+        if (za == zb)
+            continue;  /* did not move: does not cross by moving */
+        int now = m->pred_kind[k], before = m->pred_kind[nz + k];
+        if (!now || !before || zb == 0.0)
+            return PLAN_NONE;
+        double u1 = m->pred_u[k], u0 = m->pred_u[nz + k];
+        if (u1 == u0)
+            return PLAN_NONE;
+        double ratio = (zb - za) / (u1 - u0);
+        int second = before == 2 && now == 2;
+        double high[6], low[5];
+        int n_high, n_low;
+        extrapolants(span, za, ratio * m->pred_du[nz + k], zb, ratio * m->pred_du[k], second,
+                     second ? ratio * m->pred_ddu[nz + k] : 0.0, second ? ratio * m->pred_ddu[k] : 0.0,
+                     high, &n_high, low, &n_low);
+        double y_max = py_min(h / span, PREDICTION_HORIZON);
+        double y_high = first_root(high, n_high, y_max), y_low = first_root(low, n_low, y_max);
+        if (isnan(y_high)) {
+            if (!isnan(y_low) || h / span > PREDICTION_HORIZON)
+                return PLAN_NONE;
+            continue;  /* clear of this indicator */
+        }
+        if (isnan(y_low))
+            return PLAN_NONE;
+        double at = y_high * span;
+        double err = fabs(at - y_low * span);
+        double rate = slope_at(high, n_high, y_high) / span;
+        double past = 0.25 * m->event_time_tolerance;
+        if (rate != 0.0)
+            past = py_min(past, 0.25 * m->event_indicator_tolerance / fabs(rate));
+        int this;
+        double mine;
+        if (2.0 * err <= past && at + past <= h) {
+            this = PLAN_LAND;
+            mine = at + past;
+        } else if (2.0 * err < 0.95 * at) {
+            this = PLAN_APPROACH;
+            mine = at - 2.0 * err;
+        } else {
+            return PLAN_NONE;
+        }
+        if (mine < step) {
+            kind = this;
+            step = mine;
+        }
+    }
+    if ((t + step) - t < 8 * ulp(fabs(t) + step + 1.0))
+        return PLAN_NONE;
+    *step_out = step;
+    return kind;
+}
+
 typedef struct {
     double lo, z_lo, hi, z_hi;
     int kept, iterations;
@@ -805,6 +1034,13 @@ static int earliest(const int *crossing, const double *z0, const double *z1, int
     return lead;
 }
 
+/* How close locate brackets a crossing in the step from t of h s: far from
+ * t = 0 a double cannot resolve the tolerance, so a few ulps. */
+static double time_tolerance(const cw_master *m, double t, double h)
+{
+    return py_max(m->event_time_tolerance, 4 * ulp(fabs(t) + h));
+}
+
 /* Shorten the step from t (a checkpoint) to land just past the earliest
  * crossing (EventLocator.locate); *taken gets the step, s. */
 static int locate(cw_master *m, double t, double h, const int *crossings, const double *z0,
@@ -851,8 +1087,7 @@ static int locate(cw_master *m, double t, double h, const int *crossings, const 
     double base = 0.0;
     int have_last = 0;  /* the FMUs stand at the checkpoint after the rollback */
     double last = 0.0;
-    /* Far from t = 0 a double cannot resolve the tolerance: use a few ulps. */
-    double time_tol = py_max(m->event_time_tolerance, 4 * ulp(fabs(t) + h));
+    double time_tol = time_tolerance(m, t, h);
     for (;;) {
         if (hi - search.lo <= time_tol || fabs(z_hi[lead]) <= m->event_indicator_tolerance)
             break;
@@ -941,7 +1176,8 @@ static int locate(cw_master *m, double t, double h, const int *crossings, const 
 
 /* After the step from t of h s: when an indicator crossed zero, land just
  * past the earliest crossing instead (Master._land_on_events). */
-static int land_on_events(cw_master *m, double t, double h, int near, int checkpointed, double *taken)
+static int land_on_events(cw_master *m, double t, double h, int near, int checkpointed, int predicted,
+                          double *taken)
 {
     int nz = m->n_z;
     double z0[nz > 0 ? nz : 1], z1[nz > 0 ? nz : 1];
@@ -981,6 +1217,20 @@ static int land_on_events(cw_master *m, double t, double h, int near, int checkp
     }
     for (int k = 0; k < nz; k++)
         crossings[k] = crossed(z0[k], z1[k]);
+    int lead = earliest(crossings, z0, z1, nz);
+    if (fabs(z1[lead]) <= m->event_indicator_tolerance || h <= time_tolerance(m, t, h)) {
+        /* Already just past the crossing, where locate would stop at once. */
+        if (predicted == PLAN_LAND)
+            m->predicted_landings++;
+        m->events++;
+        m->located_from = t;
+        m->after_event_step = 1;
+        m->time_to_zero = 0.0;
+        *taken = h;
+        return since_append(m, h);
+    }
+    if (predicted)
+        m->mispredicted++;
     if (!checkpointed) {
         /* An event in a step predicted free of them: replay from the checkpoint. */
         TRY(replay_to(m, t));
@@ -1029,7 +1279,18 @@ static int step(cw_master *m, double h, double *taken_out)
     /* 2. A checkpoint where the step may need a rollback. */
     int locating = m->locating;
     int near = locating && (m->after_event || m->time_to_zero <= 4.0 * h);
-    int possible = near || (locating && m->n_since >= m->max_replay_steps);
+    int predicted = PLAN_NONE;
+    if (m->predicting) {
+        if (m->after_event || m->time_to_zero <= 16.0 * h)
+            sample_sources(m, t);
+        if (near && !m->after_event) {
+            double planned;
+            predicted = plan(m, t, h, &planned);
+            if (predicted)
+                h = planned;
+        }
+    }
+    int possible = (near && !predicted) || (locating && m->n_since >= m->max_replay_steps);
     if (near && m->stale_sources) {
         remember_sources(m);  /* the hidden-crossing check needs them at the step start */
         m->stale_sources = 0;
@@ -1040,8 +1301,14 @@ static int step(cw_master *m, double h, double *taken_out)
     TRY(advance(m, t, h));
     double taken = h;
     /* 4. Events. */
-    if (locating)
-        TRY(land_on_events(m, t, h, near, possible, &taken));
+    if (locating) {
+        TRY(land_on_events(m, t, h, near && !predicted, possible, predicted, &taken));
+        m->last_valid = !m->after_event_step;
+        if (m->last_valid) {
+            m->last_t = t;
+            memcpy(m->last_z, m->z_start, (size_t)m->n_z * sizeof(double));
+        }
+    }
     if (m->has_sources) {
         m->sample_countdown--;
         if (near || m->sample_countdown <= 0 || !m->prev_valid) {
@@ -1087,6 +1354,8 @@ CW_EXPORT void cw_start(cw_master *m)
     }
     m->step_cap = INFINITY;
     m->stale_sources = 0;
+    m->sampled_t = m->sampled_before_t = NAN;
+    m->last_valid = 0;
     /* As in Python: the time to the next zero and the sampling countdown
      * carry over a reset; after_event makes the next step check anyway. */
     record_history(m);
