@@ -13,8 +13,7 @@ output to name for diverging).
 ``make_master`` chooses: ``master.engine = "python"`` is the reference
 loop, ``"compiled"`` the core (bad input when it cannot serve the
 settings), ``"auto"`` the core where it can, else Python. The core does
-not do strong coupling (``master.iterations``) or step doubling
-(``master.richardson``).
+not do step doubling (``master.richardson``).
 """
 
 from __future__ import annotations
@@ -66,7 +65,8 @@ class _Port(_Strict):
          "hist_v", "snap_hist_t", "snap_hist_v", "scaled", "in_factor", "in_offset"],
         ["out_time", "lowered_at"], [],
         ["n_out", "n_in", "n_z", "max_output_derivative_order", "sent_valid", "hist_n",
-         "snap_hist_n", "n_scaled", "ext_order", "pad_"])
+         "snap_hist_n", "n_scaled", "ext_order", "pad_"]
+    ) + _fields(["it_start", "it_end"], [], [], ["can_interpolate", "pad2_"])  # strong coupling
 
 
 class _Master(_Strict):
@@ -86,7 +86,8 @@ class _Master(_Strict):
     ) + [("n_fmi3", c_int), ("fmi3", c_void_p)] + _fields(  # FMI 3.0 adapters (fmu3._Events), whose time events cap the step
         ["pred_kind", "pred_u", "pred_du", "pred_ddu", "last_z"],  # prediction (EventLocator.sample, .plan)
         ["sampled_t", "sampled_before_t", "last_t"], ["predicted_landings", "mispredicted"],
-        ["predicting", "last_valid"])
+        ["predicting", "last_valid"]
+    ) + _fields([], ["iteration_tolerance"], ["coupling_iterations"], ["iterations", "pad3_"])  # strong coupling
 
 
 class _Recorder(_Strict):
@@ -143,8 +144,6 @@ def core_problem() -> str | None:
 
 def unsupported(settings: MasterSettings) -> str | None:
     """Why the core cannot run these settings, or None."""
-    if settings.iterations > 0:
-        return "the compiled core does not iterate the coupling (master.iterations > 0)"
     if settings.richardson:
         return "the compiled core does not do step doubling (master.richardson = true)"
     return None
@@ -177,10 +176,10 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
     return master
 
 
-# The statistics the core counts (the others stay 0: the core neither
-# rejects steps nor iterates).
+# The statistics the core counts (`rejected` stays 0: the core does not
+# do step doubling).
 _CORE_STATS = ("steps", "events", "event_iterations", "rollbacks", "replays", "states_saved",
-               "predicted_landings", "mispredicted")
+               "predicted_landings", "mispredicted", "coupling_iterations")
 
 _CALL_FIELDS = ("doStep", "getReal", "setReal", "setInputDerivatives", "getOutputDerivatives",
                 "getState", "setState")
@@ -287,6 +286,8 @@ class CompiledMaster(Master):
             c.in_factor = ref(_array(c_double, (f for _, f, _ in p.scale)))
             c.in_offset = ref(_array(c_double, (o for _, _, o in p.scale)))
             c.n_scaled = len(p.scale)
+            c.it_start, c.it_end = ref(_array(c_double, [], p.n_in)), ref(_array(c_double, [], p.n_in))
+            c.can_interpolate = int(bool(inst.can_interpolate_inputs))
             c.ext_order = p.ext_order
             c.n_out, c.n_in, c.n_z = p.n_out, p.n_in, len(p.z_pos)
             c.max_output_derivative_order = inst.max_output_derivative_order
@@ -319,6 +320,7 @@ class CompiledMaster(Master):
             setattr(m, name, ref(_array(c_double, [], 2 * nz)))
         m.last_z = ref(_array(c_double, [], nz))
         m.predicting = int(self._predicting)
+        m.iterations, m.iteration_tolerance = int(self.settings.iterations), self.settings.iteration_tolerance
         m.since, m.cap_since = ref(_array(c_double, [], MAX_SINCE)), MAX_SINCE
         m.n_ports, m.n_z = len(ports.all), nz
         fmi3 = [ctypes.addressof(ev) for ev in self.fmi3_events]

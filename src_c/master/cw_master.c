@@ -13,8 +13,8 @@
  * Python when written in the same order; py_min/py_max keep Python's
  * min()/max() (the first argument wins ties and NaN comparisons).
  *
- * Not covered (the Python master serves them): strong coupling
- * (master.iterations > 0) and step doubling (master.richardson).
+ * Not covered (the Python master serves it): step doubling
+ * (master.richardson).
  *
  * FMI 3.0 instances are called through the adapter at the end of this
  * file (cw3_*): fmi2-shaped functions whose first argument is a cw_fmi3,
@@ -105,6 +105,11 @@ typedef struct {
     int n_scaled;
     int ext_order;            /* order of this FMU's input polynomials (lowered where refused) */
     int pad_;
+    /* Strong coupling (coupling.iterate_step): the sources' values at the
+     * step's start and at the last iterate's end, per input. */
+    double *it_start, *it_end;
+    int can_interpolate;      /* canInterpolateInputs: the iterate's line is handed over as a slope */
+    int pad2_;
 } cw_port;
 
 typedef struct {
@@ -153,6 +158,10 @@ typedef struct {
     double sampled_t, sampled_before_t, last_t;
     long long predicted_landings, mispredicted;
     int predicting, last_valid;
+    /* Strong coupling: fixed-point iterations per step (0: off). */
+    double iteration_tolerance;
+    long long coupling_iterations;
+    int iterations, pad3_;
 } cw_master;
 
 typedef struct {
@@ -342,6 +351,38 @@ static void extrapolate(cw_master *m, cw_port *p, double t)
     }
 }
 
+/* Strong coupling: inputs from the step's start, as a line towards the last
+ * iterate's end where the FMU can interpolate them (coupling.set_inputs
+ * with coupling_end). */
+static int set_coupled_inputs(cw_master *m, int i, double t, double h)
+{
+    cw_port *p = &m->ports[i];
+    int n = p->n_in;
+    memcpy(p->inp, p->it_start, (size_t)n * sizeof(double));
+    double end[n > 0 ? n : 1];
+    memcpy(end, p->it_end, (size_t)n * sizeof(double));
+    for (int a = 0; a < p->n_scaled; a++) {
+        int k = p->scaled[a];
+        p->inp[k] = p->in_factor[a] * p->inp[k] + p->in_offset[a];
+        end[k] = p->in_factor[a] * end[k] + p->in_offset[a];
+    }
+    int st = p->setReal(p->comp, p->in_vr, (size_t)n, p->inp);
+    if (st > FMI_WARNING)
+        return fail(m, i, CALL_SET_INPUTS, st, t, h);
+    memcpy(p->sent, p->inp, (size_t)n * sizeof(double));
+    p->sent_valid = 0;
+    if (p->can_interpolate) {
+        for (int k = 0; k < n; k++) {
+            p->der[k] = (end[k] - p->inp[k]) / h;
+            p->der[n + k] = 0.0;
+        }
+        st = p->setInputDerivatives(p->comp, p->der_vr, (size_t)n, p->der_order, p->der);
+        if (st > FMI_WARNING)
+            return fail(m, i, CALL_SET_INPUT_DERIVATIVES, st, t, h);
+    }
+    return 0;
+}
+
 /* Inputs of a dynamic instance for the step from t (coupling.set_inputs). */
 static int set_inputs(cw_master *m, int i, double t, double h, int smooth)
 {
@@ -387,7 +428,7 @@ again:
 
 /* -- the communication step (Master.advance) --------------------------------- */
 
-static int advance(cw_master *m, double t, double h)
+static int advance_coupled(cw_master *m, double t, double h, int coupled)
 {
     double t_new = t + h;
     /* 1. Feedthrough-only instances commit the mode decided at t. */
@@ -410,12 +451,12 @@ static int advance(cw_master *m, double t, double h)
     if (m->jacobi)
         for (int a = 0; a < m->n_dynamic; a++)
             if (m->ports[m->dynamic[a]].n_in)
-                TRY(set_inputs(m, m->dynamic[a], t, h, smooth));
+                TRY(coupled ? set_coupled_inputs(m, m->dynamic[a], t, h) : set_inputs(m, m->dynamic[a], t, h, smooth));
     for (int a = 0; a < m->n_dynamic; a++) {
         int i = m->dynamic[a];
         cw_port *p = &m->ports[i];
         if (!m->jacobi && p->n_in)
-            TRY(set_inputs(m, i, t, h, smooth));
+            TRY(coupled ? set_coupled_inputs(m, i, t, h) : set_inputs(m, i, t, h, smooth));
         int st = p->doStep(p->comp, t, h, 0);
         if (st > FMI_WARNING)
             return fail(m, i, CALL_DO_STEP, st, t, h);
@@ -429,6 +470,11 @@ static int advance(cw_master *m, double t, double h)
     if (m->locating)
         indicators(m, m->z_end);
     return 0;
+}
+
+static int advance(cw_master *m, double t, double h)
+{
+    return advance_coupled(m, t, h, 0);
 }
 
 /* -- checkpoints ------------------------------------------------------------- */
@@ -1242,6 +1288,49 @@ static int land_on_events(cw_master *m, double t, double h, int near, int checkp
     return since_append(m, m->t - m->located_from);
 }
 
+/* -- strong coupling (coupling.iterate_step) ------------------------------------------ */
+
+/* The sources' values of every dynamic instance's inputs, into it_start or it_end. */
+static void coupling_sources(cw_master *m, int end)
+{
+    for (int a = 0; a < m->n_dynamic; a++) {
+        cw_port *p = &m->ports[m->dynamic[a]];
+        double *to = end ? p->it_end : p->it_start;
+        for (int k = 0; k < p->n_in; k++)
+            to[k] = m->ports[p->src_port[k]].out[p->src_pos[k]];
+    }
+}
+
+/* The step from t (a checkpoint) repeated with the dynamic instances'
+ * inputs interpolated between the step's start and the last iterate's end,
+ * until they reach a fixed point or the iteration budget is spent. */
+static int iterate_step(cw_master *m, double t, double h)
+{
+    coupling_sources(m, 0);
+    TRY(advance(m, t, h));
+    for (int it = 0; it < m->iterations; it++) {
+        coupling_sources(m, 1);
+        TRY(rollback(m));
+        TRY(advance_coupled(m, t, h, 1));
+        m->coupling_iterations++;
+        double change = 0.0;
+        int first = 1;  /* Python's max(): the first value, then any larger */
+        for (int a = 0; a < m->n_dynamic; a++) {
+            cw_port *p = &m->ports[m->dynamic[a]];
+            for (int k = 0; k < p->n_in; k++) {
+                double d = fabs(m->ports[p->src_port[k]].out[p->src_pos[k]] - p->it_end[k]);
+                if (first || d > change) {
+                    change = d;
+                    first = 0;
+                }
+            }
+        }
+        if (change <= m->iteration_tolerance)
+            break;
+    }
+    return 0;
+}
+
 /* -- the accurate step (Master.step) ------------------------------------------------ */
 
 static int diverged(const cw_master *m)
@@ -1295,14 +1384,18 @@ static int step(cw_master *m, double h, double *taken_out)
         remember_sources(m);  /* the hidden-crossing check needs them at the step start */
         m->stale_sources = 0;
     }
-    if (possible)
+    if (possible || m->iterations)
         TRY(checkpoint_take(m));
-    /* 3. The step. */
-    TRY(advance(m, t, h));
+    /* 3. The step; one that lands past a predicted crossing plainly, as
+     * locate takes its trials. */
+    if (!m->iterations || predicted == PLAN_LAND)
+        TRY(advance(m, t, h));
+    else
+        TRY(iterate_step(m, t, h));
     double taken = h;
     /* 4. Events. */
     if (locating) {
-        TRY(land_on_events(m, t, h, near && !predicted, possible, predicted, &taken));
+        TRY(land_on_events(m, t, h, near && !predicted, possible || m->iterations, predicted, &taken));
         m->last_valid = !m->after_event_step;
         if (m->last_valid) {
             m->last_t = t;
