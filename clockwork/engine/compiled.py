@@ -90,6 +90,12 @@ class _Master(_Strict):
     ) + _fields([], ["iteration_tolerance"], ["coupling_iterations"], ["iterations", "pad3_"])  # strong coupling
 
 
+class _Ticks(_Strict):
+    _fields_ = _fields(["watch_port", "watch_pos", "seen", "rows"],
+                       ["mark", "margin", "period", "last_tick", "prev_tick"], [],
+                       ["n_watch", "capacity", "n_rows", "has_prev"])
+
+
 class _Recorder(_Strict):
     _fields_ = _fields(
         ["col_port", "col_pos", "rows", "ticks"], ["last_tick"], ["grid_seen", "grid_k"],
@@ -97,7 +103,7 @@ class _Recorder(_Strict):
          "tick_pos", "has_interval", "pad_"])
 
 
-for _struct in (_Port, _Master, _Recorder):
+for _struct in (_Port, _Master, _Recorder, _Ticks):
     _struct._names = frozenset(n for n, _ in _struct._fields_)
 
 _lib = None
@@ -116,7 +122,8 @@ def load_core():
             except OSError as e:
                 _lib_error = f"the compiled core {path} cannot be loaded ({e}); build it with tools/setup.sh"
                 return None
-            for name, struct in (("port", _Port), ("master", _Master), ("recorder", _Recorder), ("fmi3", _Events)):
+            for name, struct in (("port", _Port), ("master", _Master), ("recorder", _Recorder), ("fmi3", _Events),
+                                 ("ticks", _Ticks)):
                 size = getattr(lib, f"cw_sizeof_{name}")
                 size.restype = c_size_t
                 if size() != ctypes.sizeof(struct):
@@ -131,6 +138,8 @@ def load_core():
             lib.cw_run_watch.argtypes = ([POINTER(_Master)] + [c_double] * 4
                                          + [c_int, c_void_p, c_void_p] * 2 + [c_void_p, c_double])
             lib.cw_run_watch.restype = c_int
+            lib.cw_run_ticks.argtypes = [POINTER(_Master), c_double, c_double, POINTER(_Ticks), c_double]
+            lib.cw_run_ticks.restype = c_int
             lib.cw_discontinuity.argtypes = [POINTER(_Master)]
             lib.cw_discontinuity.restype = None
             _lib = lib
@@ -441,6 +450,32 @@ class CompiledMaster(Master):
         if rc not in (_DONE, _WATCHED):
             self._handle(rc)
         return before[:n_r]
+
+    def run_ticks(self, t_stop, mark, margin, watched, period, on_rows, rows_per_call=4096):
+        if self.on_step is not None:
+            return super().run_ticks(t_stop, mark, margin, watched, period, on_rows, rows_per_call)
+        index = {id(p): i for i, p in enumerate(self.ports.all)}
+        width = len(watched) + 1
+        rows = (c_double * (rows_per_call * width))()
+        seen = _array(c_double, (p.out[j] for p, j in watched))
+        arrays = [_array(c_int, (index[id(p)] for p, _ in watched)), _array(c_int, (j for _, j in watched)), seen]
+        k = _Ticks(watch_port=ctypes.addressof(arrays[0]), watch_pos=ctypes.addressof(arrays[1]),
+                   seen=ctypes.addressof(seen), rows=ctypes.addressof(rows), mark=mark, margin=margin,
+                   period=period, last_tick=seen[0], prev_tick=0.0, n_watch=len(watched),
+                   capacity=rows_per_call, n_rows=0, has_prev=0)
+        k_ptr = byref(k)
+        while True:
+            rc = self._lib.cw_run_ticks(self._core_ptr, t_stop, self.settings.step, k_ptr, self.slice_s)
+            if self._core.orders_lowered:
+                self._orders_lowered()
+            if k.n_rows:
+                flat = rows[:k.n_rows * width]
+                k.n_rows = 0
+                on_rows(list(zip(*[iter(flat)] * width)))
+            if rc == _DONE:
+                return
+            if rc not in (_BUFFER_FULL, _SLICE_OVER):
+                self._handle(rc)  # raises, but for a divergence check that finds nothing
 
     def _native(self, recorder: Recorder):
         index = {id(p.out): i for i, p in enumerate(self.ports.all)}

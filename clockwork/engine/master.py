@@ -472,5 +472,42 @@ class Master:
                 break
         return before
 
+    def run_ticks(self, t_stop: float, mark: float, margin: float, watched: list[tuple[Port, int]],
+                  period: float, on_rows, rows_per_call: int = 4096) -> None:
+        """Step toward t_stop with a communication point just after each tick.
+
+        The first of the `watched` outputs ((port, position) pairs) is a tick
+        time, which changes at each tick. Steps are at most settings.step
+        long and land on `mark` while it lies ahead, then are `margin` s
+        long until a watched output changes; after a tick at tt, the next
+        mark is tt + the last tick period (`period` until two ticks are
+        known) + margin. ``on_rows(rows)`` gets the rows (t, watched
+        values...) of every point where a watched output changed, in
+        batches. The same points as calling ``run_watch`` after each change
+        with the mark so moved, without returning to the caller there.
+        """
+        eps = 1e-12 * max(1.0, abs(t_stop))
+        seen = [p.out[j] for p, j in watched]
+        last_tick, prev_tick = seen[0], None
+        max_step = self.settings.step
+        rows = []
+        while self.t < t_stop - eps:
+            target = mark if self.t < mark - eps else self.t + margin
+            self.step(min(max_step, target - self.t, t_stop - self.t))
+            if any(p.out[j] != x for (p, j), x in zip(watched, seen)):
+                seen = [p.out[j] for p, j in watched]
+                rows.append((self.t, *seen))
+                tt = seen[0]
+                if tt != last_tick:
+                    if last_tick > 0:
+                        prev_tick = last_tick
+                    last_tick = tt
+                    mark = tt + (tt - prev_tick if prev_tick is not None else period) + margin
+                if len(rows) >= rows_per_call:
+                    on_rows(rows)
+                    rows = []
+        if rows:
+            on_rows(rows)
+
     def terminate(self) -> None:
         free_all(self.instances)

@@ -1595,6 +1595,68 @@ CW_EXPORT int cw_run_watch(cw_master *m, double t_stop, double mark, double marg
     return CW_DONE;
 }
 
+/* Tick points (Master.run_ticks): the watched outputs (the first a tick
+ * time) recorded as rows (t, values...) wherever one changed, and the
+ * next mark put `margin` after where the next tick is expected. */
+typedef struct {
+    const int *watch_port, *watch_pos;
+    double *seen;              /* the watched values at the last row */
+    double *rows;              /* capacity rows of (t, watched values) */
+    double mark, margin, period, last_tick, prev_tick;
+    int n_watch, capacity, n_rows, has_prev;
+} cw_ticks;
+
+CW_EXPORT size_t cw_sizeof_ticks(void) { return sizeof(cw_ticks); }
+
+/* Step toward t_stop with steps of at most max_step, landing on k->mark
+ * while it lies ahead and taking steps of k->margin after it; a row where
+ * a watched output changed; after a tick, the next mark one tick period
+ * (the last one, else k->period) plus the margin after it. Returns
+ * CW_DONE, CW_BUFFER_FULL or CW_SLICE_OVER (call again), or a step's
+ * code (CW_CHECK_DIVERGENCE after the step's row: Python names the output). */
+CW_EXPORT int cw_run_ticks(cw_master *m, double t_stop, double max_step, cw_ticks *k, double slice_s)
+{
+    double eps = 1e-12 * py_max(1.0, fabs(t_stop));
+    struct timespec began;
+    clock_gettime(CLOCK_MONOTONIC, &began);
+    unsigned steps = 0;
+    while (m->t < t_stop - eps) {
+        if (k->n_rows >= k->capacity)
+            return CW_BUFFER_FULL;
+        if (slice_over(&began, &steps, slice_s))
+            return CW_SLICE_OVER;
+        double target = m->t < k->mark - eps ? k->mark : m->t + k->margin;
+        double taken;
+        int rc = step(m, py_min(py_min(max_step, target - m->t), t_stop - m->t), &taken);
+        if (rc < 0 || rc == CW_ENDED)
+            return rc;
+        int changed = 0;
+        for (int j = 0; j < k->n_watch; j++)
+            if (m->ports[k->watch_port[j]].out[k->watch_pos[j]] != k->seen[j])  /* NaN: a change */
+                changed = 1;
+        if (changed) {
+            double *row = &k->rows[(size_t)k->n_rows * (size_t)(k->n_watch + 1)];
+            row[0] = m->t;
+            for (int j = 0; j < k->n_watch; j++)
+                row[j + 1] = k->seen[j] = m->ports[k->watch_port[j]].out[k->watch_pos[j]];
+            k->n_rows++;
+            double tt = k->seen[0];
+            if (tt != k->last_tick) {
+                if (k->last_tick > 0) {
+                    k->prev_tick = k->last_tick;
+                    k->has_prev = 1;
+                }
+                k->last_tick = tt;
+                double period = k->has_prev ? tt - k->prev_tick : k->period;
+                k->mark = tt + period + k->margin;
+            }
+        }
+        if (rc == CW_CHECK_DIVERGENCE)
+            return rc;
+    }
+    return CW_DONE;
+}
+
 /* -- FMU log messages ------------------------------------------------------------------ */
 
 /* What cw_logger hands the formatted message to: the instance's own sink,

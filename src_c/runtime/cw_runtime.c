@@ -233,6 +233,12 @@ fmi2Status cw_core_set_debug_logging(cw_instance *inst, const char *fn,
     return fmi2OK;
 }
 
+/* The FMU state's layout (defined with the state below). */
+#define FNV_SEED 14695981039346656037ULL
+static uint64_t fnv1a(const unsigned char *p, size_t n, uint64_t h);
+static int has_strings(const cw_model *m);
+static size_t fixed_state_size(const cw_model *m);
+
 cw_instance *cw_core_instantiate(const cw_instance *proto, const char *fn,
                                  const char *instance_name, const char *token,
                                  const char *token_name) {
@@ -288,6 +294,9 @@ cw_instance *cw_core_instantiate(const cw_instance *proto, const char *fn,
         return NULL;
     }
     memcpy(inst->instance_name, instance_name, len);
+    inst->state_fixed = fixed_state_size(&CW_MODEL);
+    inst->state_strings = has_strings(&CW_MODEL);
+    inst->guid_hash = fnv1a((const unsigned char *)CW_MODEL.guid, strlen(CW_MODEL.guid), FNV_SEED);
     inst->state = CW_INSTANTIATED;
     if (!set_start_values(inst)) {
         cw_core_free_instance(inst);
@@ -662,18 +671,19 @@ static uint64_t fnv1a(const unsigned char *p, size_t n, uint64_t h) {
     }
     return h;
 }
-#define FNV_SEED 14695981039346656037ULL
 
 /* The state's checksum: FNV-1a over little-endian 64-bit words, the tail
  * byte by byte. One multiplication per 8 bytes instead of per byte: a
  * rollback checks it on every fmi2SetFMUstate. Each step is a bijection of
  * the running hash, so any one changed word changes the result. */
+static uint64_t get_u64(const unsigned char **p);
+
 static uint64_t state_checksum(const unsigned char *p, size_t n) {
     uint64_t h = FNV_SEED;
     size_t k = 0;
     for (; k + 8 <= n; k += 8) {
-        uint64_t w = 0;
-        for (int b = 0; b < 8; b++) w |= (uint64_t)p[k + b] << (8 * b);
+        const unsigned char *q = p + k;
+        const uint64_t w = get_u64(&q);
         h ^= w;
         h *= 1099511628211ULL;
     }
@@ -704,18 +714,35 @@ static size_t fixed_state_size(const cw_model *m) {
  * variable, u32 byte count and the bytes (no terminating NUL). */
 static size_t state_size(const cw_instance *inst) {
     const cw_model *m = inst->model;
-    size_t n = fixed_state_size(m);
-    for (int k = 0; k < m->nvars; k++)
-        if (m->vars[k].name && m->vars[k].type == CW_STRING)
-            n += 4 + strlen(inst->str[k]);
+    size_t n = inst->state_fixed;
+    if (inst->state_strings)
+        for (int k = 0; k < m->nvars; k++)
+            if (m->vars[k].name && m->vars[k].type == CW_STRING)
+                n += 4 + strlen(inst->str[k]);
     return n;
 }
 
-/* Explicit little-endian encoding, independent of the host's layout. */
+/* Explicit little-endian encoding, independent of the host's layout (on a
+ * little-endian host a plain copy, which every save and rollback does). */
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+#define CW_LITTLE_ENDIAN 1
+#else
+#define CW_LITTLE_ENDIAN 0
+#endif
 static void put_u32(unsigned char **p, uint32_t x) {
+    if (CW_LITTLE_ENDIAN) {
+        memcpy(*p, &x, 4);
+        *p += 4;
+        return;
+    }
     for (int b = 0; b < 4; b++) *(*p)++ = (unsigned char)(x >> (8 * b));
 }
 static void put_u64(unsigned char **p, uint64_t x) {
+    if (CW_LITTLE_ENDIAN) {
+        memcpy(*p, &x, 8);
+        *p += 8;
+        return;
+    }
     for (int b = 0; b < 8; b++) *(*p)++ = (unsigned char)(x >> (8 * b));
 }
 static void put_f64(unsigned char **p, double x) {
@@ -725,11 +752,21 @@ static void put_f64(unsigned char **p, double x) {
 }
 static uint32_t get_u32(const unsigned char **p) {
     uint32_t x = 0;
+    if (CW_LITTLE_ENDIAN) {
+        memcpy(&x, *p, 4);
+        *p += 4;
+        return x;
+    }
     for (int b = 0; b < 4; b++) x |= (uint32_t)(*(*p)++) << (8 * b);
     return x;
 }
 static uint64_t get_u64(const unsigned char **p) {
     uint64_t x = 0;
+    if (CW_LITTLE_ENDIAN) {
+        memcpy(&x, *p, 8);
+        *p += 8;
+        return x;
+    }
     for (int b = 0; b < 8; b++) x |= (uint64_t)(*(*p)++) << (8 * b);
     return x;
 }
@@ -746,7 +783,7 @@ static void encode_state(const cw_instance *inst, unsigned char *buf,
     unsigned char *p = buf;
     put_u32(&p, STATE_MAGIC);
     put_u32(&p, STATE_LAYOUT_VERSION);
-    put_u64(&p, fnv1a((const unsigned char *)m->guid, strlen(m->guid), FNV_SEED));
+    put_u64(&p, inst->guid_hash);
     put_u32(&p, (uint32_t)size);
     put_u32(&p, (uint32_t)inst->state);
     put_f64(&p, inst->time);
@@ -783,8 +820,8 @@ static void encode_state(const cw_instance *inst, unsigned char *buf,
 static fmi2Status decode_state(cw_instance *inst, const unsigned char *buf,
                                size_t size, const char *fn) {
     const cw_model *m = inst->model;
-    const size_t fixed = fixed_state_size(m);
-    const int strings = has_strings(m);
+    const size_t fixed = inst->state_fixed;
+    const int strings = inst->state_strings;
     if (!buf) return fail(inst, "%s: the state is NULL.", fn);
     if (strings ? size < fixed : size != fixed)
         return fail(inst, "%s: the state has %zu bytes; %s expects %s%zu.", fn,
@@ -799,8 +836,7 @@ static fmi2Status decode_state(cw_instance *inst, const unsigned char *buf,
     if (version != STATE_LAYOUT_VERSION)
         return fail(inst, "%s: state layout version %u, expected %u.", fn,
                     version, STATE_LAYOUT_VERSION);
-    if (guid_hash !=
-        fnv1a((const unsigned char *)m->guid, strlen(m->guid), FNV_SEED))
+    if (guid_hash != inst->guid_hash)
         return fail(inst, "%s: the state belongs to another model, not %s.", fn,
                     m->name);
     if (stored_size != expected)
@@ -956,10 +992,10 @@ static fmi2Status restore_state(cw_instance *inst, const unsigned char *buf,
     /* The state's Strings, copied before anything changes (decode_state
      * checked the section). */
     char **strings = NULL;
-    const int with_strings = has_strings(m);
+    const int with_strings = inst->state_strings;
     if (st == fmi2OK && commit && with_strings &&
         (strings = alloc(inst, m->nvars, sizeof(char *)))) {
-        const unsigned char *sp = buf + fixed_state_size(m) - 8;
+        const unsigned char *sp = buf + inst->state_fixed - 8;
         for (int k = 0; k < m->nvars; k++) {
             strings[k] = NULL;
             if (!m->vars[k].name || m->vars[k].type != CW_STRING) continue;

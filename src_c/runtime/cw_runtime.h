@@ -201,6 +201,12 @@ typedef struct cw_instance {
      * checks at every step and every get visit these, not the whole table. */
     int *real_io;
     int n_real_in, n_real_out;
+
+    /* The FMU state's layout constants, found once at instantiation: the
+     * size without Strings, whether the model has Strings, the GUID's hash. */
+    size_t state_fixed;
+    int state_strings;
+    uint64_t guid_hash;
 } cw_instance;
 
 /* Value of input `vr` at time t, following the input derivatives. Inline:

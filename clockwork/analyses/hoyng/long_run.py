@@ -108,19 +108,19 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
         watched = [(P, i_tick), (E, i_amp)]
         remember = [] if replay else [(m.ports[a], m.ports[a].out_names.index("rate")) for a in avgs]
 
-        def on_point(master, rates):
-            amp = eout[i_amp]
+        def on_point(t, tt, amp, rates):
+            """At the communication point t: the tick time tt and the torque
+            amplitude amp there, the twins' rates at the point before."""
             if amp != state[2]:
                 state[2] = amp
-                change_t.append(master.t)
+                change_t.append(t)
                 change_v.append(amp)
-            tt = pout[i_tick]
             if tt == state[0]:
                 return
             state[0] = tt
             state[1] += 1
             i = state[1]
-            if master.t >= t_noise:
+            if t >= t_noise:
                 d = amp / torque0 - 1.0
                 noise["n"] += 1
                 noise["sum"] += d
@@ -128,7 +128,7 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
                 if len(noise["head"]) < 8:
                     noise["head"].append(d)
             # the twins' phases at the tick: back from this point at the step's rate
-            last_tick[:] = [tt, i] + [out[kp] - w0 * r * (master.t - tt)
+            last_tick[:] = [tt, i] + [out[kp] - w0 * r * (t - tt)
                                       for (out, kp, _), r in zip(A, rates if A else ())]
             if i % every == 0 or i == 1:
                 _sample()
@@ -143,8 +143,12 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
 
         last_tick: list = []
 
-        _run_with_tick_points(m, stop, pout, i_tick, watched, remember, n["T0"], on_point, progress,
-                              scene.path.stem)
+        if A:
+            _run_with_tick_points(m, stop, pout, i_tick, watched, remember, n["T0"],
+                                  lambda master, rates: on_point(master.t, pout[i_tick], eout[i_amp], rates),
+                                  progress, scene.path.stem)
+        else:  # the same points, with no return to Python at each of them
+            _run_ticks(m, stop, watched, n["T0"], on_point, progress, scene.path.stem)
         if state[1] % every and state[1] > 1:
             _sample()
         stats = vars(m.stats).copy()
@@ -241,8 +245,33 @@ def _replay_twins(twins, avgs, samples, change_t, change_v, progress, label) -> 
                 bar.update(i_s + i_c - bar.n)
 
 
+TICK_MARGIN = 2e-3  # s: a communication point this long after each expected tick
+
+
+def _run_ticks(m, stop, watched, T0, on_point, progress, label, margin=TICK_MARGIN) -> None:
+    """_run_with_tick_points for twins that are not co-simulated: the
+    master's run_ticks puts the same communication points (the first
+    watched output is the tick time) and hands over in batches the points
+    where a watched output changed: ``on_point(t, tick time, torque
+    amplitude, ())``."""
+    from tqdm import tqdm
+
+    with tqdm(total=stop - m.t, disable=not progress, delay=1.0, desc=label, unit="s sim",
+              bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]") as bar:
+        t_bar = [m.t]
+
+        def on_rows(rows):
+            for t, tt, amp in rows:
+                on_point(t, tt, amp, ())
+            bar.update(rows[-1][0] - t_bar[0])
+            t_bar[0] = rows[-1][0]
+
+        m.run_ticks(stop, m.t + T0 + margin, margin, watched, T0, on_rows)
+        bar.update(m.t - t_bar[0])
+
+
 def _run_with_tick_points(m, stop, pout, i_tick, watched, remember, T0, on_point, progress, label,
-                          margin=2e-3) -> None:
+                          margin=TICK_MARGIN) -> None:
     """Run to `stop` with a communication point `margin` s after each upward zero crossing.
 
     The escapement renews its torque noise at the first communication point
