@@ -273,6 +273,39 @@ def test_fig6_replayed_twins_equal_cosimulated_twins():
     assert runs["replay"]["result"]["torque_changes"] >= 300
 
 
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_fig6_tick_points_without_returns_are_the_same_bits(engine, monkeypatch):
+    """Master.run_ticks (the master steps from tick point to tick point and
+    hands the changed points over in batches) puts the same communication
+    points as the loop that returns to Python at each of them: the whole
+    result and series, bit for bit, with a batch boundary inside the run."""
+    from clockwork.analyses.hoyng import long_run as lr
+    from clockwork.engine.master import Master
+
+    def returning(m, stop, watched, T0, on_point, progress, label, margin=lr.TICK_MARGIN):
+        (P, i_tick), (E, i_amp) = watched
+        lr._run_with_tick_points(m, stop, P.out, i_tick, watched, [], T0,
+                                 lambda master, rates: on_point(master.t, P.out[i_tick], E.out[i_amp], rates),
+                                 progress, label, margin)
+
+    scene = load_scene(SCENES / "hoyng_fig6.toml", [f"experiment.stop={periods(300)}",
+                                                   f"escapement.noise_start={periods(100)}",
+                                                   f"master.engine={engine}", "analysis.sample_every=7"])
+    run_ticks = Master.run_ticks
+    monkeypatch.setattr(Master, "run_ticks", lambda *a, **k: run_ticks(*a, **{**k, "rows_per_call": 64}))
+    def timeless(x):
+        if isinstance(x, dict):
+            return {k: timeless(v) for k, v in x.items() if not any(w in k for w in ("wall", "cpu", "per_s"))}
+        return x
+
+    out = []
+    for loop in (lr._run_ticks, returning):
+        monkeypatch.setattr(lr, "_run_ticks", loop)
+        out.append(json.dumps(timeless(run_point(scene, {})), sort_keys=True, default=str))
+    assert out[0] == out[1]
+    assert json.loads(out[0])["result"]["torque_changes"] >= 200
+
+
 def test_escapement_noise_replica_is_bit_exact(tmp_path):
     """escapement_noise() against the FMU: drive the escapement's phi through zero crossings."""
     from clockwork.engine import MasterSettings
