@@ -140,6 +140,9 @@ def load_core():
             lib.cw_run_watch.restype = c_int
             lib.cw_run_ticks.argtypes = [POINTER(_Master), c_double, c_double, POINTER(_Ticks), c_double]
             lib.cw_run_ticks.restype = c_int
+            lib.cw_run_schedule.argtypes = ([POINTER(_Master), c_int] + [c_void_p] * 3 + [c_int] + [c_void_p] * 2
+                                            + [c_int] + [c_void_p] * 5 + [c_double])
+            lib.cw_run_schedule.restype = c_int
             lib.cw_discontinuity.argtypes = [POINTER(_Master)]
             lib.cw_discontinuity.restype = None
             _lib = lib
@@ -476,6 +479,31 @@ class CompiledMaster(Master):
                 return
             if rc not in (_BUFFER_FULL, _SLICE_OVER):
                 self._handle(rc)  # raises, but for a divergence check that finds nothing
+
+    def run_schedule(self, times, sets, values, inputs, outputs, samples):
+        if self.on_step is not None:
+            return super().run_schedule(times, sets, values, inputs, outputs, samples)
+        index = {id(p.inst): i for i, p in enumerate(self.ports.all)}
+        port_of = {id(p): i for i, p in enumerate(self.ports.all)}
+        n = len(times)
+        arrays = [_array(c_double, times), _array(c_int, (int(bool(x)) for x in sets)), _array(c_double, values),
+                  _array(c_int, (index[id(inst)] for inst, _ in inputs)), _array(c_uint, (vr for _, vr in inputs)),
+                  _array(c_int, (port_of[id(p)] for p, _ in outputs)), _array(c_int, (j for _, j in outputs))]
+        width = len(outputs)
+        rows = (c_double * max(1, (n - sum(1 for x in sets if x)) * width))()
+        nxt, n_rows = c_int(0), c_int(0)
+        a = [ctypes.addressof(x) for x in arrays]
+        while True:
+            rc = self._lib.cw_run_schedule(self._core_ptr, n, a[0], a[1], a[2], len(inputs), a[3], a[4], width,
+                                           a[5], a[6], ctypes.addressof(rows), byref(nxt), byref(n_rows),
+                                           self.slice_s)
+            if self._core.orders_lowered:
+                self._orders_lowered()
+            if rc == _DONE:
+                break
+            if rc != _SLICE_OVER:
+                self._handle(rc)  # raises, but for a divergence check that finds nothing
+        samples.extend(rows[:n_rows.value * width])
 
     def _native(self, recorder: Recorder):
         index = {id(p.out): i for i, p in enumerate(self.ports.all)}

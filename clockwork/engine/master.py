@@ -32,6 +32,7 @@ Around it, ``step`` adds what makes the result accurate:
 from __future__ import annotations
 
 import math
+from ctypes import c_double, c_uint
 
 from .checkpoints import Checkpoints
 from .coupling import InputCoupling, iterate_step
@@ -508,6 +509,25 @@ class Master:
                     rows = []
         if rows:
             on_rows(rows)
+
+    def run_schedule(self, times, sets, values, inputs: list[tuple[Instance, int]],
+                     outputs: list[tuple[Port, int]], samples: list[float]) -> None:
+        """Step to each of the increasing `times` (s) in turn, one step each
+        (none where the master already stands there); there, where sets[k],
+        give values[k] to every input of `inputs` ((instance, value
+        reference) pairs of unconnected inputs: a piecewise-constant drive),
+        else append the `outputs` ((port, position) pairs) to `samples`."""
+        value = (c_double * 1)()
+        refs = [(inst, inst.c_setReal, inst.component, (c_uint * 1)(vr)) for inst, vr in inputs]
+        for t, is_set, v in zip(times, sets, values):
+            if t > self.t:
+                self.step(t - self.t)
+            if is_set:
+                value[0] = v
+                for inst, c_set, comp, vr in refs:
+                    inst.check(c_set(comp, vr, 1, value), "fmi2SetReal of inputs", self.t)
+            else:
+                samples.extend(p.out[j] for p, j in outputs)
 
     def terminate(self) -> None:
         free_all(self.instances)

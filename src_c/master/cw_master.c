@@ -1657,6 +1657,48 @@ CW_EXPORT int cw_run_ticks(cw_master *m, double t_stop, double max_step, cw_tick
     return CW_DONE;
 }
 
+/* Step to each of the increasing times in turn, one step each (none where
+ * the master stands there already); there, where sets[k], give values[k]
+ * to the n_in inputs (in_port, in_vr: unconnected inputs), else append the
+ * n_out outputs as a row of `samples` (Master.run_schedule). *next and
+ * *n_rows keep the place across calls (CW_SLICE_OVER, a divergence check). */
+CW_EXPORT int cw_run_schedule(cw_master *m, int n, const double *times, const int *sets, const double *values,
+                              int n_in, const int *in_port, const unsigned *in_vr, int n_out, const int *out_port,
+                              const int *out_pos, double *samples, int *next, int *n_rows, double slice_s)
+{
+    struct timespec began;
+    clock_gettime(CLOCK_MONOTONIC, &began);
+    unsigned steps = 0;
+    while (*next < n) {
+        if (slice_over(&began, &steps, slice_s))
+            return CW_SLICE_OVER;
+        int k = *next, rc = CW_DONE;
+        if (times[k] > m->t) {
+            double taken;
+            rc = step(m, times[k] - m->t, &taken);
+            if (rc < 0 || rc == CW_ENDED)
+                return rc;
+        }
+        if (sets[k]) {
+            for (int a = 0; a < n_in; a++) {
+                cw_port *p = &m->ports[in_port[a]];
+                int st = p->setReal(p->comp, &in_vr[a], 1, &values[k]);
+                if (st > FMI_WARNING)
+                    return fail(m, in_port[a], CALL_SET_INPUTS, st, m->t, 0.0);
+            }
+        } else {
+            double *row = &samples[(size_t)*n_rows * (size_t)n_out];
+            for (int j = 0; j < n_out; j++)
+                row[j] = m->ports[out_port[j]].out[out_pos[j]];
+            (*n_rows)++;
+        }
+        (*next)++;
+        if (rc == CW_CHECK_DIVERGENCE)
+            return rc;
+    }
+    return CW_DONE;
+}
+
 /* -- FMU log messages ------------------------------------------------------------------ */
 
 /* What cw_logger hands the formatted message to: the instance's own sink,

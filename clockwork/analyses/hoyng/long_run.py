@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import time
-from ctypes import c_double, c_uint
 from array import array
 
 import numpy as np
@@ -206,43 +205,31 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
             "noise_head": noise["head"]}
 
 
-def _replay_twins(twins, avgs, samples, change_t, change_v, progress, label) -> None:
+def _replay_twins(twins, avgs, samples, change_t, change_v, progress, label, chunk: int = 1 << 16) -> None:
     """Step the AveragedPendulum twins through the recorded torque changes,
-    reading their phases at the sampled tick times."""
+    reading their phases at the sampled tick times (a sample before the
+    change seen at the point after it): the master's run_schedule, in
+    chunks between which the progress bar moves."""
     from tqdm import tqdm
 
     m = twins.master
-    setters = []
-    for a in avgs:
-        inst = twins.instances[a]
-        setters.append((inst, inst.c_setReal, inst.component, (c_uint * 1)(inst.variables["drive"].vr)))
-    value = (c_double * 1)()
-    ports = [(m.ports[a].out, m.ports[a].out_names.index("phase")) for a in avgs]
-    lists = [samples[f"psi_{a}"] for a in avgs]
-    t_samples = samples["t_tick"]
-    n_s, n_c = len(t_samples), len(change_t)
-    i_s = i_c = 0
-    step = m.step
-    with tqdm(total=n_s + n_c, disable=not progress, delay=1.0, desc=label, unit="event") as bar:
-        while i_s < n_s or i_c < n_c:
-            # samples (ticks) come before the change seen at the point after them
-            if i_s < n_s and (i_c >= n_c or t_samples[i_s] <= change_t[i_c]):
-                t = t_samples[i_s]
-                if t > m.t:
-                    step(t - m.t)
-                for (out, kp), lst in zip(ports, lists):
-                    lst.append(out[kp])
-                i_s += 1
-            else:
-                t = change_t[i_c]
-                if t > m.t:
-                    step(t - m.t)
-                value[0] = change_v[i_c]
-                for inst, c_set, comp, vr in setters:
-                    inst.check(c_set(comp, vr, 1, value), "fmi2SetReal (drive)")
-                i_c += 1
-            if (i_s + i_c) % 4096 == 0:
-                bar.update(i_s + i_c - bar.n)
+    inputs = [(twins.instances[a], twins.instances[a].variables["drive"].vr) for a in avgs]
+    outputs = [(m.ports[a], m.ports[a].out_names.index("phase")) for a in avgs]
+    t_samples = np.asarray(samples["t_tick"], dtype=float)
+    t_changes = np.frombuffer(change_t, dtype=float) if len(change_t) else np.zeros(0)
+    times = np.concatenate([t_samples, t_changes])
+    sets = np.concatenate([np.zeros(len(t_samples), dtype=bool), np.ones(len(t_changes), dtype=bool)])
+    values = np.concatenate([np.zeros(len(t_samples)), np.frombuffer(change_v, dtype=float) if len(change_v)
+                             else np.zeros(0)])
+    order = np.lexsort((sets, times))  # by time; on a tie the sample first
+    times, sets, values = times[order].tolist(), sets[order].tolist(), values[order].tolist()
+    phases: list[float] = []
+    with tqdm(total=len(times), disable=not progress, delay=1.0, desc=label, unit="event") as bar:
+        for k in range(0, len(times), chunk):
+            m.run_schedule(times[k:k + chunk], sets[k:k + chunk], values[k:k + chunk], inputs, outputs, phases)
+            bar.update(min(chunk, len(times) - k))
+    for col, a in enumerate(avgs):
+        samples[f"psi_{a}"].extend(phases[col::len(avgs)])
 
 
 TICK_MARGIN = 2e-3  # s: a communication point this long after each expected tick
