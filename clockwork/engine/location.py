@@ -183,8 +183,11 @@ class EventLocator:
                 mem.append((u, None))
                 continue
             du = self.end_rates.get(k)
+            second = inst.max_output_derivative_order >= 2 and u != 0.0
+            acc = None
             if du is None:
-                du = self.output_rate(inst, vr)
+                # Both derivatives in one call where both are wanted.
+                du, acc = self.output_rates(inst, vr) if second else (self.output_rate(inst, vr), None)
             mem.append((u, du))
             if du is not None:
                 amp_u, amp_du = self.amplitudes[k]
@@ -193,8 +196,9 @@ class EventLocator:
                 self.amplitudes[k] = (amp_u, amp_du)
                 omega = amp_du / amp_u if amp_u > 0.0 else 0.0
                 # At a turning point |du| says nothing yet; |d2u/dt2| / |u| does.
-                if inst.max_output_derivative_order >= 2 and u != 0.0:
-                    acc = self.output_rate(inst, vr, order=2)
+                if second:
+                    if acc is None:
+                        acc = self.output_rate(inst, vr, order=2)
                     if acc is not None:
                         omega = max(omega, math.sqrt(abs(acc / u)))
                 if omega > 0.0:

@@ -828,6 +828,26 @@ static int output_rate(cw_master *m, int k, int order, double *rate)
     return src->getOutputDerivatives(src->comp, &m->zs_vr[k], 1, orders, rate) <= FMI_WARNING;
 }
 
+/* du/dt and d2u/dt2 of indicator k's source in one call (EventLocator.
+ * output_rates): 0 when du/dt is refused; *have_acc when d2u/dt2 came too. */
+static int output_rates(cw_master *m, int k, double *du, double *ddu, int *have_acc)
+{
+    cw_port *src = &m->ports[m->zs_port[k]];
+    *have_acc = 0;
+    if (src->max_output_derivative_order >= 2) {
+        unsigned vr2[2] = {m->zs_vr[k], m->zs_vr[k]};
+        static const int orders[2] = {1, 2};
+        double got[2];
+        if (src->getOutputDerivatives(src->comp, vr2, 2, orders, got) <= FMI_WARNING) {
+            *du = got[0];
+            *ddu = got[1];
+            *have_acc = 1;
+            return 1;
+        }
+    }
+    return output_rate(m, k, 1, du);
+}
+
 static void remember_sources(cw_master *m)
 {
     double cap = INFINITY;
@@ -847,10 +867,13 @@ static void remember_sources(cw_master *m)
             m->prev_kind[k] = 1;
             continue;
         }
-        double du;
-        int have_du = 1;
+        double du, acc = 0.0;
+        int have_du = 1, have_acc = 0;
+        int second = src->max_output_derivative_order >= 2 && u != 0.0;
         if (m->end_rate_set[k])
             du = m->end_rate[k];
+        else if (second)  /* both derivatives in one call where both are wanted */
+            have_du = output_rates(m, k, &du, &acc, &have_acc);
         else
             have_du = output_rate(m, k, 1, &du);
         m->prev_kind[k] = have_du ? 2 : 1;
@@ -861,9 +884,10 @@ static void remember_sources(cw_master *m)
             m->amp_u[k] = amp_u;
             m->amp_du[k] = amp_du;
             double omega = amp_u > 0.0 ? amp_du / amp_u : 0.0;
-            if (src->max_output_derivative_order >= 2 && u != 0.0) {
-                double acc;
-                if (output_rate(m, k, 2, &acc))
+            if (second) {
+                if (!have_acc)
+                    have_acc = output_rate(m, k, 2, &acc);
+                if (have_acc)
                     omega = py_max(omega, sqrt(fabs(acc / u)));
             }
             if (omega > 0.0)
@@ -936,24 +960,10 @@ static void sample_sources(cw_master *m, double t)
             continue;
         }
         cw_port *src = &m->ports[m->zs_port[k]];
-        if (src->max_output_derivative_order >= 2) {
-            /* d/dt and d2/dt2 in one call (EventLocator.output_rates) */
-            unsigned vr2[2] = {m->zs_vr[k], m->zs_vr[k]};
-            static const int orders[2] = {1, 2};
-            double got[2];
-            if (src->getOutputDerivatives(src->comp, vr2, 2, orders, got) <= FMI_WARNING) {
-                m->pred_u[k] = src->out[m->zs_pos[k]];
-                m->pred_du[k] = got[0];
-                m->pred_ddu[k] = got[1];
-                m->pred_kind[k] = 2;
-                continue;
-            }
-        }
-        double du;
-        if (output_rate(m, k, 1, &du)) {
+        int have_acc;
+        if (output_rates(m, k, &m->pred_du[k], &m->pred_ddu[k], &have_acc)) {
             m->pred_u[k] = src->out[m->zs_pos[k]];
-            m->pred_du[k] = du;
-            m->pred_kind[k] = 1;
+            m->pred_kind[k] = have_acc ? 2 : 1;
         }
     }
     m->sampled_t = t;

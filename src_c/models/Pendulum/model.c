@@ -319,12 +319,13 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
 static int output_derivative(cw_instance *inst, unsigned vr, int order,
                              double *value) {
     const double phi = inst->s[S_PHI], w = inst->s[S_W], t = inst->time;
-    const double a = acceleration(inst, t, phi, w);
     if (vr == VR_phi) {
-        *value = order == 1 ? w : a;
+        /* dphi/dt = w needs no acceleration (the master asks for it at every sample). */
+        *value = order == 1 ? w : acceleration(inst, t, phi, w);
         return order <= 2;
     }
     if (vr == VR_w) {
+        const double a = acceleration(inst, t, phi, w);
         if (order == 1) {
             *value = a;
             return 1;
