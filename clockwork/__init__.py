@@ -1,3 +1,14 @@
 """clockwork: pendulum-clock FMUs and a co-simulation master on fmpy."""
 
-__version__ = "0.1.0"
+from .version import __version__
+
+__all__ = ["__version__", "simulate"]
+
+
+def __getattr__(name: str):
+    # Imported on first use: `clockwork` (the command) starts without NumPy and the engine.
+    if name == "simulate":
+        from .api import simulate
+
+        return simulate
+    raise AttributeError(f"module 'clockwork' has no attribute {name!r}")

@@ -1,5 +1,5 @@
-"""The `clockwork` command: run, validate, list, info, export-ssp, gallery, bench,
-export-suite, compare.
+"""The `clockwork` command: run, validate, list, info, plot, export-ssp,
+export-scene, gallery, bench, export-suite, compare.
 
 Bad input of any kind ends with one line `clockwork: error: <message>` on
 stderr and exit code 2; a failed simulation with one line and exit code 1.
@@ -18,7 +18,7 @@ import sys
 import threading
 from pathlib import Path
 
-from . import __version__
+from .version import __version__
 from .errors import Interrupted, SceneError, SimulationError, UsageError
 from .paths import scenarios_dir
 
@@ -56,19 +56,26 @@ def build_parser() -> argparse.ArgumentParser:
                         help='override a parameter or setting, e.g. pendulum.Q=500, '
                              'escapement.torque="0.4 N.cm", master.step=0.01 (repeatable)')
 
-    r = sub.add_parser("run", help="run a scene and write its results")
-    r.add_argument("scene", metavar="SCENE.toml|X.ssp|X.ssd")
+    def add_input(sp):
+        sp.add_argument("--input", default=None, metavar="FILE.csv",
+                        help="drive unconnected inputs from samples: a CSV file with a time column and one "
+                             "column per input (instance.variable; the variable alone for one FMU)")
+
+    r = sub.add_parser("run", help="run a scene, an SSP or an FMU and write its results")
+    r.add_argument("scene", metavar="SCENE.toml|X.ssp|X.ssd|X.fmu")
     r.add_argument("--out", required=True, metavar="DIR", help="output directory (created if its parent exists)")
     add_set(r)
+    add_input(r)
     r.add_argument("--workers", type=_positive_int, default=None, metavar="N",
                    help="parallel processes for sweeps (default: the runner's choice)")
     r.add_argument("--scheduler", default=None, metavar="ADDRESS", help="address of a distributed scheduler")
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     r.set_defaults(func=cmd_run)
 
-    v = sub.add_parser("validate", help="check a scene file (or an .ssp/.ssd) without running it")
-    v.add_argument("scene", metavar="SCENE.toml|X.ssp|X.ssd")
+    v = sub.add_parser("validate", help="check a scene file (or an .ssp/.ssd, an .fmu) without running it")
+    v.add_argument("scene", metavar="SCENE.toml|X.ssp|X.ssd|X.fmu")
     add_set(v)
+    add_input(v)
     v.set_defaults(func=cmd_validate)
 
     ls = sub.add_parser("list", help="list the scenes of a directory")
@@ -79,6 +86,22 @@ def build_parser() -> argparse.ArgumentParser:
                                     "(the flattened system)")
     i.add_argument("fmu", metavar="X.fmu|MODEL|X.ssp|X.ssd")
     i.set_defaults(func=cmd_info)
+
+    pl = sub.add_parser("plot", help="draw a finished run's outputs again, grouped by unit")
+    pl.add_argument("result", metavar="RESULT_DIR", help="the --out directory of a run (a time series)")
+    pl.add_argument("--only", nargs="+", default=None, metavar="NAME",
+                    help="only these columns (names or shell patterns, e.g. 'pendulum.*')")
+    pl.add_argument("--out", default=None, metavar="FILE.png",
+                    help="the file to write [RESULT_DIR/outputs.png]; more pages go to FILE_2.png...")
+    pl.set_defaults(func=cmd_plot)
+
+    xs = sub.add_parser("export-scene", help="write the scene `clockwork run X.fmu` uses, as a scene file "
+                                             "to start from")
+    xs.add_argument("fmu", metavar="X.fmu")
+    xs.add_argument("--out", required=True, metavar="SCENE.toml", help="scene file to write")
+    add_set(xs)
+    add_input(xs)
+    xs.set_defaults(func=cmd_export_scene)
 
     e = sub.add_parser("export-ssp", help="write a scene as an SSP 1.0 archive for other FMI tools")
     e.add_argument("scene", metavar="SCENE.toml")
@@ -189,7 +212,7 @@ def cmd_run(args) -> int:
     from .results.files import check_output_dir
     from .run.catalog import load_scene
 
-    scene = load_scene(args.scene, args.overrides)
+    scene = load_scene(args.scene, args.overrides, args.input)
     if args.scheduler:
         from .run.dask import require_dask
 
@@ -249,7 +272,7 @@ def _short(x) -> str:
 def cmd_validate(args) -> int:
     from .run.catalog import check_loadable, load_scene
 
-    scene = load_scene(args.scene, args.overrides)
+    scene = load_scene(args.scene, args.overrides, args.input)
     check_loadable(scene)
     n, m = len(scene.components), len(scene.connections)
     points = len(scene.points())
@@ -257,7 +280,39 @@ def cmd_validate(args) -> int:
     with_set = f", with --set {' '.join(scene.overrides)}" if scene.overrides else ""
     for note in scene.notes:
         print(f"note: {note}")
+    if scene.inputs is not None:
+        extra += f", inputs from {scene.inputs.file.name}: {', '.join(scene.inputs.columns)}"
     print(f"ok: {scene.title} ({n} component{'s' * (n != 1)}, {m} connection{'s' * (m != 1)}{extra}{with_set})")
+    return 0
+
+
+def cmd_plot(args) -> int:
+    from .results.plots.redraw import redraw
+
+    for name in redraw(args.result, args.only, args.out):
+        print(f"wrote {name}")
+    return 0
+
+
+def cmd_export_scene(args) -> int:
+    from .atomic import write_text_atomic
+    from .run.catalog import load_scene
+    from .scene.save import scene_toml
+
+    if Path(args.fmu).suffix.lower() != ".fmu":
+        raise UsageError(f"export-scene {args.fmu}: expected an FMU file (X.fmu); a scene file is its own scene")
+    out = Path(args.out)
+    if out.suffix.lower() != ".toml":
+        raise UsageError(f"--out {out}: expected a file name ending .toml")
+    if not out.parent.is_dir():
+        raise UsageError(f"--out {out}: no such directory: {out.parent}")
+    if out.is_dir():
+        raise UsageError(f"--out {out}: is a directory, expected a scene file name")
+    scene = load_scene(args.fmu, args.overrides, args.input)
+    write_text_atomic(out, scene_toml(scene, out, Path(args.fmu).name))
+    (name, c), = scene.components.items()
+    print(f"wrote {out}: {name} ({c.fmu_path.name}), stop {scene.experiment.stop:g} s, step {scene.master.step:g} s, "
+          f"{len(scene.record.outputs)} recorded output(s)")
     return 0
 
 
@@ -290,6 +345,9 @@ def cmd_export_ssp(args) -> int:
     from .scene.ssp import PARAMETER_SET, export_ssp
 
     scene = load_scene(args.scene, args.overrides)
+    if scene.inputs is not None:  # not silently dropped
+        raise UsageError(f"{args.scene}: [inputs] drives inputs from {scene.inputs.file}, which an SSP cannot "
+                         "carry: export a copy of the scene without [inputs]")
     out = Path(args.out)
     if out.suffix != ".ssp":
         raise UsageError(f"--out {out}: expected a file name ending .ssp")
@@ -348,7 +406,7 @@ def _info_ssp(path: str) -> int:
     width = max(len(c) for c in scene.components)
     for name, c in scene.components.items():
         params = ", ".join(f"{k} = {v!r}" for k, v in c.parameters.items())
-        print(f"  {name:<{width}}  {c.model_name}  {c.fmu_path}")
+        print(f"  {name:<{width}}  {c.model_name}  {c.fmu_shown}")
         if params:
             print(f"  {'':<{width}}  parameters: {params}")
     print("connections:")
@@ -362,17 +420,18 @@ def _info_ssp(path: str) -> int:
 
 
 def cmd_info(args) -> int:
-    from .engine.description import FmuError, read_fmu, resolve_fmu, type_name, var_unit
+    from .engine.description import FmuError, fmi1_details, read_fmu, resolve_fmu, shape_text, type_name, var_unit
 
     if Path(args.fmu).suffix.lower() in (".ssp", ".ssd"):
         return _info_ssp(args.fmu)
     try:
         path = resolve_fmu(args.fmu)
-        md, digest, indicators = read_fmu(path, need_binary=False, versions=("2.0", "3.0"))
+        md, digest, indicators = read_fmu(path, need_binary=False)
     except FmuError as e:
         raise UsageError(str(e)) from None
     cs = md.coSimulation
-    print(f"{md.modelName} (FMI {md.fmiVersion} Co-Simulation)")
+    faces = [n for n, i in (("Co-Simulation", cs), ("Model Exchange", md.modelExchange)) if i is not None]
+    print(f"{md.modelName} (FMI {md.fmiVersion} {' and '.join(faces)})")
     print(f"  file         {path}")
     print(f"  sha256       {digest}")
     fmi3 = md.fmiVersion.startswith("3.")
@@ -386,17 +445,38 @@ def cmd_info(args) -> int:
     if fmi3:  # FMI 3.0 has no input derivatives, and adds events
         caps = caps[:3] + ("maxOutputDerivativeOrder", "hasEventMode", "mightReturnEarlyFromDoStep",
                            "providesIntermediateUpdate")
+    if md.fmiVersion == "1.0":  # no FMU state; an execution tool for CoSimulation_Tool
+        caps = ("canHandleVariableCommunicationStepSize", "canInterpolateInputs", "maxOutputDerivativeOrder",
+                "canRunAsynchronuously", "needsExecutionTool")
+    if cs is None:  # Model Exchange only: what the master's wrapper reads
+        cs = md.modelExchange
+        caps = ("canGetAndSetFMUstate", "canSerializeFMUstate", "needsCompletedIntegratorStep")
     for cap in caps:
         print(f"  {cap:<40} {_flag(getattr(cs, cap, None))}")
+    if md.modelExchange is not None:
+        print(f"  {'continuous states (Model Exchange)':<40} {len(md.derivatives)}")
+        print(f"  {'event indicators (Model Exchange)':<40} {md.numberOfEventIndicators or 0}")
+    negated = fmi1_details(md).negated
     rows = [("name", "causality", "variability", "type", "unit", "start", "min", "max", "description")]
     for v in md.modelVariables:
-        rows.append((v.name, v.causality or "-", v.variability or "-", type_name(md, v), var_unit(v) or "-",
-                     _flag(v.start), _flag(v.min), _flag(v.max), v.description or ""))
+        kind = type_name(md, v) + (f"[{shape_text(v.shape)}]" if v.shape else "")  # an FMI 3.0 array: its shape
+        start = " ".join(v.start) if isinstance(v.start, list) else v.start
+        alias = "" if v.alias is None or md.fmiVersion != "1.0" else (
+            f"(negated alias of {v.alias.name}) " if v.name in negated else f"(alias of {v.alias.name}) ")
+        rows.append((v.name, v.causality or "-", v.variability or "-", kind, var_unit(v) or "-",
+                     _flag(start), _flag(v.min), _flag(v.max), alias + (v.description or "")))
     widths = [max(len(r[k]) for r in rows) for k in range(len(rows[0]) - 1)]
     print(f"variables ({len(md.modelVariables)}):")
     for r in rows:
         print("  " + "  ".join(c.ljust(w) for c, w in zip(r, widths)) + "  " + r[-1])
     print(f"event indicators: {', '.join(indicators) if indicators else 'none'}")
+    from .scene.fmu import experiment_times, instance_name
+
+    times, step = experiment_times(md, path)
+    tol = getattr(md.defaultExperiment, "tolerance", None) if md.defaultExperiment is not None else None
+    print(f"clockwork run {path.name}: instance {instance_name(md)}, start {times['start']:g} s, "
+          f"stop {times['stop']:g} s, step {step:g} s, tolerance {tol if tol not in (None, '') else '-'} "
+          "(the DefaultExperiment, else fmpy's defaults)")
     return 0
 
 

@@ -21,15 +21,22 @@ from __future__ import annotations
 
 
 class ClockworkError(Exception):
-    """Base class; str() is a single line."""
+    """Base class of every error clockwork raises on purpose; str() is a
+    single line, meant for the user as it is."""
 
 
 class SceneError(ClockworkError):
-    """A scene file (or a --set override) that is malformed or inconsistent.
+    """A scene file (or a --set override) that is malformed or inconsistent,
+    and a bad setting or FMU in the Python API (``MasterSettings(step=0)``, a
+    missing FMU file): bad input, exit code 2 on the command line.
 
-    `path` is the scene file, `key` the dotted key (e.g.
-    `components.pendulum.parameters.L`, `connections[2]`, `--set pendulum.L`)
-    and `detail` what was wrong or expected. str() joins them into one line.
+    str() joins `path`, `key` and `detail` into one line.
+
+    Attributes:
+        path: The scene (or SSP, FMU) file, or None.
+        key: The dotted key (e.g. ``components.pendulum.parameters.L``,
+            ``connections[2]``, ``--set pendulum.L``, ``master.step``), or None.
+        detail: What was wrong or expected.
     """
 
     def __init__(self, detail: str, path: object = None, key: str | None = None):
@@ -41,7 +48,11 @@ class SceneError(ClockworkError):
 
 
 class UsageError(ClockworkError):
-    """Bad command-line usage or an unusable output directory."""
+    """Bad use of the command line or of the Python API, or an unusable
+    output directory: an unknown instance or variable (named, with the
+    nearest name), an output neither connected nor recorded, a stop time
+    that is not finite or lies in the past. Bad input, exit code 2 on the
+    command line."""
 
     def __init__(self, message: str):
         super().__init__(_one_line(message))
@@ -52,9 +63,15 @@ class ClosedError(UsageError):
 
 
 class SimulationError(ClockworkError):
-    """A run that failed (an FMU returned an error, a step did not converge...).
+    """A run that failed (an FMU returned an error, a step did not converge,
+    an output became NaN, infinite or diverged): exit code 1 on the command
+    line. str() starts with the time, instance and variable where known.
 
-    `time` (s), `instance` and `variable` locate the failure when known.
+    Attributes:
+        message: What failed (an FMU's error with the FMU's own message).
+        time: The communication point where it failed, s, or None.
+        instance: The instance that failed, or None.
+        variable: The variable, or None.
     """
 
     def __init__(self, message: str, time: float | None = None,

@@ -31,7 +31,7 @@ def _variable(kind: str, name: str, vr: int, causality: str, variability: str, e
     return f"    <{kind} {attrs}{start}/>"
 
 
-# Array variables (FMI 3.0 <Dimension>), which the master refuses at load.
+# Array variables (FMI 3.0 <Dimension>) of four types, for the description tests (the C code serves none of them).
 ARRAYS = ("a_Float64", "a_Int8", "a_Boolean", "a_String")
 _ARRAY_ROWS = """    <Float64 name="a_Float64" valueReference="100" causality="output" variability="continuous">
       <Dimension start="3"/></Float64>

@@ -60,7 +60,7 @@ def _tiny(run_tool=B.RUN_TOOL, peers=("ecos",)):
         chaos_t_end=10.0, chaos_transient=2.0,
         chaos_families=(B.Family("GS, ZOH, events located (default)", {}, B.grid([2e-3], [1e-10])),),
         chaos_scipy_rtols=(), chaos_peer_tools=(), chaos_peer_steps=(), repeats=1, targets=False,
-        run_tool=run_tool, peer_timeout_s=120.0)
+        run_tool=run_tool, peer_timeout_s=120.0, me_ticks=5, me_rtols=(1e-8,), me_solvers=("dop853", "cvode"))
 
 
 def test_bench_plumbing_on_a_tiny_configuration(tmp_path):
@@ -73,7 +73,11 @@ def test_bench_plumbing_on_a_tiny_configuration(tmp_path):
         assert reader.fieldnames == B.CSV_FIELDS
         rows = list(reader)
     problems = {r["problem"] for r in rows}
-    assert problems == {"fig4a_5deg", "hoyng", "chaos_rate", "chaos_a2rms", "chaos_lambda2"}
+    assert problems == {"fig4a_5deg", "hoyng", "chaos_rate", "chaos_a2rms", "chaos_lambda2", "model_exchange"}
+    # The Model Exchange pendulum: clockwork's wrapper beside fmpy's own CVode loop on the same FMU.
+    me_rows = {r["family"]: r for r in rows if r["problem"] == "model_exchange"}
+    assert me_rows["fmpy Model Exchange, CVode"]["status"] == "ok"
+    assert float(me_rows["clockwork Model Exchange, DOP853"]["error"]) < 1e-6
     mine = [r for r in rows if r["tool"] in ("clockwork", "scipy")]
     for r in mine:
         assert r["status"] == "ok", r

@@ -120,12 +120,11 @@ def test_a_failure_at_every_step_keeps_old_or_new(tmp_path, monkeypatch, persist
     assert outcomes == {"old", "new"}
 
 
-_KILLER = textwrap.dedent("""
-    import json, os, signal, sys
-    sys.path.insert(0, {root!r}); sys.path.insert(0, {tests!r})
-    from test_commit import NEW, STEP_CALLS, _stage
-    from clockwork.results.outdir import OutputDir
-    k = int(sys.argv[2]); n = [0]
+def kill_at(k: int) -> None:
+    """From now on, SIGKILL this process at its k-th file-system call of
+    STEP_CALLS (for the killer scripts, here and in test_failed_runs.py)."""
+    n = [0]
+
     def wrap(real):
         def call(*a, **kw):
             n[0] += 1
@@ -133,10 +132,19 @@ _KILLER = textwrap.dedent("""
                 os.kill(os.getpid(), signal.SIGKILL)
             return real(*a, **kw)
         return call
+
+    for name in STEP_CALLS:
+        setattr(os, name, wrap(getattr(os, name)))
+
+
+_KILLER = textwrap.dedent("""
+    import sys
+    sys.path.insert(0, {root!r}); sys.path.insert(0, {tests!r})
+    from test_commit import NEW, _stage, kill_at
+    from clockwork.results.outdir import OutputDir
     with OutputDir(sys.argv[1]) as out:
         _stage(out, NEW, "new")
-        for name in STEP_CALLS:
-            setattr(os, name, wrap(getattr(os, name)))
+        kill_at(int(sys.argv[2]))
         out.commit()
 """)
 

@@ -17,7 +17,7 @@ from clockwork.engine import MasterSettings, System
 from clockwork.engine.fmu import direct_feedthrough
 from clockwork.engine.names import instance_name_problem, split_ref
 from clockwork.engine.wiring import Link, parse_link
-from clockwork.errors import SceneError
+from clockwork.errors import SceneError, SimulationError
 from clockwork.run.catalog import load_scene as load_with_kinds
 from clockwork.scene import load_scene
 from clockwork.scene.units import link_conversion
@@ -204,8 +204,9 @@ def test_outputs_on_states_close_no_algebraic_loop(engine):
             runs.append((s.value("a", "x"), s.value("b", "x"), s.master.stats))
     assert runs[0] == runs[1]
     assert runs[0][1] > 1.0  # b integrates 1 + its own state
-    # Through feedthrough outputs it is a loop, and refused.
-    with pytest.raises(SceneError, match="algebraic loop"):
+    # Through feedthrough outputs it is an algebraic loop (tests/test_loops.py),
+    # here one without a solution (y = p + u both ways, p = 1): the run fails.
+    with pytest.raises(SimulationError, match=r"t = 0\.0 s: algebraic loop a -> b -> a did not converge"):
         System({"a": _types(), "b": _types()}, ["a.y_real -> b.u_real", "b.y_real -> a.u_real"],
                MasterSettings(step=0.1, engine=engine))
 
@@ -442,7 +443,10 @@ def test_int32_and_boolean_links_into_and_out_of_an_fmi3_fmu(capsys, tmp_path, e
 def test_a_discard_that_is_no_end_fails_with_the_fmus_message(capsys, tmp_path, engine, extra, needle):
     rc, out, err = _run(capsys, tmp_path, _scene(tmp_path, STAIR_SCENE), *extra, engine=engine)
     assert_one_line_error(rc, err, "discarded", needle, code=1)
-    assert not (out / "timeseries.csv").exists()
+    # A failed run keeps its history: the series until the last good point, and a summary that says so.
+    failed = json.loads((out / "summary.json").read_text())["result"]["failed"]
+    assert failed["instance"] == "s" and failed["time_s"] == failed["last_point_s"] == 2.5 and needle in failed["message"]
+    assert _csv(out)["time"][-1] == "2.5"
 
 
 # 4. The DefaultExperiment tolerance, and master.tolerance.

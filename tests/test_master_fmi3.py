@@ -196,8 +196,8 @@ def _description_only(tmp_path, name, body, version="3.0", cs=True):
      True, "uses clocks (c)"),
     ("Scheduled", '<Float64 name="x" valueReference="1" causality="output"/>', False,
      "is a Scheduled Execution FMU"),
-    ("Arrays", '<Float64 name="a" valueReference="1" causality="output"><Dimension start="3"/></Float64>',
-     True, "has array variables (a)"),
+    ("Arrays", '<Binary name="a" valueReference="1" causality="output"><Dimension start="3"/></Binary>',
+     True, "has an array of Binary values (a)"),
 ])
 def test_unsupported_fmi3_features_are_refused_in_one_line(tmp_path, name, body, cs, feature):
     path = _description_only(tmp_path, name, body, cs=cs)

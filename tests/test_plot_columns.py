@@ -219,7 +219,7 @@ SERIES_PLOTS = [k for k, (keys, source) in PLOT_COLUMNS.items() if source == "se
 
 
 def test_the_series_plot_kinds_are_known():
-    assert set(SERIES_PLOTS) == {"time_series", "phase_portrait", "phase_space"}
+    assert set(SERIES_PLOTS) == {"time_series", "phase_portrait", "phase_space", "outputs"}
 
 
 @pytest.mark.parametrize("analysis", sorted(KIND_SCENES))
@@ -232,10 +232,11 @@ def test_a_missing_series_column_of_every_analysis_kind_is_refused_at_validation
     f, _ = _with_plot(tmp_path, analysis, {"kind": "sweep", "x": "no_such_column"})
     f.write_text(f.read_text().rsplit("[[plot]]", 1)[0])
     series = sorted(series_columns(load_scene(f)))
-    f, n = _with_plot(tmp_path, analysis, {"kind": plot_kind, "x": series[0] if series else "time",
-                                           "y": "no_such_column"})
+    plot = {"kind": plot_kind, "x": series[0] if series else "time", "y": "no_such_column"}
+    takes_x = "x" in PLOT_COLUMNS[plot_kind][0]
+    f, n = _with_plot(tmp_path, analysis, plot if takes_x else {"kind": plot_kind, "y": "no_such_column"})
     rc, _, err = run_cli(capsys, ["validate", f])
-    key = f"plot[{n}].y" if series else f"plot[{n}].x"
+    key = f"plot[{n}].y" if series or not takes_x else f"plot[{n}].x"
     if analysis == "time_series" and plot_kind != "phase_space":  # the scene's own check, with its advice
         assert_one_line_error(rc, err, str(f), key, "is not recorded", "record.outputs", code=2)
     else:

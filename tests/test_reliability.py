@@ -58,6 +58,7 @@ AXES = {
     "master.event_indicator_tolerance": [1e-12, 1e-10],
     "master.richardson_tolerance": [1e-6, 1e-5],
     "master.order": ['"jacobi"', '"gauss-seidel"'],
+    "master.algebraic_loops": ['"solve"', '"delay"'],
     "master.event_location": ["true", "false"],
     "master.richardson": ["false", "true"],
     "experiment.start": [0.0, 0.1],

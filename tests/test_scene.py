@@ -141,7 +141,8 @@ def test_defaults_record_every_output(tmp_path):
     s = load_scene(f)
     outputs = [v.name for v in s.components["p"].model_description.modelVariables if v.causality == "output"]
     assert s.record.outputs == tuple(("p", n) for n in outputs)
-    assert s.record.interval is None and s.analysis is None and s.sweep is None and s.plots == ()
+    assert s.record.interval is None and s.analysis is None and s.sweep is None
+    assert s.plots == ({"kind": "outputs", "file": "outputs.png"},)  # the default plot of a time series
     assert s.master.step == 0.01 and s.master.order == "gauss-seidel" and s.master.event_location is True
 
 

@@ -23,7 +23,7 @@ import sys
 import tomllib
 import uuid
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
+from xml.sax.saxutils import escape as html_escape, quoteattr
 
 import fmudoc
 from fmudoc import number_text as _num
@@ -41,6 +41,9 @@ VAR_KEYS = {
 # linear factor and so apply to Real unknowns only; InitialUnknowns use
 # "dependent" alone.
 DEPENDENCY_KINDS = {"dependent", "constant", "fixed", "tunable", "discrete"}
+# depends_on = "undeclared": no dependencies attribute, which FMI 2.0 and 3.0
+# read as "depends on every Known" (test FMUs that form formal loops).
+UNDECLARED = "undeclared"
 MODEL_KEYS = {
     "name", "description", "author", "version", "callbacks", "real_state",
     "uint_state", "interpolates_inputs", "max_input_order", "early_return",
@@ -205,8 +208,11 @@ def check(t: dict) -> None:
             if key in v and v["causality"] != "output" and "derivative_of" not in v:
                 raise TableError(f"{where}: {key} is for outputs and state derivatives only")
         deps = v.get("depends_on", [])
-        if not isinstance(deps, (list, dict)):
-            raise TableError(f"{where}: depends_on must be a list of inputs or a table input = kind")
+        if deps == UNDECLARED:
+            deps = []
+        elif not isinstance(deps, (list, dict)):
+            raise TableError(f"{where}: depends_on must be a list of inputs, a table input = kind "
+                             f"or {UNDECLARED!r}")
         for dep in deps:
             # Knowns of an output at a communication point: inputs and states (FMI 2.0, 3.3.2).
             if dep not in inputs and dep not in states:
@@ -414,9 +420,11 @@ def _unit_and_range_attrs(v: dict) -> list[str]:
     return attrs
 
 
-def _unknown_xml(index: dict, v: dict, kinds: dict) -> str:
+def _unknown_xml(index: dict, v: dict, kinds) -> str:
     """An <Unknown> with its dependencies in ScalarVariable index order, as
-    FMI 2.0 requires."""
+    FMI 2.0 requires (none given: UNDECLARED)."""
+    if kinds == UNDECLARED:
+        return f'      <Unknown index="{index[v["name"]]}"/>'
     deps = sorted((index[name], kind) for name, kind in kinds.items())
     if not deps:
         return f'      <Unknown index="{index[v["name"]]}" dependencies=""/>'
@@ -508,7 +516,7 @@ def generate_xml(t: dict, sources: list[str]) -> str:
         x.append("    <Outputs>")
         for v in outputs:
             deps = v.get("depends_on", [])
-            kinds = deps if isinstance(deps, dict) else dict.fromkeys(deps, "dependent")
+            kinds = deps if isinstance(deps, dict) or deps == UNDECLARED else dict.fromkeys(deps, "dependent")
             x.append(_unknown_xml(index, v, kinds))
         x.append("    </Outputs>")
     if derivatives:
@@ -532,9 +540,11 @@ def generate_xml(t: dict, sources: list[str]) -> str:
     return "\n".join(x) + "\n"
 
 
-def _dependencies3(kinds: dict, vr_of: dict) -> str:
+def _dependencies3(kinds, vr_of: dict) -> str:
     """dependencies (value references, ascending) and dependenciesKind
-    attributes of an FMI 3.0 unknown."""
+    attributes of an FMI 3.0 unknown (none given: UNDECLARED)."""
+    if kinds == UNDECLARED:
+        return ""
     deps = sorted((vr_of[name], kind) for name, kind in kinds.items())
     if not deps:
         return 'dependencies=""'
@@ -627,8 +637,8 @@ def generate_xml3(t: dict) -> str:
     # elements do not apply): they are listed in the annotation below.
     for v in outputs:
         deps = v.get("depends_on", [])
-        kinds = deps if isinstance(deps, dict) else dict.fromkeys(deps, "dependent")
-        x.append(f'    <Output valueReference="{v["vr"]}" {_dependencies3(kinds, vr_of)}/>')
+        kinds = deps if isinstance(deps, dict) or deps == UNDECLARED else dict.fromkeys(deps, "dependent")
+        x.append(f'    <Output valueReference="{v["vr"]}" {_dependencies3(kinds, vr_of)}'.rstrip() + "/>")
     for v in outputs:
         if "initial_depends_on" in v:
             deps = _dependencies3(dict.fromkeys(v["initial_depends_on"], "dependent"), vr_of)
@@ -642,6 +652,129 @@ def generate_xml3(t: dict) -> str:
         x += [f"        <Indicator name={quoteattr(n)}/>" for n in indicators]
         x += ["      </EventIndicators>", "    </Annotation>", "  </Annotations>"]
     x.append("</fmiModelDescription>")
+    return "\n".join(x) + "\n"
+
+
+# FMI 1.0's variability of the table's parameters (its parameters are fixed
+# after fmiInitializeSlave) and causality of its locals.
+FMI1_VARIABILITY = {"fixed": "parameter", "tunable": "parameter", "discrete": "discrete",
+                    "continuous": "continuous"}
+FMI1_CAUSALITY = {"parameter": "internal", "input": "input", "output": "output", "local": "internal"}
+
+
+def _unit_definitions1(units: dict) -> list[str]:
+    """FMI 1.0's <UnitDefinitions>: units by name with their display units
+    (gain and offset), without FMI 2.0's base-unit exponents."""
+    if not units:
+        return []
+    x = ["  <UnitDefinitions>"]
+    for name, spec in units.items():
+        display = spec.get("display", {})
+        if not display:
+            x.append(f"    <BaseUnit unit={quoteattr(name)}/>")
+            continue
+        x.append(f"    <BaseUnit unit={quoteattr(name)}>")
+        for dname, d in display.items():
+            x.append(f"      <DisplayUnitDefinition displayUnit={quoteattr(dname)} "
+                     f'gain="{_num(d.get("factor", 1.0))}" offset="{_num(d.get("offset", 0.0))}"/>')
+        x.append("    </BaseUnit>")
+    return x + ["  </UnitDefinitions>"]
+
+
+def generate_xml1(t: dict) -> str:
+    """The FMI 1.0 Co-Simulation modelDescription.xml (the runtime's fmi1
+    face, cw_fmi1.c): the same variables in FMI 1.0's terms. Parameters have
+    variability "parameter"; an output's DirectDependency lists the inputs
+    it depends on (its states are not inputs); there is no FMU state, no
+    tolerance and no log categories; event indicators are named in the
+    clockwork VendorAnnotation's Annotation elements. An output whose
+    dependencies are undeclared has no DirectDependency: it depends on
+    every input."""
+    m = t["model"]
+    variables = sorted(t["variable"], key=lambda v: v["vr"])
+    inputs = {v["name"] for v in variables if v["causality"] == "input"}
+    max_order = max([int(v.get("derivatives", 0)) for v in variables] + [0])
+    has_inputs = bool(inputs)
+    exp = t.get("experiment", {})
+    about = [a for a in _about_attrs(m) if not a.lstrip().startswith(("copyright=", "license="))]
+    x = [
+        '<?xml version="1.0" encoding="UTF-8"?>',
+        "<fmiModelDescription",
+        '  fmiVersion="1.0"',
+        f"  modelName={quoteattr(m['name'])}",
+        f"  modelIdentifier={quoteattr(m['name'])}",
+        f'  guid="{t["_guid"]}"',
+        *about,
+        '  variableNamingConvention="structured"',
+        '  numberOfContinuousStates="0"',
+        '  numberOfEventIndicators="0">',
+    ]
+    x += _unit_definitions1(t.get("units", {}))
+    used_types = sorted({v["declared_type"] for v in variables if "declared_type" in v})
+    if used_types:
+        x.append("  <TypeDefinitions>")
+        for name in used_types:
+            x += [f"    <Type name={quoteattr(name)}>", "      <EnumerationType>"]
+            x += [f"        <Item name={quoteattr(item)}/>" for item in t["types"][name]["items"]]
+            x += ["      </EnumerationType>", "    </Type>"]
+        x.append("  </TypeDefinitions>")
+    x.append(f'  <DefaultExperiment startTime="{_num(exp.get("start", 0.0))}" '
+             f'stopTime="{_num(exp.get("stop", 10.0))}"'
+             + (f' tolerance="{_num(exp["tolerance"])}"' if "tolerance" in exp else "") + "/>")
+    indicators = [v["name"] for v in variables if v.get("event_indicator")]
+    if indicators:
+        x += ["  <VendorAnnotations>", '    <Tool name="clockwork">']
+        x += [f'      <Annotation name="eventIndicator" value={quoteattr(n)}/>' for n in indicators]
+        x += ["    </Tool>", "  </VendorAnnotations>"]
+    x.append("  <ModelVariables>")
+    for v in variables:
+        attrs = [f"name={quoteattr(v['name'])}", f'valueReference="{v["vr"]}"',
+                 f"description={quoteattr(v['description'])}",
+                 f'variability="{FMI1_VARIABILITY[v["variability"]]}"',
+                 f'causality="{FMI1_CAUSALITY[v["causality"]]}"']
+        tattrs = []
+        if "declared_type" in v:
+            tattrs.append(f"declaredType={quoteattr(v['declared_type'])}")
+        tattrs += _unit_and_range_attrs(v)
+        if v["causality"] in ("parameter", "input"):
+            start = v["start"]
+            if v["type"] == "String":
+                tattrs.append(f"start={quoteattr(start)}")
+            elif v["type"] == "Boolean":
+                tattrs.append(f'start="{"true" if start else "false"}"')
+            else:
+                tattrs.append(f'start="{_num(start)}"')
+            tattrs.append('fixed="true"')
+        element = f"      <{v['type']} {' '.join(tattrs)}/>".replace("  />", " />").replace(" />", "/>")
+        x.append(f"    <ScalarVariable {' '.join(attrs)}>")
+        x.append(element)
+        if v["causality"] == "output" and v.get("depends_on") != UNDECLARED:  # none: every input
+            deps = [d for d in v.get("depends_on", []) if d in inputs]
+            if deps:
+                x.append("      <DirectDependency>")
+                x += [f"        <Name>{html_escape(d)}</Name>" for d in sorted(deps)]
+                x.append("      </DirectDependency>")
+            else:
+                x.append("      <DirectDependency/>")
+        x.append("    </ScalarVariable>")
+    x.append("  </ModelVariables>")
+    x += [
+        "  <Implementation>",
+        "    <CoSimulation_StandAlone>",
+        "      <Capabilities",
+        '        canHandleVariableCommunicationStepSize="true"',
+        '        canHandleEvents="true"',
+        '        canRejectSteps="false"',
+        f'        canInterpolateInputs="{"true" if m.get("interpolates_inputs", has_inputs) else "false"}"',
+        f'        maxOutputDerivativeOrder="{max_order}"',
+        '        canRunAsynchronuously="false"',
+        '        canSignalEvents="false"',
+        '        canBeInstantiatedOnlyOncePerProcess="false"',
+        '        canNotUseMemoryManagementFunctions="false"/>',
+        "    </CoSimulation_StandAlone>",
+        "  </Implementation>",
+        "</fmiModelDescription>",
+    ]
     return "\n".join(x) + "\n"
 
 
@@ -667,6 +800,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="the FMI 3.0 build's C sources (default: --sources with cw_fmi3.c for cw_fmi2.c)")
     ap.add_argument("--fmi2-only", action="store_true",
                     help="write no FMI 3.0 files (e.g. a test model whose C code calls FMI 2.0's logger)")
+    ap.add_argument("--fmi1", action="store_true",
+                    help="also write the FMI 1.0 Co-Simulation build's fmi1/modelDescription.xml (test FMUs)")
     a = ap.parse_args(argv)
     sources3 = a.sources3 if a.sources3 is not None else [
         "cw_fmi3.c" if s == "cw_fmi2.c" else s for s in a.sources]
@@ -685,6 +820,8 @@ def main(argv: list[str] | None = None) -> int:
                 ("fmi3/buildDescription.xml", generate_build_description(t3, sources3)),
                 ("fmi3/documentation/index.html", fmudoc.generate_html(t3, t["_references"], fmi_version=3)),
             ]
+        if a.fmi1:
+            files.append(("fmi1/modelDescription.xml", generate_xml1(t)))
     except TableError as e:
         print(f"fmugen: {e}", file=sys.stderr)
         return 2

@@ -3,7 +3,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
-"$PY" -m pip install --quiet --disable-pip-version-check -e ".[test,interop]"
+"$PY" -m pip install --quiet --disable-pip-version-check -e ".[test,interop,docs]"
 # Bytecode, as pip writes it for an installed wheel: an editable install
 # leaves it to the first import, which never writes it where
 # PYTHONDONTWRITEBYTECODE is set, and every start-up then compiles the package.

@@ -150,9 +150,10 @@ def build_system(scene, point: dict | None = None, record: dict[str, list[str]] 
     idle = _idle.get()
     system = None
     if idle is not None:
-        key = (tuple((n, str(c.fmu_path), c.sha256) for n, c in scene.components.items()),
+        key = (tuple((n, str(c.fmu_path), c.sha256, c.interface) for n, c in scene.components.items()),
                tuple(scene.connections), repr(settings), start,
-               tuple(sorted((k, tuple(v)) for k, v in (record or {}).items())))
+               tuple(sorted((k, tuple(v)) for k, v in (record or {}).items())),
+               id(scene.inputs.samples) if scene.inputs is not None else None)
         system = idle.take(key)
         if system is not None:
             try:
@@ -164,7 +165,10 @@ def build_system(scene, point: dict | None = None, record: dict[str, list[str]] 
         components = {n: (str(c.fmu_path), params[n]) for n, c in scene.components.items()}
         mds = {n: c.model_description for n, c in scene.components.items()}
         system = System(components, [tuple(c) for c in scene.connections], settings,
-                        record=record, start_time=start, model_descriptions=mds)
+                        record=record, start_time=start, model_descriptions=mds,
+                        interfaces={n: c.interface for n, c in scene.components.items()},
+                        inputs=scene.inputs.samples if scene.inputs is not None else None,
+                        labels={n: c.fmu_label for n, c in scene.components.items() if c.fmu_label})
     if idle is not None:
         system.release = lambda s: idle.keep(key, s)
     return system

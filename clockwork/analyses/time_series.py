@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from ..engine.recording import Recorder
+from ..errors import SimulationError
 from .context import build_system, experiment, find_component, parameters
 from .registry import register
 
@@ -53,7 +54,13 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
         m = system.master
         recorder = Recorder(m, outputs, scene.record.interval, tick_inst)
         recorder.start()
-        run_with_progress(m, stop, recorder, progress, label=scene.path.stem)
+        try:
+            run_with_progress(m, stop, recorder, progress, label=scene.path.stem)
+        except SimulationError as e:
+            # A failed run keeps its history: what was recorded until the
+            # last good communication point goes with the error (run.points).
+            keep_history(e, "ticks" if ticks_only else "time_series", recorder, m, outputs, tick_inst)
+            raise
         stats = vars(m.stats).copy()
         stall = _stall_check(scene, point, system) if m.ended is None else None
         ended, t_end = m.ended, m.t
@@ -85,6 +92,22 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
     return out
 
 
+def keep_history(e: SimulationError, kind: str, recorder: Recorder, master, outputs, tick_inst) -> None:
+    """Give a failed run's error what the run recorded (``e.history``: the
+    data of a result without its "result", the series up to the last good
+    communication point) and where it stopped (``e.last_point``, s)."""
+    last = getattr(e, "last_point", None)
+    if last is None:  # a failed step (or call) leaves the master at its last good point
+        last = master.t
+    e.last_point = last
+    history: dict = {"kind": kind, "statistics": vars(master.stats).copy(), "engine": master.engine}
+    if outputs:
+        history["series"] = recorder.columns
+    if tick_inst:
+        history["ticks"] = recorder.ticks
+    e.history = history
+
+
 def run_with_progress(master, stop: float, on_point, progress: bool, label: str) -> None:
     from tqdm import tqdm
 
@@ -92,13 +115,15 @@ def run_with_progress(master, stop: float, on_point, progress: bool, label: str)
     with tqdm(total=span, disable=not progress, delay=1.0, desc=label, unit="s sim",
               bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]") as bar:
         step = master.settings.step
-        # Chunks are whole multiples of the step so that the grid is kept.
-        chunk = step * max(1, round(span / 200.0 / step))
+        # Chunks end on grid points, computed as run_until computes them
+        # (start + k * step): an end an ulp short of one would cut a step there.
+        per_chunk = max(1, round(span / 200.0 / step))
+        origin = master.start_time
+        k = math.floor((master.t - origin) / step + 1e-9)
         t0 = master.t
-        n = 0
         while master.t < stop - 1e-12 * max(1.0, abs(stop)) and master.ended is None:
-            n += 1
-            master.run_until(min(stop, t0 + n * chunk), on_point)
+            k += per_chunk
+            master.run_until(min(stop, origin + k * step), on_point)
             bar.update(master.t - t0 - bar.n)
 
 

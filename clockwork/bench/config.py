@@ -94,6 +94,10 @@ class BenchConfig:
     chaos_scipy_rtols: tuple = (1e-8, 1e-10)
     chaos_peer_tools: tuple = ("fmpy", "libcosim", "ecos")
     chaos_peer_steps: tuple = (2e-3, 1e-3)
+    model_exchange: bool = True  # the pendulum as a Model Exchange FMU (bench/exchange.py)
+    me_ticks: int = 50
+    me_rtols: tuple = (1e-6, 1e-8, 1e-10)
+    me_solvers: tuple = ("dop853", "dp54", "cvode")
     repeats: int = 3  # timing repeats of runs shorter than repeat_below_s
     repeat_below_s: float = 2.0
     targets: bool = True  # whole-process and long-run targets (fig4a run, bench_master, Hoyng Fig. 6)
@@ -182,7 +186,7 @@ def quick_config() -> BenchConfig:
         peer_points=("fig4a_5deg",), hoyng_families=_hoyng_families(True), hoyng_scipy_rtols=(1e-8,),
         chaos_t_end=100.0, chaos_transient=20.0, chaos_families=_chaos_families(True), chaos_scipy_rtols=(),
         chaos_peer_tools=("ecos",), chaos_peer_steps=(2e-3,), repeats=1, targets=False,
-        peer_timeout_s=300.0,
+        peer_timeout_s=300.0, me_ticks=20, me_rtols=(1e-6, 1e-10),
     )
 
 

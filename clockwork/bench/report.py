@@ -19,6 +19,7 @@ PROBLEM_TITLES = {
     "chaos_rate": ("Chaotic clock (Z Sec. VIII): mean-rate error", "s/day"),
     "chaos_a2rms": ("Chaotic clock (Z Sec. VIII): a2 rms error", "relative"),
     "chaos_lambda2": ("Chaotic clock (Z Sec. VIII): lambda2 error (twin runs)", "1/s"),
+    "model_exchange": ("Free pendulum as a Model Exchange FMU: time error of tick N", "s"),
 }
 
 
@@ -137,6 +138,10 @@ def write_markdown(path: Path, cfg: BenchConfig, rows: list[Row], checks: list[d
               f"twins (1e-6 deg apart, fitted over [0, {ch['t_end_s']:g}] s): "
               f"{ch['lambda2_reference_per_s']:.4g} 1/s; the lambda2 rows run the twin too and are not "
               f"measured for the peers.", ""]
+    if info.get("model_exchange"):
+        mx = info["model_exchange"]
+        L += [f"Model Exchange reference: tick {mx['ticks']} of the free pendulum (6 deg, Q = 1000) at "
+              f"{mx['tick_s']!r} s (scipy DOP853, rtol 1e-13, the crossing located); the FMU is {mx['fmu']}.", ""]
     if targets:
         L += ["## Targets", ""]
         L += _targets_md(targets)

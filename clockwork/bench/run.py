@@ -20,7 +20,10 @@ Problems and their errors:
   phi0 = 0.03, start on the stationary swing of Eq. 19);
 - ``chaos``: errors of long-time statistics of the two-oscillator clock of
   Ziemkiewicz Sec. VIII (mean rate in s/day, rms of a2 relative), since
-  trajectories part after a few Lyapunov times.
+  trajectories part after a few Lyapunov times;
+- ``model_exchange``: the time of the 50th tick (s) of the free pendulum as
+  a Model Exchange FMU (clockwork's wrapper with each solver, fmpy's CVode)
+  and as the Co-Simulation Pendulum (bench/exchange.py).
 
 Rows: master configurations (MasterSettings: Gauss-Seidel/Jacobi, input
 extrapolation, event location, iterative coupling, Richardson; damping in
@@ -54,6 +57,7 @@ from .checks import reference_checks
 from .problems import steady_point
 from .masters import build_time
 from .peers import PeerRunner
+from .exchange import bench_model_exchange
 from .suites import bench_chaos, bench_hoyng, bench_steady
 from .targets import summarize_targets, target_bench_master, target_fig4a, target_fig6
 from .report import plot_work_precision, write_csv, write_markdown
@@ -116,6 +120,10 @@ def run_bench(out: Path, cfg: BenchConfig | None = None, progress: bool = True, 
         if cfg.chaos:
             log("chaotic clock ...")
             r, info["chaos"] = bench_chaos(cfg, peers, log)
+            rows += r
+        if cfg.model_exchange:
+            log("the pendulum as a Model Exchange FMU ...")
+            r, info["model_exchange"] = bench_model_exchange(cfg, log)
             rows += r
         if cfg.targets:
             log("targets: fig4a run, bench_master, Hoyng Fig. 6 ...")

@@ -20,6 +20,15 @@ class Checkpoints:
         self.snapshot: tuple | None = None  # the soft state at the checkpoint
         self.since: list[float] = []  # steps taken since the checkpoint, s
 
+    @property
+    def held(self) -> bool:
+        """Whether a saved state is held that a rollback or a replay may
+        set again. Every fmi2DoStep/fmi3DoStep says so to the FMUs: its
+        noSetFMUStatePriorToCurrentPoint is true only while none is held
+        (cw_master.c: !snap_valid), so that an FMU may drop its history
+        wherever the master will not go back."""
+        return self.snapshot is not None
+
     def reset(self) -> None:
         self.snapshot = None
         self.since = []

@@ -4,7 +4,8 @@
 src_c/master/cw_master.c, a line-for-line twin of master.py with
 coupling.py, location.py, checkpoints.py and recording.py. It calls each
 FMU's fmi2 functions through the pointers of the library fmpy loaded, so
-it steps any FMI 2.0 Co-Simulation FMU. Loading, initialization, the
+it steps any FMI 2.0 Co-Simulation FMU, and FMI 1.0 and 3.0 ones through
+the core's adapters (cw1_*, cw3_*) with the same fmi2 shape. Loading, initialization, the
 wiring and everything a scene or an analysis asks for stay in Python: the
 core gets the ports' preallocated arrays and runs as many steps as it can
 before Python is needed again (the stop time, a full recording buffer, an
@@ -20,16 +21,20 @@ from __future__ import annotations
 
 import ctypes
 import threading
+from array import array
 from ctypes import POINTER, Structure, byref, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
 
 from ..errors import SceneError, SimulationError
 from ..paths import core_library
 from .fmu import Instance
+from .fmu1 import _Fmi1
 from .fmu3 import _Events
 from .master import Master
+from .model_exchange import _ME
 from .ports import link_type
 from .recording import Recorder, _DiscreteOutput
-from .settings import MasterSettings, Statistics
+from .samples import Samples
+from .settings import MasterSettings, Statistics, with_model_exchange
 from .wiring import Link
 
 HISTORY = 3  # input history for divided differences (HISTORY in cw_master.c)
@@ -37,7 +42,7 @@ ROWS_PER_CALL = 4096  # recording buffer, rows
 MAX_SINCE = 256  # steps kept since a checkpoint (the master forces one after 64)
 
 _DONE, _BUFFER_FULL, _CHECK_DIVERGENCE, _WATCHED, _ENDED, _SLICE_OVER = 0, 1, 2, 3, 4, 5
-_ERR_FMI, _ERR_NO_CHECKPOINT, _ERR_REPLAY, _ERR_LOCATE, _ERR_CAPACITY = -1, -2, -3, -4, -5
+_ERR_FMI, _ERR_NO_CHECKPOINT, _ERR_REPLAY, _ERR_LOCATE, _ERR_CAPACITY, _ERR_LOOP = -1, -2, -3, -4, -5, -6
 _CALLS = ["fmi2DoStep", "fmi2GetReal", "fmi2SetReal of inputs", "fmi2SetRealInputDerivatives",
           "fmi2GetFMUstate", "fmi2SetFMUstate"]
 
@@ -87,13 +92,33 @@ class _Master(_Strict):
         ["pred_kind", "pred_u", "pred_du", "pred_ddu", "last_z"],  # prediction (EventLocator.sample, .plan)
         ["sampled_t", "sampled_before_t", "last_t"], ["predicted_landings", "mispredicted"],
         ["predicting", "last_valid"]
-    ) + _fields([], ["iteration_tolerance"], ["coupling_iterations"], ["iterations", "pad3_"])  # strong coupling
+    ) + _fields([], ["iteration_tolerance"], ["coupling_iterations"], ["iterations", "pad3_"]) + [  # strong coupling
+        ("loops", c_void_p),  # _Loops: the algebraic loops solved in the orders
+        ("inputs", c_void_p)]  # a _Inputs: inputs driven from samples, or NULL
 
 
 class _Ticks(_Strict):
     _fields_ = _fields(["watch_port", "watch_pos", "seen", "rows"],
                        ["mark", "margin", "period", "last_tick", "prev_tick"], [],
                        ["n_watch", "capacity", "n_rows", "has_prev"])
+
+
+class _Loop(_Strict):
+    _fields_ = _fields(
+        ["members", "u_port", "u_pos", "u_src", "u_src_pos", "u_factor", "u_offset", "u_scaled", "r"],
+        ["fail_worst"], [],
+        ["n_members", "n", "fail_why", "fail_at", "fail_sweeps", "fail_newton"])
+
+
+class _Loops(_Strict):
+    _fields_ = _fields(["loop"], ["tolerance"], ["iterations", "fallbacks"], ["n_loops", "pad_"])
+
+
+class _Inputs(_Strict):
+    """The sample table and the Real inputs it drives (engine/samples.py)."""
+
+    _fields_ = _fields(["times", "values", "continuous", "events", "port_start", "vr", "signal", "value"],
+                       [], [], ["n_times", "n_signals", "n_events", "pad_"])
 
 
 class _Recorder(_Strict):
@@ -103,7 +128,7 @@ class _Recorder(_Strict):
          "tick_pos", "has_interval", "pad_"])
 
 
-for _struct in (_Port, _Master, _Recorder, _Ticks):
+for _struct in (_Port, _Master, _Recorder, _Ticks, _Loop, _Loops, _Inputs):
     _struct._names = frozenset(n for n, _ in _struct._fields_)
 
 _lib = None
@@ -123,7 +148,8 @@ def load_core():
                 _lib_error = f"the compiled core {path} cannot be loaded ({e}); build it with tools/setup.sh"
                 return None
             for name, struct in (("port", _Port), ("master", _Master), ("recorder", _Recorder), ("fmi3", _Events),
-                                 ("ticks", _Ticks)):
+                                 ("ticks", _Ticks), ("fmi1", _Fmi1), ("me", _ME), ("loop", _Loop),
+                                 ("loops", _Loops), ("inputs", _Inputs)):
                 size = getattr(lib, f"cw_sizeof_{name}")
                 size.restype = c_size_t
                 if size() != ctypes.sizeof(struct):
@@ -145,6 +171,8 @@ def load_core():
             lib.cw_run_schedule.restype = c_int
             lib.cw_discontinuity.argtypes = [POINTER(_Master)]
             lib.cw_discontinuity.restype = None
+            lib.cw_record_point.argtypes = [POINTER(_Master), POINTER(_Recorder)]
+            lib.cw_record_point.restype = None
             _lib = lib
         return _lib
 
@@ -170,20 +198,32 @@ def unsupported_links(types) -> str | None:
     return None
 
 
+def unsupported_inputs(types) -> str | None:
+    """Why the core cannot set these sampled inputs, or None. `types`:
+    ("instance.variable", FMI type) pairs; the core sets Real inputs only."""
+    for name, kind in types:
+        if kind != "Real":
+            return f"the compiled core sets sampled Real inputs only ({name} is {kind})"
+    return None
+
+
 def make_master(instances: dict[str, Instance], links: list[Link], settings: MasterSettings,
                 start_time: float = 0.0, step_order: list[str] | None = None,
-                extra_outputs: dict[str, list[str]] | None = None) -> Master:
+                extra_outputs: dict[str, list[str]] | None = None, inputs: Samples | None = None) -> Master:
     """The master that ``settings.engine`` asks for (see the module's docstring)."""
     settings.check()
     reason = None
     if settings.engine != "python":
         types = [(f"{k.src}.{k.output} -> {k.dst}.{k.input}", link_type(instances, k)) for k in links]
-        reason = unsupported(settings) or unsupported_links(types) or core_problem()
+        sampled = [] if inputs is None else [
+            (s.name, instances[s.instance].variables[s.variable].type) for s in inputs.signals
+            if s.instance in instances and s.variable in instances[s.instance].variables]
+        reason = unsupported(settings) or unsupported_links(types) or unsupported_inputs(sampled) or core_problem()
         if reason is None:
-            return CompiledMaster(instances, links, settings, start_time, step_order, extra_outputs)
+            return CompiledMaster(instances, links, settings, start_time, step_order, extra_outputs, inputs)
         if settings.engine == "compiled":
             raise SceneError(f"master.engine = 'compiled': {reason} (use 'auto' or 'python')")
-    master = Master(instances, links, settings, start_time, step_order, extra_outputs)
+    master = Master(instances, links, settings, start_time, step_order, extra_outputs, inputs)
     master.engine_reason = reason
     return master
 
@@ -219,9 +259,10 @@ class CompiledMaster(Master):
     # between calls). 0 returns every 16 steps (the tests compare the bits).
     slice_s = 0.05
 
-    def __init__(self, instances, links, settings, start_time=0.0, step_order=None, extra_outputs=None):
+    def __init__(self, instances, links, settings, start_time=0.0, step_order=None, extra_outputs=None,
+                 inputs=None):
         self._lib = load_core()
-        super().__init__(instances, links, settings, start_time, step_order, extra_outputs)
+        super().__init__(instances, links, settings, start_time, step_order, extra_outputs, inputs)
         self._build()
 
     # The master's state lives in the C struct; before it exists (inside
@@ -249,8 +290,11 @@ class CompiledMaster(Master):
 
     @property
     def stats(self) -> Statistics:
-        c = self._core
-        return Statistics(**{name: getattr(c, name) for name in _CORE_STATS})
+        c, lc = self._core, self._loops
+        return with_model_exchange(
+            Statistics(**{name: getattr(c, name) for name in _CORE_STATS},
+                       loop_iterations=lc.iterations, loop_fallbacks=lc.fallbacks),
+            self._model_exchange)
 
     @stats.setter
     def stats(self, value: Statistics) -> None:
@@ -258,6 +302,11 @@ class CompiledMaster(Master):
         if core is not None:
             for name in _CORE_STATS:
                 setattr(core, name, getattr(value, name))
+            self._loops.iterations, self._loops.fallbacks = value.loop_iterations, value.loop_fallbacks
+
+    def count_loop(self, iterations: int, fallbacks: int) -> None:
+        self._loops.iterations += iterations
+        self._loops.fallbacks += fallbacks
 
     def _build(self) -> None:
         """Hand the ports' arrays to a C master struct (kept alive here)."""
@@ -272,10 +321,18 @@ class CompiledMaster(Master):
         cports = (_Port * len(ports.all))()
         for i, p in enumerate(ports.all):
             inst, c = p.inst, cports[i]
-            if inst.fmi_version == 3:
+            if getattr(inst, "model_exchange", False):
+                # The core's Model Exchange wrapper (cwme_*, cw_me.c) on the instance's shared state.
+                dll, prefix, names = self._lib, "cwme_", _ADAPTER_NAMES
+                c.comp = inst.core_state(self._lib)
+            elif inst.fmi_version == 3:
                 # The core's FMI 3.0 adapter (cw3_*), on the instance's shared adapter state.
                 dll, prefix, names = self._lib, "cw3_", _ADAPTER_NAMES
                 c.comp = ctypes.addressof(inst.events)
+            elif inst.fmi_version == 1:
+                # The core's FMI 1.0 adapter (cw1_*: fmiDoStep's char newStep, negated aliases).
+                dll, prefix, names = self._lib, "cw1_", _ADAPTER_NAMES
+                c.comp = ctypes.addressof(inst.adapter)
             else:
                 dll, prefix, names = inst._slave.dll, "fmi2", _FMI2_NAMES
                 c.comp = inst.component
@@ -314,11 +371,14 @@ class CompiledMaster(Master):
         nz = len(z_port)
         m = self._core = _Master()
         m.ports = ctypes.addressof(cports)
+        # An order's loop is -(its index + 1).
+        index.update({id(loop): -(i + 1) for i, loop in enumerate(ports.loops)})
         for name, count, order in (("first", "n_first", ports.first), ("dynamic", "n_dynamic", ports.dynamic),
                                    ("first_in_order", "n_first_in_order", ports.first_in_order),
                                    ("final_order", "n_final", ports.final_order)):
             setattr(m, name, ref(_array(c_int, (index[id(p)] for p in order))))
             setattr(m, count, len(order))
+        m.loops = ctypes.addressof(self._build_loops(index, ref))
         m.buffer, m.n_buffer = ctypes.addressof(ports.buffer), len(ports.buffer)
         m.z_port, m.z_pos = ref(_array(c_int, z_port)), ref(_array(c_int, z_pos))
         m.zs_port, m.zs_pos = ref(_array(c_int, (a for a, _, _ in zs))), ref(_array(c_int, (b for _, b, _ in zs)))
@@ -346,11 +406,60 @@ class CompiledMaster(Master):
         m.locating, m.has_sources = int(self._locating), int(loc.has_sources)
         m.after_event = 1
         m.max_replay_steps = Master.MAX_REPLAY_STEPS
+        if self.file_inputs is not None:
+            m.inputs = self._inputs()
         self._core_ptr = byref(m)
         self._taken = c_double()
         self._taken_ptr = byref(self._taken)
         self._watch_args = {}
         self._empty_recorder = _Recorder(grid_k=-1, tick_port=-1, capacity=1, tick_capacity=1, stride=1)
+
+    def _inputs(self) -> int:
+        """The core's table of sampled inputs (Real ones: make_master chose
+        Python for the others), as a _Inputs struct's address."""
+        fi = self.file_inputs
+        samples = fi.samples
+        n = len(samples.times)
+        values = array("d")
+        for s in samples.signals:
+            values.extend(float(x) for x in s.values)
+        starts, vrs, signals = [], [], []
+        for p in self.ports.all:
+            starts.append(len(vrs))
+            cols, vr, _ = fi.real.get(p.inst.name, ([], [], None))
+            vrs += list(vr)
+            signals += cols
+        starts.append(len(vrs))
+        ref = self._ref
+        c = _Inputs(times=ref(_array(c_double, samples.times)), values=ref(_array(c_double, values)),
+                    continuous=ref(_array(c_int, (int(s.continuous) for s in samples.signals))),
+                    events=ref(_array(c_double, samples.events)), port_start=ref(_array(c_int, starts)),
+                    vr=ref(_array(c_uint, vrs)), signal=ref(_array(c_int, signals)),
+                    value=ref(_array(c_double, [], len(vrs))),
+                    n_times=n, n_signals=len(samples.signals), n_events=len(samples.events))
+        return ref(c)
+
+    def _build_loops(self, index: dict, ref) -> _Loops:
+        """The algebraic loops for the core (those broken by a delay are never in its orders)."""
+        loops = self.ports.loops
+        cl = (_Loop * max(1, len(loops)))()
+        for c, loop in zip(cl, loops):
+            n = loop.n
+            u = loop.unknowns
+            c.members = ref(_array(c_int, (index[id(p)] for p in loop.members)))
+            c.u_port = ref(_array(c_int, (index[id(p)] for p, *_ in u)))
+            c.u_pos = ref(_array(c_int, (k for _, k, *_ in u)))
+            c.u_src = ref(_array(c_int, (index[id(src)] for _, _, src, *_ in u)))
+            c.u_src_pos = ref(_array(c_int, (x[3] for x in u)))
+            c.u_factor = ref(_array(c_double, (x[4] for x in u)))
+            c.u_offset = ref(_array(c_double, (x[5] for x in u)))
+            c.u_scaled = ref(_array(c_int, (int(x[6]) for x in u)))
+            c.r = ref(_array(c_double, [], n))  # Newton's work the core takes when it needs it
+            c.n_members, c.n = len(loop.members), n
+        self._keep.append(cl)
+        lc = self._loops = _Loops(loop=ctypes.addressof(cl), tolerance=self.settings.iteration_tolerance,
+                                  n_loops=len(loops))
+        return lc
 
     # -- the soft state, in C --------------------------------------------------
 
@@ -423,7 +532,12 @@ class CompiledMaster(Master):
                 self._drain(on_point, rec, columns)
             if rc == _DONE:
                 return
-            if rc != _BUFFER_FULL and rc != _SLICE_OVER:
+            if rc == _CHECK_DIVERGENCE:
+                # Raises for an output that is not finite or too large; else
+                # the point is legal after all and is recorded now.
+                self._handle(rc)
+                self._lib.cw_record_point(self._core_ptr, byref(rec))
+            elif rc != _BUFFER_FULL and rc != _SLICE_OVER:
                 self._handle(rc)
 
     def run_watch(self, t_stop, mark, margin, watched, remember=()):
@@ -538,7 +652,7 @@ class CompiledMaster(Master):
         """Raise the error the Python master would raise (or name a divergence)."""
         m = self._core
         if rc == _CHECK_DIVERGENCE:
-            self.ports.name_divergence(m.t, self.settings.divergence_limit)
+            self.ports.name_divergence(m.t, self.settings.divergence_limit, last_point=m.err_t)
             return
         if rc == _ENDED:
             raise self._fmi3_ended()
@@ -548,6 +662,10 @@ class CompiledMaster(Master):
                 raise self._step_failure(p, m.err_status, m.err_t, m.err_h)
             raise p.inst.fail(_CALLS[m.err_call], m.err_status, m.err_t)
         t = m.err_t
+        if rc == _ERR_LOOP:
+            c = ctypes.cast(self._loops.loop, POINTER(_Loop))[m.err_port]
+            raise self.ports.loops[m.err_port].failure(t, c.fail_why, c.fail_worst, c.fail_at, c.fail_sweeps,
+                                                       c.fail_newton)
         if rc == _ERR_NO_CHECKPOINT:
             raise SimulationError(
                 f"an event indicator changed sign at t = {t!r} s in a step without a checkpoint", time=t)

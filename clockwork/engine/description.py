@@ -2,33 +2,54 @@
 
 ``resolve_fmu`` finds an FMU by model name or path, ``read_fmu`` reads its
 model description (cached by path, modification time and size) and checks
-that it is an FMI 2.0 or 3.0 Co-Simulation FMU with a binary for this
-platform. An FMI 3.0 description is seen through FMI 2.0's type names
+that it is an FMI 1.0, 2.0 or 3.0 Co-Simulation FMU, or an FMI 2.0 or 3.0
+Model Exchange FMU, with a binary for this platform (Co-Simulation's where
+it has both). An FMI 1.0 description is completed where fmpy leaves it bare
+(``_check_fmi1``): its Capabilities go into ``coSimulation``, each output's
+DirectDependency into ``outputs`` (absent: every input), a causality of
+"none" reads as "local", and its negated aliases and MIME type are
+kept for ``fmi1_details``. An FMI 3.0 description is seen through FMI 2.0's type names
 where FMI 2.0 has the type (Float64 is "Real", Int32 "Integer"), so that
 the layers above read both alike; Float32, the other integer sizes and
 Binary keep their FMI 3.0 names (``INTEGER_TYPES``, ``REAL_TYPES``,
 ``TEXT_TYPES`` and ``types_connect`` group them); ``fmi_version`` tells
 the versions apart. FMI 3.0 features the master does
-not serve (clocks, arrays, scheduled execution only) are refused here with
+not serve (clocks, scheduled execution only) are refused here with
 one line naming the FMU and the feature.
+
+FMI 3.0 array variables (``<Dimension>``) are served element by element:
+``variables(md)`` holds, beside each array variable, one ``ArrayElement``
+per element, named as fmpy names them (``y[0]``, ``A[1,2]``: indices from
+0, in FMI 3.0's row-major order). An array's shape comes from its
+Dimensions: a fixed ``start``, or the start value of the structural
+parameter a ``valueReference`` names (structural parameters keep their
+start values: clockwork does not enter configuration mode).
 """
 
 from __future__ import annotations
 
 import difflib
+import math
 import os
 import platform
 import re
 import struct
 import sys
+import weakref
 import xml.etree.ElementTree as ET
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import attrs
+from fmpy.model_description import ModelVariable
+
 from ..errors import SceneError
 from ..hashing import sha256_file
+from ..numbers import shorten
 from ..paths import REPO, fmu_dir, in_checkout
+from .description_check import FLOAT32_MAX, INT_RANGES, DescriptionProblem, check_description
 
 NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
@@ -48,8 +69,14 @@ def max_unzipped_bytes() -> int:
     return int(mb * 2**20) if mb > 0 else int(DEFAULT_MAX_UNZIPPED_MB * 2**20)
 
 
-def check_archive(path: Path, infos: list) -> None:
-    """Refuse an archive whose unzipped size, entry count or description size is over the bounds."""
+def check_archive(path: Path | str, infos: list) -> None:
+    """Refuse an archive whose unzipped size, entry count or description size
+    is over the bounds, or whose entries zipfile cannot read (encrypted, or
+    compressed with a method this Python lacks). `path`: as messages name it."""
+    for i in infos:
+        problem = entry_problem(i)
+        if problem:
+            raise FmuError(f"{path}: {i.filename}: {problem}")
     if len(infos) > MAX_ENTRIES:
         raise FmuError(f"{path}: {len(infos)} entries in the archive, more than {MAX_ENTRIES}: not unzipped")
     total = sum(i.file_size for i in infos)
@@ -61,6 +88,27 @@ def check_archive(path: Path, infos: list) -> None:
     if md is not None and md.file_size > MAX_DESCRIPTION_BYTES:
         raise FmuError(f"{path}: modelDescription.xml is {md.file_size:,} bytes, more than "
                        f"{MAX_DESCRIPTION_BYTES:,} ({MAX_DESCRIPTION_BYTES // 2**20} MiB): not read")
+
+
+# zipfile's methods, each usable where Python has its module.
+_METHODS = {zipfile.ZIP_STORED: "stored", zipfile.ZIP_DEFLATED: "zlib", zipfile.ZIP_BZIP2: "bz2",
+            zipfile.ZIP_LZMA: "lzma"}
+
+
+def entry_problem(info: zipfile.ZipInfo) -> str | None:
+    """Why zipfile cannot read an archive entry, or None."""
+    if info.flag_bits & 0x1:
+        return "an encrypted entry: expected an unencrypted archive"
+    module = _METHODS.get(info.compress_type)
+    if module is None:
+        return (f"compressed with method {info.compress_type}, which zipfile cannot read; expected stored, "
+                "deflate, bzip2 or lzma")
+    if module != "stored":
+        try:
+            __import__(module)
+        except ImportError:
+            return f"compressed with {module}, which this Python lacks"
+    return None
 
 
 # The first bytes of a shared library for this platform (checked without loading it).
@@ -99,6 +147,9 @@ def event_indicator_names(xml: bytes) -> tuple[str, ...]:
     tools += [t for t in root.iterfind("Annotations/Annotation") if t.get("type") == "clockwork"]
     for tool in tools:
         names += [i.get("name") for i in tool.iterfind("EventIndicators/Indicator") if i.get("name")]
+        # FMI 1.0's Tool holds name-value pairs only.
+        names += [a.get("value") for a in tool.iterfind("Annotation")
+                  if a.get("name") == "eventIndicator" and a.get("value")]
     return tuple(names)
 
 
@@ -106,7 +157,11 @@ _MD_CACHE: dict[tuple, tuple] = {}
 
 
 class FmuError(SceneError):
-    """A missing or unusable FMU (bad input); str() is the reason."""
+    """A missing or unusable FMU (bad input); str() is the reason, its echoes
+    of the FMU's names and values bounded (a 4 MiB attribute is no line)."""
+
+    def __init__(self, detail: str, path: object = None, key: str | None = None):
+        super().__init__(shorten(detail, 1000), path, key)
 
 
 def resolve_fmu(spec: str, base_dir: Path | None = None, fmi_version: int = 2) -> Path:
@@ -148,49 +203,69 @@ def resolve_fmu(spec: str, base_dir: Path | None = None, fmi_version: int = 2) -
 
 
 def read_fmu(path: Path, need_binary: bool = True,
-             versions: tuple[str, ...] = ("2.0", "3.0")) -> tuple[Any, str, tuple[str, ...]]:
+             versions: tuple[str, ...] = ("1.0", "2.0", "3.0"),
+             label: str | None = None) -> tuple[Any, str, tuple[str, ...]]:
     """(model description, sha256, event indicators) of an FMU, cached by
-    (path, mtime, size); its FMI version must be one of `versions`."""
+    (path, mtime, size); its FMI version must be one of `versions`.
+    `label`: what messages call the FMU (an SSP archive's member), else its path."""
     import fmpy
 
     path = Path(path).resolve()
+    shown = label or path
     try:
         st = path.stat()
     except OSError as e:
-        raise FmuError(f"cannot read {path}: {e.strerror}") from None
+        raise FmuError(f"cannot read {shown}: {e.strerror}") from None
     key = (str(path), st.st_mtime_ns, st.st_size)
     hit = _MD_CACHE.get(key)
     if hit is None:
         if not zipfile.is_zipfile(path):
-            raise FmuError(f"{path} is not an FMU: not a zip archive")
+            raise FmuError(f"{shown} is not an FMU: not a zip archive")
         try:
             with zipfile.ZipFile(path) as z:
                 infos = z.infolist()
                 names = {i.filename for i in infos}
                 if "modelDescription.xml" not in names:
-                    raise FmuError(f"{path} is not an FMU: no modelDescription.xml in the archive")
-                check_archive(path, infos)
+                    raise FmuError(f"{shown} is not an FMU: no modelDescription.xml in the archive")
+                check_archive(shown, infos)
                 xml = z.read("modelDescription.xml")
                 # FMI 3.0 names binary folders by platform tuple (x86_64-linux), FMI 2.0 by platform (linux64).
                 heads = {n: _head(z, n) for n in names
                          if n.startswith((f"binaries/{fmpy.platform}/", f"binaries/{fmpy.platform_tuple}/"))}
         except (zipfile.BadZipFile, OSError) as e:
-            raise FmuError(f"{path} is not a readable FMU: {e}") from None
+            raise FmuError(f"{shown} is not a readable FMU: {e}") from None
+        try:
+            check_description(xml)
+        except DescriptionProblem as e:
+            raise FmuError(f"{shown}: modelDescription.xml: {e}") from None
+        problem = _dimension_problem(xml) if b"<Dimension" in xml else None
+        if problem:  # said here: fmpy's own error would be a bare int() message
+            raise FmuError(f"{shown}: modelDescription.xml: {problem}")
         try:
             md = fmpy.read_model_description(str(path), validate=False)
         except Exception as e:  # fmpy raises bare Exceptions and lxml errors
-            raise FmuError(f"{path}: unreadable modelDescription.xml: {e}") from None
-        if md.fmiVersion not in ("2.0", "3.0"):
-            raise FmuError(f"{path}: expected an FMI 2.0 or 3.0 FMU, found FMI {md.fmiVersion}")
+            raise FmuError(f"{shown}: unreadable modelDescription.xml: {e}") from None
+        if md.fmiVersion not in ("1.0", "2.0", "3.0"):
+            raise FmuError(f"{shown}: expected an FMI 1.0, 2.0 or 3.0 FMU, found FMI {md.fmiVersion}")
         if md.fmiVersion == "3.0":
-            _check_fmi3(path, md, xml)
-        if md.coSimulation is None:
-            raise FmuError(f"{path}: expected a Co-Simulation FMU (no <CoSimulation> element)")
-        ident = md.coSimulation.modelIdentifier
-        if not isinstance(ident, str) or not NAME_RE.match(ident):
-            # fmpy loads binaries/<platform>/<modelIdentifier>.so: a path here would load a file outside the FMU.
-            raise FmuError(f"{path}: modelDescription.xml: CoSimulation modelIdentifier {ident!r}: expected a "
-                           "plain name (letters, digits, underscores), the binary's file name")
+            _check_fmi3(shown, md, xml)
+        if md.fmiVersion == "1.0" and md.coSimulation is None:
+            raise FmuError(f"{shown}: expected an FMI 1.0 Co-Simulation FMU (no <Implementation> element): "
+                           "FMI 1.0 Model Exchange is not supported")
+        faces = [(n, i) for n, i in (("CoSimulation", md.coSimulation), ("ModelExchange", md.modelExchange))
+                 if i is not None]
+        if not faces:
+            raise FmuError(f"{shown}: expected a Co-Simulation or Model Exchange FMU (no <CoSimulation> or "
+                           "<ModelExchange> element)")
+        for face, interface in faces:
+            ident = interface.modelIdentifier
+            if not isinstance(ident, str) or not NAME_RE.match(ident):
+                # fmpy loads binaries/<platform>/<modelIdentifier>.so: a path here would load a file outside the FMU.
+                raise FmuError(f"{shown}: modelDescription.xml: {face} modelIdentifier {shorten(ident, 100)!r}: "
+                               "expected a plain name (letters, digits, underscores), the binary's file name")
+        if md.fmiVersion == "1.0":
+            _check_fmi1(shown, md, xml)
+        ident = faces[0][1].modelIdentifier  # the binary of the interface it runs through by default
         indicators = event_indicator_names(xml)
         digest = sha256_file(path)
         folder = fmpy.platform_tuple if md.fmiVersion == "3.0" else fmpy.platform
@@ -201,11 +276,11 @@ def read_fmu(path: Path, need_binary: bool = True,
         _MD_CACHE[key] = hit
     md, digest, indicators, problem, binary = hit
     if md.fmiVersion not in versions:
-        raise FmuError(f"{path}: expected an FMI {' or '.join(versions)} FMU, found FMI {md.fmiVersion}")
+        raise FmuError(f"{shown}: expected an FMI {' or '.join(versions)} FMU, found FMI {md.fmiVersion}")
     if need_binary and problem == "missing":
-        raise FmuError(f"{path} has no binary for this platform ({binary}); {_rebuild_advice(path)}")
+        raise FmuError(f"{shown} has no binary for this platform ({binary}); {_rebuild_advice(path)}")
     if need_binary and problem is not None:
-        raise FmuError(f"{path}: {binary}: {problem}; {_rebuild_advice(path)}")
+        raise FmuError(f"{shown}: {binary}: {problem}; {_rebuild_advice(path)}")
     return md, digest, indicators
 
 
@@ -246,7 +321,7 @@ def _intermediate_update_names(xml: bytes) -> set[str]:
     return {v.get("name") for v in root.iterfind("ModelVariables/*") if v.get("intermediateUpdate") == "true"}
 
 
-def _check_fmi3(path: Path, md, xml: bytes) -> None:
+def _check_fmi3(path: Path | str, md, xml: bytes) -> None:
     """Refuse what the master does not serve; rename the types it does."""
     clocks = [v.name for v in md.modelVariables if v.type == "Clock"]
     if clocks:
@@ -254,14 +329,115 @@ def _check_fmi3(path: Path, md, xml: bytes) -> None:
                        f"{', ...' if len(clocks) > 3 else ''}), which the master does not support")
     if md.coSimulation is None and getattr(md, "scheduledExecution", None) is not None:
         raise FmuError(f"{path}: {md.modelName} is a Scheduled Execution FMU, which the master does not support")
-    arrays = [v.name for v in md.modelVariables if v.dimensions]
-    if arrays:
-        raise FmuError(f"{path}: {md.modelName} has array variables ({', '.join(arrays)}), "
-                       f"which the master does not support")
+    _check_arrays(path, md, xml)
     intermediate = _intermediate_update_names(xml)
     for v in md.modelVariables:
         v.type = _FMI3_AS_FMI2.get(v.type, v.type)
         v.intermediateUpdate = v.name in intermediate
+
+
+# FMI 1.0's Co-Simulation Capabilities that the master reads, and how
+# (fmpy 0.3 reads none of them: its CoSimulation keeps the defaults).
+_FMI1_CAPABILITIES = {"canHandleVariableCommunicationStepSize": "bool", "canInterpolateInputs": "bool",
+                      "maxOutputDerivativeOrder": "int", "canRunAsynchronuously": "bool",
+                      "canBeInstantiatedOnlyOncePerProcess": "bool", "canNotUseMemoryManagementFunctions": "bool"}
+STAND_ALONE_MIME_TYPE = "application/x-fmu-sharedlibrary"
+
+
+@dataclass(frozen=True)
+class Fmi1Details:
+    """What an FMI 1.0 description says beyond fmpy's model description."""
+    negated: frozenset[str] = frozenset()  # negatedAlias variables
+    mime_type: str = STAND_ALONE_MIME_TYPE  # for fmiInstantiateSlave: the tool's, for CoSimulation_Tool
+
+
+_FMI1: "weakref.WeakKeyDictionary[Any, Fmi1Details]" = weakref.WeakKeyDictionary()
+
+
+def _check_fmi1(path: Path, md, xml: bytes) -> None:
+    """Complete an FMI 1.0 Co-Simulation description where fmpy leaves it
+    bare, in the terms the layers read for FMI 2.0: the Capabilities, each
+    output's DirectDependency as its ``outputs`` dependencies (no element:
+    every input, FMI 1.0 Sec. 2.10), "none" as "local", and the negated
+    aliases (same value reference, value negated) for ``fmi1_details``."""
+    from fmpy.model_description import Unknown
+
+    where = f"{path}: modelDescription.xml"
+    root = ET.fromstring(xml)  # fmpy has parsed it already
+    impl = root.find("Implementation")
+    caps = impl.find("CoSimulation_StandAlone/Capabilities") if impl is not None else None
+    if caps is None and impl is not None:
+        caps = impl.find("CoSimulation_Tool/Capabilities")
+    cs = md.coSimulation
+    model = impl.find("CoSimulation_Tool/Model") if impl is not None else None
+    cs.needsExecutionTool = model is not None
+    cs.canGetAndSetFMUstate = cs.canSerializeFMUstate = False  # FMI 1.0 has no FMU state
+    for name, kind in _FMI1_CAPABILITIES.items():
+        text = (caps.get(name) if caps is not None else None)
+        if text is None:
+            continue
+        text = text.strip()
+        if kind == "bool":
+            if text not in ("true", "false", "1", "0"):
+                raise FmuError(f"{where}: Capabilities {name}={text!r}: expected true or false")
+            setattr(cs, name, text in ("true", "1"))
+        else:
+            if not text.isdigit():
+                raise FmuError(f"{where}: Capabilities {name}={text!r}: expected a whole number >= 0")
+            setattr(cs, name, int(text))
+    by_name = {v.name: v for v in md.modelVariables}
+    for v in md.modelVariables:
+        if v.causality == "none":  # a tool's own variable: read like a local one
+            v.causality = "local"
+    base = {}  # (type, value reference) -> the variable that is no alias
+    elements = [e for e in root.iterfind("ModelVariables/ScalarVariable") if e.get("name") in by_name]
+    for e in elements:
+        if e.get("alias", "noAlias") == "noAlias":
+            v = by_name[e.get("name")]
+            base.setdefault((v.type, v.valueReference), v)
+    negated = set()
+    outputs = []
+    for e in elements:
+        v = by_name[e.get("name")]
+        if e.get("alias") == "negatedAlias":
+            if v.type not in ("Real", "Integer", "Boolean"):
+                raise FmuError(f"{where}: {v.name} is a negatedAlias of type {v.type}, which cannot be negated")
+            negated.add(v.name)
+        if e.get("alias") in ("alias", "negatedAlias"):
+            v.alias = base.get((v.type, v.valueReference))
+        if v.causality != "output":
+            continue
+        direct = e.find("DirectDependency")
+        deps = None
+        if direct is not None:
+            deps = []
+            for n in direct.iterfind("Name"):
+                name = (n.text or "").strip()
+                if name not in by_name:
+                    raise FmuError(f"{where}: the DirectDependency of output {v.name} names {name!r}, "
+                                   f"which is no variable of {md.modelName}")
+                deps.append(by_name[name])
+        outputs.append(Unknown(variable=v, dependencies=deps))
+    md.outputs[:] = outputs
+    _FMI1[md] = Fmi1Details(frozenset(negated), (model.get("type") if model is not None else None)
+                            or STAND_ALONE_MIME_TYPE)
+
+
+def fmi1_details(md) -> Fmi1Details:
+    """What ``_check_fmi1`` kept of an FMI 1.0 description: its negated
+    aliases (each shares its value reference with the variable it negates,
+    so its value is that variable's, negated) and the MIME type. Defaults
+    for other versions and for a description that did not come from
+    read_fmu (e.g. one unpickled): ask read_fmu for the file's."""
+    return _FMI1.get(md, Fmi1Details())
+
+
+def no_state_reason(md) -> str:
+    """Why an FMU cannot save and restore its state (for the refusals of
+    settings that roll every FMU back)."""
+    if md.fmiVersion == "1.0":
+        return "it is an FMI 1.0 FMU, which has no FMU state"
+    return "its modelDescription.xml does not declare canGetAndSetFMUstate"
 
 
 def type_name(md, v) -> str:
@@ -273,8 +449,8 @@ def type_name(md, v) -> str:
 
 
 def fmi_version(md) -> int:
-    """2 or 3: the major FMI version of a model description."""
-    return 3 if md.fmiVersion == "3.0" else 2
+    """1, 2 or 3: the major FMI version of a model description."""
+    return {"1.0": 1, "3.0": 3}.get(md.fmiVersion, 2)
 
 
 def event_indicators(path: Path) -> tuple[str, ...]:
@@ -282,29 +458,187 @@ def event_indicators(path: Path) -> tuple[str, ...]:
     return read_fmu(path, need_binary=False)[2]
 
 
+_VARIABLES: "weakref.WeakKeyDictionary[Any, dict]" = weakref.WeakKeyDictionary()
+
+
 def variables(md) -> dict:
-    """{name: ScalarVariable} of a model description, built once."""
-    cache = getattr(md, "_cw_vars", None)
+    """{name: variable} of a model description, built once per description:
+    its variables and, after each FMI 3.0 array variable, its elements
+    (``ArrayElement``, named ``y[0]``, ``A[1,2]``)."""
+    try:
+        cache = _VARIABLES.get(md)
+    except TypeError:  # not weakly referable: built each time
+        cache = None
     if cache is None:
-        cache = {v.name: v for v in md.modelVariables}
+        cache = {}
+        for v in md.modelVariables:
+            cache[v.name] = v
+            if v.shape:
+                for e in array_elements(v):
+                    cache.setdefault(e.name, e)
         try:
-            md._cw_vars = cache
-        except AttributeError:
+            _VARIABLES[md] = cache
+        except TypeError:
             pass
     return cache
 
 
-# The integer types and their ranges: FMI 2.0's Integer is a C int, FMI
-# 3.0's sized types keep their own names (and fmi3Get/Set* functions).
-_INT_RANGES = {"Integer": (-2**31, 2**31 - 1), "Int32": (-2**31, 2**31 - 1),
-               **{f"Int{b}": (-2**(b - 1), 2**(b - 1) - 1) for b in (8, 16, 64)},
-               **{f"UInt{b}": (0, 2**b - 1) for b in (8, 16, 32, 64)}}
+# -- FMI 3.0 arrays ---------------------------------------------------------------
+
+MAX_ARRAY_ELEMENTS = 100_000  # elements of one FMU's arrays: each is a variable of its own (some 40 us and 1 kB)
+
+
+@attrs.define(eq=False)
+class ArrayElement(ModelVariable):
+    """One element of an FMI 3.0 array variable, seen as a scalar variable:
+    `array` is the array variable, `index` the element's place in its
+    values (row-major), `start` the element's own start value."""
+
+    array: Any = None
+    index: int = 0
+
+
+def element_name(name: str, indices: tuple[int, ...]) -> str:
+    """fmpy's name of an array element: ``y[0]``, ``A[1,2]`` (0-based)."""
+    return f"{name}[{','.join(map(str, indices))}]"
+
+
+def shape_text(shape: tuple[int, ...]) -> str:
+    """A shape as the messages say it: "3" or "2x3"; a scalar is "a scalar"."""
+    return "x".join(map(str, shape)) if shape else "a scalar"
+
+
+def array_size(v) -> int:
+    """How many values a variable holds (1 for a scalar)."""
+    return math.prod(v.shape) if getattr(v, "shape", None) else 1
+
+
+def array_elements(v) -> list:
+    """The ArrayElements of an array variable, in row-major order (built once per variable)."""
+    made = _ELEMENTS.get(v)
+    if made is None:
+        starts = v.start if isinstance(v.start, list) else str(v.start).split() if v.start is not None else []
+        fields = {a.alias: getattr(v, a.name) for a in attrs.fields(ModelVariable) if a.init}
+        made = []
+        for k, idx in enumerate(_indices(v.shape)):
+            e = ArrayElement(**{**fields, "name": element_name(v.name, idx), "shape": (), "dimensions": [],
+                                "start": starts[k] if k < len(starts) else None})
+            e.array, e.index = v, k
+            made.append(e)
+        _ELEMENTS[v] = made
+    return made
+
+
+_ELEMENTS: "weakref.WeakKeyDictionary[Any, list]" = weakref.WeakKeyDictionary()
+
+
+def _indices(shape: tuple[int, ...]):
+    """Index tuples of a shape in row-major order (the last index fastest)."""
+    if not shape:
+        return
+    if len(shape) == 1:
+        yield from ((i,) for i in range(shape[0]))
+        return
+    for i in range(shape[0]):
+        for rest in _indices(shape[1:]):
+            yield (i, *rest)
+
+
+def element_names(v) -> list[str]:
+    """A variable's element names (its own name for a scalar)."""
+    return [e.name for e in array_elements(v)] if getattr(v, "shape", None) else [v.name]
+
+
+def link_shape_problem(source: str, output, destination: str, input_) -> str | None:
+    """Why a connection between these two variables cannot be made element
+    by element (shapes that differ), or None: arrays connect to arrays of
+    the same shape, scalars (and elements) to scalars."""
+    a, b = tuple(getattr(output, "shape", None) or ()), tuple(getattr(input_, "shape", None) or ())
+    if a == b:
+        return None
+    if a and b:
+        return (f"the arrays differ in shape: {source} is {shape_text(a)}, {destination} is {shape_text(b)}; "
+                "arrays connect to arrays of the same shape")
+    if a:
+        return (f"{source} is an array ({shape_text(a)}) and {destination} a scalar: connect arrays of the "
+                f"same shape, or one element (e.g. {element_name(source, (0,) * len(a))})")
+    return (f"{destination} is an array ({shape_text(b)}) and {source} a scalar: connect arrays of the same "
+            "shape (FMI 3.0 sets an input array whole)")
+
+
+def _dimension_problem(xml: bytes) -> str | None:
+    """What check_description leaves to fmpy's int(): a <Dimension
+    valueReference> naming a variable whose start value is no size (none,
+    or not an integer >= 0), or None."""
+    try:
+        root = ET.fromstring(xml)
+    except ET.ParseError:
+        return None  # check_description has said what is wrong with the XML
+    variables = list(root.iterfind("ModelVariables/*"))
+    starts = {v.get("valueReference"): (v.get("name"), v.get("start")) for v in variables}
+    for v in variables:
+        for d in v.iterfind("Dimension"):
+            vr = d.get("valueReference")
+            if d.get("start") is None and vr is not None and vr.strip() in starts:
+                name, size = starts[vr.strip()]
+                if size is None or not re.fullmatch(r"\+?[0-9]+", size.strip()):
+                    return (f"{v.get('name')}: its <Dimension> is the size {name}, whose start value "
+                            f"({size if size is not None else 'none'}) is not an integer >= 0")
+    return None
+
+
+def _check_arrays(path: Path | str, md, xml: bytes) -> None:
+    """Array variables: their Dimensions resolve to sizes, the element names
+    are free, the total is bounded; a String array's start values are read
+    from its <Start> elements (fmpy keeps the first only)."""
+    by_vr = {v.valueReference: v for v in md.modelVariables}
+    names = {v.name for v in md.modelVariables}
+    arrays = [v for v in md.modelVariables if v.dimensions]
+    total = 0
+    for v in arrays:
+        where = f"{path}: modelDescription.xml: {v.name}"
+        if v.type in ("Binary", "Clock"):
+            raise FmuError(f"{path}: {md.modelName} has an array of {v.type} values ({v.name}), which the master "
+                           "does not support")
+        for d in v.dimensions:
+            if d.start is None:
+                size_var = by_vr.get(d.valueReference)
+                if size_var is None or size_var.causality != "structuralParameter" and \
+                        size_var.variability != "constant":
+                    raise FmuError(f"{where}: a <Dimension valueReference=\"{d.valueReference}\"> must name a "
+                                   "structural parameter (or a constant) that gives the size")
+                if size_var.type not in INTEGER_TYPES or size_var.start is None:
+                    raise FmuError(f"{where}: its size comes from {size_var.name}, which is not an integer with a "
+                                   "start value")
+        if any(n < 0 for n in v.shape):
+            raise FmuError(f"{where}: a negative array size ({shape_text(v.shape)})")
+        total += array_size(v)
+        if total > MAX_ARRAY_ELEMENTS:
+            raise FmuError(f"{path}: {md.modelName}'s arrays hold more than {MAX_ARRAY_ELEMENTS:,} elements: "
+                           "not loaded")
+    if not arrays:
+        return
+    strings = {v.name for v in arrays if v.type == "String"}
+    if strings:
+        root = ET.fromstring(xml)
+        for elem in root.iterfind("ModelVariables/String"):
+            if elem.get("name") in strings:
+                md_var = next(v for v in arrays if v.name == elem.get("name"))
+                md_var.start = [s.get("value") or "" for s in elem.iterfind("Start")]
+    for v in arrays:  # (the elements themselves are made later, with the types renamed)
+        clash = next((n for n in (element_name(v.name, i) for i in _indices(v.shape)) if n in names), None)
+        if clash is not None:
+            raise FmuError(f"{path}: modelDescription.xml: the element {clash} of the array {v.name} has the "
+                           "name of another variable")
+
+
+# The integer types and their ranges (description_check.INT_RANGES).
+_INT_RANGES = INT_RANGES
 INTEGER_TYPES = (*_INT_RANGES, "Enumeration")
 # Float32 is a Real exchanged through fmi3Get/SetFloat32.
 REAL_TYPES = ("Real", "Float32")
 # Recorded as text: Binary as hexadecimal digits (FMI 3.0).
 TEXT_TYPES = ("String", "Binary")
-FLOAT32_MAX = 3.4028234663852886e38
 
 
 def int_range(var_type: str) -> tuple[int, int] | None:

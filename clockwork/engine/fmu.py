@@ -174,6 +174,9 @@ class Variable:
     variability: str
     unit: str | None
     dependencies: list[str] | None  # the inputs an output depends on directly (outputs only; else None)
+    shape: tuple[int, ...] = ()  # an FMI 3.0 array's shape; () for a scalar or an element
+    array: str | None = None  # an array element's array (its vr is the element's code, fmu3.Instance3)
+    index: int = 0  # an array element's place in its array's values (row-major)
 
 
 def direct_feedthrough(md) -> dict[str, list[str]]:
@@ -194,7 +197,22 @@ def direct_feedthrough(md) -> dict[str, list[str]]:
 class Instance:
     """An instantiated FMU with fast access to its fmi2 functions."""
 
-    fmi_version = 2  # fmu3.Instance3 says 3
+    fmi_version = 2  # fmu3.Instance3 says 3, fmu1.Instance1 1
+    do_step_name = "fmi2DoStep"  # in messages
+    _fmpy_class = FMU2Slave  # model_exchange.MEInstance: FMU2Model
+
+    def _interface(self):
+        """The modelDescription element of the interface it runs through."""
+        return self.md.coSimulation
+    arrays: dict[str, tuple[int, int]] = {}  # FMI 3.0 array variables: name -> (vr, values) (fmu3.Instance3)
+    elements: dict[str, list[str]] = {}  # FMI 3.0 array variables: name -> its element names, row-major
+    # What messages call the FMU where its path is a copy (an SSP archive's
+    # member, "x.ssp/resources/m.fmu"); None: its path.
+    label: str | None = None
+
+    @property
+    def shown(self) -> str:
+        return self.label or str(self.path)
 
     def __init__(self, name: str, path: Path, model_description=None):
         self.name = name
@@ -211,10 +229,7 @@ class Instance:
                 var_unit(v),
                 deps.get(v.name),
             )
-        cs = self.md.coSimulation
-        self.max_output_derivative_order = int(cs.maxOutputDerivativeOrder or 0)
-        self.can_interpolate_inputs = bool(cs.canInterpolateInputs)
-        self.can_get_set_state = bool(cs.canGetAndSetFMUstate)
+        self._read_capabilities()
         experiment = self.md.defaultExperiment
         tol = getattr(experiment, "tolerance", None) if experiment is not None else None
         self.default_tolerance = float(tol) if tol not in (None, "") else None
@@ -223,19 +238,26 @@ class Instance:
         self._slave = None
         self._state = c_void_p()
 
+    def _read_capabilities(self) -> None:
+        """What the FMU's <CoSimulation> element declares (a Model Exchange wrapper says its own)."""
+        cs = self.md.coSimulation
+        self.max_output_derivative_order = int(cs.maxOutputDerivativeOrder or 0)
+        self.can_interpolate_inputs = bool(cs.canInterpolateInputs)
+        self.can_get_set_state = bool(cs.canGetAndSetFMUstate)
+
     # -- loading -------------------------------------------------------
 
     def instantiate(self) -> None:
         unzip = extract(self.path)
         try:
-            self._slave = FMU2Slave(
+            self._slave = self._fmpy_class(
                 guid=self.md.guid,
                 unzipDirectory=str(unzip),
-                modelIdentifier=self.md.coSimulation.modelIdentifier,
+                modelIdentifier=self._interface().modelIdentifier,
                 instanceName=self.name,
             )
         except Exception as e:  # fmpy raises a bare Exception for a bad library
-            raise SceneError(f"{self.path}: cannot load the FMU's binary for this platform: {e}") from None
+            raise SceneError(f"{self.shown}: cannot load the FMU's binary for this platform: {e}") from None
         messages = self.messages
 
         def keep(status, message):
@@ -263,7 +285,7 @@ class Instance:
             # The binary refused its own model description (another build or
             # another model): the FMU file is broken, which is bad input.
             raise SceneError(
-                f"{self.path}: fmi2Instantiate refused the model description's GUID "
+                f"{self.shown}: fmi2Instantiate refused the model description's GUID "
                 f"{self.md.guid}: {self.last_message() or e}") from None
         self.component = self._slave.component
         dll = self._slave.dll

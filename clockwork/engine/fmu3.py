@@ -57,8 +57,9 @@ from fmpy.fmi3 import FMU3Slave, fmi3IntermediateUpdateCallback, fmi3LogMessageC
 
 from ..errors import SceneError, SimulationError
 from ..paths import core_library
-from .description import fmi_version, int_range, read_fmu, type_name
-from .fmu import DISCARD, ERROR, OK, WARNING, Instance, extract
+from .description import array_elements, fmi_version, int_range, read_fmu, type_name
+from .fmu import DISCARD, ERROR, OK, WARNING, Instance, Variable, extract
+from .fmu1 import Instance1
 
 MAX_EVENT_ITERATIONS = 1000  # fmi3UpdateDiscreteStates calls per event before giving up
 MAX_STALLED_RETURNS = 100  # early returns in a row that do not move the FMU's time
@@ -95,6 +96,18 @@ class _Events(Structure):
         ("iu_calls", c_longlong),
         ("iu_saved", c_void_p),
         ("iu_saved_fed", c_void_p),
+        # Array elements (see Instance3._number_elements): element code base + k
+        # is value k of the array code_vr[k], at code_off[k] of its code_size[k] values.
+        ("code_base", c_uint),
+        ("n_codes", c_int),
+        ("code_vr", c_void_p),
+        ("code_off", c_void_p),
+        ("code_size", c_void_p),
+        ("scratch_vr", c_void_p),     # the value references of one call, translated
+        ("scratch_order", c_void_p),  # their derivative orders
+        ("scratch_val", c_void_p),    # one array's values (element by element)
+        ("scratch_cap", c_int),
+        ("scratch_val_cap", c_int),
     ]
 
 
@@ -144,6 +157,7 @@ class Instance3(Instance):
     """An instantiated FMI 3.0 Co-Simulation FMU behind fmi2-shaped calls."""
 
     fmi_version = 3
+    do_step_name = "fmi3DoStep"
 
     def __init__(self, name, path, model_description=None, early_return: bool = True,
                  intermediate_update: bool = False):
@@ -155,7 +169,7 @@ class Instance3(Instance):
         # (the master's inputs are polynomials), declared, and the core's
         # callback is at hand; else none (FMI 3.0 CS has no input derivatives).
         iu_vrs = [v.valueReference for v in self.md.modelVariables
-                  if v.causality == "input" and v.type == "Real" and v.intermediateUpdate]
+                  if v.causality == "input" and v.type == "Real" and v.intermediateUpdate and not v.shape]
         declared = bool(cs.providesIntermediateUpdate and iu_vrs)
         self.intermediate_update = bool(intermediate_update and declared and _core_adapter())
         self.can_interpolate_inputs = self.intermediate_update
@@ -167,6 +181,7 @@ class Instance3(Instance):
             "it provides no intermediate update")
         self.events = _Events(next_event_time=math.inf, saved_next_event_time=math.inf, end_time=math.nan,
                               event_mode_used=int(self.event_mode_used))
+        self._number_elements()
         self._setup_args = (0, 0.0, 0.0, 0, 0.0)
         if self.intermediate_update:
             n = len(iu_vrs)
@@ -179,6 +194,109 @@ class Instance3(Instance):
                                    "iu_saved", "iu_saved_fed"), self._iu_arrays):
                 setattr(ev, field, ctypes.addressof(arr))
 
+    def _number_elements(self) -> None:
+        """Give each element of an array variable a Variable of its own
+        (``y[0]``, ``A[1,2]``) whose vr is a code of its own, above every value
+        reference of the FMU: the master's ports name elements as it names
+        scalars, and the fmi2-shaped calls (here and in cw_master.c's cw3_*)
+        turn a run of codes that covers a whole array, in order, into the
+        array's value reference with nValues > nValueReferences; any other
+        request is served element by element. Dependencies on an array
+        input are on each of its elements."""
+        arrays = [v for v in self.md.modelVariables if v.shape]
+        self.arrays: dict[str, tuple[int, int]] = {}  # array name -> (vr, number of values)
+        self.elements: dict[str, list[str]] = {}  # array name -> element names, row-major
+        if not arrays:
+            return
+        base = max(v.valueReference for v in self.md.modelVariables) + 1
+        code_vr, code_off, code_size = [], [], []
+        for v in arrays:
+            var = self.variables[v.name]
+            var.shape = tuple(v.shape)
+            size = len(array_elements(v))
+            self.arrays[v.name] = (v.valueReference, size)
+            self.elements[v.name] = [e.name for e in array_elements(v)]
+            for e in array_elements(v):
+                self.variables[e.name] = Variable(e.name, base + len(code_vr), var.type, var.causality,
+                                                  var.variability, var.unit, var.dependencies, (), v.name, e.index)
+                code_vr.append(v.valueReference)
+                code_off.append(e.index)
+                code_size.append(size)
+        if base + len(code_vr) > 2**32:
+            raise SceneError(f"{self.shown}: the value references leave no room to number the array elements")
+        elements = self.elements
+        for var in self.variables.values():
+            if var.dependencies and any(d in elements for d in var.dependencies):
+                var.dependencies = [x for d in var.dependencies for x in elements.get(d, [d])]
+        n = len(code_vr)
+        cap = 2 * len(self.variables) + 2
+        largest = max(code_size, default=1)
+        self._code_arrays = ((c_uint * n)(*code_vr), (c_int * n)(*code_off), (c_int * n)(*code_size),
+                             (c_uint * cap)(), (c_int * cap)(), (c_double * max(1, largest))())
+        ev = self.events
+        ev.code_base, ev.n_codes, ev.scratch_cap, ev.scratch_val_cap = base, n, cap, max(1, largest)
+        for field, arr in zip(("code_vr", "code_off", "code_size", "scratch_vr", "scratch_order", "scratch_val"),
+                              self._code_arrays):
+            setattr(ev, field, ctypes.addressof(arr))
+
+    def _runs(self, vr, n: int, order=None):
+        """(value references, orders) of a request of n codes made of scalars
+        and whole arrays in order (each array's orders alike), or None."""
+        ev = self.events
+        base, n_codes = ev.code_base, ev.n_codes
+        code_vr, code_off, code_size = self._code_arrays[:3]
+        vrs, orders = [], []
+        k = 0
+        while k < n:
+            c = vr[k]
+            e = c - base
+            if 0 <= e < n_codes:
+                size = code_size[e]
+                if code_off[e] or k + size > n or any(vr[k + i] != c + i for i in range(1, size)) or (
+                        order is not None and any(order[k + i] != order[k] for i in range(1, size))):
+                    return None
+                vrs.append(code_vr[e])
+            else:
+                size = 1
+                vrs.append(c)
+            if order is not None:
+                orders.append(order[k])
+            k += size
+        return vrs, orders
+
+    def _array_call(self, call, comp, vr, n, values, order=None, writing=False) -> int:
+        """fmi3Get/SetFloat64 (call(comp, vrs, nvr, values, nValues)) or, with
+        `order`, fmi3GetOutputDerivatives (call(comp, vrs, nvr, orders,
+        values, nValues)) on a request of codes (see _number_elements)."""
+        runs = self._runs(vr, n, order)
+        if runs is not None:
+            vrs, orders = runs
+            m = len(vrs)
+            if order is None:
+                return call(comp, (c_uint * max(1, m))(*vrs), m, values, n)
+            return call(comp, (c_uint * max(1, m))(*vrs), m, (c_int * max(1, m))(*orders), values, n)
+        if writing:  # a part of an array cannot be set (the ports set whole arrays)
+            self.messages.append((ERROR, "clockwork: a request sets part of an array variable"))
+            return ERROR
+        ev = self.events
+        code_vr, code_off, code_size = self._code_arrays[:3]
+        buf = self._code_arrays[5]
+        worst = OK
+        for k in range(n):
+            c = vr[k]
+            e = c - ev.code_base
+            one = (c_uint * 1)(code_vr[e] if 0 <= e < ev.n_codes else c)
+            size = code_size[e] if 0 <= e < ev.n_codes else 1
+            if order is None:
+                st = call(comp, one, 1, buf, size)
+            else:
+                st = call(comp, one, 1, (c_int * 1)(order[k]), buf, size)
+            worst = max(worst, st)
+            if st > WARNING:
+                return st
+            values[k] = buf[code_off[e] if 0 <= e < ev.n_codes else 0]
+        return worst
+
     def instantiate(self) -> None:
         unzip = extract(self.path)
         try:
@@ -186,7 +304,7 @@ class Instance3(Instance):
                                     modelIdentifier=self.md.coSimulation.modelIdentifier,
                                     instanceName=self.name)
         except Exception as e:  # fmpy raises a bare Exception for a bad library
-            raise SceneError(f"{self.path}: cannot load the FMU's binary for this platform: {e}") from None
+            raise SceneError(f"{self.shown}: cannot load the FMU's binary for this platform: {e}") from None
         messages = self.messages
 
         def logger(env, status, category, message):
@@ -201,7 +319,7 @@ class Instance3(Instance):
                                         earlyReturnAllowed=self.early_return_allowed, logMessage=logger)
         except Exception as e:
             raise SceneError(
-                f"{self.path}: fmi3InstantiateCoSimulation refused the model description's instantiation "
+                f"{self.shown}: fmi3InstantiateCoSimulation refused the model description's instantiation "
                 f"token {self.md.guid}: {self.last_message() or e}") from None
         self.component = self._slave.component
         self._bind(self._slave.dll)
@@ -257,6 +375,10 @@ class Instance3(Instance):
         self.c_doStep = self._do_step
         self.c_getReal = lambda comp, vr, n, out: f_getF64(comp, vr, n, out, n)
         self.c_setReal = lambda comp, vr, n, val: f_setF64(comp, vr, n, val, n)
+        if self.arrays:  # requests name array elements by their codes
+            array_call = self._array_call
+            self.c_getReal = lambda comp, vr, n, out: array_call(f_getF64, comp, vr, n, out)
+            self.c_setReal = lambda comp, vr, n, val: array_call(f_setF64, comp, vr, n, val, writing=True)
         self.c_getInteger = lambda comp, vr, n, out: f_getI32(comp, vr, n, out, n)
         self.c_setInteger = lambda comp, vr, n, val: f_setI32(comp, vr, n, val, n)
 
@@ -270,6 +392,9 @@ class Instance3(Instance):
         self.c_getBoolean = get_boolean
         self.c_setBoolean = lambda comp, vr, n, val: f_setBool(comp, vr, n, (c_bool * max(1, n))(*val[:n]), n)
         self.c_getOutputDerivatives = lambda comp, vr, n, orders, out: f_getDer(comp, vr, n, orders, out, n)
+        if self.arrays:
+            self.c_getOutputDerivatives = lambda comp, vr, n, orders, out: self._array_call(
+                f_getDer, comp, vr, n, out, order=orders)
         self.c_setInputDerivatives = self._no_input_derivatives
         self.c_getState = f_getState
         self.c_setState = f_setState
@@ -323,13 +448,31 @@ class Instance3(Instance):
             fns[kind] = tuple(pair)
         return fns[kind]
 
+    def _get_array(self, name: str) -> list:
+        """Every value of an array variable (row-major), through the fmi3Get* of its type."""
+        v = self.variables[name]
+        kind = type_name(self.md, v)
+        vr, size = self.arrays[name]
+        out = (_CTYPES[kind] * max(1, size))()
+        self.check(self._value_functions(kind)[0](self.component, (c_uint * 1)(vr), 1, out, size),
+                   f"fmi3Get{kind} ({name})")
+        return [(x or b"").decode("utf-8", "replace") if kind == "String" else x for x in out[:size]]
+
     def get_values(self, names: list[str]) -> list:
         """Values of any type, each through the fmi3Get* of its type: numbers
         as Python numbers, Boolean as bool, String as text, Binary as
-        hexadecimal digits."""
+        hexadecimal digits; an array element's value, an array's values as a
+        list (row-major)."""
         values = []
+        arrays: dict[str, list] = {}  # each array read once per call
         for n in names:
             v = self.variables[n]
+            if v.shape or v.array is not None:
+                name = n if v.shape else v.array
+                if name not in arrays:
+                    arrays[name] = self._get_array(name)
+                values.append(list(arrays[name]) if v.shape else arrays[name][v.index])
+                continue
             kind = type_name(self.md, v)
             get = self._value_functions(kind)[0]
             vr = (c_uint * 1)(v.vr)
@@ -348,10 +491,20 @@ class Instance3(Instance):
                    error: type[SimulationError] = SimulationError) -> None:
         """Set variables of any type through the fmi3Set* of its type (Binary
         from hexadecimal digits); a value an integer type cannot hold is
-        refused here, never wrapped."""
+        refused here, never wrapped. An array takes a list of all its values
+        (nested by its shape or flat, row-major) or values of single elements
+        (``A[1,2]``), which the array's other values join: the array's own
+        value given beside them, else its start values."""
+        values = self._merge_elements(values)
         for n, value in values.items():
             v = self.variables[n]
+            if v.causality == "structuralParameter":
+                raise error(f"{what}: {self.name}.{n} is a structural parameter (an array size): clockwork does "
+                            "not change structural parameters (FMI 3.0 configuration mode)", instance=self.name)
             kind = type_name(self.md, v)
+            if v.shape:
+                self._set_array(n, kind, value, what, error)
+                continue
             vr = (c_uint * 1)(v.vr)
             if kind == "Float64":  # through c_setReal, which the intermediate update may keep
                 st = self.c_setReal(self.component, vr, 1, (c_double * 1)(float(value)))
@@ -375,6 +528,74 @@ class Instance3(Instance):
                                     f"[{bounds[0]}, {bounds[1]}]")
                 st = self._value_functions(kind)[1](self.component, vr, 1, (_CTYPES[kind] * 1)(x), 1)
             self.check(st, f"{what} ({n} = {value!r})", error=error)
+
+    def _merge_elements(self, values: dict[str, object]) -> dict[str, object]:
+        """`values` with the elements of each array gathered into the array's
+        list of values (FMI 3.0 sets an array whole); an element's value wins
+        over the array's own."""
+        if not self.arrays or all(self.variables[n].array is None for n in values):
+            return values
+        out: dict[str, object] = {}
+        elements: dict[str, list] = {}
+        for n, value in values.items():
+            v = self.variables[n]
+            if v.array is None:
+                out[n] = value
+            else:
+                elements.setdefault(v.array, []).append((v.index, value))
+        for name, pairs in elements.items():
+            size = self.arrays[name][1]
+            if name in values:
+                merged = list(_flat(values[name]))
+            elif len({k for k, _ in pairs}) == size:  # every element given
+                merged = [None] * size
+            else:
+                merged = self._start_values(name)
+            if len(merged) == size:  # else _set_array says what is wrong
+                for k, x in pairs:
+                    merged[k] = x
+            out[name] = merged
+        return out
+
+    def _start_values(self, name: str) -> list:
+        """An array's start values (row-major), from its modelDescription.xml."""
+        v = next(x for x in self.md.modelVariables if x.name == name)
+        starts = [e.start for e in array_elements(v)]
+        if any(x is None for x in starts):
+            raise SceneError(f"{self.name}.{name}: the array has no start value for every element, so one "
+                             f"element cannot be set alone: set the whole array")
+        kind = type_name(self.md, self.variables[name])
+        if kind in ("Float32", "Float64"):
+            return [float(x) for x in starts]
+        if kind == "Boolean":
+            return [str(x).strip().lower() in ("true", "1") for x in starts]
+        if kind == "String":
+            return list(starts)
+        return [int(x) for x in starts]
+
+    def _set_array(self, name: str, kind: str, value, what: str, error: type[SimulationError]) -> None:
+        """Set every value of an array variable through the fmi3Set* of its type."""
+        vr, size = self.arrays[name]
+        flat = list(_flat(value))
+        if len(flat) != size:
+            raise error(f"{what}: {self.name}.{name} is an array of {size} values, given {len(flat)}",
+                        instance=self.name)
+        if kind == "String":
+            flat = [str(x).encode("utf-8") for x in flat]
+        elif kind == "Boolean":
+            flat = [bool(x) for x in flat]
+        elif kind in ("Float32", "Float64"):
+            flat = [float(x) for x in flat]
+        else:
+            flat = [int(x) for x in flat]
+            bounds = int_range(kind)
+            bad = next((x for x in flat if bounds and not bounds[0] <= x <= bounds[1]), None)
+            if bad is not None:
+                raise error(f"{what}: {self.name}.{name} holds {bad}, out of the range of {kind} "
+                            f"[{bounds[0]}, {bounds[1]}]")
+        st = self._value_functions(kind)[1](self.component, (c_uint * 1)(vr), 1,
+                                            (_CTYPES[kind] * max(1, size))(*flat), size)
+        self.check(st, f"{what} ({name}, {size} values)", error=error)
 
     def _no_input_derivatives(self, comp, vr, n, orders, der) -> int:
         self.messages.append((ERROR, "FMI 3.0 Co-Simulation has no input derivatives"))
@@ -419,7 +640,7 @@ class Instance3(Instance):
             ev.failed_call = 4
         return max(st, s)
 
-    def _do_step(self, comp, t: float, h: float, _no_set_prior: int = 0) -> int:
+    def _do_step(self, comp, t: float, h: float, no_set_prior: int = 0) -> int:
         """fmi3DoStep from t to t + h, through the FMU's own events."""
         do_step = self._f[0]
         ev = self.events
@@ -430,7 +651,7 @@ class Instance3(Instance):
         worst = OK
         stalled = 0
         while True:
-            st = do_step(comp, now, step, False, byref(handling), byref(term), byref(early), byref(last))
+            st = do_step(comp, now, step, bool(no_set_prior), byref(handling), byref(term), byref(early), byref(last))
             if st > WARNING:
                 ev.failed_call = 1
                 return st
@@ -496,13 +717,25 @@ class Instance3(Instance):
         return super().fail(what.replace("fmi2", "fmi3"), status, time, error or SimulationError)
 
 
+def _flat(value):
+    """The values of a nested list (or tuple), row-major; a scalar as itself."""
+    if isinstance(value, (list, tuple)):
+        for x in value:
+            yield from _flat(x)
+    else:
+        yield value
+
+
 def make_instance(name, path, model_description=None, early_return: bool = True,
                   intermediate_update: bool = False) -> Instance:
-    """An ``Instance`` or ``Instance3`` (early return allowed where it
-    declares it, unless `early_return` is false; intermediate update where
-    it provides it and `intermediate_update` asks for it), as the FMU's
-    modelDescription says."""
+    """An ``Instance1``, ``Instance`` or ``Instance3`` (early return
+    allowed where it declares it, unless `early_return` is false;
+    intermediate update where it provides it and `intermediate_update` asks
+    for it), as the FMU's modelDescription says."""
     md = model_description or read_fmu(path, need_binary=False)[0]
-    if fmi_version(md) == 3:
+    version = fmi_version(md)
+    if version == 3:
         return Instance3(name, path, md, early_return, intermediate_update)
+    if version == 1:
+        return Instance1(name, path, md)
     return Instance(name, path, md)

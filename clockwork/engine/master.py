@@ -35,32 +35,62 @@ import math
 from ctypes import c_double, c_uint
 
 from .checkpoints import Checkpoints
+from .description import no_state_reason
 from .coupling import InputCoupling, iterate_step
 from .fmu import DISCARD, NO_MESSAGE, WARNING, Instance, free_all
 from .location import APPROACH, LAND, EventLocator, crossed, scan
 from .ports import Port, Ports
 from .richardson import StepDoubling
-from .settings import MasterSettings, Statistics, check_run, rollback_need
+from .samples import FileInputs, Samples, isclose
+from .settings import MasterSettings, Statistics, check_run, rollback_need, with_model_exchange
 from ..errors import SceneError, SimulationEnded, SimulationError
 from .wiring import Link, build
 
 
 class Master:
+    """The stepping loop over a set of wired FMU instances: the Python
+    reference; ``CompiledMaster`` (engine/compiled.py) runs the same
+    algorithm in C, with the same methods and the same bits.
+
+    A `System` builds and initializes one (``System.master``); its public
+    methods raise `ClosedError` once the System is freed.
+
+    Attributes:
+        t: The current communication point, s.
+        start_time: Where the run started, s (the grid is
+            ``start_time + k * settings.step``).
+        settings: The `MasterSettings` it runs.
+        stats: Counts of the run (``Statistics``): steps, events, rollbacks,
+            replays, saved states, rejected steps, coupling and loop
+            iterations.
+        engine: ``"python"`` or ``"compiled"``.
+        engine_reason: Why ``engine = "auto"`` chose the Python loop, or None.
+        ended: None, or the `SimulationEnded` of an FMU that ended the
+            simulation (then the run stopped cleanly at its last
+            communication point).
+    """
+
     MAX_REPLAY_STEPS = 64  # a forced checkpoint after this many steps bounds replay work and memory
     engine = "python"
 
     def __init__(self, instances: dict[str, Instance], links: list[Link],
                  settings: MasterSettings, start_time: float = 0.0,
                  step_order: list[str] | None = None,
-                 extra_outputs: dict[str, list[str]] | None = None):
+                 extra_outputs: dict[str, list[str]] | None = None,
+                 inputs: Samples | None = None):
         self.instances = instances
         self.settings = settings
-        self.wiring = build(instances, links, step_order)
+        # Model Exchange instances, whose own counts join the master's (stats.model_exchange).
+        self._model_exchange = [inst for inst in instances.values() if getattr(inst, "model_exchange", False)]
         settings.check()
+        self.wiring = build(instances, links, step_order, settings.algebraic_loops)
+        # Inputs driven from samples (an input file): set at every step.
+        self.file_inputs = None if inputs is None else FileInputs(
+            inputs, instances, {(k.dst, k.input) for k in links})
         self.t = start_time  # the current communication point, s
         self.start_time = start_time
         self.stats = Statistics()
-        self.ports = Ports(instances, links, self.wiring, extra_outputs, settings.event_location)
+        self.ports = Ports(instances, self.wiring.links, self.wiring, extra_outputs, settings.event_location, self)
         self.discrete_outputs = self.ports.discrete_outputs
         self.coupling = InputCoupling(self.ports.dynamic, settings.extrapolation)
         self.locator = EventLocator(self, self.ports.all)
@@ -87,9 +117,22 @@ class Master:
         self.ended: SimulationEnded | None = None  # an FMU ended the simulation (a clean end)
 
     @property
+    def stats(self) -> Statistics:
+        return with_model_exchange(self._stats, self._model_exchange)
+
+    @stats.setter
+    def stats(self, value: Statistics) -> None:
+        self._stats = value
+
+    @property
     def notes(self) -> list[str]:
         """What the master changed of the settings, said once each (e.g. a lowered extrapolation order)."""
         return self.coupling.notes
+
+    def count_loop(self, iterations: int, fallbacks: int) -> None:
+        """Algebraic loops (loops.Loop) count their iterations and fallbacks here."""
+        self.stats.loop_iterations += iterations
+        self.stats.loop_fallbacks += fallbacks
 
     def _check_rollback(self) -> None:
         """A rollback needs every FMU's state: refuse before the first step."""
@@ -100,8 +143,7 @@ class Master:
         for inst in self.instances.values():
             if not inst.can_get_set_state:
                 raise SceneError(f"{key}: {inst.name} ({inst.path.name}) cannot save and restore its state "
-                                 f"(its modelDescription.xml does not declare canGetAndSetFMUstate), "
-                                 f"and {why} rolls every FMU back")
+                                 f"({no_state_reason(inst.md)}), and {why} rolls every FMU back")
 
     def _check_fmi3(self) -> None:
         """FMI 3.0 Co-Simulation takes no input derivatives: refuse inputs
@@ -130,9 +172,18 @@ class Master:
         self.ended = None
         for name, inst in self.instances.items():
             inst.setup(self.start_time, parameters.get(name, {}), self.settings.tolerance)
+        if self.file_inputs is not None:
+            self.file_inputs.set(ports.all, self.start_time, False)
         # Outputs in initialization mode follow from parameters; two sweeps
         # settle feedthrough chains of any depth found in these scenes.
-        for _ in range(2):
+        # An algebraic loop (engine/loops.py) reads outputs of the last run
+        # before they are read again: forgotten, as in a new master. A loop
+        # broken by a delay starts in the second sweep, once every output
+        # feeding it has been read.
+        ports.forget_outputs()
+        for sweep in range(2):
+            if sweep == 1:
+                ports.start_loops()
             ports.propagate(ports.order, self.t)
         for inst in self.instances.values():
             inst.exit_init()
@@ -200,14 +251,20 @@ class Master:
         t_new = t + h
         ports = self.ports
         loc = self.locator
+        no_set_prior = 0 if self.checkpoints.held else 1  # noSetFMUStatePriorToCurrentPoint
+        inputs = self.file_inputs
+        if inputs is not None:  # sampled inputs at t, after an event there
+            inputs.set(ports.all, t, True)
         # 1. Feedthrough-only instances commit the mode decided at t.
         for p in ports.first:
-            st = p.doStep(p.comp, t, h, 0)
+            st = p.doStep(p.comp, t, h, no_set_prior)
             if st > WARNING:
                 raise self._step_failure(p, st, t, h)
             if p.z_pos and self.after_event:
                 # A commit may have switched the mode: read z at t+.
                 p.getReal(p.comp, p.out_vr, p.n_out, p.out)
+        if inputs is not None:  # their outputs are next read at t + h: sampled inputs there, before an event
+            inputs.set(ports.first, t_new, False)
         if self._locating:
             # Without a commit of a new mode, z at t+ is z at t.
             loc.z_start = loc.indicators() if self.after_event else loc.z_end
@@ -224,9 +281,11 @@ class Master:
         for p in dynamic:
             if not jacobi and p.has_inputs:
                 set_inputs(p, t, h, smooth, coupling.get(p.inst.name) if coupling else None)
-            st = p.doStep(p.comp, t, h, 0)
+            st = p.doStep(p.comp, t, h, no_set_prior)
             if st > WARNING:
                 raise self._step_failure(p, st, t, h)
+            if inputs is not None:
+                inputs.set((p,), t_new, False)
             p.read(t_new)
             if not jacobi and p is not last:
                 # Newest values flow on to the instances stepped later.
@@ -267,14 +326,28 @@ class Master:
                                    fmu_time=end)
         if st == DISCARD:
             return SimulationError(
-                f"{p.inst.name}: fmi2DoStep from t = {t!r} s with h = {h!r} s was discarded: "
+                f"{p.inst.name}: {p.inst.do_step_name} from t = {t!r} s with h = {h!r} s was discarded: "
                 f"{p.inst.last_message() or NO_MESSAGE}", time=t, instance=p.inst.name)
         return p.inst.fail(f"fmi2DoStep({t!r}, {h!r})", st, t)
 
     # -- the accurate step ---------------------------------------------
 
     def step(self, h: float) -> float:
-        """Advance by at most h (less when an event is located). Returns the step taken, s."""
+        """Advance by at most h (less when an event is located). Returns the step taken, s.
+
+        One communication step from ``t``, with everything of the settings
+        that makes it accurate (event location, rollback, strong coupling,
+        step doubling). `run_until` is the usual way to step.
+
+        Args:
+            h: The largest step to take, s (> 0).
+
+        Raises:
+            SimulationError: An FMU failed, or an output is NaN, infinite or
+                beyond ``divergence_limit``.
+            SimulationEnded: An FMU ended the simulation (`run_until`
+                catches it into ``ended``).
+        """
         s = self.settings
         t = self.t
         loc = self.locator
@@ -285,6 +358,15 @@ class Master:
                 raise self._fmi3_ended()
             if t < ev.next_event_time < t + h:
                 h = ev.next_event_time - t
+        # A sampled input's event is a discontinuity at the step's start
+        # and ends a step that would pass it.
+        if self.file_inputs is not None:
+            samples = self.file_inputs.samples
+            if samples.event_at(t):
+                self.discontinuity()
+            te = samples.next_event(t)
+            if t + h > te and not isclose(t + h, te):
+                h = te - t
         # 1. The indicators' sources cap the step.
         if loc.has_sources:
             if loc.sources_prev is None:
@@ -344,7 +426,7 @@ class Master:
         self.stats.steps += 1
         # 5. NaN, infinities, divergence.
         if self.ports.diverged(s.divergence_limit):
-            self.ports.name_divergence(self.t, s.divergence_limit)
+            self.ports.name_divergence(self.t, s.divergence_limit, last_point=t)
         if self._extrapolating:
             self.record_history()
         if self.on_step is not None:
@@ -416,7 +498,22 @@ class Master:
         Grid points are computed as start + k*step, never by summing steps,
         so that time does not drift. An FMU that ends the simulation ends
         the run cleanly at the last communication point: ``ended`` says
-        when and which, and later calls return at once.
+        when and which, and later calls return at once. Called again with a
+        later time, it goes on from where it stopped.
+
+        Args:
+            t_stop: Where to stop, s: finite and not before ``t``.
+            on_point (Callable[[Master], None] | None): Called as
+                ``on_point(master)`` at every communication point reached
+                (grid points and located events), or None.
+
+        Raises:
+            UsageError: ``t_stop`` NaN, infinite, not a number or before the
+                current time.
+            ClosedError: The System was freed.
+            SimulationError: An FMU failed (with its own message), or an
+                output became NaN, infinite or diverged; the message names
+                the time, the instance and the variable.
         """
         t_stop = check_run(self.instances, self.t, t_stop)
         if self.ended is not None:

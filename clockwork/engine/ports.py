@@ -10,13 +10,15 @@ communication step visits them (from the wiring graph).
 
 from __future__ import annotations
 
+import ctypes
 import math
 from ctypes import c_double, c_int, c_uint
 
 from ..errors import SceneError, SimulationError
 from .description import int_range, types_connect
 from .fmu import WARNING, Instance
-from .wiring import Link, Wiring
+from .loops import Loop
+from .wiring import Link, Wiring, loop_name
 
 
 class Port:
@@ -52,6 +54,7 @@ class Port:
         self.dout: list = []
         self.din_names: list[str] = []
         self.din_sources: list[tuple["Port", int]] = []
+        self.din_sent: dict = {}  # the discrete inputs' values last set
         self.has_inputs = self.n_in > 0  # Real or discrete
         # Order of the input polynomials this FMU gets (master.extrapolation,
         # 0 where it cannot interpolate inputs; lowered where it refuses one).
@@ -81,9 +84,11 @@ class Port:
                                       instance=self.inst.name)
             values[n] = x
         self.inst.set_values(values, "fmi2Set* of inputs")
+        self.din_sent = values
 
-    def pull(self, t: float) -> None:
-        """Set the inputs to their sources' outputs, then read the outputs, at t."""
+    def pull(self, t: float, read: bool = True) -> None:
+        """Set the inputs to their sources' outputs, then read the outputs
+        (unless `read` is false), at t."""
         if self.din_names:
             self.set_discrete()
         if self.n_in:
@@ -96,7 +101,24 @@ class Port:
             if st > WARNING:
                 raise self.inst.fail("fmi2SetReal of inputs", st, t)
             self.sent_valid = False
-        self.read(t)
+        if read:
+            self.read(t)
+
+
+def _unread(inst: Instance, name: str):
+    """A discrete output's value before it is first read: zero, or empty text."""
+    return "" if inst.variables[name].type == "String" else 0
+
+
+def _arrays_together(inst: Instance, names: list[str]) -> list[str]:
+    """Input names with each array's elements side by side in index order,
+    where its first element is (a request of whole arrays is one fmi3 call)."""
+    if not inst.arrays:
+        return names
+    first: dict[str, int] = {}
+    for pos, n in enumerate(names):
+        first.setdefault(inst.variables[n].array or n, pos)
+    return sorted(names, key=lambda n: (first[inst.variables[n].array or n], inst.variables[n].index))
 
 
 def link_type(instances: dict[str, Instance], link: Link) -> str:
@@ -122,7 +144,9 @@ class Ports(dict):
     the orders in which a communication step visits them."""
 
     def __init__(self, instances: dict[str, Instance], links: list[Link], wiring: Wiring,
-                 extra_outputs: dict[str, list[str]] | None, event_location: bool):
+                 extra_outputs: dict[str, list[str]] | None, event_location: bool, owner=None):
+        """`owner`: the master whose settings (algebraic_loops,
+        iteration_tolerance) and statistics the algebraic loops use."""
         super().__init__()
         inputs: dict[str, list[str]] = {n: [] for n in instances}
         outputs: dict[str, list[str]] = {n: [] for n in instances}
@@ -138,10 +162,12 @@ class Ports(dict):
             inputs[link.dst].append(link.input)
             if link.output not in outputs[link.src]:
                 outputs[link.src].append(link.output)
+        # An input array's elements go together, in order: FMI 3.0 sets an array whole.
+        inputs = {n: _arrays_together(instances[n], names) for n, names in inputs.items()}
         # Integer and Boolean outputs are discrete: read on demand, not per step.
         self.discrete_outputs: dict[str, list[str]] = {n: [] for n in instances}
         for n, names in (extra_outputs or {}).items():
-            for x in names:
+            for x in (y for name in names for y in instances[n].elements.get(name, [name])):
                 if instances[n].variables[x].type != "Real":
                     self.discrete_outputs[n].append(x)
                 elif x not in outputs[n]:
@@ -159,7 +185,7 @@ class Ports(dict):
             if link.output not in src.dout_names:
                 src.dout_names.append(link.output)
                 # Until the source is first read, as a Real output's buffer: zero (or empty text).
-                src.dout.append("" if src.inst.variables[link.output].type == "String" else 0)
+                src.dout.append(_unread(src.inst, link.output))
             dst.din_names.append(link.input)
             dst.din_sources.append((src, src.dout_names.index(link.output)))
             dst.has_inputs = True
@@ -170,19 +196,76 @@ class Ports(dict):
             dst.sources.append((k, src, src.out_names.index(link.output)))
             if not link.identity:
                 dst.scale.append((k, float(link.factor), float(link.offset)))
+        for p in self.values():  # in input order
+            p.sources.sort(key=lambda source: source[0])
+            p.scale.sort(key=lambda scale: scale[0])
 
         self.all = list(self.values())
         self.first = [self[n] for n in wiring.feedthrough_only]  # stepped first: they commit modes
         self.dynamic = [self[n] for n in wiring.dynamic]
-        self.order = [self[n] for n in wiring.evaluation_order]  # output updates, in dependency order
-        self.first_in_order = [p for p in self.order if p in self.first]
+        mode = owner.settings.algebraic_loops if owner is not None else "solve"
+        in_loop = {n: i for i, members in enumerate(wiring.loops) for n in members}
+        loop_discrete: list[list[Link]] = [[] for _ in wiring.loops]
+        for link in discrete_links:
+            i = in_loop.get(link.src)
+            if i is not None and in_loop.get(link.dst) == i and wiring.feedthrough_outputs[(link.src, link.output)]:
+                loop_discrete[i].append(link)
+        self.loops = [self._loop(owner, i, wiring, loop_discrete[i], mode, len(instances))
+                      for i in range(len(wiring.loops))]
+        # Output updates, in dependency order; a loop stands where its members would.
+        loop_of = {p: loop for loop in self.loops for p in loop.members}
+        self.order: list = []
+        placed: set[int] = set()
+        for n in wiring.evaluation_order:
+            item = loop_of.get(self[n], self[n])
+            if id(item) not in placed:
+                placed.add(id(item))
+                self.order.append(item)
+        first = set(self.first)
+        self.first_in_order = [x for x in self.order if x in first
+                               or (isinstance(x, Loop) and x.mode == "solve" and not first.isdisjoint(x.members))]
         # After a step, only feedthrough outputs need an update at t + h;
         # a dynamic instance's own inputs are set when its next step starts.
+        # A loop broken by a delay keeps what its members gave after their step.
         self.final_order = [
-            p for p in self.order
-            if p in self.first or any(
-                wiring.feedthrough_outputs.get((p.inst.name, n), feeds(p.inst, n)) for n in p.out_names)
+            x for x in self.order
+            if (x.mode == "solve" if isinstance(x, Loop) else x in first or any(
+                wiring.feedthrough_outputs.get((x.inst.name, n), feeds(x.inst, n)) for n in x.out_names))
         ]
+
+    def _loop(self, owner, index: int, wiring: Wiring, discrete_links: list[Link], mode: str,
+              n_instances: int) -> Loop:
+        """Loop `index` of the wiring; `discrete_links`: its feedthrough links that are not Real."""
+        members = wiring.loops[index]
+        inside = set(members)
+        ports = [self[n] for n in members]
+        feeding = wiring.feedthrough_outputs
+        unknowns = []
+        for p in ports:
+            scale = {k: (f, o) for k, f, o in p.scale}
+            for k, src, j in p.sources:
+                if src.inst.name in inside and feeding[(src.inst.name, src.out_names[j])]:
+                    f, o = scale.get(k, (1.0, 0.0))
+                    unknowns.append((p, k, src, j, f, o, k in scale))
+        discrete = []
+        for link in discrete_links:
+            src = self[link.src]
+            discrete.append((self[link.dst], link.input, src, src.dout_names.index(link.output),
+                             f"{link.src}.{link.output} -> {link.dst}.{link.input}",
+                             src.inst.variables[link.output].type))
+        return Loop(owner, loop_name(members, wiring.loop_links[index]), ports, unknowns, discrete, mode,
+                    n_instances)
+
+    def forget_outputs(self) -> None:
+        """Every output as before the first read: zero (or empty text)."""
+        ctypes.memset(self.buffer, 0, ctypes.sizeof(self.buffer))
+        for p in self.all:
+            p.dout = [_unread(p.inst, n) for n in p.dout_names]
+
+    def start_loops(self) -> None:
+        """The loops broken by a delay start as the peers do at their next update."""
+        for loop in self.loops:
+            loop.starting = True
 
     def propagate(self, ports: list[Port], t: float) -> None:
         """Set inputs from their sources and read outputs, in order, at t."""
@@ -196,9 +279,10 @@ class Ports(dict):
         """One pass over every output: False while all are finite and below `limit`."""
         return not sum(map(abs, self.buffer)) < limit  # NaN fails too
 
-    def name_divergence(self, t: float, limit: float) -> None:
+    def name_divergence(self, t: float, limit: float, last_point: float | None = None) -> None:
         """Raise for the output that failed ``diverged`` (a sum of large but
-        legal outputs can fail it too: then nothing)."""
+        legal outputs can fail it too: then nothing); the error's
+        ``last_point`` is the last good communication point, s."""
         for p in self.all:
             if sum(map(abs, p.out)) < limit:
                 continue
@@ -207,6 +291,7 @@ class Ports(dict):
                 x = out[k]
                 if not (-limit < x < limit):
                     what = "is not finite" if not math.isfinite(x) else f"exceeds the divergence limit {limit:g}"
-                    raise SimulationError(
-                        f"{p.inst.name}.{p.out_names[k]} = {x!r} {what} at t = {t!r} s",
-                        time=t, instance=p.inst.name, variable=p.out_names[k])
+                    e = SimulationError(f"{p.inst.name}.{p.out_names[k]} = {x!r} {what} at t = {t!r} s",
+                                        time=t, instance=p.inst.name, variable=p.out_names[k])
+                    e.last_point = last_point
+                    raise e

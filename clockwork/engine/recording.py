@@ -32,7 +32,8 @@ class Recorder:
     def __init__(self, master, outputs: list[tuple[str, str]], interval: float | None = None,
                  ticks_of: str | None = None):
         self.master = master
-        self.outputs = list(outputs)
+        # An FMI 3.0 array is recorded element by element ("y[0]", "A[1,2]").
+        self.outputs = [(i, x) for i, v in outputs for x in master.instances[i].elements.get(v, [v])]
         self.names = [f"{i}.{v}" for i, v in self.outputs]
         self.columns: dict[str, list[float]] = {"time": [], **{n: [] for n in self.names}}
         self.ticks: list[float] = []

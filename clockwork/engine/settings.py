@@ -10,10 +10,105 @@ from ..errors import ClosedError, SceneError, UsageError
 
 
 ENGINES = ("auto", "python", "compiled")
+# How Model Exchange FMUs are integrated (engine/me_step.py): "auto" (the
+# Runge-Kutta pair the tolerance asks for, CVode once the model proves
+# stiff), a pair ("dp54", "dop853") or CVode's BDF ("cvode").
+ME_SOLVERS = ("auto", "dp54", "dop853", "cvode")
+LOOP_MODES = ("solve", "delay")
 
 
 @dataclass
 class MasterSettings:
+    """What a master is asked to do: the communication step, the coupling,
+    event location and the engine.
+
+    Every field is also a key of a scene's ``[master]`` table (scenes.md),
+    where times may carry a unit (``step = "5 ms"``); here times are plain
+    numbers in seconds. The values are checked when the settings are made,
+    so that a bad one fails here and not in a long ``run_until``.
+
+    Attributes:
+        step: Nominal communication step, s (finite, > 0). ``run_until``
+            steps on the drift-free grid ``start_time + k * step``; located
+            events add communication points between grid points.
+        order: ``"gauss-seidel"`` (each dynamic FMU sees the newest outputs
+            of those stepped before it) or ``"jacobi"`` (every FMU sees the
+            values at the start of the step).
+        extrapolation: Order of the polynomials that hand a dynamic FMU its
+            inputs over a step: 0 (zero-order hold), 1 or 2 (through
+            ``fmi2SetRealInputDerivatives``, or FMI 3.0's intermediate
+            update); lowered per FMU to what it accepts (``master.notes``).
+        event_location: Locate the sign changes of the event indicators the
+            FMUs declare, rolling every FMU back to a saved state, and put a
+            communication point just past each (every FMU must then declare
+            ``canGetAndSetFMUstate``).
+        event_prediction: Where an indicator's source offers output
+            derivatives, extrapolate the indicator before a step near a
+            crossing and shorten the step to land just past the predicted
+            crossing, without a rollback; a prediction that misses is
+            replayed from the last saved state and located as without it.
+        event_time_tolerance: How close in time a located event must be to
+            the crossing, s (> 0).
+        event_indicator_tolerance: How close to zero an event indicator must
+            come, in the indicator's own unit (rad for the escapements; > 0).
+        iterations: Strong coupling: fixed-point iterations of each step on
+            the coupling signals (whole number >= 0; 0: off).
+        iteration_tolerance: When strong coupling has converged (the largest
+            change of a coupling output between iterations) and when an
+            algebraic loop has (``iteration_tolerance * max(1, |input|)``),
+            in the signals' own units (> 0).
+        richardson: Step doubling: each step is taken whole and as two
+            halves, and the step size controlled by the difference (Python
+            engine; not together with ``iterations``).
+        richardson_tolerance: Tolerance of step doubling on the dynamic FMUs'
+            outputs, mixed relative and absolute: a step is accepted where
+            ``|whole - halves| / (2 ** (extrapolation + 1) - 1) <=
+            richardson_tolerance * (1 + |halves|)`` for every output, or
+            where it is already ``min_step`` long (> 0).
+        min_step: Smallest step the step-size control of ``richardson``
+            takes, s (> 0).
+        max_step: Largest step the step-size control of ``richardson``
+            proposes, s (> 0); None: no cap (a scene's default is its
+            ``step``).
+        divergence_limit: An output whose magnitude exceeds this (in the
+            output's unit) fails the run as diverged (``SimulationError``
+            naming the instance and variable; > 0).
+        engine: ``"compiled"`` (the C stepping core), ``"python"`` (the
+            reference loop) or ``"auto"`` (the core wherever it covers the
+            settings and the links' types, else the Python loop with the
+            reason in ``master.engine_reason``). Both give the same bits.
+        tolerance: Relative tolerance passed to every FMU
+            (``fmi2SetupExperiment``, ``fmi3EnterInitializationMode``; > 0);
+            None: each FMU's DefaultExperiment tolerance, where it declares
+            one.
+        fmi_version: Which build of the bundled FMUs a model name loads: 2
+            (``fmus/``) or 3 (``fmus/fmi3/``); a path to an .fmu file is
+            whatever version it is.
+        early_return: Let FMI 3.0 FMUs that declare
+            ``mightReturnEarlyFromDoStep`` return early at their own events,
+            which the master handles in Event Mode; False: they handle them
+            inside ``fmi3DoStep``, as an FMI 2.0 FMU does.
+        me_solver: The integrator of Model Exchange FMUs: ``"auto"`` (the
+            Runge-Kutta pair the tolerance asks for, DOP853 at rtol <= 1e-6,
+            else Dormand-Prince 5(4); CVode's BDF from the step its
+            stiffness test fires), ``"dp54"``, ``"dop853"`` or ``"cvode"``.
+        algebraic_loops: How a loop of outputs with direct feedthrough runs:
+            ``"solve"`` iterates it to a fixed point wherever outputs are
+            brought up to date (to ``iteration_tolerance``), ``"delay"``
+            breaks it by a one-step delay.
+
+    Raises:
+        SceneError: A value out of its range or of the wrong type, or a
+            combination the master cannot run (``richardson`` with
+            ``iterations``), in one line naming the key, e.g.
+            ``master.step = 0: expected a finite number > 0``.
+
+    Example:
+        ```python
+        MasterSettings(step=1e-3, extrapolation=1, engine="python")
+        ```
+    """
+
     step: float = 0.01  # nominal communication step, s
     order: str = "gauss-seidel"  # or "jacobi"
     extrapolation: int = 0  # order of the input polynomials: 0, 1, 2
@@ -44,12 +139,26 @@ class MasterSettings:
     # to return early at their own events (handled there in event mode);
     # false: they handle them inside fmi3DoStep, as an FMI 2.0 FMU does.
     early_return: bool = True
+    # The integrator of Model Exchange FMUs (ME_SOLVERS).
+    me_solver: str = "auto"
+    # Algebraic loops (outputs with direct feedthrough that feed each other):
+    # "solve" iterates each loop's inputs to a fixed point wherever outputs
+    # are brought up to date, to iteration_tolerance; "delay" breaks it by a
+    # one-step delay (the loop's members are read once, after their step).
+    algebraic_loops: str = "solve"
 
     def __post_init__(self) -> None:
         self.check()  # a bad setting is refused where it is made, not in an endless run_until
 
     def check(self) -> None:
-        """Refuse values and combinations the master cannot run (SceneError: bad input)."""
+        """Refuse values and combinations the master cannot run.
+
+        Called when the settings are made and again by every master, so a
+        field changed afterwards is checked too.
+
+        Raises:
+            SceneError: The first bad value or combination, naming its key.
+        """
         for key in ("step", "event_time_tolerance", "event_indicator_tolerance", "iteration_tolerance",
                     "richardson_tolerance", "min_step", "divergence_limit"):
             _positive(key, getattr(self, key))
@@ -73,6 +182,11 @@ class MasterSettings:
             raise SceneError(f"master.tolerance = {self.tolerance!r}: expected a number > 0")
         if self.fmi_version not in (2, 3):
             raise SceneError(f"master.fmi_version = {self.fmi_version!r}: expected 2 or 3")
+        if self.me_solver not in ME_SOLVERS:
+            raise SceneError(f"master.me_solver = {self.me_solver!r}: expected one of "
+                             f"{', '.join(map(repr, ME_SOLVERS))}")
+        if self.algebraic_loops not in LOOP_MODES:
+            raise SceneError(f"master.algebraic_loops = {self.algebraic_loops!r}: expected 'solve' or 'delay'")
         if self.extrapolation not in (0, 1, 2):
             raise SceneError(f"master.extrapolation = {self.extrapolation}: expected 0, 1 or 2")
 
@@ -109,6 +223,16 @@ def rollback_need(settings, indicators: bool) -> tuple[str, str] | None:
     return None
 
 
+def with_model_exchange(stats: "Statistics", instances: list) -> "Statistics":
+    """`stats` with each Model Exchange instance's own counts (its
+    integrator's steps, right-hand sides, events...) as ``model_exchange``,
+    {instance name: counts}, where there are any (else no such attribute, so
+    that the statistics of other scenes stay as they are)."""
+    if instances:
+        stats.model_exchange = {inst.name: inst.statistics() for inst in instances}
+    return stats
+
+
 @dataclass
 class Statistics:
     steps: int = 0
@@ -121,3 +245,5 @@ class Statistics:
     coupling_iterations: int = 0
     predicted_landings: int = 0  # events located by a predicted step, without a rollback
     mispredicted: int = 0  # predicted steps that crossed beyond the tolerance (then replayed and located)
+    loop_iterations: int = 0  # algebraic loops: fixed-point sweeps and Newton iterations
+    loop_fallbacks: int = 0  # algebraic loops solved by the Newton fallback

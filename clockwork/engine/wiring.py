@@ -6,15 +6,18 @@ escapements and the drag. Such instances carry no dynamics the master must
 step in a Gauss-Seidel sequence; they are stepped first in a communication
 step, while their inputs still hold the values of the step's start, which
 is when they commit discrete modes. Outputs are then propagated at the new
-communication point in dependency order.
+communication point in dependency order. Instances whose feedthrough
+outputs feed each other form an algebraic loop (a strongly connected
+component of the feedthrough graph), which engine/loops.py brings up to date.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from ..errors import SceneError
+from .description import link_shape_problem
 from .fmu import Instance
 from .names import split_link, split_ref
 
@@ -59,55 +62,174 @@ class Wiring:
     dynamic: list[str]  # instances stepped in Gauss-Seidel/Jacobi order
     evaluation_order: list[str]  # order of output updates at a communication point
     feedthrough_outputs: dict[tuple[str, str], bool]  # (instance, output) -> has direct feedthrough
+    # Algebraic loops: the strongly connected components of the feedthrough
+    # graph (or one instance feeding itself), each with its members in
+    # instance order; consecutive in evaluation_order.
+    loops: list[list[str]] = field(default_factory=list)
+    loop_links: list[list[Link]] = field(default_factory=list)  # per loop, the feedthrough links inside it
 
 
-def build(instances: dict[str, Instance], links: list[Link], step_order: list[str] | None = None) -> Wiring:
+def expand_arrays(instances: dict[str, Instance], links: list[Link]) -> list[Link]:
+    """Links between FMI 3.0 arrays as links between their elements, in
+    order (arrays of the same shape only); SceneError where shapes differ or
+    where an input array would be connected in part (FMI 3.0 sets an array
+    whole)."""
+    if not any(getattr(inst, "arrays", None) for inst in instances.values()):  # (tests wire stand-ins too)
+        return list(links)
+    out = []
+    for link in links:
+        src, dst = instances[link.src], instances[link.dst]
+        s, d = src.variables[link.output], dst.variables[link.input]
+        if not s.shape and not d.shape:
+            out.append(link)
+            continue
+        problem = link_shape_problem(f"{link.src}.{link.output}", s, f"{link.dst}.{link.input}", d)
+        if problem:
+            raise SceneError(f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: {problem}")
+        for a, b in zip(src.elements[link.output], dst.elements[link.input]):
+            out.append(Link(link.src, a, link.dst, b, link.factor, link.offset))
+    connected: dict[tuple[str, str], list[str]] = {}
+    for link in out:
+        v = instances[link.dst].variables[link.input]
+        if v.array is not None:
+            connected.setdefault((link.dst, v.array), []).append(link.input)
+    for (dst, array), names in connected.items():
+        size = instances[dst].arrays[array][1]
+        if len(set(names)) < size:
+            raise SceneError(f"connection to {dst}.{names[0]}: {dst}.{array} is an input array of {size} values "
+                             f"and {len(set(names))} of them are connected; FMI 3.0 sets an array whole: "
+                             f"connect {dst}.{array} (or every element of it)")
+    return out
+
+
+def build(instances: dict[str, Instance], links: list[Link], step_order: list[str] | None = None,
+          algebraic_loops: str = "solve") -> Wiring:
+    """The wiring of `links` between `instances` (links between whole arrays
+    become links between their elements: ``Wiring.links``). With
+    algebraic_loops = "delay", the members of a loop are stepped as dynamic
+    instances whose outputs are read once, after their step (a one-step
+    delay)."""
+    links = expand_arrays(instances, links)
     feeds: dict[tuple[str, str], bool] = {}
     for link in links:
         var = instances[link.src].variables[link.output]
         # Missing dependency information means "depends on all inputs".
         feeds[(link.src, link.output)] = var.dependencies is None or len(var.dependencies) > 0
 
+    names = list(instances)
+    # Successors over feedthrough edges only: a source must be evaluated
+    # before an output of its destination that depends on it.
+    edges: dict[str, set[str]] = {n: set() for n in names}
+    for link in links:
+        if feeds[(link.src, link.output)]:
+            edges[link.src].add(link.dst)
+    components = strongly_connected(names, {n: sorted(e) for n, e in edges.items()})
+    rank = {n: i for i, n in enumerate(names)}
+    order: list[str] = []
+    loops: list[list[str]] = []
+    for comp in reversed(components):  # emitted sinks first
+        comp = sorted(comp, key=rank.__getitem__)
+        if len(comp) > 1 or comp[0] in edges[comp[0]]:
+            loops.append(comp)
+        order += comp
+    in_loop = {n: i for i, loop in enumerate(loops) for n in loop}
+    loop_links: list[list[Link]] = [[] for _ in loops]
+    for link in links:
+        i = in_loop.get(link.src)
+        if i is not None and feeds[(link.src, link.output)] and in_loop.get(link.dst) == i:
+            loop_links[i].append(link)
+
     connected_outputs: dict[str, list[str]] = {}
     for link in links:
         connected_outputs.setdefault(link.src, []).append(link.output)
-    names = list(instances)
     feedthrough_only = [
         n for n in names
         if n in connected_outputs and all(feeds[(n, o)] for o in connected_outputs[n])
     ]
     feedthrough_only += [n for n in names if n not in connected_outputs and not _has_free_outputs(instances[n])]
+    if algebraic_loops == "delay":
+        # Stepped with the inputs of the step's start, read after the step:
+        # what a loop member gives is one step old when it arrives.
+        feedthrough_only = [n for n in feedthrough_only if n not in in_loop]
     dynamic = [n for n in (step_order or names) if n not in feedthrough_only]
+    return Wiring(links, feedthrough_only, dynamic, order, feeds, loops, loop_links)
 
-    # Topological order over feedthrough edges only: a source must be
-    # evaluated before an output of its destination that depends on it.
-    edges = {n: set() for n in names}
+
+def strongly_connected(nodes: list[str], successors: dict[str, list[str]]) -> list[list[str]]:
+    """The strongly connected components of a directed graph (Tarjan's
+    algorithm, with an explicit stack: systems may have thousands of
+    instances), each emitted after every component it reaches; the nodes
+    and their successors are visited in the order given."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    out: list[list[str]] = []
+    for root in nodes:
+        if root in index:
+            continue
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        on_stack.add(root)
+        work = [(root, iter(successors[root]))]
+        while work:
+            node, children = work[-1]
+            child = next(children, None)
+            if child is not None:
+                if child not in index:
+                    index[child] = low[child] = len(index)
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(successors[child])))
+                elif child in on_stack:
+                    low[node] = min(low[node], index[child])
+                continue
+            work.pop()
+            if work:
+                parent = work[-1][0]
+                low[parent] = min(low[parent], low[node])
+            if low[node] == index[node]:
+                comp = []
+                while True:
+                    m = stack.pop()
+                    on_stack.discard(m)
+                    comp.append(m)
+                    if m == node:
+                        break
+                out.append(comp)
+    return out
+
+
+def loop_name(members: list[str], links: list[Link]) -> str:
+    """A loop as a cycle through its first member ("a -> b -> a"), with the
+    members it does not pass through named after it."""
+    succ: dict[str, list[str]] = {}
     for link in links:
-        if feeds[(link.src, link.output)] and link.src != link.dst:
-            edges[link.src].add(link.dst)
-        elif feeds[(link.src, link.output)]:
-            raise SceneError(
-                f"algebraic loop: {link.src}.{link.output} feeds {link.dst}.{link.input} of the same instance"
-            )
-    order: list[str] = []
-    state = {n: 0 for n in names}  # 0 new, 1 on stack, 2 done
-
-    def visit(n: str, path: list[str]) -> None:
-        if state[n] == 2:
-            return
-        if state[n] == 1:
-            cycle = " -> ".join(path[path.index(n):] + [n])
-            raise SceneError(f"algebraic loop through direct-feedthrough outputs: {cycle}")
-        state[n] = 1
-        for m in sorted(edges[n]):
-            visit(m, path + [n])
-        state[n] = 2
-        order.append(n)
-
-    for n in names:
-        visit(n, [])
-    order.reverse()
-    return Wiring(links, feedthrough_only, dynamic, order, feeds)
+        if link.dst not in succ.setdefault(link.src, []):
+            succ[link.src].append(link.dst)
+    first = members[0]
+    # Breadth first: the shortest way from the first member back to it.
+    came_from: dict[str, str] = {}
+    frontier = [first]
+    while frontier and first not in came_from:
+        nxt = []
+        for n in frontier:
+            for m in succ.get(n, []):
+                if m not in came_from:
+                    came_from[m] = n
+                    nxt.append(m)
+        frontier = nxt
+    path = [first]
+    n = came_from.get(first, first)
+    while n != first:
+        path.append(n)
+        n = came_from[n]
+    cycle = [first] + path[:0:-1] + [first]
+    rest = [m for m in members if m not in cycle]
+    text = " -> ".join(cycle)
+    if rest:
+        text += f" (with {', '.join(rest)})"
+    return text
 
 
 def _has_free_outputs(inst: Instance) -> bool:

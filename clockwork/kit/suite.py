@@ -42,7 +42,7 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from .. import __version__
+from ..version import __version__
 from ..atomic import write_bytes_atomic, write_text_atomic
 from .cases import CASES, Case, load_case_scene, reference
 from .csvio import write_csv

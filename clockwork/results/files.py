@@ -125,10 +125,17 @@ def check_output_dir(path: str | os.PathLike) -> Path:
         except OSError as e:
             raise UsageError(f"cannot create output directory {path}: {e.strerror or e}") from None
     # Try it: os.access misjudges some filesystems, and a failed probe is the real answer.
+    probe = None
     try:
         fd, probe = tempfile.mkstemp(prefix=f".clockwork-probe.{os.getpid()}.", suffix=PART, dir=path)
         os.close(fd)
-        os.unlink(probe)
     except OSError as e:
         raise UsageError(f"output directory {path} is not writable: {e.strerror or e}") from None
+    finally:
+        # Removed also when a signal (SIGTERM: Interrupted) lands between the two calls.
+        if probe is not None:
+            try:
+                os.unlink(probe)
+            except OSError:
+                pass
     return path

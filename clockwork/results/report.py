@@ -19,6 +19,7 @@ import numpy as np
 from .files import clean_json, write_csv_atomic, write_json_atomic
 from .headlines import headlines_for
 from .plots import Plotter
+from .plots.outputs import column_info
 
 _SCALARS = (int, float, bool, str, type(None))
 
@@ -32,7 +33,10 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
     files = []
     if scene.sweep is None:
         r = results[0]
-        summary["result"] = r.get("result", {})
+        # A failed run: "result" says when, where and why; the data are what it recorded until then.
+        summary["result"] = {"failed": r["failed"]} if "failed" in r else r.get("result", {})
+        if "error" in r:
+            summary["error"] = r["error"]
         summary["statistics"] = r.get("statistics", {})
         if "series" in r:
             cols = r["series"]
@@ -41,6 +45,8 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
                               else np.asarray([math.nan if x is None else x for x in v], dtype=float)
                               for v in cols.values()])
             files.append("timeseries.csv")
+            # Units and types of the columns: `clockwork plot` redraws from the files alone.
+            summary["columns"] = column_info(scene, [n for n in cols if n != "time"])
         if r.get("ticks"):
             t = np.asarray(r["ticks"], dtype=float)
             periods = np.concatenate([[np.nan], np.diff(t)])
@@ -49,7 +55,8 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
             files.append("ticks.csv")
     else:
         summary["points"] = [{"point": r.get("point"), **({"error": r["error"]} if "error" in r else {}),
-                              **r.get("result", {})} for r in results]
+                              **({"failed": r["failed"]} if "failed" in r else {}), **r.get("result", {})}
+                             for r in results]
         axes = [f"{a}.{b}" for a, b in (ax.parameter for ax in scene.sweep.axes)]
         rkeys = sorted({k for r in results for k, v in r.get("result", {}).items() if isinstance(v, _SCALARS)})
         cols = [[r["point"][k] for r in results] for k in axes]
@@ -63,7 +70,8 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
         summary["plots_failed"] = failed
     if empty:
         summary["plots_not_drawn"] = empty
-    summary["headlines"] = headlines_for(scene, summary, results)
+    failed = scene.sweep is None and "error" in results[0]
+    summary["headlines"] = [] if failed else headlines_for(scene, summary, results)
     summary["files"] = files + ["summary.json"]
     summary["wall_time_s"] = time.perf_counter() - t_start
     write_json_atomic(out / "summary.json", clean_json(summary))

@@ -41,9 +41,10 @@ def find_scene(spec: str | os.PathLike) -> Path:
                      "`clockwork list` shows the bundled scenes", path)
 
 
-def load_scene(path: str | os.PathLike, overrides=()):
-    """Load, override and validate a scene file (or a bundled scene by name); raises SceneError."""
-    scene = _load_scene(find_scene(path), overrides, kinds())
+def load_scene(path: str | os.PathLike, overrides=(), input_file: str | os.PathLike | None = None):
+    """Load, override and validate a scene file (or a bundled scene by name,
+    an SSP, an FMU), with an input file when given; raises SceneError."""
+    scene = _load_scene(find_scene(path), overrides, kinds(), input_file)
     check_recording_bound(scene)
     check_plot_axes(scene)
     return scene
@@ -56,6 +57,7 @@ def check_loadable(scene) -> None:
     by `validate` too, under the component's key."""
     for name, c in scene.components.items():
         inst = make_instance(name, c.fmu_path, c.model_description)
+        inst.label = c.fmu_label or None
         try:
             inst.instantiate()
         except SceneError as e:  # nothing instantiated: nothing to free

@@ -14,16 +14,16 @@ import time
 from dataclasses import asdict
 from pathlib import Path
 
-from .. import __version__
+from ..version import __version__
 from ..analyses.context import reusing_systems
-from ..errors import ParametersRefused, SceneError
+from ..errors import ParametersRefused, SceneError, SimulationError
 from ..results.cache import cache_load, cache_store, read_point
 from ..results.files import write_json_atomic
 from ..results.outdir import OutputDir
 from ..results.plots import Plotter
 from ..results.plots.registry import unknown_column
 from ..results.report import write_outputs
-from .points import analysis_kind, point_key, point_label, run_point
+from .points import analysis_kind, failed_point, point_key, point_label, run_point
 from .pool import default_workers, run_in_pool
 
 
@@ -66,11 +66,17 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
             write_json_atomic(out.points / f"{keys[i]}.json", r)
             cache_store(keys[i], r)
 
+    failure = None
     if not sweep:
         try:
             finished(0, run_point(scene, points[0], progress=progress))
         except ParametersRefused as e:  # the scene's values, not the run, are at fault
             raise SceneError(e.message, scene.path, f"components.{e.instance}.parameters") from None
+        except SimulationError as e:
+            # A failed run keeps its history: written and committed like a
+            # result (summary.json says failed), then the error is raised.
+            failure = e
+            finished(0, failed_point(scene, points[0], e, time.perf_counter() - t_start))
     elif todo:
         from tqdm import tqdm
 
@@ -104,6 +110,8 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
                  for n, c in scene.components.items()},
         "settings": {"master": scene.master.as_dict(), "experiment": asdict(scene.experiment),
                      "analysis": scene.analysis, "overrides": list(scene.overrides)},
+        **({"inputs": {"file": str(scene.inputs.file), "sha256": scene.inputs.sha256,
+                       "columns": scene.inputs.columns}} if scene.inputs is not None else {}),
         "points_total": len(points),
         "points_reused": reused,
     }
@@ -120,4 +128,19 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
             raise
         raise OSError(e.errno, e.strerror, str(out.path / Path(e.filename).name)) from None
     out.commit()
+    if failure is not None:
+        raise _failed_run(failure, out.path, summary)
     return summary
+
+
+def _failed_run(e: SimulationError, where: Path, summary: dict) -> SimulationError:
+    """The run's error, saying where its history is; it carries the summary
+    (``summary``) and the failed point's data (``history``)."""
+    series = (getattr(e, "history", None) or {}).get("series")
+    kept = "the series until then and summary.json (it says failed) are" if series else \
+        "summary.json (it says failed) is"
+    err = SimulationError(f"{e.message}; {kept} in {where}", time=e.time, instance=e.instance, variable=e.variable)
+    err.last_point = getattr(e, "last_point", None)
+    err.history = getattr(e, "history", None)
+    err.summary = summary
+    return err

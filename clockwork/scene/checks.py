@@ -12,15 +12,17 @@ import difflib
 import math
 from pathlib import Path
 
-from ..engine.description import FLOAT32_MAX, INTEGER_TYPES, int_range, var_limit, var_unit
+from ..engine.description import (FLOAT32_MAX, INTEGER_TYPES, ArrayElement, int_range, shape_text, var_limit,
+                                  var_unit)
 from ..engine.description import variables as variables_of
-from ..engine.names import split_ref
-from ..engine.settings import ENGINES
+from ..engine.names import instance_name_problem, split_ref
+from ..engine.settings import ENGINES, LOOP_MODES, ME_SOLVERS
 from ..errors import SceneError
 from .model import Component, show
 from .units import UnitError, fmt, parse_quantity, to_seconds, to_unit
 
-TOP_KEYS = ("scene", "components", "connections", "experiment", "master", "record", "analysis", "sweep", "plot")
+TOP_KEYS = ("scene", "components", "connections", "experiment", "master", "record", "analysis", "sweep", "plot",
+            "inputs")
 
 
 class Ctx:
@@ -74,12 +76,48 @@ class Ctx:
             raise self.bad(key, value, str(e)) from None
 
 
+def read_bounded(path: Path, limit: int, noun: str, expected: str) -> bytes:
+    """The bytes of a file clockwork reads whole (a scene, an input file), at
+    most `limit` of them; SceneError naming it otherwise (`noun`: "scene
+    file"; `expected`: what a directory is not, "a .toml scene file")."""
+    try:
+        # Read at most one byte past the limit: a device or a pipe reports no size.
+        with open(path, "rb") as f:
+            data = f.read(limit + 1)
+        if len(data) > limit:
+            size = path.stat().st_size if path.is_file() else None
+            raise SceneError(f"{size if size else 'more than ' + str(limit)} bytes: "
+                             f"{article(noun)} {noun} is at most {limit} bytes", path)
+    except FileNotFoundError:
+        raise SceneError(f"no such {noun}", path) from None
+    except IsADirectoryError:
+        raise SceneError(f"is a directory, expected {expected}", path) from None
+    except OSError as e:
+        raise SceneError(f"cannot read: {e.strerror}", path) from None
+    return data
+
+
+def instance_problem(name: object) -> str | None:
+    """What is wrong with an instance name, in a scene file or an SSP
+    (docs/scenes.md, "Components"), or None: the engine's name rule, and
+    not the name of a scene section (--set master.step must mean the master)."""
+    problem = instance_name_problem(name)
+    if problem is None and name in TOP_KEYS:
+        problem = f"the instance name {name} is reserved (it names a scene section)"
+    return problem
+
+
 def article(word: str) -> str:
     return "an" if word[:1] in "aeiou" else "a"
 
 
 def names_of(variables: dict, *causalities: str) -> list[str]:
-    return [n for n, v in variables.items() if v.causality in causalities]
+    """Names of the variables of these causalities (an array by its own name, not its elements')."""
+    return [n for n, v in variables.items() if v.causality in causalities and not isinstance(v, ArrayElement)]
+
+
+STRUCTURAL = ("is a structural parameter (an array size): clockwork does not change structural parameters "
+              "(FMI 3.0 configuration mode), the arrays keep the sizes of their start values")
 
 
 def lookup(ctx: Ctx, key: str, variables: dict, name: str, instance: str, model: str, want: str):
@@ -97,7 +135,27 @@ def lookup(ctx: Ctx, key: str, variables: dict, name: str, instance: str, model:
 
 
 def convert_value(ctx: Ctx, key: str, value: object, v, md):
-    """A TOML value -> the variable's type and unit, range-checked."""
+    """A TOML value -> the variable's type and unit, range-checked; an FMI
+    3.0 array's value is a TOML array nested as its shape (row by row), each
+    element checked (``key[i,j]`` in errors), kept as nested tuples."""
+    shape = tuple(getattr(v, "shape", None) or ())
+    if not shape:
+        return _convert_scalar(ctx, key, value, v, md)
+
+    def walk(x, dims: tuple[int, ...], index: tuple[int, ...]):
+        if not dims:
+            return _convert_scalar(ctx, f"{key}[{','.join(map(str, index))}]", x, v, md)
+        if not isinstance(x, list) or len(x) != dims[0]:
+            where = f"{key}[{','.join(map(str, index))}]" if index else key
+            what = (f"an array of {dims[0]} values" if len(dims) == 1 else
+                    f"an array of {dims[0]} arrays of {shape_text(dims[1:])} values")
+            raise ctx.bad(where, x, f"{what} ({v.name} is {shape_text(shape)}, row by row)")
+        return tuple(walk(y, dims[1:], (*index, i)) for i, y in enumerate(x))
+
+    return walk(value, shape, ())
+
+
+def _convert_scalar(ctx: Ctx, key: str, value: object, v, md):
     unit = var_unit(v)
     if v.type == "Real":
         try:
@@ -170,9 +228,18 @@ def master_value(ctx: Ctx, key: str, value: object):
         if value not in ("gauss-seidel", "jacobi"):
             raise ctx.bad(full, value, '"gauss-seidel" or "jacobi"')
         return value
+    if key == "algebraic_loops":
+        if value not in LOOP_MODES:
+            raise ctx.bad(full, value, '"solve" (iterate each loop to a fixed point) or "delay" (break it by one step)')
+        return value
     if key == "engine":
         if value not in ENGINES:
             raise ctx.bad(full, value, '"auto", "python" or "compiled"')
+        return value
+    if key == "me_solver":
+        if value not in ME_SOLVERS:
+            raise ctx.bad(full, value, " or ".join(f'"{s}"' for s in ME_SOLVERS)
+                          + " (the integrator of Model Exchange FMUs)")
         return value
     if key == "fmi_version":
         if isinstance(value, bool) or value not in (2, 3) or not isinstance(value, int):

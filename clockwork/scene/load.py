@@ -5,6 +5,9 @@ overrides, checks every key and value against the FMUs' model descriptions
 and returns a frozen ``Scene`` with all quantities converted to the
 variables' own (SI) units. Every problem raises ``SceneError`` with a
 one-line message naming the file, the dotted key and what was expected.
+An SSP (``ssp/read.py``) and an FMU alone (``fmu.py``) are read into the
+components and sections a scene file gives, and checked the same way; an
+input file (``inputs.py``) drives unconnected inputs of any of them.
 The ``[analysis]`` and ``[[plot]]`` tables are checked against ``kinds``,
 which the layers above fill (clockwork.run.load_scene passes them all).
 """
@@ -21,20 +24,23 @@ import tomllib
 from pathlib import Path
 
 from ..engine import compiled
-from ..engine.description import (TEXT_TYPES, FmuError, read_fmu, resolve_fmu, type_name, types_connect,
-                                  var_unit)
+from ..engine.description import (TEXT_TYPES, FmuError, element_names, link_shape_problem, read_fmu, resolve_fmu,
+                                  type_name, types_connect, var_unit)
 from ..engine.description import variables as variables_of
-from ..engine.fmu3 import make_instance
-from ..engine.names import instance_name_problem, split_link, split_ref
-from ..engine.wiring import Link
+from ..engine.model_exchange import INTERFACES, interface_of, make_instance, model_exchange_problem
+from ..engine.names import split_link, split_ref
+from ..engine.wiring import Link, loop_name
 from ..engine.wiring import build as build_wiring
 from ..errors import SceneError
-from .checks import TOP_KEYS, Ctx, article, component, convert_value, lookup, master_value, names_of, parse_ref
+from .checks import (STRUCTURAL, TOP_KEYS, Ctx, article, component, convert_value, instance_problem, lookup,
+                     master_value, names_of, parse_ref, read_bounded)
+from .fmu import read_fmu_scene
+from .inputs import Inputs, read_inputs
 from .kinds import NO_KINDS, Invalid, Kinds
 from .model import (Component, Connection, Experiment, MasterConfig, Record, Scene, consistency)
 from .ssp.read import read_ssp
 from .sweep import parse_sweep
-from .units import fmt, link_conversion
+from .units import UnitError, fmt, link_conversion, to_seconds
 
 MAX_SCENE_BYTES = 1 << 20  # scene files are a few kB; a larger one is not a scene
 _OVERRIDABLE = ("scene", "experiment", "master", "record", "analysis")
@@ -54,6 +60,8 @@ def parse_override(text: str, instances=()) -> tuple[str, str, object]:
     lhs = lhs.strip()
     owner = lhs.partition(".")[0]
     split = None if owner in _OVERRIDABLE else split_ref(lhs, list(instances))
+    if split is None and len(instances) == 1 and "." not in lhs:
+        split = (next(iter(instances)), lhs)  # one component: the instance prefix is optional
     if split is None:
         head, dot, tail = lhs.partition(".")
         split = (head, tail) if dot and head and tail and not tail.endswith(".") else None
@@ -71,32 +79,23 @@ def _override_value(lhs: str, rhs: str) -> object:
         raise ValueError(f"--set {lhs}: the value is nested deeper than Python can read") from None
 
 
-def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS) -> Scene:
-    """Load, override and validate a scene file (or an .ssp/.ssd); raises SceneError."""
+def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
+               input_file: str | os.PathLike | None = None) -> Scene:
+    """Load, override and validate a scene file (or an .ssp/.ssd, or an
+    .fmu alone); `input_file` (relative to the current directory) drives
+    unconnected inputs, in place of the scene's [inputs]. Raises SceneError."""
     path = Path(path)
     if path.suffix.lower() in (".ssp", ".ssd"):
-        return _load_ssp(path, overrides, kinds)
-    try:
-        # Read at most one byte past the limit: a device or a pipe reports no size.
-        with open(path, "rb") as f:
-            data = f.read(MAX_SCENE_BYTES + 1)
-        if len(data) > MAX_SCENE_BYTES:
-            size = path.stat().st_size if path.is_file() else None
-            raise SceneError(f"{size if size else 'more than ' + str(MAX_SCENE_BYTES)} bytes: "
-                             f"a scene file is at most {MAX_SCENE_BYTES} bytes", path)
-    except FileNotFoundError:
-        raise SceneError("no such scene file", path) from None
-    except IsADirectoryError:
-        raise SceneError("is a directory, expected a .toml scene file", path) from None
-    except OSError as e:
-        raise SceneError(f"cannot read: {e.strerror}", path) from None
+        return _load_system(path, read_ssp(path), overrides, kinds, input_file)
+    if path.suffix.lower() == ".fmu":
+        return _load_system(path, read_fmu_scene(path), overrides, kinds, input_file)
+    data = read_bounded(path, MAX_SCENE_BYTES, "scene file", "a .toml scene file")
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as e:
         if data[:4] == b"PK\x03\x04":  # a zip archive: an FMU or an SSP given where a scene goes
-            raise SceneError("a zip archive, not a scene: expected a .toml scene file, an .ssp archive or "
-                             "an .ssd file (an FMU is run from a scene that names it; `clockwork info` lists "
-                             "its variables)", path) from None
+            raise SceneError("a zip archive, not a scene: expected a .toml scene file, an .ssp archive, "
+                             "an .ssd file or an FMU named X.fmu", path) from None
         raise SceneError(f"not UTF-8 text (byte {e.start})", path) from None
     try:
         raw = tomllib.loads(text)
@@ -140,7 +139,7 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS) -
         labels[f"components.{owner}.parameters.{name}"] = label
 
     ctx = Ctx(path, labels)
-    return _build(ctx, raw, tuple(applied), hashlib.sha256(data).hexdigest(), kinds)
+    return _build(ctx, raw, tuple(applied), hashlib.sha256(data).hexdigest(), kinds, input_file=input_file)
 
 
 def _override(text: str, instances, path: Path) -> tuple[str, str, object, str]:
@@ -159,11 +158,11 @@ def _no_component(owner: str, names: list[str], path: Path, label: str) -> Scene
     return SceneError(f"no component named {owner}{hint}; components: {', '.join(names) or 'none'}", path, label)
 
 
-def _load_ssp(path: Path, overrides, kinds: Kinds) -> Scene:
-    """An SSP archive or SSD file through the same checks as a scene file:
-    the SSP gives the components and connections, its default experiment,
-    annotations and --set the other sections (docs/scenes.md, "SSP and SSD")."""
-    ssp = read_ssp(path)
+def _load_system(path: Path, ssp, overrides, kinds: Kinds, input_file) -> Scene:
+    """An SSP archive, an SSD file or an FMU alone through the same checks
+    as a scene file: the SSP (or FMU) gives the components and connections,
+    its default experiment, annotations and --set the other sections
+    (docs/scenes.md, "SSP and SSD"; docs/own-fmu.md)."""
     for w in ssp.warnings:
         print(f"clockwork: warning: {w}", file=sys.stderr)
     raw = {"scene": {"title": ssp.name, "description": ssp.description}, **ssp.sections}
@@ -178,39 +177,86 @@ def _load_ssp(path: Path, overrides, kinds: Kinds) -> Scene:
             raw.setdefault(owner, {})[name] = value
             labels[f"{owner}.{name}"] = label
             continue
+        if owner not in components and len(components) == 1:
+            # one component: a dotted variable name needs no prefix either (`--set MLoad.k=2`)
+            (only, comp), = components.items()
+            if f"{owner}.{name}" in variables_of(comp.model_description):
+                owner, name = only, f"{owner}.{name}"
         if owner not in components:
             raise _no_component(owner, list(components), path, label)
         inst = owner
         comp, var = components[inst], name
         ctx = Ctx(path, {})
         v = lookup(ctx, label, variables_of(comp.model_description), var, inst, comp.model_name, want="parameter")
+        if v.causality == "structuralParameter":
+            raise SceneError(f"{inst}.{var} {STRUCTURAL}", path, label)
         if v.causality not in ("parameter", "input") or (inst, var) in connected:
             what = "a connected input" if v.causality == "input" else f"{article(v.causality)} {v.causality}"
             raise SceneError(f"{inst}.{var} is {what}; expected a parameter or an unconnected input", path, label)
         value = convert_value(ctx, label, value, v, comp.model_description)
         components[inst] = dataclasses.replace(comp, parameters={**comp.parameters, var: value})
-    if "stop" not in raw.get("experiment", {}):
-        raise SceneError("missing: the SSD has no ssd:DefaultExperiment stopTime; expected one, or "
-                         "--set experiment.stop=<time>", path, "ssd:DefaultExperiment stopTime")
+    _ssp_stop(ssp, raw)
+    _ssp_step_hints(ssp, raw, components, labels)
     outputs = raw.get("record", {}).get("outputs")
     if isinstance(outputs, list) and all(isinstance(o, str) for o in outputs):
         # a system connector records the component output it passes on
         outputs = raw["record"]["outputs"] = [ssp.aliases.get(o, o) for o in outputs]
     raw.setdefault("analysis", {"kind": "time_series"})  # --set analysis.kind=... may choose another
-    series = isinstance(raw["analysis"], dict) and raw["analysis"].get("kind") == "time_series"
-    if series and isinstance(outputs, list) and outputs and all(isinstance(o, str) for o in outputs):
-        # Strings are recorded as text, not drawn.
-        variables = {n: variables_of(c.model_description) for n, c in components.items()}
-        numbers = [o for o in outputs if _column_type(o, variables) not in TEXT_TYPES]
-        if numbers:
-            raw["plot"] = [{"kind": "time_series", "x": "time", "y": numbers, "title": ssp.name,
-                            "file": "outputs.png"}]
     ctx = Ctx(path, labels)
-    return _build(ctx, raw, tuple(applied), ssp.sha256, kinds, (components, ssp.connections))
+    return _build(ctx, raw, tuple(applied), ssp.sha256, kinds, (components, ssp.connections), input_file)
+
+
+def _ssp_stop(ssp, raw: dict) -> None:
+    """An SSD without a stopTime (and no --set experiment.stop) stops 1 s
+    after its start, as fmpy does (and OMSimulator, from 0 s), with a note."""
+    experiment = raw.setdefault("experiment", {})
+    if "stop" in experiment or ssp.no_stop is None:
+        return
+    try:
+        start = to_seconds(experiment.get("start", 0.0))
+    except UnitError:
+        return  # refused under experiment.start
+    experiment["stop"] = start + 1.0
+    label, key = ssp.no_stop
+    print(f"clockwork: note: {label}: {key}: no ssd:DefaultExperiment stopTime: the run stops 1 s after the start, at "
+          f"{fmt(start + 1.0)} s, as fmpy does (--set experiment.stop=<time> for another)", file=sys.stderr)
+
+
+def _ssp_step_hints(ssp, raw: dict, components: dict, labels: dict) -> None:
+    """The components' osp:StepSizeHint: libcosim and ecos step a component
+    every k-th base step (k = hint / base step, rounded down in libcosim, up
+    in ecos). clockwork's master steps every FMU at every communication
+    point (a per-component multiple would be a master feature in both
+    engines), so it honours hints that give every component the same step,
+    by taking that step, and refuses the others in one line. A --set
+    master.step chooses the step for all, with a note."""
+    hints = ssp.step_hints
+    if not hints:
+        return
+    if "master.step" in labels:
+        label, key = next(iter(hints.values()))[1:]
+        print(f"clockwork: note: {label}: {key}: --set master.step steps every component alike; the "
+              f"components' osp:StepSizeHint ({len(hints)}) are not applied", file=sys.stderr)
+        return
+    master = raw.setdefault("master", {})
+    base = master.get("step", _MASTER_DEFAULTS["step"])
+    steps = {inst: hints[inst][0] if inst in hints else base for inst in components}
+    first = next(iter(steps))
+    odd = next((inst for inst, h in steps.items() if h != steps[first]), None)
+    if odd is None:
+        master["step"] = steps[first]
+        return
+    inst = odd if odd in hints else first
+    label, key = hints[inst][1:]
+    other = first if inst == odd else odd
+    raise SceneError(f"{inst} would step every {fmt(steps[inst])} s and {other} every {fmt(steps[other])} s: "
+                     "clockwork's master steps every FMU at every communication point (no per-component "
+                     "decimation); expected the same osp:StepSizeHint on every component, or --set "
+                     "master.step=<s> to step all alike", label, key)
 
 
 def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: Kinds,
-           prebuilt: tuple | None = None) -> Scene:
+           prebuilt: tuple | None = None, input_file=None) -> Scene:
     if prebuilt is None:
         ctx.check_keys(raw, TOP_KEYS, "", required=("scene", "components", "experiment"))
 
@@ -231,9 +277,10 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     else:
         components, connections = prebuilt
         notes = ()
-    _check_wiring(ctx, components, connections)
+    loops = _check_wiring(ctx, components, connections)
     experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
     master, max_step_given = _master(ctx, master_t)
+    notes = tuple(notes) + tuple(_loop_note(name, links, master.algebraic_loops) for name, links in loops)
     problem = consistency(master, experiment, components) or _fmi3_inputs(master, components, connections)
     if problem:
         raise ctx.fail(*problem)
@@ -249,7 +296,11 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     sweep = parse_sweep(ctx, ctx.table(raw, "sweep", ""), components, connected_inputs)
     plots = _plots(ctx, raw.get("plot", []), kinds)
     if (analysis or {}).get("kind", "time_series") == "time_series":
+        plots = _plot_array_elements(plots, components)
+        if not plots and sweep is None:  # a sweep's points are not one series
+            plots = _default_plot(ctx, record, components, kinds)
         _check_series_plots(ctx, plots, record, components)
+    inputs = _inputs(ctx, ctx.table(raw, "inputs", ""), components, connections, input_file)
 
     scene = Scene(
         path=ctx.path,
@@ -268,6 +319,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
         sha256=digest,
         max_step_given=max_step_given,
         notes=notes,
+        inputs=inputs,
     )
     if sweep and any(a.parameter[0] in ("master", "experiment") for a in sweep.axes):
         for point in sweep.points():
@@ -278,6 +330,42 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     return scene
 
 
+# The plot a time series gets when its scene asks for none (results/plots/outputs.py).
+DEFAULT_PLOT = {"kind": "outputs", "file": "outputs.png"}
+
+
+def _default_plot(ctx: Ctx, record: Record, components: dict, kinds: Kinds) -> tuple[dict, ...]:
+    """The recorded numbers, grouped by unit (where the plot layer registered
+    the kind, and there is a number to draw: Strings are recorded as text)."""
+    if DEFAULT_PLOT["kind"] not in kinds.plot_keys:
+        return ()
+    if all(components[i].variable(v).type in TEXT_TYPES for i, v in record.outputs):
+        return ()
+    return (_kind_table(ctx, dict(DEFAULT_PLOT), "plot[0]", kinds.plot_keys, kinds.plot_convert),)
+
+
+def _inputs(ctx: Ctx, t: dict | None, components: dict, connections, given) -> Inputs | None:
+    """The samples of [inputs] file (relative to the scene file), or of the
+    file given on the command line (relative to the current directory)."""
+    if t is not None:
+        ctx.check_keys(t, ("file",), "inputs", required=("file",))
+        if not isinstance(t["file"], str) or not t["file"].strip():
+            raise ctx.bad("inputs.file", t["file"], "the path of a CSV input file")
+    if given is not None:
+        path = Path(given).expanduser()
+    elif t is None:
+        return None
+    else:
+        path = Path(t["file"]).expanduser()
+        path = path if path.is_absolute() else ctx.path.parent / path
+        if not path.exists():
+            raise ctx.fail("inputs.file", f"no such input file: {path} (a relative path is taken from the "
+                                          "scene file's directory)")
+    connected = {(c.dst_instance, c.dst_var) for c in connections}
+    given_values = {(n, p) for n, c in components.items() for p in c.parameters}
+    return read_inputs(path, components, connected, given_values)
+
+
 def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, Component], set]:
     if not table:
         raise ctx.fail("components", "expected at least one [components.<instance>] table")
@@ -285,14 +373,12 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
     input_params = set()
     for name, t in table.items():
         where = f"components.{name}"
-        problem = instance_name_problem(name)
+        problem = instance_problem(name)
         if problem:
             raise ctx.fail(where, problem)
-        if name in TOP_KEYS:
-            raise ctx.fail(where, f"the instance name {name} is reserved (it names a scene section)")
         if not isinstance(t, dict):
             raise ctx.bad(where, t, f"a table [components.{name}] with keys fmu, parameters")
-        ctx.check_keys(t, ("fmu", "parameters"), where, required=("fmu",))
+        ctx.check_keys(t, ("fmu", "parameters", "interface"), where, required=("fmu",))
         spec = t["fmu"]
         if not isinstance(spec, str):
             raise ctx.bad(f"{where}.fmu", spec, "a model name or a path ending .fmu")
@@ -301,6 +387,19 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
             md, digest, indicators = read_fmu(fpath)
         except FmuError as e:
             raise ctx.fail(f"{where}.fmu", str(e)) from None
+        interface = t.get("interface")
+        if interface is not None:
+            if interface not in INTERFACES:
+                raise ctx.bad(f"{where}.interface", interface, " or ".join(f'"{i}"' for i in INTERFACES))
+            try:
+                interface_of(md, interface)
+            except SceneError as e:
+                raise ctx.fail(f"{where}.interface", e.detail) from None
+        if interface_of(md, interface) == "model-exchange":
+            problem = model_exchange_problem(md)
+            if problem:
+                raise ctx.fail(f"{where}.fmu", f"{fpath.name}: {problem}")
+            indicators = ()  # the FMU's own event indicators are located inside its wrapper
         params_t = ctx.table(t, "parameters", where) or {}
         params = {}
         variables = variables_of(md)
@@ -309,23 +408,35 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
             v = lookup(ctx, key, variables, pname, name, md.modelName, want="parameter")
             if v.causality == "input":
                 input_params.add((name, pname, key))
+            elif v.causality == "structuralParameter":
+                raise ctx.fail(key, f"{md.modelName}.{pname} {STRUCTURAL}")
             elif v.causality != "parameter":
                 raise ctx.fail(
                     key, f"{md.modelName}.{pname} is {article(v.causality)} {v.causality}, not a parameter; "
                     f"parameters: {', '.join(names_of(variables, 'parameter'))}")
             params[pname] = convert_value(ctx, key, value, v, md)
-        out[name] = Component(name, fpath, digest, md, params, indicators)
+        out[name] = Component(name, fpath, digest, md, params, indicators, interface)
     return out, input_params
 
 
-def _check_wiring(ctx: Ctx, components: dict[str, Component], connections) -> None:
-    """What the master refuses before it steps (an algebraic loop through
-    direct-feedthrough outputs), refused now, by the engine's own wiring code."""
+def _check_wiring(ctx: Ctx, components: dict[str, Component], connections) -> list[tuple[str, list[Link]]]:
+    """The wiring as the master will build it, by the engine's own code:
+    what it refuses is refused now. Returns the algebraic loops (name,
+    links inside)."""
     try:
-        instances = {n: make_instance(n, c.fmu_path, c.model_description) for n, c in components.items()}
-        build_wiring(instances, [Link(*c) for c in connections])
+        instances = {n: make_instance(n, c.fmu_path, c.model_description, interface=c.interface)
+                     for n, c in components.items()}
+        wiring = build_wiring(instances, [Link(*c) for c in connections])
     except SceneError as e:
         raise ctx.fail("connections", e.detail) from None
+    return [(loop_name(m, links), links) for m, links in zip(wiring.loops, wiring.loop_links)]
+
+
+def _loop_note(name: str, links: list[Link], mode: str) -> str:
+    through = ", ".join(f"{k.src}.{k.output} -> {k.dst}.{k.input}" for k in links)
+    how = ("solved to a fixed point at every communication point" if mode == "solve"
+           else "broken by a one-step delay")
+    return f'algebraic loop {name} (through {through}): {how} (master.algebraic_loops = "{mode}")'
 
 
 def _connections(ctx: Ctx, conns, components: dict[str, Component],
@@ -378,6 +489,9 @@ def _connections(ctx: Ctx, conns, components: dict[str, Component],
         if not types_connect(s.type, d.type):
             raise ctx.fail(key, f"type mismatch: {si}.{sv} is {type_name(sc.model_description, s)}, "
                                 f"{di}.{dv} is {type_name(dc.model_description, d)}")
+        problem = link_shape_problem(f"{si}.{sv}", s, f"{di}.{dv}", d)
+        if problem:
+            raise ctx.fail(key, problem)
         su, du = var_unit(s), var_unit(d)
         factor, offset = 1.0, 0.0
         if su != du and (su is None or du is None):
@@ -409,7 +523,7 @@ def _takes_intermediate_update(md, name: str) -> bool:
     replacement for input derivatives)."""
     if not md.coSimulation or not md.coSimulation.providesIntermediateUpdate:
         return False
-    return any(v.name == name and v.intermediateUpdate for v in md.modelVariables)
+    return any(v.name == name and v.intermediateUpdate and not v.shape for v in md.modelVariables)  # arrays: no
 
 
 def _fmi3_inputs(m: MasterConfig, components: dict[str, Component], connections) -> tuple[str, str] | None:
@@ -424,9 +538,11 @@ def _fmi3_inputs(m: MasterConfig, components: dict[str, Component], connections)
     for c in connections:
         comp = components[c.dst_instance]
         md = comp.model_description
+        if comp.model_exchange:
+            continue  # the Model Exchange wrapper takes input derivatives
         dynamic = any(o.dependencies is not None and not o.dependencies for o in md.outputs)
         if md.fmiVersion == "3.0" and dynamic and not _takes_intermediate_update(md, c.dst_var):
-            return (f"master.{key}", f"{c.dst_instance} ({comp.fmu_path.name}) is an FMI 3.0 FMU with dynamics "
+            return (f"master.{key}", f"{c.dst_instance} ({Path(comp.fmu_shown).name}) is an FMI 3.0 FMU with dynamics "
                     f"whose {c.dst_var} has no intermediate update, and its Co-Simulation interface takes no "
                     f"input derivatives: {key} needs them for {c.dst_instance}.{c.dst_var}; use "
                     f"master.{key} = 0 or an FMI 2.0 build")
@@ -457,13 +573,15 @@ def _record(ctx: Ctx, t: dict | None, components: dict[str, Component]) -> Recor
             if v.causality not in ("output", "input", "parameter", "calculatedParameter", "local"):
                 raise ctx.fail(key, f"{ref} is {article(v.causality)} {v.causality} variable; "
                                     "expected an output, input, parameter or local variable (such as der(x))")
-            pair = (comp.name, v.name)
-            if pair in outputs:
-                raise ctx.fail(key, f"{ref} is listed twice")
-            outputs.append(pair)
+            for name in element_names(v):  # an FMI 3.0 array: each element
+                pair = (comp.name, name)
+                if pair in outputs:
+                    raise ctx.fail(key, f"{comp.name}.{name} is listed twice")
+                outputs.append(pair)
     else:
-        outputs = [(n, v.name) for n, c in components.items()
-                   for v in c.model_description.modelVariables if v.causality == "output"]
+        outputs = [(n, name) for n, c in components.items()
+                   for v in c.model_description.modelVariables if v.causality == "output"
+                   for name in element_names(v)]
     interval = None
     if "interval" in t:
         interval = ctx.time("record.interval", t["interval"])
@@ -506,13 +624,28 @@ def _analysis(ctx: Ctx, t: dict | None, kinds: Kinds) -> dict | None:
 
 
 # Plot kinds that draw the recorded outputs of a time_series analysis.
-_SERIES_PLOTS = ("time_series", "phase_portrait")
+_SERIES_PLOTS = ("time_series", "phase_portrait", "outputs")
 
 
-def _column_type(name: str, variables: dict) -> str | None:
-    """The FMI type of a recorded column "instance.variable" (None: not a variable)."""
-    split = split_ref(name, variables)
-    return None if split is None or split[1] not in variables[split[0]] else variables[split[0]][split[1]].type
+def _plot_array_elements(plots: tuple[dict, ...], components: dict) -> tuple[dict, ...]:
+    """A series plot's `y` naming an FMI 3.0 array draws each of its elements."""
+    variables = {n: variables_of(c.model_description) for n, c in components.items()}
+
+    def elements(name: str) -> list[str]:
+        split = split_ref(name, variables)
+        v = variables[split[0]].get(split[1]) if split else None
+        return [f"{split[0]}.{e}" for e in element_names(v)] if v is not None and v.shape else [name]
+
+    out = []
+    for spec in plots:
+        ys = spec.get("y")
+        if spec["kind"] in _SERIES_PLOTS and isinstance(ys, (str, list)):
+            names = [ys] if isinstance(ys, str) else ys
+            expanded = [e for y in names if isinstance(y, str) for e in elements(y)]
+            if expanded != names:
+                spec = {**spec, "y": expanded}
+        out.append(spec)
+    return tuple(out)
 
 
 def _check_series_plots(ctx: Ctx, plots: tuple[dict, ...], record: Record, components: dict) -> None:

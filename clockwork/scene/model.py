@@ -16,7 +16,8 @@ from typing import Any, NamedTuple
 
 from ..errors import SceneError
 from ..engine import compiled
-from ..engine.description import variables as variables_of
+from ..engine.description import no_state_reason, variables as variables_of
+from ..engine.model_exchange import interface_of
 from ..engine.settings import rollback_need
 from .units import fmt
 
@@ -28,10 +29,31 @@ class Component:
     model_description: Any  # fmpy.model_description.ModelDescription
     parameters: dict[str, float | int | bool | str]  # in the variable's unit (SI)
     event_indicators: tuple[str, ...] = ()  # from the `clockwork` vendor annotation
+    # "co-simulation" or "model-exchange"; None: Co-Simulation where the FMU has it
+    interface: str | None = None
+    # What messages call the FMU: an SSP archive's member ("x.ssp/resources/m.fmu")
+    # rather than its copy in the cache; "" for the file itself.
+    fmu_label: str = ""
 
     @property
     def model_name(self) -> str:
         return self.model_description.modelName
+
+    @property
+    def model_exchange(self) -> bool:
+        """Whether the master runs it through its Model Exchange interface."""
+        return interface_of(self.model_description, self.interface) == "model-exchange"
+
+    @property
+    def capabilities(self):
+        """The <CoSimulation> or <ModelExchange> element it runs through."""
+        md = self.model_description
+        return md.modelExchange if self.model_exchange else md.coSimulation
+
+    @property
+    def fmu_shown(self) -> str:
+        """The FMU as messages name it."""
+        return self.fmu_label or str(self.fmu_path)
 
     def variable(self, name: str):
         return variables_of(self.model_description)[name]
@@ -79,6 +101,8 @@ class MasterConfig:
     tolerance: float | None = None  # relative, passed to every FMU; None: each FMU's DefaultExperiment's
     fmi_version: int = 2  # which build of the bundled FMUs model names load: 2 or 3
     early_return: bool = True  # FMI 3.0 FMUs may return early from fmi3DoStep at their own events
+    me_solver: str = "auto"  # integrator of Model Exchange FMUs: "auto", "dp54", "dop853" or "cvode"
+    algebraic_loops: str = "solve"  # "solve" (fixed point at every communication point) or "delay"
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -136,6 +160,7 @@ class Scene:
     sha256: str = ""  # of the scene file's bytes
     max_step_given: bool = field(default=False, repr=False, compare=False)
     notes: tuple[str, ...] = field(default=(), repr=False, compare=False)  # what `validate` says beside "ok"
+    inputs: Any = None  # scene.inputs.Inputs: samples that drive unconnected inputs, or None
 
     def parameters(self) -> dict[str, dict[str, object]]:
         """{instance: {variable: value}} for every component."""
@@ -211,10 +236,10 @@ def rollback_problem(m: MasterConfig, components: dict[str, Component]) -> tuple
         return None
     key, why = need
     for c in components.values():
-        if not c.model_description.coSimulation.canGetAndSetFMUstate:
+        if not c.capabilities.canGetAndSetFMUstate:
             return key, (f"expected {'0' if key == 'master.iterations' else 'false'} here: components.{c.name} "
-                         f"({c.fmu_path.name}) cannot save and restore its state (its modelDescription.xml "
-                         f"does not declare canGetAndSetFMUstate), and {why} rolls every FMU back")
+                         f"({Path(c.fmu_shown).name}) cannot save and restore its state "
+                         f"({no_state_reason(c.model_description)}), and {why} rolls every FMU back")
     return None
 
 

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from ..engine.description import INTEGER_TYPES, REAL_TYPES
+from ..engine.description import INTEGER_TYPES, REAL_TYPES, element_names
 from ..errors import SceneError
 from .checks import Ctx, article, convert_value, master_value, parse_ref
 from .model import Component, Sweep, SweepAxis, show
@@ -16,7 +16,7 @@ from .model import Component, Sweep, SweepAxis, show
 MAX_POINTS = 1_000_000  # at a millisecond a point, a quarter of an hour; more is a slip
 _SWEEPABLE_MASTER = ("step", "min_step", "max_step", "extrapolation", "iterations", "iteration_tolerance",
                      "event_time_tolerance", "event_indicator_tolerance", "richardson_tolerance",
-                     "order", "event_location", "event_prediction", "richardson")
+                     "order", "event_location", "event_prediction", "richardson", "algebraic_loops")
 
 
 def parse_sweep(ctx: Ctx, t: dict | None, components: dict[str, Component], connected: set) -> Sweep | None:
@@ -56,6 +56,10 @@ def parse_sweep(ctx: Ctx, t: dict | None, components: dict[str, Component], conn
             comp, var = parse_ref(ctx, pkey, ref, components, "a parameter")
             if var.causality not in ("parameter", "input"):
                 raise ctx.fail(pkey, f"{ref} is {article(var.causality)} {var.causality}, not a parameter")
+            if getattr(var, "shape", None):
+                raise ctx.fail(pkey, f"{ref} is an array: sweep one of its elements (e.g. "
+                                     f"{comp.name}.{element_names(var)[0]})" if element_names(var) else
+                               f"{ref} is an empty array")
             if var.causality == "input" and (comp.name, var.name) in connected:
                 raise ctx.fail(pkey, f"{ref} is a connected input; it cannot be swept")
             md = comp.model_description

@@ -14,12 +14,14 @@
  * min()/max() (the first argument wins ties and NaN comparisons).
  *
  * Not covered (the Python master serves it): step doubling
- * (master.richardson).
+ * (master.richardson). Algebraic loops are solved in the steps as
+ * loops.py solves them (loop_solve); their start in Initialization Mode
+ * is Python's.
  *
- * FMI 3.0 instances are called through the adapter at the end of this
- * file (cw3_*): fmi2-shaped functions whose first argument is a cw_fmi3,
- * the twin of clockwork/engine/fmu3.py, so the stepping code above never
- * asks which version an FMU is.
+ * FMI 3.0 and FMI 1.0 instances are called through the adapters at the
+ * end of this file (cw3_*, cw1_*): fmi2-shaped functions whose first
+ * argument is a cw_fmi3 or a cw_fmi1, the twins of clockwork/engine/fmu3.py
+ * and fmu1.py, so the stepping code above never asks which version an FMU is.
  */
 
 #include <math.h>
@@ -30,6 +32,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+
+#include "cw_illinois.h"
 
 #define CW_EXPORT __attribute__((visibility("default")))
 
@@ -56,6 +60,7 @@ enum {
     CW_ERR_REPLAY = -3,
     CW_ERR_LOCATE = -4,
     CW_ERR_CAPACITY = -5,
+    CW_ERR_LOOP = -6,       /* an algebraic loop did not converge: err_port is the loop, see its fail_* */
 };
 
 /* Which call failed (err_call). */
@@ -112,6 +117,29 @@ typedef struct {
     int pad2_;
 } cw_port;
 
+/* One algebraic loop solved at communication points (clockwork/engine/loops.py). */
+typedef struct {
+    const int *members;       /* its ports, in instance order */
+    const int *u_port;        /* per unknown (a Real input fed from inside the loop): port and input position */
+    const int *u_pos;
+    const int *u_src;         /* ... its source port and output position */
+    const int *u_src_pos;
+    const double *u_factor;   /* ... and its link's transformation, where u_scaled */
+    const double *u_offset;
+    const int *u_scaled;
+    double *r;                /* n: the residual of the sweeps */
+    double fail_worst;        /* a failure: the largest residual, where, after what */
+    int n_members, n;
+    int fail_why, fail_at, fail_sweeps, fail_newton;
+} cw_loop;
+
+typedef struct {
+    cw_loop *loop;
+    double tolerance;         /* master.iteration_tolerance */
+    long long iterations, fallbacks;
+    int n_loops, pad_;
+} cw_loops;
+
 typedef struct {
     cw_port *ports;
     const int *first;          /* feedthrough-only ports, stepped first */
@@ -162,7 +190,23 @@ typedef struct {
     double iteration_tolerance;
     long long coupling_iterations;
     int iterations, pad3_;
+    cw_loops *loops;           /* algebraic loops: an order's entry -(i + 1) is loop i */
+    struct cw_inputs *inputs;  /* inputs driven from samples, or NULL */
 } cw_master;
+
+/* Inputs driven from samples (engine/samples.py): the sample table, its
+ * input events, and per port the Real inputs it drives. */
+typedef struct cw_inputs {
+    const double *times;      /* n_times sample times, s, non-decreasing */
+    const double *values;     /* n_signals * n_times values, signal after signal */
+    const int *continuous;    /* per signal: interpolated (1) or held (0) */
+    const double *events;     /* n_events input events, s, sorted */
+    const int *port_start;    /* per port, its first target; n_ports + 1 entries */
+    const unsigned *vr;       /* per target: the input's value reference */
+    const int *signal;        /* per target: its signal */
+    double *value;            /* per target: the value set */
+    int n_times, n_signals, n_events, pad_;
+} cw_inputs;
 
 typedef struct {
     const int *col_port;  /* per recorded column: port and output position */
@@ -179,6 +223,9 @@ typedef struct {
 CW_EXPORT size_t cw_sizeof_port(void) { return sizeof(cw_port); }
 CW_EXPORT size_t cw_sizeof_master(void) { return sizeof(cw_master); }
 CW_EXPORT size_t cw_sizeof_recorder(void) { return sizeof(cw_recorder); }
+CW_EXPORT size_t cw_sizeof_loop(void) { return sizeof(cw_loop); }
+CW_EXPORT size_t cw_sizeof_loops(void) { return sizeof(cw_loops); }
+CW_EXPORT size_t cw_sizeof_inputs(void) { return sizeof(cw_inputs); }
 
 static double py_min(double a, double b) { return b < a ? b : a; }
 static double py_max(double a, double b) { return b > a ? b : a; }
@@ -243,17 +290,346 @@ static int port_pull(cw_master *m, int i, double t)
     return port_read(m, i, t);
 }
 
+static int loop_solve(cw_master *m, int i, double t);
+
 static int propagate(cw_master *m, const int *order, int n, double t)
 {
-    for (int a = 0; a < n; a++)
-        TRY(port_pull(m, order[a], t));
+    for (int a = 0; a < n; a++) {
+        if (order[a] < 0)
+            TRY(loop_solve(m, -order[a] - 1, t));
+        else
+            TRY(port_pull(m, order[a], t));
+    }
     return 0;
+}
+
+/* -- algebraic loops (loops.py) ------------------------------------------------------ */
+
+enum { LOOP_PLAIN_SWEEPS = 50, LOOP_NEWTON_ITERATIONS = 20, LOOP_HALVINGS = 10 };
+#define LOOP_FD_STEP 1.4901161193847656e-08  /* 2 ** -26 */
+enum { LOOP_NOT_CONVERGED = 0, LOOP_SINGULAR = 1, LOOP_NO_DECREASE = 2, LOOP_NO_MEMORY = 4 };
+
+/* r = what the sources give minus the inputs (x, else those set); the
+ * largest |r| into *worst and where into *at (-1: none larger than zero). */
+static void loop_residual(cw_master *m, const cw_loop *L, const double *x, double *r, double *worst, int *at)
+{
+    double w = 0.0;
+    int where = -1;
+    for (int i = 0; i < L->n; i++) {
+        double g = m->ports[L->u_src[i]].out[L->u_src_pos[i]];
+        if (L->u_scaled[i])
+            g = L->u_factor[i] * g + L->u_offset[i];
+        r[i] = g - (x ? x[i] : m->ports[L->u_port[i]].inp[L->u_pos[i]]);
+        double a = fabs(r[i]);
+        if (a > w || a != a) {
+            w = a;
+            where = i;
+        }
+    }
+    *worst = w;
+    *at = where;
+}
+
+static int loop_small(cw_master *m, const cw_loop *L, const double *r)
+{
+    double tol = m->loops->tolerance;
+    for (int i = 0; i < L->n; i++)
+        if (!(fabs(r[i]) <= tol * py_max(1.0, fabs(m->ports[L->u_port[i]].inp[L->u_pos[i]]))))
+            return 0;
+    return 1;
+}
+
+/* Set the loop's inputs to x, read the members' outputs; r = g(x) - x. */
+static int loop_evaluate(cw_master *m, const cw_loop *L, const double *x, double *r, double t,
+                         double *worst, int *at)
+{
+    for (int i = 0; i < L->n; i++)
+        m->ports[L->u_port[i]].inp[L->u_pos[i]] = x[i];
+    for (int a = 0; a < L->n_members; a++) {
+        int i = L->members[a];
+        cw_port *p = &m->ports[i];
+        if (p->n_in) {
+            int st = p->setReal(p->comp, p->in_vr, (size_t)p->n_in, p->inp);
+            if (st > FMI_WARNING)
+                return fail(m, i, CALL_SET_INPUTS, st, t, 0.0);
+            p->sent_valid = 0;
+        }
+        TRY(port_read(m, i, t));
+    }
+    loop_residual(m, L, x, r, worst, at);
+    return 0;
+}
+
+/* Gaussian elimination with partial pivoting (loops.solve_linear). */
+static int solve_linear(double *a, double *b, int n)
+{
+    for (int c = 0; c < n; c++) {
+        int piv = c;
+        double best = fabs(a[c * n + c]);
+        for (int row = c + 1; row < n; row++) {
+            double v = fabs(a[row * n + c]);
+            if (v > best) {
+                piv = row;
+                best = v;
+            }
+        }
+        if (!(best > 0.0 && best < INFINITY))
+            return 0;
+        if (piv != c) {
+            for (int k = 0; k < n; k++) {
+                double tmp = a[c * n + k];
+                a[c * n + k] = a[piv * n + k];
+                a[piv * n + k] = tmp;
+            }
+            double tmp = b[c];
+            b[c] = b[piv];
+            b[piv] = tmp;
+        }
+        for (int row = c + 1; row < n; row++) {
+            double f = a[row * n + c] / a[c * n + c];
+            for (int k = c; k < n; k++)
+                a[row * n + k] = a[row * n + k] - f * a[c * n + k];
+            b[row] = b[row] - f * b[c];
+        }
+    }
+    for (int row = n - 1; row >= 0; row--) {
+        double s = b[row];
+        for (int k = row + 1; k < n; k++)
+            s = s - a[row * n + k] * b[k];
+        b[row] = s / a[row * n + row];
+    }
+    return 1;
+}
+
+static int loop_fail(cw_master *m, int i, cw_loop *L, int why, double worst, int at, int sweeps, int newton,
+                     double t)
+{
+    L->fail_why = why;
+    L->fail_worst = worst;
+    L->fail_at = at;
+    L->fail_sweeps = sweeps;
+    L->fail_newton = newton;
+    m->err_port = i;
+    m->err_t = t;
+    return CW_ERR_LOOP;
+}
+
+static int newton_iterate(cw_master *m, int li, cw_loop *L, double t, int sweeps, double *work);
+
+/* Newton's work arrays (5 n + n * n doubles) are taken only when a loop
+ * needs the fallback, and given back after it: a large formal loop never
+ * pays for an n x n Jacobian. */
+static int loop_newton(cw_master *m, int li, cw_loop *L, double t, int sweeps, double worst)
+{
+    size_t n = (size_t)L->n;
+    double *work = malloc((5 * n + n * n) * sizeof(double) + 1);
+    if (!work)
+        return loop_fail(m, li, L, LOOP_NO_MEMORY, worst, -1, sweeps, 0, t);
+    int rc = newton_iterate(m, li, L, t, sweeps, work);
+    free(work);
+    return rc;
+}
+
+static int newton_iterate(cw_master *m, int li, cw_loop *L, double t, int sweeps, double *work)
+{
+    int n = L->n;
+    double *x = work, *xn = work + n, *r = work + 2 * n, *rj = work + 3 * n, *dx = work + 4 * n;
+    double *jac = work + 5 * n;
+    double worst, worst_n = 0.0;
+    int at, at_n = -1;
+    for (int i = 0; i < n; i++)
+        x[i] = m->ports[L->u_port[i]].inp[L->u_pos[i]];
+    TRY(loop_evaluate(m, L, x, r, t, &worst, &at));
+    int iterations = 0;
+    while (!loop_small(m, L, r)) {
+        if (iterations == LOOP_NEWTON_ITERATIONS)
+            return loop_fail(m, li, L, LOOP_NOT_CONVERGED, worst, at, sweeps, iterations, t);
+        iterations++;
+        m->loops->iterations++;
+        for (int j = 0; j < n; j++) {
+            double xj = x[j];
+            x[j] = xj + LOOP_FD_STEP * py_max(1.0, fabs(xj));
+            double d = x[j] - xj;
+            double w;
+            int a;
+            TRY(loop_evaluate(m, L, x, rj, t, &w, &a));
+            x[j] = xj;
+            for (int i = 0; i < n; i++)
+                jac[i * n + j] = (rj[i] - r[i]) / d;
+        }
+        for (int i = 0; i < n; i++)
+            dx[i] = -r[i];
+        if (!solve_linear(jac, dx, n))
+            return loop_fail(m, li, L, LOOP_SINGULAR, worst, at, sweeps, iterations, t);
+        double lam = 1.0;
+        int accepted = 0;
+        for (int h = 0; h < LOOP_HALVINGS; h++) {
+            for (int i = 0; i < n; i++)
+                xn[i] = x[i] + lam * dx[i];
+            TRY(loop_evaluate(m, L, xn, rj, t, &worst_n, &at_n));
+            if (worst_n < worst) {
+                accepted = 1;
+                break;
+            }
+            lam *= 0.5;
+        }
+        if (!accepted)
+            return loop_fail(m, li, L, LOOP_NO_DECREASE, worst, at, sweeps, iterations, t);
+        double *swap = x;
+        x = xn;
+        xn = swap;
+        swap = r;
+        r = rj;
+        rj = swap;
+        worst = worst_n;
+        at = at_n;
+    }
+    return 0;
+}
+
+/* Loop i's inputs to a fixed point at t: Gauss-Seidel sweeps over its
+ * members, then Newton's method where they do not contract (Loop.solve). */
+static int loop_solve(cw_master *m, int i, double t)
+{
+    cw_loop *L = &m->loops->loop[i];
+    double prev = INFINITY, worst = 0.0;
+    int at = -1, sweeps = 0;
+    while (sweeps < LOOP_PLAIN_SWEEPS) {
+        for (int a = 0; a < L->n_members; a++)
+            TRY(port_pull(m, L->members[a], t));
+        sweeps++;
+        m->loops->iterations++;
+        loop_residual(m, L, NULL, L->r, &worst, &at);
+        if (loop_small(m, L, L->r))
+            return 0;
+        if (!(worst < prev))
+            break;  /* not contracting: growing, stalled or NaN */
+        prev = worst;
+    }
+    m->loops->fallbacks++;
+    return loop_newton(m, i, L, t, sweeps, worst);
 }
 
 static void indicators(cw_master *m, double *z)
 {
     for (int k = 0; k < m->n_z; k++)
         z[k] = m->ports[m->z_port[k]].out[m->z_pos[k]];
+}
+
+/* -- inputs from samples (engine/samples.py) --------------------------- */
+
+/* math.isclose(a, b) with its defaults (relative 1e-9), as fmpy compares times. */
+static int cw_isclose(double a, double b)
+{
+    if (a == b)
+        return 1;
+    if (isinf(a) || isinf(b))
+        return 0;
+    double diff = fabs(b - a);
+    return diff <= fabs(1e-9 * b) || diff <= fabs(1e-9 * a) || diff <= 0.0;
+}
+
+static int bisect_left(const double *a, int n, double x)
+{
+    int lo = 0, hi = n;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (a[mid] < x)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+static int bisect_right(const double *a, int n, double x)
+{
+    int lo = 0, hi = n;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (x < a[mid])
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
+    return lo;
+}
+
+/* Samples.next_event */
+static double inputs_next_event(const cw_inputs *in, double t)
+{
+    for (int i = bisect_right(in->events, in->n_events, t); i < in->n_events; i++)
+        if (!cw_isclose(in->events[i], t))
+            return in->events[i];
+    return INFINITY;
+}
+
+/* Samples.event_at */
+static int inputs_event_at(const cw_inputs *in, double t)
+{
+    int i = bisect_left(in->events, in->n_events, t);
+    for (int j = i - 1; j <= i; j++)
+        if (j >= 0 && j < in->n_events && cw_isclose(in->events[j], t))
+            return 1;
+    return 0;
+}
+
+/* Samples.at for the targets [from, to): their values at `time`, after an
+ * event there when after_event, else before it. */
+static void inputs_at(const cw_inputs *in, int from, int to, double time, int after_event, double *out)
+{
+    const double *t = in->times;
+    int n = in->n_times;
+    int first = n < 2, i0 = 0;
+    if (!first) {
+        i0 = bisect_left(t, n, time);
+        first = i0 == 0;
+    }
+    if (first || i0 == n) {
+        for (int k = from; k < to; k++)
+            out[k] = in->values[(size_t)in->signal[k] * (size_t)n + (size_t)(first ? 0 : n - 1)];
+        return;
+    }
+    int held = i0 - 1;
+    if (after_event)
+        while (held + 1 < n && (t[held + 1] < time || cw_isclose(time, t[held + 1])))
+            held++;
+    int row = -1;
+    double w0 = 0.0, w1 = 0.0;
+    if (cw_isclose(time, t[i0]) && i0 < n - 1 && cw_isclose(t[i0], t[i0 + 1])) {
+        row = i0;
+        if (after_event)
+            while (row < n - 1 && cw_isclose(t[row], t[row + 1]))
+                row++;
+    } else {
+        double t0 = t[i0 - 1], t1 = t[i0];
+        w0 = (t1 - time) / (t1 - t0);
+        w1 = 1 - w0;
+    }
+    for (int k = from; k < to; k++) {
+        const double *v = &in->values[(size_t)in->signal[k] * (size_t)n];
+        if (!in->continuous[in->signal[k]])
+            out[k] = v[held];
+        else if (row >= 0)
+            out[k] = v[row];
+        else
+            out[k] = w0 * v[i0 - 1] + w1 * v[i0];
+    }
+}
+
+/* FileInputs.set for port i */
+static int inputs_set(cw_master *m, int i, double t, int after_event)
+{
+    const cw_inputs *in = m->inputs;
+    int from = in->port_start[i], to = in->port_start[i + 1];
+    if (from == to)
+        return 0;
+    inputs_at(in, from, to, t, after_event, in->value);
+    cw_port *p = &m->ports[i];
+    int st = p->setReal(p->comp, &in->vr[from], (size_t)(to - from), &in->value[from]);
+    if (st > FMI_WARNING)
+        return fail(m, i, CALL_SET_INPUTS, st, t, 0.0);
+    return 0;
 }
 
 /* -- coupling ------------------------------------------------------------- */
@@ -431,15 +807,25 @@ again:
 static int advance_coupled(cw_master *m, double t, double h, int coupled)
 {
     double t_new = t + h;
+    /* noSetFMUStatePriorToCurrentPoint: true only while no checkpoint is
+     * held that a rollback or replay may set again (Checkpoints.held). */
+    const int no_set_prior = !m->snap_valid;
+    /* Sampled inputs at t, after an event there. */
+    if (m->inputs)
+        for (int i = 0; i < m->n_ports; i++)
+            TRY(inputs_set(m, i, t, 1));
     /* 1. Feedthrough-only instances commit the mode decided at t. */
     for (int a = 0; a < m->n_first; a++) {
         cw_port *p = &m->ports[m->first[a]];
-        int st = p->doStep(p->comp, t, h, 0);
+        int st = p->doStep(p->comp, t, h, no_set_prior);
         if (st > FMI_WARNING)
             return fail(m, m->first[a], CALL_DO_STEP, st, t, h);
         if (p->n_z && m->after_event)  /* a commit may have switched the mode: z at t+ */
             p->getReal(p->comp, p->out_vr, (size_t)p->n_out, p->out);
     }
+    if (m->inputs)  /* their outputs are next read at t + h: sampled inputs there, before an event */
+        for (int a = 0; a < m->n_first; a++)
+            TRY(inputs_set(m, m->first[a], t_new, 0));
     if (m->locating) {
         if (m->after_event)
             indicators(m, m->z_start);
@@ -457,9 +843,11 @@ static int advance_coupled(cw_master *m, double t, double h, int coupled)
         cw_port *p = &m->ports[i];
         if (!m->jacobi && p->n_in)
             TRY(coupled ? set_coupled_inputs(m, i, t, h) : set_inputs(m, i, t, h, smooth));
-        int st = p->doStep(p->comp, t, h, 0);
+        int st = p->doStep(p->comp, t, h, no_set_prior);
         if (st > FMI_WARNING)
             return fail(m, i, CALL_DO_STEP, st, t, h);
+        if (m->inputs)
+            TRY(inputs_set(m, i, t_new, 0));
         TRY(port_read(m, i, t_new));
         if (!m->jacobi && a != m->n_dynamic - 1)  /* newest values flow on */
             TRY(propagate(m, m->first_in_order, m->n_first_in_order, t_new));
@@ -1036,43 +1424,6 @@ static int plan(cw_master *m, double t, double h, double *step_out)
     return kind;
 }
 
-typedef struct {
-    double lo, z_lo, hi, z_hi;
-    int kept, iterations;
-} illinois;
-
-static double illinois_next(const illinois *s)
-{
-    double dz = s->z_lo - s->z_hi;
-    if (dz == 0.0)
-        return 0.5 * (s->lo + s->hi);
-    return (s->z_lo * s->hi - s->z_hi * s->lo) / dz;
-}
-
-static void illinois_update(illinois *s, double x, double z, int was_crossed)
-{
-    s->iterations++;
-    if (was_crossed) {
-        s->hi = x;
-        s->z_hi = z;
-        if (s->kept == 1)
-            s->z_lo *= 0.5;
-        s->kept = 1;
-    } else {
-        s->lo = x;
-        s->z_lo = z;
-        if (s->kept == -1)
-            s->z_hi *= 0.5;
-        s->kept = -1;
-    }
-}
-
-static illinois illinois_new(double lo, double z_lo, double hi, double z_hi)
-{
-    illinois s = {lo, z_lo, hi, z_hi, 0, 0};
-    return s;
-}
-
 /* The indicator among the crossing ones whose linear interpolant crosses first. */
 static int earliest(const int *crossing, const double *z0, const double *z1, int n)
 {
@@ -1354,6 +1705,15 @@ static int diverged(const cw_master *m)
 static double fmi3_next_event_time(const struct cw_fmi3 *a);
 static int fmi3_terminated(const struct cw_fmi3 *a);
 
+/* Something changed outside the wiring (Master.discontinuity). */
+static void discontinuity(cw_master *m)
+{
+    m->after_event = 1;
+    m->time_to_zero = 0.0;
+    history_forget(m);
+    record_history(m);
+}
+
 static int step(cw_master *m, double h, double *taken_out)
 {
     double t = m->t;
@@ -1365,6 +1725,15 @@ static int step(cw_master *m, double h, double *taken_out)
     for (int i = 0; i < m->n_fmi3; i++) {
         double te = fmi3_next_event_time(m->fmi3[i]);
         if (t < te && te < t + h)
+            h = te - t;
+    }
+    /* A sampled input's event is a discontinuity at the step's start and
+     * ends a step that would pass it. */
+    if (m->inputs) {
+        if (inputs_event_at(m->inputs, t))
+            discontinuity(m);
+        double te = inputs_next_event(m->inputs, t);
+        if (t + h > te && !cw_isclose(t + h, te))
             h = te - t;
     }
     /* 1. The indicators' sources cap the step. */
@@ -1424,8 +1793,11 @@ static int step(cw_master *m, double h, double *taken_out)
     }
     m->after_event = m->after_event_step;
     m->steps++;
-    /* 5. NaN, infinities, divergence: Python names the output. */
+    /* 5. NaN, infinities, divergence: Python names the output (err_t: the
+     * last good communication point, the step's start). */
     m->diverged = diverged(m);
+    if (m->diverged)
+        m->err_t = t;
     if (m->extrapolation)
         record_history(m);
     *taken_out = taken;
@@ -1473,10 +1845,7 @@ CW_EXPORT void cw_start(cw_master *m)
 /* Something changed outside the wiring (Master.discontinuity). */
 CW_EXPORT void cw_discontinuity(cw_master *m)
 {
-    m->after_event = 1;
-    m->time_to_zero = 0.0;
-    history_forget(m);
-    record_history(m);
+    discontinuity(m);
 }
 
 /* Long runs return to Python after `slice_s` of wall time (Python passes
@@ -1522,6 +1891,12 @@ static void record_point(cw_master *m, cw_recorder *r)
     r->n_rows++;
 }
 
+/* Record the current point (after a divergence check that found every output legal). */
+CW_EXPORT void cw_record_point(cw_master *m, cw_recorder *r)
+{
+    record_point(m, r);
+}
+
 /* Step to t_stop on the grid start + k * step, plus located events
  * (Master.run_until), recording into r when given. Returns CW_BUFFER_FULL,
  * CW_SLICE_OVER or CW_CHECK_DIVERGENCE to be called again, r->grid_k keeping
@@ -1555,15 +1930,18 @@ CW_EXPORT int cw_run_until(cw_master *m, double t_stop, cw_recorder *r, double s
         int rc = step(m, h, &taken);
         if (rc < 0 || rc == CW_ENDED)
             return rc;
-        if (r)
-            record_point(m, r);
         if (m->t >= grid - eps)
             k++;
         if (rc == CW_CHECK_DIVERGENCE) {
+            /* Not recorded yet: a failed run keeps the points before this
+             * one only; where Python finds every output legal, it records
+             * the point (cw_record_point) and calls again. */
             if (r)
                 r->grid_k = k;
             return rc;
         }
+        if (r)
+            record_point(m, r);
     }
     if (r)
         r->grid_k = -1;
@@ -1810,6 +2188,19 @@ typedef struct cw_fmi3 {
     long long iu_calls;           /* callbacks that set inputs */
     double *iu_saved;             /* u0, d1, d2, tref (4 n_iu) with the saved FMU state, */
     int *iu_saved_fed;            /* as FMI 2.0 saves its polynomials in its state */
+    /* Array elements (fmu3.Instance3._number_elements): the code
+     * code_base + k names value code_off[k] of the code_size[k] values of
+     * the array variable code_vr[k]. A request whose codes cover whole
+     * arrays in order is one fmi3 call with nValues > nValueReferences;
+     * any other is served element by element. */
+    unsigned code_base;
+    int n_codes;
+    const unsigned *code_vr;
+    const int *code_off, *code_size;
+    unsigned *scratch_vr;         /* the value references of one call, translated */
+    int *scratch_order;           /* and their derivative orders */
+    double *scratch_val;          /* one array's values */
+    int scratch_cap, scratch_val_cap;
 } cw_fmi3;
 
 CW_EXPORT size_t cw_sizeof_fmi3(void) { return sizeof(cw_fmi3); }
@@ -1900,14 +2291,13 @@ static void iu_recheck(cw_fmi3 *a)
 
 CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
 {
-    (void)no_set_prior;
     cw_fmi3 *a = comp;
     double end = t + h, now = t, step_size = h;
     int worst = FMI_OK, stalled = 0;
     for (;;) {
         bool handling = false, term = false, early = false;
         double last = 0.0;
-        int st = a->doStep(a->instance, now, step_size, false, &handling, &term, &early, &last);
+        int st = a->doStep(a->instance, now, step_size, no_set_prior != 0, &handling, &term, &early, &last);
         if (st > FMI_WARNING) {
             a->failed_call = 1;
             return st;
@@ -1949,16 +2339,87 @@ CW_EXPORT int cw3_doStep(void *comp, double t, double h, int no_set_prior)
     }
 }
 
+/* The element number of a code, or -1 for a plain value reference. */
+static int code_element(const cw_fmi3 *a, unsigned code)
+{
+    unsigned e = code - a->code_base;  /* wraps for codes below the base */
+    return e < (unsigned)a->n_codes ? (int)e : -1;
+}
+
+/* Translate n codes into a->scratch_vr (and their orders, when given, into
+ * a->scratch_order): *m value references, each array whole. 0 when the
+ * request holds part of an array, an array out of order, an array with
+ * orders that differ, or more references than the scratch holds. */
+static int code_runs(cw_fmi3 *a, const unsigned *vr, size_t n, const int *order, size_t *m)
+{
+    size_t k = 0, j = 0;
+    while (k < n) {
+        if (j >= (size_t)a->scratch_cap)
+            return 0;
+        int e = code_element(a, vr[k]);
+        size_t size = 1;
+        if (e >= 0) {
+            size = (size_t)a->code_size[e];
+            if (a->code_off[e] != 0 || k + size > n)
+                return 0;
+            for (size_t i = 1; i < size; i++)
+                if (vr[k + i] != vr[k] + i || (order && order[k + i] != order[k]))
+                    return 0;
+            a->scratch_vr[j] = a->code_vr[e];
+        } else {
+            a->scratch_vr[j] = vr[k];
+        }
+        if (order)
+            a->scratch_order[j] = order[k];
+        j++;
+        k += size;
+    }
+    *m = j;
+    return 1;
+}
+
+/* fmi3GetFloat64 (order NULL) or fmi3GetOutputDerivatives of n codes,
+ * element by element: each element's whole array, then its value. */
+static int get_elementwise(cw_fmi3 *a, const unsigned *vr, size_t n, const int *order, double *out)
+{
+    int worst = FMI_OK;
+    for (size_t k = 0; k < n; k++) {
+        int e = code_element(a, vr[k]);
+        unsigned one = e >= 0 ? a->code_vr[e] : vr[k];
+        size_t size = e >= 0 ? (size_t)a->code_size[e] : 1;
+        int st = order ? a->getOutputDerivatives(a->instance, &one, 1, &order[k], a->scratch_val, size)
+                       : a->getFloat64(a->instance, &one, 1, a->scratch_val, size);
+        worst = st > worst ? st : worst;
+        if (st > FMI_WARNING)
+            return st;
+        out[k] = a->scratch_val[e >= 0 ? a->code_off[e] : 0];
+    }
+    return worst;
+}
+
 CW_EXPORT int cw3_getReal(void *comp, const unsigned *vr, size_t n, double *out)
 {
     cw_fmi3 *a = comp;
-    return a->getFloat64(a->instance, vr, n, out, n);
+    if (!a->n_codes)
+        return a->getFloat64(a->instance, vr, n, out, n);
+    size_t m;
+    if (code_runs(a, vr, n, NULL, &m))
+        return a->getFloat64(a->instance, a->scratch_vr, m, out, n);
+    return get_elementwise(a, vr, n, NULL, out);
 }
 
 CW_EXPORT int cw3_setReal(void *comp, const unsigned *vr, size_t n, const double *values)
 {
     cw_fmi3 *a = comp;
-    int st = a->setFloat64(a->instance, vr, n, values, n);
+    int st;
+    if (!a->n_codes) {
+        st = a->setFloat64(a->instance, vr, n, values, n);
+    } else {
+        size_t m;
+        if (!code_runs(a, vr, n, NULL, &m))
+            return FMI_ERROR;  /* part of an array: the ports set arrays whole */
+        st = a->setFloat64(a->instance, a->scratch_vr, m, values, n);
+    }
     if (st <= FMI_WARNING && a->n_iu) {
         /* A value without derivatives is held (as fmi2SetReal on FMI 2.0). */
         for (size_t k = 0; k < n; k++) {
@@ -2008,7 +2469,12 @@ CW_EXPORT int cw3_setInputDerivatives(void *comp, const unsigned *vr, size_t n, 
 CW_EXPORT int cw3_getOutputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order, double *out)
 {
     cw_fmi3 *a = comp;
-    return a->getOutputDerivatives(a->instance, vr, n, order, out, n);
+    if (!a->n_codes)
+        return a->getOutputDerivatives(a->instance, vr, n, order, out, n);
+    size_t m;
+    if (code_runs(a, vr, n, order, &m))
+        return a->getOutputDerivatives(a->instance, a->scratch_vr, m, a->scratch_order, out, n);
+    return get_elementwise(a, vr, n, order, out);
 }
 
 CW_EXPORT int cw3_getState(void *comp, void **state)
@@ -2044,4 +2510,177 @@ CW_EXPORT int cw3_setState(void *comp, void *state)
         iu_recheck(a);
     }
     return st;
+}
+
+/* ---- FMI 1.0: the adapter (the twin of clockwork/engine/fmu1.py) ----------
+ *
+ * Each function has the fmi2 shape the core calls and takes a cw_fmi1 as
+ * its component. fmiDoStep's last argument is FMI 1.0's newStep, an
+ * fmiBoolean (a char), where fmi2DoStep has an int: cw1_doStep calls it
+ * through its own type, always with newStep = true (a step of an FMU
+ * without state is never repeated). FMI 1.0 computes outputs in fmiDoStep:
+ * outputs read after inputs were set (no step between) are computed first
+ * by a step of size 0 at the communication point (cw1_fresh), FMI 1.0's
+ * iteration, as FMI 2.0 computes them on the get. A negated alias has a value reference
+ * of its own (negated_vr), turned into the FMU's (base_vr) with its value
+ * negated both ways. FMI 1.0 has no FMU state: the master refuses every
+ * setting that needs one before the first step.
+ */
+
+typedef char fmi1_boolean;
+typedef int (*fmi1DoStep_t)(void *, double, double, fmi1_boolean);
+
+typedef struct cw_fmi1 {
+    void *instance;
+    fmi1DoStep_t doStep;
+    cw_getReal_t getReal;
+    cw_setReal_t setReal;
+    cw_setDer_t setInputDerivatives;
+    cw_getDer_t getOutputDerivatives;
+    const unsigned *negated_vr; /* the master's value references of negated aliases */
+    const unsigned *base_vr;    /* the FMU's, whose value they negate */
+    double time;                /* the FMU's communication point, s */
+    long long zero_steps;       /* steps of size 0 taken to compute outputs */
+    int n_negated;
+    int stale;                  /* inputs set since fmiDoStep last computed the outputs */
+    int failed_zero;            /* the last zero step failed (fmu1.Instance1.fail says so) */
+    int pad_;
+} cw_fmi1;
+
+CW_EXPORT size_t cw_sizeof_fmi1(void) { return sizeof(cw_fmi1); }
+
+enum { CW1_CHUNK = 64 };  /* value references translated at a time */
+
+/* The FMU's value references for vr[0..n) (n <= CW1_CHUNK) and which are negated. */
+static void cw1_own(const cw_fmi1 *a, const unsigned *vr, size_t n, unsigned *own, int *negated)
+{
+    for (size_t k = 0; k < n; k++) {
+        own[k] = vr[k];
+        negated[k] = 0;
+        for (int j = 0; j < a->n_negated; j++)
+            if (a->negated_vr[j] == vr[k]) {
+                own[k] = a->base_vr[j];
+                negated[k] = 1;
+                break;
+            }
+    }
+}
+
+CW_EXPORT int cw1_doStep(void *comp, double t, double h, int no_set_prior)
+{
+    cw_fmi1 *a = comp;
+    (void)no_set_prior;  /* FMI 1.0 has no FMU state to set */
+    int st = a->doStep(a->instance, t, h, (fmi1_boolean)1);
+    if (st <= FMI_WARNING) {
+        a->time = t + h;
+        a->stale = 0;
+    }
+    return st;
+}
+
+/* FMI 1.0 computes outputs in fmiDoStep: where inputs were set since the
+ * last step, a step of size 0 at the communication point first (FMI 1.0's
+ * iteration; FMI 2.0 computes them on the get). */
+static int cw1_fresh(cw_fmi1 *a)
+{
+    if (!a->stale)
+        return FMI_OK;
+    int st = a->doStep(a->instance, a->time, 0.0, (fmi1_boolean)1);
+    if (st > FMI_WARNING) {
+        a->failed_zero = 1;
+        return st;
+    }
+    a->stale = 0;
+    a->zero_steps++;
+    return st;
+}
+
+/* A call with negated aliases among vr: through the FMU's value references,
+ * CW1_CHUNK at a time, values given negated and values read negated back. */
+enum { CW1_GET_REAL, CW1_SET_REAL, CW1_SET_DER, CW1_GET_DER };
+
+static int cw1_translated(cw_fmi1 *a, int call, const unsigned *vr, size_t n, const int *order,
+                          const double *given, double *out)
+{
+    int worst = FMI_OK;
+    for (size_t at = 0; at < n; at += CW1_CHUNK) {
+        size_t m = n - at < CW1_CHUNK ? n - at : CW1_CHUNK;
+        unsigned own[CW1_CHUNK];
+        int negated[CW1_CHUNK];
+        double values[CW1_CHUNK];
+        cw1_own(a, vr + at, m, own, negated);
+        if (given)
+            for (size_t k = 0; k < m; k++)
+                values[k] = negated[k] ? -given[at + k] : given[at + k];
+        int st;
+        switch (call) {
+        case CW1_GET_REAL: st = a->getReal(a->instance, own, m, out + at); break;
+        case CW1_SET_REAL: st = a->setReal(a->instance, own, m, values); break;
+        case CW1_SET_DER: st = a->setInputDerivatives(a->instance, own, m, order + at, values); break;
+        default: st = a->getOutputDerivatives(a->instance, own, m, order + at, out + at); break;
+        }
+        if (st > FMI_WARNING)
+            return st;
+        worst = st > worst ? st : worst;
+        if (out)
+            for (size_t k = 0; k < m; k++)
+                if (negated[k])
+                    out[at + k] = -out[at + k];
+    }
+    return worst;
+}
+
+CW_EXPORT int cw1_getReal(void *comp, const unsigned *vr, size_t n, double *out)
+{
+    cw_fmi1 *a = comp;
+    int fresh = cw1_fresh(a);
+    if (fresh > FMI_WARNING)
+        return fresh;
+    int st = a->n_negated ? cw1_translated(a, CW1_GET_REAL, vr, n, NULL, NULL, out)
+                          : a->getReal(a->instance, vr, n, out);
+    return st > fresh ? st : fresh;
+}
+
+CW_EXPORT int cw1_setReal(void *comp, const unsigned *vr, size_t n, const double *values)
+{
+    cw_fmi1 *a = comp;
+    int st = a->n_negated ? cw1_translated(a, CW1_SET_REAL, vr, n, NULL, values, NULL)
+                          : a->setReal(a->instance, vr, n, values);
+    if (n)
+        a->stale = 1;
+    return st;
+}
+
+CW_EXPORT int cw1_setInputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order,
+                                      const double *values)
+{
+    cw_fmi1 *a = comp;
+    return a->n_negated ? cw1_translated(a, CW1_SET_DER, vr, n, order, values, NULL)
+                        : a->setInputDerivatives(a->instance, vr, n, order, values);
+}
+
+CW_EXPORT int cw1_getOutputDerivatives(void *comp, const unsigned *vr, size_t n, const int *order, double *out)
+{
+    cw_fmi1 *a = comp;
+    int fresh = cw1_fresh(a);
+    if (fresh > FMI_WARNING)
+        return fresh;
+    int st = a->n_negated ? cw1_translated(a, CW1_GET_DER, vr, n, order, NULL, out)
+                          : a->getOutputDerivatives(a->instance, vr, n, order, out);
+    return st > fresh ? st : fresh;
+}
+
+/* Never called: the master refuses rollback for FMI 1.0 before the first step. */
+CW_EXPORT int cw1_getState(void *comp, void **state)
+{
+    (void)comp;
+    (void)state;
+    return FMI_ERROR;
+}
+
+CW_EXPORT int cw1_setState(void *comp, void *state)
+{
+    (void)comp;
+    (void)state;
+    return FMI_ERROR;
 }

@@ -13,6 +13,10 @@
     (CW_INSTANTIATED | CW_INIT_MODE | CW_STEP_COMPLETE | CW_STEP_FAILED |   \
      CW_TERMINATED | CW_ERROR | CW_EVENT_MODE)
 
+/* The message as text an FMI 1.0/2.0 logger can take as its printf format:
+ * copied into buf (truncated to size - 1 bytes) with every '%' a blank. */
+void cw_core_plain_text(char *buf, size_t size, const char *message);
+
 /* Log through the face and put the instance into Error. */
 fmi2Status cw_core_fail(cw_instance *inst, const char *fmt, ...)
 #if defined(__GNUC__)

@@ -9,12 +9,7 @@
 static void emit2(const cw_instance *inst, fmi2Status status,
                   const char *category, const char *message) {
     char buf[1024];
-    size_t n = strlen(message);
-    if (n >= sizeof buf) n = sizeof buf - 1;
-    memcpy(buf, message, n);
-    buf[n] = 0;
-    for (char *p = buf; *p; p++)
-        if (*p == '%') *p = ' ';
+    cw_core_plain_text(buf, sizeof buf, message);
     fmi2CallbackLogger logger = (fmi2CallbackLogger)inst->env_logger;
     if (logger) logger(inst->env, inst->instance_name, status, category, buf);
 }
@@ -221,7 +216,7 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c,
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                       fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
-    (void)noSetFMUStatePriorToCurrentPoint;
+    if (c) INST->no_set_prior = noSetFMUStatePriorToCurrentPoint ? 1 : 0;
     return cw_core_do_step(INST, "fmi2DoStep", currentCommunicationPoint,
                            communicationStepSize);
 }

@@ -469,8 +469,8 @@ fmi3Status fmi3DoStep(fmi3Instance instance,
                       fmi3Float64 *lastSuccessfulTime) {
     static const char fn[] = "fmi3DoStep";
     cw_instance *inst = INST;
-    (void)noSetFMUStatePriorToCurrentPoint;
     if (!cw_core_allowed(inst, fn, CW_STEP_COMPLETE)) return fmi3Error;
+    inst->no_set_prior = noSetFMUStatePriorToCurrentPoint ? 1 : 0;
     if (!eventHandlingNeeded || !terminateSimulation || !earlyReturn ||
         !lastSuccessfulTime) {
         cw_log(inst, fmi2Error, "logStatusError", "%s: NULL argument.", fn);

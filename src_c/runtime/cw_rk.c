@@ -208,6 +208,26 @@ static const double P8D[4][CW_RK_MAXSTAGES] = {
      -0.14972683625798562581422125276e+3},
 };
 
+/* The absolute tolerance of component i. */
+static double atol_at(const cw_rk *rk, int i) {
+    return rk->atolv ? rk->atolv[i] : rk->atol;
+}
+
+/* Hairer's stiffness estimate h |lambda| of an accepted step, from the
+ * right-hand sides at its end (k_end at x1) and at the last stage point
+ * (k_last at y_last), both at the step's end time. */
+static void estimate_stiffness(cw_rk *rk, const double *k_end,
+                               const double *k_last, const double *x1,
+                               double h) {
+    double num = 0.0, den = 0.0;
+    for (int i = 0; i < rk->n; i++) {
+        double a = k_end[i] - k_last[i], b = x1[i] - rk->y_last[i];
+        num += a * a;
+        den += b * b;
+    }
+    rk->h_lambda = den > 0.0 ? fabs(h) * sqrt(num / den) : 0.0;
+}
+
 /* x + h sum_{j < s} a[s][j] k[j] */
 static void stage_point8(const cw_rk *rk, int s, const double *x, double h,
                          double *y) {
@@ -228,6 +248,7 @@ static void stages8(cw_rk *rk, cw_rhs f, void *ctx, double t, const double *x,
         stage_point8(rk, s, x, h, y);
         f(ctx, s == 11 ? t_next : t + P8C[s] * h, y, rk->k[s]);
     }
+    if (rk->stiffness_test) memcpy(rk->y_last, y, sizeof(double) * rk->n);
     stage_point8(rk, 12, x, h, x_new);
     rk->n_rhs += 11;
 }
@@ -240,7 +261,7 @@ static double error_norm8(const cw_rk *rk, const double *x, const double *x_new,
     double e5 = 0.0, e3 = 0.0;
     const double(*k)[CW_RK_MAXN] = rk->k;
     for (int i = 0; i < rk->n; i++) {
-        double scale = rk->atol + rk->rtol * fmax(fabs(x[i]), fabs(x_new[i]));
+        double scale = atol_at(rk, i) + rk->rtol * fmax(fabs(x[i]), fabs(x_new[i]));
         double r5 = 0.0, bsum = 0.0;
         for (int s = 0; s < 12; s++) {
             r5 += P8E5[s] * k[s][i];
@@ -342,6 +363,7 @@ static void stages(cw_rk *rk, cw_rhs f, void *ctx, double t, const double *x,
     for (int i = 0; i < n; i++)
         y[i] = x[i] + h * (A61 * k[0][i] + A62 * k[1][i] + A63 * k[2][i] +
                            A64 * k[3][i] + A65 * k[4][i]);
+    if (rk->stiffness_test) memcpy(rk->y_last, y, sizeof(double) * n);
     f(ctx, t_next, y, k[5]);
     for (int i = 0; i < n; i++)
         x_new[i] = x[i] + h * (B1 * k[0][i] + B3 * k[2][i] + B4 * k[3][i] +
@@ -357,7 +379,7 @@ static double error_norm(const cw_rk *rk, const double *x, const double *x_new,
     for (int i = 0; i < rk->n; i++) {
         double e = h * (E1 * k[0][i] + E3 * k[2][i] + E4 * k[3][i] +
                         E5 * k[4][i] + E6 * k[5][i] + E7 * k[6][i]);
-        double scale = rk->atol + rk->rtol * fmax(fabs(x[i]), fabs(x_new[i]));
+        double scale = atol_at(rk, i) + rk->rtol * fmax(fabs(x[i]), fabs(x_new[i]));
         double r = e / scale;
         sum += r * r;
     }
@@ -369,7 +391,7 @@ static double initial_step(cw_rk *rk, cw_rhs f, void *ctx, double t,
     const int n = rk->n;
     double d0 = 0, d1 = 0;
     for (int i = 0; i < n; i++) {
-        double sc = rk->atol + rk->rtol * fabs(x[i]);
+        double sc = atol_at(rk, i) + rk->rtol * fabs(x[i]);
         d0 += (x[i] / sc) * (x[i] / sc);
         d1 += (rk->k[0][i] / sc) * (rk->k[0][i] / sc);
     }
@@ -383,7 +405,7 @@ static double initial_step(cw_rk *rk, cw_rhs f, void *ctx, double t,
     rk->n_rhs++;
     double d2 = 0;
     for (int i = 0; i < n; i++) {
-        double sc = rk->atol + rk->rtol * fabs(x[i]);
+        double sc = atol_at(rk, i) + rk->rtol * fabs(x[i]);
         double r = (f1[i] - rk->k[0][i]) / sc;
         d2 += r * r;
     }
@@ -489,8 +511,12 @@ cw_rk_result cw_rk_advance(cw_rk *rk, cw_rhs f, void *ctx, double *t,
                 rk->n_rhs++;
                 rk->dense_ready = 0;
                 fsal = 1;
+                if (rk->stiffness_test)
+                    estimate_stiffness(rk, rk->k[12], rk->k[11], x_new, h_try);
             } else {
                 prepare_dense(rk, h_try);
+                if (rk->stiffness_test)
+                    estimate_stiffness(rk, rk->k[6], rk->k[5], x_new, h_try);
             }
             *t = t_next;
             memcpy(x, x_new, sizeof(double) * n);

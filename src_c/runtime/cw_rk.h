@@ -10,7 +10,11 @@
 #ifndef CW_RK_H
 #define CW_RK_H
 
+/* States per integrator; the master's Model Exchange wrapper (built into
+ * libcw_master) defines a larger bound. */
+#ifndef CW_RK_MAXN
 #define CW_RK_MAXN 8
+#endif
 #define CW_RK_MAXSTAGES 16 /* DOP853: 12 stages, f(x1), 3 dense-output stages */
 
 /* The values of a model's `integrator` parameter. */
@@ -52,6 +56,19 @@ typedef struct {
     int dense_ready;
     cw_rhs f;
     void *ctx;
+
+    /* Optional, both off after cw_rk_init (the models use neither):
+     * atolv, per-component absolute tolerances in place of atol (n values
+     * the caller owns); stiffness_test, which makes every step estimate
+     * h |lambda| along its last two stages (Hairer's test: the norm of
+     * f(x1) - f(y_s) over the norm of x1 - y_s, with y_s the last stage
+     * point, at the same time as x1) into h_lambda. The boundary of the
+     * stability region along the negative real axis is near 3.3 for
+     * DP5(4) and 6.1 for DOP853. */
+    const double *atolv;
+    int stiffness_test;
+    double h_lambda;
+    double y_last[CW_RK_MAXN];
 } cw_rk;
 
 /* Called after every accepted step; may read cw_rk_dense. Return nonzero to

@@ -65,6 +65,15 @@ void cw_log(cw_instance *inst, fmi2Status status, const char *category,
     inst->emit(inst, status, category ? category : status_category(status), buf);
 }
 
+void cw_core_plain_text(char *buf, size_t size, const char *message) {
+    size_t n = strlen(message);
+    if (n >= size) n = size - 1;
+    memcpy(buf, message, n);
+    buf[n] = 0;
+    for (char *p = buf; *p; p++)
+        if (*p == '%') *p = ' ';
+}
+
 fmi2Status cw_refuse(cw_instance *inst, const char *var, double value,
                      const char *expected) {
     cw_log(inst, fmi2Error, "logStatusError",
@@ -509,8 +518,9 @@ static int settable(cw_instance *inst, const cw_var_info *v, const char *fn) {
                "%s: cannot set '%s' in state %s: %s%s.", fn, v->name,
                state_name(inst, inst->state), why,
                v->variability == CW_FIXED && v->causality == CW_PARAMETER
-                   ? (inst->api[3] == '3' ? "fmi3ExitInitializationMode"
-                                          : "fmi2ExitInitializationMode")
+                   ? (inst->api[3] == '3'   ? "fmi3ExitInitializationMode"
+                      : inst->api[3] == '1' ? "fmiInitializeSlave"
+                                            : "fmi2ExitInitializationMode")
                    : "");
     }
     return ok;

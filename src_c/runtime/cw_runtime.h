@@ -191,6 +191,11 @@ typedef struct cw_instance {
     /* Set by a model whose do_step returns fmi2Discard to end the
      * simulation: fmi2GetBooleanStatus(fmi2Terminated) says so. */
     int terminate_requested;
+    /* The running step's noSetFMUStatePriorToCurrentPoint (fmi2DoStep,
+     * fmi3DoStep): 1 when the importer will set no state from before the
+     * step's start, so the model may drop its history. Always 1 on FMI 1.0,
+     * which has no FMU state. */
+    int no_set_prior;
 
     /* String values by value reference (NULL for other types): owned by
      * the instance, copied on every set, freed on reset and free. */

@@ -26,6 +26,7 @@
 
 #define CW_VARS_TABLE_ONLY
 #include "cw_vars.h"
+#include "driver_checks.h"
 
 #define FMI3_FUNCTIONS(X)                                                     \
     X(GetVersion) X(SetDebugLogging) X(InstantiateModelExchange)              \
@@ -58,21 +59,6 @@ static struct {
 #undef FIELD
 } api;
 
-static long n_checks, n_failures, n_messages, n_errors;
-static char last[1100];
-static const char *section = "";
-
-#define CHECK(cond, ...)                                                     \
-    do {                                                                     \
-        n_checks++;                                                          \
-        if (!(cond)) {                                                       \
-            n_failures++;                                                    \
-            fprintf(stderr, "FAIL [%s] line %d: ", section, __LINE__);       \
-            fprintf(stderr, __VA_ARGS__);                                    \
-            fprintf(stderr, " (last message: %s)\n", last);                  \
-        }                                                                    \
-    } while (0)
-
 static void logger(fmi3InstanceEnvironment env, fmi3Status status,
                    fmi3String category, fmi3String message) {
     if (env != &n_messages) {
@@ -89,21 +75,6 @@ static fmi3Instance instantiate(const char *name, int event_mode, int early) {
     return api.InstantiateCoSimulation(name, CW_MODEL_GUID, NULL, fmi3False,
                                        fmi3False, event_mode, early, NULL, 0,
                                        &n_messages, logger, NULL);
-}
-
-/* A refused call: fmi3Error, with a message. */
-#define REFUSED(call, ...)                                                   \
-    do {                                                                     \
-        long before_ = n_errors;                                             \
-        fmi3Status st_ = (call);                                             \
-        CHECK(st_ == fmi3Error && n_errors > before_, __VA_ARGS__);          \
-    } while (0)
-
-static double input_value(const cw_var_info *v, double t) {
-    if (strcmp(v->name, "phi") == 0) return 0.3 * sin(3.14159 * t);
-    if (strcmp(v->name, "w") == 0) return 0.94 * cos(3.14159 * t);
-    double x = v->start + 1e-3 * sin(3 * t + v->vr);
-    return fmin(fmax(x, v->min), v->max);
 }
 
 static void set_inputs(fmi3Instance c, double t) {

@@ -241,3 +241,34 @@ def test_a_string_with_a_range_unit_or_number_start_is_refused(drag, extra):
     with open(drag / "model.toml", "a") as fh:
         fh.write(text)
     _refused(drag, "label", "a String takes a text start value")
+
+
+def test_fmi1_description(tmp_path):
+    """The FMI 1.0 build's modelDescription.xml: parameters have variability
+    "parameter", an output's DirectDependency names its inputs only (a
+    state it depends on is no input), the Capabilities say what the
+    runtime offers, event indicators are clockwork's VendorAnnotation
+    name-value pairs; fmpy reads it back with the FMI 1.0 schema."""
+    import fmpy
+
+    t = fmugen.load(MODELS / "GrasshopperEscapement")
+    xml = fmugen.generate_xml1(t)
+    md = ET.fromstring(xml)
+    assert md.get("fmiVersion") == "1.0" and md.get("modelIdentifier") == "GrasshopperEscapement"
+    variables = {v.get("name"): v for v in md.find("ModelVariables")}
+    table = {v["name"]: v for v in t["variable"]}
+    for name, v in variables.items():
+        want = {"parameter": ("parameter", "internal"), "input": (None, "input"),
+                "output": (None, "output"), "local": (None, "internal")}[table[name]["causality"]]
+        assert v.get("causality") == want[1] and (want[0] is None or v.get("variability") == want[0])
+        if table[name]["causality"] == "output":
+            inputs = {d for d in table[name].get("depends_on", []) if table.get(d, {}).get("causality") == "input"}
+            assert {n.text for n in v.iter("Name")} == inputs
+    caps = md.find("Implementation/CoSimulation_StandAlone/Capabilities")
+    assert caps.get("canRejectSteps") == "false" and caps.get("canRunAsynchronuously") == "false"
+    indicators = [a.get("value") for a in md.iter("Annotation") if a.get("name") == "eventIndicator"]
+    assert indicators == [v["name"] for v in sorted(t["variable"], key=lambda v: v["vr"]) if v.get("event_indicator")]
+    assert indicators
+    path = tmp_path / "modelDescription.xml"
+    path.write_text(xml)
+    fmpy.read_model_description(str(path), validate=True)

@@ -47,6 +47,10 @@ class Rk(C.Structure):
         ("dense_ready", C.c_int),
         ("f", C.c_void_p),
         ("ctx", C.c_void_p),
+        ("atolv", C.c_void_p),
+        ("stiffness_test", C.c_int),
+        ("h_lambda", C.c_double),
+        ("y_last", Vec),
     ]
 
 

@@ -105,8 +105,14 @@ def test_clockwork_run_of_a_diverging_scene(tmp_path):
     assert lines[0].startswith("clockwork: error: t = ")
     assert "exceeds the divergence limit" in lines[0]
     assert "pendulum." in lines[0] or "vibration." in lines[0]
-    written = sorted(p.relative_to(out).as_posix() for p in out.rglob("*")) if out.exists() else []
-    assert not [p for p in written if p.endswith((".json", ".csv", ".png"))], written
+    # The history up to the last good communication point is kept (issue 26): every row finite,
+    # and the summary says failed, when, where and why.
+    failed = json.loads((out / "summary.json").read_text())["result"]["failed"]
+    assert failed["instance"] in ("pendulum", "vibration") and "exceeds the divergence limit" in failed["message"]
+    assert failed["last_point_s"] < failed["time_s"] and f"t = {failed['time_s']!r} s" in lines[0]
+    rows = np.genfromtxt(out / "timeseries.csv", delimiter=",", names=True)
+    assert len(rows) > 1 and np.all(np.isfinite(rows.view((float, len(rows.dtype.names)))))
+    assert rows["time"][-1] == failed["last_point_s"]
 
 
 @pytest.fixture(scope="module")
@@ -123,7 +129,8 @@ def test_sweep_with_a_diverging_point_records_the_failure(diverging_sweep):
     failed = [p for p in summary["points"] if "error" in p]
     assert len(failed) == 1 and failed[0]["point"]["master.step"] == 1.28
     assert "exceeds the divergence limit" in failed[0]["error"]
-    assert set(failed[0]) == {"point", "error"}
+    assert set(failed[0]) == {"point", "error", "failed"}
+    assert failed[0]["failed"]["time_s"] > failed[0]["failed"]["last_point_s"]
     rows = np.genfromtxt(out / "sweep.csv", delimiter=",", names=True)
     bad = rows[rows["masterstep"] == 1.28]
     assert len(bad) == 1 and not any(math.isfinite(bad[0][n]) for n in rows.dtype.names[1:])

@@ -29,6 +29,11 @@ def time_series(scene, r, spec):
         v, label = display(scene, y, series[y])
         ax.plot(x, v, label=label, lw=0.8)
         labels.append(label)
+    failed = r.get("failed")
+    if failed and failed.get("time_s") is not None and (not spec.get("x") or spec["x"] == "time"):
+        ax.axvline(failed["time_s"], color="C3", lw=0.8, ls="--",
+                   label=f"failed at t = {failed['time_s']:.6g} s ({failed.get('instance') or 'the master'})")
+        ax.set_title(f"{spec.get('title', scene.title)} (failed at t = {failed['time_s']:.6g} s)", fontsize=10)
     ax.set_xlabel(xl)
     units = {lb[lb.rfind("(") + 1:-1] for lb in labels if lb.endswith(")")}
     ax.set_ylabel(f"value ({units.pop()})" if len(units) == 1 and len(labels) > 1 else

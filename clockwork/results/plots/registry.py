@@ -236,8 +236,9 @@ def save(fig, path: Path) -> None:
 
 
 def draw_plot(scene, results: list[dict], out: Path, k: int) -> tuple[str, object]:
-    """Plot k of the scene into `out`: ("written", file name), ("failed",
-    {file, kind, error}) or ("empty", {file, kind, reason}).
+    """Plot k of the scene into `out`: ("written", file name, or the names
+    of its pages), ("failed", {file, kind, error}) or ("empty", {file, kind,
+    reason}). A plot kind returns a figure or a list of figures (pages).
 
     A scene run with --set overrides says so under the plot. A plot kind
     that raises is reported, not fatal: the data files are written all the
@@ -247,24 +248,34 @@ def draw_plot(scene, results: list[dict], out: Path, k: int) -> tuple[str, objec
     kind = spec["kind"]
     name = spec.get("file") or f"plot{k + 1}_{kind}.png"
     try:
-        fig = PLOTS[kind](scene, results, spec)
-        if fig is None:
+        figures = PLOTS[kind](scene, results, spec)
+        if figures is None:
             return "empty", {"file": name, "kind": kind,
                              "reason": "nothing to draw: no point has a result for it (stalled or failed)"}
-        if not fig.axes[0].get_title() and not fig._suptitle:
-            fig.axes[0].set_title(spec.get("title", scene.title), fontsize=10)
-        if scene.overrides:
-            fig.text(0.01, 0.0, "--set " + "  ".join(scene.overrides), fontsize=7, color="0.35", va="top")
-        save(fig, out / name)
+        if not isinstance(figures, list):
+            figures = [figures]
+        names = page_names(name, len(figures))
+        for fig, page in zip(figures, names):
+            if not fig.axes[0].get_title() and not fig._suptitle:
+                fig.axes[0].set_title(spec.get("title", scene.title), fontsize=10)
+            if scene.overrides:
+                fig.text(0.01, 0.0, "--set " + "  ".join(scene.overrides), fontsize=7, color="0.35", va="top")
+            save(fig, out / page)
     except Exception as e:  # a broken plot kind must not take the results with it
         return "failed", {"file": name, "kind": kind, "error": f"{type(e).__name__}: {' '.join(str(e).split())}"}
-    return "written", name
+    return "written", names if len(names) > 1 else name
+
+
+def page_names(name: str, n: int) -> list[str]:
+    """The files of a plot's n pages: name, then <stem>_2.png, <stem>_3.png..."""
+    stem = name[:-4]
+    return [name] + [f"{stem}_{k}.png" for k in range(2, n + 1)]
 
 
 def gather(outcomes: list[tuple[str, object]]) -> tuple[list[str], list[dict], list[dict]]:
     """Outcomes of draw_plot, in the scene's plot order, as (files written,
     plots that failed, plots with nothing to draw)."""
-    written = [x for what, x in outcomes if what == "written"]
+    written = [name for what, x in outcomes if what == "written" for name in ([x] if isinstance(x, str) else x)]
     failed = [x for what, x in outcomes if what == "failed"]
     empty = [x for what, x in outcomes if what == "empty"]
     return written, failed, empty

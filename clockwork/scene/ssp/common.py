@@ -18,6 +18,9 @@ NS = {
     "ssb": "http://ssp-standard.org/SSP1/SystemStructureSignalDictionary",
 }
 OMS_NS = "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd"
+# The Open Simulation Platform's annotation (libcosim, ecos): ssc:Annotation
+# type="com.opensimulationplatform", elements in OSP_NS.
+OSP_ANNOTATION = "com.opensimulationplatform"
 OSP_NS = "http://opensimulationplatform.com/SSP/OSPAnnotations"
 # clockwork's own annotation (ssc:Annotation type="clockwork"): the master
 # settings and what to record, so that an exported scene runs back the same.

@@ -16,14 +16,24 @@ from urllib.parse import unquote, urlsplit
 
 from ...atomic import write_bytes_atomic
 from ...errors import SceneError
+from ...numbers import XSD_SPECIAL, parse_int, parse_real, shorten
 from ...paths import cache_root, scratch_dir
-from ...engine.description import MAX_ENTRIES, max_unzipped_bytes
-from .common import NS, XmlError, parse_xml, q
+from ...engine.description import MAX_ENTRIES, entry_problem, max_unzipped_bytes
+from .common import CW_NS, NS, OMS_NS, OSP_NS, XmlError, parse_xml, q
 
 SSD_NAME = "SystemStructure.ssd"
 MAX_XML_BYTES = 16 << 20  # an SSD, SSV or SSM of more is not a description
-_PREFIX = {v: k for k, v in NS.items()}
+_PREFIX = {**{v: k for k, v in NS.items()}, OSP_NS: "osp", OMS_NS: "oms", CW_NS: "cw"}
 _EXPONENTS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+
+
+def tag_name(el) -> str:
+    """An element's tag as prefix:local (the SSP's and the annotations' prefixes),
+    else {namespace}local, shortened."""
+    ns, _, local = el.tag[1:].partition("}") if el.tag.startswith("{") else ("", "", el.tag)
+    if ns in _PREFIX:
+        return f"{_PREFIX[ns]}:{shorten(local, 100)}"
+    return f"{{{shorten(ns, 80)}}}{shorten(local, 80)}" if ns else shorten(local, 100)
 
 
 class Doc:
@@ -35,17 +45,19 @@ class Doc:
         self.root = root
 
     def key(self, el, attr: str | None = None) -> str:
-        ns, _, local = el.tag[1:].partition("}") if el.tag.startswith("{") else ("", "", el.tag)
-        tag = f"{_PREFIX[ns]}:{local}" if ns in _PREFIX else local
+        tag = tag_name(el)
         name = el.get("name")
-        what = f"{tag} {name!r}" if name is not None and attr != "name" else tag
+        what = f"{tag} {shorten(name, 100)!r}" if name is not None and attr != "name" else tag
         if attr is not None:
             value = el.get(attr)
-            what += f" {attr}" if value is None else f" {attr}={value!r}"
+            attr = shorten(attr, 100)
+            what += f" {attr}" if value is None else f" {attr}={shorten(value, 100)!r}"
         return f"line {el.sourceline}: {what}"
 
     def fail(self, el, detail: str, attr: str | None = None) -> SceneError:
-        return SceneError(detail, self.label, self.key(el, attr))
+        # the values a detail echoes are shortened where it is written; this
+        # bounds what was missed (a name list, a path)
+        return SceneError(shorten(detail, 1000), self.label, self.key(el, attr))
 
 
 class Store:
@@ -67,12 +79,18 @@ class Store:
                 raise SceneError(f"expected an SSP archive: unreadable zip file ({e})", path) from None
             if len(names) > MAX_ENTRIES:
                 raise SceneError(f"{len(names)} entries in the archive, more than {MAX_ENTRIES}: not read", path)
+            seen = set()
             for name in names:
                 parts = name.split("/")
                 if "\\" in name or name.startswith("/") or ".." in parts or (parts and ":" in parts[0]):
                     raise SceneError("expected a relative path inside the archive (no '..', no absolute path, "
-                                     "no backslash)", path, f"archive entry {name!r}")
-            self.members = set(names)
+                                     "no backslash)", path, f"archive entry {shorten(name, 100)!r}")
+                if name in seen:
+                    # zipfile would read the last one: which file is meant is not said
+                    raise SceneError("expected each entry once: the archive holds two entries of this name",
+                                     path, f"archive entry {shorten(name, 100)!r}")
+                seen.add(name)
+            self.members = seen
             if SSD_NAME not in self.members:
                 raise SceneError(f"expected {SSD_NAME} at the root of the archive; entries: "
                                  f"{', '.join(sorted(self.members)[:8]) or 'none'}", path)
@@ -87,8 +105,17 @@ class Store:
     def resolve(self, doc: Doc, el, attr: str) -> str | Path:
         """The file an element's URI attribute names, relative to the document that holds it."""
         uri = el.get(attr)
-        parts = urlsplit(uri)
-        if parts.scheme not in ("", "file") or parts.netloc or parts.query or parts.fragment or not parts.path:
+        try:
+            parts = urlsplit(uri)
+        except ValueError:
+            parts = None
+        if parts is not None and len(parts.scheme) == 1:
+            raise doc.fail(el, "expected a relative path: this is a Windows drive path", attr)
+        if parts is not None and parts.scheme not in ("", "file"):
+            # proxyfmu:// (libcosim's and ecos' remote FMUs), http://, fmu://...
+            raise doc.fail(el, f"the URI scheme {parts.scheme}: is not supported: clockwork reads the files of the "
+                               "archive or beside the SSD; expected a relative path", attr)
+        if parts is None or parts.netloc or parts.query or parts.fragment or not parts.path:
             raise doc.fail(el, "expected a relative path (a URI without scheme, host, query or fragment)", attr)
         rel = unquote(parts.path)
         if self.zip is not None:
@@ -98,17 +125,29 @@ class Store:
             if member == ".." or member.startswith("../"):
                 raise doc.fail(el, "expected a path inside the archive: this one leaves it", attr)
             if member not in self.members:
-                raise doc.fail(el, f"no such file in the archive ({member})", attr)
+                raise doc.fail(el, f"no such file in the archive ({shorten(member, 200)})", attr)
             return member
         p = Path(rel)
         p = p if p.is_absolute() else Path(doc.base) / p
-        if not p.is_file():
-            raise doc.fail(el, f"no such file: {p}", attr)
+        try:
+            found = p.is_file()
+        except OSError as e:  # a name too long, a loop of links
+            raise doc.fail(el, f"cannot read {shorten(p, 300)}: {e.strerror}", attr) from None
+        if not found:
+            raise doc.fail(el, f"no such file: {shorten(p, 300)}", attr)
         return p
+
+    def entry(self, where: str) -> zipfile.ZipInfo:
+        """An archive entry that zipfile can read, else SceneError naming it."""
+        info = self.zip.getinfo(where)
+        problem = entry_problem(info)
+        if problem:
+            raise SceneError(problem, self.label(where))
+        return info
 
     def read(self, where: str | Path) -> bytes:
         if self.zip is not None:
-            info = self.zip.getinfo(where)
+            info = self.entry(where)
             if info.file_size > MAX_XML_BYTES:
                 raise SceneError(f"{info.file_size} bytes: an SSP XML file is at most {MAX_XML_BYTES} bytes",
                                  self.label(where))
@@ -151,7 +190,7 @@ class Store:
             return self._fmus[where]
         # The FMU's own files are bounded when it is read; the FMU itself, read
         # into memory here to hash and copy it, by the same unzip bound.
-        size, limit = self.zip.getinfo(where).file_size, max_unzipped_bytes()
+        size, limit = self.entry(where).file_size, max_unzipped_bytes()
         if size > limit:
             raise SceneError(f"{size:,} bytes unpacked, more than the limit of {limit:,} bytes ({limit / 2**20:g} MiB) "
                              "for an FMU: not unpacked (set CLOCKWORK_MAX_FMU_MB to allow more)", self.label(where))
@@ -190,26 +229,32 @@ def unit_table(doc: Doc, parent) -> dict[str, Unit]:
         name = u.get("name")
         if not name:
             raise doc.fail(u, "expected a name", "name")
+        if name in out:
+            raise doc.fail(u, "expected a unique unit name: this one is defined twice", "name")
         base = u.find(q("ssc", "BaseUnit"))
         if base is None:
             raise doc.fail(u, "expected an ssc:BaseUnit child")
         exps = []
         for k in _EXPONENTS:
             try:
-                exps.append(int(base.get(k, "0")))
+                exps.append(parse_int(base.get(k, "0")))
             except ValueError:
                 raise doc.fail(base, "expected an integer exponent", k) from None
-        out[name] = Unit(tuple(exps), number(doc, base, "factor", 1.0), number(doc, base, "offset", 0.0))
+        factor = number(doc, base, "factor", 1.0)
+        if factor == 0:
+            raise doc.fail(base, "expected a factor other than 0 (a conversion divides by it)", "factor")
+        out[name] = Unit(tuple(exps), factor, number(doc, base, "offset", 0.0))
     return out
 
 
 def fmu_units(md) -> dict[str, Unit]:
+    """The FMU's units that its BaseUnit defines in SI terms. A unit without
+    one (every unit of FMI 1.0, which names units only) converts to itself
+    alone, as in scene/units.py: it is left out, never taken as 1."""
     out = {}
     for u in getattr(md, "unitDefinitions", None) or []:
         b = u.baseUnit
-        if b is None:
-            out[u.name] = Unit((0,) * len(_EXPONENTS), 1.0, 0.0)
-        else:
+        if b is not None:
             out[u.name] = Unit(tuple(int(getattr(b, k, 0) or 0) for k in _EXPONENTS), float(b.factor),
                                 float(b.offset))
     return out
@@ -223,11 +268,12 @@ def conversion(src: str | None, dst: str | None, *tables: dict[str, Unit]) -> tu
     for name in (src, dst):
         d = next((t[name] for t in tables if name in t), None)
         if d is None:
-            return f"the unit {name} has no definition (ssd:Units, the parameter set's ssv:Units or the FMU's)"
+            return (f"the unit {shorten(name, 100)} has no definition (ssd:Units, the parameter set's ssv:Units or "
+                    "the FMU's)")
         defs.append(d)
     a, b = defs
     if a.exponents != b.exponents:
-        return f"{src} cannot be converted to {dst} (different base units)"
+        return f"{shorten(src, 100)} cannot be converted to {shorten(dst, 100)} (different base units)"
     if a.factor == b.factor and a.offset == b.offset:
         return 1.0, 0.0
     # base = factor * value + offset on each side
@@ -241,9 +287,10 @@ def number(doc: Doc, el, attr: str, default: float | None = None) -> float:
             raise doc.fail(el, "missing required attribute; expected a number", attr)
         return default
     try:
-        x = float(text)
+        x = parse_real(text, XSD_SPECIAL)
     except ValueError:
-        raise doc.fail(el, "expected a number", attr) from None
+        raise doc.fail(el, "expected a number (xs:double: digits, an optional sign, fraction and exponent)",
+                       attr) from None
     if not math.isfinite(x):
         raise doc.fail(el, "expected a finite number", attr)
     return x

@@ -42,7 +42,7 @@ from pathlib import Path
 
 from lxml import etree
 
-from ... import __version__
+from ...version import __version__
 from ...atomic import write_bytes_atomic, write_text_atomic
 from ...engine.description import INTEGER_TYPES, REAL_TYPES, var_unit
 from ...errors import SceneError
@@ -160,7 +160,14 @@ def build_ssp(scene, point: dict | None = None) -> dict[str, bytes]:
     used_units: dict[str, object] = {}
     for inst, comp in scene.components.items():
         md = comp.model_description
+        arrays = [v.name for v in md.modelVariables if v.shape]
+        if arrays:
+            raise SceneError(f"{comp.model_name} has FMI 3.0 array variables ({', '.join(arrays[:4])}"
+                             f"{', ...' if len(arrays) > 4 else ''}), which SSP 1.0 connectors and parameter "
+                             "sets cannot describe", scene.path, f"components.{inst}.fmu")
         el = _sub(elements, "ssd", "Component", name=inst, type=FMU_TYPE, source=fmu_names[comp.sha256])
+        if comp.interface == "model-exchange":  # asked for where the FMU has both interfaces
+            el.set("implementation", "ModelExchange")
         connectors = []
         for v in md.modelVariables:
             if v.causality == "output" or (v.causality == "input" and (inst, v.name) in connected_inputs):

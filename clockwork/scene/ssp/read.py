@@ -37,11 +37,13 @@ from pathlib import Path
 
 from ...engine.description import FmuError, read_fmu, types_connect, var_unit
 from ...engine.description import variables as variables_of
+from ...engine.model_exchange import interface_of, model_exchange_problem
 from ...errors import SceneError
-from ..checks import Ctx, convert_value
+from ...numbers import parse_int, parse_real, shorten
+from ..checks import Ctx, convert_value, instance_problem
 from ..model import Component, Connection, MasterConfig
-from .common import CW_ANNOTATION, CW_NS, NS, OMS_NS, VERSIONS, q
-from .documents import SSD_NAME, Doc, Store, boolean, conversion, fmu_units, number, unit_table
+from .common import CW_ANNOTATION, CW_NS, NS, OMS_NS, OSP_ANNOTATION, OSP_NS, VERSIONS, q
+from .documents import SSD_NAME, Doc, Store, boolean, conversion, fmu_units, number, tag_name, unit_table
 
 FMU_TYPE = "application/x-fmu-sharedlibrary"
 PSET_TYPE = "application/x-ssp-parameter-set"
@@ -58,6 +60,31 @@ _RECORD_KEYS = ("interval", "ticks")
 MAX_COMPONENTS = 1000
 MAX_PATH_STEPS = 100_000
 _MASTER_FIELDS = tuple(f.name for f in dataclasses.fields(MasterConfig))
+# Warnings of one kind beyond this many are counted, not printed.
+WARNINGS_SHOWN = 3
+# What the SSP may hold around a connection's or mapping entry's transformation
+# without changing the simulation (the drawing, tools' annotations).
+_INERT = {q("ssd", "ConnectionGeometry"), q("ssd", "Annotations"), q("ssc", "Annotations")}
+
+
+class Aliases:
+    """A system connector that passes one component output on unchanged can
+    be recorded by its name ("wB", "sub.w"): it records that output. Worked
+    out for the names asked (each a walk of the connections), not for every
+    connector: a chain of n connectors would cost n walks of n steps."""
+
+    def __init__(self, reader=None, adj=None):
+        self._reader, self._adj = reader, adj or {}
+        self._nodes = {(f"{n[1]}.{n[2]}" if n[1] else n[2]): n for n in self._adj if n[0] == "s"}
+        self._known: dict[str, str | None] = {}
+
+    def get(self, name: str, default=None):
+        node = self._nodes.get(name) if isinstance(name, str) else None
+        if node is None:
+            return default
+        if name not in self._known:
+            self._known[name] = self._reader._alias(node, self._adj)
+        return self._known[name] or default
 
 
 @dataclass
@@ -71,7 +98,11 @@ class SspScene:
     sections: dict  # "experiment", "master", "record" tables, as a TOML scene would hold them
     sha256: str  # of the archive; of an .ssd and the .ssv/.ssm files it reads
     warnings: list[str] = field(default_factory=list)
-    aliases: dict[str, str] = field(default_factory=dict)  # system connector -> "instance.output" it passes on
+    aliases: Aliases = field(default_factory=Aliases)  # system connector -> "instance.output" it passes on
+    # osp:StepSizeHint of components: instance -> (step in s, file, key); load.py decides after --set
+    step_hints: dict[str, tuple[float, str, str]] = field(default_factory=dict)
+    # where the SSD gives no stopTime: (file, key) for the note that 1 s is taken
+    no_stop: tuple[str, str] | None = None
 
 
 # ---------------------------------------------------------------- structure
@@ -96,6 +127,8 @@ class _Element:
     connectors: dict[str, _Connector]
     children: dict[str, "_Element"] = field(default_factory=dict)
     fmu_path: Path | None = None
+    fmu_label: str = ""  # an archive's FMU as messages name it (archive/member); "": its path
+    interface: str | None = None  # "model-exchange" or "co-simulation" as implementation= asks; None: any
     md: object = None
     digest: str = ""
     indicators: tuple = ()
@@ -122,9 +155,21 @@ class _Reader:
         self.instances: dict[str, _Element] = {}
         self.systems: dict[str, _Element] = {}
         self.edges: list[_Edge] = []
+        self.step_hints: dict[str, tuple[float, str, str]] = {}
+        self._warned: dict[str, list[str]] = {}  # kind -> its warnings, in order
 
-    def warn(self, label: str, key: str, text: str) -> None:
-        self.warnings.append(f"{label}: {key}: {text}")
+    def warn(self, label: str, key: str, text: str, kind: str | None = None) -> None:
+        """A warning line; of each `kind` (what the lines are about, for the
+        count), the first WARNINGS_SHOWN are kept and the rest counted."""
+        self._warned.setdefault(kind or text, []).append(f"{label}: {key}: {text}")
+
+    def _summarised_warnings(self) -> list[str]:
+        out = []
+        for kind, lines in self._warned.items():
+            out += lines[:WARNINGS_SHOWN]
+            if len(lines) > WARNINGS_SHOWN:
+                out.append(f"... and {len(lines) - WARNINGS_SHOWN:,} more like the last: {kind}")
+        return out
 
     # -- reading
 
@@ -152,7 +197,8 @@ class _Reader:
         connections = []
         for (inst, var), (src, factor, offset) in links.items():
             connections.append(Connection(src[0], src[1], inst, var, factor, offset))
-        sections = {"experiment": self._experiment(doc, root), "master": self._master(doc, system),
+        experiment, osp_step = self._experiment(doc, root)
+        sections = {"experiment": experiment, "master": self._master(doc, system, osp_step),
                     "record": self._record(doc, system)}
         if "outputs" not in sections["record"]:
             sections["record"]["outputs"] = self._default_record()
@@ -160,8 +206,14 @@ class _Reader:
             digest = hashlib.sha256(self.path.read_bytes()).hexdigest()
         else:
             digest = self.store.digest.hexdigest()
+        no_stop = None
+        if "stop" not in experiment:
+            exp = root.find(q("ssd", "DefaultExperiment"))
+            no_stop = (doc.label, doc.key(exp if exp is not None else root))
+        self.warnings = self._summarised_warnings()
         return SspScene(root.get("name") or self.path.stem, system.get("description") or "", components,
-                        tuple(connections), sections, digest, self.warnings, self.aliases)
+                        tuple(connections), sections, digest, self.warnings, self.aliases, self.step_hints,
+                        no_stop)
 
     def _connectors(self, doc: Doc, el, md=None) -> dict[str, _Connector]:
         out: dict[str, _Connector] = {}
@@ -192,7 +244,7 @@ class _Reader:
             if variables is not None:
                 v = variables.get(name)
                 if v is None:
-                    raise doc.fail(c, f"expected the name of a variable of {md.modelName}: it has no {name}",
+                    raise doc.fail(c, f"expected the name of a variable of {md.modelName}: it has no {_s(name)}",
                                    "name")
                 if ctype is not None and ctype != _FMI_TYPE.get(v.type, v.type) and not (
                         ctype == "Integer" and v.type == "Enumeration"):
@@ -203,35 +255,57 @@ class _Reader:
                 if v.type == "Real" and var_unit(v) is not None:
                     # the FMU's unit is what its numbers are in
                     if unit is not None and conversion(unit, var_unit(v), self.units, fmu_units(md)) != (1.0, 0.0):
-                        self.warn(doc.label, doc.key(c, "name"), f"the connector is in {unit}, "
-                                  f"{md.modelName}.{name} in {var_unit(v)}; the FMU's unit is used")
+                        self.warn(doc.label, doc.key(c, "name"), f"the connector is in {shorten(unit, 100)}, "
+                                  f"{md.modelName}.{name} in {var_unit(v)}; the FMU's unit is used",
+                                  "connector units that differ from the FMU's (the FMU's is used)")
                     unit = var_unit(v)
                 ctype = v.type
             out[name] = _Connector(name, kind, ctype, unit, c)
         return out
 
     def _system(self, doc: Doc, el, path: str) -> _Element:
-        node = _Element(el.get("name") or "", path, True, doc, el, self._connectors(doc, el))
-        self.systems[path] = node
-        if el.find(q("ssd", "SignalDictionaries")) is not None:
-            raise doc.fail(el.find(q("ssd", "SignalDictionaries")), "not supported: signal dictionaries")
-        elements = el.find(q("ssd", "Elements"))
-        for child in (elements if elements is not None else []):
+        """The system and its elements, depth first in document order (the
+        instances in that order), on an explicit stack, not by recursion."""
+        top = self._new_system(doc, el, path)
+        stack = [(top, iter(self._elements(doc, el)))]
+        while stack:
+            node, children = stack[-1]
+            child = next(children, None)
+            if child is None:
+                stack.pop()
+                continue
             ns, _, local = child.tag[1:].partition("}")
             name = child.get("name")
             if ns != NS["ssd"] or local not in ("Component", "System"):
                 what = "signal dictionary references" if local == "SignalDictionaryReference" else f"{local} elements"
-                raise doc.fail(child, f"not supported: {what}; expected ssd:Component or ssd:System")
+                raise doc.fail(child, f"not supported: {shorten(what, 100)}; expected ssd:Component or ssd:System")
             if not name:
                 raise doc.fail(child, "expected a non-empty element name", "name")
+            problem = instance_problem(name)
+            if problem:
+                # an element's name becomes (part of) an instance name: the same rule as a scene's
+                raise doc.fail(child, problem.replace("instance name", "element name"), "name")
             if name in node.children:
-                raise doc.fail(child, f"expected a unique element name in system {node.name!r}", "name")
-            sub = f"{path}.{name}" if path else name
+                raise doc.fail(child, f"expected a unique element name in system {shorten(node.name, 100)!r}", "name")
+            sub = f"{node.path}.{name}" if node.path else name
             if local == "System":
-                node.children[name] = self._system(doc, child, sub)
+                node.children[name] = self._new_system(doc, child, sub)
+                stack.append((node.children[name], iter(self._elements(doc, child))))
             else:
                 node.children[name] = self._component(doc, child, sub)
+        return top
+
+    def _new_system(self, doc: Doc, el, path: str) -> _Element:
+        node = _Element(el.get("name") or "", path, True, doc, el, self._connectors(doc, el))
+        self.systems[path] = node
+        if el.find(q("ssd", "SignalDictionaries")) is not None:
+            raise doc.fail(el.find(q("ssd", "SignalDictionaries")), "not supported: signal dictionaries")
         return node
+
+    @staticmethod
+    def _elements(doc: Doc, el) -> list:
+        elements = el.find(q("ssd", "Elements"))
+        return list(elements) if elements is not None else []
 
     def _component(self, doc: Doc, el, path: str) -> _Element:
         ctype = el.get("type", FMU_TYPE)
@@ -245,25 +319,35 @@ class _Reader:
         if len(self.instances) >= MAX_COMPONENTS:
             raise doc.fail(el, f"more than {MAX_COMPONENTS} components (FMU instances) in the system and its "
                                "sub-systems: not read")
-        fmu = self.store.fmu(self.store.resolve(doc, el, "source"))
+        where = self.store.resolve(doc, el, "source")
+        fmu = self.store.fmu(where)
+        label = self.store.label(where) if self.store.zip is not None else None  # None: its own path
         try:
-            md, digest, indicators = read_fmu(fmu)
+            md, digest, indicators = read_fmu(fmu, label=label)
         except FmuError as e:
-            detail = str(e)
-            if "Co-Simulation" in detail:
-                detail = ("expected an FMU with Co-Simulation: this one is Model Exchange only "
-                          "(clockwork is a co-simulation master)")
-            raise doc.fail(el, detail, "source") from None
+            raise doc.fail(el, str(e), "source") from None
         impl = el.get("implementation", "any")
         if impl == "ScheduledExecution":
             raise doc.fail(el, "expected any or CoSimulation: scheduled execution is FMI 3.0", "implementation")
-        if impl == "ModelExchange":
-            self.warn(doc.label, doc.key(el, "implementation"),
-                      "asks for Model Exchange; clockwork runs the FMU's Co-Simulation interface")
+        interface = {"ModelExchange": "model-exchange", "CoSimulation": "co-simulation"}.get(impl)
+        if interface is not None or md.coSimulation is None:
+            try:
+                if interface_of(md, interface) == "model-exchange":
+                    indicators = ()  # the FMU's own event indicators are located inside its wrapper
+                    problem = model_exchange_problem(md)
+                    if problem:
+                        raise SceneError(problem)
+            except SceneError as e:
+                raise doc.fail(el, e.detail, "implementation" if interface else "source") from None
         node = _Element(el.get("name"), path, False, doc, el, self._connectors(doc, el, md))
         node.fmu_path, node.md, node.digest, node.indicators = fmu, md, digest, indicators
+        node.fmu_label = label or ""
+        node.interface = interface
+        hint = self._step_hint(doc, el)
+        if hint is not None:
+            self.step_hints[path] = hint
         if path in self.instances:
-            raise doc.fail(el, f"expected a unique instance name: {path} names two components once systems "
+            raise doc.fail(el, f"expected a unique instance name: {_s(path)} names two components once systems "
                                "are flattened", "name")
         self.instances[path] = node
         return node
@@ -276,20 +360,27 @@ class _Reader:
         if elem_name is None:
             c = system.connectors.get(conn_name)
             if c is None:
-                raise doc.fail(el, f"system {system.name!r} has no connector {conn_name!r}; connectors: "
-                                   f"{', '.join(system.connectors) or 'none'}", f"{which}Connector")
+                raise doc.fail(el, f"system {_s(system.name)!r} has no connector {_s(conn_name)!r}; connectors: "
+                                   f"{_s(', '.join(system.connectors) or 'none')}", f"{which}Connector")
             return ("s", system.path, conn_name), c
         target = system.children.get(elem_name)
         if target is None:
-            raise doc.fail(el, f"system {system.name!r} has no element {elem_name!r}; elements: "
-                               f"{', '.join(system.children) or 'none'}", f"{which}Element")
+            raise doc.fail(el, f"system {_s(system.name)!r} has no element {_s(elem_name)!r}; elements: "
+                               f"{_s(', '.join(system.children) or 'none')}", f"{which}Element")
         c = target.connectors.get(conn_name)
         if c is None:
-            raise doc.fail(el, f"{elem_name} has no connector {conn_name!r}; connectors: "
-                               f"{', '.join(target.connectors) or 'none'}", f"{which}Connector")
+            raise doc.fail(el, f"{_s(elem_name)} has no connector {_s(conn_name)!r}; connectors: "
+                               f"{_s(', '.join(target.connectors) or 'none')}", f"{which}Connector")
         return (("s" if target.is_system else "c"), target.path, conn_name), c
 
-    def _connections(self, system: _Element) -> None:
+    def _connections(self, top: _Element) -> None:
+        todo = [top]  # systems, depth first in document order (a stack, not recursion)
+        while todo:
+            system = todo.pop()
+            self._system_connections(system)
+            todo += reversed([c for c in system.children.values() if c.is_system])
+
+    def _system_connections(self, system: _Element) -> None:
         doc = system.doc
         holder = system.el.find(q("ssd", "Connections"))
         for el in (holder if holder is not None else []):
@@ -300,19 +391,8 @@ class _Reader:
                     raise doc.fail(el, "not supported: connections of array elements", attr)
             a, _ = self._end(system, doc, el, "start")
             b, _ = self._end(system, doc, el, "end")
-            factor, offset = 1.0, 0.0
-            for child in el:
-                ns, _, local = child.tag[1:].partition("}")
-                if local == "LinearTransformation" and ns == NS["ssc"]:
-                    factor = number(doc, child, "factor", 1.0)
-                    offset = number(doc, child, "offset", 0.0)
-                elif local.endswith("MappingTransformation"):
-                    raise doc.fail(child, "not supported: mapping transformations on connections; "
-                                          "expected ssc:LinearTransformation")
+            factor, offset = _transformation(doc, el, "connections")
             self.edges.append(_Edge(a, b, factor, offset, boolean(doc, el, "suppressUnitConversion"), doc, el))
-        for child in system.children.values():
-            if child.is_system:
-                self._connections(child)
 
     # -- flattening
 
@@ -344,23 +424,22 @@ class _Reader:
             adj.setdefault(e.a, []).append((e, e.b))
             adj.setdefault(e.b, []).append((e, e.a))
         links, fed = {}, {}
-        self.aliases = {}
+        self.aliases = Aliases(self, adj)
         for node in adj:
-            if node[0] == "s":
-                self._alias(node, adj)
             if self._role(node) != "sink":
                 continue
             found = self._walk(node, adj)
             sources = [f for f in found if f[0][0] == "c"]
             if len(sources) > 1:
-                names = " and ".join(f"{s[1]}.{s[2]}" for s, _ in sources)
+                names = " and ".join(_s(f"{s[1]}.{s[2]}") for s, _ in sources[:2])
                 e = sources[1][1][-1][0]
-                raise e.doc.fail(e.el, f"input {node[1]}.{node[2]} is fed by two outputs: {names}")
+                raise e.doc.fail(e.el, f"input {_s(node[1] + '.' + node[2])} is fed by two outputs: {names}")
             if sources:
                 src, chain = sources[0]
                 if self._var(node).causality != "input":
-                    raise chain[-1][0].doc.fail(chain[-1][0].el, f"expected an input at the end: {node[1]}.{node[2]} "
-                                                                 f"is a {self._var(node).causality}, which an output cannot feed")
+                    last = chain[-1][0]
+                    raise last.doc.fail(last.el, f"expected an input at the end: {_s(node[1] + '.' + node[2])} is a "
+                                                 f"{self._var(node).causality}, which an output cannot feed")
                 factor, offset = self._chain(chain, self._var(src), self._var(node))
                 links[(node[1], node[2])] = ((src[1], src[2]), factor, offset)
             else:
@@ -370,45 +449,57 @@ class _Reader:
 
     def _walk(self, node: tuple, adj: dict) -> list:
         """What feeds `node`: [(source node, [(edge, upstream, downstream)] in data-flow order)],
-        a component output, or a system connector with nothing upstream."""
-        found = []
-        visits = [0]
+        a component output, or a system connector with nothing upstream.
 
-        def walk(cur, chain, seen):
-            for e, other in adj.get(cur, []):
-                if other in seen:
-                    continue
-                visits[0] += 1
-                if visits[0] > MAX_PATH_STEPS:  # loops of system connectors: the paths grow as n!
-                    raise e.doc.fail(e.el, f"more than {MAX_PATH_STEPS:,} paths through system connectors lead to "
-                                           f"{'.'.join(n for n in node[1:] if n)}: expected connections without loops")
-                role = self._role(other)
-                step = [(e, other, cur)] + chain
-                if role == "source":
-                    found.append((other, step))
-                elif role == "through":
-                    before = len(found)
-                    walk(other, step, seen | {other})
-                    if len(found) == before:
-                        found.append((other, step))
-        walk(node, [], {node})
+        Every simple path from `node` upstream, depth first, on an explicit
+        stack with the path's nodes marked and unmarked (a chain of thousands
+        of system connectors costs its length, not a recursion as deep),
+        bounded by MAX_PATH_STEPS edges visited."""
+        found = []
+        visits = 0
+        on_path = {node}
+        # frames: [node, its chain as a linked list (step, rest), its edges, next edge, len(found) on entry]
+        stack = [[node, None, adj.get(node, []), 0, 0]]
+        while stack:
+            frame = stack[-1]
+            cur, link, edges, i, before = frame
+            while i < len(edges) and edges[i][1] in on_path:
+                i += 1
+            if i == len(edges):
+                stack.pop()
+                on_path.discard(cur)
+                if stack and len(found) == before:  # a system connector with nothing upstream
+                    found.append((cur, _unlink(link)))
+                continue
+            frame[3] = i + 1
+            e, other = edges[i]
+            visits += 1
+            if visits > MAX_PATH_STEPS:  # loops of system connectors: the paths grow as n!
+                raise e.doc.fail(e.el, f"more than {MAX_PATH_STEPS:,} paths through system connectors lead to "
+                                       f"{shorten('.'.join(n for n in node[1:] if n), 200)}: expected connections "
+                                       "without loops")
+            role = self._role(other)
+            step = ((e, other, cur), link)
+            if role == "source":
+                found.append((other, _unlink(step)))
+            elif role == "through":
+                on_path.add(other)
+                stack.append([other, step, adj.get(other, []), 0, len(found)])
         return found
 
-    def _alias(self, node: tuple, adj: dict) -> None:
-        """A system connector that passes one component output on unchanged
-        can be recorded by its name ("wB", "sub.w"): it records that output."""
+    def _alias(self, node: tuple, adj: dict) -> str | None:
+        """The "instance.output" a system connector passes on unchanged, or None."""
         sources = [f for f in self._walk(node, adj) if f[0][0] == "c"]
         if len(sources) != 1:
-            return
+            return None
         src, chain = sources[0]
         try:
             var = self._var(src)
             if self._chain(chain, var, var) != (1.0, 0.0):
-                return
+                return None
         except SceneError:
-            return
-        name = f"{node[1]}.{node[2]}" if node[1] else node[2]
-        self.aliases[name] = f"{src[1]}.{src[2]}"
+            return None
+        return f"{src[1]}.{src[2]}"
 
     def _chain(self, chain, src_var, dst_var) -> tuple[float, float]:
         """The factor and offset of a chain of connections in data-flow order."""
@@ -433,17 +524,24 @@ class _Reader:
 
     # -- parameters
 
-    def _bindings(self, system: _Element) -> dict[tuple, tuple]:
-        """{node: (value, type, unit, label, key)}, the SSP's precedence applied."""
+    def _bindings(self, top: _Element) -> dict[tuple, tuple]:
+        """{node: (value, type, unit, label, key)}, the SSP's precedence applied:
+        an element's bindings before its system's, so that the system's win.
+        Depth first in document order, on a stack (not recursion)."""
         values: dict[tuple, tuple] = {}
-        for child in system.children.values():
-            if child.is_system:
-                values.update(self._bindings(child))
+        stack = [(top, iter(top.children.values()))]
+        while stack:
+            system, children = stack[-1]
+            child = next(children, None)
+            if child is None:
+                stack.pop()
+                for name, v in self._element_values(system):
+                    self._assign(system, name, v, values, exact=False)
+            elif child.is_system:
+                stack.append((child, iter(child.children.values())))
             else:
                 for name, v in self._element_values(child):
                     self._assign(child, name, v, values, exact=True)
-        for name, v in self._element_values(system):
-            self._assign(system, name, v, values, exact=False)
         return values
 
     def _assign(self, elem: _Element, name: str, v: tuple, values: dict, exact: bool) -> None:
@@ -451,23 +549,27 @@ class _Reader:
         if not elem.is_system and name not in variables_of(elem.md):
             targets = []
         if not targets:
-            self.warn(v[3], v[4], f"{name} names no variable of {elem.path or elem.name!r}; ignored "
-                                  "(SSP: a parameter value without a match is not applied)")
+            self.warn(v[3], v[4], f"{shorten(name, 100)} names no variable of {elem.path or elem.name!r}; ignored "
+                                  "(SSP: a parameter value without a match is not applied)",
+                      "parameter values that name no variable (not applied)")
         for t in targets:
             values[t] = v
 
     def _resolve(self, system: _Element, name: str) -> list[tuple]:
         """Every variable a hierarchical name reaches in a system (SSP allows punning)."""
         out = []
-        if name in system.connectors:
-            out.append(("s", system.path, name))
-        for ename, child in system.children.items():
-            if name.startswith(ename + "."):
-                rest = name[len(ename) + 1:]
-                if child.is_system:
-                    out += self._resolve(child, rest)
-                elif rest in variables_of(child.md):
-                    out.append(("c", child.path, rest))
+        todo = [(system, name)]
+        while todo:
+            system, name = todo.pop()
+            if name in system.connectors:
+                out.append(("s", system.path, name))
+            for ename, child in system.children.items():
+                if name.startswith(ename + "."):
+                    rest = name[len(ename) + 1:]
+                    if child.is_system:
+                        todo.append((child, rest))
+                    elif rest in variables_of(child.md):
+                        out.append(("c", child.path, rest))
         return out
 
     def _element_values(self, elem: _Element) -> list[tuple[str, tuple]]:
@@ -507,6 +609,7 @@ class _Reader:
             raise doc.fail(pset, f"expected the SSP version {' or '.join(VERSIONS)}", "version")
         units = {**self.units, **unit_table(doc, pset.find(q("ssv", "Units")))}
         out = []
+        seen: dict[str, object] = {}
         holder = pset.find(q("ssv", "Parameters"))
         for p in (holder if holder is not None else []):
             if p.tag != q("ssv", "Parameter"):
@@ -514,6 +617,12 @@ class _Reader:
             name = p.get("name")
             if not name:
                 raise doc.fail(p, "expected a parameter name", "name")
+            if name in seen:
+                if _same_value(seen[name], p):
+                    continue  # said twice alike: nothing to choose
+                raise doc.fail(p, f"expected each parameter once in a parameter set: line {seen[name].sourceline} "
+                                  "gives it another value (which one is meant is not said)", "name")
+            seen[name] = p
             typed = [c for c in p if c.tag.startswith("{" + NS["ssv"] + "}")]
             typed = [c for c in typed if c.tag.partition("}")[2] not in ("Annotations",)]
             if len(typed) != 1:
@@ -521,7 +630,7 @@ class _Reader:
             t = typed[0]
             local = t.tag.partition("}")[2]
             if local not in _TYPES:
-                raise doc.fail(t, f"not supported: {local} parameters; expected Real, Integer, Boolean, String "
+                raise doc.fail(t, f"not supported: {_s(local)} parameters; expected Real, Integer, Boolean, String "
                                   "or Enumeration")
             text = t.get("value")
             if text is None:
@@ -531,7 +640,7 @@ class _Reader:
                 value: object = number(doc, t, "value")
             elif kind == "Integer":
                 try:
-                    value = int(text)
+                    value = parse_int(text)
                 except ValueError:
                     raise doc.fail(t, "expected an integer", "value") from None
             elif kind == "Boolean":
@@ -557,6 +666,7 @@ class _Reader:
                 raise doc.fail(mapping, "expected a source or an inline ssm:ParameterMapping")
         by_name = dict(params)
         out = []
+        targets: dict[str, object] = {}
         for m in root:
             if m.tag != q("ssm", "MappingEntry"):
                 if m.tag == q("ssc", "Annotations"):
@@ -567,18 +677,20 @@ class _Reader:
                 raise mdoc.fail(m, "expected the attributes source and target", "source" if src is None else "target")
             if src not in by_name:
                 # An empty source is valid by the schema and names no parameter (OMSimulator writes such entries).
-                what = "an empty source names no parameter" if not src else f"the parameter set has no {src}"
-                self.warn(mdoc.label, mdoc.key(m, "source"), f"{what}; entry not applied")
+                what = "an empty source names no parameter" if not src else f"the parameter set has no {_s(src)}"
+                self.warn(mdoc.label, mdoc.key(m, "source"), f"{what}; entry not applied",
+                          "mapping entries whose source names no parameter (not applied)")
                 continue
+            if target in targets:  # of the entries applied
+                raise mdoc.fail(m, f"expected each target once in a parameter mapping: line "
+                                   f"{targets[target].sourceline} maps to it too (which value is meant is not said)",
+                                "target")
+            targets[target] = m
             value, kind, unit, label, key, units = by_name[src]
             suppress = boolean(mdoc, m, "suppressUnitConversion")
-            transform = None
-            for child in m:
-                local = child.tag.partition("}")[2]
-                if local == "LinearTransformation":
-                    transform = (number(mdoc, child, "factor", 1.0), number(mdoc, child, "offset", 0.0))
-                elif local.endswith("Transformation"):
-                    raise mdoc.fail(child, "not supported: mapping transformations other than ssc:LinearTransformation")
+            transform = _transformation(mdoc, m, "parameter mapping entries")  # refuses any other kind
+            if m.find(q("ssc", "LinearTransformation")) is None:
+                transform = None
             if transform is not None:
                 if kind != "Real":
                     raise mdoc.fail(m, f"a linear transformation needs a Real parameter, not {kind}")
@@ -616,16 +728,19 @@ class _Reader:
             variable = variables_of(elem.md)[var]
             label, key = v[3], v[4]
             if variable.causality not in ("parameter", "input"):
-                raise SceneError(f"expected a parameter or an input: {elem.md.modelName}.{var} is "
+                raise SceneError(f"expected a parameter or an input: {elem.md.modelName}.{_s(var)} is "
                                  f"{'an' if variable.causality[0] in 'aeiou' else 'a'} {variable.causality}",
                                  label, key)
             if (inst, var) in linked and variable.causality == "input":
-                self.warn(label, key, f"{inst}.{var} is a connected input; its connection wins over this value")
+                self.warn(label, key, f"{_s(inst + '.' + var)} is a connected input; its connection wins over this "
+                                      "value",
+                          "values for connected inputs (the connection wins)")
                 continue
             params[inst][var] = self._value(v, variable, elem, label, key)
         out = {}
         for inst, elem in self.instances.items():
-            out[inst] = Component(inst, elem.fmu_path, elem.digest, elem.md, params[inst], elem.indicators)
+            out[inst] = Component(inst, elem.fmu_path, elem.digest, elem.md, params[inst], elem.indicators,
+                                  interface=elem.interface, fmu_label=elem.fmu_label)
         return out
 
     def _value(self, v: tuple, variable, elem: _Element, label: str, key: str):
@@ -660,35 +775,100 @@ class _Reader:
 
     # -- settings
 
-    def _experiment(self, doc: Doc, root) -> dict:
+    def _experiment(self, doc: Doc, root) -> tuple[dict, tuple | None]:
+        """The experiment section, and the OSP annotation's base step as
+        (step in s, element) or None."""
         exp = root.find(q("ssd", "DefaultExperiment"))
         out = {}
-        if exp is not None:
-            if exp.get("startTime") is not None:
-                out["start"] = number(doc, exp, "startTime")
-            if exp.get("stopTime") is not None:
-                out["stop"] = number(doc, exp, "stopTime")
-        return out
+        if exp is None:
+            return out, None
+        if exp.get("startTime") is not None:
+            out["start"] = number(doc, exp, "startTime")
+        if exp.get("stopTime") is not None:
+            out["stop"] = number(doc, exp, "stopTime")
+        step = None
+        osp = self._annotation(doc, exp, OSP_ANNOTATION)
+        if osp is not None:
+            algorithms = [c for c in osp if c.tag == q("osp", "Algorithm")]
+            for c in osp:
+                if c.tag != q("osp", "Algorithm"):
+                    raise doc.fail(c, f"not supported in the OSP annotation of the experiment: {tag_name(c)}; "
+                                      "expected osp:Algorithm")
+            if len(algorithms) > 1:
+                raise doc.fail(algorithms[1], "expected one osp:Algorithm: which one is meant is not said")
+            for algorithm in algorithms:
+                chosen = list(algorithm)
+                if len(chosen) != 1 or chosen[0].tag != q("osp", "FixedStepAlgorithm"):
+                    what = ", ".join(tag_name(c) for c in chosen) or "nothing"
+                    raise doc.fail(algorithm, f"not supported: {shorten(what, 200)}; expected one "
+                                              "osp:FixedStepAlgorithm (libcosim's and ecos' fixed-step master)")
+                fixed = chosen[0]
+                base = number(doc, fixed, "baseStepSize")
+                if not base > 0:
+                    raise doc.fail(fixed, "expected a step > 0 s", "baseStepSize")
+                if fixed.get("numWorkerThreads") is not None:
+                    # threads change how fast, not what is computed
+                    try:
+                        if parse_int(fixed.get("numWorkerThreads")) < 0:
+                            raise ValueError
+                    except ValueError:
+                        raise doc.fail(fixed, "expected a whole number >= 0", "numWorkerThreads") from None
+                step = (base, fixed)
+        for a in self._annotations(exp, "com.github.ecos-platform.scenario"):
+            self.warn(doc.label, doc.key(a, "type"), "ecos' scenario (timed changes of variables) is not applied")
+        return out, step
 
-    def _annotation(self, system, kind: str):
-        holder = system.find(q("ssd", "Annotations"))
-        for a in (holder if holder is not None else []):
-            if a.tag == q("ssc", "Annotation") and a.get("type") == kind:
-                return a
-        return None
+    def _annotations(self, el, kind: str) -> list:
+        holder = el.find(q("ssd", "Annotations"))
+        return [a for a in (holder if holder is not None else [])
+                if a.tag == q("ssc", "Annotation") and a.get("type") == kind]
 
-    def _master(self, doc: Doc, system) -> dict:
+    def _annotation(self, doc: Doc, el, kind: str):
+        """The element's one ssc:Annotation of this type, or None (two are refused)."""
+        found = self._annotations(el, kind)
+        if len(found) > 1:
+            raise doc.fail(found[1], "expected one annotation of this type: which one is meant is not said", "type")
+        return found[0] if found else None
+
+    def _step_hint(self, doc: Doc, el) -> tuple[float, str, str] | None:
+        """A component's osp:StepSizeHint: (step in s, file, key), or None."""
+        osp = self._annotation(doc, el, OSP_ANNOTATION)
+        if osp is None:
+            return None
+        hints = []
+        for c in osp:
+            if c.tag != q("osp", "StepSizeHint"):
+                raise doc.fail(c, f"not supported in the OSP annotation of a component: {tag_name(c)}; "
+                                  "expected osp:StepSizeHint")
+            hints.append(c)
+        if len(hints) > 1:
+            raise doc.fail(hints[1], "expected one osp:StepSizeHint: which one is meant is not said")
+        if not hints:
+            return None
+        value = number(doc, hints[0], "value")
+        if not value > 0:
+            raise doc.fail(hints[0], "expected a step > 0 s", "value")
+        return value, doc.label, doc.key(hints[0], "value")
+
+    def _master(self, doc: Doc, system, osp_step: tuple | None) -> dict:
         out: dict = {}
-        oms = self._annotation(system, "org.openmodelica")
+        oms = self._annotation(doc, system, "org.openmodelica")
         if oms is not None:
             fixed = oms.find(f"{{{OMS_NS}}}Annotations/{{{OMS_NS}}}SimulationInformation/{{{OMS_NS}}}FixedStepMaster")
             if fixed is not None and fixed.get("stepSize") is not None:
                 out["step"] = number(doc, fixed, "stepSize")
             if fixed is not None and fixed.get("relativeTolerance") is not None and "tolerance" in _MASTER_FIELDS:
                 out["tolerance"] = number(doc, fixed, "relativeTolerance")
-        cw = self._annotation(system, CW_ANNOTATION)
+        if osp_step is not None:
+            base, el = osp_step
+            if "step" in out and out["step"] != base:
+                raise doc.fail(el, f"two steps for the master: OMSimulator's annotation (oms:FixedStepMaster) says "
+                                   f"{out['step']:g} s, this one {base:g} s; expected one, or --set master.step",
+                               "baseStepSize")
+            out["step"] = base
+        cw = self._annotation(doc, system, CW_ANNOTATION)
         if cw is not None:
-            out = {}  # clockwork's own settings are complete: OMSimulator's do not mix in
+            out = {}  # clockwork's own settings are complete: the other tools' do not mix in
             m = cw.find(f"{{{CW_NS}}}Settings/{{{CW_NS}}}Master")
             for k, text in (m.attrib.items() if m is not None else []):
                 if k not in _MASTER_FIELDS:
@@ -697,7 +877,7 @@ class _Reader:
         return out
 
     def _record(self, doc: Doc, system) -> dict:
-        cw = self._annotation(system, CW_ANNOTATION)
+        cw = self._annotation(doc, system, CW_ANNOTATION)
         r = cw.find(f"{{{CW_NS}}}Settings/{{{CW_NS}}}Record") if cw is not None else None
         if r is None:
             return {}
@@ -724,15 +904,62 @@ class _Reader:
         return out
 
 
+def _s(text: object) -> str:
+    """A name or value from the file, as an error line echoes it (shortened)."""
+    return shorten(text, 100)
+
+
+def _same_value(a, b) -> bool:
+    """Two ssv:Parameter elements that say the same: type, value and unit."""
+    def said(p):
+        return [(c.tag, sorted(c.attrib.items())) for c in p]
+    return said(a) == said(b)
+
+
+def _unlink(link) -> list:
+    """A chain kept as a linked list (step, rest), newest step first, as a list."""
+    out = []
+    while link is not None:
+        out.append(link[0])
+        link = link[1]
+    return out
+
+
 def _typed(text: str):
+    """An attribute of clockwork's annotation as the TOML value it stands for
+    (the numbers through the strict reader: "1_0" stays text and is refused
+    where a number is due)."""
     if text in ("true", "false"):
         return text == "true"
-    for kind in (int, float):
+    for kind in (parse_int, parse_real):
         try:
             return kind(text)
         except ValueError:
             pass
     return text
+
+
+def _transformation(doc: Doc, el, where: str) -> tuple[float, float]:
+    """(factor, offset) of the ssc:LinearTransformation among an element's
+    children, (1, 0) without one; any other transformation, or an element
+    SSP does not define there, is refused: a link must not lose its factor."""
+    factor, offset, seen = 1.0, 0.0, None
+    for child in el:
+        if child.tag == q("ssc", "LinearTransformation"):
+            if seen is not None:
+                raise doc.fail(child, "expected one transformation: which one is meant is not said")
+            seen = child
+            factor = number(doc, child, "factor", 1.0)
+            offset = number(doc, child, "offset", 0.0)
+        elif child.tag in _INERT:
+            continue
+        elif child.tag.endswith("MappingTransformation") and child.tag.startswith("{" + NS["ssc"] + "}"):
+            raise doc.fail(child, f"not supported: mapping transformations on {where}; expected "
+                                  "ssc:LinearTransformation")
+        else:
+            raise doc.fail(child, f"not supported on {where}: {tag_name(child)}; expected ssc:LinearTransformation "
+                                  "(SSP's transformation) or none")
+    return factor, offset
 
 
 def read_ssp(path: str | Path) -> SspScene:

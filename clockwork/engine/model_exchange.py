@@ -1,0 +1,698 @@
+"""A Model Exchange FMU as an instance that steps like a Co-Simulation one.
+
+``MEInstance`` (FMI 2.0) and ``MEInstance3`` (FMI 3.0) give the master the
+calls of an FMI 2.0 Co-Simulation ``Instance`` (``c_doStep``,
+``c_setReal``, ``c_setInputDerivatives``, ``c_getOutputDerivatives``,
+``c_getState``...), so that the stepping loop, the coupling, the event
+location and the checkpoints serve them unchanged, mixed with
+Co-Simulation FMUs. Behind those calls the wrapper integrates the FMU
+(``me_step.py``: the algorithm, its integrators and events); towards the
+master it behaves as an FMI 2.0 Co-Simulation FMU would:
+
+- it takes input derivatives (``canInterpolateInputs``) and sets the
+  inputs' polynomials wherever it evaluates the FMU between communication
+  points;
+- it offers output derivatives of outputs that are states (the first from
+  the derivatives, the second where a state's derivative is itself a
+  state), for the master's coupling and event location;
+- its FMU state is the FMU's fmi2GetFMUstate (where the FMU declares
+  canGetAndSetFMUstate) plus the wrapper's own (time, states, step size,
+  next event time, indicators, input polynomials, solver), so rollback,
+  replay and shooting work;
+- an FMU that ends the simulation (terminateSimulation) makes a step
+  return Discard with fmi2Terminated (``terminated``,
+  ``last_successful_time``), as FMI 2.0 Co-Simulation FMUs do;
+- values other than continuous inputs (parameters, discrete inputs) set
+  during the run go through event mode, as Model Exchange requires.
+
+The wrapper's state lives in a ctypes struct (``_ME``) shared with the
+compiled core's twin (src_c/master/cw_me.c, the ``cwme_*`` functions):
+the core steps the same instance with the same bits.
+
+An FMU that declares both interfaces runs as Co-Simulation unless asked
+for Model Exchange (``make_instance(..., model_exchange=MEOptions(...))``,
+the scene's ``interface = "model-exchange"``); one that declares only
+Model Exchange always runs so.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from ctypes import (POINTER, Structure, byref, c_bool, c_char, c_char_p, c_double, c_int, c_longlong, c_size_t,
+                    c_uint, c_void_p)
+from dataclasses import dataclass
+
+from fmpy.fmi2 import FMU2Model, fmi2EventInfo
+from fmpy.fmi3 import FMU3Model
+
+from ..errors import SceneError, SimulationError
+from . import cvode, rk
+from .description import fmi_version, read_fmu
+from .fmu import ERROR, OK, WARNING, Instance, extract
+from .fmu3 import Instance3, make_instance as make_cs_instance
+from .me_step import (AUTO, CALLS, CONTINUOUS, CVODE, DEFAULT_RTOL, EVENT, FAIL_CVODE, FAIL_LOCATE, FAIL_RK,
+                      FAIL_SETTLE, FAIL_TIME, FAIL_TIME_EVENTS, INITIALIZATION, INSTANTIATED, MAX_CVODE_STEPS,
+                      MAX_EVENT_ITERATIONS, MAX_RK_STATES, MAX_TRIALS, METHOD_NAMES, RK_FAILURES, SOLVERS, STATS,
+                      ModelExchangeSteps)
+
+INTERFACES = ("co-simulation", "model-exchange")
+
+
+@dataclass(frozen=True)
+class MEOptions:
+    """How a Model Exchange FMU is integrated: master.me_solver and the
+    master's event time tolerance (s). The relative tolerance comes with
+    fmi2SetupExperiment (master.tolerance, else the DefaultExperiment's)."""
+
+    solver: str = "auto"
+    event_time_tolerance: float = 1e-10
+
+
+class _ME(Structure):
+    """The wrapper's state, shared with cw_me.c's cw_me (same layout)."""
+
+    _fields_ = [(n, c_void_p) for n in (
+        "instance", "setTime", "setStates", "getDerivatives", "getIndicators", "getStates", "getNominals",
+        "completedStep", "enterEventMode", "update", "enterContinuousMode", "getReal", "setReal",
+        "getState", "setState", "sundials", "rk",
+        "x", "xbuf", "xw", "xd", "dx", "nominal", "atolv", "z_prev", "z", "z_end", "z_lo", "z0",
+        "in_vr", "u0", "d1", "d2", "tref", "in_val", "state_vr", "der_state", "saved",
+        "cv_mem", "cv_ctx", "cv_y", "cv_abstol", "cv_dky", "cv_A", "cv_LS")] + [
+        (n, c_double) for n in (
+            "time", "next_event_time", "end_time", "rtol", "event_time_tolerance", "h_next", "err_t",
+            "saved_time", "saved_next_event_time", "saved_end_time", "saved_h_next")] + [
+        (n, c_longlong) for n in STATS] + [
+        (n, c_int) for n in (
+            "version", "n", "nz", "n_in", "solver", "method", "stiff_count", "nonstiff_count", "terminated",
+            "mode", "poly", "inputs_dirty", "restart", "cv_owner", "failed_call", "failed_status",
+            "failed_detail", "needs_completed", "saved_method", "saved_stiff_count", "saved_nonstiff_count",
+            "saved_terminated", "saved_poly", "saved_mode")]
+
+
+def _binder(dll):
+    """fn(name, *argtypes): the FMU's C function `name` with its argument types, returning a status."""
+    def fn(name, *argtypes):
+        f = getattr(dll, name)
+        f.argtypes = list(argtypes)
+        f.restype = c_int
+        return f
+    return fn
+
+
+class MEInstance(ModelExchangeSteps, Instance):
+    """An FMI 2.0 Model Exchange FMU behind the calls of a Co-Simulation instance."""
+
+    model_exchange = True
+    fmi_version = 2  # the face the master sees: an FMI 2.0 Co-Simulation instance (see the module's docstring)
+    _fmpy_class = FMU2Model
+
+    def _interface(self):
+        return self.md.modelExchange
+
+    def __init__(self, name, path, model_description=None, options: MEOptions | None = None):
+        super().__init__(name, path, model_description)
+        md = self.md
+        self.fmu_version = fmi_version(md)
+        self.options = options or MEOptions()
+        if self.options.solver not in SOLVERS:
+            raise SceneError(f"master.me_solver = {self.options.solver!r}: expected one of "
+                             f"{', '.join(map(repr, SOLVERS))}")
+        me_md = md.modelExchange
+        self.can_get_set_state = bool(me_md.canGetAndSetFMUstate)
+        self._needs_completed = bool(me_md.needsCompletedIntegratorStep)
+        states = [d.variable.derivative for d in md.derivatives]
+        n = len(states)
+        nz = int(md.numberOfEventIndicators or 0)
+        # Inputs that may change in continuous-time mode (the others are set in event mode).
+        inputs = [v for v in md.modelVariables
+                  if v.causality == "input" and v.type == "Real" and v.variability == "continuous"]
+        n_in = len(inputs)
+        self.continuous_inputs = {}  # value reference -> position (the first of aliases, as cw_me.c finds it)
+        for k, v in enumerate(inputs):
+            self.continuous_inputs.setdefault(v.valueReference, k)
+        state_vr = [v.valueReference for v in states]
+        der_vr = [d.variable.valueReference for d in md.derivatives]
+        der_state = [state_vr.index(v) if v in state_vr else -1 for v in der_vr]
+        # Output derivatives: of outputs that are states (an output shares the state's value reference).
+        orders = [2 if der_state[state_vr.index(v.valueReference)] >= 0 else 1
+                  for v in md.modelVariables if v.causality == "output" and v.valueReference in state_vr]
+        self.max_output_derivative_order = max(orders, default=0)
+        self.can_interpolate_inputs = n_in > 0
+        self.event_indicators = []  # the FMU's own indicators are located inside the wrapper
+        self.state_names = [v.name for v in states]
+
+        def doubles(k):
+            return (c_double * max(1, k))()
+
+        self._x, self._xbuf, self._xw, self._xd, self._dx, self._nominal, self._atolv = (doubles(n) for _ in range(7))
+        self._z_prev, self._z, self._z_end, self._z_lo, self._z0 = (doubles(nz) for _ in range(5))
+        self._in_vr = (c_uint * max(1, n_in))(*[v.valueReference for v in inputs])
+        self._u0, self._d1, self._d2, self._tref, self._in_val = (doubles(n_in) for _ in range(5))
+        self._state_vr = (c_uint * max(1, n))(*state_vr)
+        self._der_state = (c_int * max(1, n))(*der_state)
+        self._saved = doubles(n + nz + 4 * n_in)
+        me = self.me = _ME(version=self.fmu_version, n=n, nz=nz, n_in=n_in,
+                           solver=SOLVERS[self.options.solver],
+                           event_time_tolerance=float(self.options.event_time_tolerance),
+                           needs_completed=int(self._needs_completed))
+        for field in ("x", "xbuf", "xw", "xd", "dx", "nominal", "atolv", "z_prev", "z", "z_end", "z_lo", "z0",
+                      "in_vr", "u0", "d1", "d2", "tref", "in_val", "state_vr", "der_state", "saved"):
+            setattr(me, field, ctypes.addressof(getattr(self, "_" + field)))
+        for k, v in enumerate(inputs):
+            self._u0[k] = float(v.start) if v.start not in (None, "") else 0.0
+        self._rk = rk.RungeKutta(n, DEFAULT_RTOL, 0.0)
+        self._cv = None
+        self._core = None  # the compiled core's cw_rk workspace, once the core steps this instance
+        self._reset_wrapper()
+
+    def _read_capabilities(self) -> None:
+        """Model Exchange has no Co-Simulation capabilities: set in __init__."""
+
+    # -- loading -------------------------------------------------------------
+
+    def _bind(self, dll) -> None:
+        """The FMU's fmi2 functions (raw, with argtypes) and the wrapper's calls for the master."""
+        fn = _binder(dll)
+        comp = c_void_p
+        vrs, reals, ints = POINTER(c_uint), POINTER(c_double), POINTER(c_int)
+        f = {
+            "setTime": fn("fmi2SetTime", comp, c_double),
+            "setStates": fn("fmi2SetContinuousStates", comp, reals, c_size_t),
+            "getDerivatives": fn("fmi2GetDerivatives", comp, reals, c_size_t),
+            "getIndicators": fn("fmi2GetEventIndicators", comp, reals, c_size_t),
+            "getStates": fn("fmi2GetContinuousStates", comp, reals, c_size_t),
+            "getNominals": fn("fmi2GetNominalsOfContinuousStates", comp, reals, c_size_t),
+            "completedStep": fn("fmi2CompletedIntegratorStep", comp, c_int, ints, ints),
+            "enterEventMode": fn("fmi2EnterEventMode", comp),
+            "update": fn("fmi2NewDiscreteStates", comp, POINTER(fmi2EventInfo)),
+            "enterContinuousMode": fn("fmi2EnterContinuousTimeMode", comp),
+            "getReal": fn("fmi2GetReal", comp, vrs, c_size_t, reals),
+            "setReal": fn("fmi2SetReal", comp, vrs, c_size_t, reals),
+            "getState": fn("fmi2GetFMUstate", comp, POINTER(c_void_p)),
+            "setState": fn("fmi2SetFMUstate", comp, c_void_p),
+        }
+        self._fmu_calls(f)
+        self.c_getInteger = fn("fmi2GetInteger", comp, vrs, c_size_t, ints)
+        self.c_setInteger = fn("fmi2SetInteger", comp, vrs, c_size_t, ints)
+        self.c_getBoolean = fn("fmi2GetBoolean", comp, vrs, c_size_t, ints)
+        self.c_setBoolean = fn("fmi2SetBoolean", comp, vrs, c_size_t, ints)
+        self.c_getString = fn("fmi2GetString", comp, vrs, c_size_t, POINTER(c_char_p))
+        self.c_setString = fn("fmi2SetString", comp, vrs, c_size_t, POINTER(c_char_p))
+        self.c_freeState = fn("fmi2FreeFMUstate", comp, POINTER(c_void_p))
+        fmu_reset = fn("fmi2Reset", comp)
+        self.c_reset = lambda c: self._reset_call(fmu_reset)
+        self.c_terminate = fn("fmi2Terminate", comp)
+        setup = fn("fmi2SetupExperiment", comp, c_int, c_double, c_double, c_int, c_double)
+        enter_init = fn("fmi2EnterInitializationMode", comp)
+        exit_init = fn("fmi2ExitInitializationMode", comp)
+
+        def c_setup(c, tol_defined, tol, start, stop_defined, stop):
+            self._setup_wrapper(tol_defined, tol, start)
+            return setup(c, tol_defined, tol, start, stop_defined, stop)
+
+        self.c_setup = c_setup
+        self.c_enterInit = lambda c: self._enter_init(enter_init(c))
+        self.c_exitInit = lambda c: self._exit_init(exit_init(c))
+        info = fmi2EventInfo()
+        update = f["update"]
+
+        def update_call():
+            st = update(self.component, byref(info))
+            return (st, bool(info.newDiscreteStatesNeeded), bool(info.terminateSimulation),
+                    bool(info.nominalsOfContinuousStatesChanged), bool(info.valuesOfContinuousStatesChanged),
+                    bool(info.nextEventTimeDefined), info.nextEventTime)
+
+        enter, term = c_int(), c_int()
+        completed = f["completedStep"]
+
+        def completed_call():
+            st = completed(self.component, 0, byref(enter), byref(term))
+            return st, bool(enter.value), bool(term.value)
+
+        self._update, self._completed_step = update_call, completed_call
+
+    def _fmu_calls(self, f: dict) -> None:
+        """Bind the FMU functions the algorithm calls, and hand their addresses to the struct."""
+        comp = self.component
+        me = self.me
+        me.instance = comp
+        for name, fn_ in f.items():
+            setattr(me, name, ctypes.cast(fn_, c_void_p).value)
+        self._set_time = lambda t: f["setTime"](comp, t)
+        self._set_states = lambda x, n: f["setStates"](comp, x, n)
+        self._get_derivatives = lambda dx, n: f["getDerivatives"](comp, dx, n)
+        self._get_indicators = lambda z, n: f["getIndicators"](comp, z, n)
+        self._get_states = lambda x, n: f["getStates"](comp, x, n)
+        self._get_nominals = lambda x, n: f["getNominals"](comp, x, n)
+        self._enter_event = lambda: f["enterEventMode"](comp)
+        self._enter_continuous = lambda: f["enterContinuousMode"](comp)
+        self._set_inputs = lambda vr, n, v: f["setReal"](comp, vr, n, v)
+        self._fmu_set_real = f["setReal"]
+        self._fmu_get_state, self._fmu_set_state = f["getState"], f["setState"]
+        self.c_getReal = f["getReal"]
+        self.c_setReal = self._set_real
+        self.c_setInputDerivatives = self._set_input_derivatives
+        self.c_getOutputDerivatives = self._output_derivatives
+        self.c_getState = self._get_state
+        self.c_setState = self._set_state
+        self.c_doStep = self._do_step
+
+    # -- the wrapper's own state ------------------------------------------------
+
+    def _reset_wrapper(self) -> None:
+        me = self.me
+        me.time = me.err_t = 0.0
+        me.next_event_time = math.inf
+        me.end_time = math.nan
+        me.rtol = DEFAULT_RTOL
+        me.h_next = 0.0
+        me.mode = INSTANTIATED
+        me.terminated = me.poly = me.inputs_dirty = me.failed_call = me.failed_status = me.failed_detail = 0
+        me.stiff_count = me.nonstiff_count = 0
+        me.restart = 1
+        for name in STATS:
+            setattr(me, name, 0)
+        for k in range(me.n_in):
+            self._d1[k] = self._d2[k] = self._tref[k] = 0.0
+
+    def _setup_wrapper(self, tol_defined, tol, start) -> None:
+        me = self.me
+        me.rtol = float(tol) if tol_defined else DEFAULT_RTOL
+        me.time = start
+        me.method = self._choose_method()
+        for k in range(me.n_in):
+            self._tref[k] = start
+
+    def _enter_init(self, status: int) -> int:
+        if status <= WARNING:
+            self.me.mode = INITIALIZATION
+        return status
+
+    def _exit_init(self, status: int) -> int:
+        """After fmi2ExitInitializationMode (event mode): settle, then
+        continuous-time mode with the states, nominals and indicators; the solver chosen."""
+        me = self.me
+        if status > WARNING:
+            return status
+        me.mode = EVENT
+        st = self._settle(None)
+        if st > WARNING:
+            return st
+        if me.n and not me.terminated:
+            if self._check(self._get_states(self._x, me.n), 9):
+                return ERROR
+            if self._read_nominals() > WARNING:
+                return ERROR
+        return OK
+
+    def _choose_method(self) -> int:
+        me = self.me
+        solver = me.solver
+        if solver == CVODE or (solver == AUTO and me.n > MAX_RK_STATES):
+            problem = cvode.problem()
+            if problem is not None:
+                raise SceneError(f"{self.name} ({self.path.name}): {problem}")
+            return CVODE
+        if me.n > MAX_RK_STATES:
+            raise SceneError(f"master.me_solver = {self.options.solver!r}: {self.name} ({self.path.name}) has "
+                             f"{me.n} continuous states, the Runge-Kutta pairs take at most {MAX_RK_STATES}; "
+                             f"use 'cvode' or 'auto'")
+        return rk.choose(0 if solver == AUTO else solver, me.rtol)
+
+    # -- the master's calls --------------------------------------------------------
+
+    def _set_real(self, comp, vr, n, values) -> int:
+        """fmi2SetReal: continuous inputs directly, their polynomials held
+        from the wrapper's time; anything else in event mode."""
+        me = self.me
+        index = self.continuous_inputs
+        ks = [index.get(vr[j], -1) for j in range(n)]
+        if me.mode == CONTINUOUS and min(ks, default=0) < 0:
+            st = self._set_in_event_mode(lambda: self._fmu_set_real(self.component, vr, n, values))
+        else:
+            st = self._fmu_set_real(self.component, vr, n, values)
+        if st > WARNING or not me.n_in:
+            return st
+        for j, k in enumerate(ks):
+            if k < 0:
+                continue
+            dt = me.time - self._tref[k]
+            now = self._u0[k] + dt * (self._d1[k] + 0.5 * dt * self._d2[k])
+            if values[j] != now or self._d1[k] != 0.0 or self._d2[k] != 0.0:
+                me.inputs_dirty = me.restart = 1
+            self._u0[k] = values[j]
+            self._d1[k] = self._d2[k] = 0.0
+            self._tref[k] = me.time
+        self._recheck_poly()
+        return st
+
+    def _recheck_poly(self) -> None:
+        me = self.me
+        me.poly = int(any(self._d1[k] != 0.0 or self._d2[k] != 0.0 for k in range(me.n_in)))
+
+    def _set_input_derivatives(self, comp, vr, n, order, values) -> int:
+        """fmi2SetRealInputDerivatives on continuous inputs (order 1 or 2),
+        re-based at the wrapper's time as the FMI 2.0 runtime does."""
+        me = self.me
+        index = self.continuous_inputs
+        for j in range(n):
+            if index.get(vr[j], -1) < 0 or order[j] not in (1, 2) or not math.isfinite(values[j]):
+                return ERROR
+        for j in range(n):
+            k = index[vr[j]]
+            if self._tref[k] != me.time:
+                dt = me.time - self._tref[k]
+                self._u0[k] = self._u0[k] + dt * (self._d1[k] + 0.5 * dt * self._d2[k])
+                self._d1[k] = self._d2[k] = 0.0
+                self._tref[k] = me.time
+            if order[j] == 1:
+                if self._d1[k] != values[j]:
+                    me.restart = 1
+                self._d1[k] = values[j]
+            else:
+                if self._d2[k] != values[j]:
+                    me.restart = 1
+                self._d2[k] = values[j]
+        self._recheck_poly()
+        return OK
+
+    def _output_derivatives(self, comp, vr, n, order, out) -> int:
+        """Derivatives of outputs that are states: the first from the
+        derivatives at the current point, the second where the state's
+        derivative is a state too; Error for any other."""
+        me = self.me
+        if me.mode != CONTINUOUS or not me.n:
+            return ERROR
+        state_vr = self._state_vr[:me.n]
+        picks = []
+        for j in range(n):
+            if vr[j] not in state_vr or order[j] not in (1, 2):
+                return ERROR
+            i = state_vr.index(vr[j])
+            if order[j] == 2:
+                i = self._der_state[i]
+                if i < 0:
+                    return ERROR
+            picks.append(i)
+        st = self._get_derivatives(self._dx, me.n)
+        me.rhs += 1
+        if st > WARNING:
+            return st
+        for j, i in enumerate(picks):
+            out[j] = self._dx[i]
+        return OK
+
+    def _set_in_event_mode(self, setter) -> int:
+        """A value that Model Exchange takes in event mode only: enter it, set, settle."""
+        if self._check(self._enter_event(), 6):
+            return ERROR
+        self.me.mode = EVENT
+        st = setter()
+        if st > WARNING:
+            return st
+        return max(st, self._settle("input_events"))
+
+    _set_values_now = Instance.set_values  # every type through its fmi2Set*
+
+    def set_values(self, values: dict[str, object], what: str = "fmi2Set*",
+                   error: type[SimulationError] = SimulationError) -> None:
+        """Values of any type; in continuous-time mode all but continuous
+        inputs go in together in one pass through event mode."""
+        me = self.me
+        if me.mode != CONTINUOUS or all(self.variables[n].vr in self.continuous_inputs for n in values):
+            self._set_values_now(values, what, error)
+            return
+        self.check(self._enter_event(), CALLS[6][0 if self.fmu_version == 2 else 1], me.time)
+        me.mode = EVENT
+        try:
+            self._set_values_now(values, what, error)
+        finally:
+            st = self._settle("input_events")
+        self.check(st, what, me.time, error)
+
+    def _get_state(self, comp, state) -> int:
+        """fmi2GetFMUstate, and the wrapper's own state beside it."""
+        st = self._fmu_get_state(self.component, state)
+        if st > WARNING:
+            return st
+        me = self.me
+        saved = self._saved
+        n, nz, n_in = me.n, me.nz, me.n_in
+        saved[0:n] = self._x[:n]
+        saved[n:n + nz] = self._z_prev[:nz]
+        for k in range(n_in):
+            base = n + nz + 4 * k
+            saved[base:base + 4] = [self._u0[k], self._d1[k], self._d2[k], self._tref[k]]
+        me.saved_time, me.saved_next_event_time, me.saved_end_time, me.saved_h_next = (
+            me.time, me.next_event_time, me.end_time, me.h_next)
+        me.saved_method, me.saved_stiff_count, me.saved_nonstiff_count = me.method, me.stiff_count, me.nonstiff_count
+        me.saved_terminated, me.saved_poly, me.saved_mode = me.terminated, me.poly, me.mode
+        return st
+
+    def _set_state(self, comp, state) -> int:
+        st = self._fmu_set_state(self.component, state)
+        if st > WARNING:
+            return st
+        me = self.me
+        saved = self._saved
+        n, nz, n_in = me.n, me.nz, me.n_in
+        if n:
+            self._x[:n] = saved[0:n]
+        if nz:
+            self._z_prev[:nz] = saved[n:n + nz]
+        for k in range(n_in):
+            base = n + nz + 4 * k
+            self._u0[k], self._d1[k], self._d2[k], self._tref[k] = saved[base:base + 4]
+        me.time, me.next_event_time, me.end_time, me.h_next = (
+            me.saved_time, me.saved_next_event_time, me.saved_end_time, me.saved_h_next)
+        me.method, me.stiff_count, me.nonstiff_count = me.saved_method, me.saved_stiff_count, me.saved_nonstiff_count
+        me.terminated, me.poly, me.mode = me.saved_terminated, me.saved_poly, me.saved_mode
+        me.restart = 1
+        me.inputs_dirty = 0
+        return st
+
+    def _reset_call(self, fmu_reset) -> int:
+        st = fmu_reset(self.component)
+        if st <= WARNING:
+            self._reset_wrapper()
+        return st
+
+    def core_state(self, lib) -> int:
+        """The address of the shared struct, made ready for the compiled
+        core's wrapper (its Runge-Kutta workspace, CVode's functions)."""
+        if self._core is None:
+            lib.cwme_sizeof_rk.restype = c_size_t
+            lib.cwme_prepare.argtypes = [c_void_p]
+            lib.cwme_prepare.restype = None
+            if lib.cwme_max_states() != MAX_RK_STATES:
+                raise SimulationError(f"the compiled core's Runge-Kutta pairs take {lib.cwme_max_states()} states, "
+                                      f"the Python engine's {MAX_RK_STATES}: rebuild it with tools/setup.sh")
+            self._core = (c_char * lib.cwme_sizeof_rk())()
+            self.me.rk = ctypes.addressof(self._core)
+            sun = cvode.sundials()
+            if sun is not None:
+                self.me.sundials = ctypes.addressof(sun.table)
+            lib.cwme_prepare(ctypes.addressof(self.me))
+        return ctypes.addressof(self.me)
+
+    # -- what the master asks -------------------------------------------------------
+
+    def terminated(self) -> bool:
+        return bool(self.me.terminated)
+
+    def last_successful_time(self) -> float | None:
+        t = self.me.end_time
+        return None if math.isnan(t) else t
+
+    def statistics(self) -> dict:
+        """The integration's counts and settings for the summary."""
+        me = self.me
+        solver = METHOD_NAMES.get(me.method, "none") if me.n else "none (no continuous states)"
+        out = {"interface": "model-exchange", "solver": solver,
+               "requested_solver": self.options.solver, "tolerance": me.rtol,
+               "continuous_states": me.n, "event_indicators": me.nz}
+        out.update({name: int(getattr(me, name)) for name in STATS})
+        return out
+
+    def fail(self, what, status, time=None, error=None):
+        """The failure, naming what failed inside the wrapper where something did."""
+        me = self.me
+        code, me.failed_call = me.failed_call, 0
+        if code:
+            step = what.replace("fmi2DoStep", "the Model Exchange step ")
+            if code in CALLS:
+                what = f"{CALLS[code][0 if self.fmu_version == 2 else 1]} at t = {me.err_t!r} s, in {step}"
+            else:
+                self.messages.append((ERROR, self._failure_text(code)))
+                what = f"{step} at t = {me.err_t!r} s"
+        return super().fail(what, status, time, error or SimulationError)
+
+    def _failure_text(self, code: int) -> str:
+        me = self.me
+        method = METHOD_NAMES.get(me.method, "?")
+        if code == FAIL_RK:
+            return f"{method} at rtol {me.rtol:g}: {RK_FAILURES.get(me.failed_detail, 'failed')}"
+        if code == FAIL_CVODE:
+            detail = (f"flag {me.failed_detail}" if me.failed_detail
+                      else f"more than {MAX_CVODE_STEPS} steps in one communication step")
+            return f"CVode at rtol {me.rtol:g} failed ({detail})"
+        if code == FAIL_SETTLE:
+            return f"the discrete states did not settle in {MAX_EVENT_ITERATIONS} event iterations"
+        if code == FAIL_TIME:
+            return (f"asked to step from a time that is not the FMU's (t = {me.time!r} s) "
+                    f"or outside continuous-time mode")
+        if code == FAIL_LOCATE:
+            return f"the state event could not be located in {MAX_TRIALS} trials"
+        if code == FAIL_TIME_EVENTS:
+            return f"more than {MAX_EVENT_ITERATIONS} time events at one time (nextEventTime does not advance)"
+        return f"failure {code}"
+
+    # -- lifecycle ----------------------------------------------------------------
+
+    def _free_instance(self) -> None:
+        if self.me.cv_mem or self.me.cv_ctx:
+            cvode.free(self.me)
+        self._slave.fmi2FreeInstance(self.component)
+
+
+class MEInstance3(MEInstance):
+    """An FMI 3.0 Model Exchange FMU behind the same calls."""
+
+    # Values of every FMI 3.0 type through fmi3Get/Set<Type>, as a Co-Simulation instance has them.
+    _value_functions = Instance3._value_functions
+    get_values = Instance3.get_values
+    _set_values_now = Instance3.set_values
+    _merge_elements = Instance3._merge_elements
+
+    def instantiate(self) -> None:
+        unzip = extract(self.path)
+        try:
+            self._slave = FMU3Model(guid=self.md.guid, unzipDirectory=str(unzip),
+                                    modelIdentifier=self.md.modelExchange.modelIdentifier,
+                                    instanceName=self.name)
+        except Exception as e:
+            raise SceneError(f"{self.path}: cannot load the FMU's binary for this platform: {e}") from None
+        messages = self.messages
+
+        def logger(env, status, category, message):
+            messages.append((status, message.decode("utf-8", "replace")))
+            del messages[:-50]
+
+        try:
+            self._slave.instantiate(logMessage=logger)
+        except Exception as e:
+            raise SceneError(
+                f"{self.path}: fmi3InstantiateModelExchange refused the model description's instantiation "
+                f"token {self.md.guid}: {self.last_message() or e}") from None
+        self.component = self._slave.component
+        self._bind(self._slave.dll)
+
+    def _bind(self, dll) -> None:
+        fn = _binder(dll)
+        inst = c_void_p
+        vrs, reals, pb = POINTER(c_uint), POINTER(c_double), POINTER(c_bool)
+        get_f64 = fn("fmi3GetFloat64", inst, vrs, c_size_t, reals, c_size_t)
+        set_f64 = fn("fmi3SetFloat64", inst, vrs, c_size_t, reals, c_size_t)
+        f = {
+            "setTime": fn("fmi3SetTime", inst, c_double),
+            "setStates": fn("fmi3SetContinuousStates", inst, reals, c_size_t),
+            "getDerivatives": fn("fmi3GetContinuousStateDerivatives", inst, reals, c_size_t),
+            "getIndicators": fn("fmi3GetEventIndicators", inst, reals, c_size_t),
+            "getStates": fn("fmi3GetContinuousStates", inst, reals, c_size_t),
+            "getNominals": fn("fmi3GetNominalsOfContinuousStates", inst, reals, c_size_t),
+            "completedStep": fn("fmi3CompletedIntegratorStep", inst, c_bool, pb, pb),
+            "enterEventMode": fn("fmi3EnterEventMode", inst),
+            "update": fn("fmi3UpdateDiscreteStates", inst, pb, pb, pb, pb, pb, reals),
+            "enterContinuousMode": fn("fmi3EnterContinuousTimeMode", inst),
+            "getReal": get_f64,
+            "setReal": set_f64,
+            "getState": fn("fmi3GetFMUState", inst, POINTER(c_void_p)),
+            "setState": fn("fmi3SetFMUState", inst, c_void_p),
+        }
+        self._fmu_calls(f)
+        self.c_getReal = lambda comp, vr, n, out: get_f64(comp, vr, n, out, n)
+        self._fmu_set_real = lambda comp, vr, n, val: set_f64(comp, vr, n, val, n)
+        self._set_inputs = lambda vr, n, v: set_f64(self.component, vr, n, v, n)
+        get_i32 = fn("fmi3GetInt32", inst, vrs, c_size_t, POINTER(c_int), c_size_t)
+        self.c_getInteger = lambda comp, vr, n, out: get_i32(comp, vr, n, out, n)
+        self.c_freeState = fn("fmi3FreeFMUState", inst, POINTER(c_void_p))
+        fmu_reset = fn("fmi3Reset", inst)
+        self.c_reset = lambda c: self._reset_call(fmu_reset)
+        self.c_terminate = fn("fmi3Terminate", inst)
+        enter_init = fn("fmi3EnterInitializationMode", inst, c_bool, c_double, c_double, c_bool, c_double)
+        exit_init = fn("fmi3ExitInitializationMode", inst)
+        args = [(0, 0.0, 0.0, 0, 0.0)]
+
+        def c_setup(c, tol_defined, tol, start, stop_defined, stop):
+            self._setup_wrapper(tol_defined, tol, start)
+            args[0] = (tol_defined, tol, start, stop_defined, stop)
+            return OK  # FMI 3.0 takes these when initialization mode is entered
+
+        self.c_setup = c_setup
+        self.c_enterInit = lambda c: self._enter_init(enter_init(c, *args[0]))
+        self.c_exitInit = lambda c: self._exit_init(exit_init(c))
+        update = f["update"]
+        flags = [c_bool() for _ in range(5)]
+        next_time = c_double()
+
+        def update_call():
+            st = update(self.component, *(byref(b) for b in flags), byref(next_time))
+            need, term, nominals, values, defined = (b.value for b in flags)
+            return st, need, term, nominals, values, defined, next_time.value
+
+        completed = f["completedStep"]
+        enter, term = c_bool(), c_bool()
+
+        def completed_call():
+            st = completed(self.component, False, byref(enter), byref(term))
+            return st, enter.value, term.value
+
+        self._update, self._completed_step = update_call, completed_call
+
+    def _free_instance(self) -> None:
+        if self.me.cv_mem or self.me.cv_ctx:
+            cvode.free(self.me)
+        self._slave.fmi3FreeInstance(self.component)
+
+
+def interface_of(md, requested: str | None) -> str:
+    """The interface a component runs through: `requested` ("co-simulation"
+    or "model-exchange") where the FMU has it, else Co-Simulation where it
+    has it, else Model Exchange. SceneError for an interface the FMU lacks."""
+    has = {"co-simulation": md.coSimulation is not None, "model-exchange": md.modelExchange is not None}
+    if requested:
+        if requested not in has:
+            raise SceneError(f"interface = {requested!r}: expected one of {', '.join(map(repr, INTERFACES))}")
+        if not has[requested]:
+            other = "no <CoSimulation> element" if requested == "co-simulation" else "no <ModelExchange> element"
+            shown = {"co-simulation": "Co-Simulation", "model-exchange": "Model Exchange"}[requested]
+            raise SceneError(f"{md.modelName} has no {shown} interface ({other})")
+        return requested
+    return "co-simulation" if has["co-simulation"] else "model-exchange"
+
+
+def model_exchange_problem(md) -> str | None:
+    """Why the Model Exchange wrapper cannot run this FMU, or None: FMI 3.0
+    array variables (the Co-Simulation adapter serves them, the wrapper's
+    states and inputs are scalars)."""
+    arrays = [v.name for v in md.modelVariables if getattr(v, "shape", None)]
+    if arrays:
+        return (f"Model Exchange with FMI 3.0 array variables is not supported ({', '.join(arrays[:8])}"
+                f"{', ...' if len(arrays) > 8 else ''}); run it through its Co-Simulation interface if it has one")
+    return None
+
+
+def make_instance(name, path, model_description=None, early_return: bool = True, intermediate_update: bool = False,
+                  interface: str | None = None, options: MEOptions | None = None) -> Instance:
+    """An instance of the FMU at `path` through the interface asked for
+    (``interface_of``): a Model Exchange wrapper (with `options`), else the
+    Co-Simulation instance of ``fmu3.make_instance``."""
+    md = model_description or read_fmu(path, need_binary=False)[0]
+    if interface_of(md, interface) == "model-exchange":
+        problem = model_exchange_problem(md)
+        if problem:
+            raise SceneError(f"{path}: {problem}")
+        cls = MEInstance3 if fmi_version(md) == 3 else MEInstance
+        return cls(name, path, md, options)
+    return make_cs_instance(name, path, md, early_return, intermediate_update)

@@ -1,0 +1,172 @@
+"""The default plot of a time series (kind ``outputs``): every recorded number,
+readable however many there are and whatever their units.
+
+Signals are grouped by unit onto stacked axes that share the time axis,
+one legend per axes: a speed of 5000 deg/s does not flatten a current of
+2 A on a shared y axis. Within a unit, signals whose sizes differ by more
+than ``SPREAD`` get axes of their own (a 1e-3 A sensor beside a 10 A
+supply); no axes holds more than ``MAX_LINES`` lines. Booleans share
+axes marked false/true; discrete signals (integers, Booleans, Reals of
+discrete variability) are drawn as steps. A page holds at most
+``MAX_AXES`` axes (a screenful); more go to further pages, files
+``<stem>_2.png``, ``<stem>_3.png``... Angles, angular speeds and torques
+are shown in the papers' units (deg, deg/s, N.cm), as every plot does.
+
+``draw_outputs`` works on plain columns, so that ``clockwork plot DIR``
+redraws a finished run from its timeseries.csv and the column
+descriptions its summary.json keeps (``column_info``).
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...engine.description import INTEGER_TYPES, TEXT_TYPES, var_unit, variables
+from ...engine.names import split_ref
+from .registry import check_keys, register, subplots
+
+MAX_AXES = 6  # per page: with the title and the time axis, about 950 pixels high
+MAX_LINES = 8  # per axes: a legend that stays beside its axes
+SPREAD = 30.0  # one unit, sizes further apart than this: separate axes (a signal fills at least 1/30 of its axes)
+_HEIGHT_IN = 1.35  # per axes
+# Units shown as the papers show them: (unit, factor, shown unit)
+_DISPLAY = {"rad": (180.0 / math.pi, "deg"), "rad/s": (180.0 / math.pi, "deg/s"), "N.m": (100.0, "N.cm")}
+
+
+@dataclass
+class Column:
+    name: str  # as labelled in the legend
+    values: np.ndarray  # in the shown unit
+    unit: str  # shown unit; "" for none
+    kind: str  # "real", "discrete" or "boolean"
+
+    @property
+    def size(self) -> float:
+        """The largest magnitude (0 for no finite value)."""
+        finite = self.values[np.isfinite(self.values)]
+        return float(np.max(np.abs(finite))) if finite.size else 0.0
+
+
+def column_info(scene, names) -> dict[str, dict]:
+    """{column: {"unit", "type", "variability"}} of recorded "instance.variable"
+    columns (kept in summary.json for `clockwork plot`)."""
+    found = {n: variables(c.model_description) for n, c in scene.components.items()}
+    out = {}
+    for name in names:
+        split = split_ref(name, found)
+        v = found[split[0]].get(split[1]) if split else None
+        if v is not None:
+            out[name] = {"unit": var_unit(v), "type": v.type, "variability": v.variability}
+    return out
+
+
+def _kind(info: dict) -> str:
+    if info.get("type") == "Boolean":
+        return "boolean"
+    if info.get("type") in INTEGER_TYPES or info.get("variability") in ("discrete", "fixed", "tunable", "constant"):
+        return "discrete"
+    return "real"
+
+
+def columns(series: dict, info: dict, only=None, strip: str | None = None, patterns: bool = False) -> list[Column]:
+    """The numeric columns of a series (time aside) as Columns, in order;
+    `only`: the names to keep (with `patterns`, shell patterns too, matched
+    against the full name and the label); `strip`: an instance prefix left
+    out of the labels (a scene of one component)."""
+    out = []
+    for name, values in series.items():
+        if name == "time":
+            continue
+        meta = info.get(name, {})
+        if meta.get("type") in TEXT_TYPES or any(isinstance(x, str) for x in values):
+            continue
+        label = name[len(strip) + 1:] if strip and name.startswith(strip + ".") else name
+        if only and name not in only and not (patterns and any(
+                fnmatch.fnmatchcase(name, p) or fnmatch.fnmatchcase(label, p) for p in only)):
+            continue
+        unit = meta.get("unit") or ""
+        factor, shown = _DISPLAY.get(unit, (1.0, unit))
+        arr = np.asarray([math.nan if x is None else x for x in values], dtype=float)
+        out.append(Column(label, arr * factor if factor != 1.0 else arr, shown, _kind(meta)))
+    return out
+
+
+def group(cols: list[Column]) -> list[list[Column]]:
+    """Columns onto axes: by unit (Booleans together), split where sizes
+    differ by more than SPREAD, at most MAX_LINES per axes; units in the
+    order they first come."""
+    units: dict[tuple[str, bool], list[Column]] = {}
+    for c in cols:
+        units.setdefault(("", True) if c.kind == "boolean" else (c.unit, False), []).append(c)
+    axes = []
+    for members in units.values():
+        if members[0].kind == "boolean":
+            clusters = [members]
+        else:
+            ranked = sorted(members, key=lambda c: -c.size)
+            clusters: list[list[Column]] = []
+            zero = [c for c in ranked if c.size == 0.0]
+            for c in ranked:
+                if c.size == 0.0:
+                    continue
+                if clusters and clusters[-1][0].size <= SPREAD * c.size:
+                    clusters[-1].append(c)
+                else:
+                    clusters.append([c])
+            if zero:  # all zero: flat wherever drawn, kept with the smallest signals
+                if not clusters:
+                    clusters.append([])
+                clusters[-1].extend(zero)
+            order = {id(c): k for k, c in enumerate(members)}
+            clusters = [sorted(cl, key=lambda c: order[id(c)]) for cl in clusters]
+        for cl in clusters:
+            axes += [cl[k:k + MAX_LINES] for k in range(0, len(cl), MAX_LINES)]
+    return axes
+
+
+def draw_outputs(time, cols: list[Column], title: str) -> list:
+    """The figures (pages) of these columns against time (s)."""
+    axes_groups = group(cols)
+    pages = [axes_groups[k:k + MAX_AXES] for k in range(0, len(axes_groups), MAX_AXES)]
+    t = np.asarray(time, dtype=float)
+    figures = []
+    for p, page in enumerate(pages):
+        fig, axs = subplots(len(page), 1, figsize=(10, 0.9 + _HEIGHT_IN * len(page)), sharex=True, squeeze=False)
+        for ax, members in zip(axs[:, 0], page):
+            for c in members:
+                style = {"drawstyle": "steps-post"} if c.kind != "real" else {}
+                ax.plot(t, c.values.astype(float), lw=1.0, label=c.name, **style)
+            if members[0].kind == "boolean":
+                ax.set_yticks([0, 1], ["false", "true"])
+                ax.set_ylim(-0.15, 1.15)
+                ax.set_ylabel("Boolean", fontsize=8)
+            else:
+                ax.set_ylabel(members[0].unit or "(no unit)", fontsize=8)
+            ax.tick_params(labelsize=8)
+            ax.grid(True, lw=0.3, color="0.85")
+            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False,
+                      borderaxespad=0.0)
+        axs[-1, 0].set_xlabel("time (s)", fontsize=9)
+        page_note = f"  (page {p + 1} of {len(pages)})" if len(pages) > 1 else ""
+        fig.suptitle(title + page_note, fontsize=10)
+        fig.tight_layout()
+        figures.append(fig)
+    return figures
+
+
+def _convert(t: dict) -> dict:
+    return check_keys(t, strings=("title",), string_lists=("y",))
+
+
+@register("outputs", {"y"}, _convert, run="series", columns={"y": None})
+def outputs(scene, r, spec):
+    """Every recorded number (or the recorded columns `y` names), grouped
+    by unit: a list of pages."""
+    series = r["series"]
+    strip = next(iter(scene.components)) if len(scene.components) == 1 else None
+    cols = columns(series, column_info(scene, [n for n in series if n != "time"]), spec.get("y"), strip)
+    return draw_outputs(series["time"], cols, spec.get("title", scene.title)) if cols else None

@@ -1,0 +1,91 @@
+"""A scene written back as a TOML scene file (`clockwork export-scene X.fmu`):
+the scene clockwork built for an FMU, with the --set values and the input
+file, as a file to start from. Loading what is written gives the same
+scene (values are written exactly: a float as Python's repr, which TOML
+reads back to the same double).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+from pathlib import Path
+
+from .model import MasterConfig, Scene
+
+_DEFAULTS = {f.name: f.default for f in dataclasses.fields(MasterConfig)}
+
+
+def toml_value(value) -> str:
+    """A value as TOML: strings as basic strings (JSON's escapes are TOML's),
+    floats exactly, lists inline."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(toml_value(x) for x in value) + "]"
+    raise TypeError(f"no TOML form for {type(value).__name__}")
+
+
+def _path_for(target: Path, scene_file: Path) -> str:
+    """A path as the scene file names it: relative to its folder when the
+    target lies below that folder, else absolute."""
+    target = Path(target).resolve()
+    base = scene_file.resolve().parent
+    try:
+        return target.relative_to(base).as_posix()
+    except ValueError:
+        return str(target)
+
+
+def scene_toml(scene: Scene, scene_file: Path, source: str) -> str:
+    """The text of a TOML scene file, to be written to `scene_file`, for
+    `scene`; `source` says what it was made from (a comment)."""
+    scene_file = Path(scene_file)
+    lines = [f"# Written by clockwork export-scene from {source}: the scene `clockwork run` used.",
+             "# Edit and run it with: clockwork run " + os.path.basename(scene_file) + " --out DIR", ""]
+    if scene.connections:
+        lines.append("connections = [")
+        lines += [f"  {toml_value(str(c))}," for c in scene.connections]
+        lines += ["]", ""]
+    lines += ["[scene]", f"title = {toml_value(scene.title)}"]
+    if scene.description:
+        lines.append(f"description = {toml_value(scene.description)}")
+    for name, c in scene.components.items():
+        lines += ["", f"[components.{toml_value(name)}]", f"fmu = {toml_value(_path_for(c.fmu_path, scene_file))}"]
+        if c.parameters:
+            lines.append("[components." + toml_value(name) + ".parameters]")
+            lines += [f"{toml_value(k)} = {toml_value(v)}" for k, v in c.parameters.items()]
+    e = scene.experiment
+    lines += ["", "[experiment]", f"start = {toml_value(float(e.start))}", f"stop = {toml_value(float(e.stop))}"]
+    lines += ["", "[master]"]
+    master = scene.master.as_dict()
+    for key, value in master.items():
+        if key == "max_step" and not scene.max_step_given:
+            continue
+        if key == "step" or value != _DEFAULTS[key]:
+            lines.append(f"{key} = {toml_value(float(value) if key in ('step', 'max_step') else value)}")
+    r = scene.record
+    lines += ["", "[record]", "outputs = [" + ", ".join(toml_value(f"{i}.{v}") for i, v in r.outputs) + "]"]
+    if r.interval is not None:
+        lines.append(f"interval = {toml_value(float(r.interval))}")
+    if r.ticks is not None:
+        lines.append(f"ticks = {toml_value(r.ticks)}")
+    if scene.analysis is not None:
+        lines += ["", "[analysis]"] + [f"{k} = {toml_value(v)}" for k, v in scene.analysis.items()]
+    if scene.inputs is not None and scene.inputs.file is not None:
+        lines += ["", "[inputs]", f"file = {toml_value(_path_for(scene.inputs.file, scene_file))}"]
+    for spec in scene.plots:
+        lines += ["", "[[plot]]"] + [f"{k} = {toml_value(v)}" for k, v in spec.items()]
+    return "\n".join(lines) + "\n"
