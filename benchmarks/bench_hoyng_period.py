@@ -34,8 +34,12 @@ end on the FMU's state bit for bit.
    without early return (master.early_return = false), with the FMU state
    saves and restores per period of each.
 
+6. --counts: only the event handling per period (steps, FMU-state saves,
+   rollbacks, replays, predicted landings), event prediction off and on.
+
     python benchmarks/bench_hoyng_period.py [--periods 2000] [--repeats 3] [--integrators 1 2]
                                             [--scene-periods 20000] [--fmi-versions 2 3]
+    python benchmarks/bench_hoyng_period.py --counts --periods 200 --fmi-versions 2 3 3-
 """
 
 from __future__ import annotations
@@ -121,13 +125,14 @@ def evaluations_alone(periods: int, integrator: int) -> tuple[float, float, bool
     return len(prob.times) / periods, steps / periods, same
 
 
-def bare_master(periods: int, integrator: int = 0, engine: str = "compiled", build: str = "2") -> tuple[float, dict]:
+def bare_master(periods: int, integrator: int = 0, engine: str = "compiled", build: str = "2",
+                prediction: bool = True) -> tuple[float, dict]:
     """us per period of Master.run_until with the scene's settings on the
     given engine (master.engine) and build ("2", "3", or "3-" for FMI 3.0
     without early return), and its statistics per period."""
     lam = analytic.hoyng_stationary_amplitude(MU0, EPS, PHI0)
     settings = MasterSettings(step=TWO_PI, order="jacobi", engine=engine, fmi_version=int(build[0]),
-                              early_return=not build.endswith("-"))
+                              early_return=not build.endswith("-"), event_prediction=prediction)
     with System({"pendulum": ("Pendulum", dict(PEND, phi_start=lam, integrator=integrator)),
                  "escapement": ("GrasshopperEscapement", dict(torque=MU0, phi_r=PHI0))},
                 LINKS, settings, record={"pendulum": ["tick_time"]}) as s:
@@ -188,6 +193,25 @@ def compiled_rk4(periods: int, dt: float = 0.03) -> float:
         return wall / periods * 1e6
 
 
+COUNTED = ("steps", "states_saved", "rollbacks", "replays", "event_iterations", "predicted_landings", "mispredicted")
+
+
+def event_counts(periods: int, builds: list[str]) -> None:
+    """Per period: the master's steps, FMU-state saves, restores (rollbacks
+    and replays set a saved state) and predicted landings, with event
+    prediction off (rollback locates the switches) and on, per build, from
+    the statistics of a bare run_until on each engine (they must agree)."""
+    label = {"2": "FMI 2.0", "3": "FMI 3.0, early return", "3-": "FMI 3.0, no early return"}
+    print(f"| build | event_prediction | {' | '.join(COUNTED)} | engines agree |")
+    print("|---|---|" + "---|" * len(COUNTED) + "---|")
+    for b in builds:
+        for prediction in (False, True):
+            per = {e: bare_master(periods, 0, e, b, prediction)[1] for e in ENGINES}
+            same = per["python"] == per["compiled"]
+            print(f"| {label[b]} | {str(prediction).lower()} | "
+                  + " | ".join(f"{per['compiled'][k]:.2f}" for k in COUNTED) + f" | {'yes' if same else 'NO'} |")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--periods", type=int, default=2000)
@@ -199,7 +223,12 @@ def main(argv=None) -> int:
                     help="periods of the whole hoyng_fig6 scene per run (0: skip it)")
     ap.add_argument("--fmi-versions", nargs="+", default=["2"], choices=["2", "3", "3-"],
                     help="builds of the FMUs: 2, 3 (FMI 3.0 with early return), 3- (FMI 3.0 without)")
+    ap.add_argument("--counts", action="store_true",
+                    help="only the saves, restores and predicted landings per period, prediction off and on")
     a = ap.parse_args(argv)
+    if a.counts:
+        event_counts(a.periods, a.fmi_versions)
+        return 0
     names = {0: "auto", 1: "DP5(4)", 2: "DOP853"}
     builds = a.fmi_versions
     alone = {i: [] for i in a.integrators}
