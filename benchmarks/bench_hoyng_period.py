@@ -88,6 +88,7 @@ def evaluations_alone(periods: int, integrator: int) -> tuple[float, float, bool
     """(right-hand sides, RK steps) per period of case 1, by replay, and
     whether the replay ends on the FMU's state bit for bit."""
     import test_rk as rkt
+    from bench_pendulum import pendulum_observer
     from fmu_driver import Instance, find_fmu
 
     build = Path(os.environ.get("CW_BUILD_DIR", ROOT / "build"))
@@ -97,21 +98,7 @@ def evaluations_alone(periods: int, integrator: int) -> tuple[float, float, bool
     method = lib.cw_rk_choose(integrator, rtol)
     gamma = 1.0 / PEND["Q"]  # omega0 / Q with L = g = 1
     prob = rkt.Problem(2, lambda t, x: [x[1], -(1.0 * 1.0 / 1.0) * math.sin(x[0]) - gamma * x[1] + 0.0])
-    out, xs = rkt.Vec(), rkt.Vec()
-
-    def observe(ctx, rk):  # what Pendulum's observe_step spends
-        r = rk.contents
-        ticked = r.x0[0] < 0.0 <= r.x1[0]
-        turned = (r.x0[1] > 0.0 >= r.x1[1]) or (r.x0[1] < 0.0 <= r.x1[1])
-        if ticked or turned:
-            lib.cw_rk_dense(rk, r.t0 + 0.5 * r.h, out)
-        if ticked:
-            x0 = rkt.Vec(r.x0[0], r.x0[1])
-            for _ in range(2):
-                lib.cw_rk_single_step_with(method, 2, prob.c, None, r.t0, x0, 0.5 * r.h, xs)
-        return 0
-
-    obs = rkt.OBSERVER(observe)
+    obs = pendulum_observer(rkt, lib, method, prob)
     h, x, t, h_next, steps = TWO_PI / 7, [lam, 0.0], 0.0, 0.0, 0
     for k in range(7 * periods):  # as pendulum_alone: from k h to k h + h
         res, t, x_new, h_next, rk = rkt.advance(lib, prob, x, k * h, k * h + h, rtol, atol, h_next=h_next,

@@ -60,6 +60,26 @@ def time_fmu(h: float, periods: int) -> tuple[float, tuple[float, float]]:
         return elapsed, tuple(p.get_many(["phi", "w"]))
 
 
+def pendulum_observer(rkt, lib, method, prob):
+    """A cw_rk observer that evaluates the right-hand sides the Pendulum's
+    observer (observe_step) does: the dense output at a tick or a turning
+    point, and a tick's two polishing steps (tests/fmu/test_rk.py's probe)."""
+    out, xs = rkt.Vec(), rkt.Vec()
+
+    def observe(ctx, rk):
+        r = rk.contents
+        ticked = r.x0[0] < 0.0 <= r.x1[0]
+        if ticked or (r.x0[1] > 0.0 >= r.x1[1]) or (r.x0[1] < 0.0 <= r.x1[1]):
+            lib.cw_rk_dense(rk, r.t0 + 0.5 * r.h, out)
+        if ticked:
+            x0 = rkt.Vec(r.x0[0], r.x0[1])
+            for _ in range(2):
+                lib.cw_rk_single_step_with(method, 2, prob.c, None, r.t0, x0, 0.5 * r.h, xs)
+        return 0
+
+    return rkt.OBSERVER(observe)
+
+
 def count_rk_steps(h: float, periods: int):
     """Replay of the FMU's integration: (accepted, rejected, rhs calls, final x)."""
     import test_rk as rkt
@@ -76,20 +96,7 @@ def count_rk_steps(h: float, periods: int):
     prob = rkt.Problem(2, f)
     # The pair the FMU picks (its `integrator` = 0: by the tolerance, DOP853 at 1e-10).
     method = lib.cw_rk_choose(0, RTOL)
-    out, xs = rkt.Vec(), rkt.Vec()
-
-    def observe(ctx, rk):  # what the Pendulum's observer evaluates: dense output, a tick's two polishing steps
-        r = rk.contents
-        ticked = r.x0[0] < 0.0 <= r.x1[0]
-        if ticked or (r.x0[1] > 0.0 >= r.x1[1]) or (r.x0[1] < 0.0 <= r.x1[1]):
-            lib.cw_rk_dense(rk, r.t0 + 0.5 * r.h, out)
-        if ticked:
-            x0 = rkt.Vec(r.x0[0], r.x0[1])
-            for _ in range(2):
-                lib.cw_rk_single_step_with(method, 2, prob.c, None, r.t0, x0, 0.5 * r.h, xs)
-        return 0
-
-    obs = rkt.OBSERVER(observe)
+    obs = pendulum_observer(rkt, lib, method, prob)
     x, t, h_next = [A, 0.0], 0.0, 0.0
     acc = rej = 0
     for _ in range(round(periods * PERIOD / h)):

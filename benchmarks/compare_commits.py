@@ -148,6 +148,9 @@ def main() -> int:
             print(f"{bench}: median of {len(rows)} pairs: old {med[0]:.3f} s, new {med[1]:.3f} s, "
                   f"new/old {med[2]:.3f} (range {min(r[2] for r in rows):.3f} to {max(r[2] for r in rows):.3f})",
                   flush=True)
+    except KeyboardInterrupt:
+        print("compare_commits: interrupted", file=sys.stderr)
+        return 130
     finally:
         for tree in trees:
             subprocess.run(["git", "worktree", "remove", "--force", str(tree)], cwd=ROOT, capture_output=True)

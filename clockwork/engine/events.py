@@ -73,14 +73,21 @@ def hermite_root(h: float, z0: float, dz0: float, z1: float, dz1: float,
     else:
         a, b, c, d = _hermite_coefficients(h, z0, dz0, z1, dz1)
         coef = [d, c, b, a]
+    x = _newton_in_bracket(coef, z0 / (z0 - z1) if z0 != z1 else 0.5, 0.0, 1.0, z0 > 0.0, False)
+    return x * h if 0.0 < x < 1.0 else None
+
+
+def _newton_in_bracket(coef: list[float], x: float, lo: float, hi: float, positive: bool,
+                       relative: bool) -> float:
+    """A root of the polynomial in (lo, hi), where it is `positive` at lo:
+    Newton's method from x, kept inside the shrinking bracket by bisection,
+    until a step is below 1e-15 (relative: <= 1e-15 hi)."""
     slope = [k * ck for k, ck in enumerate(coef)][1:]
-    lo, hi = 0.0, 1.0
-    x = z0 / (z0 - z1) if z0 != z1 else 0.5
     for _ in range(50):
         f = _horner(coef, x)
         if f == 0.0:
             break
-        if (f > 0.0) == (z0 > 0.0):
+        if (f > 0.0) == positive:
             lo = x
         else:
             hi = x
@@ -88,11 +95,10 @@ def hermite_root(h: float, z0: float, dz0: float, z1: float, dz1: float,
         x_new = x - f / df if df != 0.0 else 0.5 * (lo + hi)
         if not lo < x_new < hi:
             x_new = 0.5 * (lo + hi)
-        if abs(x_new - x) < 1e-15:
-            x = x_new
-            break
+        if (abs(x_new - x) <= 1e-15 * hi) if relative else (abs(x_new - x) < 1e-15):
+            return x_new
         x = x_new
-    return x * h if 0.0 < x < 1.0 else None
+    return x
 
 
 def _horner(coef: list[float], x: float) -> float:
@@ -183,25 +189,7 @@ def first_root(coef: list[float], y_max: float) -> float | None:
         return None
     if f_hi == 0.0:
         return hi
-    slope = [k * ck for k, ck in enumerate(coef)][1:]
-    x = lo + (hi - lo) * (f_lo / (f_lo - f_hi))
-    for _ in range(50):
-        f = _horner(coef, x)
-        if f == 0.0:
-            break
-        if (f > 0.0) == positive:
-            lo = x
-        else:
-            hi = x
-        df = _horner(slope, x)
-        x_new = x - f / df if df != 0.0 else 0.5 * (lo + hi)
-        if not lo < x_new < hi:
-            x_new = 0.5 * (lo + hi)
-        if abs(x_new - x) <= 1e-15 * hi:
-            x = x_new
-            break
-        x = x_new
-    return x
+    return _newton_in_bracket(coef, lo + (hi - lo) * (f_lo / (f_lo - f_hi)), lo, hi, positive, True)
 
 
 def slope_at(coef: list[float], y: float) -> float:

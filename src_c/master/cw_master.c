@@ -997,6 +997,35 @@ static double horner(const double *coef, int n, double x)
     return value;
 }
 
+/* A root of the polynomial (n coefficients, n <= 6) in (lo, hi), where it
+ * is `positive` at lo: Newton's method from x, kept inside the shrinking
+ * bracket by bisection, until a step is below 1e-15 (relative: <= 1e-15
+ * hi) (events._newton_in_bracket). */
+static double newton_in_bracket(const double *coef, int n, double x, double lo, double hi, int positive,
+                                int relative)
+{
+    double slope[5];
+    for (int k = 1; k < n; k++)
+        slope[k - 1] = (double)k * coef[k];
+    for (int it = 0; it < 50; it++) {
+        double f = horner(coef, n, x);
+        if (f == 0.0)
+            break;
+        if ((f > 0.0) == positive)
+            lo = x;
+        else
+            hi = x;
+        double df = horner(slope, n - 1, x);
+        double x_new = df != 0.0 ? x - f / df : 0.5 * (lo + hi);
+        if (!(lo < x_new && x_new < hi))
+            x_new = 0.5 * (lo + hi);
+        if (relative ? fabs(x_new - x) <= 1e-15 * hi : fabs(x_new - x) < 1e-15)
+            return x_new;
+        x = x_new;
+    }
+    return x;
+}
+
 /* Root in (0, h) of the indicator's Hermite interpolant, or NAN. */
 static double hermite_root(double h, double z0, double dz0, double z1, double dz1,
                            int curvature, double ddz0, double ddz1)
@@ -1021,29 +1050,7 @@ static double hermite_root(double h, double z0, double dz0, double z1, double dz
         hermite_coefficients(h, z0, dz0, z1, dz1, &coef[3], &coef[2], &coef[1], &coef[0]);
         n = 4;
     }
-    double slope[5];
-    for (int k = 1; k < n; k++)
-        slope[k - 1] = (double)k * coef[k];
-    double lo = 0.0, hi = 1.0;
-    double x = z0 != z1 ? z0 / (z0 - z1) : 0.5;
-    for (int it = 0; it < 50; it++) {
-        double f = horner(coef, n, x);
-        if (f == 0.0)
-            break;
-        if ((f > 0.0) == (z0 > 0.0))
-            lo = x;
-        else
-            hi = x;
-        double df = horner(slope, n - 1, x);
-        double x_new = df != 0.0 ? x - f / df : 0.5 * (lo + hi);
-        if (!(lo < x_new && x_new < hi))
-            x_new = 0.5 * (lo + hi);
-        if (fabs(x_new - x) < 1e-15) {
-            x = x_new;
-            break;
-        }
-        x = x_new;
-    }
+    double x = newton_in_bracket(coef, n, z0 != z1 ? z0 / (z0 - z1) : 0.5, 0.0, 1.0, z0 > 0.0, 0);
     return (0.0 < x && x < 1.0) ? x * h : NAN;
 }
 
@@ -1162,29 +1169,7 @@ static double first_root(const double *coef, int n, double y_max)
         return NAN;
     if (f_hi == 0.0)
         return hi;
-    double slope[5];
-    for (int k = 1; k < n; k++)
-        slope[k - 1] = (double)k * coef[k];
-    double x = lo + (hi - lo) * (f_lo / (f_lo - f_hi));
-    for (int it = 0; it < 50; it++) {
-        double f = horner(coef, n, x);
-        if (f == 0.0)
-            break;
-        if ((f > 0.0) == positive)
-            lo = x;
-        else
-            hi = x;
-        double df = horner(slope, n - 1, x);
-        double x_new = df != 0.0 ? x - f / df : 0.5 * (lo + hi);
-        if (!(lo < x_new && x_new < hi))
-            x_new = 0.5 * (lo + hi);
-        if (fabs(x_new - x) <= 1e-15 * hi) {
-            x = x_new;
-            break;
-        }
-        x = x_new;
-    }
-    return x;
+    return newton_in_bracket(coef, n, lo + (hi - lo) * (f_lo / (f_lo - f_hi)), lo, hi, positive, 1);
 }
 
 /* -- event location: the locator (location.py) ----------------------------------- */
