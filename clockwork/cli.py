@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import atexit
 import contextlib
+import dataclasses
 import errno
 import gc
 import os
@@ -70,6 +71,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="parallel processes for sweeps (default: the runner's choice)")
     r.add_argument("--scheduler", default=None, metavar="ADDRESS", help="address of a distributed scheduler")
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
+    r.add_argument("--no-plot", action="store_true",
+                   help="draw no plots, the default one included (no matplotlib process); `clockwork plot DIR` "
+                        "draws the scene's plots later")
     r.set_defaults(func=cmd_run)
 
     v = sub.add_parser("validate", help="check a scene file (or an .ssp/.ssd, an .fmu) without running it")
@@ -213,6 +217,8 @@ def cmd_run(args) -> int:
     from .run.catalog import load_scene
 
     scene = load_scene(args.scene, args.overrides, args.input)
+    if args.no_plot:
+        scene = dataclasses.replace(scene, plots=())
     if args.scheduler:
         from .run.dask import require_dask
 

@@ -93,6 +93,29 @@ class TableError(ValueError):
     pass
 
 
+MAX_COUNT = 100_000  # scalar variables one [[variable]] with count may stand for
+
+
+def expand_counts(variables: list, path: Path) -> list:
+    """A [[variable]] with ``count = n`` stands for n scalar variables
+    name[1] .. name[n] (FMI 2.0's names of an array's elements) with the
+    value references vr .. vr + n - 1 and otherwise its keys."""
+    out = []
+    for v in variables:
+        n = v.get("count")
+        if n is None:
+            out.append(v)
+            continue
+        if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_COUNT:
+            raise TableError(f"{path}: variable {v.get('name', '?')!r}: count must be a whole number "
+                             f"from 1 to {MAX_COUNT}")
+        if not isinstance(v.get("vr"), int) or not isinstance(v.get("name"), str):
+            raise TableError(f"{path}: variable {v.get('name', '?')!r}: count needs a name and a vr")
+        base = {k: x for k, x in v.items() if k != "count"}
+        out += [{**base, "name": f"{v['name']}[{i}]", "vr": v["vr"] + i - 1} for i in range(1, n + 1)]
+    return out
+
+
 def load(model_dir: Path) -> dict:
     path = model_dir / "model.toml"
     raw = path.read_bytes()
@@ -100,6 +123,7 @@ def load(model_dir: Path) -> dict:
         table = tomllib.loads(raw.decode())
     except tomllib.TOMLDecodeError as e:
         raise TableError(f"{path}: {e}") from e
+    table["variable"] = expand_counts(table.get("variable", []), path)
     shared = model_dir.parent / "units.toml"
     units = tomllib.loads(shared.read_text()) if shared.exists() else {}
     units.update(table.get("units", {}))

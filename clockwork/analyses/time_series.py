@@ -14,6 +14,7 @@ was recorded is kept, and the result says when and which FMU (``"ended"``).
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
@@ -108,23 +109,35 @@ def keep_history(e: SimulationError, kind: str, recorder: Recorder, master, outp
     e.history = history
 
 
-def run_with_progress(master, stop: float, on_point, progress: bool, label: str) -> None:
-    from tqdm import tqdm
+PROGRESS_DELAY_S = 1.0  # a run shorter than this shows no bar
 
+
+def run_with_progress(master, stop: float, on_point, progress: bool, label: str) -> None:
     span = stop - master.t
-    with tqdm(total=span, disable=not progress, delay=1.0, desc=label, unit="s sim",
-              bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]") as bar:
-        step = master.settings.step
-        # Chunks end on grid points, computed as run_until computes them
-        # (start + k * step): an end an ulp short of one would cut a step there.
-        per_chunk = max(1, round(span / 200.0 / step))
-        origin = master.start_time
-        k = math.floor((master.t - origin) / step + 1e-9)
-        t0 = master.t
+    step = master.settings.step
+    # Chunks end on grid points, computed as run_until computes them
+    # (start + k * step): an end an ulp short of one would cut a step there.
+    per_chunk = max(1, round(span / 200.0 / step))
+    origin = master.start_time
+    k = math.floor((master.t - origin) / step + 1e-9)
+    t0 = master.t
+    bar = None
+    began = time.perf_counter()
+    try:
         while master.t < stop - 1e-12 * max(1.0, abs(stop)) and master.ended is None:
             k += per_chunk
             master.run_until(min(stop, origin + k * step), on_point)
-            bar.update(master.t - t0 - bar.n)
+            if bar is None and progress and time.perf_counter() - began >= PROGRESS_DELAY_S:
+                # Made (and tqdm imported) only once the run outlasts the delay: start-up time.
+                from tqdm import tqdm
+
+                bar = tqdm(total=span, desc=label, unit="s sim",
+                           bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]")
+            if bar is not None:
+                bar.update(master.t - t0 - bar.n)
+    finally:
+        if bar is not None:
+            bar.close()
 
 
 def _stall_check(scene, point: dict, system) -> dict | None:

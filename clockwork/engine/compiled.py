@@ -20,7 +20,9 @@ not do step doubling (``master.richardson``).
 from __future__ import annotations
 
 import ctypes
+import itertools
 import threading
+import weakref
 from array import array
 from ctypes import POINTER, Structure, byref, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
 
@@ -30,6 +32,7 @@ from .fmu import Instance
 from .fmu1 import _Fmi1
 from .fmu3 import _Events
 from .master import Master
+from .parallel import group_ends
 from .model_exchange import _ME
 from .ports import link_type
 from .recording import Recorder, _DiscreteOutput
@@ -94,6 +97,8 @@ class _Master(_Strict):
         ["predicting", "last_valid"]
     ) + _fields([], ["iteration_tolerance"], ["coupling_iterations"], ["iterations", "pad3_"]) + [  # strong coupling
         ("loops", c_void_p),  # _Loops: the algebraic loops solved in the orders
+        ("pool", c_void_p), ("par_end", c_void_p), ("par_status", c_void_p),  # master.threads (engine/parallel.py)
+        ("after_start", c_void_p), ("after_order", c_void_p),  # per dynamic instance, the updates after its step
         ("inputs", c_void_p)]  # a _Inputs: inputs driven from samples, or NULL
 
 
@@ -171,6 +176,10 @@ def load_core():
             lib.cw_run_schedule.restype = c_int
             lib.cw_discontinuity.argtypes = [POINTER(_Master)]
             lib.cw_discontinuity.restype = None
+            lib.cw_pool_new.argtypes = [c_int]
+            lib.cw_pool_new.restype = c_void_p
+            lib.cw_pool_free.argtypes = [c_void_p]
+            lib.cw_pool_free.restype = None
             lib.cw_record_point.argtypes = [POINTER(_Master), POINTER(_Recorder)]
             lib.cw_record_point.restype = None
             _lib = lib
@@ -379,6 +388,9 @@ class CompiledMaster(Master):
             setattr(m, name, ref(_array(c_int, (index[id(p)] for p in order))))
             setattr(m, count, len(order))
         m.loops = ctypes.addressof(self._build_loops(index, ref))
+        after = self._updates_after
+        m.after_start = ref(_array(c_int, itertools.accumulate((len(x) for x in after), initial=0)))
+        m.after_order = ref(_array(c_int, (index[id(x)] for xs in after for x in xs)))
         m.buffer, m.n_buffer = ctypes.addressof(ports.buffer), len(ports.buffer)
         m.z_port, m.z_pos = ref(_array(c_int, z_port)), ref(_array(c_int, z_pos))
         m.zs_port, m.zs_pos = ref(_array(c_int, (a for a, _, _ in zs))), ref(_array(c_int, (b for _, b, _ in zs)))
@@ -406,6 +418,7 @@ class CompiledMaster(Master):
         m.locating, m.has_sources = int(self._locating), int(loc.has_sources)
         m.after_event = 1
         m.max_replay_steps = Master.MAX_REPLAY_STEPS
+        self._start_threads(m, ref)
         if self.file_inputs is not None:
             m.inputs = self._inputs()
         self._core_ptr = byref(m)
@@ -414,6 +427,32 @@ class CompiledMaster(Master):
         self._watch_args = {}
         self._empty_recorder = _Recorder(grid_k=-1, tick_port=-1, capacity=1, tick_capacity=1, stride=1)
 
+    def _start_threads(self, m: _Master, ref) -> None:
+        """master.threads > 1: the core's thread pool, and which dynamic
+        instances step at once (engine/parallel.py)."""
+        threads = self.settings.threads
+        if threads < 2:
+            return
+        pool = self._lib.cw_pool_new(threads)
+        if not pool:
+            self.coupling.note(f"master.threads = {threads}: the system refused to start the threads; "
+                               "stepping on one")
+            return
+        self._pool_free = weakref.finalize(self, self._lib.cw_pool_free, pool)  # at the latest with the master
+        m.pool = pool
+        if self.file_inputs is None:
+            ends = group_ends(self.ports, self._jacobi)
+        else:  # sampled inputs are set between an instance's step and its outputs' read: one at a time
+            ends = [a + 1 for a in range(len(self.ports.dynamic))]
+        m.par_end = ref(_array(c_int, ends))
+        m.par_status = ref(_array(c_int, [], 2 * len(self.ports.all)))
+
+    def stop_threads(self) -> None:
+        """Stop the core's threads (System.free calls it); the master steps on one from then on."""
+        stop = self.__dict__.get("_pool_free")
+        if stop is not None:
+            self._core.pool = None
+            stop()
     def _inputs(self) -> int:
         """The core's table of sampled inputs (Real ones: make_master chose
         Python for the others), as a _Inputs struct's address."""
@@ -620,6 +659,17 @@ class CompiledMaster(Master):
         samples.extend(rows[:n_rows.value * width])
 
     def _native(self, recorder: Recorder):
+        # Made once per recorder: a run is called in chunks (analyses.time_series), and systems have
+        # thousands of ports; only the recorder's position is handed over at each call.
+        made = self.__dict__.get("_native_made")
+        if made is None or made[0] is not recorder:
+            made = self._native_made = (recorder, *self._make_native(recorder))
+        _, rec, columns = made
+        rec.last_tick = recorder._last_tick
+        rec.grid_seen = recorder._k
+        return rec, columns
+
+    def _make_native(self, recorder: Recorder):
         index = {id(p.out): i for i, p in enumerate(self.ports.all)}
         ports = [index[id(arr)] for arr, _ in recorder._sources]
         rows = (c_double * (ROWS_PER_CALL * (len(ports) + 1)))()
@@ -629,11 +679,9 @@ class CompiledMaster(Master):
                         rows=ctypes.addressof(rows), ticks=ctypes.addressof(ticks),
                         n_cols=len(ports), capacity=ROWS_PER_CALL, tick_capacity=ROWS_PER_CALL,
                         stride=recorder._stride, has_interval=int(bool(recorder._interval)),
-                        tick_port=-1 if recorder._tick_port is None else self.ports.all.index(recorder._tick_port),
+                        tick_port=-1 if recorder._tick_port is None else index[id(recorder._tick_port.out)],
                         tick_pos=recorder._tick_pos)
         rec._buffers = (rows, ticks)
-        rec.last_tick = recorder._last_tick
-        rec.grid_seen = recorder._k
         return rec, [recorder.columns["time"]] + [recorder.columns[n] for n in recorder.names]
 
     @staticmethod

@@ -154,6 +154,22 @@ def event_indicator_names(xml: bytes) -> tuple[str, ...]:
 
 
 _MD_CACHE: dict[tuple, tuple] = {}
+_RESOLVED: dict[tuple[str, str], Path] = {}
+
+
+def resolved(path) -> Path:
+    """The file a path names: absolute, symbolic links followed. Remembered
+    per path text and working directory: a system names one FMU file for
+    each of its hundreds of components, and resolving walks every folder of
+    the path."""
+    text = os.fspath(path)
+    key = ("" if os.path.isabs(text) else os.getcwd(), text)
+    hit = _RESOLVED.get(key)
+    if hit is None:
+        if len(_RESOLVED) > 4096:
+            _RESOLVED.clear()
+        hit = _RESOLVED[key] = Path(text).resolve()
+    return hit
 
 
 class FmuError(SceneError):
@@ -210,7 +226,7 @@ def read_fmu(path: Path, need_binary: bool = True,
     `label`: what messages call the FMU (an SSP archive's member), else its path."""
     import fmpy
 
-    path = Path(path).resolve()
+    path = resolved(path)
     shown = label or path
     try:
         st = path.stat()
@@ -458,29 +474,28 @@ def event_indicators(path: Path) -> tuple[str, ...]:
     return read_fmu(path, need_binary=False)[2]
 
 
+# One index of the variables per model description (read_fmu reads each FMU
+# file once, so per FMU file): every component, connection end and check
+# looks names up here. Weak keys: an index goes with its description. No
+# fallback for a description that cannot be weakly referred to: a cache that
+# silently never holds made loading quadratic once (fmpy's slotted class).
 _VARIABLES: "weakref.WeakKeyDictionary[Any, dict]" = weakref.WeakKeyDictionary()
 
 
 def variables(md) -> dict:
-    """{name: variable} of a model description, built once per description:
-    its variables and, after each FMI 3.0 array variable, its elements
-    (``ArrayElement``, named ``y[0]``, ``A[1,2]``)."""
-    try:
-        cache = _VARIABLES.get(md)
-    except TypeError:  # not weakly referable: built each time
-        cache = None
-    if cache is None:
-        cache = {}
+    """{name: variable} of a model description, built on first use and kept
+    as long as the description lives: its variables and, after each FMI 3.0
+    array variable, its elements (``ArrayElement``, named ``y[0]``, ``A[1,2]``)."""
+    index = _VARIABLES.get(md)
+    if index is None:
+        index = {}
         for v in md.modelVariables:
-            cache[v.name] = v
+            index[v.name] = v
             if v.shape:
                 for e in array_elements(v):
-                    cache.setdefault(e.name, e)
-        try:
-            _VARIABLES[md] = cache
-        except TypeError:
-            pass
-    return cache
+                    index.setdefault(e.name, e)
+        _VARIABLES[md] = index
+    return index
 
 
 # -- FMI 3.0 arrays ---------------------------------------------------------------

@@ -7,6 +7,7 @@ communication step costs a few ctypes calls and no Python-side allocation.
 
 from __future__ import annotations
 
+import copy
 import ctypes
 import json
 import os
@@ -14,10 +15,12 @@ import shutil
 import sys
 import tempfile
 import threading
+import weakref
 import zipfile
 from ctypes import CFUNCTYPE, POINTER, byref, c_char_p, c_double, c_int, c_size_t, c_uint, c_void_p
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
@@ -27,7 +30,7 @@ from ..atomic import alive
 from ..errors import ParametersRefused, SceneError, SimulationError
 from ..hashing import sha256_file
 from ..paths import cache_root, core_library, scratch_dir
-from .description import check_archive, read_fmu, var_unit
+from .description import check_archive, read_fmu, resolved, var_unit
 
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
 STATUS_NAMES = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
@@ -70,7 +73,7 @@ def extract(path: Path) -> Path:
     sizes) before reuse. With the cache off (or unwritable), FMUs go to the
     process's scratch folder (clockwork.paths.scratch_dir), removed at exit.
     """
-    path = Path(path).resolve()
+    path = resolved(path)
     st = path.stat()
     key = (str(path), st.st_mtime_ns, st.st_size)
     with _extract_lock:
@@ -194,12 +197,67 @@ def direct_feedthrough(md) -> dict[str, list[str]]:
             else [d.name for d in u.dependencies if d.causality == "input"] for u in md.outputs}
 
 
+# fmpy's slave object for the first instance of each binary; later
+# instances get a copy. fmpy's constructor loads the library (the dynamic
+# loader gives every instance of one path the same one anyway) and
+# declares each FMI function's argument types from its Python signature,
+# milliseconds per instance, which a system of hundreds of FMUs would pay
+# hundreds of times.
+_slaves: dict[tuple, object] = {}
+_slaves_lock = threading.Lock()
+
+
+def new_slave(kind: type, unzip: Path, md, name: str, model_identifier: str):
+    """A fmpy object (`kind`: FMU2Slave, FMU3Slave, FMU2Model) named `name`,
+    not yet instantiated, on the FMU's library (`model_identifier`: of the
+    interface it runs through) as loaded once."""
+    key = (kind, str(unzip), model_identifier)
+    with _slaves_lock:
+        first = _slaves.get(key)
+        if first is None:
+            first = _slaves[key] = kind(guid=md.guid, unzipDirectory=str(unzip),
+                                        modelIdentifier=model_identifier, instanceName=name)
+    slave = copy.copy(first)
+    slave.guid, slave.instanceName, slave.component, slave.callbacks = md.guid, name, None, None
+    return slave
+
+
+def declared(dll, name: str, argtypes: tuple):
+    """The C function `name` of a loaded library, with these argument types
+    and an int status, declared once: the instances of one FMU share its
+    library's function objects."""
+    f = getattr(dll, name)
+    if f.argtypes != argtypes or f.restype is not c_int:
+        f.argtypes, f.restype = argtypes, c_int
+    return f
+
+
+# The variables as the master sees them, one table per model description
+# (per FMU file), shared read-only by all its instances.
+_INSTANCE_VARIABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def instance_variables(md) -> MappingProxyType:
+    """{name: Variable} of a model description, built on first use."""
+    table = _INSTANCE_VARIABLES.get(md)
+    if table is None:
+        deps = direct_feedthrough(md)
+        table = _INSTANCE_VARIABLES[md] = MappingProxyType({
+            v.name: Variable(v.name, v.valueReference, v.type, v.causality, v.variability, var_unit(v),
+                             deps.get(v.name))
+            for v in md.modelVariables})
+    return table
+
+
 class Instance:
     """An instantiated FMU with fast access to its fmi2 functions."""
 
     fmi_version = 2  # fmu3.Instance3 says 3, fmu1.Instance1 1
     do_step_name = "fmi2DoStep"  # in messages
     _fmpy_class = FMU2Slave  # model_exchange.MEInstance: FMU2Model
+    # Instances freed in this process: a master looks for a freed instance
+    # of its own before a run only when this changed (systems have thousands).
+    frees = 0
 
     def _interface(self):
         """The modelDescription element of the interface it runs through."""
@@ -220,15 +278,7 @@ class Instance:
         described = read_fmu(self.path, need_binary=False)
         self.md = model_description or described[0]
         self.model_name = self.md.modelName
-        self.variables: dict[str, Variable] = {}
-        by_index = list(self.md.modelVariables)
-        deps = direct_feedthrough(self.md)
-        for v in by_index:
-            self.variables[v.name] = Variable(
-                v.name, v.valueReference, v.type, v.causality, v.variability,
-                var_unit(v),
-                deps.get(v.name),
-            )
+        self.variables = instance_variables(self.md)
         self._read_capabilities()
         experiment = self.md.defaultExperiment
         tol = getattr(experiment, "tolerance", None) if experiment is not None else None
@@ -250,12 +300,7 @@ class Instance:
     def instantiate(self) -> None:
         unzip = extract(self.path)
         try:
-            self._slave = self._fmpy_class(
-                guid=self.md.guid,
-                unzipDirectory=str(unzip),
-                modelIdentifier=self._interface().modelIdentifier,
-                instanceName=self.name,
-            )
+            self._slave = new_slave(self._fmpy_class, unzip, self.md, self.name, self._interface().modelIdentifier)
         except Exception as e:  # fmpy raises a bare Exception for a bad library
             raise SceneError(f"{self.shown}: cannot load the FMU's binary for this platform: {e}") from None
         messages = self.messages
@@ -295,10 +340,7 @@ class Instance:
         """Raw C symbols with argtypes, bypassing fmpy's per-call wrappers."""
 
         def fn(name, *argtypes):
-            f = getattr(dll, name)
-            f.argtypes = list(argtypes)
-            f.restype = c_int
-            return f
+            return declared(dll, name, argtypes)
 
         comp = c_void_p
         self.c_doStep = fn("fmi2DoStep", comp, c_double, c_double, c_int)
@@ -341,6 +383,7 @@ class Instance:
             self._free_instance()
         finally:
             self._slave = None
+            Instance.frees += 1
 
     def _free_instance(self) -> None:
         self._slave.fmi2FreeInstance(self.component)

@@ -40,6 +40,7 @@ this instance.
 
 from __future__ import annotations
 
+import copy
 import ctypes
 from ctypes import POINTER, Structure, c_char, c_char_p, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
 from pathlib import Path
@@ -99,6 +100,8 @@ class Instance1(Instance):
         super().__init__(name, path, model_description)
         # From the file's own description: one that was unpickled has lost them.
         self.details = fmi1_details(read_fmu(self.path, need_binary=False)[0])
+        if self.details.negated:  # renumbered below: copies, not the table its FMU's instances share
+            self.variables = {n: copy.copy(v) if n in self.details.negated else v for n, v in self.variables.items()}
         negated = [v for v in self.variables.values() if v.name in self.details.negated]
         used = {v.vr for v in self.variables.values()}
         self._negated: dict[int, int] = {}  # the master's value reference -> the FMU's

@@ -48,6 +48,7 @@ refuses polynomial inputs into the instance before the first step.
 
 from __future__ import annotations
 
+import copy
 import ctypes
 import math
 from ctypes import (POINTER, Structure, byref, c_bool, c_char_p, c_double, c_float, c_int, c_int8, c_int16, c_int32,
@@ -58,7 +59,7 @@ from fmpy.fmi3 import FMU3Slave, fmi3IntermediateUpdateCallback, fmi3LogMessageC
 from ..errors import SceneError, SimulationError
 from ..paths import core_library
 from .description import array_elements, fmi_version, int_range, read_fmu, type_name
-from .fmu import DISCARD, ERROR, OK, WARNING, Instance, Variable, extract
+from .fmu import DISCARD, ERROR, OK, WARNING, Instance, Variable, declared, extract, new_slave
 from .fmu1 import Instance1
 
 MAX_EVENT_ITERATIONS = 1000  # fmi3UpdateDiscreteStates calls per event before giving up
@@ -208,6 +209,9 @@ class Instance3(Instance):
         self.elements: dict[str, list[str]] = {}  # array name -> element names, row-major
         if not arrays:
             return
+        # Its own table: the elements and their dependencies are added to a
+        # copy of the one its FMU's instances share (fmu.instance_variables).
+        self.variables = {n: copy.copy(v) for n, v in self.variables.items()}
         base = max(v.valueReference for v in self.md.modelVariables) + 1
         code_vr, code_off, code_size = [], [], []
         for v in arrays:
@@ -300,9 +304,7 @@ class Instance3(Instance):
     def instantiate(self) -> None:
         unzip = extract(self.path)
         try:
-            self._slave = FMU3Slave(guid=self.md.guid, unzipDirectory=str(unzip),
-                                    modelIdentifier=self.md.coSimulation.modelIdentifier,
-                                    instanceName=self.name)
+            self._slave = new_slave(FMU3Slave, unzip, self.md, self.name, self.md.coSimulation.modelIdentifier)
         except Exception as e:  # fmpy raises a bare Exception for a bad library
             raise SceneError(f"{self.shown}: cannot load the FMU's binary for this platform: {e}") from None
         messages = self.messages
@@ -340,10 +342,7 @@ class Instance3(Instance):
 
     def _bind(self, dll) -> None:
         def fn(name, *argtypes):
-            f = getattr(dll, name)
-            f.argtypes = list(argtypes)
-            f.restype = c_int
-            return f
+            return declared(dll, name, argtypes)
 
         inst = c_void_p
         vrs = POINTER(c_uint)

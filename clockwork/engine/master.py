@@ -39,6 +39,7 @@ from .description import no_state_reason
 from .coupling import InputCoupling, iterate_step
 from .fmu import DISCARD, NO_MESSAGE, WARNING, Instance, free_all
 from .location import APPROACH, LAND, EventLocator, crossed, scan
+from .parallel import updates_after
 from .ports import Port, Ports
 from .richardson import StepDoubling
 from .samples import FileInputs, Samples, isclose
@@ -93,6 +94,7 @@ class Master:
         self.ports = Ports(instances, self.wiring.links, self.wiring, extra_outputs, settings.event_location, self)
         self.discrete_outputs = self.ports.discrete_outputs
         self.coupling = InputCoupling(self.ports.dynamic, settings.extrapolation)
+        self._updates_after = updates_after(self.ports)  # per dynamic instance (engine/parallel.py)
         self.locator = EventLocator(self, self.ports.all)
         self.checkpoints = Checkpoints(self)
         self.doubling = StepDoubling(self)
@@ -109,12 +111,16 @@ class Master:
         self._jacobi = settings.order == "jacobi"
         self._check_rollback()
         self._check_fmi3()
+        if settings.threads > 1 and self.engine == "python":
+            self.coupling.note(f"master.threads = {settings.threads}: the Python engine steps one instance at a "
+                               "time (its FMI calls hold Python's global lock); the compiled core uses the threads")
         # FMI 3.0 instances' announced time events (fmu3._Events): a
         # communication point lands on each.
         self.fmi3_events = [p.inst.events for p in self.ports.all if p.inst.fmi_version == 3]
         self._reset_soft_state()
         self.engine_reason: str | None = None  # why "auto" chose this engine, when not the core
         self.ended: SimulationEnded | None = None  # an FMU ended the simulation (a clean end)
+        self._frees_seen = -1  # Instance.frees when run_until last found every instance alive
 
     @property
     def stats(self) -> Statistics:
@@ -278,7 +284,7 @@ class Master:
                 if p.has_inputs:
                     set_inputs(p, t, h, smooth, coupling.get(p.inst.name) if coupling else None)
         last = dynamic[-1] if dynamic else None
-        for p in dynamic:
+        for p, after in zip(dynamic, self._updates_after):
             if not jacobi and p.has_inputs:
                 set_inputs(p, t, h, smooth, coupling.get(p.inst.name) if coupling else None)
             st = p.doStep(p.comp, t, h, no_set_prior)
@@ -288,8 +294,9 @@ class Master:
                 inputs.set((p,), t_new, False)
             p.read(t_new)
             if not jacobi and p is not last:
-                # Newest values flow on to the instances stepped later.
-                ports.propagate(ports.first_in_order, t_new)
+                # Newest values flow on to the instances stepped later
+                # (through the feedthrough-only instances they reach).
+                ports.propagate(after, t_new)
         # 3. Outputs at t + h, in dependency order.
         self.t = t_new
         for p in ports.final_order:
@@ -515,7 +522,9 @@ class Master:
                 output became NaN, infinite or diverged; the message names
                 the time, the instance and the variable.
         """
-        t_stop = check_run(self.instances, self.t, t_stop)
+        frees = Instance.frees
+        t_stop = check_run(self.instances, self.t, t_stop, look=frees != self._frees_seen)
+        self._frees_seen = frees
         if self.ended is not None:
             return
         try:
@@ -625,6 +634,9 @@ class Master:
                     inst.check(c_set(comp, vr, 1, value), "fmi2SetReal of inputs", self.t)
             else:
                 samples.extend(p.out[j] for p, j in outputs)
+
+    def stop_threads(self) -> None:
+        """Stop the threads master.threads started (the compiled core's); here, none."""
 
     def terminate(self) -> None:
         free_all(self.instances)

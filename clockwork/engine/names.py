@@ -11,7 +11,7 @@ plots).
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Set
 
 _FORBIDDEN = ("/", "\\", "->")  # a path separator would leave the output folder; -> separates a link
 
@@ -40,14 +40,16 @@ def split_ref(ref: str, instances: Iterable[str] | Mapping[str, object]) -> tupl
     to.
     """
     ref = ref.strip()
-    candidates = sorted((n for n in instances if ref.startswith(n + ".") and len(ref) > len(n) + 1),
-                        key=len, reverse=True)
+    known = instances if isinstance(instances, (Mapping, Set)) else set(instances)
+    # The prefixes before each dot, longest first: a few lookups, whatever
+    # the number of instances (systems have thousands).
+    candidates = [ref[:i] for i in range(len(ref) - 2, 0, -1) if ref[i] == "." and ref[:i] in known]
     if not candidates:
         return None
     if isinstance(instances, Mapping):
         for name in candidates:
-            known = instances[name]
-            if known is None or ref[len(name) + 1:] in known:
+            variables = instances[name]
+            if variables is None or ref[len(name) + 1:] in variables:
                 return name, ref[len(name) + 1:]
     name = candidates[0]
     return name, ref[len(name) + 1:]

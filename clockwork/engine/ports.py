@@ -105,6 +105,14 @@ class Port:
             self.read(t)
 
 
+def _first_positions(names: list[str]) -> dict[str, int]:
+    """{name: its first position in names} (list.index for each, at once)."""
+    out: dict[str, int] = {}
+    for k, x in enumerate(names):
+        out.setdefault(x, k)
+    return out
+
+
 def _unread(inst: Instance, name: str):
     """A discrete output's value before it is first read: zero, or empty text."""
     return "" if inst.variables[name].type == "String" else 0
@@ -190,10 +198,13 @@ class Ports(dict):
             dst.din_sources.append((src, src.dout_names.index(link.output)))
             dst.has_inputs = True
         self.has_discrete_links = bool(discrete_links)
+        # Positions by name, once per port: a sink may have thousands of inputs.
+        in_pos = {n: _first_positions(p.in_names) for n, p in self.items()}
+        out_pos = {n: _first_positions(p.out_names) for n, p in self.items()}
         for link in links:
             dst, src = self[link.dst], self[link.src]
-            k = dst.in_names.index(link.input)
-            dst.sources.append((k, src, src.out_names.index(link.output)))
+            k = in_pos[link.dst][link.input]
+            dst.sources.append((k, src, out_pos[link.src][link.output]))
             if not link.identity:
                 dst.scale.append((k, float(link.factor), float(link.offset)))
         for p in self.values():  # in input order

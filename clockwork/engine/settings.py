@@ -15,6 +15,7 @@ ENGINES = ("auto", "python", "compiled")
 # stiff), a pair ("dp54", "dop853") or CVode's BDF ("cvode").
 ME_SOLVERS = ("auto", "dp54", "dop853", "cvode")
 LOOP_MODES = ("solve", "delay")
+MAX_THREADS = 256  # master.threads: more would be threads waiting for cores, and memory for their stacks
 
 
 @dataclass
@@ -96,6 +97,10 @@ class MasterSettings:
             ``"solve"`` iterates it to a fixed point wherever outputs are
             brought up to date (to ``iteration_tolerance``), ``"delay"``
             breaks it by a one-step delay.
+        threads: How many threads the compiled core steps instances on
+            that do not depend on each other within a step (1 to 256; 1:
+            one at a time). The same bits on any number; the Python engine
+            uses one and says so. See docs/design.md, "Instances on threads".
 
     Raises:
         SceneError: A value out of its range or of the wrong type, or a
@@ -146,6 +151,11 @@ class MasterSettings:
     # are brought up to date, to iteration_tolerance; "delay" breaks it by a
     # one-step delay (the loop's members are read once, after their step).
     algebraic_loops: str = "solve"
+    # Threads the compiled core steps instances on (instances that do not
+    # depend on each other within a step, each on one thread at a time;
+    # engine/parallel.py), the same bits as 1. The Python engine steps on
+    # one. The FMUs must allow instances on different threads: docs/design.md.
+    threads: int = 1
 
     def __post_init__(self) -> None:
         self.check()  # a bad setting is refused where it is made, not in an endless run_until
@@ -187,6 +197,9 @@ class MasterSettings:
                              f"{', '.join(map(repr, ME_SOLVERS))}")
         if self.algebraic_loops not in LOOP_MODES:
             raise SceneError(f"master.algebraic_loops = {self.algebraic_loops!r}: expected 'solve' or 'delay'")
+        if (isinstance(self.threads, bool) or not isinstance(self.threads, numbers.Integral)
+                or not 1 <= self.threads <= MAX_THREADS):
+            raise SceneError(f"master.threads = {self.threads!r}: expected a whole number from 1 to {MAX_THREADS}")
         if self.extrapolation not in (0, 1, 2):
             raise SceneError(f"master.extrapolation = {self.extrapolation}: expected 0, 1 or 2")
 
@@ -196,10 +209,11 @@ def _positive(key: str, v) -> None:
         raise SceneError(f"master.{key} = {v!r}: expected a finite number > 0")
 
 
-def check_run(instances: dict, t_now: float, t_stop) -> float:
-    """The stop time of a run_until, checked: the instances still live, and
-    `t_stop` a finite time (s) not before `t_now`. Returns it as a float."""
-    if any(getattr(inst, "freed", False) for inst in instances.values()):
+def check_run(instances: dict, t_now: float, t_stop, look: bool = True) -> float:
+    """The stop time of a run_until, checked: the instances still live
+    (looked at unless `look` is false: none was freed since the last look),
+    and `t_stop` a finite time (s) not before `t_now`. Returns it as a float."""
+    if look and any(getattr(inst, "freed", False) for inst in instances.values()):
         raise ClosedError("this System was freed (used after its `with` block or free()): build a new System")
     if isinstance(t_stop, bool) or not isinstance(t_stop, numbers.Real) or not math.isfinite(t_stop):
         raise UsageError(f"run_until({t_stop!r}): expected a finite time in s")

@@ -254,6 +254,7 @@ class System:
         self.instances = {}
         self._freed = True
         if self.master is not None:
+            self.master.stop_threads()  # now, not when the collector finds the master
             _close(self.master)
 
     def __enter__(self):

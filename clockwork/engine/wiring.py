@@ -151,7 +151,8 @@ def build(instances: dict[str, Instance], links: list[Link], step_order: list[st
         # Stepped with the inputs of the step's start, read after the step:
         # what a loop member gives is one step old when it arrives.
         feedthrough_only = [n for n in feedthrough_only if n not in in_loop]
-    dynamic = [n for n in (step_order or names) if n not in feedthrough_only]
+    first = set(feedthrough_only)
+    dynamic = [n for n in (step_order or names) if n not in first]
     return Wiring(links, feedthrough_only, dynamic, order, feeds, loops, loop_links)
 
 

@@ -24,7 +24,6 @@ from ..results.plots import Plotter
 from ..results.plots.registry import unknown_column
 from ..results.report import write_outputs
 from .points import analysis_kind, failed_point, point_key, point_label, run_point
-from .pool import default_workers, run_in_pool
 
 
 def run_scene(scene, out_dir, workers: int | None = None, scheduler: str | None = None,
@@ -79,6 +78,8 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
             finished(0, failed_point(scene, points[0], e, time.perf_counter() - t_start))
     elif todo:
         from tqdm import tqdm
+
+        from .pool import default_workers, run_in_pool  # a sweep's: start-up of a single run needs no process pool
 
         bar = tqdm(total=len(points), initial=reused, disable=not progress, delay=1.0,
                    desc=scene.path.stem, unit="point")

@@ -16,9 +16,9 @@ from ..engine.description import (FLOAT32_MAX, INTEGER_TYPES, ArrayElement, int_
                                   var_unit)
 from ..engine.description import variables as variables_of
 from ..engine.names import instance_name_problem, split_ref
-from ..engine.settings import ENGINES, LOOP_MODES, ME_SOLVERS
+from ..engine.settings import ENGINES, LOOP_MODES, MAX_THREADS, ME_SOLVERS
 from ..errors import SceneError
-from .model import Component, show
+from .model import Component, ComponentVariables, show
 from .units import UnitError, fmt, parse_quantity, to_seconds, to_unit
 
 TOP_KEYS = ("scene", "components", "connections", "experiment", "master", "record", "analysis", "sweep", "plot",
@@ -261,6 +261,11 @@ def master_value(ctx: Ctx, key: str, value: object):
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
             raise ctx.bad(full, value, "an integer >= 0 (0 = no fixed-point iteration)")
         return value
+    if key == "threads":
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_THREADS:
+            raise ctx.bad(full, value, f"a whole number from 1 to {MAX_THREADS} (threads the compiled core steps "
+                                       "independent instances on)")
+        return value
     # the remaining tolerances are bare positive numbers
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
         raise ctx.bad(full, value, "a number > 0")
@@ -268,8 +273,7 @@ def master_value(ctx: Ctx, key: str, value: object):
 
 
 def parse_ref(ctx: Ctx, key: str, ref: object, components: dict[str, Component], what: str):
-    split = split_ref(ref, {n: variables_of(c.model_description) for n, c in components.items()}) \
-        if isinstance(ref, str) else None
+    split = split_ref(ref, ComponentVariables(components)) if isinstance(ref, str) else None
     if split is None:
         if isinstance(ref, str) and "." in ref.strip():
             component(ctx, key, components, ref.strip().partition(".")[0])  # no such component: name them

@@ -37,7 +37,7 @@ from .checks import (STRUCTURAL, TOP_KEYS, Ctx, article, component, convert_valu
 from .fmu import read_fmu_scene
 from .inputs import Inputs, read_inputs
 from .kinds import NO_KINDS, Invalid, Kinds
-from .model import (Component, Connection, Experiment, MasterConfig, Record, Scene, consistency)
+from .model import (Component, ComponentVariables, Connection, Experiment, MasterConfig, Record, Scene, consistency)
 from .ssp.read import read_ssp
 from .sweep import parse_sweep
 from .units import UnitError, fmt, link_conversion, to_seconds
@@ -447,6 +447,7 @@ def _connections(ctx: Ctx, conns, components: dict[str, Component],
     seen: dict[tuple[str, str], int] = {}
     set_inputs = {(inst, var): key for inst, var, key in input_params}
     checked = []
+    known = ComponentVariables(components)
     for i, c in enumerate(conns):
         key = f"connections[{i}]"
         if not isinstance(c, str):
@@ -456,7 +457,7 @@ def _connections(ctx: Ctx, conns, components: dict[str, Component],
             raise ctx.bad(key, c, 'a string "src.output -> dst.input"')
         refs = []
         for ref in ends_text:
-            split = split_ref(ref, {n: variables_of(comp.model_description) for n, comp in components.items()})
+            split = split_ref(ref, known)
             if split is None:
                 inst = ref.partition(".")[0]
                 component(ctx, key, components, inst if "." in ref else ref)  # names the components
@@ -566,7 +567,7 @@ def _record(ctx: Ctx, t: dict | None, components: dict[str, Component]) -> Recor
         refs = t["outputs"]
         if not isinstance(refs, list):
             raise ctx.bad("record.outputs", refs, 'an array of "instance.variable" strings')
-        outputs = []
+        outputs = {}  # (instance, variable) -> its position: a dict, for the duplicate check of thousands
         for i, ref in enumerate(refs):
             key = f"record.outputs[{i}]"
             comp, v = parse_ref(ctx, key, ref, components, "a variable")
@@ -577,7 +578,7 @@ def _record(ctx: Ctx, t: dict | None, components: dict[str, Component]) -> Recor
                 pair = (comp.name, name)
                 if pair in outputs:
                     raise ctx.fail(key, f"{comp.name}.{name} is listed twice")
-                outputs.append(pair)
+                outputs[pair] = len(outputs)
     else:
         outputs = [(n, name) for n, c in components.items()
                    for v in c.model_description.modelVariables if v.causality == "output"

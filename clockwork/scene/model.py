@@ -10,6 +10,7 @@ import dataclasses
 import itertools
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -59,6 +60,24 @@ class Component:
         return variables_of(self.model_description)[name]
 
 
+class ComponentVariables(Mapping):
+    """{instance: its variables by name} over a scene's components, each
+    looked up when asked (engine.names.split_ref splits references against
+    it): made once per scene, not once per reference."""
+
+    def __init__(self, components: Mapping[str, Component]):
+        self._components = components
+
+    def __getitem__(self, name: str) -> dict:
+        return variables_of(self._components[name].model_description)
+
+    def __iter__(self):
+        return iter(self._components)
+
+    def __len__(self) -> int:
+        return len(self._components)
+
+
 class Connection(NamedTuple):
     """The input receives factor * output + offset (engine.wiring.Link's
     fields, in order): a linear transformation or a unit conversion."""
@@ -103,6 +122,7 @@ class MasterConfig:
     early_return: bool = True  # FMI 3.0 FMUs may return early from fmi3DoStep at their own events
     me_solver: str = "auto"  # integrator of Model Exchange FMUs: "auto", "dp54", "dop853" or "cvode"
     algebraic_loops: str = "solve"  # "solve" (fixed point at every communication point) or "delay"
+    threads: int = 1  # the compiled core steps independent instances on this many threads
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)

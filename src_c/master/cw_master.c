@@ -33,6 +33,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "cw_pool.h"
 #include "cw_illinois.h"
 
 #define CW_EXPORT __attribute__((visibility("default")))
@@ -191,6 +192,12 @@ typedef struct {
     long long coupling_iterations;
     int iterations, pad3_;
     cw_loops *loops;           /* algebraic loops: an order's entry -(i + 1) is loop i */
+    cw_pool *pool;             /* master.threads > 1: instances step at once (cw_pool.c); else NULL */
+    const int *par_end;        /* per dynamic position a: the end of the run of instances from a that
+                                  depend on none of each other within a step (engine/parallel.py) */
+    int *par_status;           /* 2 per port: fmi2DoStep's and fmi2GetReal's status, stepped at once */
+    const int *after_start;    /* per dynamic position a: after_order[after_start[a] .. after_start[a + 1]) */
+    const int *after_order;    /* ... is the part of first_in_order updated after it steps (parallel.py) */
     struct cw_inputs *inputs;  /* inputs driven from samples, or NULL */
 } cw_master;
 
@@ -802,6 +809,71 @@ again:
     return 0;
 }
 
+/* -- instances stepped at once (master.threads, cw_pool.c) ------------------- */
+
+typedef struct {
+    cw_master *m;
+    const int *ports;
+    double t, h;
+    int first;  /* feedthrough-only instances (advance's part 1), else dynamic ones */
+    int no_set_prior;  /* noSetFMUStatePriorToCurrentPoint, as advance passes it */
+} par_job;
+
+/* One instance of a par_step, on whichever thread takes it: what advance
+ * does for it, the statuses kept for the checks in order afterwards. */
+static void par_item(void *ctx, int a)
+{
+    const par_job *job = ctx;
+    cw_master *m = job->m;
+    cw_port *p = &m->ports[job->ports[a]];
+    int *st = &m->par_status[2 * a];
+    st[0] = p->doStep(p->comp, job->t, job->h, job->no_set_prior);
+    st[1] = FMI_OK;
+    if (st[0] > FMI_WARNING)
+        return;
+    if (job->first) {
+        if (p->n_z && m->after_event)
+            p->getReal(p->comp, p->out_vr, (size_t)p->n_out, p->out);
+        return;
+    }
+    double t_new = job->t + job->h;
+    if (p->n_out)
+        st[1] = p->getReal(p->comp, p->out_vr, (size_t)p->n_out, p->out);
+    if (st[1] <= FMI_WARNING)
+        p->out_time = t_new;
+}
+
+/* ports[0..n) step from t by h at once, then are checked in their order:
+ * the first failure is the one the serial loop would meet. */
+static int par_step(cw_master *m, const int *ports, int n, double t, double h, int first, int no_set_prior)
+{
+    par_job job = {m, ports, t, h, first, no_set_prior};
+    cw_pool_run(m->pool, n, par_item, &job);
+    for (int a = 0; a < n; a++) {
+        const int *st = &m->par_status[2 * a];
+        if (st[0] > FMI_WARNING)
+            return fail(m, ports[a], CALL_DO_STEP, st[0], t, h);
+        if (st[1] > FMI_WARNING)
+            return fail(m, ports[a], CALL_GET_REAL, st[1], t + h, 0.0);
+    }
+    return 0;
+}
+
+/* dynamic[a..e), which depend on none of each other within the step: their
+ * inputs set in order (Gauss-Seidel; Jacobi's are set already), then they
+ * step at once. A refused input stops there, after the ones before it. */
+static int par_group(cw_master *m, int a, int e, double t, double h, int smooth, int no_set_prior)
+{
+    int set = e, rc = 0;
+    if (!m->jacobi)
+        for (int b = a; b < e && set == e; b++)
+            if (m->ports[m->dynamic[b]].n_in && (rc = set_inputs(m, m->dynamic[b], t, h, smooth)) < 0)
+                set = b;
+    if (set > a)
+        TRY(par_step(m, m->dynamic + a, set - a, t, h, 0, no_set_prior));
+    return rc;
+}
+
 /* -- the communication step (Master.advance) --------------------------------- */
 
 static int advance_coupled(cw_master *m, double t, double h, int coupled)
@@ -815,6 +887,9 @@ static int advance_coupled(cw_master *m, double t, double h, int coupled)
         for (int i = 0; i < m->n_ports; i++)
             TRY(inputs_set(m, i, t, 1));
     /* 1. Feedthrough-only instances commit the mode decided at t. */
+    if (m->pool && m->n_first > 1)
+        TRY(par_step(m, m->first, m->n_first, t, h, 1, no_set_prior));
+    else
     for (int a = 0; a < m->n_first; a++) {
         cw_port *p = &m->ports[m->first[a]];
         int st = p->doStep(p->comp, t, h, no_set_prior);
@@ -839,6 +914,16 @@ static int advance_coupled(cw_master *m, double t, double h, int coupled)
             if (m->ports[m->dynamic[a]].n_in)
                 TRY(coupled ? set_coupled_inputs(m, m->dynamic[a], t, h) : set_inputs(m, m->dynamic[a], t, h, smooth));
     for (int a = 0; a < m->n_dynamic; a++) {
+        /* A strongly coupled step sets each input from its iterate's line:
+         * one after the other (par_group sets the plain coupling's). */
+        int e = m->pool && !coupled ? m->par_end[a] : a + 1;
+        if (e > a + 1) {  /* instances independent within the step, stepped at once */
+            TRY(par_group(m, a, e, t, h, smooth, no_set_prior));
+            a = e - 1;
+            if (!m->jacobi && e != m->n_dynamic)
+                TRY(propagate(m, m->first_in_order, m->n_first_in_order, t_new));
+            continue;
+        }
         int i = m->dynamic[a];
         cw_port *p = &m->ports[i];
         if (!m->jacobi && p->n_in)
@@ -849,8 +934,9 @@ static int advance_coupled(cw_master *m, double t, double h, int coupled)
         if (m->inputs)
             TRY(inputs_set(m, i, t_new, 0));
         TRY(port_read(m, i, t_new));
-        if (!m->jacobi && a != m->n_dynamic - 1)  /* newest values flow on */
-            TRY(propagate(m, m->first_in_order, m->n_first_in_order, t_new));
+        if (!m->jacobi && a != m->n_dynamic - 1)  /* newest values flow on, where they reach */
+            TRY(propagate(m, m->after_order + m->after_start[a], m->after_start[a + 1] - m->after_start[a],
+                          t_new));
     }
     /* 3. Outputs at t + h, in dependency order. */
     m->t = t_new;

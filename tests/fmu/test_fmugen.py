@@ -243,6 +243,27 @@ def test_a_string_with_a_range_unit_or_number_start_is_refused(drag, extra):
     _refused(drag, "label", "a String takes a text start value")
 
 
+def test_a_counted_variable_stands_for_its_elements(drag, tmp_path):
+    """count = n: n scalar variables name[1] .. name[n] with consecutive
+    value references (TestSink's 1000 inputs)."""
+    with open(drag / "model.toml", "a") as f:
+        f.write('\n[[variable]]\nname = "extra"\ncount = 3\nvr = 90\ntype = "Real"\ncausality = "input"\n'
+                'variability = "continuous"\nstart = 0.0\ndescription = "An element"\n')
+    t = fmugen.load(drag)
+    extra = [(v["name"], v["vr"]) for v in t["variable"] if v["name"].startswith("extra")]
+    assert extra == [("extra[1]", 90), ("extra[2]", 91), ("extra[3]", 92)]
+    assert "count" not in t["variable"][-1]
+    root = ET.fromstring(fmugen.generate_xml(t, []))
+    names = [v.get("name") for v in root.iter("ScalarVariable")]
+    assert names[-3:] == ["extra[1]", "extra[2]", "extra[3]"]
+
+
+@pytest.mark.parametrize("count", ["0", "-2", "1.5", "true", '"3"', "100001"])
+def test_a_bad_count_is_refused(drag, count):
+    with open(drag / "model.toml", "a") as f:
+        f.write(f'\n[[variable]]\nname = "extra"\ncount = {count}\nvr = 90\ntype = "Real"\ncausality = "input"\n'
+                'variability = "continuous"\nstart = 0.0\ndescription = "An element"\n')
+    _refused(drag, "extra", "count must be a whole number from 1 to 100000")
 def test_fmi1_description(tmp_path):
     """The FMI 1.0 build's modelDescription.xml: parameters have variability
     "parameter", an output's DirectDependency names its inputs only (a

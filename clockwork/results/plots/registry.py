@@ -21,6 +21,7 @@ import numpy as np
 from ...engine.description import var_unit, variables
 from ...engine.names import split_ref
 from ...scene.kinds import Converter, Invalid
+from ...scene.model import ComponentVariables
 from ...atomic import write_bytes_atomic
 from ...paths import cache_root, scratch_dir
 
@@ -194,7 +195,7 @@ def register(kind: str, keys: set[str] | frozenset[str] = frozenset(), convert: 
 def display(scene, name: str, values):
     """Values of `instance.variable` in display units: angles in degrees,
     torques in N.cm; returns (values, axis label)."""
-    split = split_ref(name, {n: variables(c.model_description) for n, c in scene.components.items()})
+    split = split_ref(name, ComponentVariables(scene.components))
     if split is None:
         return np.asarray(values, dtype=float), name
     inst, var = split
