@@ -34,8 +34,12 @@ end on the FMU's state bit for bit.
    without early return (master.early_return = false), with the FMU state
    saves and restores per period of each.
 
+6. --counts: only the event handling per period (steps, FMU-state saves,
+   rollbacks, replays, predicted landings), event prediction off and on.
+
     python benchmarks/bench_hoyng_period.py [--periods 2000] [--repeats 3] [--integrators 1 2]
                                             [--scene-periods 20000] [--fmi-versions 2 3]
+    python benchmarks/bench_hoyng_period.py --counts --periods 200 --fmi-versions 2 3 3-
 """
 
 from __future__ import annotations
@@ -84,6 +88,7 @@ def evaluations_alone(periods: int, integrator: int) -> tuple[float, float, bool
     """(right-hand sides, RK steps) per period of case 1, by replay, and
     whether the replay ends on the FMU's state bit for bit."""
     import test_rk as rkt
+    from bench_pendulum import pendulum_observer
     from fmu_driver import Instance, find_fmu
 
     build = Path(os.environ.get("CW_BUILD_DIR", ROOT / "build"))
@@ -93,21 +98,7 @@ def evaluations_alone(periods: int, integrator: int) -> tuple[float, float, bool
     method = lib.cw_rk_choose(integrator, rtol)
     gamma = 1.0 / PEND["Q"]  # omega0 / Q with L = g = 1
     prob = rkt.Problem(2, lambda t, x: [x[1], -(1.0 * 1.0 / 1.0) * math.sin(x[0]) - gamma * x[1] + 0.0])
-    out, xs = rkt.Vec(), rkt.Vec()
-
-    def observe(ctx, rk):  # what Pendulum's observe_step spends
-        r = rk.contents
-        ticked = r.x0[0] < 0.0 <= r.x1[0]
-        turned = (r.x0[1] > 0.0 >= r.x1[1]) or (r.x0[1] < 0.0 <= r.x1[1])
-        if ticked or turned:
-            lib.cw_rk_dense(rk, r.t0 + 0.5 * r.h, out)
-        if ticked:
-            x0 = rkt.Vec(r.x0[0], r.x0[1])
-            for _ in range(2):
-                lib.cw_rk_single_step_with(method, 2, prob.c, None, r.t0, x0, 0.5 * r.h, xs)
-        return 0
-
-    obs = rkt.OBSERVER(observe)
+    obs = pendulum_observer(rkt, lib, method, prob)
     h, x, t, h_next, steps = TWO_PI / 7, [lam, 0.0], 0.0, 0.0, 0
     for k in range(7 * periods):  # as pendulum_alone: from k h to k h + h
         res, t, x_new, h_next, rk = rkt.advance(lib, prob, x, k * h, k * h + h, rtol, atol, h_next=h_next,
@@ -121,13 +112,14 @@ def evaluations_alone(periods: int, integrator: int) -> tuple[float, float, bool
     return len(prob.times) / periods, steps / periods, same
 
 
-def bare_master(periods: int, integrator: int = 0, engine: str = "compiled", build: str = "2") -> tuple[float, dict]:
+def bare_master(periods: int, integrator: int = 0, engine: str = "compiled", build: str = "2",
+                prediction: bool = True) -> tuple[float, dict]:
     """us per period of Master.run_until with the scene's settings on the
     given engine (master.engine) and build ("2", "3", or "3-" for FMI 3.0
     without early return), and its statistics per period."""
     lam = analytic.hoyng_stationary_amplitude(MU0, EPS, PHI0)
     settings = MasterSettings(step=TWO_PI, order="jacobi", engine=engine, fmi_version=int(build[0]),
-                              early_return=not build.endswith("-"))
+                              early_return=not build.endswith("-"), event_prediction=prediction)
     with System({"pendulum": ("Pendulum", dict(PEND, phi_start=lam, integrator=integrator)),
                  "escapement": ("GrasshopperEscapement", dict(torque=MU0, phi_r=PHI0))},
                 LINKS, settings, record={"pendulum": ["tick_time"]}) as s:
@@ -188,6 +180,25 @@ def compiled_rk4(periods: int, dt: float = 0.03) -> float:
         return wall / periods * 1e6
 
 
+COUNTED = ("steps", "states_saved", "rollbacks", "replays", "event_iterations", "predicted_landings", "mispredicted")
+
+
+def event_counts(periods: int, builds: list[str]) -> None:
+    """Per period: the master's steps, FMU-state saves, restores (rollbacks
+    and replays set a saved state) and predicted landings, with event
+    prediction off (rollback locates the switches) and on, per build, from
+    the statistics of a bare run_until on each engine (they must agree)."""
+    label = {"2": "FMI 2.0", "3": "FMI 3.0, early return", "3-": "FMI 3.0, no early return"}
+    print(f"| build | event_prediction | {' | '.join(COUNTED)} | engines agree |")
+    print("|---|---|" + "---|" * len(COUNTED) + "---|")
+    for b in builds:
+        for prediction in (False, True):
+            per = {e: bare_master(periods, 0, e, b, prediction)[1] for e in ENGINES}
+            same = per["python"] == per["compiled"]
+            print(f"| {label[b]} | {str(prediction).lower()} | "
+                  + " | ".join(f"{per['compiled'][k]:.2f}" for k in COUNTED) + f" | {'yes' if same else 'NO'} |")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--periods", type=int, default=2000)
@@ -199,7 +210,12 @@ def main(argv=None) -> int:
                     help="periods of the whole hoyng_fig6 scene per run (0: skip it)")
     ap.add_argument("--fmi-versions", nargs="+", default=["2"], choices=["2", "3", "3-"],
                     help="builds of the FMUs: 2, 3 (FMI 3.0 with early return), 3- (FMI 3.0 without)")
+    ap.add_argument("--counts", action="store_true",
+                    help="only the saves, restores and predicted landings per period, prediction off and on")
     a = ap.parse_args(argv)
+    if a.counts:
+        event_counts(a.periods, a.fmi_versions)
+        return 0
     names = {0: "auto", 1: "DP5(4)", 2: "DOP853"}
     builds = a.fmi_versions
     alone = {i: [] for i in a.integrators}

@@ -170,6 +170,9 @@ def main(argv=None) -> int:
     ap.add_argument("--steps", type=int, default=20000)
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--step-size", type=float, default=1e-3, help="communication step, s")
+    ap.add_argument("--only", nargs="+", metavar="WORD",
+                    help="run only the configurations whose name holds one of these words "
+                         "(e.g. --only 'raw C' for the FMUs' own work, the run to profile with callgrind)")
     a = ap.parse_args(argv)
     runs = {
         "fmpy FMU2Slave calls": lambda: fmpy_convenience(a.steps, a.step_size),
@@ -179,12 +182,16 @@ def main(argv=None) -> int:
            (lambda e=e, ev=ev: clockwork_master(a.steps, a.step_size, ev, e))
            for e in ("python", "compiled") for ev in (False, True)},
     }
+    if a.only:
+        runs = {k: f for k, f in runs.items() if any(w in k for w in a.only)}
+        if not runs:
+            raise SystemExit(f"bench_master: no configuration matches {a.only}")
     samples = {k: [] for k in runs}
     for _ in range(a.repeats):  # interleaved, so that machine noise hits all alike
         for k, f in runs.items():
             samples[k].append(f() / a.steps * 1e6)
-    floor = statistics.median(samples["raw ctypes (floor)"])
-    c_floor = statistics.median(samples["raw C calls (floor)"])
+    floor = statistics.median(samples.get("raw ctypes (floor)", [math.nan]))
+    c_floor = statistics.median(samples.get("raw C calls (floor)", [math.nan]))
     print(f"# {a.steps} steps of {a.step_size} s, 2 FMUs, median of {a.repeats} (us)")
     print("| configuration | per step | per FMU-step | above raw ctypes, per FMU-step | above raw C, per FMU-step |")
     print("|---|---|---|---|---|")

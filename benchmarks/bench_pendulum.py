@@ -7,9 +7,10 @@ with T/100, median of several repeats.
 
 The internal Runge-Kutta steps per period are counted by replaying the FMU's
 do_step (a fresh integrator per communication step, the step-size suggestion
-carried over) with libcw_rk_probe.so and the same right-hand side in Python;
-the replay is checked to end on the FMU's state bit for bit, so the counts
-are the FMU's own.
+carried over, the pair the FMU picks at this rtol) with libcw_rk_probe.so and
+the same right-hand side in Python; the right-hand sides include the dense
+output at ticks and turning points and the two polishing steps of each tick. The replay is checked to end on the FMU's
+state bit for bit, so the counts are the FMU's own.
 
     CW_FMU_DIR=fmus CW_BUILD_DIR=build python benchmarks/bench_pendulum.py [--repeats 7]
 """
@@ -59,6 +60,26 @@ def time_fmu(h: float, periods: int) -> tuple[float, tuple[float, float]]:
         return elapsed, tuple(p.get_many(["phi", "w"]))
 
 
+def pendulum_observer(rkt, lib, method, prob):
+    """A cw_rk observer that evaluates the right-hand sides the Pendulum's
+    observer (observe_step) does: the dense output at a tick or a turning
+    point, and a tick's two polishing steps (tests/fmu/test_rk.py's probe)."""
+    out, xs = rkt.Vec(), rkt.Vec()
+
+    def observe(ctx, rk):
+        r = rk.contents
+        ticked = r.x0[0] < 0.0 <= r.x1[0]
+        if ticked or (r.x0[1] > 0.0 >= r.x1[1]) or (r.x0[1] < 0.0 <= r.x1[1]):
+            lib.cw_rk_dense(rk, r.t0 + 0.5 * r.h, out)
+        if ticked:
+            x0 = rkt.Vec(r.x0[0], r.x0[1])
+            for _ in range(2):
+                lib.cw_rk_single_step_with(method, 2, prob.c, None, r.t0, x0, 0.5 * r.h, xs)
+        return 0
+
+    return rkt.OBSERVER(observe)
+
+
 def count_rk_steps(h: float, periods: int):
     """Replay of the FMU's integration: (accepted, rejected, rhs calls, final x)."""
     import test_rk as rkt
@@ -73,14 +94,18 @@ def count_rk_steps(h: float, periods: int):
         return [x[1], -(G * 1.0 / L) * math.sin(x[0]) - gamma * x[1] + 0.0 / inertia]
 
     prob = rkt.Problem(2, f)
+    # The pair the FMU picks (its `integrator` = 0: by the tolerance, DOP853 at 1e-10).
+    method = lib.cw_rk_choose(0, RTOL)
+    obs = pendulum_observer(rkt, lib, method, prob)
     x, t, h_next = [A, 0.0], 0.0, 0.0
-    acc = rej = rhs = 0
+    acc = rej = 0
     for _ in range(round(periods * PERIOD / h)):
-        res, t_new, x_new, h_next, rk = rkt.advance(lib, prob, x, t, t + h, RTOL, ATOL, h_next=h_next)
+        res, t_new, x_new, h_next, rk = rkt.advance(lib, prob, x, t, t + h, RTOL, ATOL, h_next=h_next,
+                                                    method=method, observer=obs)
         assert res == rkt.OK
-        acc, rej, rhs = acc + rk.n_accepted, rej + rk.n_rejected, rhs + rk.n_rhs
+        acc, rej = acc + rk.n_accepted, rej + rk.n_rejected
         t, x = t_new, list(x_new)
-    return acc, rej, rhs, tuple(x)
+    return acc, rej, len(prob.times), tuple(x)
 
 
 def main(argv=None):

@@ -2,11 +2,7 @@
  * as one Gauss-Seidel communication step (escapement doStep, pendulum
  * doStep, outputs to inputs), made from C with no master logic. Built by
  * bench_master.py with the system's C compiler. */
-#include <stddef.h>
-
-typedef int (*do_step_t)(void *, double, double, int);
-typedef int (*get_real_t)(void *, const unsigned *, size_t, double *);
-typedef int (*set_real_t)(void *, const unsigned *, size_t, const double *);
+#include "raw_fmi_loop.h"
 
 int raw_fmi_loop(void *pend, void *esc, do_step_t pend_step, do_step_t esc_step,
                  get_real_t pend_get, set_real_t pend_set, get_real_t esc_get, set_real_t esc_set,

@@ -102,7 +102,7 @@ BAD_SETTINGS = [
     {"event_time_tolerance": math.nan}, {"iteration_tolerance": -1e-9}, {"richardson_tolerance": 0},
     {"divergence_limit": math.inf}, {"event_indicator_tolerance": None},
     {"iterations": -1}, {"iterations": 1.5}, {"extrapolation": 3}, {"extrapolation": True},
-    {"event_location": "yes"}, {"richardson": 1},
+    {"event_location": "yes"}, {"event_prediction": 1}, {"richardson": 1},
     {"order": "random"}, {"engine": "gpu"},
 ]
 

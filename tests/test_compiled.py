@@ -22,7 +22,7 @@ from clockwork.engine.compiled import CompiledMaster
 from clockwork.engine.master import Master
 from clockwork.engine.recording import Recorder
 from clockwork.errors import SceneError, SimulationError
-from cwtest import assert_one_line_error, run_cli
+from cwtest import assert_one_line_error, run_cli, test_fmu
 
 CLOCK = {"pendulum": ("Pendulum", dict(Q=1000.0, phi_start=math.radians(6))),
          "escapement": ("GrasshopperEscapement", dict(torque=4e-3, phi_r=math.radians(2))),
@@ -58,6 +58,8 @@ def _same_state(p, c):
     dict(step=0.05, event_location=False),
     dict(step=0.1),  # long steps: hidden crossings, replays, the sources' step cap
     dict(step=0.03, event_time_tolerance=1e-6, event_indicator_tolerance=1e-8),
+    dict(step=0.01, iterations=2),  # strong coupling
+    dict(step=0.02, iterations=1, order="jacobi", event_prediction=False),
 ])
 def test_every_step_is_the_same_bits(settings):
     p, c = _pair(CLOCK, LINKS, **settings)
@@ -67,8 +69,33 @@ def test_every_step_is_the_same_bits(settings):
             h = settings["step"] * (1.0 if k % 7 else 0.37)  # off-grid steps too
             assert p.master.step(h) == c.master.step(h)
             _same_state(p, c)
+        st = c.master.stats
         if settings.get("event_location", True):
-            assert c.master.stats.events > 0
+            assert st.events > 0 and (st.predicted_landings > 0) == settings.get("event_prediction", True)
+        assert (st.coupling_iterations > 0) == ("iterations" in settings)
+
+
+@pytest.mark.parametrize("derivative_error", [0.0, 0.3])
+def test_predicted_landings_and_missed_predictions_are_the_same_bits(derivative_error):
+    # Exact derivatives: every switch landed on by prediction; 30 % wrong
+    # ones: predictions miss, and the miss is replayed and located.
+    comps = {"osc": (str(test_fmu("TestOscillator")), dict(amplitude=0.1, omega=3.0,
+                                                          derivative_error=derivative_error)),
+             "escapement": ("GrasshopperEscapement", dict(torque=1e-3, phi_r=0.05))}
+    out = {}
+    for engine in ("python", "compiled"):
+        out[engine] = System(comps, ["osc.x -> escapement.phi", "osc.v -> escapement.w"],
+                             MasterSettings(step=0.3, engine=engine))
+    p, c = out["python"], out["compiled"]
+    with p, c:
+        for k in range(150):
+            assert p.master.step(0.3) == c.master.step(0.3)
+            _same_state(p, c)
+        st = c.master.stats
+        if derivative_error:
+            assert st.mispredicted > 5 and st.replays > 5
+        else:
+            assert st.predicted_landings == st.events > 10 and st.rollbacks == 0
 
 
 def test_replays_and_hidden_crossings_are_exercised_and_agree():
@@ -237,15 +264,13 @@ def test_an_fmu_failure_is_reported_as_by_the_python_master():
 
 
 def test_auto_falls_back_to_python_where_the_core_does_not_reach():
-    with System(CLOCK, LINKS, MasterSettings(step=0.01, iterations=2)) as s:
-        assert type(s.master) is Master
     with System(CLOCK, LINKS, MasterSettings(step=0.01, richardson=True)) as s:
         assert type(s.master) is Master
-    with System(CLOCK, LINKS, MasterSettings(step=0.01)) as s:
-        assert type(s.master) is CompiledMaster
-    for bad in (dict(iterations=2), dict(richardson=True)):
-        with pytest.raises(SceneError, match="master.engine = 'compiled'"):
-            System(CLOCK, LINKS, MasterSettings(step=0.01, engine="compiled", **bad))
+    for settings in (dict(), dict(iterations=2)):  # strong coupling runs in the core too
+        with System(CLOCK, LINKS, MasterSettings(step=0.01, **settings)) as s:
+            assert type(s.master) is CompiledMaster
+    with pytest.raises(SceneError, match="master.engine = 'compiled'"):
+        System(CLOCK, LINKS, MasterSettings(step=0.01, engine="compiled", richardson=True))
 
 
 def test_a_missing_core_library(monkeypatch, tmp_path):
@@ -271,7 +296,6 @@ def test_a_bad_engine_is_bad_input(capsys, tmp_path, value, needle):
 
 
 @pytest.mark.parametrize("settings, needle", [
-    (["master.iterations=2"], "does not iterate the coupling"),
     (["master.richardson=true"], "does not do step doubling"),
 ])
 def test_compiled_where_the_core_does_not_reach_is_bad_input(capsys, tmp_path, settings, needle):

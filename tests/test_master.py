@@ -14,7 +14,7 @@ from clockwork.analyses.steady_state import energy_balance_amplitude, find_stead
 from clockwork.engine.shooting import Shooter
 from clockwork.engine import System
 
-from cwtest import FMU_DIR
+from cwtest import FMU_DIR, test_fmu
 
 GRASSHOPPER_LINKS = [
     "pendulum.phi -> escapement.phi",
@@ -43,12 +43,12 @@ def engine(request, monkeypatch):
     return request.param
 
 
-def grasshopper(torque, phi_r_deg=2.0, Q=1000.0, step=0.5, **pend):
+def grasshopper(torque, phi_r_deg=2.0, Q=1000.0, step=0.5, predict=True, **pend):
     params = {"pendulum": dict(Q=Q, rtol=1e-12, atol=1e-14, **pend),
               "escapement": dict(torque=torque, phi_r=math.radians(phi_r_deg))}
     sysm = System({"pendulum": ("Pendulum", params["pendulum"]),
                    "escapement": ("GrasshopperEscapement", params["escapement"])},
-                  GRASSHOPPER_LINKS, MasterSettings(step=step),
+                  GRASSHOPPER_LINKS, MasterSettings(step=step, event_prediction=predict),
                   record={"pendulum": ["tick_time", "tick_w", "amplitude"]})
     return sysm, params
 
@@ -109,6 +109,49 @@ def test_event_location_makes_the_result_independent_of_the_step():
     assert abs(results[0][1] - results[1][1]) < 1e-9
 
 
+def _oscillator_events(derivative_error: float, predict: bool, t_end: float = 30.0):
+    """An exact oscillator (TestOscillator) through the escapement's
+    switches at |x| = 0.05: the times the master located them at, and its
+    statistics. derivative_error makes the derivatives it reports wrong."""
+    comps = {"osc": (str(test_fmu("TestOscillator")), dict(amplitude=0.1, omega=3.0,
+                                                          derivative_error=derivative_error)),
+             "escapement": ("GrasshopperEscapement", dict(torque=1e-3, phi_r=0.05))}
+    times = []
+    with System(comps, ["osc.x -> escapement.phi", "osc.v -> escapement.w"],
+                MasterSettings(step=0.3, event_prediction=predict)) as s:
+        m = s.master
+        while m.t < t_end:
+            events = m.stats.events
+            m.step(min(0.3, t_end - m.t))
+            if m.stats.events > events:
+                times.append(m.t)
+        return times, m.stats
+
+
+def test_predicted_switches_are_landed_on_without_rollback():
+    """With event prediction, each switch is landed on by steps shortened
+    before they are taken (from the Hermite polynomial through the last
+    step), with no rollback and no location trial, at the times the
+    locator finds without prediction (to its 1e-10 s)."""
+    located, plain = _oscillator_events(0.0, predict=False)
+    predicted, stats = _oscillator_events(0.0, predict=True)
+    assert len(located) == len(predicted) == 28
+    assert stats.predicted_landings == stats.events == 28
+    assert stats.rollbacks == stats.event_iterations == stats.mispredicted == 0
+    assert plain.rollbacks == 56
+    assert max(abs(a - b) for a, b in zip(located, predicted)) <= 1e-10
+
+
+def test_a_missed_prediction_is_caught_by_the_safety_net():
+    """Output derivatives 30 % wrong mislead the prediction: its steps cross
+    a switch beyond the tolerance; those are replayed from the last
+    checkpoint and located as without prediction, to the same bits."""
+    located, _ = _oscillator_events(0.3, predict=False)
+    predicted, stats = _oscillator_events(0.3, predict=True)
+    assert stats.mispredicted > 10 and stats.replays == stats.mispredicted
+    assert predicted == located
+
+
 def test_without_event_location_the_switch_is_smeared():
     """The same clock without event location is wrong by O(step): the reason to locate."""
     ticks = {}
@@ -124,10 +167,11 @@ def test_without_event_location_the_switch_is_smeared():
 
 
 def test_rollback_is_deterministic():
-    """Two identical runs with many rollbacks agree bit for bit."""
+    """Two identical runs with many rollbacks agree bit for bit (prediction
+    off: it lands on most switches without one)."""
     runs = []
     for _ in range(2):
-        sysm, _ = grasshopper(0.004, step=0.3, phi_start=math.radians(6))
+        sysm, _ = grasshopper(0.004, step=0.3, predict=False, phi_start=math.radians(6))
         with sysm:
             sysm.master.run_until(30.0)
             p = sysm.master.ports["pendulum"]
@@ -287,12 +331,14 @@ def test_richardson_does_not_lose_a_crossing_in_the_first_half_step():
     """Step doubling splits each step in two; a switch in the first half
     must be seen by the sign test over the whole step, not only found later
     by the hidden-crossing fallback (which had cost about 5x the trials).
-    The tick time after 40 s agrees with the plain located run."""
+    The tick time after 40 s agrees with the plain located run. (Prediction
+    off: the trials counted are the locator's.)"""
     ticks = {}
     for richardson in (False, True):
         sysm = System({"pendulum": ("Pendulum", dict(Q=1000.0, phi_start=math.radians(5), rtol=1e-12, atol=1e-14)),
                        "escapement": ("GrasshopperEscapement", dict(torque=0.004, phi_r=math.radians(2)))},
-                      GRASSHOPPER_LINKS, MasterSettings(step=0.2, richardson=richardson, richardson_tolerance=1e-6),
+                      GRASSHOPPER_LINKS, MasterSettings(step=0.2, richardson=richardson, richardson_tolerance=1e-6,
+                                                        event_prediction=False),
                       record={"pendulum": ["tick_time"]})
         with sysm:
             sysm.master.run_until(40.0)

@@ -62,17 +62,24 @@ def test_beside_a_clock_without_event_location(engine):
     assert x == pytest.approx(0.5, rel=1e-12)
 
 
+@pytest.mark.parametrize("prediction", (True, False))
 @pytest.mark.parametrize("engine", ENGINES)
-def test_checkpoint_held_means_false(engine):
+def test_checkpoint_held_means_false(engine, prediction):
     """Event location keeps a checkpoint from the first step on (a replay
     may go back to it): every step is told that an earlier state may be set
-    again, on both engines, with the same counts."""
+    again, on both engines, with the same counts; also where the switches
+    are landed on by prediction, without a rollback (a miss would replay
+    from the checkpoint)."""
     comps = dict(CLOCK, forget=(str(forget(2)), {}))
-    with System(comps, LINKS, MasterSettings(engine=engine, step=0.01)) as s:
+    with System(comps, LINKS, MasterSettings(engine=engine, step=0.01, event_prediction=prediction)) as s:
         s.master.run_until(2.0)
         x, kept, forgotten = counts(s)
         stats = s.master.stats
-    assert stats.events > 0 and stats.rollbacks > 0
+    assert stats.events > 0
+    if prediction:
+        assert stats.predicted_landings > 0
+    else:
+        assert stats.rollbacks > 0
     assert kept == 0 and forgotten >= stats.steps
     assert x == 0.0
 
@@ -87,11 +94,13 @@ def test_same_counts_on_both_engines():
     assert seen[0] == seen[1]
 
 
-def test_rollback_settings_mean_false():
+@pytest.mark.parametrize("engine", ENGINES)
+def test_rollback_settings_mean_false(engine):
     """Strong coupling saves a state at every step and may set it again:
-    every step is told so."""
+    every step is told so (on the compiled core too, which iterates)."""
     comps = {"forget": (str(forget(2)), {}), "decay": (str(test_fmu("TestDecay")), {})}
-    with System(comps, ["forget.x -> decay.v"], MasterSettings(engine="python", step=0.1, iterations=2)) as s:
+    with System(comps, ["forget.x -> decay.v"], MasterSettings(engine=engine, step=0.1, iterations=2)) as s:
+        assert s.master.engine == engine
         s.master.run_until(0.5)
         x, kept, forgotten = counts(s)
     assert kept == 0 and forgotten >= 5

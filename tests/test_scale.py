@@ -230,6 +230,18 @@ def test_threads_give_the_bits_of_one_thread(system, step, steps, order):
         assert one[1]["events"] > 0 and one[1]["rollbacks"] > 0  # the threads stepped rollbacks and replays too
 
 
+@pytest.mark.parametrize("order", ["gauss-seidel", "jacobi"])
+def test_strong_coupling_with_threads_steps_one_after_the_other(order):
+    """master.iterations on the compiled core with threads: each iterate
+    sets the inputs from its own line, so the instances step one after the
+    other there, with the bits of one thread and of the Python engine."""
+    settings = {"step": H, "order": order, "iterations": 2}
+    one = _run(_mixed(), 40, engine="compiled", **settings)
+    assert one[2] == "compiled" and one[1]["coupling_iterations"] > 0
+    assert _run(_mixed(), 40, engine="compiled", threads=2, **settings)[:3] == one[:3]
+    assert _run(_mixed(), 40, engine="python", **settings)[:2] == one[:2]
+
+
 def test_the_runs_that_step_at_once():
     comps, links = _mixed()
     with System(comps, links, MasterSettings(step=H, engine="python")) as s:

@@ -303,6 +303,7 @@ def test_overrides_apply():
     ("pendlum.L=1", "--set pendlum.L: no component named pendlum (did you mean pendulum?)"),
     ("pendulum.L", "--set pendulum.L: expected instance.parameter=value"),
     ("master.stpe=1", "--set master.stpe: unknown key (did you mean step?)"),
+    ("master.event_prediction=1", "--set master.event_prediction = 1: expected true or false"),
     ("sweep.mode=zip", "--set sweep.mode: cannot be set from the command line"),
     ("experiment.stop=-5 s", '--set experiment.stop = "-5 s": expected a time > experiment.start'),
     ("pendulum.phi=1", "--set pendulum.phi: Pendulum.phi is an output, not a parameter"),

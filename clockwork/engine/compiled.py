@@ -14,8 +14,7 @@ output to name for diverging).
 ``make_master`` chooses: ``master.engine = "python"`` is the reference
 loop, ``"compiled"`` the core (bad input when it cannot serve the
 settings), ``"auto"`` the core where it can, else Python. The core does
-not do strong coupling (``master.iterations``) or step doubling
-(``master.richardson``).
+not do step doubling (``master.richardson``).
 """
 
 from __future__ import annotations
@@ -74,7 +73,8 @@ class _Port(_Strict):
          "hist_v", "snap_hist_t", "snap_hist_v", "scaled", "in_factor", "in_offset"],
         ["out_time", "lowered_at"], [],
         ["n_out", "n_in", "n_z", "max_output_derivative_order", "sent_valid", "hist_n",
-         "snap_hist_n", "n_scaled", "ext_order", "pad_"])
+         "snap_hist_n", "n_scaled", "ext_order", "pad_"]
+    ) + _fields(["it_start", "it_end"], [], [], ["can_interpolate", "pad2_"])  # strong coupling
 
 
 class _Master(_Strict):
@@ -91,11 +91,21 @@ class _Master(_Strict):
          "after_event_step", "sample_countdown", "prev_valid", "stale_sources", "snap_valid",
          "snap_after_event", "n_since", "max_replay_steps", "diverged", "err_port", "err_call", "err_status",
          "orders_lowered"]
-    ) + [("n_fmi3", c_int), ("fmi3", c_void_p),  # FMI 3.0 adapters (fmu3._Events), whose time events cap the step
-         ("loops", c_void_p),  # _Loops: the algebraic loops solved in the orders
-         ("pool", c_void_p), ("par_end", c_void_p), ("par_status", c_void_p),  # master.threads (engine/parallel.py)
-         ("after_start", c_void_p), ("after_order", c_void_p),  # per dynamic instance, the updates after its step
-         ("inputs", c_void_p)]  # a _Inputs: inputs driven from samples, or NULL
+    ) + [("n_fmi3", c_int), ("fmi3", c_void_p)] + _fields(  # FMI 3.0 adapters (fmu3._Events), whose time events cap the step
+        ["pred_kind", "pred_u", "pred_du", "pred_ddu", "last_z"],  # prediction (EventLocator.sample, .plan)
+        ["sampled_t", "sampled_before_t", "last_t"], ["predicted_landings", "mispredicted"],
+        ["predicting", "last_valid"]
+    ) + _fields([], ["iteration_tolerance"], ["coupling_iterations"], ["iterations", "pad3_"]) + [  # strong coupling
+        ("loops", c_void_p),  # _Loops: the algebraic loops solved in the orders
+        ("pool", c_void_p), ("par_end", c_void_p), ("par_status", c_void_p),  # master.threads (engine/parallel.py)
+        ("after_start", c_void_p), ("after_order", c_void_p),  # per dynamic instance, the updates after its step
+        ("inputs", c_void_p)]  # a _Inputs: inputs driven from samples, or NULL
+
+
+class _Ticks(_Strict):
+    _fields_ = _fields(["watch_port", "watch_pos", "seen", "rows"],
+                       ["mark", "margin", "period", "last_tick", "prev_tick"], [],
+                       ["n_watch", "capacity", "n_rows", "has_prev"])
 
 
 class _Loop(_Strict):
@@ -123,7 +133,7 @@ class _Recorder(_Strict):
          "tick_pos", "has_interval", "pad_"])
 
 
-for _struct in (_Port, _Master, _Recorder, _Loop, _Loops, _Inputs):
+for _struct in (_Port, _Master, _Recorder, _Ticks, _Loop, _Loops, _Inputs):
     _struct._names = frozenset(n for n, _ in _struct._fields_)
 
 _lib = None
@@ -143,8 +153,8 @@ def load_core():
                 _lib_error = f"the compiled core {path} cannot be loaded ({e}); build it with tools/setup.sh"
                 return None
             for name, struct in (("port", _Port), ("master", _Master), ("recorder", _Recorder), ("fmi3", _Events),
-                                 ("fmi1", _Fmi1), ("me", _ME), ("loop", _Loop), ("loops", _Loops),
-                                 ("inputs", _Inputs)):
+                                 ("ticks", _Ticks), ("fmi1", _Fmi1), ("me", _ME), ("loop", _Loop),
+                                 ("loops", _Loops), ("inputs", _Inputs)):
                 size = getattr(lib, f"cw_sizeof_{name}")
                 size.restype = c_size_t
                 if size() != ctypes.sizeof(struct):
@@ -159,6 +169,11 @@ def load_core():
             lib.cw_run_watch.argtypes = ([POINTER(_Master)] + [c_double] * 4
                                          + [c_int, c_void_p, c_void_p] * 2 + [c_void_p, c_double])
             lib.cw_run_watch.restype = c_int
+            lib.cw_run_ticks.argtypes = [POINTER(_Master), c_double, c_double, POINTER(_Ticks), c_double]
+            lib.cw_run_ticks.restype = c_int
+            lib.cw_run_schedule.argtypes = ([POINTER(_Master), c_int] + [c_void_p] * 3 + [c_int] + [c_void_p] * 2
+                                            + [c_int] + [c_void_p] * 5 + [c_double])
+            lib.cw_run_schedule.restype = c_int
             lib.cw_discontinuity.argtypes = [POINTER(_Master)]
             lib.cw_discontinuity.restype = None
             lib.cw_pool_new.argtypes = [c_int]
@@ -178,8 +193,6 @@ def core_problem() -> str | None:
 
 def unsupported(settings: MasterSettings) -> str | None:
     """Why the core cannot run these settings, or None."""
-    if settings.iterations > 0:
-        return "the compiled core does not iterate the coupling (master.iterations > 0)"
     if settings.richardson:
         return "the compiled core does not do step doubling (master.richardson = true)"
     return None
@@ -223,6 +236,11 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
     master.engine_reason = reason
     return master
 
+
+# The statistics the core counts (`rejected` stays 0: the core does not
+# do step doubling).
+_CORE_STATS = ("steps", "events", "event_iterations", "rollbacks", "replays", "states_saved",
+               "predicted_landings", "mispredicted", "coupling_iterations")
 
 _CALL_FIELDS = ("doStep", "getReal", "setReal", "setInputDerivatives", "getOutputDerivatives",
                 "getState", "setState")
@@ -283,8 +301,7 @@ class CompiledMaster(Master):
     def stats(self) -> Statistics:
         c, lc = self._core, self._loops
         return with_model_exchange(
-            Statistics(steps=c.steps, events=c.events, event_iterations=c.event_iterations,
-                       rollbacks=c.rollbacks, replays=c.replays, states_saved=c.states_saved,
+            Statistics(**{name: getattr(c, name) for name in _CORE_STATS},
                        loop_iterations=lc.iterations, loop_fallbacks=lc.fallbacks),
             self._model_exchange)
 
@@ -292,7 +309,7 @@ class CompiledMaster(Master):
     def stats(self, value: Statistics) -> None:
         core = self.__dict__.get("_core")
         if core is not None:
-            for name in ("steps", "events", "event_iterations", "rollbacks", "replays", "states_saved"):
+            for name in _CORE_STATS:
                 setattr(core, name, getattr(value, name))
             self._loops.iterations, self._loops.fallbacks = value.loop_iterations, value.loop_fallbacks
 
@@ -347,6 +364,8 @@ class CompiledMaster(Master):
             c.in_factor = ref(_array(c_double, (f for _, f, _ in p.scale)))
             c.in_offset = ref(_array(c_double, (o for _, _, o in p.scale)))
             c.n_scaled = len(p.scale)
+            c.it_start, c.it_end = ref(_array(c_double, [], p.n_in)), ref(_array(c_double, [], p.n_in))
+            c.can_interpolate = int(bool(inst.can_interpolate_inputs))
             c.ext_order = p.ext_order
             c.n_out, c.n_in, c.n_z = p.n_out, p.n_in, len(p.z_pos)
             c.max_output_derivative_order = inst.max_output_derivative_order
@@ -380,6 +399,12 @@ class CompiledMaster(Master):
                      "snap_z_end"):
             setattr(m, name, ref(_array(c_double, [], nz)))
         m.prev_kind, m.end_rate_set = ref(_array(c_int, [], nz)), ref(_array(c_int, [], nz))
+        m.pred_kind = ref(_array(c_int, [], 2 * nz))
+        for name in ("pred_u", "pred_du", "pred_ddu"):
+            setattr(m, name, ref(_array(c_double, [], 2 * nz)))
+        m.last_z = ref(_array(c_double, [], nz))
+        m.predicting = int(self._predicting)
+        m.iterations, m.iteration_tolerance = int(self.settings.iterations), self.settings.iteration_tolerance
         m.since, m.cap_since = ref(_array(c_double, [], MAX_SINCE)), MAX_SINCE
         m.n_ports, m.n_z = len(ports.all), nz
         fmi3 = [ctypes.addressof(ev) for ev in self.fmi3_events]
@@ -581,6 +606,57 @@ class CompiledMaster(Master):
         if rc not in (_DONE, _WATCHED):
             self._handle(rc)
         return before[:n_r]
+
+    def run_ticks(self, t_stop, mark, margin, watched, period, on_rows, rows_per_call=4096):
+        if self.on_step is not None:
+            return super().run_ticks(t_stop, mark, margin, watched, period, on_rows, rows_per_call)
+        index = {id(p): i for i, p in enumerate(self.ports.all)}
+        width = len(watched) + 1
+        rows = (c_double * (rows_per_call * width))()
+        seen = _array(c_double, (p.out[j] for p, j in watched))
+        arrays = [_array(c_int, (index[id(p)] for p, _ in watched)), _array(c_int, (j for _, j in watched)), seen]
+        k = _Ticks(watch_port=ctypes.addressof(arrays[0]), watch_pos=ctypes.addressof(arrays[1]),
+                   seen=ctypes.addressof(seen), rows=ctypes.addressof(rows), mark=mark, margin=margin,
+                   period=period, last_tick=seen[0], prev_tick=0.0, n_watch=len(watched),
+                   capacity=rows_per_call, n_rows=0, has_prev=0)
+        k_ptr = byref(k)
+        while True:
+            rc = self._lib.cw_run_ticks(self._core_ptr, t_stop, self.settings.step, k_ptr, self.slice_s)
+            if self._core.orders_lowered:
+                self._orders_lowered()
+            if k.n_rows:
+                flat = rows[:k.n_rows * width]
+                k.n_rows = 0
+                on_rows(list(zip(*[iter(flat)] * width)))
+            if rc == _DONE:
+                return
+            if rc not in (_BUFFER_FULL, _SLICE_OVER):
+                self._handle(rc)  # raises, but for a divergence check that finds nothing
+
+    def run_schedule(self, times, sets, values, inputs, outputs, samples):
+        if self.on_step is not None:
+            return super().run_schedule(times, sets, values, inputs, outputs, samples)
+        index = {id(p.inst): i for i, p in enumerate(self.ports.all)}
+        port_of = {id(p): i for i, p in enumerate(self.ports.all)}
+        n = len(times)
+        arrays = [_array(c_double, times), _array(c_int, (int(bool(x)) for x in sets)), _array(c_double, values),
+                  _array(c_int, (index[id(inst)] for inst, _ in inputs)), _array(c_uint, (vr for _, vr in inputs)),
+                  _array(c_int, (port_of[id(p)] for p, _ in outputs)), _array(c_int, (j for _, j in outputs))]
+        width = len(outputs)
+        rows = (c_double * max(1, (n - sum(1 for x in sets if x)) * width))()
+        nxt, n_rows = c_int(0), c_int(0)
+        a = [ctypes.addressof(x) for x in arrays]
+        while True:
+            rc = self._lib.cw_run_schedule(self._core_ptr, n, a[0], a[1], a[2], len(inputs), a[3], a[4], width,
+                                           a[5], a[6], ctypes.addressof(rows), byref(nxt), byref(n_rows),
+                                           self.slice_s)
+            if self._core.orders_lowered:
+                self._orders_lowered()
+            if rc == _DONE:
+                break
+            if rc != _SLICE_OVER:
+                self._handle(rc)  # raises, but for a divergence check that finds nothing
+        samples.extend(rows[:n_rows.value * width])
 
     def _native(self, recorder: Recorder):
         # Made once per recorder: a run is called in chunks (analyses.time_series), and systems have

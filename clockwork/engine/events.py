@@ -73,14 +73,21 @@ def hermite_root(h: float, z0: float, dz0: float, z1: float, dz1: float,
     else:
         a, b, c, d = _hermite_coefficients(h, z0, dz0, z1, dz1)
         coef = [d, c, b, a]
+    x = _newton_in_bracket(coef, z0 / (z0 - z1) if z0 != z1 else 0.5, 0.0, 1.0, z0 > 0.0, False)
+    return x * h if 0.0 < x < 1.0 else None
+
+
+def _newton_in_bracket(coef: list[float], x: float, lo: float, hi: float, positive: bool,
+                       relative: bool) -> float:
+    """A root of the polynomial in (lo, hi), where it is `positive` at lo:
+    Newton's method from x, kept inside the shrinking bracket by bisection,
+    until a step is below 1e-15 (relative: <= 1e-15 hi)."""
     slope = [k * ck for k, ck in enumerate(coef)][1:]
-    lo, hi = 0.0, 1.0
-    x = z0 / (z0 - z1) if z0 != z1 else 0.5
     for _ in range(50):
         f = _horner(coef, x)
         if f == 0.0:
             break
-        if (f > 0.0) == (z0 > 0.0):
+        if (f > 0.0) == positive:
             lo = x
         else:
             hi = x
@@ -88,11 +95,10 @@ def hermite_root(h: float, z0: float, dz0: float, z1: float, dz1: float,
         x_new = x - f / df if df != 0.0 else 0.5 * (lo + hi)
         if not lo < x_new < hi:
             x_new = 0.5 * (lo + hi)
-        if abs(x_new - x) < 1e-15:
-            x = x_new
-            break
+        if (abs(x_new - x) <= 1e-15 * hi) if relative else (abs(x_new - x) < 1e-15):
+            return x_new
         x = x_new
-    return x * h if 0.0 < x < 1.0 else None
+    return x
 
 
 def _horner(coef: list[float], x: float) -> float:
@@ -126,3 +132,66 @@ def hermite_extremum(h: float, z0: float, dz0: float, z1: float, dz1: float) -> 
             if (val > 0) != (z0 > 0) or val == 0.0:
                 return sx * h
     return None
+
+
+# -- prediction: where an indicator will cross, before the step ----------------
+
+PREDICTION_HORIZON = 16.0  # extrapolate at most this many times the last step's length
+_SCAN = 8  # points at which the extrapolant is scanned for its first sign change
+
+
+def extrapolants(h: float, z0: float, dz0: float, z1: float, dz1: float,
+                 ddz0: float | None = None, ddz1: float | None = None) -> tuple[list[float], list[float]]:
+    """The Hermite polynomials through the last step, continued past its end.
+
+    The last step of h s ran from a (z0, dz/dt, d2z/dt2) to b (z1, ...).
+    Returns the coefficients, in y = (time since b) / h, of a higher and a
+    lower order polynomial matching those data: quintic and quartic (b's
+    second derivative only) when both second derivatives are given, else
+    cubic and quadratic (a's slope left out). Their roots ahead of b differ
+    by about the lower one's error, which is the error estimate.
+    """
+    c1 = h * dz1
+    if ddz0 is not None and ddz1 is not None:
+        hh = h * h
+        c2 = 0.5 * hh * ddz1
+        # What the Taylor terms at b leave of a's value, slope and curvature.
+        e0 = z0 - ((z1 - c1) + c2)
+        e1 = h * dz0 - (c1 - hh * ddz1)
+        e2 = hh * ddz0 - hh * ddz1
+        high = [z1, c1, c2, -0.5 * (e2 + 8.0 * e1 + 20.0 * e0), -(e2 + 7.0 * e1 + 15.0 * e0),
+                -0.5 * (e2 + 6.0 * e1 + 12.0 * e0)]
+        low = [z1, c1, c2, -(4.0 * e0 + e1), -(3.0 * e0 + e1)]
+    else:
+        e0 = z0 - (z1 - c1)
+        e1 = h * dz0 - c1
+        high = [z1, c1, 3.0 * e0 + e1, 2.0 * e0 + e1]
+        low = [z1, c1, e0]
+    return high, low
+
+
+def first_root(coef: list[float], y_max: float) -> float | None:
+    """The first y in (0, y_max] where the polynomial changes sign from its
+    value at 0 (found on a scan of _SCAN points, then by Newton's method
+    kept inside the bracket), or None."""
+    z0 = coef[0]
+    positive = z0 > 0.0
+    lo, f_lo = 0.0, z0
+    hi = f_hi = None
+    for i in range(1, _SCAN + 1):
+        y = y_max * i / _SCAN
+        f = _horner(coef, y)
+        if f == 0.0 or (f > 0.0) != positive:
+            hi, f_hi = y, f
+            break
+        lo, f_lo = y, f
+    if hi is None:
+        return None
+    if f_hi == 0.0:
+        return hi
+    return _newton_in_bracket(coef, lo + (hi - lo) * (f_lo / (f_lo - f_hi)), lo, hi, positive, True)
+
+
+def slope_at(coef: list[float], y: float) -> float:
+    """d/dy of the polynomial at y."""
+    return _horner([k * ck for k, ck in enumerate(coef)][1:], y)

@@ -29,12 +29,18 @@ import math
 from ctypes import c_double, c_int, c_uint
 
 from ..errors import SimulationError
-from .events import Illinois, hermite_extremum, hermite_root
+from .events import PREDICTION_HORIZON, Illinois, extrapolants, first_root, hermite_extremum, hermite_root, slope_at
 from .fmu import WARNING, Instance
 from .ports import Port, feeds
 
 _ORDER_ONE = (c_int * 1)(1)
 _ORDER_TWO = (c_int * 1)(2)
+_ORDERS_ONE_TWO = (c_int * 2)(1, 2)
+
+
+# What a predicted step is (EventLocator.plan): free of crossings, short of
+# the predicted crossing, or just past it.
+CLEAR, APPROACH, LAND = 1, 2, 3
 
 
 def crossed(z0: float, z1: float) -> bool:
@@ -71,6 +77,11 @@ class EventLocator:
         self.time_to_zero = 0.0
         self.sources = self._indicator_sources()
         self.has_sources = any(x is not None for x in self.sources)
+        # Per indicator: an earlier indicator with the same source output, or None.
+        self._same_source = [next((j for j in range(k) if self.sources[j] is not None and info is not None
+                                   and self.sources[j][0] is info[0] and self.sources[j][3][0] == info[3][0]),
+                                  None) for k, info in enumerate(self.sources)]
+        self._two = ((c_uint * 2)(), (c_double * 2)())  # one call for d/dt and d2/dt2
         self.sample_countdown = 0
         self.located_from = 0.0  # where the last located step started, s
         self._rate = (c_double * 1)()  # per locator: masters may run in threads
@@ -84,6 +95,12 @@ class EventLocator:
         self.step_cap = math.inf  # s
         self.end_rates = {}  # indicator -> d(source)/dt at the step's end
         self.stale_sources = False
+        # Prediction: the sources (u, du/dt, d2u/dt2 or None) per indicator
+        # at the last two step starts that were sampled, and the last step
+        # (its start, s, and the indicators at its start) when no event ended it.
+        self.sampled = self.sampled_before = None
+        self.sampled_t = self.sampled_before_t = math.nan
+        self.last_step = None
 
     def forget_end_rates(self) -> None:
         if self.end_rates:
@@ -166,8 +183,11 @@ class EventLocator:
                 mem.append((u, None))
                 continue
             du = self.end_rates.get(k)
+            second = inst.max_output_derivative_order >= 2 and u != 0.0
+            acc = None
             if du is None:
-                du = self.output_rate(inst, vr)
+                # Both derivatives in one call where both are wanted.
+                du, acc = self.output_rates(inst, vr) if second else (self.output_rate(inst, vr), None)
             mem.append((u, du))
             if du is not None:
                 amp_u, amp_du = self.amplitudes[k]
@@ -176,8 +196,9 @@ class EventLocator:
                 self.amplitudes[k] = (amp_u, amp_du)
                 omega = amp_du / amp_u if amp_u > 0.0 else 0.0
                 # At a turning point |du| says nothing yet; |d2u/dt2| / |u| does.
-                if inst.max_output_derivative_order >= 2 and u != 0.0:
-                    acc = self.output_rate(inst, vr, order=2)
+                if second:
+                    if acc is None:
+                        acc = self.output_rate(inst, vr, order=2)
                     if acc is not None:
                         omega = max(omega, math.sqrt(abs(acc / u)))
                 if omega > 0.0:
@@ -218,7 +239,108 @@ class EventLocator:
                 best = x
         return best
 
+    # -- prediction -----------------------------------------------------------
+
+    def output_rates(self, inst: Instance, vr) -> tuple[float | None, float | None]:
+        """(du/dt, d2u/dt2) of a source output, in one call where the FMU
+        offers both; None for what it refuses."""
+        if inst.max_output_derivative_order >= 2:
+            two = self._two
+            two[0][0] = two[0][1] = vr[0]
+            if inst.c_getOutputDerivatives(inst.component, two[0], 2, _ORDERS_ONE_TWO, two[1]) <= WARNING:
+                return two[1][0], two[1][1]
+        return self.output_rate(inst, vr), None
+
+    def sample(self, t: float) -> None:
+        """The sources' values and derivatives here, at t (for plan); an
+        output that is the source of several indicators is asked once."""
+        self.sampled_before, self.sampled_before_t = self.sampled, self.sampled_t
+        now = []
+        for k, info in enumerate(self.sources):
+            if info is None:
+                now.append(None)
+                continue
+            src, pos, inst, vr = info
+            same = self._same_source[k]
+            if same is not None:
+                now.append(now[same])
+                continue
+            rate, acc = self.output_rates(inst, vr)
+            now.append(None if rate is None else (src.out[pos], rate, acc))
+        self.sampled, self.sampled_t = now, t
+
+    def plan(self, t: float, h: float) -> tuple[int, float] | None:
+        """Before the step from t of h s: (kind, step) when every indicator's
+        next crossing can be predicted from the Hermite polynomial through
+        the last step (the sources' values and derivatives at its two ends,
+        the indicator affine in its source), else None.
+
+        CLEAR: no crossing in the step; APPROACH: a crossing, but predicted
+        too coarsely to land on: stop short of it by twice the estimated
+        error; LAND: a step just past it, as close as locate would land.
+        """
+        last = self.last_step
+        if last is None or self.sampled_t != t or self.sampled_before_t != last[0]:
+            return None
+        t_a, z_a = last
+        span = t - t_a
+        if not span > 0.0:
+            return None
+        s = self.master.settings
+        z_b = self.z_end
+        kind, step = CLEAR, h
+        for k in range(len(z_b)):
+            if z_a[k] == z_b[k]:
+                continue  # an indicator that did not move does not cross by moving
+            now, before = self.sampled[k], self.sampled_before[k]
+            if now is None or before is None or z_b[k] == 0.0:
+                return None
+            u1, du1, ddu1 = now
+            u0, du0, ddu0 = before
+            if u1 == u0:
+                return None
+            ratio = (z_b[k] - z_a[k]) / (u1 - u0)  # dz/du: affine near the crossing
+            second = ddu0 is not None and ddu1 is not None
+            high, low = extrapolants(span, z_a[k], ratio * du0, z_b[k], ratio * du1,
+                                     ratio * ddu0 if second else None, ratio * ddu1 if second else None)
+            y_max = min(h / span, PREDICTION_HORIZON)
+            y_high, y_low = first_root(high, y_max), first_root(low, y_max)
+            if y_high is None:
+                if y_low is not None or h / span > PREDICTION_HORIZON:
+                    return None
+                continue  # clear of this indicator
+            if y_low is None:
+                return None
+            at = y_high * span
+            err = abs(at - y_low * span)
+            rate = slope_at(high, y_high) / span
+            past = 0.25 * s.event_time_tolerance
+            if rate != 0.0:
+                past = min(past, 0.25 * s.event_indicator_tolerance / abs(rate))
+            if 2.0 * err <= past and at + past <= h:
+                this, mine = LAND, at + past
+            elif 2.0 * err < 0.95 * at:
+                this, mine = APPROACH, at - 2.0 * err
+            else:
+                return None
+            if mine < step:
+                kind, step = this, mine
+        # A step must move the FMUs' clock.
+        if (t + step) - t < 8 * math.ulp(abs(t) + step + 1.0):
+            return None
+        return kind, step
+
     # -- locating ------------------------------------------------------------
+
+    @staticmethod
+    def lead(crossings: list[bool], z0: list[float], z1: list[float]) -> int:
+        """The crossing indicator whose linear interpolant crosses first."""
+        return min((k for k, c in enumerate(crossings) if c), key=lambda k: z0[k] / (z0[k] - z1[k]))
+
+    def time_tolerance(self, t: float, h: float) -> float:
+        """How close locate brackets a crossing in the step from t of h s:
+        far from t = 0 a double cannot resolve the tolerance, so a few ulps."""
+        return max(self.master.settings.event_time_tolerance, 4 * math.ulp(abs(t) + h))
 
     def locate(self, t: float, h: float, crossings: list[bool], z0: list[float], z1: list[float]) -> float:
         """Shorten the step from t (a checkpoint) to land just past the
@@ -227,7 +349,7 @@ class EventLocator:
         s = m.settings
         checkpoints = m.checkpoints
         # The indicator whose linear interpolant crosses first leads.
-        lead = min((k for k, c in enumerate(crossings) if c), key=lambda k: z0[k] / (z0[k] - z1[k]))
+        lead = self.lead(crossings, z0, z1)
         slope_end = self.slope_source(lead)
         checkpoints.rollback()
         first = None
@@ -248,8 +370,7 @@ class EventLocator:
         z_lo = list(z0)
         base = 0.0  # offset from t of the checkpoint the trials start from
         last = None  # the FMUs stand at the checkpoint after the rollback above
-        # Far from t = 0 a double cannot resolve the tolerance: use a few ulps.
-        time_tol = max(s.event_time_tolerance, 4 * math.ulp(abs(t) + h))
+        time_tol = self.time_tolerance(t, h)
         while True:
             if hi - search.lo <= time_tol or abs(z_hi[lead]) <= s.event_indicator_tolerance:
                 break

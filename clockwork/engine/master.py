@@ -32,12 +32,13 @@ Around it, ``step`` adds what makes the result accurate:
 from __future__ import annotations
 
 import math
+from ctypes import c_double, c_uint
 
 from .checkpoints import Checkpoints
 from .description import no_state_reason
 from .coupling import InputCoupling, iterate_step
 from .fmu import DISCARD, NO_MESSAGE, WARNING, Instance, free_all
-from .location import EventLocator, crossed, scan
+from .location import APPROACH, LAND, EventLocator, crossed, scan
 from .parallel import updates_after
 from .ports import Port, Ports
 from .richardson import StepDoubling
@@ -105,6 +106,7 @@ class Master:
         self.after_event_step = False  # the step now being taken ended at an event
         self._needs_rollback = settings.iterations > 0 or settings.richardson
         self._locating = bool(settings.event_location and self.locator.active)
+        self._predicting = self._locating and settings.event_prediction and self.locator.has_sources
         self._extrapolating = bool(settings.extrapolation)
         self._jacobi = settings.order == "jacobi"
         self._check_rollback()
@@ -385,20 +387,32 @@ class Master:
         self.after_event_step = False
         # 2. A checkpoint where the step may need a rollback. Could an
         # indicator reach zero in this step? Conservative: at 4x the last
-        # step's rate of change. A checkpoint also bounds how far back a
-        # replay must go.
+        # step's rate of change. Where the crossing can be predicted, the
+        # step is shortened to land on it (or clear of it) instead, and needs
+        # no checkpoint: a miss is replayed from the last one. A checkpoint
+        # also bounds how far back a replay must go.
         needs_rollback = self._needs_rollback
         locating = self._locating
         near = locating and (self.after_event or loc.time_to_zero <= 4.0 * h)
-        possible = near or (locating and len(self.checkpoints.since) >= self.MAX_REPLAY_STEPS)
+        predicted = 0
+        if self._predicting:
+            if self.after_event or loc.time_to_zero <= 16.0 * h:
+                loc.sample(t)
+            if near and not self.after_event:
+                plan = loc.plan(t, h)
+                if plan is not None:
+                    predicted, h = plan
+        possible = (near and not predicted) or (locating and len(self.checkpoints.since) >= self.MAX_REPLAY_STEPS)
         if near and loc.stale_sources:
             # The hidden-crossing check needs the sources at the step start.
             loc.remember_sources()
             loc.stale_sources = False
         if possible or needs_rollback:
             self.checkpoints.take()
-        # 3. The step.
-        if not needs_rollback:
+        # 3. The step. One that lands past a predicted crossing is taken as
+        # locate takes its trials: plainly (an iterate or a half step would
+        # see the switched mode at its end and spread it over the step).
+        if not needs_rollback or predicted == LAND:
             self.advance(t, h)
         elif s.richardson:
             h = self.doubling.step(t, h)
@@ -407,7 +421,8 @@ class Master:
         taken = h
         # 4. Events.
         if locating:
-            taken = self._land_on_events(t, h, near, possible or needs_rollback)
+            taken = self._land_on_events(t, h, near and not predicted, possible or needs_rollback, predicted)
+            loc.last_step = None if self.after_event_step else (t, loc.z_start)
         if loc.has_sources:
             # Sources are sampled where a crossing is near, and now and then
             # to keep the time-scale estimate behind the step cap fresh.
@@ -429,9 +444,10 @@ class Master:
             self.on_step(self)
         return taken
 
-    def _land_on_events(self, t: float, h: float, near: bool, checkpointed: bool) -> float:
+    def _land_on_events(self, t: float, h: float, near: bool, checkpointed: bool, predicted: int = 0) -> float:
         """After the step from t of h s: when an indicator crossed zero, land
-        just past the earliest crossing instead. Returns the step taken, s."""
+        just past the earliest crossing instead (unless the step already
+        did, as a predicted landing does). Returns the step taken, s."""
         loc = self.locator
         z0, z1 = loc.z_start, loc.z_end
         time_to_zero = scan(z0, z1, h)
@@ -460,6 +476,20 @@ class Master:
             return h
         crossings = [crossed(a, b) for a, b in zip(z0, z1)]
         z0, z1 = list(z0), list(z1)
+        s = self.settings
+        lead = loc.lead(crossings, z0, z1)
+        if abs(z1[lead]) <= s.event_indicator_tolerance or h <= loc.time_tolerance(t, h):
+            # Already just past the crossing, where locate would stop at once.
+            if predicted == LAND:
+                self.stats.predicted_landings += 1
+            self.stats.events += 1
+            loc.located_from = t
+            self.after_event_step = True
+            loc.time_to_zero = 0.0
+            self.checkpoints.since.append(h)
+            return h
+        if predicted:
+            self.stats.mispredicted += 1
         if not checkpointed:
             # An event in a step predicted free of them: back to the last
             # checkpoint, replay to t, and take the step again from there.
@@ -552,6 +582,62 @@ class Master:
             if any(p.out[j] != x for (p, j), x in zip(watched, seen)):
                 break
         return before
+
+    def run_ticks(self, t_stop: float, mark: float, margin: float, watched: list[tuple[Port, int]],
+                  period: float, on_rows, rows_per_call: int = 4096) -> None:
+        """Step toward t_stop with a communication point just after each tick.
+
+        The first of the `watched` outputs ((port, position) pairs) is a tick
+        time, which changes at each tick. Steps are at most settings.step
+        long and land on `mark` while it lies ahead, then are `margin` s
+        long until a watched output changes; after a tick at tt, the next
+        mark is tt + the last tick period (`period` until two ticks are
+        known) + margin. ``on_rows(rows)`` gets the rows (t, watched
+        values...) of every point where a watched output changed, in
+        batches. The same points as calling ``run_watch`` after each change
+        with the mark so moved, without returning to the caller there.
+        """
+        eps = 1e-12 * max(1.0, abs(t_stop))
+        seen = [p.out[j] for p, j in watched]
+        last_tick, prev_tick = seen[0], None
+        max_step = self.settings.step
+        rows = []
+        while self.t < t_stop - eps:
+            target = mark if self.t < mark - eps else self.t + margin
+            self.step(min(max_step, target - self.t, t_stop - self.t))
+            if any(p.out[j] != x for (p, j), x in zip(watched, seen)):
+                seen = [p.out[j] for p, j in watched]
+                rows.append((self.t, *seen))
+                tt = seen[0]
+                if tt != last_tick:
+                    if last_tick > 0:
+                        prev_tick = last_tick
+                    last_tick = tt
+                    mark = tt + (tt - prev_tick if prev_tick is not None else period) + margin
+                if len(rows) >= rows_per_call:
+                    on_rows(rows)
+                    rows = []
+        if rows:
+            on_rows(rows)
+
+    def run_schedule(self, times, sets, values, inputs: list[tuple[Instance, int]],
+                     outputs: list[tuple[Port, int]], samples: list[float]) -> None:
+        """Step to each of the increasing `times` (s) in turn, one step each
+        (none where the master already stands there); there, where sets[k],
+        give values[k] to every input of `inputs` ((instance, value
+        reference) pairs of unconnected inputs: a piecewise-constant drive),
+        else append the `outputs` ((port, position) pairs) to `samples`."""
+        value = (c_double * 1)()
+        refs = [(inst, inst.c_setReal, inst.component, (c_uint * 1)(vr)) for inst, vr in inputs]
+        for t, is_set, v in zip(times, sets, values):
+            if t > self.t:
+                self.step(t - self.t)
+            if is_set:
+                value[0] = v
+                for inst, c_set, comp, vr in refs:
+                    inst.check(c_set(comp, vr, 1, value), "fmi2SetReal of inputs", self.t)
+            else:
+                samples.extend(p.out[j] for p, j in outputs)
 
     def stop_threads(self) -> None:
         """Stop the threads master.threads started (the compiled core's); here, none."""

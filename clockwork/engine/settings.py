@@ -43,12 +43,17 @@ class MasterSettings:
             FMUs declare, rolling every FMU back to a saved state, and put a
             communication point just past each (every FMU must then declare
             ``canGetAndSetFMUstate``).
+        event_prediction: Where an indicator's source offers output
+            derivatives, extrapolate the indicator before a step near a
+            crossing and shorten the step to land just past the predicted
+            crossing, without a rollback; a prediction that misses is
+            replayed from the last saved state and located as without it.
         event_time_tolerance: How close in time a located event must be to
             the crossing, s (> 0).
         event_indicator_tolerance: How close to zero an event indicator must
             come, in the indicator's own unit (rad for the escapements; > 0).
         iterations: Strong coupling: fixed-point iterations of each step on
-            the coupling signals (whole number >= 0; 0: off; Python engine).
+            the coupling signals (whole number >= 0; 0: off).
         iteration_tolerance: When strong coupling has converged (the largest
             change of a coupling output between iterations) and when an
             algebraic loop has (``iteration_tolerance * max(1, |input|)``),
@@ -113,6 +118,9 @@ class MasterSettings:
     order: str = "gauss-seidel"  # or "jacobi"
     extrapolation: int = 0  # order of the input polynomials: 0, 1, 2
     event_location: bool = True
+    # Predict an indicator's crossing before the step from its source's
+    # output derivatives and land on it without a rollback (location.plan).
+    event_prediction: bool = True
     event_time_tolerance: float = 1e-10  # s
     event_indicator_tolerance: float = 1e-12  # in the indicator's unit (rad)
     iterations: int = 0  # strong coupling: fixed-point iterations per step (0 = off)
@@ -170,7 +178,7 @@ class MasterSettings:
             v = getattr(self, key)
             if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 0:
                 raise SceneError(f"master.{key} = {v!r}: expected a whole number >= 0")
-        for key in ("event_location", "richardson"):
+        for key in ("event_location", "event_prediction", "richardson"):
             if not isinstance(getattr(self, key), bool):
                 raise SceneError(f"master.{key} = {getattr(self, key)!r}: expected true or false")
         if self.order not in ("gauss-seidel", "jacobi"):
@@ -249,5 +257,7 @@ class Statistics:
     states_saved: int = 0
     rejected: int = 0
     coupling_iterations: int = 0
+    predicted_landings: int = 0  # events located by a predicted step, without a rollback
+    mispredicted: int = 0  # predicted steps that crossed beyond the tolerance (then replayed and located)
     loop_iterations: int = 0  # algebraic loops: fixed-point sweeps and Newton iterations
     loop_fallbacks: int = 0  # algebraic loops solved by the Newton fallback

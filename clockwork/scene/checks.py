@@ -249,7 +249,7 @@ def master_value(ctx: Ctx, key: str, value: object):
         if isinstance(value, bool) or value not in (0, 1, 2) or not isinstance(value, int):
             raise ctx.bad(full, value, "0, 1 or 2 (order of the input extrapolation polynomial)")
         return value
-    if key in ("event_location", "richardson", "early_return"):
+    if key in ("event_location", "event_prediction", "richardson", "early_return"):
         if not isinstance(value, bool):
             raise ctx.bad(full, value, "true or false")
         return value

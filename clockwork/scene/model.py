@@ -107,6 +107,7 @@ class MasterConfig:
     order: str = "gauss-seidel"
     extrapolation: int = 0
     event_location: bool = True
+    event_prediction: bool = True  # land on predicted crossings without a rollback
     event_time_tolerance: float = 1e-10  # s
     event_indicator_tolerance: float = 1e-12
     iterations: int = 0

@@ -16,7 +16,7 @@ from .model import Component, Sweep, SweepAxis, show
 MAX_POINTS = 1_000_000  # at a millisecond a point, a quarter of an hour; more is a slip
 _SWEEPABLE_MASTER = ("step", "min_step", "max_step", "extrapolation", "iterations", "iteration_tolerance",
                      "event_time_tolerance", "event_indicator_tolerance", "richardson_tolerance",
-                     "order", "event_location", "richardson", "algebraic_loops")
+                     "order", "event_location", "event_prediction", "richardson", "algebraic_loops")
 
 
 def parse_sweep(ctx: Ctx, t: dict | None, components: dict[str, Component], connected: set) -> Sweep | None:

@@ -13,10 +13,10 @@
  * Python when written in the same order; py_min/py_max keep Python's
  * min()/max() (the first argument wins ties and NaN comparisons).
  *
- * Not covered (the Python master serves them): strong coupling
- * (master.iterations > 0) and step doubling (master.richardson).
- * Algebraic loops are solved in the steps as loops.py solves them
- * (loop_solve); their start in Initialization Mode is Python's.
+ * Not covered (the Python master serves it): step doubling
+ * (master.richardson). Algebraic loops are solved in the steps as
+ * loops.py solves them (loop_solve); their start in Initialization Mode
+ * is Python's.
  *
  * FMI 3.0 and FMI 1.0 instances are called through the adapters at the
  * end of this file (cw3_*, cw1_*): fmi2-shaped functions whose first
@@ -111,6 +111,11 @@ typedef struct {
     int n_scaled;
     int ext_order;            /* order of this FMU's input polynomials (lowered where refused) */
     int pad_;
+    /* Strong coupling (coupling.iterate_step): the sources' values at the
+     * step's start and at the last iterate's end, per input. */
+    double *it_start, *it_end;
+    int can_interpolate;      /* canInterpolateInputs: the iterate's line is handed over as a slope */
+    int pad2_;
 } cw_port;
 
 /* One algebraic loop solved at communication points (clockwork/engine/loops.py). */
@@ -173,6 +178,19 @@ typedef struct {
     int orders_lowered;        /* a port's ext_order was lowered: Python says so */
     int n_fmi3;                /* FMI 3.0 instances, whose announced time events cap the step */
     struct cw_fmi3 **fmi3;
+    /* Prediction (EventLocator.sample and .plan): per indicator, the
+     * sources at the last two sampled step starts, [0, n_z) the newer and
+     * [n_z, 2 n_z) the older: kind 0 none, 1 (u, du/dt), 2 (u, du/dt, d2u/dt2). */
+    int *pred_kind;
+    double *pred_u, *pred_du, *pred_ddu;
+    double *last_z;            /* the indicators at the last step's start (t+) */
+    double sampled_t, sampled_before_t, last_t;
+    long long predicted_landings, mispredicted;
+    int predicting, last_valid;
+    /* Strong coupling: fixed-point iterations per step (0: off). */
+    double iteration_tolerance;
+    long long coupling_iterations;
+    int iterations, pad3_;
     cw_loops *loops;           /* algebraic loops: an order's entry -(i + 1) is loop i */
     cw_pool *pool;             /* master.threads > 1: instances step at once (cw_pool.c); else NULL */
     const int *par_end;        /* per dynamic position a: the end of the run of instances from a that
@@ -716,6 +734,38 @@ static void extrapolate(cw_master *m, cw_port *p, double t)
     }
 }
 
+/* Strong coupling: inputs from the step's start, as a line towards the last
+ * iterate's end where the FMU can interpolate them (coupling.set_inputs
+ * with coupling_end). */
+static int set_coupled_inputs(cw_master *m, int i, double t, double h)
+{
+    cw_port *p = &m->ports[i];
+    int n = p->n_in;
+    memcpy(p->inp, p->it_start, (size_t)n * sizeof(double));
+    double end[n > 0 ? n : 1];
+    memcpy(end, p->it_end, (size_t)n * sizeof(double));
+    for (int a = 0; a < p->n_scaled; a++) {
+        int k = p->scaled[a];
+        p->inp[k] = p->in_factor[a] * p->inp[k] + p->in_offset[a];
+        end[k] = p->in_factor[a] * end[k] + p->in_offset[a];
+    }
+    int st = p->setReal(p->comp, p->in_vr, (size_t)n, p->inp);
+    if (st > FMI_WARNING)
+        return fail(m, i, CALL_SET_INPUTS, st, t, h);
+    memcpy(p->sent, p->inp, (size_t)n * sizeof(double));
+    p->sent_valid = 0;
+    if (p->can_interpolate) {
+        for (int k = 0; k < n; k++) {
+            p->der[k] = (end[k] - p->inp[k]) / h;
+            p->der[n + k] = 0.0;
+        }
+        st = p->setInputDerivatives(p->comp, p->der_vr, (size_t)n, p->der_order, p->der);
+        if (st > FMI_WARNING)
+            return fail(m, i, CALL_SET_INPUT_DERIVATIVES, st, t, h);
+    }
+    return 0;
+}
+
 /* Inputs of a dynamic instance for the step from t (coupling.set_inputs). */
 static int set_inputs(cw_master *m, int i, double t, double h, int smooth)
 {
@@ -826,7 +876,7 @@ static int par_group(cw_master *m, int a, int e, double t, double h, int smooth,
 
 /* -- the communication step (Master.advance) --------------------------------- */
 
-static int advance(cw_master *m, double t, double h)
+static int advance_coupled(cw_master *m, double t, double h, int coupled)
 {
     double t_new = t + h;
     /* noSetFMUStatePriorToCurrentPoint: true only while no checkpoint is
@@ -862,9 +912,11 @@ static int advance(cw_master *m, double t, double h)
     if (m->jacobi)
         for (int a = 0; a < m->n_dynamic; a++)
             if (m->ports[m->dynamic[a]].n_in)
-                TRY(set_inputs(m, m->dynamic[a], t, h, smooth));
+                TRY(coupled ? set_coupled_inputs(m, m->dynamic[a], t, h) : set_inputs(m, m->dynamic[a], t, h, smooth));
     for (int a = 0; a < m->n_dynamic; a++) {
-        int e = m->pool ? m->par_end[a] : a + 1;
+        /* A strongly coupled step sets each input from its iterate's line:
+         * one after the other (par_group sets the plain coupling's). */
+        int e = m->pool && !coupled ? m->par_end[a] : a + 1;
         if (e > a + 1) {  /* instances independent within the step, stepped at once */
             TRY(par_group(m, a, e, t, h, smooth, no_set_prior));
             a = e - 1;
@@ -875,7 +927,7 @@ static int advance(cw_master *m, double t, double h)
         int i = m->dynamic[a];
         cw_port *p = &m->ports[i];
         if (!m->jacobi && p->n_in)
-            TRY(set_inputs(m, i, t, h, smooth));
+            TRY(coupled ? set_coupled_inputs(m, i, t, h) : set_inputs(m, i, t, h, smooth));
         int st = p->doStep(p->comp, t, h, no_set_prior);
         if (st > FMI_WARNING)
             return fail(m, i, CALL_DO_STEP, st, t, h);
@@ -892,6 +944,11 @@ static int advance(cw_master *m, double t, double h)
     if (m->locating)
         indicators(m, m->z_end);
     return 0;
+}
+
+static int advance(cw_master *m, double t, double h)
+{
+    return advance_coupled(m, t, h, 0);
 }
 
 /* -- checkpoints ------------------------------------------------------------- */
@@ -1026,6 +1083,35 @@ static double horner(const double *coef, int n, double x)
     return value;
 }
 
+/* A root of the polynomial (n coefficients, n <= 6) in (lo, hi), where it
+ * is `positive` at lo: Newton's method from x, kept inside the shrinking
+ * bracket by bisection, until a step is below 1e-15 (relative: <= 1e-15
+ * hi) (events._newton_in_bracket). */
+static double newton_in_bracket(const double *coef, int n, double x, double lo, double hi, int positive,
+                                int relative)
+{
+    double slope[5];
+    for (int k = 1; k < n; k++)
+        slope[k - 1] = (double)k * coef[k];
+    for (int it = 0; it < 50; it++) {
+        double f = horner(coef, n, x);
+        if (f == 0.0)
+            break;
+        if ((f > 0.0) == positive)
+            lo = x;
+        else
+            hi = x;
+        double df = horner(slope, n - 1, x);
+        double x_new = df != 0.0 ? x - f / df : 0.5 * (lo + hi);
+        if (!(lo < x_new && x_new < hi))
+            x_new = 0.5 * (lo + hi);
+        if (relative ? fabs(x_new - x) <= 1e-15 * hi : fabs(x_new - x) < 1e-15)
+            return x_new;
+        x = x_new;
+    }
+    return x;
+}
+
 /* Root in (0, h) of the indicator's Hermite interpolant, or NAN. */
 static double hermite_root(double h, double z0, double dz0, double z1, double dz1,
                            int curvature, double ddz0, double ddz1)
@@ -1050,29 +1136,7 @@ static double hermite_root(double h, double z0, double dz0, double z1, double dz
         hermite_coefficients(h, z0, dz0, z1, dz1, &coef[3], &coef[2], &coef[1], &coef[0]);
         n = 4;
     }
-    double slope[5];
-    for (int k = 1; k < n; k++)
-        slope[k - 1] = (double)k * coef[k];
-    double lo = 0.0, hi = 1.0;
-    double x = z0 != z1 ? z0 / (z0 - z1) : 0.5;
-    for (int it = 0; it < 50; it++) {
-        double f = horner(coef, n, x);
-        if (f == 0.0)
-            break;
-        if ((f > 0.0) == (z0 > 0.0))
-            lo = x;
-        else
-            hi = x;
-        double df = horner(slope, n - 1, x);
-        double x_new = df != 0.0 ? x - f / df : 0.5 * (lo + hi);
-        if (!(lo < x_new && x_new < hi))
-            x_new = 0.5 * (lo + hi);
-        if (fabs(x_new - x) < 1e-15) {
-            x = x_new;
-            break;
-        }
-        x = x_new;
-    }
+    double x = newton_in_bracket(coef, n, z0 != z1 ? z0 / (z0 - z1) : 0.5, 0.0, 1.0, z0 > 0.0, 0);
     return (0.0 < x && x < 1.0) ? x * h : NAN;
 }
 
@@ -1113,6 +1177,87 @@ static double hermite_extremum(double h, double z0, double dz0, double z1, doubl
     return NAN;
 }
 
+/* -- prediction: where an indicator will cross, before the step (events.py) -------- */
+
+#define PREDICTION_HORIZON 16.0 /* extrapolate at most this many times the last step */
+#define PREDICTION_SCAN 8       /* points scanned for the extrapolant's first sign change */
+
+/* The Hermite polynomials through the last step of h s (a: z0..., b: z1...)
+ * continued past b, in y = (time since b) / h: the higher order into high
+ * (n_high coefficients), the lower into low (events.extrapolants). */
+static void extrapolants(double h, double z0, double dz0, double z1, double dz1, int second, double ddz0,
+                         double ddz1, double *high, int *n_high, double *low, int *n_low)
+{
+    double c1 = h * dz1;
+    if (second) {
+        double hh = h * h;
+        double c2 = 0.5 * hh * ddz1;
+        double e0 = z0 - ((z1 - c1) + c2);
+        double e1 = h * dz0 - (c1 - hh * ddz1);
+        double e2 = hh * ddz0 - hh * ddz1;
+        high[0] = z1;
+        high[1] = c1;
+        high[2] = c2;
+        high[3] = -0.5 * (e2 + 8.0 * e1 + 20.0 * e0);
+        high[4] = -(e2 + 7.0 * e1 + 15.0 * e0);
+        high[5] = -0.5 * (e2 + 6.0 * e1 + 12.0 * e0);
+        *n_high = 6;
+        low[0] = z1;
+        low[1] = c1;
+        low[2] = c2;
+        low[3] = -(4.0 * e0 + e1);
+        low[4] = -(3.0 * e0 + e1);
+        *n_low = 5;
+    } else {
+        double e0 = z0 - (z1 - c1);
+        double e1 = h * dz0 - c1;
+        high[0] = z1;
+        high[1] = c1;
+        high[2] = 3.0 * e0 + e1;
+        high[3] = 2.0 * e0 + e1;
+        *n_high = 4;
+        low[0] = z1;
+        low[1] = c1;
+        low[2] = e0;
+        *n_low = 3;
+    }
+}
+
+static double slope_at(const double *coef, int n, double y)
+{
+    double slope[5];
+    for (int k = 1; k < n; k++)
+        slope[k - 1] = (double)k * coef[k];
+    return horner(slope, n - 1, y);
+}
+
+/* The first y in (0, y_max] where the polynomial leaves its sign at 0, or
+ * NAN (events.first_root). */
+static double first_root(const double *coef, int n, double y_max)
+{
+    double z0 = coef[0];
+    int positive = z0 > 0.0;
+    double lo = 0.0, f_lo = z0, hi = 0.0, f_hi = 0.0;
+    int found = 0;
+    for (int i = 1; i <= PREDICTION_SCAN; i++) {
+        double y = y_max * (double)i / (double)PREDICTION_SCAN;
+        double f = horner(coef, n, y);
+        if (f == 0.0 || (f > 0.0) != positive) {
+            hi = y;
+            f_hi = f;
+            found = 1;
+            break;
+        }
+        lo = y;
+        f_lo = f;
+    }
+    if (!found)
+        return NAN;
+    if (f_hi == 0.0)
+        return hi;
+    return newton_in_bracket(coef, n, lo + (hi - lo) * (f_lo / (f_lo - f_hi)), lo, hi, positive, 1);
+}
+
 /* -- event location: the locator (location.py) ----------------------------------- */
 
 /* -1 when an indicator changed sign over the step; else the time until the
@@ -1142,6 +1287,26 @@ static int output_rate(cw_master *m, int k, int order, double *rate)
     return src->getOutputDerivatives(src->comp, &m->zs_vr[k], 1, orders, rate) <= FMI_WARNING;
 }
 
+/* du/dt and d2u/dt2 of indicator k's source in one call (EventLocator.
+ * output_rates): 0 when du/dt is refused; *have_acc when d2u/dt2 came too. */
+static int output_rates(cw_master *m, int k, double *du, double *ddu, int *have_acc)
+{
+    cw_port *src = &m->ports[m->zs_port[k]];
+    *have_acc = 0;
+    if (src->max_output_derivative_order >= 2) {
+        unsigned vr2[2] = {m->zs_vr[k], m->zs_vr[k]};
+        static const int orders[2] = {1, 2};
+        double got[2];
+        if (src->getOutputDerivatives(src->comp, vr2, 2, orders, got) <= FMI_WARNING) {
+            *du = got[0];
+            *ddu = got[1];
+            *have_acc = 1;
+            return 1;
+        }
+    }
+    return output_rate(m, k, 1, du);
+}
+
 static void remember_sources(cw_master *m)
 {
     double cap = INFINITY;
@@ -1161,10 +1326,13 @@ static void remember_sources(cw_master *m)
             m->prev_kind[k] = 1;
             continue;
         }
-        double du;
-        int have_du = 1;
+        double du, acc = 0.0;
+        int have_du = 1, have_acc = 0;
+        int second = src->max_output_derivative_order >= 2 && u != 0.0;
         if (m->end_rate_set[k])
             du = m->end_rate[k];
+        else if (second)  /* both derivatives in one call where both are wanted */
+            have_du = output_rates(m, k, &du, &acc, &have_acc);
         else
             have_du = output_rate(m, k, 1, &du);
         m->prev_kind[k] = have_du ? 2 : 1;
@@ -1175,9 +1343,10 @@ static void remember_sources(cw_master *m)
             m->amp_u[k] = amp_u;
             m->amp_du[k] = amp_du;
             double omega = amp_u > 0.0 ? amp_du / amp_u : 0.0;
-            if (src->max_output_derivative_order >= 2 && u != 0.0) {
-                double acc;
-                if (output_rate(m, k, 2, &acc))
+            if (second) {
+                if (!have_acc)
+                    have_acc = output_rate(m, k, 2, &acc);
+                if (have_acc)
                     omega = py_max(omega, sqrt(fabs(acc / u)));
             }
             if (omega > 0.0)
@@ -1223,6 +1392,109 @@ static double hidden_crossing(cw_master *m, double h, const double *z0, const do
     return best;
 }
 
+enum { PLAN_NONE = 0, PLAN_CLEAR = 1, PLAN_APPROACH = 2, PLAN_LAND = 3 };
+
+/* The sources' values and derivatives at t (EventLocator.sample). */
+static void sample_sources(cw_master *m, double t)
+{
+    int nz = m->n_z;
+    memcpy(m->pred_kind + nz, m->pred_kind, (size_t)nz * sizeof(int));
+    memcpy(m->pred_u + nz, m->pred_u, (size_t)nz * sizeof(double));
+    memcpy(m->pred_du + nz, m->pred_du, (size_t)nz * sizeof(double));
+    memcpy(m->pred_ddu + nz, m->pred_ddu, (size_t)nz * sizeof(double));
+    m->sampled_before_t = m->sampled_t;
+    for (int k = 0; k < nz; k++) {
+        m->pred_kind[k] = 0;
+        if (m->zs_port[k] < 0)
+            continue;
+        int same = -1;  /* an earlier indicator with the same source output: asked once */
+        for (int j = 0; j < k && same < 0; j++)
+            if (m->zs_port[j] == m->zs_port[k] && m->zs_vr[j] == m->zs_vr[k])
+                same = j;
+        if (same >= 0) {
+            m->pred_kind[k] = m->pred_kind[same];
+            m->pred_u[k] = m->pred_u[same];
+            m->pred_du[k] = m->pred_du[same];
+            m->pred_ddu[k] = m->pred_ddu[same];
+            continue;
+        }
+        cw_port *src = &m->ports[m->zs_port[k]];
+        int have_acc;
+        if (output_rates(m, k, &m->pred_du[k], &m->pred_ddu[k], &have_acc)) {
+            m->pred_u[k] = src->out[m->zs_pos[k]];
+            m->pred_kind[k] = have_acc ? 2 : 1;
+        }
+    }
+    m->sampled_t = t;
+}
+
+/* Before the step from t of h s: PLAN_CLEAR, PLAN_APPROACH or PLAN_LAND
+ * with *step, when every indicator's next crossing can be predicted from
+ * the Hermite polynomial through the last step; else PLAN_NONE
+ * (EventLocator.plan). */
+static int plan(cw_master *m, double t, double h, double *step_out)
+{
+    if (!m->last_valid || m->sampled_t != t || m->sampled_before_t != m->last_t)
+        return PLAN_NONE;
+    double span = t - m->last_t;
+    if (!(span > 0.0))
+        return PLAN_NONE;
+    int nz = m->n_z, kind = PLAN_CLEAR;
+    double step = h;
+    for (int k = 0; k < nz; k++) {
+        double za = m->last_z[k], zb = m->z_end[k];
+        if (za == zb)
+            continue;  /* did not move: does not cross by moving */
+        int now = m->pred_kind[k], before = m->pred_kind[nz + k];
+        if (!now || !before || zb == 0.0)
+            return PLAN_NONE;
+        double u1 = m->pred_u[k], u0 = m->pred_u[nz + k];
+        if (u1 == u0)
+            return PLAN_NONE;
+        double ratio = (zb - za) / (u1 - u0);
+        int second = before == 2 && now == 2;
+        double high[6], low[5];
+        int n_high, n_low;
+        extrapolants(span, za, ratio * m->pred_du[nz + k], zb, ratio * m->pred_du[k], second,
+                     second ? ratio * m->pred_ddu[nz + k] : 0.0, second ? ratio * m->pred_ddu[k] : 0.0,
+                     high, &n_high, low, &n_low);
+        double y_max = py_min(h / span, PREDICTION_HORIZON);
+        double y_high = first_root(high, n_high, y_max), y_low = first_root(low, n_low, y_max);
+        if (isnan(y_high)) {
+            if (!isnan(y_low) || h / span > PREDICTION_HORIZON)
+                return PLAN_NONE;
+            continue;  /* clear of this indicator */
+        }
+        if (isnan(y_low))
+            return PLAN_NONE;
+        double at = y_high * span;
+        double err = fabs(at - y_low * span);
+        double rate = slope_at(high, n_high, y_high) / span;
+        double past = 0.25 * m->event_time_tolerance;
+        if (rate != 0.0)
+            past = py_min(past, 0.25 * m->event_indicator_tolerance / fabs(rate));
+        int this;
+        double mine;
+        if (2.0 * err <= past && at + past <= h) {
+            this = PLAN_LAND;
+            mine = at + past;
+        } else if (2.0 * err < 0.95 * at) {
+            this = PLAN_APPROACH;
+            mine = at - 2.0 * err;
+        } else {
+            return PLAN_NONE;
+        }
+        if (mine < step) {
+            kind = this;
+            step = mine;
+        }
+    }
+    if ((t + step) - t < 8 * ulp(fabs(t) + step + 1.0))
+        return PLAN_NONE;
+    *step_out = step;
+    return kind;
+}
+
 /* The indicator among the crossing ones whose linear interpolant crosses first. */
 static int earliest(const int *crossing, const double *z0, const double *z1, int n)
 {
@@ -1238,6 +1510,13 @@ static int earliest(const int *crossing, const double *z0, const double *z1, int
         }
     }
     return lead;
+}
+
+/* How close locate brackets a crossing in the step from t of h s: far from
+ * t = 0 a double cannot resolve the tolerance, so a few ulps. */
+static double time_tolerance(const cw_master *m, double t, double h)
+{
+    return py_max(m->event_time_tolerance, 4 * ulp(fabs(t) + h));
 }
 
 /* Shorten the step from t (a checkpoint) to land just past the earliest
@@ -1286,8 +1565,7 @@ static int locate(cw_master *m, double t, double h, const int *crossings, const 
     double base = 0.0;
     int have_last = 0;  /* the FMUs stand at the checkpoint after the rollback */
     double last = 0.0;
-    /* Far from t = 0 a double cannot resolve the tolerance: use a few ulps. */
-    double time_tol = py_max(m->event_time_tolerance, 4 * ulp(fabs(t) + h));
+    double time_tol = time_tolerance(m, t, h);
     for (;;) {
         if (hi - search.lo <= time_tol || fabs(z_hi[lead]) <= m->event_indicator_tolerance)
             break;
@@ -1376,7 +1654,8 @@ static int locate(cw_master *m, double t, double h, const int *crossings, const 
 
 /* After the step from t of h s: when an indicator crossed zero, land just
  * past the earliest crossing instead (Master._land_on_events). */
-static int land_on_events(cw_master *m, double t, double h, int near, int checkpointed, double *taken)
+static int land_on_events(cw_master *m, double t, double h, int near, int checkpointed, int predicted,
+                          double *taken)
 {
     int nz = m->n_z;
     double z0[nz > 0 ? nz : 1], z1[nz > 0 ? nz : 1];
@@ -1416,6 +1695,20 @@ static int land_on_events(cw_master *m, double t, double h, int near, int checkp
     }
     for (int k = 0; k < nz; k++)
         crossings[k] = crossed(z0[k], z1[k]);
+    int lead = earliest(crossings, z0, z1, nz);
+    if (fabs(z1[lead]) <= m->event_indicator_tolerance || h <= time_tolerance(m, t, h)) {
+        /* Already just past the crossing, where locate would stop at once. */
+        if (predicted == PLAN_LAND)
+            m->predicted_landings++;
+        m->events++;
+        m->located_from = t;
+        m->after_event_step = 1;
+        m->time_to_zero = 0.0;
+        *taken = h;
+        return since_append(m, h);
+    }
+    if (predicted)
+        m->mispredicted++;
     if (!checkpointed) {
         /* An event in a step predicted free of them: replay from the checkpoint. */
         TRY(replay_to(m, t));
@@ -1425,6 +1718,49 @@ static int land_on_events(cw_master *m, double t, double h, int near, int checkp
     m->after_event_step = 1;
     m->time_to_zero = 0.0;
     return since_append(m, m->t - m->located_from);
+}
+
+/* -- strong coupling (coupling.iterate_step) ------------------------------------------ */
+
+/* The sources' values of every dynamic instance's inputs, into it_start or it_end. */
+static void coupling_sources(cw_master *m, int end)
+{
+    for (int a = 0; a < m->n_dynamic; a++) {
+        cw_port *p = &m->ports[m->dynamic[a]];
+        double *to = end ? p->it_end : p->it_start;
+        for (int k = 0; k < p->n_in; k++)
+            to[k] = m->ports[p->src_port[k]].out[p->src_pos[k]];
+    }
+}
+
+/* The step from t (a checkpoint) repeated with the dynamic instances'
+ * inputs interpolated between the step's start and the last iterate's end,
+ * until they reach a fixed point or the iteration budget is spent. */
+static int iterate_step(cw_master *m, double t, double h)
+{
+    coupling_sources(m, 0);
+    TRY(advance(m, t, h));
+    for (int it = 0; it < m->iterations; it++) {
+        coupling_sources(m, 1);
+        TRY(rollback(m));
+        TRY(advance_coupled(m, t, h, 1));
+        m->coupling_iterations++;
+        double change = 0.0;
+        int first = 1;  /* Python's max(): the first value, then any larger */
+        for (int a = 0; a < m->n_dynamic; a++) {
+            cw_port *p = &m->ports[m->dynamic[a]];
+            for (int k = 0; k < p->n_in; k++) {
+                double d = fabs(m->ports[p->src_port[k]].out[p->src_pos[k]] - p->it_end[k]);
+                if (first || d > change) {
+                    change = d;
+                    first = 0;
+                }
+            }
+        }
+        if (change <= m->iteration_tolerance)
+            break;
+    }
+    return 0;
 }
 
 /* -- the accurate step (Master.step) ------------------------------------------------ */
@@ -1482,19 +1818,40 @@ static int step(cw_master *m, double h, double *taken_out)
     /* 2. A checkpoint where the step may need a rollback. */
     int locating = m->locating;
     int near = locating && (m->after_event || m->time_to_zero <= 4.0 * h);
-    int possible = near || (locating && m->n_since >= m->max_replay_steps);
+    int predicted = PLAN_NONE;
+    if (m->predicting) {
+        if (m->after_event || m->time_to_zero <= 16.0 * h)
+            sample_sources(m, t);
+        if (near && !m->after_event) {
+            double planned;
+            predicted = plan(m, t, h, &planned);
+            if (predicted)
+                h = planned;
+        }
+    }
+    int possible = (near && !predicted) || (locating && m->n_since >= m->max_replay_steps);
     if (near && m->stale_sources) {
         remember_sources(m);  /* the hidden-crossing check needs them at the step start */
         m->stale_sources = 0;
     }
-    if (possible)
+    if (possible || m->iterations)
         TRY(checkpoint_take(m));
-    /* 3. The step. */
-    TRY(advance(m, t, h));
+    /* 3. The step; one that lands past a predicted crossing plainly, as
+     * locate takes its trials. */
+    if (!m->iterations || predicted == PLAN_LAND)
+        TRY(advance(m, t, h));
+    else
+        TRY(iterate_step(m, t, h));
     double taken = h;
     /* 4. Events. */
-    if (locating)
-        TRY(land_on_events(m, t, h, near, possible, &taken));
+    if (locating) {
+        TRY(land_on_events(m, t, h, near && !predicted, possible || m->iterations, predicted, &taken));
+        m->last_valid = !m->after_event_step;
+        if (m->last_valid) {
+            m->last_t = t;
+            memcpy(m->last_z, m->z_start, (size_t)m->n_z * sizeof(double));
+        }
+    }
     if (m->has_sources) {
         m->sample_countdown--;
         if (near || m->sample_countdown <= 0 || !m->prev_valid) {
@@ -1543,6 +1900,8 @@ CW_EXPORT void cw_start(cw_master *m)
     }
     m->step_cap = INFINITY;
     m->stale_sources = 0;
+    m->sampled_t = m->sampled_before_t = NAN;
+    m->last_valid = 0;
     /* As in Python: the time to the next zero and the sampling countdown
      * carry over a reset; after_event makes the next step check anyway. */
     record_history(m);
@@ -1691,6 +2050,110 @@ CW_EXPORT int cw_run_watch(cw_master *m, double t_stop, double mark, double marg
             if (now != seen[k])  /* NaN counts as a change, as in Python */
                 return CW_WATCHED;
         }
+    }
+    return CW_DONE;
+}
+
+/* Tick points (Master.run_ticks): the watched outputs (the first a tick
+ * time) recorded as rows (t, values...) wherever one changed, and the
+ * next mark put `margin` after where the next tick is expected. */
+typedef struct {
+    const int *watch_port, *watch_pos;
+    double *seen;              /* the watched values at the last row */
+    double *rows;              /* capacity rows of (t, watched values) */
+    double mark, margin, period, last_tick, prev_tick;
+    int n_watch, capacity, n_rows, has_prev;
+} cw_ticks;
+
+CW_EXPORT size_t cw_sizeof_ticks(void) { return sizeof(cw_ticks); }
+
+/* Step toward t_stop with steps of at most max_step, landing on k->mark
+ * while it lies ahead and taking steps of k->margin after it; a row where
+ * a watched output changed; after a tick, the next mark one tick period
+ * (the last one, else k->period) plus the margin after it. Returns
+ * CW_DONE, CW_BUFFER_FULL or CW_SLICE_OVER (call again), or a step's
+ * code (CW_CHECK_DIVERGENCE after the step's row: Python names the output). */
+CW_EXPORT int cw_run_ticks(cw_master *m, double t_stop, double max_step, cw_ticks *k, double slice_s)
+{
+    double eps = 1e-12 * py_max(1.0, fabs(t_stop));
+    struct timespec began;
+    clock_gettime(CLOCK_MONOTONIC, &began);
+    unsigned steps = 0;
+    while (m->t < t_stop - eps) {
+        if (k->n_rows >= k->capacity)
+            return CW_BUFFER_FULL;
+        if (slice_over(&began, &steps, slice_s))
+            return CW_SLICE_OVER;
+        double target = m->t < k->mark - eps ? k->mark : m->t + k->margin;
+        double taken;
+        int rc = step(m, py_min(py_min(max_step, target - m->t), t_stop - m->t), &taken);
+        if (rc < 0 || rc == CW_ENDED)
+            return rc;
+        int changed = 0;
+        for (int j = 0; j < k->n_watch; j++)
+            if (m->ports[k->watch_port[j]].out[k->watch_pos[j]] != k->seen[j])  /* NaN: a change */
+                changed = 1;
+        if (changed) {
+            double *row = &k->rows[(size_t)k->n_rows * (size_t)(k->n_watch + 1)];
+            row[0] = m->t;
+            for (int j = 0; j < k->n_watch; j++)
+                row[j + 1] = k->seen[j] = m->ports[k->watch_port[j]].out[k->watch_pos[j]];
+            k->n_rows++;
+            double tt = k->seen[0];
+            if (tt != k->last_tick) {
+                if (k->last_tick > 0) {
+                    k->prev_tick = k->last_tick;
+                    k->has_prev = 1;
+                }
+                k->last_tick = tt;
+                double period = k->has_prev ? tt - k->prev_tick : k->period;
+                k->mark = tt + period + k->margin;
+            }
+        }
+        if (rc == CW_CHECK_DIVERGENCE)
+            return rc;
+    }
+    return CW_DONE;
+}
+
+/* Step to each of the increasing times in turn, one step each (none where
+ * the master stands there already); there, where sets[k], give values[k]
+ * to the n_in inputs (in_port, in_vr: unconnected inputs), else append the
+ * n_out outputs as a row of `samples` (Master.run_schedule). *next and
+ * *n_rows keep the place across calls (CW_SLICE_OVER, a divergence check). */
+CW_EXPORT int cw_run_schedule(cw_master *m, int n, const double *times, const int *sets, const double *values,
+                              int n_in, const int *in_port, const unsigned *in_vr, int n_out, const int *out_port,
+                              const int *out_pos, double *samples, int *next, int *n_rows, double slice_s)
+{
+    struct timespec began;
+    clock_gettime(CLOCK_MONOTONIC, &began);
+    unsigned steps = 0;
+    while (*next < n) {
+        if (slice_over(&began, &steps, slice_s))
+            return CW_SLICE_OVER;
+        int k = *next, rc = CW_DONE;
+        if (times[k] > m->t) {
+            double taken;
+            rc = step(m, times[k] - m->t, &taken);
+            if (rc < 0 || rc == CW_ENDED)
+                return rc;
+        }
+        if (sets[k]) {
+            for (int a = 0; a < n_in; a++) {
+                cw_port *p = &m->ports[in_port[a]];
+                int st = p->setReal(p->comp, &in_vr[a], 1, &values[k]);
+                if (st > FMI_WARNING)
+                    return fail(m, in_port[a], CALL_SET_INPUTS, st, m->t, 0.0);
+            }
+        } else {
+            double *row = &samples[(size_t)*n_rows * (size_t)n_out];
+            for (int j = 0; j < n_out; j++)
+                row[j] = m->ports[out_port[j]].out[out_pos[j]];
+            (*n_rows)++;
+        }
+        (*next)++;
+        if (rc == CW_CHECK_DIVERGENCE)
+            return rc;
     }
     return CW_DONE;
 }

@@ -104,13 +104,6 @@ int cw_core_allowed(cw_instance *inst, const char *fn, int mask) {
 }
 #define allowed cw_core_allowed
 
-double cw_input(const cw_instance *inst, unsigned vr, double t) {
-    if (inst->intermediate_update && t != inst->intermediate_time)
-        inst->intermediate_update((cw_instance *)inst, t);
-    double dt = t - inst->in_tref[vr];
-    return inst->r[vr] + dt * (inst->in_d1[vr] + 0.5 * dt * inst->in_d2[vr]);
-}
-
 double cw_input_rate(const cw_instance *inst, unsigned vr, double t) {
     return inst->in_d1[vr] + (t - inst->in_tref[vr]) * inst->in_d2[vr];
 }
@@ -202,10 +195,11 @@ static void refresh_outputs(cw_instance *inst) {
 static int outputs_finite(cw_instance *inst, const char *fn) {
     refresh_outputs(inst);
     const cw_model *m = inst->model;
-    for (int k = 0; k < m->nvars; k++) {
+    const int *outputs = inst->real_io + inst->n_real_in;
+    for (int a = 0; a < inst->n_real_out; a++) {
+        const int k = outputs[a];
         const cw_var_info *v = &m->vars[k];
-        if (v->name && v->type == CW_REAL && v->causality == CW_OUTPUT &&
-            !isfinite(inst->r[k])) {
+        if (!isfinite(inst->r[k])) {
             fail(inst,
                  "%s: output %s = %g at t = %.17g is not finite: the inputs "
                  "or parameters are beyond what %s can represent.",
@@ -248,6 +242,12 @@ fmi2Status cw_core_set_debug_logging(cw_instance *inst, const char *fn,
     return fmi2OK;
 }
 
+/* The FMU state's layout (defined with the state below). */
+#define FNV_SEED 14695981039346656037ULL
+static uint64_t fnv1a(const unsigned char *p, size_t n, uint64_t h);
+static int has_strings(const cw_model *m);
+static size_t fixed_state_size(const cw_model *m);
+
 cw_instance *cw_core_instantiate(const cw_instance *proto, const char *fn,
                                  const char *instance_name, const char *token,
                                  const char *token_name) {
@@ -281,13 +281,31 @@ cw_instance *cw_core_instantiate(const cw_instance *proto, const char *fn,
     inst->str = alloc(inst, nv, sizeof(char *));
     if (inst->str)
         for (int k = 0; k < nv; k++) inst->str[k] = NULL;
+    inst->real_io = alloc(inst, nv, sizeof(int));
+    if (inst->real_io) {
+        int n = 0;
+        for (int pass = 0; pass < 2; pass++) {
+            const cw_causality wanted = pass ? CW_OUTPUT : CW_INPUT;
+            for (int k = 0; k < nv; k++) {
+                const cw_var_info *v = &CW_MODEL.vars[k];
+                if (v->name && v->type == CW_REAL && v->causality == wanted)
+                    inst->real_io[n++] = k;
+            }
+            if (!pass) inst->n_real_in = n;
+        }
+        inst->n_real_out = n - inst->n_real_in;
+    }
     if (!inst->instance_name || !inst->r || !inst->i || !inst->in_d1 ||
-        !inst->in_d2 || !inst->in_tref || !inst->s || !inst->u || !inst->str) {
+        !inst->in_d2 || !inst->in_tref || !inst->s || !inst->u || !inst->str ||
+        !inst->real_io) {
         cw_log(&tmp, fmi2Error, "logStatusError", "%s: out of memory.", fn);
         cw_core_free_instance(inst);
         return NULL;
     }
     memcpy(inst->instance_name, instance_name, len);
+    inst->state_fixed = fixed_state_size(&CW_MODEL);
+    inst->state_strings = has_strings(&CW_MODEL);
+    inst->guid_hash = fnv1a((const unsigned char *)CW_MODEL.guid, strlen(CW_MODEL.guid), FNV_SEED);
     inst->state = CW_INSTANTIATED;
     if (!set_start_values(inst)) {
         cw_core_free_instance(inst);
@@ -304,7 +322,7 @@ void cw_core_free_instance(cw_instance *inst) {
             if (inst->str[k]) free_mem(inst->str[k]);
     void *blocks[] = {inst->str, inst->r,     inst->i,       inst->in_d1, inst->in_d2,
                       inst->in_tref, inst->s,     inst->u,
-                      inst->instance_name, inst->scratch};
+                      inst->instance_name, inst->scratch, inst->real_io};
     for (size_t k = 0; k < sizeof blocks / sizeof *blocks; k++)
         if (blocks[k]) free_mem(blocks[k]);
     free_mem(inst);
@@ -663,18 +681,19 @@ static uint64_t fnv1a(const unsigned char *p, size_t n, uint64_t h) {
     }
     return h;
 }
-#define FNV_SEED 14695981039346656037ULL
 
 /* The state's checksum: FNV-1a over little-endian 64-bit words, the tail
  * byte by byte. One multiplication per 8 bytes instead of per byte: a
  * rollback checks it on every fmi2SetFMUstate. Each step is a bijection of
  * the running hash, so any one changed word changes the result. */
+static uint64_t get_u64(const unsigned char **p);
+
 static uint64_t state_checksum(const unsigned char *p, size_t n) {
     uint64_t h = FNV_SEED;
     size_t k = 0;
     for (; k + 8 <= n; k += 8) {
-        uint64_t w = 0;
-        for (int b = 0; b < 8; b++) w |= (uint64_t)p[k + b] << (8 * b);
+        const unsigned char *q = p + k;
+        const uint64_t w = get_u64(&q);
         h ^= w;
         h *= 1099511628211ULL;
     }
@@ -705,18 +724,35 @@ static size_t fixed_state_size(const cw_model *m) {
  * variable, u32 byte count and the bytes (no terminating NUL). */
 static size_t state_size(const cw_instance *inst) {
     const cw_model *m = inst->model;
-    size_t n = fixed_state_size(m);
-    for (int k = 0; k < m->nvars; k++)
-        if (m->vars[k].name && m->vars[k].type == CW_STRING)
-            n += 4 + strlen(inst->str[k]);
+    size_t n = inst->state_fixed;
+    if (inst->state_strings)
+        for (int k = 0; k < m->nvars; k++)
+            if (m->vars[k].name && m->vars[k].type == CW_STRING)
+                n += 4 + strlen(inst->str[k]);
     return n;
 }
 
-/* Explicit little-endian encoding, independent of the host's layout. */
+/* Explicit little-endian encoding, independent of the host's layout (on a
+ * little-endian host a plain copy, which every save and rollback does). */
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+#define CW_LITTLE_ENDIAN 1
+#else
+#define CW_LITTLE_ENDIAN 0
+#endif
 static void put_u32(unsigned char **p, uint32_t x) {
+    if (CW_LITTLE_ENDIAN) {
+        memcpy(*p, &x, 4);
+        *p += 4;
+        return;
+    }
     for (int b = 0; b < 4; b++) *(*p)++ = (unsigned char)(x >> (8 * b));
 }
 static void put_u64(unsigned char **p, uint64_t x) {
+    if (CW_LITTLE_ENDIAN) {
+        memcpy(*p, &x, 8);
+        *p += 8;
+        return;
+    }
     for (int b = 0; b < 8; b++) *(*p)++ = (unsigned char)(x >> (8 * b));
 }
 static void put_f64(unsigned char **p, double x) {
@@ -726,11 +762,21 @@ static void put_f64(unsigned char **p, double x) {
 }
 static uint32_t get_u32(const unsigned char **p) {
     uint32_t x = 0;
+    if (CW_LITTLE_ENDIAN) {
+        memcpy(&x, *p, 4);
+        *p += 4;
+        return x;
+    }
     for (int b = 0; b < 4; b++) x |= (uint32_t)(*(*p)++) << (8 * b);
     return x;
 }
 static uint64_t get_u64(const unsigned char **p) {
     uint64_t x = 0;
+    if (CW_LITTLE_ENDIAN) {
+        memcpy(&x, *p, 8);
+        *p += 8;
+        return x;
+    }
     for (int b = 0; b < 8; b++) x |= (uint64_t)(*(*p)++) << (8 * b);
     return x;
 }
@@ -747,7 +793,7 @@ static void encode_state(const cw_instance *inst, unsigned char *buf,
     unsigned char *p = buf;
     put_u32(&p, STATE_MAGIC);
     put_u32(&p, STATE_LAYOUT_VERSION);
-    put_u64(&p, fnv1a((const unsigned char *)m->guid, strlen(m->guid), FNV_SEED));
+    put_u64(&p, inst->guid_hash);
     put_u32(&p, (uint32_t)size);
     put_u32(&p, (uint32_t)inst->state);
     put_f64(&p, inst->time);
@@ -784,8 +830,8 @@ static void encode_state(const cw_instance *inst, unsigned char *buf,
 static fmi2Status decode_state(cw_instance *inst, const unsigned char *buf,
                                size_t size, const char *fn) {
     const cw_model *m = inst->model;
-    const size_t fixed = fixed_state_size(m);
-    const int strings = has_strings(m);
+    const size_t fixed = inst->state_fixed;
+    const int strings = inst->state_strings;
     if (!buf) return fail(inst, "%s: the state is NULL.", fn);
     if (strings ? size < fixed : size != fixed)
         return fail(inst, "%s: the state has %zu bytes; %s expects %s%zu.", fn,
@@ -800,8 +846,7 @@ static fmi2Status decode_state(cw_instance *inst, const unsigned char *buf,
     if (version != STATE_LAYOUT_VERSION)
         return fail(inst, "%s: state layout version %u, expected %u.", fn,
                     version, STATE_LAYOUT_VERSION);
-    if (guid_hash !=
-        fnv1a((const unsigned char *)m->guid, strlen(m->guid), FNV_SEED))
+    if (guid_hash != inst->guid_hash)
         return fail(inst, "%s: the state belongs to another model, not %s.", fn,
                     m->name);
     if (stored_size != expected)
@@ -957,10 +1002,10 @@ static fmi2Status restore_state(cw_instance *inst, const unsigned char *buf,
     /* The state's Strings, copied before anything changes (decode_state
      * checked the section). */
     char **strings = NULL;
-    const int with_strings = has_strings(m);
+    const int with_strings = inst->state_strings;
     if (st == fmi2OK && commit && with_strings &&
         (strings = alloc(inst, m->nvars, sizeof(char *)))) {
-        const unsigned char *sp = buf + fixed_state_size(m) - 8;
+        const unsigned char *sp = buf + inst->state_fixed - 8;
         for (int k = 0; k < m->nvars; k++) {
             strings[k] = NULL;
             if (!m->vars[k].name || m->vars[k].type != CW_STRING) continue;
@@ -1224,10 +1269,15 @@ fmi2Status cw_core_do_step(cw_instance *inst, const char *fn, double tc,
         return fmi2Error;
     }
     /* Input polynomials are checked where the model will evaluate them:
-     * huge derivatives can overflow them to inf over a step. */
-    for (int k = 0; k < inst->model->nvars; k++) {
+     * huge derivatives can overflow them to inf over a step. A held value
+     * (no derivatives, no intermediate update) is itself at both ends. */
+    for (int a = 0; a < inst->n_real_in; a++) {
+        const int k = inst->real_io[a];
         const cw_var_info *v = &inst->model->vars[k];
-        if (!v->name || v->type != CW_REAL || v->causality != CW_INPUT) continue;
+        if (!inst->intermediate_update && inst->in_d1[k] == 0.0 &&
+            inst->in_d2[k] == 0.0) {
+            if (isfinite(inst->r[k])) continue;
+        }
         const double u0 = cw_input(inst, (unsigned)k, tc),
                      u1 = cw_input(inst, (unsigned)k, t_end);
         if (!isfinite(u0) || !isfinite(u1))

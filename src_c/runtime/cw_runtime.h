@@ -200,10 +200,28 @@ typedef struct cw_instance {
     /* String values by value reference (NULL for other types): owned by
      * the instance, copied on every set, freed on reset and free. */
     char **str;
+
+    /* The value references of the Real inputs (real_io[0 .. n_real_in)) and
+     * outputs (the next n_real_out), found once at instantiation: the
+     * checks at every step and every get visit these, not the whole table. */
+    int *real_io;
+    int n_real_in, n_real_out;
+
+    /* The FMU state's layout constants, found once at instantiation: the
+     * size without Strings, whether the model has Strings, the GUID's hash. */
+    size_t state_fixed;
+    int state_strings;
+    uint64_t guid_hash;
 } cw_instance;
 
-/* Value of input `vr` at time t, following the input derivatives. */
-double cw_input(const cw_instance *inst, unsigned vr, double t);
+/* Value of input `vr` at time t, following the input derivatives. Inline:
+ * a right-hand side reads every input at every stage. */
+static inline double cw_input(const cw_instance *inst, unsigned vr, double t) {
+    if (inst->intermediate_update && t != inst->intermediate_time)
+        inst->intermediate_update((cw_instance *)inst, t);
+    const double dt = t - inst->in_tref[vr];
+    return inst->r[vr] + dt * (inst->in_d1[vr] + 0.5 * dt * inst->in_d2[vr]);
+}
 
 /* Time derivative of input `vr` at time t. */
 double cw_input_rate(const cw_instance *inst, unsigned vr, double t);

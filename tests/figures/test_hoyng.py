@@ -273,6 +273,82 @@ def test_fig6_replayed_twins_equal_cosimulated_twins():
     assert runs["replay"]["result"]["torque_changes"] >= 300
 
 
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_fig6_tick_points_without_returns_are_the_same_bits(engine, monkeypatch):
+    """Master.run_ticks (the master steps from tick point to tick point and
+    hands the changed points over in batches) puts the same communication
+    points as the loop that returns to Python at each of them: the whole
+    result and series, bit for bit, with a batch boundary inside the run."""
+    from clockwork.analyses.hoyng import long_run as lr
+    from clockwork.engine.master import Master
+
+    def returning(m, stop, watched, T0, on_point, progress, label, margin=lr.TICK_MARGIN):
+        (P, i_tick), (E, i_amp) = watched
+        lr._run_with_tick_points(m, stop, P.out, i_tick, watched, [], T0,
+                                 lambda master, rates: on_point(master.t, P.out[i_tick], E.out[i_amp], rates),
+                                 progress, label, margin)
+
+    scene = load_scene(SCENES / "hoyng_fig6.toml", [f"experiment.stop={periods(300)}",
+                                                   f"escapement.noise_start={periods(100)}",
+                                                   f"master.engine={engine}", "analysis.sample_every=7"])
+    run_ticks = Master.run_ticks
+    monkeypatch.setattr(Master, "run_ticks", lambda *a, **k: run_ticks(*a, **{**k, "rows_per_call": 64}))
+    def timeless(x):
+        if isinstance(x, dict):
+            return {k: timeless(v) for k, v in x.items() if not any(w in k for w in ("wall", "cpu", "per_s"))}
+        return x
+
+    out = []
+    for loop in (lr._run_ticks, returning):
+        monkeypatch.setattr(lr, "_run_ticks", loop)
+        out.append(json.dumps(timeless(run_point(scene, {})), sort_keys=True, default=str))
+    assert out[0] == out[1]
+    assert json.loads(out[0])["result"]["torque_changes"] >= 200
+
+
+def _replay_twins_step_by_step(twins, avgs, samples, change_t, change_v, progress, label):
+    """The twins' replay as a Python loop over the torque changes and tick samples."""
+    from ctypes import c_double, c_uint
+    m = twins.master
+    setters = [(twins.instances[a], (c_uint * 1)(twins.instances[a].variables["drive"].vr)) for a in avgs]
+    value = (c_double * 1)()
+    ports = [(m.ports[a].out, m.ports[a].out_names.index("phase")) for a in avgs]
+    t_samples, i_s, i_c = samples["t_tick"], 0, 0
+    while i_s < len(t_samples) or i_c < len(change_t):
+        sample = i_s < len(t_samples) and (i_c >= len(change_t) or t_samples[i_s] <= change_t[i_c])
+        t = t_samples[i_s] if sample else change_t[i_c]
+        if t > m.t:
+            m.step(t - m.t)
+        if sample:
+            for (out, kp), a in zip(ports, avgs):
+                samples[f"psi_{a}"].append(out[kp])
+            i_s += 1
+        else:
+            value[0] = change_v[i_c]
+            for inst, vr in setters:
+                inst.check(inst.c_setReal(inst.component, vr, 1, value), "fmi2SetReal (drive)")
+            i_c += 1
+
+
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_fig6_twins_replayed_by_run_schedule_are_the_same_bits(engine, monkeypatch):
+    """The twins' replay through Master.run_schedule (one call per chunk of
+    changes and samples, split here inside the run) gives the step-by-step
+    loop's phases bit for bit."""
+    from clockwork.analyses.hoyng import long_run as lr
+
+    scene = load_scene(SCENES / "hoyng_fig6.toml", [f"experiment.stop={periods(300)}",
+                                                   f"escapement.noise_start={periods(100)}",
+                                                   f"master.engine={engine}", "analysis.sample_every=3"])
+    fast = lr._replay_twins
+    out = []
+    for replay in (lambda *a: fast(*a, chunk=50), _replay_twins_step_by_step):
+        monkeypatch.setattr(lr, "_replay_twins", replay)
+        r = run_point(scene, {})
+        out.append([r["series"][k] for k in sorted(r["series"]) if "averaged" in k])
+    assert out[0] == out[1] and len(out[0]) == 4 and len(out[0][0]) >= 100
+
+
 def test_escapement_noise_replica_is_bit_exact(tmp_path):
     """escapement_noise() against the FMU: drive the escapement's phi through zero crossings."""
     from clockwork.engine import MasterSettings

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import time
-from ctypes import c_double, c_uint
 from array import array
 
 import numpy as np
@@ -110,19 +109,19 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
         watched = [(P, i_tick), (E, i_amp)]
         remember = [] if replay else [(m.ports[a], m.ports[a].out_names.index("rate")) for a in avgs]
 
-        def on_point(master, rates):
-            amp = eout[i_amp]
+        def on_point(t, tt, amp, rates):
+            """At the communication point t: the tick time tt and the torque
+            amplitude amp there, the twins' rates at the point before."""
             if amp != state[2]:
                 state[2] = amp
-                change_t.append(master.t)
+                change_t.append(t)
                 change_v.append(amp)
-            tt = pout[i_tick]
             if tt == state[0]:
                 return
             state[0] = tt
             state[1] += 1
             i = state[1]
-            if master.t >= t_noise:
+            if t >= t_noise:
                 d = amp / torque0 - 1.0
                 noise["n"] += 1
                 noise["sum"] += d
@@ -130,7 +129,7 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
                 if len(noise["head"]) < 8:
                     noise["head"].append(d)
             # the twins' phases at the tick: back from this point at the step's rate
-            last_tick[:] = [tt, i] + [out[kp] - w0 * r * (master.t - tt)
+            last_tick[:] = [tt, i] + [out[kp] - w0 * r * (t - tt)
                                       for (out, kp, _), r in zip(A, rates if A else ())]
             if i % every == 0 or i == 1:
                 _sample()
@@ -145,8 +144,12 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
 
         last_tick: list = []
 
-        _run_with_tick_points(m, stop, pout, i_tick, watched, remember, n["T0"], on_point, progress,
-                              scene.path.stem)
+        if A:
+            _run_with_tick_points(m, stop, pout, i_tick, watched, remember, n["T0"],
+                                  lambda master, rates: on_point(master.t, pout[i_tick], eout[i_amp], rates),
+                                  progress, scene.path.stem)
+        else:  # the same points, with no return to Python at each of them
+            _run_ticks(m, stop, watched, n["T0"], on_point, progress, scene.path.stem)
         if state[1] % every and state[1] > 1:
             _sample()
         stats = vars(m.stats).copy()
@@ -204,47 +207,60 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
             "noise_head": noise["head"]}
 
 
-def _replay_twins(twins, avgs, samples, change_t, change_v, progress, label) -> None:
+def _replay_twins(twins, avgs, samples, change_t, change_v, progress, label, chunk: int = 1 << 16) -> None:
     """Step the AveragedPendulum twins through the recorded torque changes,
-    reading their phases at the sampled tick times."""
+    reading their phases at the sampled tick times (a sample before the
+    change seen at the point after it): the master's run_schedule, in
+    chunks between which the progress bar moves."""
     from tqdm import tqdm
 
     m = twins.master
-    setters = []
-    for a in avgs:
-        inst = twins.instances[a]
-        setters.append((inst, inst.c_setReal, inst.component, (c_uint * 1)(inst.variables["drive"].vr)))
-    value = (c_double * 1)()
-    ports = [(m.ports[a].out, m.ports[a].out_names.index("phase")) for a in avgs]
-    lists = [samples[f"psi_{a}"] for a in avgs]
-    t_samples = samples["t_tick"]
-    n_s, n_c = len(t_samples), len(change_t)
-    i_s = i_c = 0
-    step = m.step
-    with tqdm(total=n_s + n_c, disable=not progress, delay=1.0, desc=label, unit="event") as bar:
-        while i_s < n_s or i_c < n_c:
-            # samples (ticks) come before the change seen at the point after them
-            if i_s < n_s and (i_c >= n_c or t_samples[i_s] <= change_t[i_c]):
-                t = t_samples[i_s]
-                if t > m.t:
-                    step(t - m.t)
-                for (out, kp), lst in zip(ports, lists):
-                    lst.append(out[kp])
-                i_s += 1
-            else:
-                t = change_t[i_c]
-                if t > m.t:
-                    step(t - m.t)
-                value[0] = change_v[i_c]
-                for inst, c_set, comp, vr in setters:
-                    inst.check(c_set(comp, vr, 1, value), "fmi2SetReal (drive)")
-                i_c += 1
-            if (i_s + i_c) % 4096 == 0:
-                bar.update(i_s + i_c - bar.n)
+    inputs = [(twins.instances[a], twins.instances[a].variables["drive"].vr) for a in avgs]
+    outputs = [(m.ports[a], m.ports[a].out_names.index("phase")) for a in avgs]
+    t_samples = np.asarray(samples["t_tick"], dtype=float)
+    t_changes = np.frombuffer(change_t, dtype=float) if len(change_t) else np.zeros(0)
+    times = np.concatenate([t_samples, t_changes])
+    sets = np.concatenate([np.zeros(len(t_samples), dtype=bool), np.ones(len(t_changes), dtype=bool)])
+    values = np.concatenate([np.zeros(len(t_samples)), np.frombuffer(change_v, dtype=float) if len(change_v)
+                             else np.zeros(0)])
+    order = np.lexsort((sets, times))  # by time; on a tie the sample first
+    times, sets, values = times[order].tolist(), sets[order].tolist(), values[order].tolist()
+    phases: list[float] = []
+    with tqdm(total=len(times), disable=not progress, delay=1.0, desc=label, unit="event") as bar:
+        for k in range(0, len(times), chunk):
+            m.run_schedule(times[k:k + chunk], sets[k:k + chunk], values[k:k + chunk], inputs, outputs, phases)
+            bar.update(min(chunk, len(times) - k))
+    for col, a in enumerate(avgs):
+        samples[f"psi_{a}"].extend(phases[col::len(avgs)])
+
+
+TICK_MARGIN = 2e-3  # s: a communication point this long after each expected tick
+
+
+def _run_ticks(m, stop, watched, T0, on_point, progress, label, margin=TICK_MARGIN) -> None:
+    """_run_with_tick_points for twins that are not co-simulated: the
+    master's run_ticks puts the same communication points (the first
+    watched output is the tick time) and hands over in batches the points
+    where a watched output changed: ``on_point(t, tick time, torque
+    amplitude, ())``."""
+    from tqdm import tqdm
+
+    with tqdm(total=stop - m.t, disable=not progress, delay=1.0, desc=label, unit="s sim",
+              bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]") as bar:
+        t_bar = [m.t]
+
+        def on_rows(rows):
+            for t, tt, amp in rows:
+                on_point(t, tt, amp, ())
+            bar.update(rows[-1][0] - t_bar[0])
+            t_bar[0] = rows[-1][0]
+
+        m.run_ticks(stop, m.t + T0 + margin, margin, watched, T0, on_rows)
+        bar.update(m.t - t_bar[0])
 
 
 def _run_with_tick_points(m, stop, pout, i_tick, watched, remember, T0, on_point, progress, label,
-                          margin=2e-3) -> None:
+                          margin=TICK_MARGIN) -> None:
     """Run to `stop` with a communication point `margin` s after each upward zero crossing.
 
     The escapement renews its torque noise at the first communication point

@@ -78,22 +78,47 @@ static double acceleration(const cw_instance *inst, double t, double phi,
     return accelerate(inst, &f, t, phi, w);
 }
 
-/* What the right-hand side needs over one fmi2DoStep. */
+/* Every input holds still over the step (zero-order hold, the usual
+ * case): then the whole right-hand side but sin(phi) and w is fixed. */
+static int inputs_held(const cw_instance *inst) {
+    if (inst->intermediate_update) return 0;
+    for (int a = 0; a < inst->n_real_in; a++) {
+        const int k = inst->real_io[a];
+        if (inst->in_d1[k] != 0.0 || inst->in_d2[k] != 0.0) return 0;
+    }
+    return 1;
+}
+
+/* What the right-hand side needs over one fmi2DoStep: the factors, when
+ * they hold still over the step (rhs_steady), the terms of accelerate()
+ * when every input does (rhs_held; a held input has the same value at
+ * every time of the step, so these are its very numbers), and the
+ * right-hand side chosen for the step. */
 typedef struct {
     cw_instance *inst;
-    int steady;       /* factors fixed over the step */
     air_factors fixed;
+    double gravity, damping, push; /* accelerate = -gravity sin(phi) - damping w + push */
+    cw_rhs f;
 } step_context;
+
+static void rhs_held(void *ctx, double t, const double *x, double *dx) {
+    const step_context *c = ctx;
+    (void)t;
+    dx[0] = x[1];
+    dx[1] = -(c->gravity) * sin(x[0]) - c->damping * x[1] + c->push;
+}
+
+static void rhs_steady(void *ctx, double t, const double *x, double *dx) {
+    const step_context *c = ctx;
+    dx[0] = x[1];
+    dx[1] = accelerate(c->inst, &c->fixed, t, x[0], x[1]);
+}
 
 static void rhs(void *ctx, double t, const double *x, double *dx) {
     const step_context *c = ctx;
+    const air_factors f = factors(c->inst, t);
     dx[0] = x[1];
-    if (c->steady) {
-        dx[1] = accelerate(c->inst, &c->fixed, t, x[0], x[1]);
-    } else {
-        const air_factors f = factors(c->inst, t);
-        dx[1] = accelerate(c->inst, &f, t, x[0], x[1]);
-    }
+    dx[1] = accelerate(c->inst, &f, t, x[0], x[1]);
 }
 
 static void initialize(cw_instance *inst) {
@@ -171,7 +196,7 @@ static void record_tick(cw_instance *inst, double t, double w) {
  * not find the same event again. */
 static void state_at_event(step_context *ctx, const cw_rk *rk, double t,
                            int c, double x[2]) {
-    cw_rk_single_step_with(rk->method, 2, rhs, ctx, rk->t0, rk->x0,
+    cw_rk_single_step_with(rk->method, 2, ctx->f, ctx, rk->t0, rk->x0,
                            t - rk->t0, x);
     x[c] = 0.0;
 }
@@ -193,7 +218,7 @@ static int observe_step(void *ctx, const cw_rk *rk) {
         /* Polish: integrate exactly to t and take Newton steps on phi. */
         double x[2] = {0.0, rk->x1[1]};
         for (int it = 0; it < 2; it++) {
-            cw_rk_single_step_with(rk->method, 2, rhs, watch->rhs_ctx, rk->t0, rk->x0,
+            cw_rk_single_step_with(rk->method, 2, watch->rhs_ctx->f, watch->rhs_ctx, rk->t0, rk->x0,
                                    t - rk->t0, x);
             if (x[1] == 0.0) break;
             double dt = -x[0] / x[1];
@@ -236,7 +261,15 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
         h_next = inst->resume_h;
     }
     inst->resume_valid = 0;
-    step_context ctx = {inst, air_is_steady(inst), factors(inst, t)};
+    step_context ctx = {inst, factors(inst, t), 0.0, 0.0, 0.0,
+                        air_is_steady(inst) ? rhs_steady : rhs};
+    if (inputs_held(inst)) {
+        const air_factors *f = &ctx.fixed;
+        ctx.gravity = R(g) * IN(g_factor, t) * f->weight_ratio / f->length;
+        ctx.damping = damping_rate(inst);
+        ctx.push = torque(inst, t) / (f->inertial_mass * f->length * f->length);
+        ctx.f = rhs_held;
+    }
     /* Tick outputs are updated by the observer; keep them for a retry. */
     const int ticks = I(tick_count), turns = I(turn_count);
     const double tick_w = R(tick_w);
@@ -245,7 +278,7 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
     step_watch watch = {inst, &ctx, cw_may_return_early(inst), inst->time,
                         t_end, 0, 0.0, {0.0, 0.0}};
     cw_rk_result res =
-        cw_rk_advance(&rk, rhs, &ctx, &t, t_end, x, &h_next, observe_step, &watch);
+        cw_rk_advance(&rk, ctx.f, &ctx, &t, t_end, x, &h_next, observe_step, &watch);
     if (res == CW_RK_STOPPED && watch.stopped) {
         inst->resume_valid = 1;
         inst->resume_from = watch.t_event;
@@ -286,12 +319,13 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
 static int output_derivative(cw_instance *inst, unsigned vr, int order,
                              double *value) {
     const double phi = inst->s[S_PHI], w = inst->s[S_W], t = inst->time;
-    const double a = acceleration(inst, t, phi, w);
     if (vr == VR_phi) {
-        *value = order == 1 ? w : a;
+        /* dphi/dt = w needs no acceleration (the master asks for it at every sample). */
+        *value = order == 1 ? w : acceleration(inst, t, phi, w);
         return order <= 2;
     }
     if (vr == VR_w) {
+        const double a = acceleration(inst, t, phi, w);
         if (order == 1) {
             *value = a;
             return 1;
