@@ -701,7 +701,8 @@ def rss_kib() -> int:
 def rollback_run(events: int, L: float = 0.01, warmup_events: int = 2000, step_fraction: float = 0.25,
                  samples: int = 20) -> dict:
     """A short pendulum (L = 1 cm, T0 = 0.2 s) driven at 5 deg: two located
-    torque switches per period, each located by rollback. RSS is read after a
+    torque switches per period, each located by rollback (event prediction
+    off: it would land most switches without one). RSS is read after a
     warm-up (allocator pools, caches filled) and at the end."""
     T = analytic.small_angle_period(L, G)
     phi_r = math.radians(2.0)
@@ -709,7 +710,7 @@ def rollback_run(events: int, L: float = 0.01, warmup_events: int = 2000, step_f
     pp = dict(L=L, m=1.0, g=G, Q=1000.0, phi_start=math.radians(5.0))
     esc = dict(torque=M, phi_r=phi_r)
     trace = []
-    with clock_system(pp, esc, MasterSettings(step=step_fraction * T), record=()) as s:
+    with clock_system(pp, esc, MasterSettings(step=step_fraction * T, event_prediction=False), record=()) as s:
         m = s.master
         while m.stats.events < warmup_events:
             m.run_until(m.t + 100 * T)

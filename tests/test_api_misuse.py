@@ -187,6 +187,10 @@ GOOD_CALLS = {
     "initialize": {"parameters": {"pendulum": {"Q": 1000.0}}},
     "reinitialize": {"parameters": {"pendulum": {"Q": 1000.0}}},
     "restart": {"parameters": {"pendulum": {"Q": 1000.0}}},
+    "run_ticks": {"t_stop": 1.0, "mark": 0.5, "margin": 0.1, "watched": [None], "period": 1.0,
+                  "on_rows": lambda rows: None, "rows_per_call": 16},
+    "run_schedule": {"times": [0.5], "sets": [False], "values": [0.0], "inputs": [], "outputs": [],
+                     "samples": []},
 }
 SYSTEM_CALLS = public_calls(System)
 

@@ -16,7 +16,7 @@ import numbers
 import threading
 from pathlib import Path
 
-from ..arguments import Anything, Call, Either, Instance as Of, Mapping, Optional, Path as PathSpec, Real, Sequence, Text, \
+from ..arguments import Anything, Call, Either, Instance as Of, Integer, Mapping, Optional, Path as PathSpec, Real, Sequence, Text, \
     Tuple, checked, show
 from ..errors import ClosedError, SceneError, UsageError
 from .description import INTEGER_TYPES, REAL_TYPES, int_range, resolve_fmu
@@ -423,6 +423,18 @@ MASTER_ARGUMENTS = {
     "initialize": {"parameters": Mapping(_NAME, _PARAMETERS, "{instance: {parameter: value}}")},
     "reinitialize": {"parameters": Mapping(_NAME, _PARAMETERS, "{instance: {parameter: value}}")},
     "restart": {"parameters": Mapping(_NAME, _PARAMETERS, "{instance: {parameter: value}}")},
+    # the long runs' loops without a return to Python at each point (analyses/hoyng/long_run.py)
+    "run_ticks": {"t_stop": Real("a finite time in s"), "mark": Real("a finite time in s"),
+                  "margin": Real("a step > 0 in s", positive=True),
+                  "watched": Sequence(Anything(), "a list of (port, output position) pairs", length=(1, 1 << 30)),
+                  "period": Real("a period > 0 in s", positive=True), "on_rows": Call(),
+                  "rows_per_call": Integer("a whole number of rows")},
+    "run_schedule": {"times": Sequence(Anything(), "a list of increasing times in s"),
+                     "sets": Sequence(Anything(), "a list of flags, one per time"),
+                     "values": Sequence(Anything(), "a list of input values, one per time"),
+                     "inputs": Sequence(Anything(), "a list of (instance, value reference) pairs"),
+                     "outputs": Sequence(Anything(), "a list of (port, output position) pairs"),
+                     "samples": Of(list, "a list the sampled outputs are appended to")},
 }
 
 
