@@ -203,22 +203,41 @@ def _array_inputs(signals: np.ndarray, scene) -> Inputs:
 
 
 def _structured(scene, series: dict, only: str | None) -> np.ndarray:
-    """The recorded columns as fmpy's result: a structured array, `time` first."""
+    """The recorded columns as fmpy's result: a structured array, `time`
+    first; an FMI 3.0 array recorded whole and in order is one field of the
+    array's shape (fmpy's ``y`` of shape (3,)), else one field per element."""
     fields = [("time", np.float64)]
     data = [np.asarray(series.get("time", []), dtype=np.float64)]
     found = {n: variables_of(c.model_description) for n, c in scene.components.items()}
+    columns = []  # (label, dtype, values, the element's array variable or None, its index, its instance)
     for name, values in series.items():
         if name == "time":
             continue
         inst, var = split_ref(name, found)
-        kind = scene.components[inst].variable(var).type
-        dtype = _DTYPES.get(kind, np.float64)
-        if kind == "Enumeration":
+        v = scene.components[inst].variable(var)
+        dtype = _DTYPES.get(v.type, np.float64)
+        if v.type == "Enumeration":
             dtype = np.int64 if scene.components[inst].model_description.fmiVersion.startswith("3") else np.int32
         label = var if only is not None and var != "time" else name
+        columns.append((label, dtype, values, getattr(v, "array", None), getattr(v, "index", 0), inst))
+    k = 0
+    while k < len(columns):
+        label, dtype, values, array, _, inst = columns[k]
+        size = math.prod(array.shape) if array is not None else 1
+        run = columns[k:k + size]
+        whole = (array is not None and len(run) == size and dtype is not object
+                 and all(c[3] is array and c[4] == j and c[5] == inst for j, c in enumerate(run)))
+        if whole:
+            base = array.name if only is not None else f"{inst}.{array.name}"
+            fields.append((base, dtype, tuple(array.shape)))
+            data.append(np.stack([np.asarray(c[2], dtype=dtype) for c in run], axis=-1)
+                        .reshape((-1, *array.shape)))
+            k += size
+            continue
         fields.append((label, dtype))
         data.append(np.asarray(values, dtype=dtype) if dtype is not object else np.asarray(values, dtype=object))
+        k += 1
     out = np.empty(len(data[0]), dtype=fields)
-    for (label, _), column in zip(fields, data):
-        out[label] = column
+    for field, column in zip(fields, data):
+        out[field[0]] = column
     return out

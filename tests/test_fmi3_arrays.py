@@ -358,3 +358,28 @@ def test_a_broken_array_declaration_is_one_line(capsys, tmp_path, body, needle):
 def test_an_empty_array_loads_with_no_elements(tmp_path):
     md = read_fmu(_description_only(tmp_path, "Empty", OUT.format('<Dimension start="0"/>')), need_binary=False)[0]
     assert variables(md)["a"].shape == (0,) and not [n for n in variables(md) if n.startswith("a[")]
+
+
+def test_an_fmu_alone_records_its_array_outputs_as_fmpy_does(tmp_path, capsys, fmu):
+    """`clockwork run X.fmu` and `clockwork.simulate(X.fmu)` record every
+    output, arrays included (element by element in the CSV; in the
+    structured array one field of the array's shape, as fmpy returns it),
+    with fmpy.simulate_fmu's numbers at the same step."""
+    import clockwork
+
+    ref = fmpy.simulate_fmu(str(fmu), output_interval=0.1)
+    got = clockwork.simulate(str(fmu))
+    # the same fields (fmpy orders them by type, clockwork as the description does)
+    assert sorted(got.dtype.names) == sorted(ref.dtype.names)
+    for name in ref.dtype.names:
+        assert got.dtype[name] == ref.dtype[name], name
+        assert np.array_equal(got[name], ref[name]), name
+    assert len(set(got["x"][:, 0])) > 5  # it moves
+    out = tmp_path / "out"
+    rc, _, err = run_cli(capsys, ["run", fmu, "--out", out, "--no-progress", "--no-plot"])
+    assert rc == 0, err
+    columns = read_csv(out / "timeseries.csv")
+    names = [h.split(".", 1)[1] for h in columns if h != "time"]
+    assert names == ["y[0]", "y[1]", "x[0]", "x[1]", "x[2]", "kk[0]", "kk[1]", "kk[2]", "s"], names
+    x2 = next(h for h in columns if h.endswith(".x[2]"))
+    assert [float(x) for x in columns[x2]] == list(ref["x"][:, 2])

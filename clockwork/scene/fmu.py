@@ -88,8 +88,8 @@ def experiment_times(md, path: Path) -> tuple[dict, float]:
 def default_record(md, instance: str) -> list[str]:
     """What fmpy records by default: every output; where there is none, up to
     five continuous states, else up to five local variables."""
-    def usable(v) -> bool:
-        return v is not None and v.type not in ("Clock",) and not getattr(v, "dimensions", None)
+    def usable(v) -> bool:  # an FMI 3.0 array is recorded element by element, as fmpy does
+        return v is not None and v.type not in ("Clock",)
 
     outputs = [v for v in md.modelVariables if v.causality == "output" and usable(v)]
     if not outputs:
