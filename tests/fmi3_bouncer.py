@@ -93,9 +93,12 @@ def pack(folder: Path, name: str, model_identifier: str, source: str, defined: s
 
 
 def build(folder: Path, event_mode: bool = True, early_return: bool = True, indicator: bool = False,
-          name: str = "Bouncer") -> Path:
-    """Compile and zip the FMU into folder/<name>.fmu; returns its path."""
+          name: str = "Bouncer", refuse_event_mode: bool = False) -> Path:
+    """Compile and zip the FMU into folder/<name>.fmu; returns its path.
+    refuse_event_mode: the binary refuses eventModeUsed at instantiation
+    whatever the description declares."""
     source = SOURCE.read_text()
     xml = MODEL_DESCRIPTION.format(event_mode=str(event_mode).lower(), early=str(early_return).lower(),
                                    annotation=INDICATOR if indicator else "")
-    return pack(folder, name, "Bouncer", source, source, xml, (f"-I{SOURCE.parent}",))
+    flags = (f"-I{SOURCE.parent}",) + (("-DCW_REFUSE_EVENT_MODE",) if refuse_event_mode else ())
+    return pack(folder, name, "Bouncer", source, source, xml, flags)

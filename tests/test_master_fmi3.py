@@ -37,6 +37,7 @@ def fmus(tmp_path_factory):
         "early": fmi3_bouncer.build(d, name="Early"),
         "inside": fmi3_bouncer.build(d, event_mode=False, early_return=False, name="Inside"),
         "indicator": fmi3_bouncer.build(d, indicator=True, name="Indicator"),
+        "refusing": fmi3_bouncer.build(d, early_return=False, name="Refusing", refuse_event_mode=True),
     }
 
 
@@ -455,3 +456,18 @@ def test_polynomial_inputs_reach_fmi3_by_intermediate_update(engine, key, value)
     assert on is True
     assert calls > 6.0 / 0.05  # at least one set per communication step (many stages each)
     assert len(t2) >= 3 and (c2, t2) == (c3, t3)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_an_fmu_that_refuses_the_event_mode_it_declares_runs_without_it(fmus, engine, capsys):
+    """hasEventMode declared, eventModeUsed refused by the binary (as
+    Reference-FMUs' Roberts): instantiated again without Event Mode, as
+    fmpy instantiates; the same bits as the FMU that declares none, and a
+    note on stderr naming the instance and the FMU's message."""
+    refusing = run(fmus["refusing"], {"v0": 0.7, "period": 0.0}, 6.0, 0.5, engine)
+    inside = run(fmus["inside"], {"v0": 0.7, "period": 0.0}, 6.0, 0.5, engine)
+    assert refusing[0] == inside[0]
+    assert refusing[0]["b.bounces"][-1] == 4.0
+    err = capsys.readouterr().err
+    assert err.count("warning:") == 1 and "b declares hasEventMode but refused eventModeUsed" in err, err
+    assert "Event Mode is not supported." in err, err

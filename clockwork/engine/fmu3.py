@@ -314,17 +314,37 @@ class Instance3(Instance):
             del messages[:-50]
 
         try:
-            if self.intermediate_update:
-                self._instantiate_with_callback(logger)
-            else:
-                self._slave.instantiate(eventModeUsed=self.event_mode_used,
-                                        earlyReturnAllowed=self.early_return_allowed, logMessage=logger)
+            self._instantiate(logger)
         except Exception as e:
-            raise SceneError(
-                f"{self.shown}: fmi3InstantiateCoSimulation refused the model description's instantiation "
-                f"token {self.md.guid}: {self.last_message() or e}") from None
+            refusal = self.last_message() or str(e)
+            if not self.event_mode_used:
+                raise SceneError(
+                    f"{self.shown}: fmi3InstantiateCoSimulation refused the model description's instantiation "
+                    f"token {self.md.guid}: {refusal}") from None
+            # An FMU that declares hasEventMode but refuses eventModeUsed (Reference-FMUs' Roberts):
+            # instantiated as fmpy does, without Event Mode (the FMU then handles its events inside
+            # fmi3DoStep), and said in a note.
+            self.event_mode_used = False
+            self.events.event_mode_used = 0
+            try:
+                self._instantiate(logger)
+            except Exception:
+                raise SceneError(
+                    f"{self.shown}: fmi3InstantiateCoSimulation refused the model description's instantiation "
+                    f"token {self.md.guid}, with Event Mode ({refusal}) and without it "
+                    f"({self.last_message() or 'no message'})") from None
+            self.instantiation_note = (f"{self.name} declares hasEventMode but refused eventModeUsed at "
+                                       f"instantiation ({refusal}): it runs without Event Mode, its events "
+                                       f"handled inside fmi3DoStep")
         self.component = self._slave.component
         self._bind(self._slave.dll)
+
+    def _instantiate(self, logger) -> None:
+        if self.intermediate_update:
+            self._instantiate_with_callback(logger)
+        else:
+            self._slave.instantiate(eventModeUsed=self.event_mode_used,
+                                    earlyReturnAllowed=self.early_return_allowed, logMessage=logger)
 
     def _instantiate_with_callback(self, logger) -> None:
         """fmi3InstantiateCoSimulation with the core's C intermediate-update

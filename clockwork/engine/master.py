@@ -94,6 +94,9 @@ class Master:
         self.ports = Ports(instances, self.wiring.links, self.wiring, extra_outputs, settings.event_location, self)
         self.discrete_outputs = self.ports.discrete_outputs
         self.coupling = InputCoupling(self.ports.dynamic, settings.extrapolation)
+        for inst in instances.values():  # what an instance changed of its own setup (fmu3: Event Mode refused)
+            if getattr(inst, "instantiation_note", None):
+                self.coupling.note(inst.instantiation_note)
         self._updates_after = updates_after(self.ports)  # per dynamic instance (engine/parallel.py)
         self.locator = EventLocator(self, self.ports.all)
         self.checkpoints = Checkpoints(self)

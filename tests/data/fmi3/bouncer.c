@@ -72,6 +72,14 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     (void)requiredIntermediateVariables; (void)intermediateUpdate;
     if (nRequiredIntermediateVariables || strcmp(instantiationToken, "{cw-fmi3-bouncer}") != 0)
         return NULL;
+#ifdef CW_REFUSE_EVENT_MODE
+    /* As Reference-FMUs' Roberts: hasEventMode declared, eventModeUsed refused. */
+    if (eventModeUsed) {
+        if (logMessage)
+            logMessage(instanceEnvironment, fmi3Error, "logStatusError", "Event Mode is not supported.");
+        return NULL;
+    }
+#endif
     Bouncer *b = calloc(1, sizeof *b);
     if (!b)
         return NULL;
