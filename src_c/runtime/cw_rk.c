@@ -8,6 +8,7 @@
 
 #include <float.h>
 #include <math.h>
+#include <stddef.h>
 #include <string.h>
 
 /* fmi2DoStep cannot be interrupted (no fmi2CancelStep), so the work of one
@@ -359,7 +360,11 @@ static void dense8(const cw_rk *rk, double t, double *x) {
 }
 
 void cw_rk_init(cw_rk *rk, int n, double rtol, double atol, double h_max) {
-    memset(rk, 0, sizeof *rk);
+    /* Everything zero but the stages k (1 KiB, more than the rest): each
+     * stage is written before it is read, and a model inits a cw_rk at
+     * every step. */
+    memset(rk, 0, offsetof(cw_rk, k));
+    memset((char *)rk + offsetof(cw_rk, rcont), 0, sizeof *rk - offsetof(cw_rk, rcont));
     rk->n = n;
     rk->rtol = rtol;
     rk->atol = atol;
