@@ -317,15 +317,15 @@ error_norm8(const cw_rk *rk, int n, const double *x, const double *x_new, double
 
 /* The three extra stages and the coefficients of the continuous extension
  * of the last accepted step; k[0..12] are that step's. */
-static void prepare_dense8(cw_rk *rk) {
+static inline __attribute__((always_inline)) void prepare_dense8_n(cw_rk *rk, int n) {
     const double h = rk->h;
     double y[CW_RK_MAXN] = {0};
     for (int s = 13; s < 16; s++) {
-        stage_point8(rk, s, rk->x0, h, y);
+        stage_point8_n(rk, s, n, rk->x0, h, y);
         rk->f(rk->ctx, rk->t0 + P8C[s] * h, y, rk->k[s]);
     }
     rk->n_rhs += 3;
-    for (int i = 0; i < rk->n; i++) {
+    for (int i = 0; i < n; i++) {
         double dx = rk->x1[i] - rk->x0[i];
         double bspl = h * rk->k[0][i] - dx;
         rk->rcont[0][i] = rk->x0[i];
@@ -341,18 +341,20 @@ static void prepare_dense8(cw_rk *rk) {
     rk->dense_ready = 1;
 }
 
-static void dense8(const cw_rk *rk, double t, double *x) {
+/* DOP853's dense output for n components; inlined with n = 2 (cw_rk_dense)
+ * as cw_rk_advance is, the same operations in the same order. */
+static inline __attribute__((always_inline)) void dense8(const cw_rk *rk, int n, double t, double *x) {
     if (!rk->dense_ready) {
         if (!rk->f || rk->n_accepted == 0) { /* no step yet: nothing to build */
-            memcpy(x, rk->x0, sizeof(double) * rk->n);
+            memcpy(x, rk->x0, sizeof(double) * n);
             return;
         }
-        prepare_dense8((cw_rk *)rk); /* a cache, built once per step */
+        prepare_dense8_n((cw_rk *)rk, n); /* a cache, built once per step */
     }
     double th = rk->h != 0 ? (t - rk->t0) / rk->h : 0.0;
     double th1 = 1.0 - th;
     const double(*r)[CW_RK_MAXN] = rk->rcont;
-    for (int i = 0; i < rk->n; i++) {
+    for (int i = 0; i < n; i++) {
         double tail = r[4][i] + th * (r[5][i] + th1 * (r[6][i] + th * r[7][i]));
         x[i] = r[0][i] +
                th * (r[1][i] + th1 * (r[2][i] + th * (r[3][i] + th1 * tail)));
@@ -473,7 +475,10 @@ static void prepare_dense(cw_rk *rk, double h) {
 
 void cw_rk_dense(const cw_rk *rk, double t, double *x) {
     if (rk->method == CW_RK_DOP853) {
-        dense8(rk, t, x);
+        if (rk->n == 2)
+            dense8(rk, 2, t, x);
+        else
+            dense8(rk, rk->n, t, x);
         return;
     }
     double th = rk->h != 0 ? (t - rk->t0) / rk->h : 0.0;
