@@ -237,10 +237,10 @@ static void estimate_stiffness(cw_rk *rk, const double *k_end,
     rk->h_lambda = den > 0.0 ? fabs(h) * sqrt(num / den) : 0.0;
 }
 
-/* x + h sum_{j < s} a[s][j] k[j] for n components. Inlined with constant
- * s and n (stages8_n2), the loops unroll and the coefficients become
- * constants; the sums keep their terms and their order, zeros included,
- * so the bits are those of the loop. */
+/* x + h sum_{j < s} a[s][j] k[j] for n components (inlined with constant
+ * n where the caller has one). Unrolling it with constant s too saves
+ * instructions but not time: the sums are chains of dependent additions,
+ * as long either way, and the bits forbid reordering them. */
 static inline __attribute__((always_inline)) void
 stage_point8_n(const cw_rk *rk, int s, int n, const double *x, double h, double *y) {
     const double *a = P8A[s];
@@ -256,30 +256,10 @@ static void stage_point8(const cw_rk *rk, int s, const double *x, double h,
     stage_point8_n(rk, s, rk->n, x, h, y);
 }
 
-/* stages8 for two components (a pendulum's angle and rate), unrolled:
- * the stage loop is most of a step's own work. */
-static void stages8_n2(cw_rk *rk, cw_rhs f, void *ctx, double t, const double *x,
-                       double h, double t_next, double *x_new) {
-    double y[CW_RK_MAXN] = {0};
-#define CW_STAGE8(s)                                                          \
-    stage_point8_n(rk, s, 2, x, h, y);                                        \
-    f(ctx, s == 11 ? t_next : t + P8C[s] * h, y, rk->k[s]);
-    CW_STAGE8(1) CW_STAGE8(2) CW_STAGE8(3) CW_STAGE8(4) CW_STAGE8(5) CW_STAGE8(6)
-    CW_STAGE8(7) CW_STAGE8(8) CW_STAGE8(9) CW_STAGE8(10) CW_STAGE8(11)
-#undef CW_STAGE8
-    if (rk->stiffness_test) memcpy(rk->y_last, y, sizeof(double) * 2);
-    stage_point8_n(rk, 12, 2, x, h, x_new);
-    rk->n_rhs += 11;
-}
-
 /* Stages 1..11 of one step; k[0] must hold f(t, x). Writes x_new (stage
  * 12's point). The last stage is at t_next, the exact end of the step. */
 static void stages8(cw_rk *rk, cw_rhs f, void *ctx, double t, const double *x,
                     double h, double t_next, double *x_new) {
-    if (rk->n == 2) {
-        stages8_n2(rk, f, ctx, t, x, h, t_next, x_new);
-        return;
-    }
     double y[CW_RK_MAXN] = {0};
     for (int s = 1; s < 12; s++) {
         stage_point8(rk, s, x, h, y);
