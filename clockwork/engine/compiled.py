@@ -250,9 +250,21 @@ _ADAPTER_NAMES = ("doStep", "getReal", "setReal", "setInputDerivatives", "getOut
                   "getState", "setState")
 
 
+_TYPECODES = {c_double: "d", c_int: "i", c_uint: "I"}  # array's codes of the same C types
+
+
 def _array(ctype, values, n: int | None = None):
     values = list(values)
-    return (ctype * max(1, n if n is not None else len(values)))(*values)
+    size = max(1, n if n is not None else len(values))
+    code = _TYPECODES.get(ctype)
+    if code is None or len(values) != size:
+        return (ctype * size)(*values)
+    # array converts in one C loop and the bytes are copied: ctypes' own
+    # constructor sets the items one by one (run_schedule: 3 per period).
+    try:
+        return (ctype * size).from_buffer_copy(array(code, values))
+    except (OverflowError, TypeError):  # ctypes' own conversions (it wraps integers)
+        return (ctype * size)(*values)
 
 
 def _fn(dll, name: str) -> int:
@@ -639,7 +651,7 @@ class CompiledMaster(Master):
         index = {id(p.inst): i for i, p in enumerate(self.ports.all)}
         port_of = {id(p): i for i, p in enumerate(self.ports.all)}
         n = len(times)
-        arrays = [_array(c_double, times), _array(c_int, (int(bool(x)) for x in sets)), _array(c_double, values),
+        arrays = [_array(c_double, times), _array(c_int, map(bool, sets)), _array(c_double, values),
                   _array(c_int, (index[id(inst)] for inst, _ in inputs)), _array(c_uint, (vr for _, vr in inputs)),
                   _array(c_int, (port_of[id(p)] for p, _ in outputs)), _array(c_int, (j for _, j in outputs))]
         width = len(outputs)

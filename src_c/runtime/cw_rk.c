@@ -8,6 +8,7 @@
 
 #include <float.h>
 #include <math.h>
+#include <stddef.h>
 #include <string.h>
 
 /* fmi2DoStep cannot be interrupted (no fmi2CancelStep), so the work of one
@@ -208,6 +209,14 @@ static const double P8D[4][CW_RK_MAXSTAGES] = {
      -0.14972683625798562581422125276e+3},
 };
 
+/* fmax(|a|, |b|) without the call into libm: the larger magnitude, the
+ * other one where one is NaN (as fmax; no signed zeros after fabs). */
+static inline double larger_size(double a, double b) {
+    a = fabs(a);
+    b = fabs(b);
+    return a > b || b != b ? a : b;
+}
+
 /* The absolute tolerance of component i. */
 static double atol_at(const cw_rk *rk, int i) {
     return rk->atolv ? rk->atolv[i] : rk->atol;
@@ -228,15 +237,23 @@ static void estimate_stiffness(cw_rk *rk, const double *k_end,
     rk->h_lambda = den > 0.0 ? fabs(h) * sqrt(num / den) : 0.0;
 }
 
-/* x + h sum_{j < s} a[s][j] k[j] */
-static void stage_point8(const cw_rk *rk, int s, const double *x, double h,
-                         double *y) {
+/* x + h sum_{j < s} a[s][j] k[j] for n components (inlined with constant
+ * n where the caller has one). Unrolling it with constant s too saves
+ * instructions but not time: the sums are chains of dependent additions,
+ * as long either way, and the bits forbid reordering them. */
+static inline __attribute__((always_inline)) void
+stage_point8_n(const cw_rk *rk, int s, int n, const double *x, double h, double *y) {
     const double *a = P8A[s];
-    for (int i = 0; i < rk->n; i++) {
+    for (int i = 0; i < n; i++) {
         double sum = 0.0;
         for (int j = 0; j < s; j++) sum += a[j] * rk->k[j][i];
         y[i] = x[i] + h * sum;
     }
+}
+
+static void stage_point8(const cw_rk *rk, int s, const double *x, double h,
+                         double *y) {
+    stage_point8_n(rk, s, rk->n, x, h, y);
 }
 
 /* Stages 1..11 of one step; k[0] must hold f(t, x). Writes x_new (stage
@@ -256,12 +273,12 @@ static void stages8(cw_rk *rk, cw_rhs f, void *ctx, double t, const double *x,
 /* Hairer's combination of the 5th- and 3rd-order estimates: the error is
  * |h| E5^2 / sqrt(E5^2 + 0.01 E3^2), which behaves like the 8th-order
  * error the step actually makes. */
-static double error_norm8(const cw_rk *rk, const double *x, const double *x_new,
-                          double h) {
+static inline __attribute__((always_inline)) double
+error_norm8(const cw_rk *rk, int n, const double *x, const double *x_new, double h) {
     double e5 = 0.0, e3 = 0.0;
     const double(*k)[CW_RK_MAXN] = rk->k;
-    for (int i = 0; i < rk->n; i++) {
-        double scale = atol_at(rk, i) + rk->rtol * fmax(fabs(x[i]), fabs(x_new[i]));
+    for (int i = 0; i < n; i++) {
+        double scale = atol_at(rk, i) + rk->rtol * larger_size(x[i], x_new[i]);
         double r5 = 0.0, bsum = 0.0;
         for (int s = 0; s < 12; s++) {
             r5 += P8E5[s] * k[s][i];
@@ -275,20 +292,20 @@ static double error_norm8(const cw_rk *rk, const double *x, const double *x_new,
         e3 += r3 * r3;
     }
     if (e5 == 0.0 && e3 == 0.0) return 0.0;
-    return fabs(h) * e5 / sqrt((e5 + 0.01 * e3) * rk->n);
+    return fabs(h) * e5 / sqrt((e5 + 0.01 * e3) * n);
 }
 
 /* The three extra stages and the coefficients of the continuous extension
  * of the last accepted step; k[0..12] are that step's. */
-static void prepare_dense8(cw_rk *rk) {
+static inline __attribute__((always_inline)) void prepare_dense8_n(cw_rk *rk, int n) {
     const double h = rk->h;
     double y[CW_RK_MAXN] = {0};
     for (int s = 13; s < 16; s++) {
-        stage_point8(rk, s, rk->x0, h, y);
+        stage_point8_n(rk, s, n, rk->x0, h, y);
         rk->f(rk->ctx, rk->t0 + P8C[s] * h, y, rk->k[s]);
     }
     rk->n_rhs += 3;
-    for (int i = 0; i < rk->n; i++) {
+    for (int i = 0; i < n; i++) {
         double dx = rk->x1[i] - rk->x0[i];
         double bspl = h * rk->k[0][i] - dx;
         rk->rcont[0][i] = rk->x0[i];
@@ -304,18 +321,20 @@ static void prepare_dense8(cw_rk *rk) {
     rk->dense_ready = 1;
 }
 
-static void dense8(const cw_rk *rk, double t, double *x) {
+/* DOP853's dense output for n components; inlined with n = 2 (cw_rk_dense)
+ * as cw_rk_advance is, the same operations in the same order. */
+static inline __attribute__((always_inline)) void dense8(const cw_rk *rk, int n, double t, double *x) {
     if (!rk->dense_ready) {
         if (!rk->f || rk->n_accepted == 0) { /* no step yet: nothing to build */
-            memcpy(x, rk->x0, sizeof(double) * rk->n);
+            memcpy(x, rk->x0, sizeof(double) * n);
             return;
         }
-        prepare_dense8((cw_rk *)rk); /* a cache, built once per step */
+        prepare_dense8_n((cw_rk *)rk, n); /* a cache, built once per step */
     }
     double th = rk->h != 0 ? (t - rk->t0) / rk->h : 0.0;
     double th1 = 1.0 - th;
     const double(*r)[CW_RK_MAXN] = rk->rcont;
-    for (int i = 0; i < rk->n; i++) {
+    for (int i = 0; i < n; i++) {
         double tail = r[4][i] + th * (r[5][i] + th1 * (r[6][i] + th * r[7][i]));
         x[i] = r[0][i] +
                th * (r[1][i] + th1 * (r[2][i] + th * (r[3][i] + th1 * tail)));
@@ -323,7 +342,11 @@ static void dense8(const cw_rk *rk, double t, double *x) {
 }
 
 void cw_rk_init(cw_rk *rk, int n, double rtol, double atol, double h_max) {
-    memset(rk, 0, sizeof *rk);
+    /* Everything zero but the stages k (1 KiB, more than the rest): each
+     * stage is written before it is read, and a model inits a cw_rk at
+     * every step. */
+    memset(rk, 0, offsetof(cw_rk, k));
+    memset((char *)rk + offsetof(cw_rk, rcont), 0, sizeof *rk - offsetof(cw_rk, rcont));
     rk->n = n;
     rk->rtol = rtol;
     rk->atol = atol;
@@ -344,9 +367,9 @@ void cw_rk_set_method(cw_rk *rk, int integrator) {
 
 /* Stages 2..7 of one step; k[0] must hold f(t, x). Writes x_new. The end
  * of the step is passed as t_next: t + h can round past t_end by an ulp. */
-static void stages(cw_rk *rk, cw_rhs f, void *ctx, double t, const double *x,
-                   double h, double t_next, double *x_new) {
-    const int n = rk->n;
+static inline __attribute__((always_inline)) void
+stages(cw_rk *rk, int n, cw_rhs f, void *ctx, double t, const double *x, double h,
+       double t_next, double *x_new) {
     double y[CW_RK_MAXN] = {0};
     double(*k)[CW_RK_MAXN] = rk->k;
     for (int i = 0; i < n; i++) y[i] = x[i] + h * A21 * k[0][i];
@@ -372,18 +395,18 @@ static void stages(cw_rk *rk, cw_rhs f, void *ctx, double t, const double *x,
     rk->n_rhs += 6;
 }
 
-static double error_norm(const cw_rk *rk, const double *x, const double *x_new,
-                         double h) {
+static inline __attribute__((always_inline)) double
+error_norm(const cw_rk *rk, int n, const double *x, const double *x_new, double h) {
     double sum = 0.0;
     const double(*k)[CW_RK_MAXN] = rk->k;
-    for (int i = 0; i < rk->n; i++) {
+    for (int i = 0; i < n; i++) {
         double e = h * (E1 * k[0][i] + E3 * k[2][i] + E4 * k[3][i] +
                         E5 * k[4][i] + E6 * k[5][i] + E7 * k[6][i]);
-        double scale = atol_at(rk, i) + rk->rtol * fmax(fabs(x[i]), fabs(x_new[i]));
+        double scale = atol_at(rk, i) + rk->rtol * larger_size(x[i], x_new[i]);
         double r = e / scale;
         sum += r * r;
     }
-    return sqrt(sum / rk->n);
+    return sqrt(sum / n);
 }
 
 static double initial_step(cw_rk *rk, cw_rhs f, void *ctx, double t,
@@ -399,7 +422,7 @@ static double initial_step(cw_rk *rk, cw_rhs f, void *ctx, double t,
     d1 = sqrt(d1 / n);
     double h0 = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
     h0 = fmin(h0, span);
-    double y[CW_RK_MAXN], f1[CW_RK_MAXN];
+    double y[CW_RK_MAXN] = {0}, f1[CW_RK_MAXN];
     for (int i = 0; i < n; i++) y[i] = x[i] + h0 * rk->k[0][i];
     f(ctx, t + h0, y, f1);
     rk->n_rhs++;
@@ -432,7 +455,10 @@ static void prepare_dense(cw_rk *rk, double h) {
 
 void cw_rk_dense(const cw_rk *rk, double t, double *x) {
     if (rk->method == CW_RK_DOP853) {
-        dense8(rk, t, x);
+        if (rk->n == 2)
+            dense8(rk, 2, t, x);
+        else
+            dense8(rk, rk->n, t, x);
         return;
     }
     double th = rk->h != 0 ? (t - rk->t0) / rk->h : 0.0;
@@ -450,10 +476,12 @@ static int all_finite(const double *x, int n) {
     return 1;
 }
 
-cw_rk_result cw_rk_advance(cw_rk *rk, cw_rhs f, void *ctx, double *t,
-                           double t_end, double *x, double *h_next,
-                           cw_rk_observer observer, void *observer_ctx) {
-    const int n = rk->n;
+/* cw_rk_advance for n components; inlined with n = 2 (both pendulum FMUs)
+ * its loops unroll and its copies are a few moves. The same operations in
+ * the same order either way, so the same bits. */
+static inline __attribute__((always_inline)) cw_rk_result
+advance_n(cw_rk *rk, const int n, cw_rhs f, void *ctx, double *t, double t_end, double *x,
+          double *h_next, cw_rk_observer observer, void *observer_ctx) {
     if (!(t_end > *t)) return CW_RK_OK;
     const int eight = rk->method == CW_RK_DOP853;
     const double expo = eight ? -0.125 : -0.2;
@@ -489,14 +517,17 @@ cw_rk_result cw_rk_advance(cw_rk *rk, cw_rhs f, void *ctx, double *t,
                 fsal = 0;
             }
             stages8(rk, f, ctx, *t, x, h_try, t_next, x_new);
-            err = error_norm8(rk, x, x_new, h_try);
+            err = error_norm8(rk, n, x, x_new, h_try);
         } else {
-            stages(rk, f, ctx, *t, x, h_try, t_next, x_new);
-            err = error_norm(rk, x, x_new, h_try);
+            stages(rk, n, f, ctx, *t, x, h_try, t_next, x_new);
+            err = error_norm(rk, n, x, x_new, h_try);
         }
         if (!isfinite(err)) err = 1e10; /* treat overflow as a rejection */
         double fac = err > 0 ? 0.9 * pow(err, expo) : 5.0;
-        fac = fmin(5.0, fmax(0.2, fac));
+        /* fmin(5.0, fmax(0.2, fac)) without two calls into libm: NaN
+         * gives 0.2 as there, and fac >= 0.2 has no signed zero. */
+        fac = fac > 0.2 ? fac : 0.2;
+        fac = fac < 5.0 ? fac : 5.0;
         if (err <= 1.0) {
             rk->n_accepted++;
             rk->t0 = *t;
@@ -540,6 +571,14 @@ cw_rk_result cw_rk_advance(cw_rk *rk, cw_rhs f, void *ctx, double *t,
     }
 }
 
+cw_rk_result cw_rk_advance(cw_rk *rk, cw_rhs f, void *ctx, double *t,
+                           double t_end, double *x, double *h_next,
+                           cw_rk_observer observer, void *observer_ctx) {
+    if (rk->n == 2)
+        return advance_n(rk, 2, f, ctx, t, t_end, x, h_next, observer, observer_ctx);
+    return advance_n(rk, rk->n, f, ctx, t, t_end, x, h_next, observer, observer_ctx);
+}
+
 void cw_rk_single_step_with(int method, int n, cw_rhs f, void *ctx, double t,
                             const double *x, double h, double *x_out) {
     cw_rk rk;
@@ -548,7 +587,7 @@ void cw_rk_single_step_with(int method, int n, cw_rhs f, void *ctx, double t,
     if (method == CW_RK_DOP853)
         stages8(&rk, f, ctx, t, x, h, t + h, x_out);
     else
-        stages(&rk, f, ctx, t, x, h, t + h, x_out);
+        stages(&rk, n, f, ctx, t, x, h, t + h, x_out);
 }
 
 void cw_rk_single_step(int n, cw_rhs f, void *ctx, double t, const double *x,

@@ -179,6 +179,9 @@ typedef struct cw_instance {
     uint64_t *u; /* model state words, n_uint_state */
 
     int outputs_dirty;
+    /* The outputs were found finite since they last changed (outputs_finite
+     * checks them once, not on every get and step). */
+    int outputs_checked;
     int in_callback_error; /* set by cw_fail from model code */
 
     /* Where fmi2SetFMUstate decodes a state before accepting it: made on

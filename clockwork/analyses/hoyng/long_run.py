@@ -144,12 +144,42 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
 
         last_tick: list = []
 
+        def on_rows(rows):
+            """on_point for each row (t, tick time, torque amplitude) of a
+            batch from run_ticks, with no twins' rates: the same arithmetic
+            in the same order, in local variables (a row per period)."""
+            tt_last, i, amp_last = state
+            count, total, total2, head = noise["n"], noise["sum"], noise["sum2"], noise["head"]
+            for t, tt, amp in rows:
+                if amp != amp_last:
+                    amp_last = amp
+                    change_t.append(t)
+                    change_v.append(amp)
+                if tt == tt_last:
+                    continue
+                tt_last = tt
+                i += 1
+                if t >= t_noise:
+                    d = amp / torque0 - 1.0
+                    count += 1
+                    total += d
+                    total2 += d * d
+                    if len(head) < 8:
+                        head.append(d)
+                if i % every == 0 or i == 1:
+                    last_tick[:] = [tt, i]
+                    _sample()
+            state[:] = [tt_last, i, amp_last]
+            noise["n"], noise["sum"], noise["sum2"] = count, total, total2
+            if i:  # the last tick, for the closing sample
+                last_tick[:] = [tt_last, i]
+
         if A:
             _run_with_tick_points(m, stop, pout, i_tick, watched, remember, n["T0"],
                                   lambda master, rates: on_point(master.t, pout[i_tick], eout[i_amp], rates),
                                   progress, scene.path.stem)
         else:  # the same points, with no return to Python at each of them
-            _run_ticks(m, stop, watched, n["T0"], on_point, progress, scene.path.stem)
+            _run_ticks(m, stop, watched, n["T0"], on_rows, progress, scene.path.stem)
         if state[1] % every and state[1] > 1:
             _sample()
         stats = vars(m.stats).copy()
@@ -237,25 +267,24 @@ def _replay_twins(twins, avgs, samples, change_t, change_v, progress, label, chu
 TICK_MARGIN = 2e-3  # s: a communication point this long after each expected tick
 
 
-def _run_ticks(m, stop, watched, T0, on_point, progress, label, margin=TICK_MARGIN) -> None:
+def _run_ticks(m, stop, watched, T0, on_rows, progress, label, margin=TICK_MARGIN) -> None:
     """_run_with_tick_points for twins that are not co-simulated: the
     master's run_ticks puts the same communication points (the first
     watched output is the tick time) and hands over in batches the points
-    where a watched output changed: ``on_point(t, tick time, torque
-    amplitude, ())``."""
+    where a watched output changed: ``on_rows(rows)``, each row (t, tick
+    time, torque amplitude)."""
     from tqdm import tqdm
 
     with tqdm(total=stop - m.t, disable=not progress, delay=1.0, desc=label, unit="s sim",
               bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]") as bar:
         t_bar = [m.t]
 
-        def on_rows(rows):
-            for t, tt, amp in rows:
-                on_point(t, tt, amp, ())
+        def on_batch(rows):
+            on_rows(rows)
             bar.update(rows[-1][0] - t_bar[0])
             t_bar[0] = rows[-1][0]
 
-        m.run_ticks(stop, m.t + T0 + margin, margin, watched, T0, on_rows)
+        m.run_ticks(stop, m.t + T0 + margin, margin, watched, T0, on_batch)
         bar.update(m.t - t_bar[0])
 
 

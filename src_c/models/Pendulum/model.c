@@ -316,16 +316,24 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
     return fmi2OK;
 }
 
+/* The acceleration at the FMU's time and state: the output a, which
+ * calc_outputs computed with these very arguments, unless it is stale. */
+static double current_acceleration(cw_instance *inst) {
+    return inst->outputs_dirty
+               ? acceleration(inst, inst->time, inst->s[S_PHI], inst->s[S_W])
+               : R(a);
+}
+
 static int output_derivative(cw_instance *inst, unsigned vr, int order,
                              double *value) {
     const double phi = inst->s[S_PHI], w = inst->s[S_W], t = inst->time;
     if (vr == VR_phi) {
         /* dphi/dt = w needs no acceleration (the master asks for it at every sample). */
-        *value = order == 1 ? w : acceleration(inst, t, phi, w);
+        *value = order == 1 ? w : current_acceleration(inst);
         return order <= 2;
     }
     if (vr == VR_w) {
-        const double a = acceleration(inst, t, phi, w);
+        const double a = current_acceleration(inst);
         if (order == 1) {
             *value = a;
             return 1;
