@@ -341,6 +341,10 @@ static inline __attribute__((always_inline)) void dense8(const cw_rk *rk, int n,
     }
 }
 
+/* cw_rk_init skips exactly the stages k: nothing may lie between them and rcont. */
+_Static_assert(offsetof(cw_rk, rcont) == offsetof(cw_rk, k) + sizeof(((cw_rk *)0)->k),
+               "cw_rk: the stages k must be followed directly by rcont");
+
 void cw_rk_init(cw_rk *rk, int n, double rtol, double atol, double h_max) {
     /* Everything zero but the stages k (1 KiB, more than the rest): each
      * stage is written before it is read, and a model inits a cw_rk at

@@ -109,31 +109,6 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
         watched = [(P, i_tick), (E, i_amp)]
         remember = [] if replay else [(m.ports[a], m.ports[a].out_names.index("rate")) for a in avgs]
 
-        def on_point(t, tt, amp, rates):
-            """At the communication point t: the tick time tt and the torque
-            amplitude amp there, the twins' rates at the point before."""
-            if amp != state[2]:
-                state[2] = amp
-                change_t.append(t)
-                change_v.append(amp)
-            if tt == state[0]:
-                return
-            state[0] = tt
-            state[1] += 1
-            i = state[1]
-            if t >= t_noise:
-                d = amp / torque0 - 1.0
-                noise["n"] += 1
-                noise["sum"] += d
-                noise["sum2"] += d * d
-                if len(noise["head"]) < 8:
-                    noise["head"].append(d)
-            # the twins' phases at the tick: back from this point at the step's rate
-            last_tick[:] = [tt, i] + [out[kp] - w0 * r * (t - tt)
-                                      for (out, kp, _), r in zip(A, rates if A else ())]
-            if i % every == 0 or i == 1:
-                _sample()
-
         def _sample():
             tt, i, *phases = last_tick
             samples["tau"].append(w0 * (tt - start))
@@ -144,10 +119,12 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
 
         last_tick: list = []
 
-        def on_rows(rows):
-            """on_point for each row (t, tick time, torque amplitude) of a
-            batch from run_ticks, with no twins' rates: the same arithmetic
-            in the same order, in local variables (a row per period)."""
+        def on_rows(rows, rates=()):
+            """At each communication point of a batch, a row (t, tick time,
+            torque amplitude): the torque changes, the ticks and their noise;
+            `rates` are the co-simulated twins' rates at the point before (their
+            points come one row at a time). Kept in local variables over the
+            batch: run_ticks hands over a row per period."""
             tt_last, i, amp_last = state
             count, total, total2, head = noise["n"], noise["sum"], noise["sum2"], noise["head"]
             for t, tt, amp in rows:
@@ -166,17 +143,20 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
                     total2 += d * d
                     if len(head) < 8:
                         head.append(d)
+                if A:  # the twins' phases at the tick: back from this point at the step's rate
+                    last_tick[:] = [tt, i] + [out[kp] - w0 * r * (t - tt) for (out, kp, _), r in zip(A, rates)]
                 if i % every == 0 or i == 1:
-                    last_tick[:] = [tt, i]
+                    if not A:
+                        last_tick[:] = [tt, i]
                     _sample()
             state[:] = [tt_last, i, amp_last]
             noise["n"], noise["sum"], noise["sum2"] = count, total, total2
-            if i:  # the last tick, for the closing sample
+            if i and not A:  # the last tick, for the closing sample
                 last_tick[:] = [tt_last, i]
 
         if A:
             _run_with_tick_points(m, stop, pout, i_tick, watched, remember, n["T0"],
-                                  lambda master, rates: on_point(master.t, pout[i_tick], eout[i_amp], rates),
+                                  lambda master, rates: on_rows([(master.t, pout[i_tick], eout[i_amp])], rates),
                                   progress, scene.path.stem)
         else:  # the same points, with no return to Python at each of them
             _run_ticks(m, stop, watched, n["T0"], on_rows, progress, scene.path.stem)
