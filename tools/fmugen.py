@@ -61,6 +61,7 @@ CALLBACKS = {
     "do_step": ("fmi2Status", "cw_instance *inst, double t_end"),
     "commit": ("void", "cw_instance *inst"),
     "output_derivative": ("int", "cw_instance *inst, unsigned vr, int order, double *value"),
+    "settle": ("void", "cw_instance *inst"),
 }
 C_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 

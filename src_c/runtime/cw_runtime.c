@@ -171,6 +171,7 @@ static int set_start_values(cw_instance *inst) {
         inst->in_tref[k] = 0.0;
     }
     memset(inst->s, 0, sizeof(double) * (m->n_real_state ? m->n_real_state : 1));
+    inst->state_pending = 0;
     memset(inst->u, 0, sizeof(uint64_t) * (m->n_uint_state ? m->n_uint_state : 1));
     inst->time = 0.0;
     inst->start_time = 0.0;
@@ -182,6 +183,7 @@ static int set_start_values(cw_instance *inst) {
 }
 
 static void refresh_outputs(cw_instance *inst) {
+    cw_settle(inst);
     if (inst->outputs_dirty) {
         if (inst->model->calc_outputs) inst->model->calc_outputs(inst);
         inst->outputs_checked = 0; /* whatever set outputs_dirty may have changed them */
@@ -398,7 +400,10 @@ fmi2Status cw_core_reset(cw_instance *inst, const char *fn) {
 }
 
 void cw_core_commit(cw_instance *inst) {
-    if (inst->model->commit) inst->model->commit(inst);
+    if (inst->model->commit) {
+        cw_settle(inst);
+        inst->model->commit(inst);
+    }
     inst->outputs_dirty = 1;
 }
 
@@ -419,8 +424,11 @@ static int arrays_given(cw_instance *inst, const char *fn, const unsigned vr[],
    given. 0: refused (logged). */
 static int writable(cw_instance *inst, const char *fn, const unsigned vr[],
                     size_t nvr, const void *value) {
-    return allowed(inst, fn, SETTABLE_STATES) &&
-           arrays_given(inst, fn, vr, nvr, value);
+    if (!allowed(inst, fn, SETTABLE_STATES) ||
+        !arrays_given(inst, fn, vr, nvr, value))
+        return 0;
+    cw_settle(inst); /* with the inputs it was reached with */
+    return 1;
 }
 
 /* The variable of value reference vr if it is of the type the getter or
@@ -1087,6 +1095,7 @@ fmi2Status cw_core_set_state(cw_instance *inst, const char *fn, void *state) {
     if (!allowed(inst, fn, STATE_STATES)) return fmi2Error;
     cw_state_blob *blob = (cw_state_blob *)state;
     if (!blob) return fail(inst, "%s: FMUstate is NULL.", fn);
+    cw_settle(inst); /* a refused state leaves this one whole */
     return restore_state(inst, blob->bytes, blob->size, fn, 1);
 }
 
@@ -1152,6 +1161,7 @@ fmi2Status cw_core_set_input_derivatives(cw_instance *inst, const char *fn,
                                          const double value[]) {
     if (!allowed(inst, fn, CW_INSTANTIATED | CW_INIT_MODE | CW_STEP_COMPLETE))
         return fmi2Error;
+    cw_settle(inst); /* with the input polynomials it was reached with */
     if (nvr > 0 && (!vr || !order || !value)) {
         cw_log(inst, fmi2Error, "logStatusError",
                "%s: NULL argument with nvr = %zu.", fn, nvr);
@@ -1290,7 +1300,10 @@ fmi2Status cw_core_do_step(cw_instance *inst, const char *fn, double tc,
                         fn, v->name, u0, tc, u1, t_end);
     }
     inst->time = tc;
-    if (inst->model->commit) inst->model->commit(inst);
+    if (inst->model->commit) {
+        cw_settle(inst);
+        inst->model->commit(inst);
+    }
     fmi2Status st = fmi2OK;
     inst->returned_early = 0;
     if (inst->model->do_step) st = inst->model->do_step(inst, t_end);
@@ -1304,7 +1317,8 @@ fmi2Status cw_core_do_step(cw_instance *inst, const char *fn, double tc,
                         "from %.17g to %.17g.",
                         fn, inst->model->name, inst->early_time, tc, t_end);
         inst->time = inst->returned_early ? inst->early_time : t_end;
-        if (!outputs_finite(inst, fn)) return fmi2Error;
+        /* A pending state is checked where it is computed (cw_settle). */
+        if (!inst->state_pending && !outputs_finite(inst, fn)) return fmi2Error;
         return st;
     }
     inst->returned_early = 0;

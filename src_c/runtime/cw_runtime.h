@@ -117,6 +117,13 @@ typedef struct {
     int (*output_derivative)(struct cw_instance *inst, unsigned vr, int order,
                              double *value);
 
+    /* Compute the state a do_step left pending (inst->state_pending, set by
+     * the model after an early return); called through cw_settle before
+     * anything reads or changes the state or the inputs. A do_step either
+     * calls cw_settle first or overwrites the whole pending state (may be
+     * NULL for models that never leave one pending). */
+    void (*settle)(struct cw_instance *inst);
+
     /* Highest order of input derivatives fmi2SetRealInputDerivatives takes;
      * 0 (the default) means 2. */
     int max_input_order;
@@ -163,6 +170,18 @@ typedef struct cw_instance {
     double resume_t;     /* the internal step's end, s */
     double resume_h;     /* the integrator's next step size there, s */
     double resume_x[4];  /* the state there */
+    /* After an early return, the state at the event is computed only when
+     * something needs it (cw_settle): the importer usually handles the event
+     * and steps on from it, and the next fmi3DoStep resumes from resume_x
+     * without ever reading it. While pending, inst->s holds NaN where the
+     * model's settle callback will write. The single step that gives it: */
+    int state_pending;
+    int event_method;       /* the Runge-Kutta pair (cw_rk method) */
+    int event_component;    /* the crossing component, exactly 0 at the event */
+    double event_step_t0;   /* the accepted step that held the event: start, s */
+    double event_step_x0[4];
+    double event_time;      /* s */
+    double event_inputs_t;  /* where the right-hand side's held inputs were read, s */
 
     double time;       /* current communication point, s */
     double start_time; /* from fmi2SetupExperiment */
@@ -252,6 +271,15 @@ int cw_may_return_early(const cw_instance *inst);
  * reports earlyReturn, eventHandlingNeeded (with Event Mode) and
  * lastSuccessfulTime = t. */
 void cw_return_early(cw_instance *inst, double t);
+
+/* The state a do_step left pending after an early return, computed now
+ * (the model's settle callback); the outputs follow it. A no-op otherwise. */
+static inline void cw_settle(cw_instance *inst) {
+    if (!inst->state_pending) return;
+    inst->state_pending = 0;
+    inst->model->settle(inst);
+    inst->outputs_dirty = 1;
+}
 
 /* Shorthand used by models to refuse a parameter with a named message. */
 fmi2Status cw_refuse(cw_instance *inst, const char *var, double value,

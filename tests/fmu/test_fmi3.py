@@ -564,6 +564,98 @@ def test_intermediate_update_hands_the_pendulum_its_inputs_at_each_stage():
         assert p3.step(h).status == OK
 
 
+EVENT_OUTPUTS = ["phi", "w", "a", "energy", "tick_count", "tick_time", "tick_w", "turn_count", "amplitude", "period"]
+
+
+def _output_derivatives(p) -> list[float]:
+    vrs = (ctypes.c_uint32 * 4)(*[p.vr(n) for n in ("phi", "phi", "w", "w")])
+    orders = (ctypes.c_int32 * 4)(1, 2, 1, 2)
+    values = (ctypes.c_double * 4)()
+    p.check(p.raw.fmi3GetOutputDerivatives(p.c, vrs, 4, orders, values, 4), "fmi3GetOutputDerivatives")
+    return list(values)
+
+
+def _after_early_return(p, kind: str) -> list:
+    """What instance p shows after call sequence `kind`, made right after an
+    early return (p stands at the event)."""
+    if kind == "get":
+        return p.get_many(EVENT_OUTPUTS)
+    if kind == "output derivatives":
+        return _output_derivatives(p) + p.get_many(EVENT_OUTPUTS)
+    if kind in ("state", "serialized state"):
+        t_event, state = p.time, p.get_state()
+        for _ in range(4):  # on to the next event, whose state is left pending in turn
+            r = p.step(0.9)
+            p.check(r.status, "fmi3DoStep")
+            if r.early_return:
+                break
+        assert r.early_return
+        if kind == "serialized state":
+            st, copy = p.deserialize(p.serialize(state))
+            p.check(st, "fmi3DeserializeFMUState")
+            p.free_state(state)
+            state = copy
+        p.check(p.set_state(state), "fmi3SetFMUState")
+        p.free_state(state)
+        p.time = t_event
+        return p.get_many(EVENT_OUTPUTS)
+    if kind == "input set":  # the event's state is the one the old input reached
+        p.check(p.set(tau_external=0.02), "fmi3SetFloat64")
+        return p.get_many(EVENT_OUTPUTS)
+    if kind == "short step":  # ends before the integrator's own step: starts from the event's state
+        r = p.step(1e-4)
+        p.check(r.status, "fmi3DoStep")
+        assert not r.early_return
+        return p.get_many(EVENT_OUTPUTS)
+    if kind == "event mode":
+        assert p.raw.fmi3EnterEventMode(p.c) == OK
+        p.settle()
+        return p.get_many(EVENT_OUTPUTS)
+    if kind == "terminate":
+        assert p.raw.fmi3Terminate(p.c) == OK
+        return p.get_many(EVENT_OUTPUTS)
+    raise AssertionError(kind)
+
+
+@pytest.mark.parametrize("kind", ["get", "output derivatives", "state", "serialized state", "input set",
+                                  "short step", "event mode", "terminate"])
+def test_the_state_at_an_early_return_is_the_same_whatever_looks_at_it_first(kind):
+    """After an early return the Pendulum computes its state at the event only
+    when something needs it (the importer usually steps on without looking).
+    Whatever call comes first (a getter, output derivatives, an FMU state
+    saved and restored or serialized, an input set, a step that ends before
+    the integrator's own step, Event Mode, fmi3Terminate), it sees the state
+    an instance that read its outputs first sees, bit for bit, and both go
+    on alike."""
+    params = {"phi_start": -0.2, "Q": 50.0}
+    opened = dict(params=params, event_mode=True, early_return=True)
+    with Instance3(find_fmu3("Pendulum"), name="first", **opened) as p, \
+         Instance3(find_fmu3("Pendulum"), name="read", **opened) as ref:
+        early = 0
+        while early < 5:
+            r, r_ref = p.step(0.9), ref.step(0.9)
+            p.check(r.status, "fmi3DoStep")
+            assert r == r_ref
+            if not r.early_return:
+                assert p.get_many(EVENT_OUTPUTS) == ref.get_many(EVENT_OUTPUTS)
+                continue
+            early += 1
+            at_event = ref.get_many(EVENT_OUTPUTS)
+            assert all(math.isfinite(x) for x in at_event)
+            seen = _after_early_return(p, kind)
+            assert seen == _after_early_return(ref, kind), (kind, early)
+            if kind != "short step":  # the state is the event's still (a, energy follow the input)
+                assert seen[-len(at_event):][:2] == at_event[:2]
+                assert kind == "input set" or seen[-len(at_event):] == at_event
+            if kind == "terminate":
+                return
+            if kind != "event mode":
+                for inst in (p, ref):
+                    assert inst.raw.fmi3EnterEventMode(inst.c) == OK
+                    inst.settle()
+            assert p.get_many(EVENT_OUTPUTS) == ref.get_many(EVENT_OUTPUTS)
+
+
 def test_early_return_goes_on_with_the_integrators_own_steps():
     """After an early return at a tick or turning point, the next fmi3DoStep
     from the event goes on from the end of the internal step that held it:

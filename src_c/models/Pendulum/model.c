@@ -121,6 +121,21 @@ static void rhs(void *ctx, double t, const double *x, double *dx) {
     dx[1] = accelerate(c->inst, &f, t, x[0], x[1]);
 }
 
+/* The right-hand side of a step that starts at t, with what it can compute
+ * once for the step. */
+static step_context step_context_at(cw_instance *inst, double t) {
+    step_context ctx = {inst, factors(inst, t), 0.0, 0.0, 0.0,
+                        air_is_steady(inst) ? rhs_steady : rhs};
+    if (inputs_held(inst)) {
+        const air_factors *f = &ctx.fixed;
+        ctx.gravity = R(g) * IN(g_factor, t) * f->weight_ratio / f->length;
+        ctx.damping = damping_rate(inst);
+        ctx.push = torque(inst, t) / (f->inertial_mass * f->length * f->length);
+        ctx.f = rhs_held;
+    }
+    return ctx;
+}
+
 static void initialize(cw_instance *inst) {
     inst->s[S_PHI] = R(phi_start);
     inst->s[S_W] = R(w_start);
@@ -178,7 +193,11 @@ typedef struct {
     int stop_at_events;
     double t_start, t_end; /* the communication step */
     int stopped;
-    double t_event, x_event[2];
+    double t_event;
+    /* The accepted step that held the event: its pair, start and state,
+     * and the component that crosses at the event. */
+    int method, component;
+    double t0, x0[2];
 } step_watch;
 
 static void record_tick(cw_instance *inst, double t, double w) {
@@ -190,15 +209,28 @@ static void record_tick(cw_instance *inst, double t, double w) {
     cw_log(inst, fmi2OK, "logEvents", "tick %d at t = %.17g s", n + 1, t);
 }
 
-/* Where an early return at an event found in the accepted step `rk`
- * reports the pendulum: a full step of the pair from the step's start to t,
- * with the crossing component exactly 0 so that a step restarted there does
- * not find the same event again. */
-static void state_at_event(step_context *ctx, const cw_rk *rk, double t,
-                           int c, double x[2]) {
-    cw_rk_single_step_with(rk->method, 2, ctx->f, ctx, rk->t0, rk->x0,
-                           t - rk->t0, x);
+/* Where an early return at an event at time t reports the pendulum: a
+ * full step of the pair from the start (t0, x0) of the accepted step that
+ * held it, with the crossing component exactly 0 so that a step restarted
+ * there does not find the same event again. */
+static void state_at_event(step_context *ctx, int method, double t0,
+                           const double x0[2], double t, int c, double x[2]) {
+    cw_rk_single_step_with(method, 2, ctx->f, ctx, t0, x0, t - t0, x);
     x[c] = 0.0;
+}
+
+/* The state at the last early return's event, when first needed (the
+ * importer usually steps on from the event without reading it): computed
+ * with the inputs the step was taken with, which nothing has changed since
+ * (cw_settle runs before any setter). */
+static void settle(cw_instance *inst) {
+    step_context ctx = step_context_at(inst, inst->event_inputs_t);
+    double x[2];
+    state_at_event(&ctx, inst->event_method, inst->event_step_t0,
+                   inst->event_step_x0, inst->event_time,
+                   inst->event_component, x);
+    inst->s[S_PHI] = x[0];
+    inst->s[S_W] = x[1];
 }
 
 /* Every accepted step: ticks and turning points are recorded the same way
@@ -239,7 +271,11 @@ static int observe_step(void *ctx, const cw_rk *rk) {
         t_event < watch->t_end) {
         watch->stopped = 1;
         watch->t_event = t_event;
-        state_at_event(watch->rhs_ctx, rk, t_event, tick ? 0 : 1, watch->x_event);
+        watch->method = rk->method;
+        watch->component = tick ? 0 : 1;
+        watch->t0 = rk->t0;
+        watch->x0[0] = rk->x0[0];
+        watch->x0[1] = rk->x0[1];
         return 1;
     }
     return 0;
@@ -249,49 +285,46 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
     cw_rk rk;
     cw_rk_init(&rk, 2, R(rtol), R(atol), R(h_max));
     cw_rk_set_method(&rk, I(integrator));
+    /* Right after an early return, untouched since: go on from the end of
+     * the internal step that held the event, as without early return, and
+     * the state at the event (if still pending) is never needed. */
+    const int resuming = inst->resume_valid && inst->resume_from == inst->time &&
+                         inst->resume_t <= t_end;
+    if (!resuming) cw_settle(inst);
     double x[2] = {inst->s[S_PHI], inst->s[S_W]};
     double t = inst->time, h_next = inst->s[S_H_NEXT];
-    /* Right after an early return, untouched since: go on from the end of
-     * the internal step that held the event, as without early return. */
-    if (inst->resume_valid && inst->resume_from == inst->time &&
-        inst->resume_t <= t_end) {
+    if (resuming) {
         t = inst->resume_t;
         x[0] = inst->resume_x[0];
         x[1] = inst->resume_x[1];
         h_next = inst->resume_h;
     }
     inst->resume_valid = 0;
-    step_context ctx = {inst, factors(inst, t), 0.0, 0.0, 0.0,
-                        air_is_steady(inst) ? rhs_steady : rhs};
-    if (inputs_held(inst)) {
-        const air_factors *f = &ctx.fixed;
-        ctx.gravity = R(g) * IN(g_factor, t) * f->weight_ratio / f->length;
-        ctx.damping = damping_rate(inst);
-        ctx.push = torque(inst, t) / (f->inertial_mass * f->length * f->length);
-        ctx.f = rhs_held;
-    }
+    const double t_inputs = t;
+    step_context ctx = step_context_at(inst, t_inputs);
     /* Tick outputs are updated by the observer; keep them for a retry. */
     const int ticks = I(tick_count), turns = I(turn_count);
     const double tick_w = R(tick_w);
     const double tick_time = R(tick_time), period = R(period),
                  amplitude = R(amplitude);
     step_watch watch = {inst, &ctx, cw_may_return_early(inst), inst->time,
-                        t_end, 0, 0.0, {0.0, 0.0}};
+                        t_end, 0, 0.0, 0, 0, 0.0, {0.0, 0.0}};
     cw_rk_result res =
         cw_rk_advance(&rk, ctx.f, &ctx, &t, t_end, x, &h_next, observe_step, &watch);
-    if (res == CW_RK_STOPPED && watch.stopped) {
-        inst->resume_valid = 1;
-        inst->resume_from = watch.t_event;
-        inst->resume_t = t;
-        inst->resume_x[0] = x[0];
-        inst->resume_x[1] = x[1];
-        inst->resume_h = h_next;
-        t = watch.t_event;
-        x[0] = watch.x_event[0];
-        x[1] = watch.x_event[1];
+    const int stopped = res == CW_RK_STOPPED && watch.stopped;
+    /* The state at the event is left pending, unless the importer answers
+     * input requests (intermediate update): it does so only inside
+     * fmi3DoStep, so the state is computed now. */
+    const int pend = stopped && !inst->intermediate_update;
+    double x_event[2] = {x[0], x[1]};
+    if (stopped) {
         res = CW_RK_OK;
+        if (!pend)
+            state_at_event(&ctx, watch.method, watch.t0, watch.x0, watch.t_event,
+                           watch.component, x_event);
     }
-    if (res != CW_RK_OK || !isfinite(x[0]) || !isfinite(x[1])) {
+    if (res != CW_RK_OK || !isfinite(x[0]) || !isfinite(x[1]) ||
+        !isfinite(x_event[0]) || !isfinite(x_event[1])) {
         I(tick_count) = ticks;
         I(turn_count) = turns;
         R(tick_w) = tick_w;
@@ -306,13 +339,36 @@ static fmi2Status do_step(cw_instance *inst, double t_end) {
                res == CW_RK_STEP_TOO_SMALL   ? "step size underflow"
                : res == CW_RK_TOO_MANY_STEPS ? "too many internal steps"
                                              : "non-finite state",
-               t, x[0], x[1]);
+               stopped ? watch.t_event : t, x_event[0], x_event[1]);
         return fmi2Discard;
     }
-    inst->s[S_PHI] = x[0];
-    inst->s[S_W] = x[1];
     inst->s[S_H_NEXT] = h_next;
-    if (watch.stopped) cw_return_early(inst, t);
+    inst->state_pending = pend;
+    if (!stopped) {
+        inst->s[S_PHI] = x[0];
+        inst->s[S_W] = x[1];
+        return fmi2OK;
+    }
+    inst->resume_valid = 1;
+    inst->resume_from = watch.t_event;
+    inst->resume_t = t;
+    inst->resume_x[0] = x[0];
+    inst->resume_x[1] = x[1];
+    inst->resume_h = h_next;
+    if (pend) {
+        inst->event_method = watch.method;
+        inst->event_component = watch.component;
+        inst->event_step_t0 = watch.t0;
+        inst->event_step_x0[0] = watch.x0[0];
+        inst->event_step_x0[1] = watch.x0[1];
+        inst->event_time = watch.t_event;
+        inst->event_inputs_t = t_inputs;
+        /* Read before cw_settle, it would show; nothing may. */
+        x_event[0] = x_event[1] = NAN;
+    }
+    inst->s[S_PHI] = x_event[0];
+    inst->s[S_W] = x_event[1];
+    cw_return_early(inst, watch.t_event);
     return fmi2OK;
 }
 
