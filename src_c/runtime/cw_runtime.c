@@ -172,6 +172,7 @@ static int set_start_values(cw_instance *inst) {
     }
     memset(inst->s, 0, sizeof(double) * (m->n_real_state ? m->n_real_state : 1));
     inst->state_pending = 0;
+    inst->values_epoch += 1;
     memset(inst->u, 0, sizeof(uint64_t) * (m->n_uint_state ? m->n_uint_state : 1));
     inst->time = 0.0;
     inst->start_time = 0.0;
@@ -428,6 +429,7 @@ static int writable(cw_instance *inst, const char *fn, const unsigned vr[],
         !arrays_given(inst, fn, vr, nvr, value))
         return 0;
     cw_settle(inst); /* with the inputs it was reached with */
+    inst->values_epoch += 1;
     return 1;
 }
 
@@ -1058,6 +1060,7 @@ static fmi2Status restore_state(cw_instance *inst, const unsigned char *buf,
         inst->state = probe.state;
         inst->time = probe.time;
         inst->outputs_dirty = 1;
+        inst->values_epoch += 1;
     }
     if (st != fmi2OK) {
         inst->state = CW_ERROR;
@@ -1162,6 +1165,7 @@ fmi2Status cw_core_set_input_derivatives(cw_instance *inst, const char *fn,
     if (!allowed(inst, fn, CW_INSTANTIATED | CW_INIT_MODE | CW_STEP_COMPLETE))
         return fmi2Error;
     cw_settle(inst); /* with the input polynomials it was reached with */
+    inst->values_epoch += 1;
     if (nvr > 0 && (!vr || !order || !value)) {
         cw_log(inst, fmi2Error, "logStatusError",
                "%s: NULL argument with nvr = %zu.", fn, nvr);

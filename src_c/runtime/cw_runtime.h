@@ -175,6 +175,13 @@ typedef struct cw_instance {
      * and steps on from it, and the next fmi3DoStep resumes from resume_x
      * without ever reading it. While pending, inst->s holds NaN where the
      * model's settle callback will write. The single step that gives it: */
+    /* Bumped whenever a value, an input derivative or the whole state may
+     * have changed (every setter, an FMU state restored, a reset): a model
+     * may keep numbers derived from its parameters and held inputs in
+     * model_cache while model_cache_epoch equals it (0: nothing kept). */
+    uint64_t values_epoch;
+    uint64_t model_cache_epoch;
+    double model_cache[4];
     int state_pending;
     int event_method;       /* the Runge-Kutta pair (cw_rk method) */
     int event_component;    /* the crossing component, exactly 0 at the event */

@@ -173,3 +173,48 @@ def test_drag_of_a_sphere_in_air():
     # No bob radius: the air terms are off whatever the air.
     with Instance(fmu_file("Drag"), {"c1": c1, "c2": c2}, {"w": 0.4, "rho_air": rho, "mu_air": mu}) as d:
         assert d.get("tau") == -(c1 * 0.4 + c2 * 0.4 * 0.4)
+
+
+def test_the_air_factors_follow_every_change_at_once():
+    """The Pendulum keeps its air factors while the air holds still (they
+    cost square roots and divisions at every step, output and derivative).
+    After any change (an air input set, an input derivative given and taken
+    back, an FMU state restored, the instance reset and started again) its
+    acceleration and the step after it are those of a second instance given
+    the same state afresh."""
+    params = {"phi_start": 0.2, "Q": 300.0, "alpha": 1e-3, "T_ref": 290.0, "bob_radius": 0.05,
+              "added_mass_coefficient": 1.0}
+    inputs = {"rho_air": 1.2, "mu_air": 1.8e-5, "temperature": 290.0}
+    with Instance(fmu_file("Pendulum"), params, inputs) as p, \
+         Instance(fmu_file("Pendulum"), params, inputs, name="fresh") as fresh:
+        assert p.step(0.05) == OK
+        before, before_time = p.get_state(), p.time
+
+        def same_as_fresh(what):
+            state = p.get_state()
+            assert fresh.set_state(state) == OK
+            fresh.time = p.time
+            p.free_state(state)
+            assert p.get_many(["a", "energy"]) == fresh.get_many(["a", "energy"]), what
+            assert p.output_derivative("w", 2) == fresh.output_derivative("w", 2), what
+            assert p.step(0.05) == OK and fresh.step(0.05) == OK
+            assert p.get_many(["phi", "w", "a"]) == fresh.get_many(["phi", "w", "a"]), what
+
+        changes = [("rho_air", lambda: p.set(rho_air=0.9)),
+                   ("mu_air", lambda: p.set(mu_air=2.5e-5)),
+                   ("temperature", lambda: p.set(temperature=310.0)),
+                   ("an input derivative and back", lambda: (p.set_input_derivatives({"temperature": {1: 0.5}}),
+                                                             p.step(0.02), p.set(temperature=300.0))),
+                   ("a state restored", lambda: (p.set_state(before), setattr(p, "time", before_time)))]
+        for what, change in changes:
+            p.get("a")  # the factors are kept now
+            change()
+            same_as_fresh(what)
+        p.free_state(before)
+        p.get("a")
+        p.check(p.raw.fmi2Reset(p.c), "fmi2Reset")
+        p.initialize({**params, "alpha": 5e-4}, inputs)
+        fresh.check(fresh.raw.fmi2Reset(fresh.c), "fmi2Reset")
+        fresh.initialize({**params, "alpha": 5e-4}, inputs)
+        assert p.get_many(["a", "energy"]) == fresh.get_many(["a", "energy"])
+        same_as_fresh("reset")

@@ -65,6 +65,27 @@ static int air_is_steady(const cw_instance *inst) {
     return 1;
 }
 
+/* factors(inst, t), kept while nothing is set when the air holds still
+ * (then they do not depend on t): a doStep, the outputs and their
+ * derivatives each need them, and they cost two square roots and three
+ * divisions. */
+static air_factors factors_now(cw_instance *inst, double t) {
+    if (!air_is_steady(inst)) return factors(inst, t);
+    double *kept = inst->model_cache;
+    if (inst->model_cache_epoch != inst->values_epoch) {
+        const air_factors f = factors(inst, t);
+        kept[0] = f.length;
+        kept[1] = f.inertial_mass;
+        kept[2] = f.weight_ratio;
+        inst->model_cache_epoch = inst->values_epoch;
+    }
+    air_factors f;
+    f.length = kept[0];
+    f.inertial_mass = kept[1];
+    f.weight_ratio = kept[2];
+    return f;
+}
+
 static double accelerate(const cw_instance *inst, const air_factors *f,
                          double t, double phi, double w) {
     const double inertia = f->inertial_mass * f->length * f->length;
@@ -72,9 +93,9 @@ static double accelerate(const cw_instance *inst, const air_factors *f,
            damping_rate(inst) * w + torque(inst, t) / inertia;
 }
 
-static double acceleration(const cw_instance *inst, double t, double phi,
+static double acceleration(cw_instance *inst, double t, double phi,
                            double w) {
-    const air_factors f = factors(inst, t);
+    const air_factors f = factors_now(inst, t);
     return accelerate(inst, &f, t, phi, w);
 }
 
@@ -124,7 +145,7 @@ static void rhs(void *ctx, double t, const double *x, double *dx) {
 /* The right-hand side of a step that starts at t, with what it can compute
  * once for the step. */
 static step_context step_context_at(cw_instance *inst, double t) {
-    step_context ctx = {inst, factors(inst, t), 0.0, 0.0, 0.0,
+    step_context ctx = {inst, factors_now(inst, t), 0.0, 0.0, 0.0,
                         air_is_steady(inst) ? rhs_steady : rhs};
     if (inputs_held(inst)) {
         const air_factors *f = &ctx.fixed;
@@ -398,7 +419,7 @@ static int output_derivative(cw_instance *inst, unsigned vr, int order,
             /* da/dt, including the torques' and g_factor's own first
              * derivatives; the air and the temperature change so slowly
              * (weather: hours) that their rates are left out. */
-            const air_factors f = factors(inst, t);
+            const air_factors f = factors_now(inst, t);
             const double inertia = f.inertial_mass * f.length * f.length;
             double dtau = cw_input_rate(inst, VR_tau_escapement, t) +
                           cw_input_rate(inst, VR_tau_drag, t) +
