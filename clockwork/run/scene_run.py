@@ -17,6 +17,7 @@ from pathlib import Path
 from ..version import __version__
 from ..analyses.context import reusing_systems
 from ..errors import ParametersRefused, SceneError, SimulationError
+from ..processes import Child
 from ..results.cache import cache_load, cache_store, read_point
 from ..results.files import write_json_atomic
 from ..results.outdir import OutputDir
@@ -27,13 +28,15 @@ from .points import analysis_kind, failed_point, point_key, point_label, run_poi
 
 
 def run_scene(scene, out_dir, workers: int | None = None, scheduler: str | None = None,
-              progress: bool = True) -> dict:
+              progress: bool = True, plot_process: Child | None = None) -> dict:
     """Run every point of `scene` and write its results into `out_dir`
-    (see clockwork.results.outdir for how the directory is kept whole)."""
+    (see clockwork.results.outdir for how the directory is kept whole).
+    `plot_process`: one the command forked at its start, for the plots
+    (clockwork.results.plots.background)."""
     t_start = time.perf_counter()
     # The plot process starts first: it imports matplotlib while the points run,
     # and it must not inherit the output directory's lock.
-    with Plotter.start(scene) as plotter, OutputDir(out_dir) as out:
+    with Plotter.start(scene, plot_process) as plotter, OutputDir(out_dir) as out:
         try:
             return _run(scene, out, workers, scheduler, progress, plotter, t_start)
         finally:

@@ -7,37 +7,44 @@ while this process loads the FMUs and runs the points. ``submit(results,
 out)`` hands it the results; it draws every plot into `out` (each file
 written atomically; several plots in parallel, one process per core, all
 sharing the imported matplotlib) while this process writes the CSV files,
-and
-``collect()`` gives what ``make_plots`` would have returned here: (files
-written, plots that failed, plots with nothing to draw). The results and
-the summary do not depend on where the plots were drawn.
+and ``collect()`` gives what ``make_plots`` would have returned here:
+(files written, plots that failed, plots with nothing to draw). The
+results and the summary do not depend on where the plots were drawn.
+
+`clockwork run` forks its plot process earlier still, at the command's
+start, before numpy and clockwork's modules are imported (clockwork.cli):
+the child imports them and matplotlib on the other core while this
+process imports them too, and ``Plotter.start(scene, early)`` adopts it;
+the scene then travels with the results. A scene without plots ends it
+there.
 
 The plots are drawn in this process instead when forking is not safe or
 gains nothing: outside Linux, with other threads running, with matplotlib
 already imported (the gallery after its first scene, the tests), or when
-the scene has no plots. A child that dies without an answer is reported
-on stderr and the plots are drawn here.
+the scene has no plots (or does not pickle, for an early process). A
+child that dies without an answer is reported on stderr and the plots are
+drawn here.
 
 The child ignores SIGINT, SIGTERM and SIGHUP (an interrupted run is the
-parent's to report),
-dies with its parent (Linux prctl), never runs the parent's atexit
-handlers (it leaves by os._exit), and is reaped by ``close``.
+parent's to report), dies with its parent (Linux prctl), never runs the
+parent's atexit handlers (it leaves by os._exit), and is reaped by
+``close``.
 """
 
 from __future__ import annotations
 
+import functools
 import gc
 import os
 import pickle
 import signal
 import struct
 import sys
-import threading
 from pathlib import Path
 
 from ...atomic import remove_stale_parts
-from ...processes import die_with_parent
-from .registry import draw_plot, gather, load_matplotlib, make_plots, matplotlib_config
+from ...processes import Child, die_with_parent, fork_child, fork_is_safe
+from .registry import draw_plot, gather, load_matplotlib, make_plots
 
 
 class Plotter:
@@ -48,12 +55,20 @@ class Plotter:
         self._job: tuple | None = None
 
     @staticmethod
-    def start(scene) -> "Plotter":
-        if scene.plots and _fork_is_worthwhile():
-            try:
-                return _PlotProcess(scene)
-            except OSError:  # no more processes or pipes: draw here
-                pass
+    def start(scene, early: Child | None = None) -> "Plotter":
+        """A plot process for `scene`: `early` (started by ``start_early``)
+        when given, else one forked now; or this process, which then draws.
+        An early process the scene does not need ends here."""
+        if scene.plots:
+            if early is not None:
+                return _PlotProcess(scene, early, early=True)
+            if _fork_is_worthwhile():
+                try:
+                    return _PlotProcess(scene, fork_child(functools.partial(serve, scene)), early=False)
+                except OSError:  # no more processes or pipes: draw here
+                    pass
+        if early is not None:
+            early.close()
         return Plotter(scene)
 
     def submit(self, results: list[dict], out: Path) -> None:
@@ -76,53 +91,42 @@ class Plotter:
 
 
 def _fork_is_worthwhile() -> bool:
-    return (sys.platform.startswith("linux") and hasattr(os, "fork")
-            and "matplotlib.figure" not in sys.modules and threading.active_count() == 1)
+    return fork_is_safe() and "matplotlib.figure" not in sys.modules
 
 
 class _PlotProcess(Plotter):
-    def __init__(self, scene):
+    def __init__(self, scene, child: Child, early: bool):
         super().__init__(scene)
-        job_r, job_w = os.pipe()
-        answer_r, answer_w = os.pipe()
-        for stream in (sys.stdout, sys.stderr):  # else the child would write their buffers again
-            if stream is not None:  # None: the stream was closed when the command started
-                stream.flush()
-        matplotlib_config()  # its folder must outlive the child: made here
-        parent = os.getpid()
-        try:
-            pid = os.fork()
-        except OSError:
-            for fd in (job_r, job_w, answer_r, answer_w):
-                os.close(fd)
-            raise
-        if pid == 0:
-            os.close(job_w)
-            os.close(answer_r)
-            _child(scene, parent, job_r, answer_w)  # never returns
-        os.close(job_r)
-        os.close(answer_w)
-        self.pid: int | None = pid
-        self._job_fd: int | None = job_w
-        self._answer_fd: int | None = answer_r
+        self._child = child
+        self._early = early  # forked before the scene was loaded: the scene travels with the job
+        self._drawn_here = False
 
     def submit(self, results, out):
         super().submit(results, out)
+        fd = self._child.take_job_fd()
         try:
-            fd, self._job_fd = self._job_fd, None
-            _write_all(fd, pickle.dumps((results, str(out)), protocol=pickle.HIGHEST_PROTOCOL))
+            data = pickle.dumps((self.scene if self._early else None, results, str(out)),
+                                protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception:  # noqa: BLE001 (a scene that does not pickle: drawn here)
+            os.close(fd)
+            self._child.close()
+            self._drawn_here = True
+            return
+        try:
+            _write_all(fd, data)
         except OSError:
             pass  # the child is gone: collect says so and draws here
 
     def collect(self):
+        if self._drawn_here:
+            return super().collect()
         answer = None
         try:
-            fd, self._answer_fd = self._answer_fd, None
-            data = _read_all(fd)
+            data = _read_all(self._child.take_answer_fd())
             answer = pickle.loads(data) if data else None
         except (OSError, pickle.UnpicklingError, EOFError):
             answer = None
-        status = self._reap()
+        status = self._child.reap()
         if isinstance(answer, tuple) and len(answer) == 3:
             return answer
         why = (answer[1] if isinstance(answer, list) and len(answer) == 2 and answer[0] == "crashed"
@@ -133,21 +137,7 @@ class _PlotProcess(Plotter):
         return super().collect()
 
     def close(self) -> None:
-        for name in ("_job_fd", "_answer_fd"):
-            fd = getattr(self, name)
-            if fd is not None:
-                os.close(fd)
-                setattr(self, name, None)
-        if self.pid is not None:
-            try:
-                os.kill(self.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            self._reap()
-
-    def _reap(self) -> int | None:
-        pid, self.pid = self.pid, None
-        return None if pid is None else _wait(pid)
+        self._child.close()
 
 
 def _wait(pid: int) -> int | None:
@@ -167,13 +157,15 @@ def _exit_reason(status: int | None) -> str:
     return f"exit status {os.WEXITSTATUS(status)}"
 
 
-def _child(scene, parent: int, job_fd: int, answer_fd: int) -> None:
-    """The plot process: import matplotlib, wait for the results, draw, answer."""
-    code = 0
+def serve(scene, parent: int, job_fd: int, answer_fd: int) -> None:
+    """The plot process (processes.fork_child's body): import matplotlib,
+    wait for the results, draw, answer. `scene` None: a process forked
+    before the scene was loaded (clockwork.cli), which gets it with the
+    results."""
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, signal.SIG_IGN)  # the run's to report; this process dies with it
+    die_with_parent(parent)
     try:
-        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-            signal.signal(sig, signal.SIG_IGN)  # the run's to report; this process dies with it
-        die_with_parent(parent)
         # The slow part, done while the parent computes. The collector would
         # walk the growing heap again and again during the import (a tenth of
         # its time); frozen afterwards, those objects stay out of later walks.
@@ -186,17 +178,16 @@ def _child(scene, parent: int, job_fd: int, answer_fd: int) -> None:
         gc.enable()
         job = _read_all(job_fd)
         if job:  # else the parent gave up
-            results, out = pickle.loads(job)
+            sent, results, out = pickle.loads(job)
+            scene = scene if sent is None else sent
             answer = gather(_draw_in_parallel(scene, results, Path(out), answer_fd))
             _write_all(answer_fd, pickle.dumps(answer, protocol=pickle.HIGHEST_PROTOCOL))
     except BaseException as e:  # noqa: BLE001 (the parent gets it; nothing may escape a forked child)
-        code = 1
         try:
             _write_all(answer_fd, pickle.dumps(["crashed", f"{type(e).__name__}: {e}"]))
         except BaseException:  # noqa: BLE001
             pass
-    finally:
-        os._exit(code)
+        raise
 
 
 def _draw_in_parallel(scene, results: list[dict], out: Path, answer_fd: int) -> list[tuple[str, object]]:
