@@ -354,3 +354,27 @@ def test_an_interrupted_run_reaps_its_early_plot_process(tmp_path):
     assert err.strip().splitlines() == ["clockwork: error: interrupted by SIGTERM"], err
     assert len(forked) == 1 and forked[0][1:] == [False, "reaped"], forked
     assert not (tmp_path / "out" / "summary.json").exists()
+
+
+def test_a_saved_png_is_what_savefig_crops_to_the_tight_box(tmp_path):
+    """registry.save finds the tight box itself (one layout of the figure,
+    not two): the bytes must be savefig(bbox_inches="tight")'s, labels, a
+    legend and text below the axes (the --set line) included."""
+    import io
+
+    from clockwork.results.plots.registry import PNG_DPI, save, subplots
+
+    def figure():
+        fig, ax = subplots(figsize=(6.4, 3.6))
+        ax.plot([1, 2, 3], [1e-3, 5e-3, 2e-3], ".-", label="a long legend entry, E_T_s_per_day")
+        ax.set_xlabel("amplitude_deg")
+        ax.set_ylabel("torque_Nm (N.m)")
+        ax.set_title("a title", fontsize=10)
+        ax.legend(loc="best")
+        fig.text(0.01, 0.0, "--set pendulum.Q=900  escapement.torque=0.4", fontsize=7, va="top")
+        return fig
+
+    save(figure(), tmp_path / "a.png")
+    expected = io.BytesIO()
+    figure().savefig(expected, format="png", dpi=PNG_DPI, bbox_inches="tight")
+    assert (tmp_path / "a.png").read_bytes() == expected.getvalue()

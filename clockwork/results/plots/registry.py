@@ -186,9 +186,23 @@ def axis_label(columns: list[str]) -> str:
     return ", ".join(columns)
 
 
+PNG_DPI = 110
+
+
 def save(fig, path: Path) -> None:
+    """The figure as a PNG cropped to what is drawn: the bytes of savefig's
+    bbox_inches="tight", with one layout of the figure instead of two
+    (savefig draws it once, without output, only to find the box; the box
+    found here from the artists' extents is the same)."""
+    import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    box = "tight"
+    if fig.get_layout_engine() is None:  # a layout engine moves the artists in that first draw: savefig's way
+        fig.set_dpi(PNG_DPI)
+        box = fig.get_tightbbox(FigureCanvasAgg(fig).get_renderer()).padded(matplotlib.rcParams["savefig.pad_inches"])
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    fig.savefig(buf, format="png", dpi=PNG_DPI, bbox_inches=box)
     write_bytes_atomic(path, buf.getvalue())
 
 
