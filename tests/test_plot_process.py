@@ -245,6 +245,27 @@ EARLY_DRIVER = textwrap.dedent("""\
         return run(args)
 
     cli.cmd_run = sabotaged
+    body = cli._plot_process_body
+
+    def watched(*a):  # in the early process: what it asked of the scene it was sent, into $WATCH
+        if not os.environ.get("WATCH"):
+            return body(*a)
+        from clockwork.results.plots import background
+        asked, get = [], background._SceneOnDemand.__getattr__
+
+        def asking(self, name):
+            if not name.startswith("_"):  # pickle's probes
+                asked.append(name)
+            return get(self, name)
+
+        background._SceneOnDemand.__getattr__ = asking
+        try:
+            body(*a)
+        finally:
+            with open(os.environ["WATCH"], "w") as f:
+                json.dump(asked, f)
+
+    cli._plot_process_body = watched
 
     def fate(pid):
         try:
@@ -277,7 +298,8 @@ PLOTTED_SWEEP = textwrap.dedent("""\
     """)
 
 
-def _early(tmp_path: Path, *args: str, scene: str | None = PLOTTED_SWEEP, sabotage: str | None = None):
+def _early(tmp_path: Path, *args: str, scene: str | None = PLOTTED_SWEEP, sabotage: str | None = None,
+           watch: Path | None = None):
     """(exit code, forked [[pid, numpy imported, fate]], stdout lines, stderr) of
     `clockwork run SCENE --out DIR ARGS` through the driver; $TMPDIR is checked
     to be left empty."""
@@ -290,8 +312,11 @@ def _early(tmp_path: Path, *args: str, scene: str | None = PLOTTED_SWEEP, sabota
     env = dict(os.environ, CLOCKWORK_FMU_DIR=str(FMU_DIR), PYTHONPATH=str(ROOT), CLOCKWORK_CACHE="off",
                TMPDIR=str(tmp_path / "tmp"))
     env.pop("SABOTAGE", None)
+    env.pop("WATCH", None)
     if sabotage:
         env["SABOTAGE"] = sabotage
+    if watch:
+        env["WATCH"] = str(watch)
     r = subprocess.run([sys.executable, str(driver), "run", str(path), "--out", str(tmp_path / "out"),
                         "--no-progress", *args], env=env, capture_output=True, text=True, timeout=120,
                        preexec_fn=default_stop_signals)
@@ -307,6 +332,26 @@ def test_a_run_forks_its_plot_process_before_numpy_and_draws_there(tmp_path):
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["files"] == ["sweep.csv", "a.png", "summary.json"]
     assert (tmp_path / "out" / "a.png").stat().st_size > 1000
+
+
+def test_the_early_plot_process_draws_result_columns_without_the_whole_scene(tmp_path):
+    """A sweep's plot of result columns (Fig. 4(a)'s) reads the scene's
+    plots, title and overrides only: its components (fmpy's model
+    descriptions, the engine's classes) stay pickled, so that the process
+    needs neither fmpy nor the engine before it draws. A plot of an axis
+    "instance.variable" unpickles them (the tests above draw one)."""
+    asked = tmp_path / "asked.json"
+    columns = PLOTTED_SWEEP.replace('x = "escapement.torque"', 'x = "last_amplitude_deg"').replace(
+        'y = "last_amplitude_deg"', 'y = ["ticks"]')
+    code, forked, _, err = _early(tmp_path, "--workers", "1", scene=columns, watch=asked)
+    assert code == 0 and err == "", err
+    assert forked[0][1:] == [False, "reaped"], forked
+    assert (tmp_path / "out" / "a.png").stat().st_size > 1000
+    assert json.loads(asked.read_text()) == []
+    (tmp_path / "axis").mkdir()
+    code, _, _, err = _early(tmp_path / "axis", "--workers", "1", watch=asked)
+    assert code == 0 and err == "", err
+    assert "components" in json.loads(asked.read_text())  # the axis's unit: the whole scene, unpickled there
 
 
 @pytest.mark.parametrize("case", ["no plots", "--no-plot", "bad input", "missing scene", "--help"])

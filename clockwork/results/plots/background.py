@@ -105,7 +105,7 @@ class _PlotProcess(Plotter):
         super().submit(results, out)
         fd = self._child.take_job_fd()
         try:
-            data = pickle.dumps((self.scene if self._early else None, results, str(out)),
+            data = pickle.dumps((_SceneOnDemand(self.scene) if self._early else None, results, str(out)),
                                 protocol=pickle.HIGHEST_PROTOCOL)
         except Exception:  # noqa: BLE001 (a scene that does not pickle: drawn here)
             os.close(fd)
@@ -174,6 +174,8 @@ def serve(scene, parent: int, job_fd: int, answer_fd: int) -> None:
             load_matplotlib()
         except Exception:
             pass  # draw_plot reports it for each plot, as in the parent
+        if scene is None:
+            _import_while_waiting(job_fd)
         gc.freeze()
         gc.enable()
         job = _read_all(job_fd)
@@ -188,6 +190,49 @@ def serve(scene, parent: int, job_fd: int, answer_fd: int) -> None:
         except BaseException:  # noqa: BLE001
             pass
         raise
+
+
+class _SceneOnDemand:
+    """The scene as an early plot process gets it: what every plot reads
+    (its plots, title and --set overrides) at once, the rest unpickled on
+    first use. The whole scene holds fmpy's model descriptions and
+    clockwork's scene classes: unpickling it imports fmpy and the engine,
+    which a sweep's plots of result columns do without."""
+
+    def __init__(self, scene):
+        self.plots, self.title, self.overrides = scene.plots, scene.title, scene.overrides
+        self._pickled: bytes | None = pickle.dumps(scene, protocol=pickle.HIGHEST_PROTOCOL)
+        self._scene = None
+
+    def __getattr__(self, name: str):  # only for the attributes not set above
+        if name.startswith("_"):  # pickle's probes (__setstate__...), and ours before they are set
+            raise AttributeError(name)
+        if self._scene is None:
+            self._scene, self._pickled = pickle.loads(self._pickled), None
+        return getattr(self._scene, name)
+
+
+# What an early plot process imports while it waits for the results, in
+# this order, each checked for first: the whole scene's classes and the
+# analyses' helpers that some plot kinds call (a long single run leaves
+# time for all of them; Fig. 4(a)'s results come first). Small steps: one
+# under way when the results come delays the drawing.
+_IMPORTS_WHILE_WAITING = ("attr", "lxml.etree", "fmpy.model_description", "clockwork.engine.description",
+                          "clockwork.engine.fmu", "clockwork.engine.master", "clockwork.engine.compiled",
+                          "clockwork.scene.model", "clockwork.analyses")
+
+
+def _import_while_waiting(job_fd: int) -> None:
+    import importlib
+    import select
+
+    for name in _IMPORTS_WHILE_WAITING:
+        if select.select([job_fd], [], [], 0)[0]:  # the results are there
+            return
+        try:
+            importlib.import_module(name)
+        except Exception:  # noqa: BLE001 (imported again where needed, and reported there)
+            return
 
 
 def _draw_in_parallel(scene, results: list[dict], out: Path, answer_fd: int) -> list[tuple[str, object]]:

@@ -17,12 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ...engine.description import var_unit, variables
-from ...engine.names import split_ref
-from ...scene.kinds import Converter, Invalid
-from ...scene.model import ComponentVariables
 from ...atomic import write_bytes_atomic
+from ...engine.names import split_ref
 from ...paths import matplotlib_folder
+from ...scene.kinds import Converter, Invalid
 
 PLOTS: dict = {}  # kind -> function
 PLOT_KEYS: dict[str, set[str]] = {}  # kind -> allowed keys besides `kind`
@@ -151,6 +149,13 @@ def register(kind: str, keys: set[str] | frozenset[str] = frozenset(), convert: 
 def display(scene, name: str, values):
     """Values of `instance.variable` in display units: angles in degrees,
     torques in N.cm; returns (values, axis label)."""
+    if "." not in name:  # a result column: the scene's components are not looked at
+        return np.asarray(values, dtype=float), name
+    # Imported on use: the plot process draws a sweep's result columns
+    # without fmpy and the engine (its start-up time; background).
+    from ...engine.description import var_unit, variables
+    from ...scene.model import ComponentVariables
+
     split = split_ref(name, ComponentVariables(scene.components))
     if split is None:
         return np.asarray(values, dtype=float), name
