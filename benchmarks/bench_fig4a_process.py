@@ -67,7 +67,10 @@ def on_background(m):
     wrap(m, "draw_plot", after=lambda *a: f"plot {a[3]} drawn")
     wrap(m._PlotProcess, "submit", before=lambda *a: "points done: results handed to the plot process")
     wrap(m._PlotProcess, "collect", after=lambda *a: "plots collected")
-    wrap(m, "fork_child", before=lambda *a: "plot process forks")
+    if hasattr(m, "fork_child"):
+        wrap(m, "fork_child", before=lambda *a: "plot process forks")
+    else:  # before the plot process could start early (c438f17)
+        wrap(m._PlotProcess, "__init__", before=lambda *a: "plot process forks")
 WATCH = {"numpy": None, "fmpy": None, "clockwork.run.catalog": on_catalog,
          "clockwork.results.plots.background": on_background, "matplotlib.figure": None}
 seen = {}
@@ -82,7 +85,8 @@ def watching_import(name, *a, **k):
     return m
 builtins.__import__ = watching_import
 from clockwork import cli
-wrap(cli, "fork_child", before=lambda *a: "plot process forks")
+if hasattr(cli, "fork_child"):
+    wrap(cli, "fork_child", before=lambda *a: "plot process forks")
 code = cli.console()
 mark("main() returned")
 sys.exit(code)
