@@ -140,15 +140,6 @@ class _PlotProcess(Plotter):
         self._child.close()
 
 
-def _wait(pid: int) -> int | None:
-    """The exit status of child `pid`, once it has ended (os.waitpid retries
-    after a signal itself), or None when it was already reaped."""
-    try:
-        return os.waitpid(pid, 0)[1]
-    except ChildProcessError:
-        return None
-
-
 def _exit_reason(status: int | None) -> str:
     if status is None:
         return "no exit status"
@@ -251,7 +242,7 @@ def _draw_in_parallel(scene, results: list[dict], out: Path, answer_fd: int) -> 
             helpers.append((plots, None))
     outcomes = {k: draw_plot(scene, results, out, k) for k in range(0, n, ways)}
     for plots, helper in helpers:
-        got = _helper_outcomes(*helper) if helper else None
+        got = _helper_outcomes(helper) if helper else None
         if got is None or sorted(got) != plots:
             remove_stale_parts(out)  # what it was writing when it died
             got = {k: draw_plot(scene, results, out, k) for k in plots}
@@ -259,39 +250,27 @@ def _draw_in_parallel(scene, results: list[dict], out: Path, answer_fd: int) -> 
     return [outcomes[k] for k in range(n)]
 
 
-def _start_helper(scene, results, out: Path, plots: list[int], answer_fd: int) -> tuple[int, int]:
-    """Fork a process that draws `plots`; (its pid, the pipe it answers on)."""
-    read_fd, write_fd = os.pipe()
-    parent = os.getpid()
-    try:
-        pid = os.fork()
-    except OSError:
-        os.close(read_fd)
-        os.close(write_fd)
-        raise
-    if pid == 0:
-        code = 0
-        try:
-            os.close(read_fd)
-            os.close(answer_fd)  # the main process reads to its end: only the plot process holds it
-            die_with_parent(parent)
-            got = {k: draw_plot(scene, results, out, k) for k in plots}
-            _write_all(write_fd, pickle.dumps(got, protocol=pickle.HIGHEST_PROTOCOL))
-        except BaseException:  # noqa: BLE001 (the plot process draws them instead)
-            code = 1
-        finally:
-            os._exit(code)
-    os.close(write_fd)
-    return pid, read_fd
+def _start_helper(scene, results, out: Path, plots: list[int], answer_fd: int) -> Child:
+    """Fork a process that draws `plots` and answers with their outcomes."""
+    def body(parent: int, job_fd: int, helper_answer_fd: int) -> None:
+        os.close(job_fd)  # nothing is sent to it: it has what it draws
+        os.close(answer_fd)  # the main process reads to its end: only the plot process holds it
+        die_with_parent(parent)
+        got = {k: draw_plot(scene, results, out, k) for k in plots}
+        _write_all(helper_answer_fd, pickle.dumps(got, protocol=pickle.HIGHEST_PROTOCOL))
+
+    helper = fork_child(body)  # a helper that fails exits 1: the plot process draws its plots instead
+    os.close(helper.take_job_fd())
+    return helper
 
 
-def _helper_outcomes(pid: int, read_fd: int) -> dict | None:
+def _helper_outcomes(helper: Child) -> dict | None:
     try:
-        data = _read_all(read_fd)
+        data = _read_all(helper.take_answer_fd())
         got = pickle.loads(data) if data else None
     except (OSError, pickle.UnpicklingError, EOFError):
         got = None
-    _wait(pid)
+    helper.reap()
     return got if isinstance(got, dict) else None
 
 
