@@ -566,6 +566,7 @@ def _plot_process_body(parent: int, job_fd: int, answer_fd: int) -> None:
     for sig in _STOP_SIGNALS:  # before its long imports: an interrupted run is the parent's to report
         signal.signal(sig, signal.SIG_IGN)
     die_with_parent(parent)
+    gc.disable()  # imports make long-lived objects only: serve freezes them and enables the collector
     # Imported in the child only: the command's own start stays light.
     from .results.plots.background import serve
 
