@@ -37,10 +37,14 @@ def timed(command: list[str], env: dict) -> float:
 
 
 # One `clockwork run` with timestamps (s since the interpreter started) at the
-# points that matter: the plot process's fork, the results handed to it,
-# matplotlib loaded there, each plot drawn, the plots collected, the end.
+# points that matter, in every process of the run (each line names its pid):
+# numpy, fmpy, clockwork's run modules and matplotlib imported, the scene
+# loaded, the plot process forked, the results handed to it, each plot drawn,
+# the plots collected, the end. Nothing is imported ahead of the command: the
+# marks come from a wrapped __import__, and the plot code is wrapped when a
+# process imports it (the plot process forks before the heavy imports).
 TIMELINE = r"""
-import os, sys, time
+import builtins, os, sys, time
 def since_start():
     stat = open(f"/proc/{os.getpid()}/stat").read().rsplit(")", 1)[1].split()
     return time.clock_gettime(time.CLOCK_BOOTTIME) - int(stat[19]) / os.sysconf("SC_CLK_TCK")
@@ -48,11 +52,6 @@ start = time.clock_gettime(time.CLOCK_BOOTTIME) - since_start()
 def mark(what):
     print(f"{time.clock_gettime(time.CLOCK_BOOTTIME) - start:6.3f} s  pid {os.getpid()}  {what}", file=sys.stderr)
 mark("interpreter started, timeline script running")
-import numpy; mark("numpy imported")
-import fmpy; mark("fmpy imported")
-from clockwork import cli
-from clockwork.run import catalog; mark("clockwork imported")
-from clockwork.results.plots import background
 def wrap(owner, name, before=None, after=None):
     f = getattr(owner, name)
     def w(*a, **k):
@@ -61,12 +60,33 @@ def wrap(owner, name, before=None, after=None):
         after and mark(after(*a))
         return r
     setattr(owner, name, w)
-wrap(catalog, "load_scene", after=lambda *a: "scene loaded")
-wrap(background._PlotProcess, "__init__", before=lambda *a: "plot process forks")
-wrap(background._PlotProcess, "submit", before=lambda *a: "points done: results handed to the plot process")
-wrap(background._PlotProcess, "collect", after=lambda *a: "plots collected")
-wrap(background, "load_matplotlib", after=lambda *a: "matplotlib loaded (plot process)")
-wrap(background, "draw_plot", after=lambda *a: f"plot {a[3]} drawn")
+def on_catalog(m):
+    wrap(m, "load_scene", after=lambda *a: "scene loaded")
+def on_background(m):
+    wrap(m, "load_matplotlib", after=lambda *a: "matplotlib loaded (plot process)")
+    wrap(m, "draw_plot", after=lambda *a: f"plot {a[3]} drawn")
+    wrap(m._PlotProcess, "submit", before=lambda *a: "points done: results handed to the plot process")
+    wrap(m._PlotProcess, "collect", after=lambda *a: "plots collected")
+    if hasattr(m, "fork_child"):
+        wrap(m, "fork_child", before=lambda *a: "plot process forks")
+    else:  # before the plot process could start early (c438f17)
+        wrap(m._PlotProcess, "__init__", before=lambda *a: "plot process forks")
+WATCH = {"numpy": None, "fmpy": None, "clockwork.run.catalog": on_catalog,
+         "clockwork.results.plots.background": on_background, "matplotlib.figure": None}
+seen = {}
+real_import = builtins.__import__
+def watching_import(name, *a, **k):
+    m = real_import(name, *a, **k)
+    for w in [w for w in WATCH if w not in seen and w in sys.modules
+              and not getattr(sys.modules[w].__spec__, "_initializing", False)]:
+        seen[w] = True
+        mark(f"{w} imported")
+        WATCH[w] and WATCH[w](sys.modules[w])
+    return m
+builtins.__import__ = watching_import
+from clockwork import cli
+if hasattr(cli, "fork_child"):
+    wrap(cli, "fork_child", before=lambda *a: "plot process forks")
 code = cli.console()
 mark("main() returned")
 sys.exit(code)

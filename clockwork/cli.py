@@ -21,7 +21,8 @@ from pathlib import Path
 
 from .version import __version__
 from .errors import Interrupted, SceneError, SimulationError, UsageError
-from .paths import scenarios_dir
+from .paths import matplotlib_folder, scenarios_dir
+from .processes import Child, die_with_parent, fork_child, fork_is_safe
 
 
 class _Parser(argparse.ArgumentParser):
@@ -241,7 +242,8 @@ def cmd_run(args) -> int:
     out = check_output_dir(args.out)
     from .run.scene_run import run_scene
 
-    summary = run_scene(scene, out, workers=args.workers, scheduler=args.scheduler, progress=_bars(args))
+    summary = run_scene(scene, out, workers=args.workers, scheduler=args.scheduler, progress=_bars(args),
+                        plot_process=args.plot_process)
     for line in _run_report(scene, out, summary):
         print(line)
     failed = summary.get("points_failed", 0)
@@ -515,9 +517,18 @@ def console() -> int:
     object the run made or imported (a tenth of a second once matplotlib is
     loaded) only for the operating system to free the memory anyway;
     frozen objects are left out of that walk. Files are closed and atexit
-    handlers run as usual."""
+    handlers run as usual.
+
+    `clockwork run` forks its plot process first thing (_plot_process),
+    before numpy and clockwork's modules are imported, and ends it here
+    whatever became of the run."""
     _std_streams_open()
-    code = main()
+    plot_process = _plot_process(sys.argv[1:])
+    try:
+        code = main(plot_process=plot_process)
+    finally:
+        if plot_process is not None:
+            plot_process.close()
     gc.freeze()
     if code > 128:
         # Interrupted: our cleanup is done (the with blocks ran; atexit next).
@@ -531,6 +542,35 @@ def console() -> int:
         atexit._run_exitfuncs()
         os._exit(code)
     return code
+
+
+def _plot_process(argv: list[str]) -> Child | None:
+    """For `clockwork run` with plots: a plot process forked now, which
+    imports numpy, matplotlib and the plot kinds on the other core while
+    this process imports what the run needs, loads the scene and runs its
+    points; run_scene adopts it (clockwork.results.plots.background). None
+    for the other commands, and when the heavy modules are already here
+    (main() called within a Python program: nothing to gain) or forking is
+    not safe. The arguments are only glanced at: a run that turns out to
+    be bad input or to have no plots ends the process unused."""
+    if argv[:1] != ["run"] or "--no-plot" in argv or "numpy" in sys.modules or not fork_is_safe():
+        return None
+    matplotlib_folder()  # its folder must outlive the child: made here
+    try:
+        return fork_child(_plot_process_body)
+    except OSError:  # no more processes or pipes: run_scene forks later or draws here
+        return None
+
+
+def _plot_process_body(parent: int, job_fd: int, answer_fd: int) -> None:
+    for sig in _STOP_SIGNALS:  # before its long imports: an interrupted run is the parent's to report
+        signal.signal(sig, signal.SIG_IGN)
+    die_with_parent(parent)
+    gc.disable()  # imports make long-lived objects only: serve freezes them and enables the collector
+    # Imported in the child only: the command's own start stays light.
+    from .results.plots.background import serve
+
+    serve(None, parent, job_fd, answer_fd)
 
 
 def _std_streams_open() -> None:
@@ -549,9 +589,11 @@ def _std_streams_open() -> None:
             setattr(sys, name, open(fd, mode, closefd=False))
 
 
-def main(argv=None) -> int:
+def main(argv=None, plot_process: Child | None = None) -> int:
+    """The command line `argv` (default: sys.argv[1:]): its exit code.
+    `plot_process`: one forked for `clockwork run` (console)."""
     with _signals_as_interrupts():
-        return _main(argv)
+        return _main(argv, plot_process)
 
 
 # Signals that end a run as Ctrl-C does: one line, exit code 128 + the signal's number.
@@ -586,7 +628,7 @@ def _signals_as_interrupts():
             signal.signal(sig, handler)
 
 
-def _main(argv=None) -> int:
+def _main(argv=None, plot_process: Child | None = None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -595,6 +637,7 @@ def _main(argv=None) -> int:
     except UsageError as e:
         _error(e)
         return 2
+    args.plot_process = plot_process
     try:
         return args.func(args)
     except (SceneError, UsageError) as e:

@@ -20,6 +20,7 @@ import atexit
 import importlib.resources
 import os
 import shutil
+import sys
 import tempfile
 from pathlib import Path
 
@@ -116,3 +117,53 @@ def scratch_inside(parent: Path) -> None:
     `parent`, its parent process's, removed with it."""
     global _scratch, _scratch_parent
     _scratch, _scratch_parent = None, Path(parent)
+
+
+def _usable(d: Path) -> bool:
+    """Whether folder d exists (made if need be) and may be written to."""
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return False
+    return d.is_dir() and os.access(d, os.W_OK | os.X_OK)
+
+
+def _matplotlib_defaults() -> list[Path]:
+    """The config and cache folders matplotlib uses without $MPLCONFIGDIR
+    (matplotlib._get_config_or_cache_dir)."""
+    if sys.platform.startswith(("linux", "freebsd")):
+        home = Path.home()
+        return [Path(os.environ.get("XDG_CONFIG_HOME") or home / ".config", "matplotlib"),
+                Path(os.environ.get("XDG_CACHE_HOME") or home / ".cache", "matplotlib")]
+    return [Path.home() / ".matplotlib"]
+
+
+def matplotlib_folder() -> None:
+    """Give matplotlib a usable config folder before it is imported.
+
+    Without $MPLCONFIGDIR and writable folders of its own (~/.config/
+    matplotlib, ~/.cache/matplotlib), matplotlib makes a temporary folder
+    that only its atexit handler removes (a plot process never runs those)
+    and says so on stderr. The folder here is $MPLCONFIGDIR when writable,
+    else matplotlib's own when writable (its font list, cached there, is then
+    not made again at every run: a third of a second), else
+    <cache>/matplotlib, else a folder in this process's scratch folder,
+    removed at exit. Call it in the process that forks the plot process,
+    before the fork (a plot process forked before matplotlib's and the
+    logging module's import: this module imports neither)."""
+    given = os.environ.get("MPLCONFIGDIR")
+    if not given:
+        try:
+            defaults = _matplotlib_defaults()
+        except RuntimeError:  # no home folder
+            defaults = []
+        if defaults and all(_usable(d) for d in defaults):
+            return
+    root = cache_root()
+    for d in ([Path(given)] if given else []) + ([root / "matplotlib"] if root is not None else []):
+        if _usable(d):
+            os.environ["MPLCONFIGDIR"] = str(d)
+            return
+    d = scratch_dir() / "matplotlib"
+    d.mkdir(exist_ok=True)
+    os.environ["MPLCONFIGDIR"] = str(d)

@@ -176,7 +176,7 @@ def fake_runner(monkeypatch):
     calls = []
     mod = types.ModuleType("clockwork.run.scene_run")
 
-    def run_scene(scene, out_dir, workers=None, scheduler=None, progress=True):
+    def run_scene(scene, out_dir, workers=None, scheduler=None, progress=True, plot_process=None):
         calls.append((scene, out_dir, workers, scheduler, progress))
         if scene.components["pendulum"].parameters.get("Q") == 13.0:
             raise SimulationError("fmi2DoStep failed", time=0.25, instance="pendulum")

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from cwtest import CLOCK_SCENE, FMU_DIR, ROOT, default_stop_signals, fmu_file
+from cwtest import CLOCK_SCENE, FMU_DIR, ROOT, assert_one_line_error, default_stop_signals, fmu_file
 
 sys.path.insert(0, str(ROOT / "tools"))
 from kill_sweep import descendants, running  # noqa: E402
@@ -205,3 +205,221 @@ def test_a_sweep_on_worker_processes_hands_its_plots_over(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["files"] == ["sweep.csv", "a.png", "b.png", "c.png", "d.png", "e.png", "summary.json"]
     assert all((out / f).stat().st_size > 1000 for f in summary["files"] if f.endswith(".png"))
+
+
+# `clockwork run` forks its plot process at the command's start, before numpy
+# is imported (clockwork.cli._plot_process). The driver runs the command as
+# the installed entry point does and records every process the CLI forks
+# (pid, whether numpy was imported then); at exit (atexit: an interrupted run
+# leaves by os._exit after the handlers) it prints each one's fate: "reaped"
+# when the command waited for it, "running" or "zombie" otherwise. SABOTAGE:
+# "kill" kills the early process before the run adopts it, "interrupt" sends
+# the run SIGTERM at its first point.
+EARLY_DRIVER = textwrap.dedent("""\
+    import atexit, json, os, signal, sys
+    from clockwork import cli
+
+    forked = []
+    fork = cli.fork_child
+
+    def recording(body):
+        child = fork(body)
+        forked.append((child.pid, "numpy" in sys.modules))
+        return child
+
+    cli.fork_child = recording
+    run = cli.cmd_run
+
+    def sabotaged(args):
+        from clockwork.results.plots import background
+        background.fork_child = recording  # a plot process forked later than the early one: counted too
+        if os.environ.get("SABOTAGE") == "kill":
+            os.kill(forked[0][0], signal.SIGKILL)
+        if os.environ.get("SABOTAGE") == "interrupt":
+            from clockwork.run import scene_run
+            point = scene_run.run_point
+            def interrupted(*a, **k):
+                os.kill(os.getpid(), signal.SIGTERM)
+                return point(*a, **k)
+            scene_run.run_point = interrupted
+        return run(args)
+
+    cli.cmd_run = sabotaged
+    body = cli._plot_process_body
+
+    def watched(*a):  # in the early process: what it asked of the scene it was sent, into $WATCH
+        if not os.environ.get("WATCH"):
+            return body(*a)
+        from clockwork.results.plots import background
+        asked, get = [], background._SceneOnDemand.__getattr__
+
+        def asking(self, name):
+            if not name.startswith("_"):  # pickle's probes
+                asked.append(name)
+            return get(self, name)
+
+        background._SceneOnDemand.__getattr__ = asking
+        try:
+            body(*a)
+        finally:
+            with open(os.environ["WATCH"], "w") as f:
+                json.dump(asked, f)
+
+    cli._plot_process_body = watched
+
+    def fate(pid):
+        try:
+            got, status = os.waitpid(pid, os.WNOHANG)
+        except ChildProcessError:
+            return "reaped"
+        return "running" if got == 0 else "zombie"
+
+    @atexit.register
+    def report():
+        print(json.dumps([[pid, numpy, fate(pid)] for pid, numpy in forked]), flush=True)
+        for pid, _ in forked:  # whatever the command left, the test leaves nothing
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+    sys.argv[0] = "clockwork"
+    sys.exit(cli.console())
+    """)
+
+PLOTTED_SWEEP = textwrap.dedent("""\
+    [sweep]
+    axes = [{ parameter = "escapement.torque", values = ["0.3 N.cm", "0.4 N.cm"] }]
+    [[plot]]
+    kind = "sweep"
+    x = "escapement.torque"
+    y = "last_amplitude_deg"
+    file = "a.png"
+    """)
+
+
+def _early(tmp_path: Path, *args: str, scene: str | None = PLOTTED_SWEEP, sabotage: str | None = None,
+           watch: Path | None = None):
+    """(exit code, forked [[pid, numpy imported, fate]], stdout lines, stderr) of
+    `clockwork run SCENE --out DIR ARGS` through the driver; $TMPDIR is checked
+    to be left empty."""
+    (tmp_path / "tmp").mkdir()
+    driver = tmp_path / "driver.py"
+    driver.write_text(EARLY_DRIVER)
+    path = tmp_path / "scene.toml"
+    if scene is not None:
+        path.write_text(CLOCK_SCENE.format(stop=0.5, sweep=scene))
+    env = dict(os.environ, CLOCKWORK_FMU_DIR=str(FMU_DIR), PYTHONPATH=str(ROOT), CLOCKWORK_CACHE="off",
+               TMPDIR=str(tmp_path / "tmp"))
+    env.pop("SABOTAGE", None)
+    env.pop("WATCH", None)
+    if sabotage:
+        env["SABOTAGE"] = sabotage
+    if watch:
+        env["WATCH"] = str(watch)
+    r = subprocess.run([sys.executable, str(driver), "run", str(path), "--out", str(tmp_path / "out"),
+                        "--no-progress", *args], env=env, capture_output=True, text=True, timeout=120,
+                       preexec_fn=default_stop_signals)
+    *out, fates = r.stdout.strip().splitlines()
+    assert not list((tmp_path / "tmp").iterdir()), "a temporary file outlived the command"
+    return r.returncode, json.loads(fates), out, r.stderr
+
+
+def test_a_run_forks_its_plot_process_before_numpy_and_draws_there(tmp_path):
+    code, forked, _, err = _early(tmp_path)
+    assert code == 0 and err == "", err
+    assert len(forked) == 1 and forked[0][1:] == [False, "reaped"], forked  # one process, forked before numpy
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["files"] == ["sweep.csv", "a.png", "summary.json"]
+    assert (tmp_path / "out" / "a.png").stat().st_size > 1000
+
+
+def test_the_early_plot_process_draws_result_columns_without_the_whole_scene(tmp_path):
+    """A sweep's plot of result columns (Fig. 4(a)'s) reads the scene's
+    plots, title and overrides only: its components (fmpy's model
+    descriptions, the engine's classes) stay pickled, so that the process
+    needs neither fmpy nor the engine before it draws. A plot of an axis
+    "instance.variable" unpickles them (the tests above draw one)."""
+    asked = tmp_path / "asked.json"
+    columns = PLOTTED_SWEEP.replace('x = "escapement.torque"', 'x = "last_amplitude_deg"').replace(
+        'y = "last_amplitude_deg"', 'y = ["ticks"]')
+    code, forked, _, err = _early(tmp_path, "--workers", "1", scene=columns, watch=asked)
+    assert code == 0 and err == "", err
+    assert forked[0][1:] == [False, "reaped"], forked
+    assert (tmp_path / "out" / "a.png").stat().st_size > 1000
+    assert json.loads(asked.read_text()) == []
+    (tmp_path / "axis").mkdir()
+    code, _, _, err = _early(tmp_path / "axis", "--workers", "1", watch=asked)
+    assert code == 0 and err == "", err
+    assert "components" in json.loads(asked.read_text())  # the axis's unit: the whole scene, unpickled there
+
+
+@pytest.mark.parametrize("case", ["no plots", "--no-plot", "bad input", "missing scene", "--help"])
+def test_an_early_plot_process_the_run_does_not_use_ends_without_a_trace(tmp_path, case):
+    """Whatever the run turns out to be, the early process is reaped before
+    the command ends, says nothing, and leaves the exit code alone."""
+    scene, args = PLOTTED_SWEEP, ()
+    if case == "no plots":  # a sweep without [[plot]] tables has none
+        scene = PLOTTED_SWEEP.split("[[plot]]")[0]
+    elif case == "--no-plot":
+        args = ("--no-plot",)
+    elif case == "bad input":
+        scene = PLOTTED_SWEEP.replace('"0.3 N.cm"', '"0.3 furlongs"')
+    elif case == "missing scene":
+        scene = None
+    elif case == "--help":
+        args = ("--help",)
+    code, forked, out, err = _early(tmp_path, *args, scene=scene)
+    if case in ("no plots", "--no-plot"):
+        assert code == 0 and err == "", err
+        assert json.loads((tmp_path / "out" / "summary.json").read_text())["files"] == ["sweep.csv", "summary.json"]
+    elif case == "--help":
+        assert code == 0 and err == "" and any("usage: clockwork run" in line for line in out), (out, err)
+    else:
+        assert_one_line_error(code, err, "scene.toml")
+    if case == "--no-plot":
+        assert forked == []  # nothing to draw: nothing forked
+    else:
+        assert len(forked) == 1 and forked[0][1:] == [False, "reaped"], forked
+
+
+def test_an_early_plot_process_killed_before_the_run_adopts_it_leaves_the_plots_here(tmp_path):
+    code, forked, _, err = _early(tmp_path, sabotage="kill")
+    assert code == 0, err
+    assert err.strip().splitlines() == [
+        "clockwork: warning: the plot process ended without drawing (killed by SIGKILL); drawing here"], err
+    assert forked[0][1:] == [False, "reaped"]
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["files"] == ["sweep.csv", "a.png",
+                                                                                   "summary.json"]
+
+
+def test_an_interrupted_run_reaps_its_early_plot_process(tmp_path):
+    code, forked, _, err = _early(tmp_path, "--workers", "1", sabotage="interrupt")
+    assert code == 128 + signal.SIGTERM, err
+    assert err.strip().splitlines() == ["clockwork: error: interrupted by SIGTERM"], err
+    assert len(forked) == 1 and forked[0][1:] == [False, "reaped"], forked
+    assert not (tmp_path / "out" / "summary.json").exists()
+
+
+def test_a_saved_png_is_what_savefig_crops_to_the_tight_box(tmp_path):
+    """registry.save finds the tight box itself (one layout of the figure,
+    not two): the bytes must be savefig(bbox_inches="tight")'s, labels, a
+    legend and text below the axes (the --set line) included."""
+    import io
+
+    from clockwork.results.plots.registry import PNG_DPI, save, subplots
+
+    def figure():
+        fig, ax = subplots(figsize=(6.4, 3.6))
+        ax.plot([1, 2, 3], [1e-3, 5e-3, 2e-3], ".-", label="a long legend entry, E_T_s_per_day")
+        ax.set_xlabel("amplitude_deg")
+        ax.set_ylabel("torque_Nm (N.m)")
+        ax.set_title("a title", fontsize=10)
+        ax.legend(loc="best")
+        fig.text(0.01, 0.0, "--set pendulum.Q=900  escapement.torque=0.4", fontsize=7, va="top")
+        return fig
+
+    save(figure(), tmp_path / "a.png")
+    expected = io.BytesIO()
+    figure().savefig(expected, format="png", dpi=PNG_DPI, bbox_inches="tight")
+    assert (tmp_path / "a.png").read_bytes() == expected.getvalue()

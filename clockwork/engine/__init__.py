@@ -9,8 +9,19 @@ what is kept of a run) and shoots for periodic orbits (``shooting``). It
 knows nothing of scene files, papers, plots or result files.
 """
 
-from .master import Master
-from .settings import MasterSettings, Statistics
-from .system import System
-
 __all__ = ["Master", "MasterSettings", "Statistics", "System"]
+
+
+def __getattr__(name: str):
+    # Imported on first use: a module of the engine (names, description)
+    # imports without the master and fmpy's simulation (the plot process's
+    # start-up time; clockwork.results.plots.background).
+    if name == "Master":
+        from . import master as home
+    elif name in ("MasterSettings", "Statistics"):
+        from . import settings as home
+    elif name == "System":
+        from . import system as home
+    else:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(home, name)

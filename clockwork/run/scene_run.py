@@ -17,6 +17,7 @@ from pathlib import Path
 from ..version import __version__
 from ..analyses.context import reusing_systems
 from ..errors import ParametersRefused, SceneError, SimulationError
+from ..processes import Child
 from ..results.cache import cache_load, cache_store, read_point
 from ..results.files import write_json_atomic
 from ..results.outdir import OutputDir
@@ -27,13 +28,15 @@ from .points import analysis_kind, failed_point, point_key, point_label, run_poi
 
 
 def run_scene(scene, out_dir, workers: int | None = None, scheduler: str | None = None,
-              progress: bool = True) -> dict:
+              progress: bool = True, plot_process: Child | None = None) -> dict:
     """Run every point of `scene` and write its results into `out_dir`
-    (see clockwork.results.outdir for how the directory is kept whole)."""
+    (see clockwork.results.outdir for how the directory is kept whole).
+    `plot_process`: one the command forked at its start, for the plots
+    (clockwork.results.plots.background)."""
     t_start = time.perf_counter()
     # The plot process starts first: it imports matplotlib while the points run,
     # and it must not inherit the output directory's lock.
-    with Plotter.start(scene) as plotter, OutputDir(out_dir) as out:
+    with Plotter.start(scene, plot_process) as plotter, OutputDir(out_dir) as out:
         try:
             return _run(scene, out, workers, scheduler, progress, plotter, t_start)
         finally:
@@ -77,12 +80,14 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
             failure = e
             finished(0, failed_point(scene, points[0], e, time.perf_counter() - t_start))
     elif todo:
-        from tqdm import tqdm
-
         from .pool import default_workers, run_in_pool  # a sweep's: start-up of a single run needs no process pool
 
-        bar = tqdm(total=len(points), initial=reused, disable=not progress, delay=1.0,
-                   desc=scene.path.stem, unit="point")
+        if progress:
+            from tqdm import tqdm  # a bar's: tqdm's imports take 20-30 ms that a run without one is spared
+
+            bar = tqdm(total=len(points), initial=reused, delay=1.0, desc=scene.path.stem, unit="point")
+        else:
+            bar = _NoBar()
         n_workers = workers or default_workers(len(todo))
         if scheduler:
             from .dask import run_on_dask  # distributed is an optional extra: imported only when asked for
@@ -132,6 +137,16 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
     if failure is not None:
         raise _failed_run(failure, out.path, summary)
     return summary
+
+
+class _NoBar:
+    """The progress bar of a run that shows none."""
+
+    def update(self) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
 
 
 def _failed_run(e: SimulationError, where: Path, summary: dict) -> SimulationError:

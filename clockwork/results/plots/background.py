@@ -7,37 +7,44 @@ while this process loads the FMUs and runs the points. ``submit(results,
 out)`` hands it the results; it draws every plot into `out` (each file
 written atomically; several plots in parallel, one process per core, all
 sharing the imported matplotlib) while this process writes the CSV files,
-and
-``collect()`` gives what ``make_plots`` would have returned here: (files
-written, plots that failed, plots with nothing to draw). The results and
-the summary do not depend on where the plots were drawn.
+and ``collect()`` gives what ``make_plots`` would have returned here:
+(files written, plots that failed, plots with nothing to draw). The
+results and the summary do not depend on where the plots were drawn.
+
+`clockwork run` forks its plot process earlier still, at the command's
+start, before numpy and clockwork's modules are imported (clockwork.cli):
+the child imports them and matplotlib on the other core while this
+process imports them too, and ``Plotter.start(scene, early)`` adopts it;
+the scene then travels with the results. A scene without plots ends it
+there.
 
 The plots are drawn in this process instead when forking is not safe or
 gains nothing: outside Linux, with other threads running, with matplotlib
 already imported (the gallery after its first scene, the tests), or when
-the scene has no plots. A child that dies without an answer is reported
-on stderr and the plots are drawn here.
+the scene has no plots (or does not pickle, for an early process). A
+child that dies without an answer is reported on stderr and the plots are
+drawn here.
 
 The child ignores SIGINT, SIGTERM and SIGHUP (an interrupted run is the
-parent's to report),
-dies with its parent (Linux prctl), never runs the parent's atexit
-handlers (it leaves by os._exit), and is reaped by ``close``.
+parent's to report), dies with its parent (Linux prctl), never runs the
+parent's atexit handlers (it leaves by os._exit), and is reaped by
+``close``.
 """
 
 from __future__ import annotations
 
+import functools
 import gc
 import os
 import pickle
 import signal
 import struct
 import sys
-import threading
 from pathlib import Path
 
 from ...atomic import remove_stale_parts
-from ...processes import die_with_parent
-from .registry import draw_plot, gather, load_matplotlib, make_plots, matplotlib_config
+from ...processes import Child, die_with_parent, fork_child, fork_is_safe
+from .registry import draw_plot, gather, load_matplotlib, make_plots
 
 
 class Plotter:
@@ -48,12 +55,20 @@ class Plotter:
         self._job: tuple | None = None
 
     @staticmethod
-    def start(scene) -> "Plotter":
-        if scene.plots and _fork_is_worthwhile():
-            try:
-                return _PlotProcess(scene)
-            except OSError:  # no more processes or pipes: draw here
-                pass
+    def start(scene, early: Child | None = None) -> "Plotter":
+        """A plot process for `scene`: `early` (started by ``start_early``)
+        when given, else one forked now; or this process, which then draws.
+        An early process the scene does not need ends here."""
+        if scene.plots:
+            if early is not None:
+                return _PlotProcess(scene, early, early=True)
+            if _fork_is_worthwhile():
+                try:
+                    return _PlotProcess(scene, fork_child(functools.partial(serve, scene)), early=False)
+                except OSError:  # no more processes or pipes: draw here
+                    pass
+        if early is not None:
+            early.close()
         return Plotter(scene)
 
     def submit(self, results: list[dict], out: Path) -> None:
@@ -76,53 +91,42 @@ class Plotter:
 
 
 def _fork_is_worthwhile() -> bool:
-    return (sys.platform.startswith("linux") and hasattr(os, "fork")
-            and "matplotlib.figure" not in sys.modules and threading.active_count() == 1)
+    return fork_is_safe() and "matplotlib.figure" not in sys.modules
 
 
 class _PlotProcess(Plotter):
-    def __init__(self, scene):
+    def __init__(self, scene, child: Child, early: bool):
         super().__init__(scene)
-        job_r, job_w = os.pipe()
-        answer_r, answer_w = os.pipe()
-        for stream in (sys.stdout, sys.stderr):  # else the child would write their buffers again
-            if stream is not None:  # None: the stream was closed when the command started
-                stream.flush()
-        matplotlib_config()  # its folder must outlive the child: made here
-        parent = os.getpid()
-        try:
-            pid = os.fork()
-        except OSError:
-            for fd in (job_r, job_w, answer_r, answer_w):
-                os.close(fd)
-            raise
-        if pid == 0:
-            os.close(job_w)
-            os.close(answer_r)
-            _child(scene, parent, job_r, answer_w)  # never returns
-        os.close(job_r)
-        os.close(answer_w)
-        self.pid: int | None = pid
-        self._job_fd: int | None = job_w
-        self._answer_fd: int | None = answer_r
+        self._child = child
+        self._early = early  # forked before the scene was loaded: the scene travels with the job
+        self._drawn_here = False
 
     def submit(self, results, out):
         super().submit(results, out)
+        fd = self._child.take_job_fd()
         try:
-            fd, self._job_fd = self._job_fd, None
-            _write_all(fd, pickle.dumps((results, str(out)), protocol=pickle.HIGHEST_PROTOCOL))
+            data = pickle.dumps((_SceneOnDemand(self.scene) if self._early else None, results, str(out)),
+                                protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception:  # noqa: BLE001 (a scene that does not pickle: drawn here)
+            os.close(fd)
+            self._child.close()
+            self._drawn_here = True
+            return
+        try:
+            _write_all(fd, data)
         except OSError:
             pass  # the child is gone: collect says so and draws here
 
     def collect(self):
+        if self._drawn_here:
+            return super().collect()
         answer = None
         try:
-            fd, self._answer_fd = self._answer_fd, None
-            data = _read_all(fd)
+            data = _read_all(self._child.take_answer_fd())
             answer = pickle.loads(data) if data else None
         except (OSError, pickle.UnpicklingError, EOFError):
             answer = None
-        status = self._reap()
+        status = self._child.reap()
         if isinstance(answer, tuple) and len(answer) == 3:
             return answer
         why = (answer[1] if isinstance(answer, list) and len(answer) == 2 and answer[0] == "crashed"
@@ -133,30 +137,7 @@ class _PlotProcess(Plotter):
         return super().collect()
 
     def close(self) -> None:
-        for name in ("_job_fd", "_answer_fd"):
-            fd = getattr(self, name)
-            if fd is not None:
-                os.close(fd)
-                setattr(self, name, None)
-        if self.pid is not None:
-            try:
-                os.kill(self.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            self._reap()
-
-    def _reap(self) -> int | None:
-        pid, self.pid = self.pid, None
-        return None if pid is None else _wait(pid)
-
-
-def _wait(pid: int) -> int | None:
-    """The exit status of child `pid`, once it has ended (os.waitpid retries
-    after a signal itself), or None when it was already reaped."""
-    try:
-        return os.waitpid(pid, 0)[1]
-    except ChildProcessError:
-        return None
+        self._child.close()
 
 
 def _exit_reason(status: int | None) -> str:
@@ -167,13 +148,15 @@ def _exit_reason(status: int | None) -> str:
     return f"exit status {os.WEXITSTATUS(status)}"
 
 
-def _child(scene, parent: int, job_fd: int, answer_fd: int) -> None:
-    """The plot process: import matplotlib, wait for the results, draw, answer."""
-    code = 0
+def serve(scene, parent: int, job_fd: int, answer_fd: int) -> None:
+    """The plot process (processes.fork_child's body): import matplotlib,
+    wait for the results, draw, answer. `scene` None: a process forked
+    before the scene was loaded (clockwork.cli), which gets it with the
+    results."""
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, signal.SIG_IGN)  # the run's to report; this process dies with it
+    die_with_parent(parent)
     try:
-        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-            signal.signal(sig, signal.SIG_IGN)  # the run's to report; this process dies with it
-        die_with_parent(parent)
         # The slow part, done while the parent computes. The collector would
         # walk the growing heap again and again during the import (a tenth of
         # its time); frozen afterwards, those objects stay out of later walks.
@@ -182,21 +165,65 @@ def _child(scene, parent: int, job_fd: int, answer_fd: int) -> None:
             load_matplotlib()
         except Exception:
             pass  # draw_plot reports it for each plot, as in the parent
+        if scene is None:
+            _import_while_waiting(job_fd)
         gc.freeze()
         gc.enable()
         job = _read_all(job_fd)
         if job:  # else the parent gave up
-            results, out = pickle.loads(job)
+            sent, results, out = pickle.loads(job)
+            scene = scene if sent is None else sent
             answer = gather(_draw_in_parallel(scene, results, Path(out), answer_fd))
             _write_all(answer_fd, pickle.dumps(answer, protocol=pickle.HIGHEST_PROTOCOL))
     except BaseException as e:  # noqa: BLE001 (the parent gets it; nothing may escape a forked child)
-        code = 1
         try:
             _write_all(answer_fd, pickle.dumps(["crashed", f"{type(e).__name__}: {e}"]))
         except BaseException:  # noqa: BLE001
             pass
-    finally:
-        os._exit(code)
+        raise
+
+
+class _SceneOnDemand:
+    """The scene as an early plot process gets it: what every plot reads
+    (its plots, title and --set overrides) at once, the rest unpickled on
+    first use. The whole scene holds fmpy's model descriptions and
+    clockwork's scene classes: unpickling it imports fmpy and the engine,
+    which a sweep's plots of result columns do without."""
+
+    def __init__(self, scene):
+        self.plots, self.title, self.overrides = scene.plots, scene.title, scene.overrides
+        self._pickled: bytes | None = pickle.dumps(scene, protocol=pickle.HIGHEST_PROTOCOL)
+        self._scene = None
+
+    def __getattr__(self, name: str):  # only for the attributes not set above
+        if name.startswith("_"):  # pickle's probes (__setstate__...), and ours before they are set
+            raise AttributeError(name)
+        if self._scene is None:
+            self._scene, self._pickled = pickle.loads(self._pickled), None
+        return getattr(self._scene, name)
+
+
+# What an early plot process imports while it waits for the results, in
+# this order, each checked for first: the whole scene's classes and the
+# analyses' helpers that some plot kinds call (a long single run leaves
+# time for all of them; Fig. 4(a)'s results come first). Small steps: one
+# under way when the results come delays the drawing.
+_IMPORTS_WHILE_WAITING = ("attr", "lxml.etree", "fmpy.model_description", "clockwork.engine.description",
+                          "clockwork.engine.fmu", "clockwork.engine.master", "clockwork.engine.compiled",
+                          "clockwork.scene.model", "clockwork.analyses")
+
+
+def _import_while_waiting(job_fd: int) -> None:
+    import importlib
+    import select
+
+    for name in _IMPORTS_WHILE_WAITING:
+        if select.select([job_fd], [], [], 0)[0]:  # the results are there
+            return
+        try:
+            importlib.import_module(name)
+        except Exception:  # noqa: BLE001 (imported again where needed, and reported there)
+            return
 
 
 def _draw_in_parallel(scene, results: list[dict], out: Path, answer_fd: int) -> list[tuple[str, object]]:
@@ -215,7 +242,7 @@ def _draw_in_parallel(scene, results: list[dict], out: Path, answer_fd: int) -> 
             helpers.append((plots, None))
     outcomes = {k: draw_plot(scene, results, out, k) for k in range(0, n, ways)}
     for plots, helper in helpers:
-        got = _helper_outcomes(*helper) if helper else None
+        got = _helper_outcomes(helper) if helper else None
         if got is None or sorted(got) != plots:
             remove_stale_parts(out)  # what it was writing when it died
             got = {k: draw_plot(scene, results, out, k) for k in plots}
@@ -223,39 +250,27 @@ def _draw_in_parallel(scene, results: list[dict], out: Path, answer_fd: int) -> 
     return [outcomes[k] for k in range(n)]
 
 
-def _start_helper(scene, results, out: Path, plots: list[int], answer_fd: int) -> tuple[int, int]:
-    """Fork a process that draws `plots`; (its pid, the pipe it answers on)."""
-    read_fd, write_fd = os.pipe()
-    parent = os.getpid()
-    try:
-        pid = os.fork()
-    except OSError:
-        os.close(read_fd)
-        os.close(write_fd)
-        raise
-    if pid == 0:
-        code = 0
-        try:
-            os.close(read_fd)
-            os.close(answer_fd)  # the main process reads to its end: only the plot process holds it
-            die_with_parent(parent)
-            got = {k: draw_plot(scene, results, out, k) for k in plots}
-            _write_all(write_fd, pickle.dumps(got, protocol=pickle.HIGHEST_PROTOCOL))
-        except BaseException:  # noqa: BLE001 (the plot process draws them instead)
-            code = 1
-        finally:
-            os._exit(code)
-    os.close(write_fd)
-    return pid, read_fd
+def _start_helper(scene, results, out: Path, plots: list[int], answer_fd: int) -> Child:
+    """Fork a process that draws `plots` and answers with their outcomes."""
+    def body(parent: int, job_fd: int, helper_answer_fd: int) -> None:
+        os.close(job_fd)  # nothing is sent to it: it has what it draws
+        os.close(answer_fd)  # the main process reads to its end: only the plot process holds it
+        die_with_parent(parent)
+        got = {k: draw_plot(scene, results, out, k) for k in plots}
+        _write_all(helper_answer_fd, pickle.dumps(got, protocol=pickle.HIGHEST_PROTOCOL))
+
+    helper = fork_child(body)  # a helper that fails exits 1: the plot process draws its plots instead
+    os.close(helper.take_job_fd())
+    return helper
 
 
-def _helper_outcomes(pid: int, read_fd: int) -> dict | None:
+def _helper_outcomes(helper: Child) -> dict | None:
     try:
-        data = _read_all(read_fd)
+        data = _read_all(helper.take_answer_fd())
         got = pickle.loads(data) if data else None
     except (OSError, pickle.UnpicklingError, EOFError):
         got = None
-    _wait(pid)
+    helper.reap()
     return got if isinstance(got, dict) else None
 
 

@@ -10,13 +10,14 @@ import math
 
 import numpy as np
 
-from ...analyses import keys
-from ...analyses.context import find_component, parameters
 from ...scene.kinds import Invalid
 from .registry import check_keys, display, register, subplots
 
 
 def _plot_keys(t: dict) -> dict:
+    # Imported on use: the plot process starts without the engine and fmpy (background).
+    from ...analyses import keys
+
     out = check_keys(t, strings=("x", "y", "title"))
     if "window" in t:
         w = t["window"]
@@ -31,6 +32,9 @@ def _plot_keys(t: dict) -> dict:
 @register("phase_space", {"x", "y", "window"}, _plot_keys, run="series", columns={"x": None, "y": None})
 def plot_phase_space(scene, r, spec):
     """A trajectory in degrees, coloured by time; +-phi_r marked when x is the pendulum angle."""
+    # Imported on use: the plot process starts without the engine and fmpy (background).
+    from ...analyses.context import find_component, parameters
+
     s = r["series"]
     t = np.asarray(s["time"])
     sel = np.ones(len(t), bool)
@@ -67,6 +71,9 @@ def plot_phase_space(scene, r, spec):
 @register("vibration_time", {"window"}, _plot_keys, run="series")
 def plot_vibration_time(scene, r, spec):
     """a2 (deg) and the escapement torque (N.cm) against time (Fig. 9a)."""
+    # Imported on use: the plot process starts without the engine and fmpy (background).
+    from ...analyses.context import find_component
+
     s = r["series"]
     vib = find_component(scene, "MechanismVibration")
     esc = find_component(scene, "GrasshopperEscapement")

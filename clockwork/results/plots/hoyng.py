@@ -10,13 +10,13 @@ import math
 
 import numpy as np
 
-from ...analyses import keys
-from ...analyses.context import find_component, parameters
-from ...analyses.hoyng.common import DAY, TWO_PI, hoyng_components, stationary_rows
 from .registry import check_keys, curves, register, subplots
 
 
 def _convert_plot(t: dict) -> dict:
+    # Imported on use: the plot process starts without the engine and fmpy (background).
+    from ...analyses import keys
+
     out = check_keys(t, strings=("x", "title", "group", "theory"), booleans=("log_x",))
     for k in ("eps_max", "mu_max"):
         if k in t:
@@ -27,9 +27,20 @@ def _convert_plot(t: dict) -> dict:
 _NAMED = {"A": (2.5e-4, 2e-5), "B": (2.5e-4, 4e-5), "C": (1.167245e-4, 1.5e-5)}
 
 
+def _stationary_rows(results):
+    """The rows a plot of these kinds draws (analyses.hoyng.common.stationary_rows), imported on use."""
+    from ...analyses.hoyng.common import stationary_rows
+
+    return stationary_rows(results)
+
+
 @register("hoyng_rate_map", {"eps_max", "mu_max", "levels", "title", "file"}, _convert_plot)
 def plot_rate_map(scene, results, spec):
     """Fig. 3: Eq. (20) in s/day over (eps, mu), lambda = k phi0 lines, simulated points."""
+    # Imported on use: the plot process starts without the engine and fmpy (background).
+    from ...analyses.context import find_component, parameters
+    from ...analyses.hoyng.common import DAY, stationary_rows
+
     rows = stationary_rows(results)
     esc = find_component(scene, "GrasshopperEscapement")
     phi0 = parameters(scene)[esc]["phi_r"] if esc else 0.03
@@ -71,10 +82,13 @@ def plot_rate_map(scene, results, spec):
     return fig
 
 
-@register("hoyng_comparison", {"x", "group", "theory", "log_x", "title", "file"}, _convert_plot, rows=stationary_rows,
+@register("hoyng_comparison", {"x", "group", "theory", "log_x", "title", "file"}, _convert_plot, rows=_stationary_rows,
           columns={"x": "eps", "group": None, "theory": "rate_theory"})
 def plot_comparison(scene, rows, spec):
     """Simulated stationary rate against the closed form (s/day), and their difference."""
+    # Imported on use: the plot process starts without the engine and fmpy (background).
+    from ...analyses.hoyng.common import DAY, hoyng_components
+
     xk, gk = spec.get("x", "eps"), spec.get("group")
     theory = spec.get("theory", "rate_theory")
     groups = curves([r["result"] for r in rows], lambda res: res.get(gk) if gk else None)
@@ -114,6 +128,10 @@ def plot_comparison(scene, rows, spec):
 @register("hoyng_phi", {"title", "file"}, _convert_plot, run="phi_series")
 def plot_phi(scene, r, spec):
     """Fig. 4: the pendulum angle around the torque jump (nothing to see)."""
+    # Imported on use: the plot process starts without the engine and fmpy (background).
+    from ...analyses.context import find_component, parameters
+    from ...analyses.hoyng.common import TWO_PI
+
     t = np.asarray(r["phi_series"]["time_s"])
     phi = np.asarray(r["phi_series"]["phi_rad"])
     w0 = math.sqrt(parameters(scene)[find_component(scene, "Pendulum")]["g"] /

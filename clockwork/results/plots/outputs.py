@@ -25,7 +25,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...engine.description import INTEGER_TYPES, TEXT_TYPES, var_unit, variables
 from ...engine.names import split_ref
 from .registry import check_keys, register, subplots
 
@@ -54,6 +53,9 @@ class Column:
 def column_info(scene, names) -> dict[str, dict]:
     """{column: {"unit", "type", "variability"}} of recorded "instance.variable"
     columns (kept in summary.json for `clockwork plot`)."""
+    # Imported on use: the plot process starts without the engine and fmpy (background).
+    from ...engine.description import var_unit, variables
+
     found = {n: variables(c.model_description) for n, c in scene.components.items()}
     out = {}
     for name in names:
@@ -65,6 +67,9 @@ def column_info(scene, names) -> dict[str, dict]:
 
 
 def _kind(info: dict) -> str:
+    # Imported on use: the plot process starts without the engine and fmpy (background).
+    from ...engine.description import INTEGER_TYPES
+
     if info.get("type") == "Boolean":
         return "boolean"
     if info.get("type") in INTEGER_TYPES or info.get("variability") in ("discrete", "fixed", "tunable", "constant"):
@@ -77,6 +82,9 @@ def columns(series: dict, info: dict, only=None, strip: str | None = None, patte
     `only`: the names to keep (with `patterns`, shell patterns too, matched
     against the full name and the label); `strip`: an instance prefix left
     out of the labels (a scene of one component)."""
+    # Imported on use: the plot process starts without the engine and fmpy (background).
+    from ...engine.description import TEXT_TYPES
+
     out = []
     for name, values in series.items():
         if name == "time":

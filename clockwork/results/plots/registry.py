@@ -12,18 +12,15 @@ from __future__ import annotations
 
 import io
 import logging
-import os
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from ...engine.description import var_unit, variables
-from ...engine.names import split_ref
-from ...scene.kinds import Converter, Invalid
-from ...scene.model import ComponentVariables
 from ...atomic import write_bytes_atomic
-from ...paths import cache_root, scratch_dir
+from ...engine.names import split_ref
+from ...paths import matplotlib_folder
+from ...scene.kinds import Converter, Invalid
 
 PLOTS: dict = {}  # kind -> function
 PLOT_KEYS: dict[str, set[str]] = {}  # kind -> allowed keys besides `kind`
@@ -32,55 +29,12 @@ _PLOT_CONVERT: dict[str, Converter] = {}
 PLOT_COLUMNS: dict[str, tuple[dict, str]] = {}
 
 
-def _usable(d: Path) -> bool:
-    """Whether folder d exists (made if need be) and may be written to."""
-    try:
-        d.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return False
-    return d.is_dir() and os.access(d, os.W_OK | os.X_OK)
-
-
-def _matplotlib_defaults() -> list[Path]:
-    """The config and cache folders matplotlib uses without $MPLCONFIGDIR
-    (matplotlib._get_config_or_cache_dir)."""
-    if sys.platform.startswith(("linux", "freebsd")):
-        home = Path.home()
-        return [Path(os.environ.get("XDG_CONFIG_HOME") or home / ".config", "matplotlib"),
-                Path(os.environ.get("XDG_CACHE_HOME") or home / ".cache", "matplotlib")]
-    return [Path.home() / ".matplotlib"]
-
-
 def matplotlib_config() -> None:
-    """Give matplotlib a usable config folder before it is imported, and
-    keep its log lines off stderr (one line per failure is ours to print).
-
-    Without $MPLCONFIGDIR and writable folders of its own (~/.config/
-    matplotlib, ~/.cache/matplotlib), matplotlib makes a temporary folder
-    that only its atexit handler removes (a plot process never runs those)
-    and says so on stderr. The folder here is $MPLCONFIGDIR when writable,
-    else matplotlib's own when writable (its font list, cached there, is then
-    not made again at every run: a third of a second), else
-    <cache>/matplotlib, else a folder in this process's scratch folder,
-    removed at exit. Call it in the process that forks the plot process,
-    before the fork."""
+    """Give matplotlib a usable config folder before it is imported
+    (paths.matplotlib_folder), and keep its log lines off stderr (one line
+    per failure is ours to print)."""
     logging.getLogger("matplotlib").setLevel(logging.ERROR)
-    given = os.environ.get("MPLCONFIGDIR")
-    if not given:
-        try:
-            defaults = _matplotlib_defaults()
-        except RuntimeError:  # no home folder
-            defaults = []
-        if defaults and all(_usable(d) for d in defaults):
-            return
-    root = cache_root()
-    for d in ([Path(given)] if given else []) + ([root / "matplotlib"] if root is not None else []):
-        if _usable(d):
-            os.environ["MPLCONFIGDIR"] = str(d)
-            return
-    d = scratch_dir() / "matplotlib"
-    d.mkdir(exist_ok=True)
-    os.environ["MPLCONFIGDIR"] = str(d)
+    matplotlib_folder()
 
 
 def load_matplotlib() -> None:
@@ -195,6 +149,13 @@ def register(kind: str, keys: set[str] | frozenset[str] = frozenset(), convert: 
 def display(scene, name: str, values):
     """Values of `instance.variable` in display units: angles in degrees,
     torques in N.cm; returns (values, axis label)."""
+    if "." not in name:  # a result column: the scene's components are not looked at
+        return np.asarray(values, dtype=float), name
+    # Imported on use: the plot process draws a sweep's result columns
+    # without fmpy and the engine (its start-up time; background).
+    from ...engine.description import var_unit, variables
+    from ...scene.model import ComponentVariables
+
     split = split_ref(name, ComponentVariables(scene.components))
     if split is None:
         return np.asarray(values, dtype=float), name
@@ -230,9 +191,23 @@ def axis_label(columns: list[str]) -> str:
     return ", ".join(columns)
 
 
+PNG_DPI = 110
+
+
 def save(fig, path: Path) -> None:
+    """The figure as a PNG cropped to what is drawn: the bytes of savefig's
+    bbox_inches="tight", with one layout of the figure instead of two
+    (savefig draws it once, without output, only to find the box; the box
+    found here from the artists' extents is the same)."""
+    import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    box = "tight"
+    if fig.get_layout_engine() is None:  # a layout engine moves the artists in that first draw: savefig's way
+        fig.set_dpi(PNG_DPI)
+        box = fig.get_tightbbox(FigureCanvasAgg(fig).get_renderer()).padded(matplotlib.rcParams["savefig.pad_inches"])
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    fig.savefig(buf, format="png", dpi=PNG_DPI, bbox_inches=box)
     write_bytes_atomic(path, buf.getvalue())
 
 

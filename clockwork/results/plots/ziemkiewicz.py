@@ -14,8 +14,6 @@ import math
 
 import numpy as np
 
-from ...analyses.context import ESCAPEMENTS, find_component, parameters
-from ...analyses.ziemkiewicz.clock import DEG, PROFILE_NAMES, orbit_rows
 from ...physics import analytic
 from ...scene.kinds import Invalid
 from .registry import check_keys, curves, display, register, subplots
@@ -44,8 +42,19 @@ def _convert_plot(t: dict) -> dict:
     return out
 
 
+def _orbit_rows(results):
+    """The rows a plot of these kinds draws (analyses.ziemkiewicz.clock.orbit_rows), imported on use."""
+    from ...analyses.ziemkiewicz.clock import orbit_rows
+
+    return orbit_rows(results)
+
+
 @register("period_amplitude", {"title", "file"}, _convert_plot)
 def plot_period_amplitude(scene, results, spec):
+    # Imported on use: the plot process starts without the engine and fmpy (background).
+    from ...analyses.context import find_component, parameters
+    from ...analyses.ziemkiewicz.clock import DEG, orbit_rows
+
     rows = sorted(orbit_rows(results), key=lambda r: r["result"]["amplitude_deg"])
     if not rows:
         return None
@@ -79,6 +88,9 @@ def plot_period_amplitude(scene, results, spec):
           columns={"y": ["E_T_s_per_day", "E_C_s_per_day", "E_E_s_per_day"], "dashed": None})
 def plot_rate_errors(scene, results, spec):
     """Rate errors (s/day) against amplitude (deg), the torque (N.cm) on a second axis."""
+    # Imported on use: the plot process starts without the engine and fmpy (background).
+    from ...analyses.ziemkiewicz.clock import orbit_rows
+
     rows = sorted(orbit_rows(results), key=lambda r: r["result"]["amplitude_deg"])
     if not rows:
         return None
@@ -118,6 +130,9 @@ def plot_rate_errors(scene, results, spec):
 @register("recoil", {"title", "file"}, _convert_plot, run="series")
 def plot_recoil(scene, r, spec):
     """Angle (deg) and torque (N.cm) against time with the recoil phases shaded (Fig. 3)."""
+    # Imported on use: the plot process starts without the engine and fmpy (background).
+    from ...analyses.context import ESCAPEMENTS, find_component
+
     s = r["series"]
     pend = find_component(scene, "Pendulum")
     esc = find_component(scene, ESCAPEMENTS)
@@ -205,10 +220,13 @@ def plot_contour(scene, results, spec):
     return fig
 
 
-@register("curves", {"x", "y", "group", "dashed_if", "title", "file"}, _convert_plot, rows=orbit_rows,
+@register("curves", {"x", "y", "group", "dashed_if", "title", "file"}, _convert_plot, rows=_orbit_rows,
           columns={"x": "amplitude_deg", "y": ["E_T_s_per_day"], "group": None, "dashed_if": None})
 def plot_curves(scene, rows, spec):
     """One curve per combination of the `group` sweep parameters (Fig. 6)."""
+    # Imported on use: the plot process starts without the engine and fmpy (background).
+    from ...analyses.ziemkiewicz.clock import PROFILE_NAMES
+
     xk = spec.get("x", "amplitude_deg")
     yk = (spec.get("y") or ["E_T_s_per_day"])[0]
     group = spec.get("group") or []
