@@ -523,6 +523,11 @@ def console() -> int:
     before numpy and clockwork's modules are imported, and ends it here
     whatever became of the run."""
     _std_streams_open()
+    # numpy's OpenBLAS starts a thread per core, and each spins for a while
+    # after every call: on the cores that the plot process and the pool's
+    # workers need. clockwork's arrays are far too small to gain from them.
+    # A value the user set stands (before numpy is imported: read once).
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     plot_process = _plot_process(sys.argv[1:])
     try:
         code = main(plot_process=plot_process)

@@ -297,3 +297,21 @@ def test_a_progress_bar_on_a_terminal(tmp_path):
     assert r.returncode == 0
     # the bar reached its end (tqdm writes the total as "3e+04"), redrawn in place
     assert re.search(rb"\| (\S+)/\1 s \[", seen) and b"\r" in seen, bytes(seen[:300])
+
+
+@pytest.mark.parametrize("given, expected", [(None, "1"), ("3", "3")])
+def test_the_command_keeps_openblas_to_one_thread_unless_told(given, expected):
+    """The `clockwork` command (console()) sets OPENBLAS_NUM_THREADS=1 before
+    numpy loads, for itself and the processes it starts (their spinning
+    threads took the cores of the plot process and the workers); a value
+    the user gave stands."""
+    import subprocess
+
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if given is not None:
+        env["OPENBLAS_NUM_THREADS"] = given
+    code = ("import os, sys; sys.argv = ['clockwork', '--version']; from clockwork.cli import console\n"
+            "try:\n    console()\nexcept SystemExit:\n    pass\n"
+            "print(os.environ.get('OPENBLAS_NUM_THREADS'), 'numpy' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.split()[-2:] == [expected, "False"]
