@@ -9,7 +9,14 @@ what is kept of a run) and shoots for periodic orbits (``shooting``). It
 knows nothing of scene files, papers, plots or result files.
 """
 
+from typing import TYPE_CHECKING
+
 __all__ = ["Master", "MasterSettings", "Statistics", "System"]
+
+if TYPE_CHECKING:  # what __getattr__ gives, for readers, type checkers and the API docs
+    from .master import Master
+    from .settings import MasterSettings, Statistics
+    from .system import System
 
 
 def __getattr__(name: str):
