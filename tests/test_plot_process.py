@@ -247,7 +247,8 @@ EARLY_DRIVER = textwrap.dedent("""\
     cli.cmd_run = sabotaged
     body = cli._plot_process_body
 
-    def watched(*a):  # in the early process: what it asked of the scene it was sent, into $WATCH
+    def watched(*a):  # in the early process: what it asked of the scene it was sent, and whether it
+        # imported matplotlib lean (registry._lean_artists), into $WATCH
         if not os.environ.get("WATCH"):
             return body(*a)
         from clockwork.results.plots import background
@@ -262,8 +263,10 @@ EARLY_DRIVER = textwrap.dedent("""\
         try:
             body(*a)
         finally:
+            lines = sys.modules.get("matplotlib.lines")
+            lean = lines is not None and lines.Line2D.set.__doc__ is None
             with open(os.environ["WATCH"], "w") as f:
-                json.dump(asked, f)
+                json.dump({"asked": asked, "lean": lean}, f)
 
     cli._plot_process_body = watched
 
@@ -347,11 +350,11 @@ def test_the_early_plot_process_draws_result_columns_without_the_whole_scene(tmp
     assert code == 0 and err == "", err
     assert forked[0][1:] == [False, "reaped"], forked
     assert (tmp_path / "out" / "a.png").stat().st_size > 1000
-    assert json.loads(asked.read_text()) == []
+    assert json.loads(asked.read_text()) == {"asked": [], "lean": True}  # matplotlib imported lean there
     (tmp_path / "axis").mkdir()
     code, _, _, err = _early(tmp_path / "axis", "--workers", "1", watch=asked)
     assert code == 0 and err == "", err
-    assert "components" in json.loads(asked.read_text())  # the axis's unit: the whole scene, unpickled there
+    assert "components" in json.loads(asked.read_text())["asked"]  # the axis's unit: the whole scene, unpickled there
 
 
 @pytest.mark.parametrize("case", ["no plots", "--no-plot", "bad input", "missing scene", "--help"])
@@ -423,3 +426,65 @@ def test_a_saved_png_is_what_savefig_crops_to_the_tight_box(tmp_path):
     expected = io.BytesIO()
     figure().savefig(expected, format="png", dpi=PNG_DPI, bbox_inches="tight")
     assert (tmp_path / "a.png").read_bytes() == expected.getvalue()
+
+
+# Draws one figure with many kinds of artist (lines, markers, a legend,
+# patches, collections, an image, a colour bar, text, an arrow, mathtext)
+# into argv[2], after matplotlib was imported lean (the plot process's way)
+# or as a library user's program imports it; prints what Line2D.set says.
+LEAN_DRIVER = textwrap.dedent("""\
+    import json, sys
+    from pathlib import Path
+    import numpy as np
+    from clockwork.results.plots import registry
+
+    registry.load_matplotlib(lean=sys.argv[1] == "lean")
+    from matplotlib.lines import Line2D
+
+    fig, (a, b) = registry.subplots(1, 2, figsize=(8, 3))
+    x = np.linspace(0.0, 6.0, 40)
+    line, = a.plot(x, np.sin(x), "o-", ms=3, label="E_T_s_per_day")
+    line.set(color="C3", linewidth=1.5, alpha=0.8)
+    a.fill_between(x, np.sin(x) - 0.1, np.sin(x) + 0.1, alpha=0.3)
+    a.bar([1, 2, 3], [0.2, -0.4, 0.6], width=0.3, label="bars")
+    a.scatter(x[::5], np.cos(x[::5]), c=x[::5], s=12)
+    a.errorbar([4, 5], [0.1, -0.1], yerr=0.05, fmt="s")
+    a.annotate("$\\\\phi_r$ = 2 deg", xy=(3, 0), xytext=(4, 0.6), arrowprops={"arrowstyle": "->"})
+    a.set_yscale("symlog", linthresh=0.1)
+    a.legend(loc="best", fontsize=8)
+    image = b.imshow(np.outer(np.sin(x), np.cos(x)), aspect="auto")
+    fig.colorbar(image, ax=b)
+    b.contour(np.outer(np.sin(x), np.cos(x)), levels=[-0.5, 0.0, 0.5], colors="k")
+    b.set(xlabel="amplitude_deg", ylabel="torque_Nm (N.m)", title="a title")
+    fig.text(0.01, 0.0, "--set pendulum.Q=900", fontsize=7, va="top")
+    registry.save(fig, Path(sys.argv[2]))
+    try:
+        line.set(colour="red")
+        error = None
+    except AttributeError as e:
+        error = str(e)
+    print(json.dumps({"documented": Line2D.set.__doc__ is not None, "error": error,
+                      "color": line.get_color(), "linewidth": line.get_linewidth()}))
+    """)
+
+
+def test_matplotlib_imported_lean_draws_the_same_bytes_and_set_works_as_before(tmp_path):
+    """The plot process imports matplotlib without the generated signatures
+    and docstrings of the artists' ``set`` methods (a third of its import
+    time): the drawing is the same to the byte, ``set`` sets and refuses as
+    before, and a program that imports clockwork as a library keeps
+    matplotlib's docstrings."""
+    driver = tmp_path / "lean.py"
+    driver.write_text(LEAN_DRIVER)
+    env = dict(os.environ, PYTHONPATH=str(ROOT), MPLCONFIGDIR=str(tmp_path / "mpl"))
+    said = {}
+    for how in ("lean", "full"):
+        r = subprocess.run([sys.executable, str(driver), how, str(tmp_path / f"{how}.png")], env=env,
+                           capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0 and r.stderr == "", r.stderr
+        said[how] = json.loads(r.stdout.strip().splitlines()[-1])
+    assert (tmp_path / "lean.png").read_bytes() == (tmp_path / "full.png").read_bytes()
+    assert said["lean"]["documented"] is False and said["full"]["documented"] is True
+    for how in ("lean", "full"):
+        assert said[how]["color"] == "C3" and said[how]["linewidth"] == 1.5
+        assert said[how]["error"] == "Line2D.set() got an unexpected keyword argument 'colour'"

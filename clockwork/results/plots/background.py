@@ -162,7 +162,7 @@ def serve(scene, parent: int, job_fd: int, answer_fd: int) -> None:
         # its time); frozen afterwards, those objects stay out of later walks.
         gc.disable()
         try:
-            load_matplotlib()
+            load_matplotlib(lean=True)
         except Exception:
             pass  # draw_plot reports it for each plot, as in the parent
         if scene is None:
