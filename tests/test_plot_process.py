@@ -476,7 +476,7 @@ def test_matplotlib_imported_lean_draws_the_same_bytes_and_set_works_as_before(t
     matplotlib's docstrings."""
     driver = tmp_path / "lean.py"
     driver.write_text(LEAN_DRIVER)
-    env = dict(os.environ, PYTHONPATH=str(ROOT), MPLCONFIGDIR=str(tmp_path / "mpl"))
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
     said = {}
     for how in ("lean", "full"):
         r = subprocess.run([sys.executable, str(driver), how, str(tmp_path / f"{how}.png")], env=env,
