@@ -595,3 +595,29 @@ def test_outputs_that_are_states_have_their_derivatives(version):
         assert inst.output_derivatives(["x"], 2) == pytest.approx([-w * w * x - 2 * zeta * w * v], rel=1e-12)
         assert inst.output_derivatives(["v"], 1) == pytest.approx([-w * w * x - 2 * zeta * w * v], rel=1e-12)
         assert inst.output_derivatives(["v"], 2) is None  # a is no state
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("alone", [True, False], ids=["alone", "scene"])
+def test_every_command_takes_a_model_exchange_only_fmu(tmp_path, capsys, version, alone):
+    """`validate` instantiated every FMU through the Co-Simulation factory and
+    crashed (a traceback) on an FMU without a Co-Simulation interface, where
+    `run` used the factory that knows both: each command now takes one."""
+    import json
+
+    target = me("MeBall", version) if alone else write_scene(tmp_path, me("MeBall", version))
+    rc, out, err = run_cli(capsys, ["validate", target])
+    assert rc == 0 and err == "" and out.startswith("ok:"), err
+    rc, out, err = run_cli(capsys, ["info", me("MeBall", version)])  # info takes an FMU or an SSP
+    assert rc == 0 and err == "", err
+    rc, _, err = run_cli(capsys, ["export-scene" if alone else "export-ssp", target,
+                                  "--out", tmp_path / ("scene.toml" if alone else "ball.ssp")])
+    assert rc == 0, err
+    for engine in ENGINES:
+        out_dir = tmp_path / f"out_{engine}"
+        rc, _, err = run_cli(capsys, ["run", target, "--out", out_dir, "--no-progress", "--no-plot",
+                                      "--set", f"master.engine={engine}"])
+        assert rc == 0, err
+        assert "model_exchange" in json.loads((out_dir / "summary.json").read_text())["statistics"]
+    rc, _, err = run_cli(capsys, ["plot", out_dir])
+    assert rc == 0, err

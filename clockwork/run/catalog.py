@@ -14,7 +14,7 @@ from pathlib import Path
 from ..analyses import registry as analyses
 from ..analyses.bounds import MAX_KEPT_VALUES as MAX_RECORDED_VALUES
 from ..analyses.bounds import check_bounds
-from ..engine.fmu3 import make_instance
+from ..engine.model_exchange import make_instance
 from ..errors import SceneError
 from ..paths import scenarios_dir
 from ..results.plots import registry as plots
@@ -57,7 +57,7 @@ def check_loadable(scene) -> None:
     missing dependency) or refuses its model description's GUID is refused
     by `validate` too, under the component's key."""
     for name, c in scene.components.items():
-        inst = make_instance(name, c.fmu_path, c.model_description)
+        inst = make_instance(name, c.fmu_path, c.model_description, interface=c.interface)
         inst.label = c.fmu_label or None
         try:
             inst.instantiate()
