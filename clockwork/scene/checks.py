@@ -258,8 +258,8 @@ def master_value(ctx: Ctx, key: str, value: object):
             raise ctx.bad(full, value, "a relative tolerance > 0 (given to every FMU's fmi2SetupExperiment)")
         return float(value)
     if key == "iterations":
-        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-            raise ctx.bad(full, value, "an integer >= 0 (0 = no fixed-point iteration)")
+        if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < 2**31:
+            raise ctx.bad(full, value, f"an integer from 0 to {2**31 - 1} (0 = no fixed-point iteration)")
         return value
     if key == "threads":
         if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_THREADS:
