@@ -230,7 +230,9 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
             if ref not in names:
                 names.append(ref)
                 items.append(f"output[{i}]")
-        scene = load_scene(filename, given + [Given("record", "outputs", names, "output", tuple(items))], path_input)
+        # the scene's plots are not drawn here, and may name columns left out
+        given += [Given("record", "outputs", names, "output", tuple(items)), Given("plot", None, [], "output")]
+        scene = load_scene(filename, given, path_input)
     if output_interval is not None:  # recorded every n-th step: fmpy's points only when n is whole
         n = output_interval / scene.master.step
         if not (round(n) >= 1 and abs(n - round(n)) <= 1e-9 * n):

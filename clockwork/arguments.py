@@ -106,7 +106,8 @@ class Flag(Spec):
     what = "true or false (a bool)"
 
     def accepts(self, value) -> bool:
-        return isinstance(value, bool) or type(value).__name__ == "bool_"  # numpy's too
+        # numpy's too: numpy.bool_ (numpy 2 calls it numpy.bool), without importing numpy here
+        return isinstance(value, bool) or (type(value).__module__ == "numpy" and type(value).__name__ in ("bool_", "bool"))
 
 
 class Path(Spec):

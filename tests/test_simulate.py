@@ -463,3 +463,79 @@ def test_an_interval_off_the_step_or_a_span_too_short_to_step_is_one_line(kw, ne
     of steps (rounded to one before) or a span no step can cover (one row
     before) is refused."""
     _one_error(lambda: clockwork.simulate(test_fmu("TestDecay"), **kw), needle)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_fmi3_array_start_values_take_numpy_arrays_lists_and_tuples_as_fmpy(tmp_path, engine):
+    """x0 (3) and A (3x3) given as numpy arrays, tuples or nested lists: one
+    result, fmpy's; a wrong shape or an object array is one line naming it."""
+    import fmi3_linear
+
+    f = fmi3_linear.build(tmp_path)
+    A = -np.diag([1.0, 2.0, 0.5])
+    results = [clockwork.simulate(f, start_values={"x0": x0, "A": a}, master={"engine": engine})
+               for x0, a in ((np.array([1.0, 2.0, 3.0]), A), ((1, 2, 3), A.tolist()),
+                             ([np.float64(1), np.int64(2), 3.0], tuple(map(tuple, A))))]
+    for r in results[1:]:
+        _same(results[0], r)
+    assert results[0]["x"][0].tolist() == [1.0, 2.0, 3.0]  # the values reached the FMU
+    _same(results[0], simulate_fmu(str(f), start_values={"x0": np.array([1.0, 2.0, 3.0]), "A": A.ravel()},  # flat
+                                   output_interval=0.1), ["time", "x", "y"])
+    for bad in ({"x0": np.array([1.0, 2.0])}, {"A": -np.eye(2)}, {"x0": np.array([1, 2, 3], dtype=object)},
+                {"x0": np.array(["a", "b", "c"])}, {"x0": 1.0}, {"A": [[1.0] * 3] * 2 + [[1.0] * 2]}):
+        name = next(iter(bad))
+        _one_error(lambda: clockwork.simulate(f, start_values=bad), f"start_values[{name!r}]")
+
+
+def test_progress_takes_numpys_bool():
+    f = test_fmu("TestDecay")
+    _same(clockwork.simulate(f, progress=np.bool_(False)), clockwork.simulate(f))
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_scene_takes_outputs_its_plots_do_not_draw_and_numpy_start_values(engine):
+    """A scene's plots are not drawn by simulate(): an output list without
+    the columns they name (or empty) records what it names; a system's
+    start value is "instance.variable", of any real type."""
+    scene = fmu_file("Pendulum").parent.parent / "scenarios" / "core_grasshopper.toml"
+    kw = dict(stop_time=0.5, master={"engine": engine})
+    assert clockwork.simulate(scene, output=[], **kw).dtype.names == ("time",)
+    assert clockwork.simulate(scene, output=("escapement.tau",), **kw).dtype.names == ("time", "escapement.tau")
+    a = clockwork.simulate(scene, start_values={"pendulum.Q": np.float64(500)}, **kw)
+    _same(a, clockwork.simulate(scene, start_values={"pendulum.Q": 500}, **kw))
+    assert not np.array_equal(a["pendulum.phi"], clockwork.simulate(scene, **kw)["pendulum.phi"])
+    text = _one_error(lambda: clockwork.simulate(scene, start_values={"experiment.stop": 1.0}, **kw),
+                      "start_values['experiment.stop']: no component named experiment")
+    assert "did you mean experiment" not in text
+
+
+@pytest.fixture(scope="module")
+def alltypes(tmp_path_factory):
+    import fmi3_alltypes
+
+    return fmi3_alltypes.build(tmp_path_factory.mktemp("alltypes"))
+
+
+FMI3_BAD = {"Float32": [1e39, "x", np.float64(1e39), None], "Float64": [[1.0], 1 + 1j, decimal.Decimal(1)],
+            "Int8": [200, np.int16(-129), 1.5, np.float64(1.0)], "UInt8": [-1, 256, np.int64(-1)],
+            "Int16": [2**15, np.float32(1)], "UInt16": [2**16, True], "Int32": [2**31, -2**31 - 1],
+            "UInt32": [-1, 2**32], "Int64": [2**63, -2**63 - 1, 10**400], "UInt64": [-1, 2**64, np.int8(-1)],
+            "Boolean": [1, np.int64(1), "true", 1.0], "String": [3, np.int64(3), b"s", None],
+            "Binary": ["xyz", 3, b"\x00"], "Enumeration": [1.0, 99, np.float64(1)]}
+
+
+@pytest.mark.parametrize("kind, bad", [(k, v) for k, vs in FMI3_BAD.items() for v in vs],
+                         ids=[f"{k}-{v!r}"[:40] for k, vs in FMI3_BAD.items() for v in vs])
+def test_an_fmi3_start_value_is_checked_against_its_type_and_range(alltypes, kind, bad):
+    _one_error(lambda: clockwork.simulate(alltypes, start_values={f"p_{kind}": bad}), f"start_values['p_{kind}']")
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_fmi3_start_values_of_numpys_types_give_pythons_result(alltypes, engine):
+    plain = {"p_Float32": 1.5, "p_Int8": -100, "p_UInt16": 65535, "p_Int64": -2**63, "p_UInt64": 2**64 - 1,
+             "p_Boolean": True, "p_String": "s", "p_Enumeration": 2}
+    odd = {"p_Float32": np.float32(1.5), "p_Int8": np.int8(-100), "p_UInt16": np.uint16(65535),
+           "p_Int64": np.int64(-2**63), "p_UInt64": np.uint64(2**64 - 1), "p_Boolean": np.bool_(True),
+           "p_String": np.str_("s"), "p_Enumeration": np.int32(2)}
+    kw = dict(stop_time=0.3, master={"engine": engine})
+    _same(clockwork.simulate(alltypes, start_values=plain, **kw), clockwork.simulate(alltypes, start_values=odd, **kw))

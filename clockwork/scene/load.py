@@ -55,11 +55,13 @@ class Given:
     "master" or "record" with `key` one of its keys, or None with `key` a
     variable ("instance.variable", or the variable alone in a scene of one
     component): a variable named like a section key (`experiment.stop`)
-    stays a variable. `value` is what TOML would give (a bool, an int, a
-    float, a string or a list of them); `label` names it in errors."""
+    stays a variable; `key` None with `section` "plot" replaces the plots
+    (`[]`: simulate draws none). `value` is what TOML would give (a bool,
+    an int, a float, a string or a list of them); `label` names it in
+    errors."""
 
     section: str | None
-    key: str
+    key: str | None
     value: object
     label: str
     items: tuple[str, ...] = ()  # the labels of a list's items, when not label[i]
@@ -152,6 +154,9 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
     comps_raw = raw.get("components")
     instance_names = list(comps_raw) if isinstance(comps_raw, dict) else []
     for text_ov in overrides:
+        if isinstance(text_ov, Given) and text_ov.key is None:
+            raw[text_ov.section] = text_ov.value
+            continue
         owner, name, value, label, section = _override(text_ov, instance_names, path)
         applied.append(text_ov.text(owner, name) if isinstance(text_ov, Given) else text_ov)
         if section:
@@ -192,7 +197,7 @@ def _override(text: str | Given, instances, path: Path, variables=None) -> tuple
             return names[0], text.key, text.value, text.label, False
         split = split_ref(text.key, names)
         if split is None:
-            raise _no_component(text.key.partition(".")[0], names, path, text.label)
+            raise _no_component(text.key.partition(".")[0], names, path, text.label, sections=False)
         return split[0], split[1], text.value, text.label, False
     try:
         owner, name, value = parse_override(text, instances)
@@ -201,8 +206,8 @@ def _override(text: str | Given, instances, path: Path, variables=None) -> tuple
     return owner, name, value, f"--set {owner}.{name}", owner in _OVERRIDABLE
 
 
-def _no_component(owner: str, names: list[str], path: Path, label: str) -> SceneError:
-    close = difflib.get_close_matches(owner, names + list(_OVERRIDABLE), n=1)
+def _no_component(owner: str, names: list[str], path: Path, label: str, sections: bool = True) -> SceneError:
+    close = difflib.get_close_matches(owner, names + (list(_OVERRIDABLE) if sections else []), n=1)
     hint = f" (did you mean {close[0]}?)" if close else ""
     return SceneError(f"no component named {owner}{hint}; components: {', '.join(names) or 'none'}", path, label)
 
@@ -221,6 +226,9 @@ def _load_system(path: Path, ssp, overrides, kinds: Kinds, input_file) -> Scene:
     applied = []
     only = variables_of(next(iter(components.values())).model_description) if len(components) == 1 else None
     for text in overrides:
+        if isinstance(text, Given) and text.key is None:
+            raw[text.section] = text.value
+            continue
         owner, name, value, label, section = _override(text, components, path, only)
         applied.append(text.text(owner, name) if isinstance(text, Given) else text)
         if section:
