@@ -408,6 +408,7 @@ def test_a_stop_before_the_start_is_one_line_naming_stop_time():
     f = test_fmu("TestDecay")
     for start, stop in ((1.0, 0.5), (0.5, 0.5)):
         _one_error(lambda: clockwork.simulate(f, start_time=start, stop_time=stop), "stop_time")
+    _one_error(lambda: clockwork.simulate(f, start_time=5.0), "start_time = 5: expected a time < experiment.stop (1 s)")
     _one_error(lambda: clockwork.simulate(f, output=["x", "nothing"]), "output[1]")
     _one_error(lambda: clockwork.simulate(f, start_values={"nothing": 1.0}), "start_values['nothing']")
 
