@@ -210,7 +210,7 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
              (("start", start_time, "start_time"), ("stop", stop_time, "stop_time")) if v is not None]
     if step_size is None and "step" not in settings and output_interval is not None:
         step_size, output_interval = output_interval, None  # fmpy's Co-Simulation steps at its output interval
-    labels = {k: f"master[{k!r}]" for k in settings}
+    labels = {k: f"master[{show(k)}]" for k in settings}
     if step_size is not None:
         settings["step"], labels["step"] = step_size, "step_size"
     if relative_tolerance is not None:
@@ -218,7 +218,7 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
     given += [Given("master", k, v, labels[k]) for k, v in settings.items()]
     if output_interval is not None:
         given.append(Given("record", "interval", output_interval, "output_interval"))
-    given += [Given(None, k, _toml(v), f"start_values[{k!r}]") for k, v in start_values.items()]
+    given += [Given(None, k, _toml(v), f"start_values[{show(k)}]") for k, v in start_values.items()]
     path_input = input if isinstance(input, (str, os.PathLike)) else None
     scene = load_scene(filename, given, path_input)
     only = next(iter(scene.components)) if len(scene.components) == 1 else None
@@ -255,9 +255,17 @@ def _master_values(master) -> dict:
     if master is None:
         return {}
     if isinstance(master, MasterSettings):
-        default = MasterSettings()
-        return {f.name: _toml(getattr(master, f.name)) for f in dataclasses.fields(master)
-                if getattr(master, f.name) != getattr(default, f.name) and getattr(master, f.name) is not None}
+        # its fields may have been changed after it checked them: each value is checked as a dict's
+        default, out = MasterSettings(), {}
+        for f in dataclasses.fields(master):
+            value = getattr(master, f.name)
+            if value is None or (type(value) is type(getattr(default, f.name)) and value == getattr(default, f.name)):
+                continue
+            try:
+                out[f.name] = _toml(value)
+            except ValueError:
+                raise UsageError(f"simulate(): master.{f.name} = {show(value)}: expected {_Value.what}") from None
+        return out
     return {k: _toml(v) for k, v in master.items()}
 
 

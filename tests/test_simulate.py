@@ -540,3 +540,17 @@ def test_fmi3_start_values_of_numpys_types_give_pythons_result(alltypes, engine)
            "p_String": np.str_("s"), "p_Enumeration": np.int32(2)}
     kw = dict(stop_time=0.3, master={"engine": engine})
     _same(clockwork.simulate(alltypes, start_values=plain, **kw), clockwork.simulate(alltypes, start_values=odd, **kw))
+
+
+@pytest.mark.parametrize("field, value", [("order", {"a"}), ("step", np.array([0.1, 0.2])), ("step", "x"),
+                                          ("iterations", 10**400), ("engine", b"python"), ("tolerance", 1j)])
+def test_a_master_settings_object_changed_after_its_checks_is_checked_again(field, value):
+    s = MasterSettings()
+    setattr(s, field, value)
+    _one_error(lambda: clockwork.simulate(test_fmu("TestDecay"), master=s), field)
+
+
+@pytest.mark.parametrize("kw", [{"start_values": {"k" * 100_000: 1.0}}, {"master": {"k" * 100_000: 1.0}},
+                                {"output": ["k" * 100_000]}, {"start_values": {"k": "1" * 100_000}}])
+def test_a_huge_name_or_value_gives_a_short_line(kw):
+    assert len(_one_error(lambda: clockwork.simulate(test_fmu("TestDecay"), **kw))) < 1000
