@@ -554,3 +554,15 @@ def test_a_master_settings_object_changed_after_its_checks_is_checked_again(fiel
                                 {"output": ["k" * 100_000]}, {"start_values": {"k": "1" * 100_000}}])
 def test_a_huge_name_or_value_gives_a_short_line(kw):
     assert len(_one_error(lambda: clockwork.simulate(test_fmu("TestDecay"), **kw))) < 1000
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("kw", [{"output_interval": 0.3}, {"step_size": 0.3},
+                                {"start_time": 0.25, "stop_time": 1.3, "output_interval": 0.2},
+                                {"output_interval": 0.25, "stop_time": 0.5}, {"step_size": np.float32(0.5)}])
+def test_a_step_that_does_not_divide_the_span_ends_at_the_stop_as_fmpy(engine, kw):
+    f = test_fmu("TestDecay")
+    ref = dict(kw)
+    if "step_size" in ref:
+        ref["output_interval"] = float(ref.pop("step_size"))
+    _same(clockwork.simulate(f, **kw, master={"engine": engine}), simulate_fmu(str(f), **ref))
