@@ -554,6 +554,8 @@ def test_a_master_settings_object_changed_after_its_checks_is_checked_again(fiel
                                 {"output": ["k" * 100_000]}, {"start_values": {"k": "1" * 100_000}}])
 def test_a_huge_name_or_value_gives_a_short_line(kw):
     assert len(_one_error(lambda: clockwork.simulate(test_fmu("TestDecay"), **kw))) < 1000
+    scene = fmu_file("Pendulum").parent.parent / "scenarios" / "core_grasshopper.toml"
+    assert len(_one_error(lambda: clockwork.simulate(scene, stop_time=0.1, **kw))) < 1000  # a system
 
 
 @pytest.mark.parametrize("engine", ENGINES)

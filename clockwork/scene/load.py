@@ -32,6 +32,7 @@ from ..engine.names import split_link, split_ref
 from ..engine.wiring import Link, loop_name
 from ..engine.wiring import build as build_wiring
 from ..errors import SceneError
+from ..numbers import shorten
 from .checks import (STRUCTURAL, TOP_KEYS, Ctx, article, component, convert_value, instance_problem, lookup,
                      master_value, names_of, parse_ref, read_bounded)
 from .fmu import read_fmu_scene
@@ -207,9 +208,11 @@ def _override(text: str | Given, instances, path: Path, variables=None) -> tuple
 
 
 def _no_component(owner: str, names: list[str], path: Path, label: str, sections: bool = True) -> SceneError:
-    close = difflib.get_close_matches(owner, names + (list(_OVERRIDABLE) if sections else []), n=1)
+    pool = names + (list(_OVERRIDABLE) if sections else [])
+    close = difflib.get_close_matches(owner, pool, n=1) if len(owner) <= 200 else []  # not a long name, quadratic
     hint = f" (did you mean {close[0]}?)" if close else ""
-    return SceneError(f"no component named {owner}{hint}; components: {', '.join(names) or 'none'}", path, label)
+    return SceneError(f"no component named {shorten(owner, 80)}{hint}; components: "
+                      f"{shorten(', '.join(names), 300) or 'none'}", path, label)
 
 
 def _load_system(path: Path, ssp, overrides, kinds: Kinds, input_file) -> Scene:
