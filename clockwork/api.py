@@ -23,13 +23,15 @@ from pathlib import Path
 import numpy as np
 
 from .analyses.time_series import time_series
+from .arguments import Either, Flag, Instance, Mapping, Optional, Real, Spec, Text, checked, show
+from .arguments import Path as PathSpec
 from .engine.description import variables as variables_of
 from .engine.names import split_ref
 from .engine.settings import MasterSettings
 from .errors import ParametersRefused, SceneError, UsageError
 from .run.catalog import load_scene
 from .scene.inputs import Inputs, make_samples, sample_value, targets
-from .scene.save import toml_value
+from .scene.load import Given
 
 # fmpy.simulate_fmu's arguments that clockwork has no counterpart for, with
 # fmpy's defaults (fmpy 0.3.32): accepted at these values, refused at others.
@@ -58,21 +60,101 @@ _DTYPES = {"Real": np.float64, "Float64": np.float64, "Float32": np.float32, "In
            "String": object, "Binary": object}
 
 
-def _number(name: str, value, positive: bool = False):
-    if value is None:
+class _Value(Spec):
+    """A value a scene file could give (TOML's kinds): a bool, a number
+    (int, float, a fraction, numpy's), a string, or a list, tuple or numpy
+    array of them (an FMI 3.0 array's value). What it must be beyond that
+    (a Real, an Integer in range, an item of an Enumeration) the FMU's
+    variable or the master setting says, when the scene is loaded."""
+
+    what = "a number, true or false, a string, or a list or array of them"
+
+    def accepts(self, value) -> bool:
+        try:
+            _toml(value)
+        except ValueError:
+            return False
+        return True
+
+
+def _toml(value, depth: int = 0):
+    """`value` as TOML would give it: numpy scalars and arrays, tuples and
+    fractions as Python's bool, int, float, str and list; ValueError for
+    anything TOML has no kind for (None, complex, Decimal, dicts, sets,
+    bytes, dates, objects)."""
+    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "biufU":
+        value = value.item()
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (str, np.str_)):
+        return str(value)
+    if isinstance(value, (np.datetime64, np.timedelta64)):  # numpy counts a timedelta as an integer
+        raise ValueError(value)
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if isinstance(value, numbers.Real):
+        try:
+            return float(value)
+        except (OverflowError, TypeError, ValueError):
+            raise ValueError(value) from None
+    if depth < 32 and isinstance(value, (list, tuple)):
+        return [_toml(x, depth + 1) for x in value]
+    if depth < 32 and isinstance(value, np.ndarray) and value.dtype.kind in "biufU" and value.ndim >= 1:
+        return [_toml(x, depth + 1) for x in value]
+    raise ValueError(value)
+
+
+class _Names(Spec):
+    """Variable names: any iterable of strings but a string (a list, a
+    tuple, a generator, a numpy array of names)."""
+
+    what = "a list of variable names"
+
+    def accepts(self, value) -> bool:
+        try:
+            if iter(value) is value:  # an iterator (a generator): a look would use it up; simulate reads it once
+                return True
+        except TypeError:
+            return False
+        return _names(value) is not None
+
+
+def _names(value) -> list[str] | None:
+    if isinstance(value, (str, bytes, bytearray, dict)) or (isinstance(value, np.ndarray) and value.ndim != 1):
         return None
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(float(value)):
-        raise UsageError(f"simulate({name}={value!r}): expected a finite number (s) or None")
-    if positive and not float(value) > 0:
-        raise UsageError(f"simulate({name}={value!r}): expected a number > 0")
-    return float(value)
+    try:
+        names = list(value)
+    except TypeError:
+        return None
+    return [str(n) for n in names] if all(isinstance(n, str) for n in names) else None
 
 
-def _plain(value):
-    """NumPy scalars as Python's own numbers (their repr is not TOML)."""
-    return value.item() if isinstance(value, np.generic) else value
+class _Signals(Spec):
+    what = ("fmpy's structured array (a field time first, then a field per input) or the path of a CSV "
+            "input file")
+
+    def accepts(self, value) -> bool:
+        return _is_structured(value) or PathSpec().accepts(value)
 
 
+_TIME = "a finite time in s"
+_POSITIVE = "a number > 0 (s)"
+_ARGUMENTS = dict(
+    filename=PathSpec("the path of an .fmu, .ssp, .ssd or .toml file"),
+    start_time=Optional(Real(_TIME)), stop_time=Optional(Real(_TIME)),
+    step_size=Optional(Real(_POSITIVE, positive=True)),
+    relative_tolerance=Optional(Real("a relative tolerance > 0", positive=True)),
+    output_interval=Optional(Real(_POSITIVE, positive=True)),
+    start_values=Mapping(Text("a variable name"), _Value(), "a dict {variable name: value}"),
+    input=Optional(_Signals()), output=Optional(_Names()),
+    master=Optional(Either(Instance(MasterSettings, "a MasterSettings"),
+                           Mapping(Text("a setting's name"), _Value(), "a dict of MasterSettings' fields"),
+                           what="a MasterSettings or a dict of its fields")),
+    progress=Flag(),
+)
+
+
+@checked(**_ARGUMENTS)
 def simulate(filename, start_time=None, stop_time=None, step_size=None, relative_tolerance=None,
              output_interval=None, start_values={}, input=None, output=None, *, master=None,  # noqa: B006 (fmpy's)
              progress: bool = False, **fmpy_only):
@@ -88,17 +170,18 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
     to record), `start_values` ({variable: value}, "instance.variable" in a
     system; a string may carry a unit, "0.4 N.cm"), `input` (fmpy's
     structured array with `time` first, or the path of a CSV input file),
-    `output` (the variables to record; None: every output). clockwork's
-    own: `master` (MasterSettings, or a dict of its fields: those given
-    apply, a MasterSettings' fields that differ from the defaults) and
-    `progress` (a progress bar). fmpy's other arguments are accepted at
-    their defaults only.
+    `output` (the variables to record, any iterable of names; None: every
+    output; empty: time alone). clockwork's own: `master` (MasterSettings,
+    or a dict of its fields: those given apply, a MasterSettings' fields
+    that differ from the defaults) and `progress` (a progress bar). fmpy's
+    other arguments are accepted at their defaults only.
 
-    Raises UsageError/SceneError for bad input, SimulationError for a run
-    that fails. An FMU that ends the simulation ends the result there.
+    Numbers may be of any real type (int, float, numpy's, fractions); a
+    value is checked against its FMU variable's type and range. Raises
+    UsageError/SceneError for bad input, naming the argument, and
+    SimulationError for a run that fails. An FMU that ends the simulation
+    ends the result there.
     """
-    if not isinstance(filename, (str, os.PathLike)):
-        raise UsageError(f"simulate(filename={filename!r}): expected the path of an .fmu, .ssp, .ssd or .toml file")
     for name, value in fmpy_only.items():
         if name not in FMPY_ONLY:
             raise UsageError(f"simulate() got an unexpected argument {name}= (neither clockwork's nor fmpy's)")
@@ -107,67 +190,83 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
                 name == "fmi_type" and value == "CoSimulation"):
             continue
         why = _INSTEAD.get(name, "fmpy's option has no counterpart in clockwork")
-        raise UsageError(f"simulate({name}={value!r}): not supported ({why}); leave it out, or give "
+        raise UsageError(f"simulate({name}={show(value)}): not supported ({why}); leave it out, or give "
                          f"fmpy's default {default!r}")
-    start_time = _number("start_time", start_time)
-    stop_time = _number("stop_time", stop_time)
-    step_size = _number("step_size", step_size, positive=True)
-    relative_tolerance = _number("relative_tolerance", relative_tolerance, positive=True)
-    output_interval = _number("output_interval", output_interval, positive=True)
-    if not isinstance(start_values, dict) or not all(isinstance(k, str) for k in start_values):
-        raise UsageError("simulate(start_values=...): expected a dict {variable name: value}")
-    if output is not None and (isinstance(output, str) or not all(isinstance(o, str) for o in output)):
-        raise UsageError(f"simulate(output={output!r}): expected a list of variable names")
-    if not isinstance(progress, bool):
-        raise UsageError(f"simulate(progress={progress!r}): expected True or False")
+    start_time, stop_time, step_size, relative_tolerance, output_interval = (
+        None if x is None else float(x) for x in (start_time, stop_time, step_size, relative_tolerance,
+                                                   output_interval))
+    if output is not None:
+        names = _names(output)  # read once: a generator is used up by it
+        if names is None:
+            raise UsageError(f"simulate(): output = {show(output)}: expected a list of variable names")
+        output = names
     settings = _master_values(master)
     if step_size is not None and "step" in settings:
         raise UsageError("simulate(): step_size and master's step both given: expected one of them")
 
-    overrides = [f"experiment.{k}={toml_value(v)}" for k, v in (("start", start_time), ("stop", stop_time))
-                 if v is not None]
+    # Values, not --set text: a start value's name is never read as a
+    # section key (an FMU variable may be called experiment.stop).
+    given = [Given("experiment", k, v, label) for k, v, label in
+             (("start", start_time, "start_time"), ("stop", stop_time, "stop_time")) if v is not None]
     if step_size is None and "step" not in settings and output_interval is not None:
         step_size, output_interval = output_interval, None  # fmpy's Co-Simulation steps at its output interval
+    labels = {k: f"master[{show(k)}]" for k in settings}
     if step_size is not None:
-        settings["step"] = step_size
+        settings["step"], labels["step"] = step_size, "step_size"
     if relative_tolerance is not None:
-        settings["tolerance"] = relative_tolerance
-    overrides += [f"master.{k}={toml_value(v)}" for k, v in settings.items()]
+        settings["tolerance"], labels["tolerance"] = relative_tolerance, "relative_tolerance"
+    given += [Given("master", k, v, labels[k]) for k, v in settings.items()]
     if output_interval is not None:
-        overrides.append(f"record.interval={toml_value(output_interval)}")
-    overrides += [f"{k}={toml_value(_plain(v))}" for k, v in start_values.items()]
+        given.append(Given("record", "interval", output_interval, "output_interval"))
+    given += [Given(None, k, _toml(v), f"start_values[{show(k)}]") for k, v in start_values.items()]
     path_input = input if isinstance(input, (str, os.PathLike)) else None
-    if input is not None and path_input is None and not _is_structured(input):
-        raise UsageError("simulate(input=...): expected fmpy's structured array (time first, then a field per "
-                         "input) or the path of a CSV input file")
-    scene = load_scene(filename, overrides, path_input)
+    scene = load_scene(filename, given, path_input)
     only = next(iter(scene.components)) if len(scene.components) == 1 else None
     if output is not None:  # one FMU: its variables by their own names, as fmpy names them
         own = variables_of(scene.components[only].model_description) if only is not None else {}
-        names = [f"{only}.{o}" if o in own else o for o in output]
-        scene = load_scene(filename, overrides + [f"record.outputs={toml_value(names)}"], path_input)
+        names, items = [], []
+        for i, o in enumerate(output):  # a name given twice is recorded once, as fmpy does
+            ref = f"{only}.{o}" if o in own else o
+            if ref not in names:
+                names.append(ref)
+                items.append(f"output[{i}]")
+        # the scene's plots are not drawn here, and may name columns left out
+        given += [Given("record", "outputs", names, "output", tuple(items)), Given("plot", None, [], "output")]
+        scene = load_scene(filename, given, path_input)
+    if output_interval is not None:  # recorded every n-th step: fmpy's points only when n is whole
+        n = output_interval / scene.master.step
+        if not (round(n) >= 1 and abs(n - round(n)) <= 1e-9 * n):
+            raise UsageError(f"simulate(): output_interval = {show(output_interval)}: expected a whole multiple of "
+                             f"the step ({scene.master.step!r} s), or leave step_size out (fmpy's Co-Simulation "
+                             "steps at its output interval)")
     if scene.sweep is not None:
         raise UsageError(f"simulate({Path(filename).name}): the scene has a sweep of {len(scene.points())} points; "
                          "simulate() runs one (give a scene without [sweep], or run it with `clockwork run`)")
     if input is not None and path_input is None:
         scene = dataclasses.replace(scene, inputs=_array_inputs(input, scene))
     try:
-        result = time_series(scene, {}, progress=progress)
+        result = time_series(scene, {}, progress=progress, times=True)
     except ParametersRefused as e:  # the values given, not the run, are at fault
         raise SceneError(e.message, scene.path, f"start_values ({e.instance})") from None
-    return _structured(scene, result.get("series") or {"time": []}, only)
+    return _structured(scene, result.get("series") or {"time": []}, only, None if output is None else names)
 
 
 def _master_values(master) -> dict:
     if master is None:
         return {}
     if isinstance(master, MasterSettings):
-        default = MasterSettings()
-        return {f.name: getattr(master, f.name) for f in dataclasses.fields(master)
-                if getattr(master, f.name) != getattr(default, f.name) and getattr(master, f.name) is not None}
-    if isinstance(master, dict) and all(isinstance(k, str) for k in master):
-        return {k: _plain(v) for k, v in master.items()}
-    raise UsageError(f"simulate(master={master!r}): expected a MasterSettings or a dict of its fields")
+        # its fields may have been changed after it checked them: each value is checked as a dict's
+        default, out = MasterSettings(), {}
+        for f in dataclasses.fields(master):
+            value = getattr(master, f.name)
+            if value is None or (type(value) is type(getattr(default, f.name)) and value == getattr(default, f.name)):
+                continue
+            try:
+                out[f.name] = _toml(value)
+            except ValueError:
+                raise UsageError(f"simulate(): master.{f.name} = {show(value)}: expected {_Value.what}") from None
+        return out
+    return {k: _toml(v) for k, v in master.items()}
 
 
 def _is_structured(x) -> bool:
@@ -184,16 +283,34 @@ def _array_inputs(signals: np.ndarray, scene) -> Inputs:
         field = f" field {names[column]!r}" if column is not None else ""
         return UsageError(f"simulate(input=...):{field}: {detail}")
 
+    # Each field's kind first: numpy would turn text, dates and objects into
+    # floats (or fail) its own way; a field of arrays is not a column.
+    for j, n in enumerate(names):
+        dt = signals.dtype[n]
+        kinds = "iuf" if j == 0 else "biuf"
+        if dt.shape or dt.kind not in kinds:
+            what = "times in s (a field of floats or integers)" if j == 0 else \
+                "a value per row (a field of floats, integers or bools)"
+            got = f"a field of shape {dt.shape}" if dt.shape else f"dtype {dt.str}"
+            raise fail(None, j, f"expected {what}, got {got}")
+    if len(signals) == 0:
+        raise UsageError("simulate(input=...): no rows: expected at least one sample (a row per time)")
+    times = [float(t) for t in signals["time"]]
+    for k, t in enumerate(times):
+        if not math.isfinite(t):
+            raise fail(None, 0, f"row {k}: expected a finite time in s, got {t!r}")
+        if k and t < times[k - 1]:
+            raise fail(None, 0, f"row {k}: {t!r} s is before the row above ({times[k - 1]!r} s): expected times "
+                                "that never decrease (a time given twice is a step)")
     connected = {(c.dst_instance, c.dst_var) for c in scene.connections}
     given = {(n, p) for n, c in scene.components.items() for p in c.parameters}
     bound = targets(names, scene.components, connected, given, fail)
-    times = [float(t) for t in signals["time"]]
     cols = []
     for j, (inst, var, v) in enumerate(bound, start=1):
         column = []
-        for k, x in enumerate(signals[names[j]]):
+        for k, x in enumerate(signals[names[j]].tolist()):  # Python's numbers (numpy's repr is not theirs)
             try:
-                column.append(sample_value(_plain(x), v))
+                column.append(sample_value(x, v))
             except ValueError as e:
                 raise fail(None, j, f"row {k}: {e}, got {x!r}") from None
         cols.append(column)
@@ -202,7 +319,19 @@ def _array_inputs(signals: np.ndarray, scene) -> Inputs:
     return Inputs(None, digest, samples)
 
 
-def _structured(scene, series: dict, only: str | None) -> np.ndarray:
+def _empty_arrays(scene, recorded: list[str] | None) -> list:
+    """The FMI 3.0 arrays of size 0 among the variables asked for
+    (`recorded`: "instance.variable"; None: the outputs of an FMU or SSP
+    alone): (instance, variable)."""
+    if recorded is None and scene.path.suffix.lower() == ".toml":
+        return []  # a scene's [record] says what it records
+    asked = None if recorded is None else set(recorded)
+    return [(n, v) for n, c in scene.components.items() for v in c.model_description.modelVariables
+            if getattr(v, "shape", None) and math.prod(v.shape) == 0
+            and (f"{n}.{v.name}" in asked if asked is not None else v.causality == "output")]
+
+
+def _structured(scene, series: dict, only: str | None, recorded: list[str] | None = None) -> np.ndarray:
     """The recorded columns as fmpy's result: a structured array, `time`
     first; an FMI 3.0 array recorded whole and in order is one field of the
     array's shape (fmpy's ``y`` of shape (3,)), else one field per element."""
@@ -237,6 +366,10 @@ def _structured(scene, series: dict, only: str | None) -> np.ndarray:
         fields.append((label, dtype))
         data.append(np.asarray(values, dtype=dtype) if dtype is not object else np.asarray(values, dtype=object))
         k += 1
+    for inst, v in _empty_arrays(scene, recorded):  # no element to record: a field of their shape, as fmpy's
+        dtype = _DTYPES.get(v.type, np.float64)
+        fields.append((v.name if only is not None else f"{inst}.{v.name}", dtype, tuple(v.shape)))
+        data.append(np.empty((len(data[0]), *v.shape), dtype=dtype))
     out = np.empty(len(data[0]), dtype=fields)
     for field, column in zip(fields, data):
         out[field[0]] = column

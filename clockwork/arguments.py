@@ -17,6 +17,7 @@ Real) the engine checks next, with the same kind of line.
 
 from __future__ import annotations
 
+import decimal
 import functools
 import inspect
 import math
@@ -81,25 +82,32 @@ class Real(Spec):
     def accepts(self, value) -> bool:
         if isinstance(value, bool) or not isinstance(value, numbers.Real):
             return False
-        x = float(value)
+        try:
+            x = float(value)
+        except (OverflowError, TypeError, ValueError):  # 10**400, a Real whose __float__ fails
+            return False
         if math.isnan(x) or (self.finite and math.isinf(x)):
             return False
         return x > 0 if self.positive else True
 
 
 class Integer(Spec):
+    """A whole number a C int64 holds (int or a numpy integer; not a bool)."""
+
     def __init__(self, what: str = "a whole number"):
         self.what = what
 
     def accepts(self, value) -> bool:
-        return not isinstance(value, bool) and isinstance(value, numbers.Integral)
+        return (not isinstance(value, bool) and isinstance(value, numbers.Integral)
+                and -2**63 <= int(value) < 2**63)
 
 
 class Flag(Spec):
     what = "true or false (a bool)"
 
     def accepts(self, value) -> bool:
-        return isinstance(value, bool) or type(value).__name__ == "bool_"  # numpy's too
+        # numpy's too: numpy.bool_ (numpy 2 calls it numpy.bool), without importing numpy here
+        return isinstance(value, bool) or (type(value).__module__ == "numpy" and type(value).__name__ in ("bool_", "bool"))
 
 
 class Path(Spec):
@@ -215,7 +223,7 @@ class Tuple(Spec):
 
 # One value of every kind a caller might give by mistake.
 _SAMPLES = ["", "abc", 42, -1, 0, 1.5, math.nan, math.inf, True, None, [1, 2], ("a", "b"), {"a": 1}, b"x",
-            object(), len]
+            object(), len, 10**400, -10**400, 1 + 2j, decimal.Decimal("1.5"), {1, 2}, bytearray(b"x")]
 
 
 def checked(**specs: Spec):

@@ -396,3 +396,43 @@ def test_a_system_can_be_handed_to_another_thread():
         t.start()
         t.join(60)
         assert result == [2.0]
+
+
+# --- clockwork.simulate: every argument, every other kind of value (issue 37) ------------------------------
+
+def _simulate_cases() -> list:
+    import clockwork
+
+    return _cases({"simulate": clockwork.simulate.__arguments__})
+
+
+@pytest.mark.parametrize("call, arg, bad", _simulate_cases())
+def test_simulate_refuses_every_other_kind_of_argument(call, arg, bad):
+    """Each declared argument of clockwork.simulate given each sample value
+    its spec refuses (10**400, complex, Decimal, sets and bytes among them):
+    one UsageError naming the argument, before anything is loaded."""
+    import clockwork
+    from cwtest import test_fmu
+
+    args = {"filename": test_fmu("TestDecay")}
+    args[arg] = bad
+    with pytest.raises(UsageError) as e:
+        clockwork.simulate(**args)
+    assert f"simulate(): {arg}" in str(e.value) and "\n" not in str(e.value), str(e.value)
+
+
+def test_simulate_declares_every_argument():
+    import inspect
+
+    import clockwork
+
+    named = [p.name for p in inspect.signature(clockwork.simulate).parameters.values() if p.kind != p.VAR_KEYWORD]
+    assert set(clockwork.simulate.__arguments__) == set(named)
+
+
+@pytest.mark.parametrize("bad", [10**400, -10**400, 2**63])
+def test_an_integer_too_large_for_c_is_refused_by_integer_arguments(bad):
+    from clockwork.arguments import Integer, Real
+
+    assert not Integer().accepts(bad)
+    assert not Real().accepts(10**400)

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..engine.recording import Recorder
 from ..errors import SimulationError
+from ..scene.model import SPAN_RESOLUTION
 from .context import build_system, experiment, find_component, parameters
 from .registry import register
 
@@ -41,7 +42,10 @@ def ticks(scene, point: dict, progress: bool = False) -> dict:
 
 
 @register("time_series", columns=COLUMNS, series=series_columns)
-def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = False) -> dict:
+def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = False, times: bool = False) -> dict:
+    """Run the scene once, recording its outputs; `times`: the series has
+    its time column even with nothing else recorded (clockwork.simulate's
+    result, as fmpy's, has a row per communication point)."""
     start, stop = experiment(scene, point)
     outputs = [] if ticks_only else list(scene.record.outputs)
     record: dict[str, list[str]] = {}
@@ -53,7 +57,7 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
     system = build_system(scene, point, record=record)
     with system:
         m = system.master
-        recorder = Recorder(m, outputs, scene.record.interval, tick_inst)
+        recorder = Recorder(m, outputs, scene.record.interval, tick_inst, times=times)
         recorder.start()
         try:
             run_with_progress(m, stop, recorder, progress, label=scene.path.stem)
@@ -86,7 +90,7 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
             result["mean_period_s"] = float(periods.mean())
             result["last_period_s"] = float(periods[-1])
     out = {"kind": "ticks" if ticks_only else "time_series", "result": result, "statistics": stats}
-    if outputs:
+    if outputs or times:
         out["series"] = columns
     if tick_inst:
         out["ticks"] = ticks
@@ -124,7 +128,7 @@ def run_with_progress(master, stop: float, on_point, progress: bool, label: str)
     bar = None
     began = time.perf_counter()
     try:
-        while master.t < stop - 1e-12 * max(1.0, abs(stop)) and master.ended is None:
+        while master.t < stop - SPAN_RESOLUTION * max(1.0, abs(stop)) and master.ended is None:
             k += per_chunk
             master.run_until(min(stop, origin + k * step), on_point)
             if bar is None and progress and time.perf_counter() - began >= PROGRESS_DELAY_S:

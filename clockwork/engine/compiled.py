@@ -569,7 +569,9 @@ class CompiledMaster(Master):
 
     def _run_until(self, t_stop: float, on_point=None) -> None:
         native = on_point is None or (type(on_point) is Recorder and on_point.master is self
-                                      and not any(isinstance(a, _DiscreteOutput) for a, _ in on_point._sources))
+                                      and not any(isinstance(a, _DiscreteOutput) for a, _ in on_point._sources)
+                                      # the core records no row without a column: time alone is Python's
+                                      and (bool(on_point.outputs) or not on_point.times))
         if self.on_step is not None or not native:
             return super()._run_until(t_stop, on_point)  # the Python loop over compiled steps
         rec, columns = (self._empty_recorder, None) if on_point is None else self._native(on_point)

@@ -30,11 +30,13 @@ class _DiscreteOutput:
 
 class Recorder:
     def __init__(self, master, outputs: list[tuple[str, str]], interval: float | None = None,
-                 ticks_of: str | None = None):
+                 ticks_of: str | None = None, times: bool = False):
         self.master = master
         # An FMI 3.0 array is recorded element by element ("y[0]", "A[1,2]").
         self.outputs = [(i, x) for i, v in outputs for x in master.instances[i].elements.get(v, [v])]
         self.names = [f"{i}.{v}" for i, v in self.outputs]
+        self.times = times  # the time column even with no outputs
+        self._rows = bool(self.outputs) or times
         self.columns: dict[str, list[float]] = {"time": [], **{n: [] for n in self.names}}
         self.ticks: list[float] = []
         self._sources = []
@@ -53,7 +55,7 @@ class Recorder:
 
     def start(self) -> None:
         """Record the first row, at the master's current point."""
-        if self.outputs:
+        if self._rows:
             self._row(self.master.t)
 
     def _row(self, t: float) -> None:
@@ -67,7 +69,7 @@ class Recorder:
             if tt != self._last_tick and tt > 0:
                 self.ticks.append(tt)
                 self._last_tick = tt
-        if not self.outputs:
+        if not self._rows:
             return
         k = (master.t - master.start_time) / master.settings.step
         if abs(k - round(k)) < 1e-6:  # on the grid (events add points off it)

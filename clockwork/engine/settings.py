@@ -18,6 +18,9 @@ LOOP_MODES = ("solve", "delay")
 MAX_THREADS = 256  # master.threads: more would be threads waiting for cores, and memory for their stacks
 
 
+_INT_MAX = 2**31 - 1  # the compiled core's counts are C ints
+
+
 @dataclass
 class MasterSettings:
     """What a master is asked to do: the communication step, the coupling,
@@ -176,8 +179,10 @@ class MasterSettings:
             _positive("max_step", self.max_step)
         for key in ("extrapolation", "iterations"):
             v = getattr(self, key)
-            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 0:
-                raise SceneError(f"master.{key} = {v!r}: expected a whole number >= 0")
+            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or not 0 <= v <= _INT_MAX:
+                shown = f"<an integer of {int(v).bit_length()} bits>" if isinstance(v, numbers.Integral) \
+                    and not isinstance(v, bool) and v > _INT_MAX else repr(v)
+                raise SceneError(f"master.{key} = {shown}: expected a whole number from 0 to {_INT_MAX}")
         for key in ("event_location", "event_prediction", "richardson"):
             if not isinstance(getattr(self, key), bool):
                 raise SceneError(f"master.{key} = {getattr(self, key)!r}: expected true or false")

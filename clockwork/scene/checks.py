@@ -18,6 +18,7 @@ from ..engine.description import variables as variables_of
 from ..engine.names import instance_name_problem, split_ref
 from ..engine.settings import ENGINES, LOOP_MODES, MAX_THREADS, ME_SOLVERS
 from ..errors import SceneError
+from ..numbers import shorten
 from .model import Component, ComponentVariables, show
 from .units import UnitError, fmt, parse_quantity, to_seconds, to_unit
 
@@ -123,14 +124,15 @@ STRUCTURAL = ("is a structural parameter (an array size): clockwork does not cha
 def lookup(ctx: Ctx, key: str, variables: dict, name: str, instance: str, model: str, want: str):
     v = variables.get(name)
     if v is None:
-        close = difflib.get_close_matches(name, list(variables), n=3)
+        # (a name of thousands of characters: neither compared nor echoed whole)
+        close = difflib.get_close_matches(name, list(variables), n=3) if len(name) <= 200 else []
         hint = f" (did you mean {' or '.join(close)}?)" if close else ""
         if want == "parameter":
             pool = names_of(variables, "parameter")
             listing = f"; parameters: {', '.join(pool)}"
         else:
             listing = ""
-        raise ctx.fail(key, f"{instance} ({model}) has no variable {name}{hint}{listing}")
+        raise ctx.fail(key, f"{instance} ({model}) has no variable {shorten(name, 80)}{hint}{listing}")
     return v
 
 
@@ -258,8 +260,8 @@ def master_value(ctx: Ctx, key: str, value: object):
             raise ctx.bad(full, value, "a relative tolerance > 0 (given to every FMU's fmi2SetupExperiment)")
         return float(value)
     if key == "iterations":
-        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-            raise ctx.bad(full, value, "an integer >= 0 (0 = no fixed-point iteration)")
+        if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < 2**31:
+            raise ctx.bad(full, value, f"an integer from 0 to {2**31 - 1} (0 = no fixed-point iteration)")
         return value
     if key == "threads":
         if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_THREADS:

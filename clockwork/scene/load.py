@@ -32,12 +32,14 @@ from ..engine.names import split_link, split_ref
 from ..engine.wiring import Link, loop_name
 from ..engine.wiring import build as build_wiring
 from ..errors import SceneError
+from ..numbers import shorten
 from .checks import (STRUCTURAL, TOP_KEYS, Ctx, article, component, convert_value, instance_problem, lookup,
                      master_value, names_of, parse_ref, read_bounded)
 from .fmu import read_fmu_scene
 from .inputs import Inputs, read_inputs
 from .kinds import NO_KINDS, Invalid, Kinds
-from .model import (Component, ComponentVariables, Connection, Experiment, MasterConfig, Record, Scene, consistency)
+from .model import (Component, ComponentVariables, Connection, Experiment, MasterConfig, Record, Scene, consistency,
+                    show)
 from .ssp.read import read_ssp
 from .sweep import parse_sweep
 from .units import UnitError, fmt, link_conversion, to_seconds
@@ -45,6 +47,43 @@ from .units import UnitError, fmt, link_conversion, to_seconds
 MAX_SCENE_BYTES = 1 << 20  # scene files are a few kB; a larger one is not a scene
 _OVERRIDABLE = ("scene", "experiment", "master", "record", "analysis")
 _MASTER_DEFAULTS = {f.name: f.default for f in dataclasses.fields(MasterConfig)}
+
+
+@dataclasses.dataclass(frozen=True)
+class Given:
+    """A value a program gives (clockwork.simulate), in place of --set text:
+    neither the key nor the value is parsed. `section` is "experiment",
+    "master" or "record" with `key` one of its keys, or None with `key` a
+    variable ("instance.variable", or the variable alone in a scene of one
+    component): a variable named like a section key (`experiment.stop`)
+    stays a variable; `key` None with `section` "plot" replaces the plots
+    (`[]`: simulate draws none). `value` is what TOML would give (a bool,
+    an int, a float, a string or a list of them); `label` names it in
+    errors."""
+
+    section: str | None
+    key: str | None
+    value: object
+    label: str
+    items: tuple[str, ...] = ()  # the labels of a list's items, when not label[i]
+
+    def labels(self, owner: str, name: str) -> dict[str, str]:
+        """{the key errors name: its label} (a list's items too)."""
+        out = {f"{owner}.{name}": self.label}
+        if isinstance(self.value, list):
+            out.update((f"{owner}.{name}[{i}]", self.items[i] if i < len(self.items) else f"{self.label}[{i}]")
+                       for i in range(len(self.value)))
+        return out
+
+    def text(self, owner: str, name: str) -> str:
+        """As --set text (the scene's overrides list: titles and notes)."""
+        from .save import toml_value
+
+        try:
+            value = toml_value(self.value)
+        except TypeError:  # an integer TOML cannot hold: the value is refused when checked
+            value = show(self.value)
+        return f"{owner}.{name}={value}"
 
 
 def parse_override(text: str, instances=()) -> tuple[str, str, object]:
@@ -116,14 +155,17 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
     comps_raw = raw.get("components")
     instance_names = list(comps_raw) if isinstance(comps_raw, dict) else []
     for text_ov in overrides:
-        owner, name, value, label = _override(text_ov, instance_names, path)
-        applied.append(text_ov)
-        if owner in _OVERRIDABLE:
+        if isinstance(text_ov, Given) and text_ov.key is None:
+            raw[text_ov.section] = text_ov.value
+            continue
+        owner, name, value, label, section = _override(text_ov, instance_names, path)
+        applied.append(text_ov.text(owner, name) if isinstance(text_ov, Given) else text_ov)
+        if section:
             sect = raw.setdefault(owner, {})
             if not isinstance(sect, dict):
                 raise SceneError(f"[{owner}] is not a table in the file", path, label)
             sect[name] = value
-            labels[f"{owner}.{name}"] = label
+            labels.update(text_ov.labels(owner, name) if isinstance(text_ov, Given) else {f"{owner}.{name}": label})
             continue
         comps = raw.get("components")
         if owner in TOP_KEYS:
@@ -142,20 +184,35 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
     return _build(ctx, raw, tuple(applied), hashlib.sha256(data).hexdigest(), kinds, input_file=input_file)
 
 
-def _override(text: str, instances, path: Path) -> tuple[str, str, object, str]:
-    """One --set of a scene file or an SSP: owner, name, value and the label
-    its errors are reported under."""
+def _override(text: str | Given, instances, path: Path, variables=None) -> tuple[str, str, object, str, bool]:
+    """One --set (or Given value) of a scene file or an SSP: owner, name,
+    value, the label its errors are reported under and whether the owner is
+    a section (else an instance). `variables` (one component's, or None)
+    lets a Given variable name with dots be that component's variable."""
+    if isinstance(text, Given):
+        if text.section is not None:
+            return text.section, text.key, text.value, text.label, True
+        names = list(instances)
+        own = variables is not None and text.key in variables
+        if len(names) == 1 and (own or split_ref(text.key, names) is None):
+            return names[0], text.key, text.value, text.label, False
+        split = split_ref(text.key, names)
+        if split is None:
+            raise _no_component(text.key.partition(".")[0], names, path, text.label, sections=False)
+        return split[0], split[1], text.value, text.label, False
     try:
         owner, name, value = parse_override(text, instances)
     except ValueError as e:
         raise SceneError(str(e), path) from None
-    return owner, name, value, f"--set {owner}.{name}"
+    return owner, name, value, f"--set {owner}.{name}", owner in _OVERRIDABLE
 
 
-def _no_component(owner: str, names: list[str], path: Path, label: str) -> SceneError:
-    close = difflib.get_close_matches(owner, names + list(_OVERRIDABLE), n=1)
+def _no_component(owner: str, names: list[str], path: Path, label: str, sections: bool = True) -> SceneError:
+    pool = names + (list(_OVERRIDABLE) if sections else [])
+    close = difflib.get_close_matches(owner, pool, n=1) if len(owner) <= 200 else []  # not a long name, quadratic
     hint = f" (did you mean {close[0]}?)" if close else ""
-    return SceneError(f"no component named {owner}{hint}; components: {', '.join(names) or 'none'}", path, label)
+    return SceneError(f"no component named {shorten(owner, 80)}{hint}; components: "
+                      f"{shorten(', '.join(names), 300) or 'none'}", path, label)
 
 
 def _load_system(path: Path, ssp, overrides, kinds: Kinds, input_file) -> Scene:
@@ -170,12 +227,16 @@ def _load_system(path: Path, ssp, overrides, kinds: Kinds, input_file) -> Scene:
     connected = {(c.dst_instance, c.dst_var) for c in ssp.connections}
     labels: dict[str, str] = {}
     applied = []
+    only = variables_of(next(iter(components.values())).model_description) if len(components) == 1 else None
     for text in overrides:
-        owner, name, value, label = _override(text, components, path)
-        applied.append(text)
-        if owner in _OVERRIDABLE:
+        if isinstance(text, Given) and text.key is None:
+            raw[text.section] = text.value
+            continue
+        owner, name, value, label, section = _override(text, components, path, only)
+        applied.append(text.text(owner, name) if isinstance(text, Given) else text)
+        if section:
             raw.setdefault(owner, {})[name] = value
-            labels[f"{owner}.{name}"] = label
+            labels.update(text.labels(owner, name) if isinstance(text, Given) else {f"{owner}.{name}": label})
             continue
         if owner not in components and len(components) == 1:
             # one component: a dotted variable name needs no prefix either (`--set MLoad.k=2`)
@@ -515,6 +576,8 @@ def _experiment(ctx: Ctx, t: dict) -> Experiment:
     start = ctx.time("experiment.start", t.get("start", 0.0))
     stop = ctx.time("experiment.stop", t["stop"])
     if not stop > start:
+        if "experiment.start" in ctx.labels and "experiment.stop" not in ctx.labels:  # the start given moved past it
+            raise ctx.bad("experiment.start", t["start"], f"a time < experiment.stop ({fmt(stop)} s)")
         raise ctx.bad("experiment.stop", t["stop"], f"a time > experiment.start ({fmt(start)} s)")
     return Experiment(start, stop)
 

@@ -222,11 +222,18 @@ def _show_point(values: dict) -> str:
     return ", ".join(f"{a}.{b} = {show(v)}" for (a, b), v in values.items())
 
 
+SPAN_RESOLUTION = 1e-12  # a run's end, relative to max(1 s, |stop|): closer to the stop is the stop
+
+
 def consistency(m: MasterConfig, e: Experiment, components: dict[str, Component]) -> tuple[str, str] | None:
     """The first problem of these settings with each other and with the
     components, as (key, what was expected), or None."""
     if not e.stop > e.start:
         return "experiment.stop", f"expected stop > start ({fmt(e.start)} s), got {fmt(e.stop)} s"
+    if e.stop - e.start <= SPAN_RESOLUTION * max(1.0, abs(e.stop)):
+        # the run ends within this of the stop (analyses.time_series): a shorter span would not step at all
+        return "experiment.stop", (f"expected stop more than {fmt(SPAN_RESOLUTION * max(1.0, abs(e.stop)))} s "
+                                   f"after start ({fmt(e.start)} s), got {fmt(e.stop)} s")
     if m.min_step > m.step:
         return "master.min_step", f"expected min_step <= step ({fmt(m.step)} s), got {fmt(m.min_step)} s"
     if m.max_step < m.step:
@@ -276,7 +283,8 @@ def show(value: object, limit: int = 60) -> str:
     elif isinstance(value, float):
         s = fmt(value) if math.isfinite(value) else ("nan" if math.isnan(value) else ("inf" if value > 0 else "-inf"))
     elif isinstance(value, (int,)):
-        s = str(value)
+        # Python refuses str() of an integer of more than 4300 digits
+        s = str(value) if value.bit_length() <= 13000 else f"<an integer of {value.bit_length()} bits>"
     elif isinstance(value, list):
         s = "[" + ", ".join(show(x, limit) for x in value) + "]"
     elif isinstance(value, dict):

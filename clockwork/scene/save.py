@@ -20,10 +20,15 @@ _DEFAULTS = {f.name: f.default for f in dataclasses.fields(MasterConfig)}
 
 def toml_value(value) -> str:
     """A value as TOML: strings as basic strings (JSON's escapes are TOML's),
-    floats exactly, lists inline."""
+    floats exactly, lists inline (numpy's scalars as Python's: their repr
+    is not TOML); TypeError for what TOML has no form for."""
+    if hasattr(value, "dtype") and hasattr(value, "item") and getattr(value, "ndim", None) == 0:
+        value = value.item()
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, int):
+        if not -2**63 <= value < 2**64:  # TOML's integers are 64-bit: not one TOML reads back
+            raise TypeError(f"no TOML form for an integer of {value.bit_length()} bits")
         return str(value)
     if isinstance(value, float):
         if math.isnan(value):
