@@ -337,8 +337,8 @@ def cmd_export_scene(args) -> int:
     scene = load_scene(args.fmu, args.overrides, args.input)
     write_text_atomic(out, scene_toml(scene, out, Path(args.fmu).name))
     (name, c), = scene.components.items()
-    print(f"wrote {out}: {name} ({c.fmu_path.name}), stop {scene.experiment.stop:g} s, step {scene.master.step:g} s, "
-          f"{len(scene.record.outputs)} recorded output(s)")
+    _say_out(f"wrote {out}: {name} ({c.fmu_path.name}), stop {scene.experiment.stop:g} s, step {scene.master.step:g} s, "
+             f"{len(scene.record.outputs)} recorded output(s)")
     return 0
 
 
@@ -357,12 +357,12 @@ def cmd_list(args) -> int:
         except SceneError as e:
             broken += 1
             where = f"{e.key}: " if e.key else ""
-            print(f"{f.name:<{width}}  ERROR: {where}{e.detail}")
+            _say_out(f"{f.name:<{width}}  ERROR: {where}{e.detail}")
             continue
         line = f"{f.name:<{width}}  {s.title}"
         if s.reproduces:
             line += f"  [reproduces {s.reproduces}]"
-        print(line)
+        _say_out(line)
     return 1 if broken else 0
 
 
@@ -503,8 +503,8 @@ def cmd_info(args) -> int:
     times, step = experiment_times(md, path)
     tol = getattr(md.defaultExperiment, "tolerance", None) if md.defaultExperiment is not None else None
     _say_out(f"clockwork run {path.name}: instance {instance_name(md)}, start {times['start']:g} s, "
-          f"stop {times['stop']:g} s, step {step:g} s, tolerance {tol if tol not in (None, '') else '-'} "
-          "(the DefaultExperiment, else fmpy's defaults)")
+             f"stop {times['stop']:g} s, step {step:g} s, tolerance {tol if tol not in (None, '') else '-'} "
+             "(the DefaultExperiment, else fmpy's defaults)")
     return 0
 
 

@@ -248,3 +248,16 @@ def test_clockwork_plot_reads_no_more_values_than_a_run_records(capsys, tmp_path
     d = _result(tmp_path / "s", ["time", "x"], rows=[(t, t) for t in range(5)])
     rc, _, err = run_cli(capsys, ["plot", d])
     assert rc == 0, err
+
+
+def test_info_validate_and_list_print_file_text_escaped(capsys, tmp_path):
+    fmu = renamed_pendulum(tmp_path)
+    rc, out, err = run_cli(capsys, ["info", fmu])
+    assert rc == 0 and r"bidi\u202ex\x9by" in out and not any(c in out for c in "\u202e\x9b"), err
+    d = tmp_path / "scenes"
+    d.mkdir()
+    (d / "s.toml").write_text('[scene]\ntitle = "t\\u001b[2Jx\\u202e"\n[components.p]\nfmu = "Pendulum"\n'
+                              '[experiment]\nstop = 0.1\n')
+    for cmd in (["validate", d / "s.toml"], ["list", d]):
+        rc, out, err = run_cli(capsys, cmd)
+        assert rc == 0 and r"t\x1b[2Jx\u202e" in out and not any(c in out for c in "\x1b\u202e"), (cmd, out, err)

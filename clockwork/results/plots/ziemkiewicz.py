@@ -16,7 +16,7 @@ import numpy as np
 
 from ...physics import analytic
 from ...scene.kinds import Invalid
-from .registry import check_keys, curves, display, plain, register, subplots, title_of
+from .registry import check_keys, curves, display, legend, plain, register, subplots, title_of
 
 
 ERROR_LABELS = {
@@ -234,6 +234,7 @@ def plot_curves(scene, rows, spec):
     by_group = curves(rows, lambda r: tuple(r["point"].get(g) for g in group))
     fig, ax = subplots(figsize=(7.5, 5))
     colours = {}
+    lines, labels = [], []
     for key in sorted(by_group, key=lambda k: tuple(0 if v is None else v for v in k)):
         pts = sorted(by_group[key], key=lambda r: r["result"][xk])
         label_parts = []
@@ -252,13 +253,13 @@ def plot_curves(scene, rows, spec):
                 colour_key.append(v)
         ck = tuple(colour_key)
         colours.setdefault(ck, f"C{len(colours)}")
-        ax.plot([p["result"][xk] for p in pts], [p["result"][yk] for p in pts],
-                "--" if dashed else "-", marker="o", ms=2.5, lw=1.2, color=colours[ck],
-                label=", ".join(label_parts))
+        lines += ax.plot([p["result"][xk] for p in pts], [p["result"][yk] for p in pts],
+                         "--" if dashed else "-", marker="o", ms=2.5, lw=1.2, color=colours[ck])
+        labels.append(", ".join(label_parts))
     ax.axhline(0.0, color="0.7", lw=0.5)
     ax.set_xlabel("amplitude A (deg)" if xk == "amplitude_deg" else plain(xk))
     ax.set_ylabel(ERROR_LABELS.get(yk, plain(yk)) + " (s/day)")
-    ax.legend(loc="best", fontsize=7)
+    legend(ax, lines, labels, loc="best", fontsize=7)
     ax.set_title(title_of(scene, spec), fontsize=10)
     return fig
 
