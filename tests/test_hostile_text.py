@@ -189,6 +189,13 @@ def test_clockwork_plot_draws_a_huge_title_and_names_cut_short(capsys, tmp_path,
     assert label == "n" * (registry.MAX_LABEL - 1) + "\u2026"
 
 
+def test_clockwork_plot_refuses_an_out_that_is_a_directory(capsys, tmp_path):
+    d = _result(tmp_path / "r", ["time", "x"])
+    (tmp_path / "x.png").mkdir()
+    rc, _, err = run_cli(capsys, ["plot", d, "--out", tmp_path / "x.png"])
+    assert_one_line_error(rc, err, f"--out {tmp_path / 'x.png'}: is a directory")
+
+
 def test_clockwork_plot_removes_no_file_it_did_not_write(capsys, tmp_path):
     d = _result(tmp_path / "r", ["time", "x"])
     (tmp_path / "mine").mkdir()

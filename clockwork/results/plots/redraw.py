@@ -121,6 +121,8 @@ def redraw(result_dir: str | Path, only: list[str] | None = None, out: str | Pat
         raise UsageError(f"--out {target}: expected a file name ending .png")
     if not target.parent.is_dir():
         raise UsageError(f"--out {target}: no such directory: {target.parent}")
+    if target.is_dir():
+        raise UsageError(f"--out {target}: is a directory: expected a file name ending .png")
     summary = _summary(folder)
     info = summary.get("columns", {})
     series = _series(folder / "timeseries.csv", info)
