@@ -176,7 +176,7 @@ def cmd_compare(args) -> int:
         check_output_file(args.json, "--json")
     g = compare(args.result, args.case)
     for line in g.table():
-        print(line)
+        _say_out(line)
     if args.json:
         write_text_atomic(args.json, json.dumps(g.as_dict(), indent=2, allow_nan=False) + "\n")
     return 0 if g.passed else 1
