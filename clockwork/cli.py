@@ -20,7 +20,7 @@ import threading
 from pathlib import Path
 
 from .version import __version__
-from .errors import Interrupted, SceneError, SimulationError, UsageError
+from .errors import Interrupted, SceneError, SimulationError, UsageError, printable, say
 from .paths import matplotlib_folder, scenarios_dir
 from .processes import Child, die_with_parent, fork_child, fork_is_safe
 
@@ -176,7 +176,7 @@ def cmd_compare(args) -> int:
         check_output_file(args.json, "--json")
     g = compare(args.result, args.case)
     for line in g.table():
-        print(line)
+        _say_out(line)
     if args.json:
         write_text_atomic(args.json, json.dumps(g.as_dict(), indent=2, allow_nan=False) + "\n")
     return 0 if g.passed else 1
@@ -237,15 +237,17 @@ def cmd_run(args) -> int:
     if scene.sweep is None and (args.workers or args.scheduler):
         # Not an error, but not silently dropped either.
         given = [o for o, v in (("--workers", args.workers), ("--scheduler", args.scheduler)) if v]
-        print(f"clockwork: warning: {' and '.join(given)} {'are' if len(given) > 1 else 'is'} for sweeps; "
-              f"{scene.path.name} is a single run, run in this process", file=sys.stderr)
+        say("warning", f"{' and '.join(given)} {'are' if len(given) > 1 else 'is'} for sweeps; "
+                       f"{scene.path.name} is a single run, run in this process")
     out = check_output_dir(args.out)
     from .run.scene_run import run_scene
 
     summary = run_scene(scene, out, workers=args.workers, scheduler=args.scheduler, progress=_bars(args),
                         plot_process=args.plot_process)
     for line in _run_report(scene, out, summary):
-        print(line)
+        _say_out(line)
+    for note in summary.get("plots_notes", []):
+        say("note", note)
     failed = summary.get("points_failed", 0)
     if failed:
         # The other points are in the results; the failures are in summary.json.
@@ -283,6 +285,12 @@ def _run_report(scene, out: Path, summary: dict, most: int = 4) -> list[str]:
     return lines
 
 
+def _say_out(line: str = "") -> None:
+    """A line on stdout that quotes files (a title, names, descriptions):
+    what a terminal would act on is escaped (errors.printable)."""
+    print(printable(line))
+
+
 def _short(x) -> str:
     return f"{x:.4g}" if isinstance(x, float) else str(x)
 
@@ -297,10 +305,10 @@ def cmd_validate(args) -> int:
     extra = f", {points} sweep points" if scene.sweep is not None else ""
     with_set = f", with --set {' '.join(scene.overrides)}" if scene.overrides else ""
     for note in scene.notes:
-        print(f"note: {note}")
+        _say_out(f"note: {note}")
     if scene.inputs is not None:
         extra += f", inputs from {scene.inputs.file.name}: {', '.join(scene.inputs.columns)}"
-    print(f"ok: {scene.title} ({n} component{'s' * (n != 1)}, {m} connection{'s' * (m != 1)}{extra}{with_set})")
+    _say_out(f"ok: {scene.title} ({n} component{'s' * (n != 1)}, {m} connection{'s' * (m != 1)}{extra}{with_set})")
     return 0
 
 
@@ -329,8 +337,8 @@ def cmd_export_scene(args) -> int:
     scene = load_scene(args.fmu, args.overrides, args.input)
     write_text_atomic(out, scene_toml(scene, out, Path(args.fmu).name))
     (name, c), = scene.components.items()
-    print(f"wrote {out}: {name} ({c.fmu_path.name}), stop {scene.experiment.stop:g} s, step {scene.master.step:g} s, "
-          f"{len(scene.record.outputs)} recorded output(s)")
+    _say_out(f"wrote {out}: {name} ({c.fmu_path.name}), stop {scene.experiment.stop:g} s, step {scene.master.step:g} s, "
+             f"{len(scene.record.outputs)} recorded output(s)")
     return 0
 
 
@@ -349,12 +357,12 @@ def cmd_list(args) -> int:
         except SceneError as e:
             broken += 1
             where = f"{e.key}: " if e.key else ""
-            print(f"{f.name:<{width}}  ERROR: {where}{e.detail}")
+            _say_out(f"{f.name:<{width}}  ERROR: {where}{e.detail}")
             continue
         line = f"{f.name:<{width}}  {s.title}"
         if s.reproduces:
             line += f"  [reproduces {s.reproduces}]"
-        print(line)
+        _say_out(line)
     return 1 if broken else 0
 
 
@@ -419,23 +427,23 @@ def _info_ssp(path: str) -> int:
 
     scene = load_scene(path)
     n, m = len(scene.components), len(scene.connections)
-    print(f"{scene.title} (SSP: {n} component{'s' * (n != 1)}, {m} connection{'s' * (m != 1)})")
-    print(f"  file         {scene.path}")
-    print(f"  sha256       {scene.sha256}")
-    print("components:")
+    _say_out(f"{scene.title} (SSP: {n} component{'s' * (n != 1)}, {m} connection{'s' * (m != 1)})")
+    _say_out(f"  file         {scene.path}")
+    _say_out(f"  sha256       {scene.sha256}")
+    _say_out("components:")
     width = max(len(c) for c in scene.components)
     for name, c in scene.components.items():
         params = ", ".join(f"{k} = {v!r}" for k, v in c.parameters.items())
-        print(f"  {name:<{width}}  {c.model_name}  {c.fmu_shown}")
+        _say_out(f"  {name:<{width}}  {c.model_name}  {c.fmu_shown}")
         if params:
-            print(f"  {'':<{width}}  parameters: {params}")
-    print("connections:")
+            _say_out(f"  {'':<{width}}  parameters: {params}")
+    _say_out("connections:")
     for c in scene.connections:
-        print(f"  {_link(c)}")
-    print(f"experiment: start {scene.experiment.start:g} s, stop {scene.experiment.stop:g} s")
-    print("master: " + ", ".join(f"{k} = {v}" for k, v in scene.master.as_dict().items()))
+        _say_out(f"  {_link(c)}")
+    _say_out(f"experiment: start {scene.experiment.start:g} s, stop {scene.experiment.stop:g} s")
+    _say_out("master: " + ", ".join(f"{k} = {v}" for k, v in scene.master.as_dict().items()))
     interval = f", every {scene.record.interval:g} s" if scene.record.interval else ""
-    print(f"record{interval}: " + ", ".join(f"{i}.{v}" for i, v in scene.record.outputs))
+    _say_out(f"record{interval}: " + ", ".join(f"{i}.{v}" for i, v in scene.record.outputs))
     return 0
 
 
@@ -451,15 +459,15 @@ def cmd_info(args) -> int:
         raise UsageError(str(e)) from None
     cs = md.coSimulation
     faces = [n for n, i in (("Co-Simulation", cs), ("Model Exchange", md.modelExchange)) if i is not None]
-    print(f"{md.modelName} (FMI {md.fmiVersion} {' and '.join(faces)})")
-    print(f"  file         {path}")
-    print(f"  sha256       {digest}")
+    _say_out(f"{md.modelName} (FMI {md.fmiVersion} {' and '.join(faces)})")
+    _say_out(f"  file         {path}")
+    _say_out(f"  sha256       {digest}")
     fmi3 = md.fmiVersion.startswith("3.")
-    print(f"  {'token' if fmi3 else 'guid':<12} {md.instantiationToken if fmi3 else md.guid}")
-    print(f"  generated by {md.generationTool or '-'}")
+    _say_out(f"  {'token' if fmi3 else 'guid':<12} {md.instantiationToken if fmi3 else md.guid}")
+    _say_out(f"  generated by {md.generationTool or '-'}")
     if md.description:
-        print(f"  description  {md.description}")
-    print("capabilities:")
+        _say_out(f"  description  {md.description}")
+    _say_out("capabilities:")
     caps = ("canHandleVariableCommunicationStepSize", "canGetAndSetFMUstate", "canSerializeFMUstate",
             "canInterpolateInputs", "maxOutputDerivativeOrder")
     if fmi3:  # FMI 3.0 has no input derivatives, and adds events
@@ -472,10 +480,10 @@ def cmd_info(args) -> int:
         cs = md.modelExchange
         caps = ("canGetAndSetFMUstate", "canSerializeFMUstate", "needsCompletedIntegratorStep")
     for cap in caps:
-        print(f"  {cap:<40} {_flag(getattr(cs, cap, None))}")
+        _say_out(f"  {cap:<40} {_flag(getattr(cs, cap, None))}")
     if md.modelExchange is not None:
-        print(f"  {'continuous states (Model Exchange)':<40} {len(md.derivatives)}")
-        print(f"  {'event indicators (Model Exchange)':<40} {md.numberOfEventIndicators or 0}")
+        _say_out(f"  {'continuous states (Model Exchange)':<40} {len(md.derivatives)}")
+        _say_out(f"  {'event indicators (Model Exchange)':<40} {md.numberOfEventIndicators or 0}")
     negated = fmi1_details(md).negated
     rows = [("name", "causality", "variability", "type", "unit", "start", "min", "max", "description")]
     for v in md.modelVariables:
@@ -486,17 +494,17 @@ def cmd_info(args) -> int:
         rows.append((v.name, v.causality or "-", v.variability or "-", kind, var_unit(v) or "-",
                      _flag(start), _flag(v.min), _flag(v.max), alias + (v.description or "")))
     widths = [max(len(r[k]) for r in rows) for k in range(len(rows[0]) - 1)]
-    print(f"variables ({len(md.modelVariables)}):")
+    _say_out(f"variables ({len(md.modelVariables)}):")
     for r in rows:
-        print("  " + "  ".join(c.ljust(w) for c, w in zip(r, widths)) + "  " + r[-1])
-    print(f"event indicators: {', '.join(indicators) if indicators else 'none'}")
+        _say_out("  " + "  ".join(c.ljust(w) for c, w in zip(r, widths)) + "  " + r[-1])
+    _say_out(f"event indicators: {', '.join(indicators) if indicators else 'none'}")
     from .scene.fmu import experiment_times, instance_name
 
     times, step = experiment_times(md, path)
     tol = getattr(md.defaultExperiment, "tolerance", None) if md.defaultExperiment is not None else None
-    print(f"clockwork run {path.name}: instance {instance_name(md)}, start {times['start']:g} s, "
-          f"stop {times['stop']:g} s, step {step:g} s, tolerance {tol if tol not in (None, '') else '-'} "
-          "(the DefaultExperiment, else fmpy's defaults)")
+    _say_out(f"clockwork run {path.name}: instance {instance_name(md)}, start {times['start']:g} s, "
+             f"stop {times['stop']:g} s, step {step:g} s, tolerance {tol if tol not in (None, '') else '-'} "
+             "(the DefaultExperiment, else fmpy's defaults)")
     return 0
 
 
@@ -507,8 +515,7 @@ _RUN_FAILURES = (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.ENOMEM, errno.EFBI
 
 
 def _error(message: object) -> None:
-    text = " ".join(str(message).split())
-    print(f"clockwork: error: {text}", file=sys.stderr)
+    say("error", message)
 
 
 def console() -> int:

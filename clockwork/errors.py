@@ -19,6 +19,8 @@ that failed).
 
 from __future__ import annotations
 
+import re
+
 
 class ClockworkError(Exception):
     """Base class of every error clockwork raises on purpose; str() is a
@@ -44,7 +46,7 @@ class SceneError(ClockworkError):
         self.key = key
         self.detail = _one_line(detail)
         parts = [p for p in (self.path, self.key) if p]
-        super().__init__(": ".join(parts + [self.detail]))
+        super().__init__(printable(": ".join(parts + [self.detail])))
 
 
 class UsageError(ClockworkError):
@@ -86,7 +88,7 @@ class SimulationError(ClockworkError):
         if instance is not None:
             where.append(instance if variable is None else f"{instance}.{variable}")
         prefix = ", ".join(where) + ": " if where else ""
-        super().__init__(prefix + self.message)
+        super().__init__(printable(prefix + self.message))
 
 
 class SimulationEnded(SimulationError):
@@ -118,4 +120,35 @@ class Interrupted(KeyboardInterrupt):
 
 
 def _one_line(text: str) -> str:
-    return " ".join(str(text).split())
+    return printable(" ".join(str(text).split()))
+
+
+# What a terminal acts on or a reader cannot see: C0 controls, DEL, C1
+# controls (0x9b is a CSI on its own), the bidirectional overrides and
+# isolates (they reorder what follows them on the line), the line and
+# paragraph separators, and lone surrogates (a file name's undecodable
+# bytes, which the terminal's encoder would refuse).
+_UNPRINTABLE = re.compile("[\x00-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028-\u202e\u2066-\u2069"
+                          "\ud800-\udfff]")
+
+
+def _escape(m: re.Match) -> str:
+    c = ord(m.group())
+    return f"\\x{c:02x}" if c < 0x100 else f"\\u{c:04x}"
+
+
+def printable(text: object) -> str:
+    """`text` with every character that a terminal would act on (an escape
+    sequence, a carriage return, a bidirectional override) written as a
+    visible escape, ``\\x1b`` or ``\\u202e``: text from a file (a variable
+    name, a CSV header, a unit) quoted in a line on stderr or in a plot."""
+    return _UNPRINTABLE.sub(_escape, str(text))
+
+
+def say(kind: str, text: object) -> None:
+    """One line ``clockwork: <kind>: <text>`` on stderr (kind: error,
+    warning or note), its blanks collapsed and its control characters
+    escaped (``printable``): the one way such a line is printed."""
+    import sys
+
+    print(f"clockwork: {kind}: {_one_line(text)}", file=sys.stderr)

@@ -91,15 +91,19 @@ def test_clockwork_plot_redraws_a_run(capsys, tmp_path):
     assert rc == 0 and out.strip() == f"wrote {tmp_path / 'few.png'}", err
 
 
-def test_clockwork_plot_removes_pages_of_an_earlier_drawing(capsys, tmp_path):
+def test_clockwork_plot_leaves_pages_it_did_not_write_with_a_note(capsys, tmp_path):
+    """Only files this drawing wrote are touched (issue 37: `--out mine/holiday.png`
+    deleted a mine/holiday_2.png): a page of an earlier drawing stays, said once."""
     rc, _, err = run_cli(capsys, ["run", test_fmu("TestStair"), "--out", tmp_path / "r", "--no-progress",
                                   "--set", "experiment.stop=1"])
     assert rc == 0, err
     (tmp_path / "r" / "outputs_2.png").write_bytes(b"an old page")
     (tmp_path / "r" / "outputs_x.png").write_bytes(b"not a page")
     rc, _, err = run_cli(capsys, ["plot", tmp_path / "r"])
-    assert rc == 0, err
-    assert not (tmp_path / "r" / "outputs_2.png").exists() and (tmp_path / "r" / "outputs_x.png").exists()
+    assert rc == 0 and err == f"clockwork: note: {tmp_path / 'r'}: outputs_2.png not written by this drawing: " \
+        "left as they are\n", err
+    assert (tmp_path / "r" / "outputs_2.png").read_bytes() == b"an old page"
+    assert (tmp_path / "r" / "outputs_x.png").exists()
 
 
 @pytest.mark.parametrize("make, args, needle", [

@@ -120,6 +120,36 @@ def test_a_run_that_turns_nan_keeps_its_series_and_says_failed(capsys, tmp_path,
 
 
 @pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("t_nan, when, rows", [
+    ("0.0", "0.0", []),  # at the start: no point is legal, and the time is the start's
+    ("0.05", "0.1", ["0.0"]),  # within the first step: the start is kept
+])
+@pytest.mark.parametrize("alone", [False, True])
+def test_a_nan_at_the_start_or_the_first_step_keeps_legal_numbers_only(capsys, tmp_path, fmu, engine, t_nan,
+                                                                         when, rows, alone):
+    """The history holds no NaN and the line gives the time of the point
+    that failed, on both engines, for a scene and for the FMU alone."""
+    out = tmp_path / "out"
+    if alone:
+        args = ["run", fmu, "--set", f"t_nan={t_nan}", "--set", "experiment.stop=1", "--set", "master.step=0.1",
+                "--set", f"master.engine={engine}"]
+    else:
+        args = ["run", scene(tmp_path, fmu, f"t_nan = {t_nan}", engine)]
+    rc, _, err = run_cli(capsys, [*args, "--out", out, "--no-progress"])
+    assert_one_line_error(rc, err, f"y[0] = nan is not finite at t = {when} s", code=1)
+    summary = json.loads((out / "summary.json").read_text())
+    failed = summary["result"]["failed"]
+    assert failed["time_s"] == float(when) and failed["variable"] == "y[0]"
+    assert failed["last_point_s"] == (float(rows[-1]) if rows else None)
+    if (out / "timeseries.csv").exists():
+        table = read_csv(out / "timeseries.csv")
+        assert table["time"] == rows
+        assert not any(v.lower() in ("nan", "inf", "-inf") for col in table.values() for v in col)
+    else:
+        assert rows == [] and "timeseries.csv" not in summary["files"]
+
+
+@pytest.mark.parametrize("engine", ENGINES)
 def test_an_fmu_that_fails_keeps_the_series_until_its_failed_step(capsys, tmp_path, fmu, engine):
     out = tmp_path / "out"
     rc, _, err = run_cli(capsys, ["run", scene(tmp_path, fmu, "t_fail = 0.35", engine), "--out", out,

@@ -69,6 +69,14 @@ def test_a_signal_in_two_files_of_a_libcosim_directory_is_bad_input(capsys, tmp_
     assert_one_line_error(rc, err, "pendulum.phi", code=2)
 
 
+def test_the_report_quotes_a_file_name_with_escape_bytes_escaped(capsys, tmp_path, ref):
+    f = tmp_path / "r\x1b]0;x\x07.csv"
+    f.write_text(ref.read_text())
+    rc, out, err = run_cli(capsys, ["compare", f, "GrasshopperClock"])
+    assert rc == 0 and "PASS" in out and "\x1b" not in out and "\x07" not in out, (out, err)
+    assert r"r\x1b]0;x\x07.csv" in out
+
+
 @pytest.mark.parametrize("sep", [",", ";"])
 def test_a_byte_order_mark_is_read(capsys, tmp_path, ref, sep):
     rc, plain, _ = run_cli(capsys, ["compare", ref, "GrasshopperClock"])

@@ -127,10 +127,11 @@ def test_the_plot_process_draws_what_this_process_draws(tmp_path):
     got, err = _drive(tmp_path)
     assert got["by"] == "_PlotProcess"
     assert got["forked"] == got["here"]
-    written, failed, empty = got["forked"]
+    written, failed, empty, notes = got["forked"]
     assert written == ["a.png", "c.png", "e.png"]
     assert [f["file"] for f in failed] == ["b.png"] and "a broken plot kind" in failed[0]["error"]
     assert [e["file"] for e in empty] == ["d.png"]
+    assert notes == []
     assert _files(tmp_path / "forked") == _files(tmp_path / "here")  # the same PNG bytes, nothing else
     assert err == ""
 

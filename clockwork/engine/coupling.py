@@ -15,10 +15,10 @@ end, to a fixed point.
 
 from __future__ import annotations
 
-import sys
 from ctypes import c_double, c_int, c_uint
 from dataclasses import dataclass, field
 
+from ..errors import say
 from .fmu import WARNING
 from .ports import Port
 
@@ -50,7 +50,7 @@ class InputCoupling:
     def note(self, text: str) -> None:
         if text not in self.notes:
             self.notes.append(text)
-            print(f"clockwork: warning: {text}", file=sys.stderr)
+            say("warning", text)
 
     def find_derivative_sources(self) -> None:
         """For each dynamic input: a source offering output derivatives, if any

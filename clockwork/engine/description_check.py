@@ -294,6 +294,11 @@ class _Pass:
             for el, n in [(v, name)] + [(a, a.get("name")) for a in aliases]:
                 if not n:
                     raise _fail(el, "expected an alias name", "name")
+                if any(c in n for c in "\r\n\t"):
+                    # FMI 2.0 2.2.9 and FMI 3.0 2.4.7.5: a name is any Unicode character but CR, LF and
+                    # TAB (XML 1.0 has no other C0 control): a name is one line of a CSV header or a legend.
+                    raise _fail(el, f"expected a name without a line break or a tab (FMI: any character but "
+                                    f"CR, LF and TAB), got {shorten(n, 80)!r}", "name")
                 if n in names and not (self.version == "1.0" and _internal(names[n]) and _internal(el)):
                     raise _fail(el, f"expected a unique variable name: {shorten(n, 80)!r} is also the name on line "
                                     f"{names[n].sourceline}", "name")

@@ -12,7 +12,6 @@ import ctypes
 import json
 import os
 import shutil
-import sys
 import tempfile
 import threading
 import weakref
@@ -27,7 +26,7 @@ from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
 from fmpy import calloc, free
 
 from ..atomic import alive
-from ..errors import ParametersRefused, SceneError, SimulationError, UsageError
+from ..errors import ParametersRefused, SceneError, SimulationError, UsageError, say
 from ..hashing import sha256_file
 from ..numbers import parse_json
 from ..paths import cache_root, core_library, scratch_dir
@@ -99,8 +98,7 @@ def _extract_cached(path: Path, digest: str) -> Path | None:
         if target.is_dir():
             if _intact(target):
                 return target
-            print(f"clockwork: warning: {target}: damaged FMU cache entry, extracting {path.name} again",
-                  file=sys.stderr)
+            say("warning", f"{target}: damaged FMU cache entry, extracting {path.name} again")
             shutil.rmtree(target, ignore_errors=True)
         _remove_stale_parts(store, ".", ".")
         tmp = Path(tempfile.mkdtemp(prefix=f".{os.getpid()}.{digest[:16]}.", suffix=".part", dir=store))

@@ -203,6 +203,12 @@ class Master:
         ports.propagate(ports.order, self.t)
         self.coupling.find_derivative_sources()
         self.t = self.start_time
+        # The start is a communication point like any other: its outputs are
+        # checked as each step's are (5. in run_until), so that a NaN there
+        # fails the run at the start time with no point recorded (the
+        # history holds legal numbers only), not at the end of the first step.
+        if ports.diverged(self.settings.divergence_limit):
+            ports.name_divergence(self.t, self.settings.divergence_limit, last_point=None)
         self._start()
 
     def _start(self) -> None:

@@ -18,9 +18,9 @@ cached nor reused: a rerun tries them again.
 from __future__ import annotations
 
 import math
-import sys
 from pathlib import Path
 
+from ..errors import say
 from ..hashing import source_digest
 from ..numbers import parse_json
 from ..paths import cache_root
@@ -59,8 +59,8 @@ def cache_dir() -> Path | None:
 def _give_up(d: Path, e: OSError) -> None:
     _ready.discard(d)
     _unusable.add(d)
-    print(f"clockwork: warning: the point cache {d} cannot be used ({e.strerror or e}): running without it "
-          "(set CLOCKWORK_CACHE to a writable folder, or to off)", file=sys.stderr)
+    say("warning", f"the point cache {d} cannot be used ({e.strerror or e}): running without it "
+                   "(set CLOCKWORK_CACHE to a writable folder, or to off)")
 
 
 def check_point(data, label: dict, kind: str) -> str | None:
@@ -133,7 +133,7 @@ def read_point(path: Path, label: dict, kind: str) -> dict | None:
 
 
 def _warn(path: Path, why: str) -> None:
-    print(f"clockwork: warning: {path}: {why}; computing the point again", file=sys.stderr)
+    say("warning", f"{path}: {why}; computing the point again")
 
 
 def cache_load(key: str, label: dict, kind: str) -> dict | None:

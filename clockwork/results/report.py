@@ -64,8 +64,10 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
         write_csv_atomic(out / "sweep.csv", axes + rkeys, cols)
         files.append("sweep.csv")
         summary["points_failed"] = sum(1 for r in results if "error" in r)
-    written, failed, empty = plotter.collect()
+    written, failed, empty, notes = plotter.collect()
     files += written
+    if notes:
+        summary["plots_notes"] = notes
     if failed:
         summary["plots_failed"] = failed
     if empty:

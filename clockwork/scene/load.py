@@ -19,7 +19,6 @@ import difflib
 import hashlib
 import os
 import re
-import sys
 import tomllib
 from pathlib import Path
 
@@ -31,7 +30,7 @@ from ..engine.model_exchange import INTERFACES, interface_of, make_instance, mod
 from ..engine.names import split_link, split_ref
 from ..engine.wiring import Link, loop_name
 from ..engine.wiring import build as build_wiring
-from ..errors import SceneError
+from ..errors import SceneError, say
 from ..numbers import shorten
 from .checks import (STRUCTURAL, TOP_KEYS, Ctx, article, component, convert_value, instance_problem, lookup,
                      master_value, names_of, parse_ref, read_bounded)
@@ -221,7 +220,7 @@ def _load_system(path: Path, ssp, overrides, kinds: Kinds, input_file) -> Scene:
     its default experiment, annotations and --set the other sections
     (docs/scenes.md, "SSP and SSD"; docs/own-fmu.md)."""
     for w in ssp.warnings:
-        print(f"clockwork: warning: {w}", file=sys.stderr)
+        say("warning", w)
     raw = {"scene": {"title": ssp.name, "description": ssp.description}, **ssp.sections}
     components = dict(ssp.components)
     connected = {(c.dst_instance, c.dst_var) for c in ssp.connections}
@@ -279,8 +278,8 @@ def _ssp_stop(ssp, raw: dict) -> None:
         return  # refused under experiment.start
     experiment["stop"] = start + 1.0
     label, key = ssp.no_stop
-    print(f"clockwork: note: {label}: {key}: no ssd:DefaultExperiment stopTime: the run stops 1 s after the start, at "
-          f"{fmt(start + 1.0)} s, as fmpy does (--set experiment.stop=<time> for another)", file=sys.stderr)
+    say("note", f"{label}: {key}: no ssd:DefaultExperiment stopTime: the run stops 1 s after the start, at "
+                f"{fmt(start + 1.0)} s, as fmpy does (--set experiment.stop=<time> for another)")
 
 
 def _ssp_step_hints(ssp, raw: dict, components: dict, labels: dict) -> None:
@@ -296,8 +295,8 @@ def _ssp_step_hints(ssp, raw: dict, components: dict, labels: dict) -> None:
         return
     if "master.step" in labels:
         label, key = next(iter(hints.values()))[1:]
-        print(f"clockwork: note: {label}: {key}: --set master.step steps every component alike; the "
-              f"components' osp:StepSizeHint ({len(hints)}) are not applied", file=sys.stderr)
+        say("note", f"{label}: {key}: --set master.step steps every component alike; the "
+                    f"components' osp:StepSizeHint ({len(hints)}) are not applied")
         return
     master = raw.setdefault("master", {})
     base = master.get("step", _MASTER_DEFAULTS["step"])

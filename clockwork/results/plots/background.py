@@ -8,7 +8,7 @@ out)`` hands it the results; it draws every plot into `out` (each file
 written atomically; several plots in parallel, one process per core, all
 sharing the imported matplotlib) while this process writes the CSV files,
 and ``collect()`` gives what ``make_plots`` would have returned here:
-(files written, plots that failed, plots with nothing to draw). The
+(files written, plots that failed, plots with nothing to draw, notes). The
 results and the summary do not depend on where the plots were drawn.
 
 `clockwork run` forks its plot process earlier still, at the command's
@@ -43,6 +43,7 @@ import sys
 from pathlib import Path
 
 from ...atomic import remove_stale_parts
+from ...errors import say
 from ...processes import Child, die_with_parent, fork_child, fork_is_safe
 from .registry import draw_plot, gather, load_matplotlib, make_plots
 
@@ -76,7 +77,7 @@ class Plotter:
         self._job = (results, out)
 
     def collect(self) -> tuple[list[str], list[dict], list[dict]]:
-        """(files written, plots that failed, plots with nothing to draw), as make_plots."""
+        """(files written, plots that failed, plots with nothing to draw, notes), as make_plots."""
         results, out = self._job
         return make_plots(self.scene, results, out)
 
@@ -127,12 +128,11 @@ class _PlotProcess(Plotter):
         except (OSError, pickle.UnpicklingError, EOFError):
             answer = None
         status = self._child.reap()
-        if isinstance(answer, tuple) and len(answer) == 3:
+        if isinstance(answer, tuple) and len(answer) == 4:
             return answer
         why = (answer[1] if isinstance(answer, list) and len(answer) == 2 and answer[0] == "crashed"
                else _exit_reason(status))
-        print(f"clockwork: warning: the plot process ended without drawing ({why}); drawing here",
-              file=sys.stderr)
+        say("warning", f"the plot process ended without drawing ({why}); drawing here")
         remove_stale_parts(Path(self._job[1]))  # a file it was writing when it died
         return super().collect()
 

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from .registry import axis_label, check_keys, display, register, subplots
+from .registry import axis_label, check_keys, display, legend, plain, register, subplots, title_of
 
 
 def _convert(t: dict) -> dict:
@@ -24,21 +24,22 @@ def time_series(scene, r, spec):
     if spec.get("x") and spec["x"] != "time":
         x, xl = display(scene, spec["x"], series[spec["x"]])
     ys = spec.get("y") or [c for c in series if c != "time"]
-    labels = []
+    labels, lines = [], []
     for y in [ys] if isinstance(ys, str) else ys:
         v, label = display(scene, y, series[y])
-        ax.plot(x, v, label=label, lw=0.8)
+        lines += ax.plot(x, v, lw=0.8)
         labels.append(label)
+    marks, marked = [], []
     failed = r.get("failed")
     if failed and failed.get("time_s") is not None and (not spec.get("x") or spec["x"] == "time"):
-        ax.axvline(failed["time_s"], color="C3", lw=0.8, ls="--",
-                   label=f"failed at t = {failed['time_s']:.6g} s ({failed.get('instance') or 'the master'})")
-        ax.set_title(f"{spec.get('title', scene.title)} (failed at t = {failed['time_s']:.6g} s)", fontsize=10)
+        marks = [ax.axvline(failed["time_s"], color="C3", lw=0.8, ls="--")]
+        marked = [f"failed at t = {failed['time_s']:.6g} s ({plain(failed.get('instance') or 'the master')})"]
+        ax.set_title(f"{title_of(scene, spec)} (failed at t = {failed['time_s']:.6g} s)", fontsize=10)
     ax.set_xlabel(xl)
     units = {lb[lb.rfind("(") + 1:-1] for lb in labels if lb.endswith(")")}
     ax.set_ylabel(f"value ({units.pop()})" if len(units) == 1 and len(labels) > 1 else
                   labels[0] if len(labels) == 1 else "value (units in the legend)")
-    ax.legend(loc="best", fontsize=8)
+    legend(ax, lines + marks, labels + marked, loc="best", fontsize=8)
     return fig
 
 
@@ -76,12 +77,13 @@ def sweep(scene, results, spec):
         rows = [rows[i] for i in order]
         xs, xl = display(scene, x_key, [xs[i] for i in order])  # angles in deg, torques in N.cm
     else:
-        xs, xl = [str(x).lower() if isinstance(x, bool) else str(x) for x in xs], x_key
+        xs, xl = [plain(str(x).lower() if isinstance(x, bool) else x) for x in xs], plain(x_key)
     ax.set_xlabel(xl)
+    lines = []
     for y in ys:
         vals = [r["result"].get(y) for r in rows]
-        ax.plot(xs, [math.nan if v is None else v for v in vals], "o-" if numeric else "o", ms=3, label=y)
+        lines += ax.plot(xs, [math.nan if v is None else v for v in vals], "o-" if numeric else "o", ms=3)
     ax.set_ylabel(axis_label(ys))
     ax.axhline(0.0, color="0.7", lw=0.5)
-    ax.legend(loc="best", fontsize=8)
+    legend(ax, lines, [plain(y) for y in ys], loc="best", fontsize=8)
     return fig

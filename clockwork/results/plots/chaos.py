@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from ...scene.kinds import Invalid
-from .registry import check_keys, display, register, subplots
+from .registry import check_keys, display, register, subplots, title_of
 
 
 def _plot_keys(t: dict) -> dict:
@@ -64,7 +64,7 @@ def plot_phase_space(scene, r, spec):
     ax.set_xlabel(xl)
     ax.set_ylabel(yl)
     ax.legend(loc="upper right", fontsize=8)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(title_of(scene, spec), fontsize=10)
     return fig
 
 
@@ -96,7 +96,7 @@ def plot_vibration_time(scene, r, spec):
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = tx.get_legend_handles_labels()
     ax.legend(h1 + h2, l1 + l2, loc="upper right", fontsize=8)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(title_of(scene, spec), fontsize=10)
     return fig
 
 
@@ -115,7 +115,7 @@ def plot_poincare(scene, results, spec):
         ax.set_title(f"$C_2$ = {res['C2']:g}: {res['n_points']} points, ring width "
                      f"{res.get('ring_width', math.nan):.3g}", fontsize=9)
         ax.ticklabel_format(style="sci", scilimits=(-3, 3))
-    fig.suptitle(spec.get("title", scene.title), fontsize=10)
+    fig.suptitle(title_of(scene, spec), fontsize=10)
     return fig
 
 
@@ -134,7 +134,7 @@ def plot_rate_error(scene, r, spec):
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = tx.get_legend_handles_labels()
     ax.legend(h1 + h2, l1 + l2, loc="upper right", fontsize=8)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(title_of(scene, spec), fontsize=10)
     ax.text(0.01, 0.02, "reference: the same clock with $C_1 = C_2 = 0$, run in lockstep",
             transform=ax.transAxes, fontsize=7, color="0.3")
     return fig
@@ -172,7 +172,7 @@ def plot_lyapunov(scene, results, spec):
     bx.set_ylabel("twin distance (rad, phase space)")
     bx.set_xlabel("time (s)")
     bx.legend(loc="lower right", fontsize=7)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(title_of(scene, spec), fontsize=10)
     return fig
 
 
@@ -208,5 +208,5 @@ def plot_step_accuracy(scene, r, spec):
     ax.set_xlabel("numerical step h (s)")
     ax.set_ylabel("$|E_C^{sim} - E_C^{AGM}|$ (relative)")
     ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=7)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(title_of(scene, spec), fontsize=10)
     return fig

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from .registry import check_keys, curves, register, subplots
+from .registry import check_keys, curves, plain, register, subplots, title_of
 
 
 def _convert_plot(t: dict) -> dict:
@@ -74,7 +74,7 @@ def plot_rate_map(scene, results, spec):
     ax.set_ylim(0, mu_max)
     ax.set_xlabel("friction $\\varepsilon$")
     ax.set_ylabel("torque $\\mu$ (units of m g L)")
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(title_of(scene, spec), fontsize=10)
     ax.text(0.99, 0.01, f"$\\dot\\psi - 1$ (s/day), Eq. (20), $\\varphi_0$ = {phi0:g}; below $\\lambda = \\varphi_0$ it stalls",
             transform=ax.transAxes, fontsize=7, ha="right")
     if rows:
@@ -98,7 +98,7 @@ def plot_comparison(scene, rows, spec):
         x = np.array([r[xk] for r in rs])
         sim = np.array([r["rate_sim"] for r in rs]) * DAY
         th = np.array([r[theory] for r in rs]) * DAY
-        label = "" if g is None else f"{gk} = {g:g}"
+        label = "" if g is None else f"{plain(gk)} = {g:g}"
         c = f"C{k}"
         ax.plot(x, th, "-", color=c, lw=1.0, label=label or theory)
         ax.plot(x, sim, "o", color=c, ms=5, mfc="none", label="co-simulation" if k == 0 else None)
@@ -113,9 +113,9 @@ def plot_comparison(scene, rows, spec):
     ax.set_ylabel("$\\dot\\psi - 1$ (s/day)")
     ax.axhline(0, color="0.7", lw=0.5)
     ax.legend(loc="best", fontsize=7)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(title_of(scene, spec), fontsize=10)
     bx.set_ylabel("simulation - theory\n(relative rate)")
-    bx.set_xlabel(xk)
+    bx.set_xlabel(plain(xk))
     bx.axhline(0, color="0.7", lw=0.5)
     bx.text(0.01, 0.03, "dotted / bars: $\\pm$(eps + |circular| + |escapement term|)$^2$, the second order; "
             f"lines: {theory}",
@@ -142,7 +142,7 @@ def plot_phi(scene, r, spec):
     ax.plot(per, phi, "k-", lw=0.3)
     ax.axvline(res["jump_at_periods"], color="C3", ls=":", lw=0.8)
     ax.set_ylabel("$\\varphi$ (rad)")
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(title_of(scene, spec), fontsize=10)
     j = res["jump_at_periods"]
     win = (per > j - 4) & (per < j + 4)
     bx.plot(per[win], phi[win], "k.-", lw=0.5, ms=2)
@@ -166,7 +166,7 @@ def plot_jump(scene, r, spec):
             label="Eq. (16) with $\\lambda$ from Eq. (18)")
     ax.set_ylabel("$\\dot\\psi - 1$")
     ax.legend(loc="lower right", fontsize=8)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(title_of(scene, spec), fontsize=10)
     res = r["result"]
     ax.text(0.01, 0.03, f"$\\Delta\\psi$: {res.get('delta_psi_sim', float('nan')):.4f} (co-simulation), "
             f"{res['delta_psi_eq']:.4f} (Eqs. 16, 18)", transform=ax.transAxes, fontsize=8)
@@ -201,7 +201,7 @@ def plot_long_run(scene, r, spec):
             a.axvline(ns, color="0.4", ls=":", lw=0.8)
     ax.set_ylabel("cycles")
     ax.legend(loc="upper left", fontsize=7)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(title_of(scene, spec), fontsize=10)
     if diffs:
         bx = axes[1][0]
         for k in diffs:

@@ -9,7 +9,11 @@ supply); no axes holds more than ``MAX_LINES`` lines. Booleans share
 axes marked false/true; discrete signals (integers, Booleans, Reals of
 discrete variability) are drawn as steps. A page holds at most
 ``MAX_AXES`` axes (a screenful); more go to further pages, files
-``<stem>_2.png``, ``<stem>_3.png``... Angles, angular speeds and torques
+``<stem>_2.png``, ``<stem>_3.png``..., at most ``MAX_PAGES`` of them
+(about 480 signals when a page is full): a run recording thousands of
+outputs draws its first pages quickly instead of hundreds, and one note
+says how many signals it left out. Each page is saved before the next is
+built (``Pages``), so memory holds one page whatever the count. Angles, angular speeds and torques
 are shown in the papers' units (deg, deg/s, N.cm), as every plot does.
 
 ``draw_outputs`` works on plain columns, so that ``clockwork plot DIR``
@@ -26,8 +30,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...engine.names import split_ref
-from .registry import check_keys, register, subplots
+from .registry import MAX_TITLE, check_keys, legend, plain, register, subplots
 
+MAX_PAGES = 10  # per drawing: the signals past them are left out, with a note
 MAX_AXES = 6  # per page: with the title and the time axis, about 950 pixels high
 MAX_LINES = 8  # per axes: a legend that stays beside its axes
 SPREAD = 30.0  # one unit, sizes further apart than this: separate axes (a signal fills at least 1/30 of its axes)
@@ -136,34 +141,62 @@ def group(cols: list[Column]) -> list[list[Column]]:
     return axes
 
 
+class Pages:
+    """The pages of a drawing, each figure built when iterated to (the
+    caller saves it and lets it go before the next is built); `count`:
+    how many; `note`: what was left out past MAX_PAGES, or None."""
+
+    def __init__(self, time, cols: list[Column], title: str, max_pages: int | None = None):
+        max_pages = MAX_PAGES if max_pages is None else max_pages
+        axes_groups = group(cols)
+        pages = [axes_groups[k:k + MAX_AXES] for k in range(0, len(axes_groups), MAX_AXES)]
+        self.note = None
+        if len(pages) > max_pages:
+            drawn = sum(len(members) for page in pages[:max_pages] for members in page)
+            self.note = (f"drew {drawn} of the {len(cols)} recorded numbers on {max_pages} pages, the most a "
+                         f"drawing has; the other {len(cols) - drawn} are in timeseries.csv")
+            pages = pages[:max_pages]
+        self.count = len(pages)
+        self._args = (time, pages, title)
+
+    def __iter__(self):
+        return _draw_pages(*self._args)
+
+
 def draw_outputs(time, cols: list[Column], title: str) -> list:
-    """The figures (pages) of these columns against time (s)."""
-    axes_groups = group(cols)
-    pages = [axes_groups[k:k + MAX_AXES] for k in range(0, len(axes_groups), MAX_AXES)]
+    """The figures (pages) of these columns against time (s), all built (tests)."""
+    return list(Pages(time, cols, title))
+
+
+def output_pages(time, cols: list[Column], title: str) -> Pages:
+    """The pages of these columns against time (s), built one at a time."""
+    return Pages(time, cols, title)
+
+
+def _draw_pages(time, pages: list, title: str):
     t = np.asarray(time, dtype=float)
-    figures = []
     for p, page in enumerate(pages):
         fig, axs = subplots(len(page), 1, figsize=(10, 0.9 + _HEIGHT_IN * len(page)), sharex=True, squeeze=False)
         for ax, members in zip(axs[:, 0], page):
+            lines = []
             for c in members:
                 style = {"drawstyle": "steps-post"} if c.kind != "real" else {}
-                ax.plot(t, c.values.astype(float), lw=1.0, label=c.name, **style)
+                lines += ax.plot(t, c.values.astype(float), lw=1.0, **style)
             if members[0].kind == "boolean":
                 ax.set_yticks([0, 1], ["false", "true"])
                 ax.set_ylim(-0.15, 1.15)
                 ax.set_ylabel("Boolean", fontsize=8)
             else:
-                ax.set_ylabel(members[0].unit or "(no unit)", fontsize=8)
+                ax.set_ylabel(plain(members[0].unit) if members[0].unit else "(no unit)", fontsize=8)
             ax.tick_params(labelsize=8)
             ax.grid(True, lw=0.3, color="0.85")
-            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False,
-                      borderaxespad=0.0)
+            legend(ax, lines, [plain(c.name) for c in members], loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                   fontsize=8, frameon=False, borderaxespad=0.0)
         axs[-1, 0].set_xlabel("time (s)", fontsize=9)
         page_note = f"  (page {p + 1} of {len(pages)})" if len(pages) > 1 else ""
-        fig.suptitle(title + page_note, fontsize=10)
+        fig.suptitle(plain(title, MAX_TITLE) + page_note, fontsize=10)
         fig.tight_layout()
-        figures.append(fig)
-    return figures
+        yield fig
 
 
 def _convert(t: dict) -> dict:
@@ -177,4 +210,4 @@ def outputs(scene, r, spec):
     series = r["series"]
     strip = next(iter(scene.components)) if len(scene.components) == 1 else None
     cols = columns(series, column_info(scene, [n for n in series if n != "time"]), spec.get("y"), strip)
-    return draw_outputs(series["time"], cols, spec.get("title", scene.title)) if cols else None
+    return output_pages(series["time"], cols, spec.get("title", scene.title)) if cols else None

@@ -2,23 +2,37 @@
 by unit (plots/outputs.py), from its files alone: timeseries.csv for the
 values, summary.json for the title and each column's unit and type.
 
-The pages are written atomically; pages of an earlier drawing under the
-same name beyond the new count (``<stem>_4.png`` when there are three
-now) are removed, so that the set of pages is one drawing's.
+Everything read is checked before it is used: summary.json's size before
+it is read (``MAX_SUMMARY_BYTES``), then the shape of what is drawn from it
+(the title, each column's unit, type and variability); a file that is not
+what clockwork writes is refused in one line. Titles and names are drawn
+as plain text, cut to a bounded length (registry.plain).
+
+The pages are written atomically. Only files written by this drawing are
+touched: pages of an earlier drawing under the same name beyond the new
+count (``<stem>_4.png`` when there are three now) are left as they are,
+with one note (they may be someone else's files).
 """
 
 from __future__ import annotations
 
 import csv
+import json
 import re
 from pathlib import Path
 
-from ...errors import UsageError
+from ...errors import UsageError, say
 from ...numbers import CSV_SPECIAL, parse_json, parse_real, shorten
-from .outputs import columns, draw_outputs
-from .registry import load_matplotlib, page_names, save
+from .outputs import columns, output_pages
+from .registry import load_matplotlib, page_names, quiet_matplotlib, save
 
 MAX_SERIES_BYTES = 1 << 31  # a timeseries.csv of a run that kept at most its values in memory
+# The values a run records at most (analyses.bounds.MAX_KEPT_VALUES, not
+# imported: it would import every analysis): a CSV of more is not one that
+# clockwork wrote, and reading it would take gigabytes.
+MAX_SERIES_VALUES = 20_000_000
+MAX_SUMMARY_BYTES = 1 << 26  # 64 MiB: a time series' summary holds a few lines per column
+_COLUMN_KEYS = ("unit", "type", "variability")
 
 
 def _summary(folder: Path) -> dict:
@@ -26,13 +40,35 @@ def _summary(folder: Path) -> dict:
     if not path.is_file():
         raise UsageError(f"{folder}: no summary.json: expected the --out directory of a clockwork run")
 
+    too_big = UsageError(f"{path}: more than {MAX_SUMMARY_BYTES} bytes: not a summary clockwork wrote")
     try:
-        summary = parse_json(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as e:
+        if path.stat().st_size > MAX_SUMMARY_BYTES:
+            raise too_big
+        with open(path, "rb") as f:  # a bounded read too: a file can grow
+            data = f.read(MAX_SUMMARY_BYTES + 1)
+        if len(data) > MAX_SUMMARY_BYTES:
+            raise too_big
+        summary = parse_json(data.decode("utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as e:
         raise UsageError(f"{path}: not a summary clockwork wrote: {shorten(e, 120)}") from None
     if not isinstance(summary, dict):
         raise UsageError(f"{path}: not a summary clockwork wrote: expected a JSON object")
+    for key, kind, name in (("title", str, "a string"), ("columns", dict, "an object"), ("fmus", dict, "an object")):
+        if key in summary and not isinstance(summary[key], kind):
+            raise UsageError(f"{path}: {key}: expected {name}, got {_json_type(summary[key])}")
+    for col, meta in summary.get("columns", {}).items():
+        where = f"{path}: columns[{shorten(json.dumps(col), 80)}]"
+        if not isinstance(meta, dict):
+            raise UsageError(f"{where}: expected an object, got {_json_type(meta)}")
+        for key in _COLUMN_KEYS:
+            if meta.get(key) is not None and not isinstance(meta[key], str):
+                raise UsageError(f"{where}.{key}: expected a string or null, got {_json_type(meta[key])}")
     return summary
+
+
+def _json_type(x) -> str:
+    return {dict: "an object", list: "an array", str: "a string", bool: "true or false", int: "a number",
+            float: "a number", type(None): "null"}.get(type(x), type(x).__name__)
 
 
 def _series(path: Path, info: dict) -> dict[str, list]:
@@ -51,7 +87,11 @@ def _series(path: Path, info: dict) -> dict[str, list]:
                 raise UsageError(f"{path}: line 1: expected a header line starting with time")
             text = [info.get(h, {}).get("type") in ("String", "Binary") for h in header]
             data: list[list] = [[] for _ in header]
+            most_rows = MAX_SERIES_VALUES // len(header)
             for k, row in enumerate(rows, start=2):
+                if k - 1 > most_rows:
+                    raise UsageError(f"{path}: more than {MAX_SERIES_VALUES} values: not a time series "
+                                     "clockwork wrote (a run records at most that many)")
                 if len(row) != len(header):
                     raise UsageError(f"{path}: line {k}: {len(row)} values for {len(header)} columns")
                 for j, cell in enumerate(row):
@@ -81,8 +121,10 @@ def redraw(result_dir: str | Path, only: list[str] | None = None, out: str | Pat
         raise UsageError(f"--out {target}: expected a file name ending .png")
     if not target.parent.is_dir():
         raise UsageError(f"--out {target}: no such directory: {target.parent}")
+    if target.is_dir():
+        raise UsageError(f"--out {target}: is a directory: expected a file name ending .png")
     summary = _summary(folder)
-    info = summary.get("columns") if isinstance(summary.get("columns"), dict) else {}
+    info = summary.get("columns", {})
     series = _series(folder / "timeseries.csv", info)
     fmus = summary.get("fmus")
     strip = next(iter(fmus)) if isinstance(fmus, dict) and len(fmus) == 1 else None
@@ -94,15 +136,20 @@ def redraw(result_dir: str | Path, only: list[str] | None = None, out: str | Pat
                              f"{shorten(', '.join(names), 300) or 'none'}")
         raise UsageError(f"{folder / 'timeseries.csv'}: no numbers recorded: nothing to draw")
     load_matplotlib()
-    title = summary.get("title") if isinstance(summary.get("title"), str) else folder.name
-    figures = draw_outputs(series["time"], cols, title)
+    pages = output_pages(series["time"], cols, summary.get("title", folder.name))
     written = []
-    for fig, name in zip(figures, page_names(target.name, len(figures))):
-        save(fig, target.parent / name)
-        written.append(target.parent / name)
+    with quiet_matplotlib():
+        # Each page saved (and its figure let go) before the next is built: memory of one page.
+        for fig, name in zip(pages, page_names(target.name, pages.count)):
+            save(fig, target.parent / name)
+            fig.clear()
+            written.append(target.parent / name)
+    if pages.note:
+        say("note", f"{target}: {pages.note}; `clockwork plot {folder} --only PATTERN...` draws those")
     stale = re.compile(re.escape(target.stem) + r"_(\d+)\.png")
-    for f in target.parent.iterdir():
-        m = stale.fullmatch(f.name)
-        if m and int(m.group(1)) > len(figures) and f.is_file():
-            f.unlink()
+    earlier = sorted(f.name for f in target.parent.iterdir()
+                     if (m := stale.fullmatch(f.name)) and int(m.group(1)) > len(written))
+    if earlier:
+        say("note", f"{target.parent}: {shorten(', '.join(earlier), 200)} not written by this drawing: "
+                    "left as they are")
     return written

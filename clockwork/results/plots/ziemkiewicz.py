@@ -16,7 +16,7 @@ import numpy as np
 
 from ...physics import analytic
 from ...scene.kinds import Invalid
-from .registry import check_keys, curves, display, register, subplots
+from .registry import check_keys, curves, display, legend, plain, register, subplots, title_of
 
 
 ERROR_LABELS = {
@@ -72,7 +72,7 @@ def plot_period_amplitude(scene, results, spec):
     ax.plot(A, T, "o", ms=4, mfc="none", color="C0", label="simulated (FMU ticks)")
     ax.set_ylabel("period T (s)")
     ax.legend(loc="upper left", fontsize=8)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(title_of(scene, spec), fontsize=10)
     bx.semilogy(A, np.maximum(np.abs(rel), 1e-17), "o", ms=4, mfc="none", color="C0",
                 label="|simulated/AGM - 1|")
     eq2_rel = np.abs(eq2[1:] / agm[1:] - 1.0)
@@ -101,15 +101,15 @@ def plot_rate_errors(scene, results, spec):
     for k, y in enumerate(ys):
         v = [r["result"].get(y) for r in rows]
         ax.plot(A, [math.nan if x is None else x for x in v], "o-", ms=3, lw=1.2,
-                color=blues[k % len(blues)], label=ERROR_LABELS.get(y, y))
+                color=blues[k % len(blues)], label=ERROR_LABELS.get(y, plain(y)))
     for y in spec.get("dashed", []):
         v = [r["result"].get(y) for r in rows]
         ax.plot(A, [math.nan if x is None else x for x in v], "--", lw=1.0, color="0.35",
-                label=ERROR_LABELS.get(y, y))
+                label=ERROR_LABELS.get(y, plain(y)))
     ax.axhline(0.0, color="0.7", lw=0.5)
     ax.set_xlabel("amplitude A (deg)")
     ax.set_ylabel("rate error (s/day, + = clock loses)")
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(title_of(scene, spec), fontsize=10)
     handles, labels = ax.get_legend_handles_labels()
     if spec.get("torque", True):
         tx = ax.twinx()
@@ -159,7 +159,7 @@ def plot_recoil(scene, r, spec):
     tx.set_ylim(-lim, lim)
     alim = 1.3 * np.max(np.abs(phi))
     ax.set_ylim(-alim, alim)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(title_of(scene, spec), fontsize=10)
     ax.text(0.01, 0.02, "shaded: recoil ($M_F$ opposes the motion); dashed: $\\pm\\alpha_r$",
             transform=ax.transAxes, fontsize=7, color="0.3")
     return fig
@@ -199,7 +199,7 @@ def plot_contour(scene, results, spec):
     span = np.nanpercentile(np.abs(finite), 98) if finite.size else 1.0
     mesh = ax.pcolormesh(X, Y, np.ma.masked_invalid(Z), shading="nearest", cmap="RdBu_r",
                          vmin=-span, vmax=span)
-    fig.colorbar(mesh, ax=ax, label=ERROR_LABELS.get(zk, zk) + " (s/day)")
+    fig.colorbar(mesh, ax=ax, label=ERROR_LABELS.get(zk, plain(zk)) + " (s/day)")
     if levels:
         cs = ax.contour(X, Y, np.ma.masked_invalid(Z), levels=levels, colors="k", linewidths=0.8)
         ax.clabel(cs, fmt="%g", fontsize=7)
@@ -216,7 +216,7 @@ def plot_contour(scene, results, spec):
         ax.legend(loc="upper left", fontsize=8)
     ax.set_xlabel(xl)
     ax.set_ylabel(yl)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(title_of(scene, spec), fontsize=10)
     return fig
 
 
@@ -234,6 +234,7 @@ def plot_curves(scene, rows, spec):
     by_group = curves(rows, lambda r: tuple(r["point"].get(g) for g in group))
     fig, ax = subplots(figsize=(7.5, 5))
     colours = {}
+    lines, labels = [], []
     for key in sorted(by_group, key=lambda k: tuple(0 if v is None else v for v in k)):
         pts = sorted(by_group[key], key=lambda r: r["result"][xk])
         label_parts = []
@@ -248,18 +249,18 @@ def plot_curves(scene, rows, spec):
                 if v:
                     label_parts.append(f"+ drag $c_2$ = {v:.4g} N.m.s$^2$/rad$^2$")
             else:
-                label_parts.append(f"{g} = {v:.4g}")
+                label_parts.append(f"{plain(g)} = {v:.4g}")
                 colour_key.append(v)
         ck = tuple(colour_key)
         colours.setdefault(ck, f"C{len(colours)}")
-        ax.plot([p["result"][xk] for p in pts], [p["result"][yk] for p in pts],
-                "--" if dashed else "-", marker="o", ms=2.5, lw=1.2, color=colours[ck],
-                label=", ".join(label_parts))
+        lines += ax.plot([p["result"][xk] for p in pts], [p["result"][yk] for p in pts],
+                         "--" if dashed else "-", marker="o", ms=2.5, lw=1.2, color=colours[ck])
+        labels.append(", ".join(label_parts))
     ax.axhline(0.0, color="0.7", lw=0.5)
-    ax.set_xlabel("amplitude A (deg)" if xk == "amplitude_deg" else xk)
-    ax.set_ylabel(ERROR_LABELS.get(yk, yk) + " (s/day)")
-    ax.legend(loc="best", fontsize=7)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_xlabel("amplitude A (deg)" if xk == "amplitude_deg" else plain(xk))
+    ax.set_ylabel(ERROR_LABELS.get(yk, plain(yk)) + " (s/day)")
+    legend(ax, lines, labels, loc="best", fontsize=7)
+    ax.set_title(title_of(scene, spec), fontsize=10)
     return fig
 
 
@@ -282,7 +283,7 @@ def plot_disturbance(scene, r, spec):
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = tx.get_legend_handles_labels()
     ax.legend(h1 + h2, l1 + l2, loc="upper right", fontsize=8)
-    ax.set_title(spec.get("title", scene.title), fontsize=10)
+    ax.set_title(title_of(scene, spec), fontsize=10)
     bx.plot(t, err, color="C2", lw=1.2)
     bx.axvline(tk, color="0.6", ls=":", lw=0.8)
     bx.set_ylabel("time error $\\Sigma(T - T_{stat})$ (s)")
