@@ -211,8 +211,9 @@ class _Pass:
                     self.real(d, "offset")
             return
         for u in self.root.iterfind("UnitDefinitions/Unit"):
-            if not u.get("name"):
-                raise _fail(u, "expected a unit name", "name")
+            # Required, but "" is a valid xs:normalizedString (PythonFMU writes <Unit name="">).
+            if u.get("name") is None:
+                raise _fail(u, "missing required attribute; expected a unit name", "name")
             for b in u.iterfind("BaseUnit"):
                 for k in ("kg", "m", "s", "A", "K", "mol", "cd", "rad"):
                     self.integer(b, k, -2**31, 2**31 - 1)
@@ -249,8 +250,8 @@ class _Pass:
                     raise _fail(t, f"expected one type element ({', '.join(_SCALAR_TYPES)})")
                 vtype = kind
             name = t.get("name")
-            if not name:
-                raise _fail(t, "expected a type name", "name")
+            if name is None:  # required; "" is a valid xs:normalizedString
+                raise _fail(t, "missing required attribute; expected a type name", "name")
             if name in self.types:
                 raise _fail(t, "expected a unique type name: this one is defined twice", "name")
             self.types[name] = vtype
