@@ -275,10 +275,10 @@ def read_fmu(path: Path, need_binary: bool = True,
                            "<ModelExchange> element)")
         for face, interface in faces:
             ident = interface.modelIdentifier
-            if not isinstance(ident, str) or not NAME_RE.match(ident):
-                # fmpy loads binaries/<platform>/<modelIdentifier>.so: a path here would load a file outside the FMU.
+            problem = identifier_problem(ident)
+            if problem:
                 raise FmuError(f"{shown}: modelDescription.xml: {face} modelIdentifier {shorten(ident, 100)!r}: "
-                               "expected a plain name (letters, digits, underscores), the binary's file name")
+                               f"{problem}")
         if md.fmiVersion == "1.0":
             _check_fmi1(shown, md, xml)
         ident = faces[0][1].modelIdentifier  # the binary of the interface it runs through by default
@@ -286,18 +286,55 @@ def read_fmu(path: Path, need_binary: bool = True,
         digest = sha256_file(path)
         folder = fmpy.platform_tuple if md.fmiVersion == "3.0" else fmpy.platform
         binary = f"binaries/{folder}/{ident}{fmpy.sharedLibraryExtension}"
-        problem = binary_problem(heads[binary]) if binary in heads else "missing"
+        problem = binary_problem(heads[binary]) if binary in heads else _missing_binary(binary, ident, set(names))
         hit = (md, digest, indicators, problem, binary)
         _MD_CACHE.clear() if len(_MD_CACHE) > 256 else None
         _MD_CACHE[key] = hit
     md, digest, indicators, problem, binary = hit
     if md.fmiVersion not in versions:
         raise FmuError(f"{shown}: expected an FMI {' or '.join(versions)} FMU, found FMI {md.fmiVersion}")
-    if need_binary and problem == "missing":
-        raise FmuError(f"{shown} has no binary for this platform ({binary}); {_rebuild_advice(path)}")
+    if need_binary and problem is not None and problem.startswith("missing"):
+        raise FmuError(f"{shown} has no binary for this platform ({binary}){problem[len('missing'):]}; "
+                       f"{_rebuild_advice(path)}")
     if need_binary and problem is not None:
         raise FmuError(f"{shown}: {binary}: {problem}; {_rebuild_advice(path)}")
     return md, digest, indicators
+
+
+def identifier_problem(ident) -> str | None:
+    """Why a modelIdentifier cannot name the FMU's binary, or None. fmpy
+    loads binaries/<platform>/<modelIdentifier>.so, so any file name it can
+    open is accepted (a hyphen: exporters write them, and fmpy, libcosim and
+    ecos load them), but nothing that leaves that folder or is no file name."""
+    if not isinstance(ident, str) or not ident:
+        return "expected the binary's file name (without .so), got none"
+    if "/" in ident or "\\" in ident or ident in (".", ".."):
+        # a path here would load a library outside the FMU
+        return "expected the binary's file name (without .so), not a path"
+    if any(ord(c) < 32 or ord(c) == 127 for c in ident):
+        return "expected the binary's file name (without .so): it holds a control character"
+    if len((ident + ".dylib").encode("utf-8", "surrogatepass")) > 255:
+        return "expected the binary's file name (without .so): longer than a file name may be (255 bytes)"
+    return None
+
+
+def _missing_binary(binary: str, ident: str, names: set[str]) -> str:
+    """"missing", and what the FMU holds instead where that helps: a
+    library of another name in the platform's folder (a modelIdentifier
+    that does not match the file), or the binary in another folder."""
+    folder, _, file = binary.rpartition("/")
+    ext = file[len(ident):]
+    here = sorted(n.rpartition("/")[2] for n in names
+                  if n.startswith(folder + "/") and n.endswith(ext) and n.count("/") == binary.count("/"))
+    if here:
+        shown = ", ".join(shorten(n, 80) for n in here[:5]) + (", ..." if len(here) > 5 else "")
+        return (f"missing: {folder}/ holds {shown}, but the modelIdentifier {shorten(ident, 80)!r} in "
+                f"modelDescription.xml names {shorten(file, 80)} (the binary's file name must match it)")
+    elsewhere = sorted(n.rpartition("/")[0] for n in names if n.startswith("binaries/") and n.endswith("/" + file))
+    if elsewhere:
+        return (f"missing: {file} is in {', '.join(shorten(e, 80) for e in elsewhere[:3])}/, not in {folder}/ "
+                "(the folder this FMI version and platform use)")
+    return "missing"
 
 
 def _head(z: zipfile.ZipFile, name: str) -> bytes:
