@@ -227,6 +227,69 @@ def test_an_unsupported_uri_scheme_is_named(tmp_path, capsys, uri, as_archive):
                     _edit('source="resources/Pendulum.fmu"', f'source="{uri.replace("&", "&amp;")}"'))
 
 
+# file: URIs (docs/scenes.md: a source is a relative path or file:): RFC 8089's
+# absolute forms, and the relative form tools write (file:resources/x.fmu).
+RELATIVE_FILE_URIS = ["file:resources/Pendulum.fmu", "file:./resources/Pendulum.fmu", "file:resources/Pendul%75m.fmu",
+                      "file:resources/../resources/Pendulum.fmu"]
+
+
+def _sources(uri: str, ssv_uri: str | None = None):
+    def apply(d: Path) -> Path:
+        p = d / SSD
+        text = p.read_text().replace('source="resources/Pendulum.fmu"', f'source="{uri}"')
+        if ssv_uri is not None:
+            text = text.replace('source="resources/escapement.ssv"', f'source="{ssv_uri}"')
+        p.write_text(text)
+        return p
+    return apply
+
+
+def _run_series(tmp_path, capsys, src: Path, name: str):
+    out = tmp_path / name
+    rc, _, err = run_cli(capsys, ["validate", src])
+    assert rc == 0, err
+    rc, _, err = run_cli(capsys, ["run", src, "--out", out, "--no-progress", *SHORT])
+    assert rc == 0, err
+    return (out / "timeseries.csv").read_bytes()
+
+
+@pytest.mark.parametrize("as_archive", [False, True], ids=["ssd", "ssp"])
+@pytest.mark.parametrize("uri", RELATIVE_FILE_URIS)
+def test_a_relative_file_uri_names_the_file_a_relative_path_names(tmp_path, capsys, uri, as_archive):
+    ref = _run_series(tmp_path, capsys, _both(tmp_path, fixture_dir(tmp_path, "flat10"), as_archive), "ref")
+    d = fixture_dir(tmp_path / "b", "flat10")
+    _sources(uri, "file:resources/escapement.ssv")(d)
+    assert _run_series(tmp_path, capsys, _both(tmp_path / "b", d, as_archive), "out") == ref
+
+
+@pytest.mark.parametrize("form", ["file:{p}", "file://{p}", "file://localhost{p}", "file://LOCALHOST{p}"])
+def test_an_absolute_file_uri_beside_an_ssd_names_that_file(tmp_path, capsys, form):
+    ref = _run_series(tmp_path, capsys, fixture_dir(tmp_path, "flat10") / SSD, "ref")
+    d = fixture_dir(tmp_path / "b", "flat10")
+    fmu = (d / "resources" / "Pendulum.fmu").resolve()
+    _sources(form.format(p=fmu.as_posix()))(d)
+    assert _run_series(tmp_path, capsys, d / SSD, "out") == ref
+
+
+FILE_URIS_REFUSED = {
+    "file:///tmp/Pendulum.fmu": ["expected a path inside the archive", "absolute path"],
+    "file:/tmp/Pendulum.fmu": ["expected a path inside the archive", "absolute path"],
+    "file://example.com/resources/Pendulum.fmu": ["expected a file on this machine", "example.com",
+                                                  "another host's file"],
+    "file:../Pendulum.fmu": ["expected a path inside the archive: this one leaves it"],
+    "file:///C:/fmus/Pendulum.fmu": ["Windows drive path"],
+    "file:resources/Missing.fmu": ["no such file in the archive", "resources/Missing.fmu"],
+    "file:resources/Pendulum.fmu?x=1": ["without scheme, host, query or fragment"],
+}
+
+
+@pytest.mark.parametrize("uri", list(FILE_URIS_REFUSED))
+def test_a_file_uri_that_leaves_the_archive_is_refused(tmp_path, capsys, uri):
+    d = fixture_dir(tmp_path, "flat10")
+    _sources(uri)(d)
+    _refused(tmp_path, capsys, zip_dir(d, tmp_path / "bad.ssp"), [SSD, "source=", *FILE_URIS_REFUSED[uri]])
+
+
 def test_a_windows_drive_path_is_named(tmp_path, capsys):
     d = fixture_dir(tmp_path, "flat10")
     _edit('source="resources/Pendulum.fmu"', 'source="C:/fmus/Pendulum.fmu"')(d)
