@@ -5,6 +5,7 @@ scene it used written back (docs/own-fmu.md)."""
 from __future__ import annotations
 
 import json
+import re
 import tomllib
 import zipfile
 
@@ -205,3 +206,58 @@ def test_an_fmu_named_otherwise_is_pointed_to_its_suffix(capsys, tmp_path):
     f.write_bytes(test_fmu("TestDecay").read_bytes())
     with pytest.raises(SceneError, match="an FMU named X.fmu"):
         load_scene(f)
+
+
+# --- the default recorded columns are fmpy's --------------------------------------------------------
+
+def _no_outputs(tmp_path, src, version: int, states: bool = False):
+    """`src` with its outputs made locals (and their ModelStructure entries dropped)."""
+    out = tmp_path / f"NoOutputs{version}.fmu"
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(out, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                xml = data.decode()
+                if version == 1:
+                    xml = xml.replace('causality="output"', 'causality="internal"')
+                    xml = re.sub(r"<DirectDependency\s*/>|<DirectDependency>.*?</DirectDependency>", "", xml,
+                                 flags=re.S)
+                else:
+                    xml = xml.replace('causality="output"', 'causality="local"')
+                    xml = re.sub(r"<Outputs>.*?</Outputs>", "", xml, flags=re.S)
+                    xml = re.sub(r"<Output [^>]*/>", "", xml)
+                data = xml.encode()
+            zout.writestr(item, data)
+    return out
+
+
+def _fmpy_fields(fmu) -> list[str]:
+    import fmpy
+    return list(fmpy.simulate_fmu(str(fmu), stop_time=0.2, output_interval=0.1).dtype.names)
+
+
+@pytest.mark.parametrize("fmu, version", [("TestDecay", 2), ("fmi3/TestDecay", 3), ("fmi1/TestDecay", 1),
+                                          ("MeOscillator", 2), ("fmi3/MeOscillator", 3), ("TestTypes", 2)])
+def test_the_default_columns_of_an_fmu_without_outputs_are_fmpys(capsys, tmp_path, fmu, version):
+    """fmpy records, where an FMU has no output, its first five continuous states, else its first
+    five variables (its rule for locals compares the variability with "local", which never holds):
+    parameters and inputs too, numbers and Booleans (before: clockwork took up to five locals)."""
+    import clockwork
+    edited = _no_outputs(tmp_path, test_fmu(fmu), version)
+    want = _fmpy_fields(edited)
+    got = list(clockwork.simulate(str(edited), stop_time=0.2, output_interval=0.1).dtype.names)
+    assert got == want
+    assert len(want) > 1
+
+
+@pytest.mark.parametrize("fmu", ["TestTypes", "fmi3/TestStair", "TestStair"])
+def test_the_default_columns_of_an_fmu_with_outputs_are_fmpys_in_fmpys_order(fmu):
+    """Every output, grouped by type as fmpy's Recorder orders them (Real, Integer and Enumeration,
+    Boolean); a String output is recorded by clockwork only (fmpy drops it: docs/fmpy-migration.md)."""
+    import clockwork
+    got = list(clockwork.simulate(str(test_fmu(fmu)), stop_time=0.2, output_interval=0.1).dtype.names)
+    md = load_scene(test_fmu(fmu)).components
+    (comp,) = md.values()
+    strings = [v.name for v in comp.model_description.modelVariables if v.causality == "output" and
+               v.type in ("String", "Binary")]
+    assert [n for n in got if n not in strings] == _fmpy_fields(test_fmu(fmu))

@@ -18,23 +18,23 @@ an attribute is absent:
 - tolerance: ``tolerance``, passed to the FMU (the engine reads it: the
   scene leaves ``master.tolerance`` unset).
 
-Every output is recorded (where there is none, as fmpy: up to five
-continuous states, else up to five local variables), the analysis is a
-time series, and the default plot draws what is recorded.
+Every output is recorded (where there is none, as fmpy: the first five
+continuous states, else the first five variables: ``default_record``), the
+analysis is a time series, and the default plot draws what is recorded.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from ..engine.description import FmuError, TEXT_TYPES, read_fmu
+from ..engine.description import FmuError, read_fmu
 from ..errors import SceneError
 from ..numbers import parse_real
 from .checks import instance_problem
 from .model import Component
 from .ssp.read import SspScene
 
-_MAX_FALLBACK = 5  # fmpy records at most this many states or locals when an FMU has no outputs
+_MAX_FALLBACK = 5  # fmpy records at most this many states or variables when an FMU has no outputs
 
 
 def instance_name(md) -> str:
@@ -85,20 +85,43 @@ def experiment_times(md, path: Path) -> tuple[dict, float]:
     return {"start": start, "stop": stop}, step
 
 
-def default_record(md, instance: str) -> list[str]:
-    """What fmpy records by default: every output; where there is none, up to
-    five continuous states, else up to five local variables."""
-    def usable(v) -> bool:  # an FMI 3.0 array is recorded element by element, as fmpy does
-        return v is not None and v.type not in ("Clock",)
+# What fmpy's Recorder keeps of the variables it is given (fmpy 0.3.32,
+# simulation.Recorder): numbers and Booleans; Strings, Binaries and Clocks
+# are dropped, and a variable named "time" (the time column's name).
+_FMPY_UNRECORDED = ("String", "Binary", "Clock")
+# The order of the Recorder's columns: by type (FMI 3.0's Float64 and Int32
+# under FMI 2.0's names here: Real, Integer), Enumerations with the integers
+# (Integer in FMI 1.0/2.0, Int64 in 3.0); text last (fmpy has none).
+_FMPY_TYPE_ORDER = {t: i for i, t in enumerate(
+    ("Float32", "Real", "Int8", "UInt8", "Int16", "UInt16", "Integer", "UInt32", "Int64", "UInt64", "Boolean"))}
 
-    outputs = [v for v in md.modelVariables if v.causality == "output" and usable(v)]
-    if not outputs:
-        states = [getattr(d.variable, "derivative", None) for d in (md.derivatives or [])]
-        outputs = [v for v in states if usable(v) and v.type not in TEXT_TYPES][:_MAX_FALLBACK]
-    if not outputs:
-        outputs = [v for v in md.modelVariables
-                   if v.causality == "local" and usable(v) and v.type not in TEXT_TYPES][:_MAX_FALLBACK]
-    return [f"{instance}.{v.name}" for v in outputs]
+
+def default_record(md, instance: str) -> list[str]:
+    """What fmpy's simulate_fmu records by default (fmpy.simulation.
+    _get_output_variables): every output; where there is none, the first
+    five continuous states; else the first five variables of the model,
+    whatever their causality (fmpy's rule for "local variables" compares
+    the variability with "local", which no variable has, so this is what it
+    records). Of those, what fmpy's Recorder drops is dropped here too, and
+    so is the independent variable (it is the time column) and an FMI 3.0
+    structural parameter (a size: recorded only when asked for by name).
+    An output of type String is recorded, where fmpy drops it: clockwork
+    writes text columns (docs/fmpy-migration.md)."""
+    def kept(v) -> bool:
+        return (v is not None and v.name != "time" and v.type not in _FMPY_UNRECORDED
+                and v.causality not in ("independent", "structuralParameter"))
+
+    chosen = [v for v in md.modelVariables if v.causality == "output" and v.type != "Clock"]
+    if not chosen:
+        states = [getattr(d.variable, "derivative", None) for d in (md.derivatives or [])][:_MAX_FALLBACK]
+        chosen = [v for v in states if kept(v)]
+        if not states:
+            chosen = [v for v in md.modelVariables[:_MAX_FALLBACK] if kept(v)]
+    # fmpy's columns come by type, in the order of the model's variables within a type
+    enum = "Int64" if md.fmiVersion.startswith("3") else "Integer"
+    chosen.sort(key=lambda v: _FMPY_TYPE_ORDER.get(enum if v.type == "Enumeration" else v.type,
+                                                   len(_FMPY_TYPE_ORDER)))
+    return [f"{instance}.{v.name}" for v in chosen]
 
 
 def read_fmu_scene(path: str | Path) -> SspScene:
