@@ -426,6 +426,38 @@ def test_an_osp_annotation_the_master_cannot_honour_is_one_line(tmp_path, capsys
     _refused_edited(tmp_path, capsys, [SSD, *needles], as_archive, _with_osp_ns, edit)
 
 
+# Values an SSD gives the sections, refused after it is read (by the checks a
+# scene file's values go through): each named by its own element and attribute,
+# not by the master key it became (before: a base step of 1e-300 was reported
+# as master.min_step, a stopTime before the startTime as experiment.stop).
+_OMS = ('<ssd:System name="root"><ssd:Annotations><ssc:Annotation type="org.openmodelica"><oms:Annotations '
+        'xmlns:oms="https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd">'
+        '<oms:SimulationInformation><oms:FixedStepMaster {attrs}/></oms:SimulationInformation></oms:Annotations>'
+        '</ssc:Annotation></ssd:Annotations>')
+ORIGINS = {
+    "a base step of 1e-300": (_osp('<osp:FixedStepAlgorithm baseStepSize="1e-300"/>'),
+                              ["osp:FixedStepAlgorithm baseStepSize='1e-300'", "expected a step >= master.min_step"]),
+    "a base step below the time resolution": (
+        _osp('<osp:FixedStepAlgorithm baseStepSize="1e-6"/>', 'startTime="1e9" stopTime="1.0000001e9"'),
+        ["osp:FixedStepAlgorithm baseStepSize='1e-6'", "expected a step of at least"]),
+    "a stop before the start": (_edit('startTime="0" stopTime="20"', 'startTime="30" stopTime="20"'),
+                                ["ssd:DefaultExperiment stopTime='20'", "a time > experiment.start (30 s)"]),
+    "a step hint of 1e-300": (lambda d: [_hint(c, "1e-300")(d) for c in ("pendulum", "escapement")],
+                              ["osp:StepSizeHint value='1e-300'", "expected a step >= master.min_step"]),
+    "OMSimulator's step of 1e-300": (_edit('<ssd:System name="root">', _OMS.format(attrs='stepSize="1e-300"')),
+                                     ["oms:FixedStepMaster stepSize='1e-300'", "master.min_step"]),
+    "OMSimulator's tolerance of 0": (_edit('<ssd:System name="root">', _OMS.format(attrs='relativeTolerance="0"')),
+                                     ["oms:FixedStepMaster relativeTolerance='0'", "a relative tolerance > 0"]),
+}
+
+
+@pytest.mark.parametrize("as_archive", [False, True], ids=["ssd", "ssp"])
+@pytest.mark.parametrize("case", list(ORIGINS))
+def test_a_value_the_ssd_gives_is_refused_under_its_own_origin(tmp_path, capsys, case, as_archive):
+    edit, needles = ORIGINS[case]
+    _refused_edited(tmp_path, capsys, [SSD, *needles], as_archive, _with_osp_ns, edit)
+
+
 # ------------------------------------------------------------- no stopTime
 
 

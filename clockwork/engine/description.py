@@ -442,6 +442,13 @@ def _check_fmi1(path: Path, md, xml: bytes) -> None:
     for v in md.modelVariables:
         if v.causality == "none":  # a tool's own variable: read like a local one
             v.causality = "local"
+    for e in root.iterfind("ModelVariables/ScalarVariable"):
+        v = by_name.get(e.get("name"))
+        typed = next((c for c in e if isinstance(c.tag, str) and c.tag in ("Real", "Integer", "Boolean", "String",
+                                                                        "Enumeration")), None)
+        if v is not None and v.initial is None and typed is not None and typed.get("start") is not None:
+            # FMI 1.0's start: fixed (the default) or a guess; in FMI 2.0's terms, initial exact or approx
+            v.initial = "approx" if typed.get("fixed", "true").strip() in ("false", "0") else "exact"
     base = {}  # (type, value reference) -> the variable that is no alias
     elements = [e for e in root.iterfind("ModelVariables/ScalarVariable") if e.get("name") in by_name]
     for e in elements:
@@ -474,6 +481,54 @@ def _check_fmi1(path: Path, md, xml: bytes) -> None:
     md.outputs[:] = outputs
     _FMI1[md] = Fmi1Details(frozenset(negated), (model.get("type") if model is not None else None)
                             or STAND_ALONE_MIME_TYPE)
+
+
+def start_problem(v) -> str | None:
+    """Why the standard does not let a master set `v` before initialization,
+    or None where it does. A master sets start values in the state after
+    instantiation (fmi2SetupExperiment done, before
+    fmi2EnterInitializationMode; FMI 3.0 before
+    fmi3EnterInitializationMode; FMI 1.0 before fmiInitializeSlave), where
+    FMI 2.0 (Sec. 3.2.3 and 4.2.4, the table of fmi2SetXXX) and FMI 3.0
+    (Sec. 3.2.2, Instantiated) allow the variables whose variability is not
+    "constant" and whose initial is "exact" or "approx" (with the defaults
+    the standards give: a parameter's is "exact", an output's "calculated"),
+    and inputs; FMI 1.0 the variables with a start value (``_check_fmi1``
+    gives them initial "exact", or "approx" for fixed="false", a guess).
+    This is what fmpy sets (``settable_in_instantiated``), libcosim and ecos
+    too. A structural parameter is the caller's to refuse (configuration mode)."""
+    if v.causality == "input":
+        return None
+    if v.causality == "independent":
+        return "the independent variable (the time): no master sets it"
+    if getattr(v, "variability", None) == "constant":
+        return "variability=\"constant\": no master sets it"
+    initial = getattr(v, "initial", None)
+    if initial in ("exact", "approx"):
+        return None
+    initial = initial or "calculated"
+    return f'initial="{initial}": the FMU computes its value'
+
+
+
+def default_tolerance(md) -> float | None:
+    """The DefaultExperiment's relative tolerance, or None (none given;
+    FMI 1.0, whose Co-Simulation takes none). check_description has made
+    sure it is a finite number."""
+    de = md.defaultExperiment
+    tol = getattr(de, "tolerance", None) if de is not None else None
+    if tol in (None, "") or md.fmiVersion == "1.0":
+        return None
+    return float(tol)
+
+
+def default_tolerance_problem(md) -> str | None:
+    """What is wrong with the DefaultExperiment's tolerance as the relative
+    tolerance a run would hand the FMU, or None."""
+    tol = default_tolerance(md)
+    if tol is not None and not tol > 0:
+        return "expected a relative tolerance > 0 (the FMU would be given it, a Model Exchange FMU integrated at it)"
+    return None
 
 
 def fmi1_details(md) -> Fmi1Details:

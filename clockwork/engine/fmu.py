@@ -441,6 +441,9 @@ class Instance:
         initialization mode."""
         if tolerance is None:
             tolerance = self.default_tolerance
+            if tolerance is not None and not tolerance > 0:  # the scene layer refuses it first
+                raise SceneError(f"{self.shown}: modelDescription.xml: DefaultExperiment tolerance = {tolerance:g}: "
+                                 "expected a relative tolerance > 0; or give master.tolerance")
         defined = tolerance is not None
         self.check(self.c_setup(self.component, int(defined), float(tolerance) if defined else 0.0, start, 0, 0.0),
                    "fmi2SetupExperiment")

@@ -7,6 +7,7 @@ import numbers
 from dataclasses import dataclass
 
 from ..errors import ClosedError, SceneError, UsageError
+from ..numbers import shorten
 
 
 ENGINES = ("auto", "python", "compiled")
@@ -176,8 +177,9 @@ class MasterSettings:
             _positive("max_step", self.max_step)
         for key in ("extrapolation", "iterations"):
             v = getattr(self, key)
-            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 0:
-                raise SceneError(f"master.{key} = {v!r}: expected a whole number >= 0")
+            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or not 0 <= v <= 2**31 - 1:
+                raise SceneError(f"master.{key} = {shorten(repr(v), 60)}: expected a whole number in "
+                                 "[0, 2147483647] (a C int in the compiled core)")
         for key in ("event_location", "event_prediction", "richardson"):
             if not isinstance(getattr(self, key), bool):
                 raise SceneError(f"master.{key} = {getattr(self, key)!r}: expected true or false")
@@ -205,8 +207,12 @@ class MasterSettings:
 
 
 def _positive(key: str, v) -> None:
-    if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or v <= 0:
-        raise SceneError(f"master.{key} = {v!r}: expected a finite number > 0")
+    try:
+        ok = not isinstance(v, bool) and isinstance(v, numbers.Real) and math.isfinite(v) and v > 0
+    except OverflowError:  # an integer beyond a double
+        ok = False
+    if not ok:
+        raise SceneError(f"master.{key} = {shorten(repr(v), 60)}: expected a finite number > 0")
 
 
 def check_run(instances: dict, t_now: float, t_stop, look: bool = True) -> float:

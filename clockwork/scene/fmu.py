@@ -85,6 +85,33 @@ def experiment_times(md, path: Path) -> tuple[dict, float]:
     return {"start": start, "stop": stop}, step
 
 
+def experiment_labels(md, path: Path) -> dict[str, tuple[str, str]]:
+    """Where each value of ``experiment_times`` came from, for the errors
+    that refuse it later (load.py): the DefaultExperiment attribute, or what
+    stands in for an absent one."""
+    de = md.defaultExperiment
+
+    def given(name: str) -> bool:
+        return de is not None and getattr(de, name, None) not in (None, "")
+
+    where = "modelDescription.xml: DefaultExperiment"
+    labels = {}
+    if given("startTime"):
+        labels["experiment.start"] = (str(path), f"{where} startTime")
+    if given("stopTime"):
+        labels["experiment.stop"] = (str(path), f"{where} stopTime")
+    elif given("startTime"):
+        labels["experiment.stop"] = (str(path), f"{where} startTime (no stopTime: the run stops 1 s after it)")
+    if given("stepSize"):
+        labels["master.step"] = (str(path), f"{where} stepSize")
+    elif md.coSimulation is not None and getattr(md.coSimulation, "fixedInternalStepSize", None) not in (None, ""):
+        labels["master.step"] = (str(path), "modelDescription.xml: CoSimulation fixedInternalStepSize (doubled to "
+                                            "at most 1000 steps)")
+    else:
+        labels["master.step"] = (str(path), f"{where} (no stepSize: fmpy's auto_interval of the span)")
+    return labels
+
+
 # What fmpy's Recorder keeps of the variables it is given (fmpy 0.3.32,
 # simulation.Recorder): numbers and Booleans; Strings, Binaries and Clocks
 # are dropped, and a variable named "time" (the time column's name).
@@ -140,4 +167,5 @@ def read_fmu_scene(path: str | Path) -> SspScene:
     sections = {"experiment": experiment, "master": {"step": step},
                 "record": {"outputs": default_record(md, name)}}
     component = Component(name, path.resolve(), digest, md, {}, indicators)
-    return SspScene(md.modelName, md.description or "", {name: component}, (), sections, digest)
+    return SspScene(md.modelName, md.description or "", {name: component}, (), sections, digest,
+                    labels=experiment_labels(md, path))

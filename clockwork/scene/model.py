@@ -228,6 +228,9 @@ def consistency(m: MasterConfig, e: Experiment, components: dict[str, Component]
     if not e.stop > e.start:
         return "experiment.stop", f"expected stop > start ({fmt(e.start)} s), got {fmt(e.stop)} s"
     if m.min_step > m.step:
+        if m.min_step == MasterConfig.min_step:  # the default: the step is what was given too small
+            return "master.step", (f"expected a step >= master.min_step ({fmt(m.min_step)} s, its default), got "
+                                   f"{fmt(m.step)} s")
         return "master.min_step", f"expected min_step <= step ({fmt(m.step)} s), got {fmt(m.min_step)} s"
     if m.max_step < m.step:
         return "master.max_step", f"expected max_step >= step ({fmt(m.step)} s), got {fmt(m.max_step)} s"
