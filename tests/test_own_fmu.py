@@ -514,3 +514,19 @@ def test_an_fmu_alones_own_fault_is_named_as_the_fmu_not_connections(capsys, tmp
         rc, _, err = run_cli(capsys, cmd)
         assert_one_line_error(rc, err, f"{me}: Model Exchange with FMI 3.0 array variables is not supported")
         assert "connections" not in err
+
+
+def test_an_fmu_alone_that_does_not_load_is_named_once_without_a_scene_key(capsys, tmp_path):
+    """The binary refuses the description's GUID: validate's load check names the FMU, once,
+    and no `components.<instance>.fmu` (an FMU alone has no scene file to hold that key)."""
+    fmu = tmp_path / "OtherGuid.fmu"
+    with zipfile.ZipFile(test_fmu("TestDecay")) as zin, zipfile.ZipFile(fmu, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                data = re.sub(rb'guid="[^"]*"', b'guid="{00000000-0000-0000-0000-000000000000}"', data, count=1)
+            zout.writestr(item, data)
+    for cmd in (["validate", fmu], ["run", fmu, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, cmd)
+        assert_one_line_error(rc, err, f"{fmu}: fmi2Instantiate refused the model description's GUID")
+        assert "components." not in err and err.count(str(fmu)) == 1, err

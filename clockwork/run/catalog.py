@@ -62,7 +62,11 @@ def check_loadable(scene) -> None:
         try:
             inst.instantiate()
         except SceneError as e:  # nothing instantiated: nothing to free
-            raise SceneError(e.detail, scene.path, f"components.{name}.fmu") from None
+            if Path(scene.path).suffix.lower() == ".toml":
+                raise SceneError(e.detail, scene.path, f"components.{name}.fmu") from None
+            # an FMU alone or an SSP's component: the line names the FMU (an archive's member), which has no
+            # scene key
+            raise SceneError(e.detail) from None
         inst.free()
 
 
