@@ -530,3 +530,21 @@ def test_an_fmu_alone_that_does_not_load_is_named_once_without_a_scene_key(capsy
         rc, _, err = run_cli(capsys, cmd)
         assert_one_line_error(rc, err, f"{fmu}: fmi2Instantiate refused the model description's GUID")
         assert "components." not in err and err.count(str(fmu)) == 1, err
+
+
+def test_a_value_an_fmu_alone_refuses_is_named_by_its_set_not_a_scene_key(capsys, tmp_path):
+    """TestDecay declared with x initial="exact" (its binary refuses to set x): the FMU's refusal at the
+    start is bad input named by the --set that gave it, not `components.TestDecay.parameters`."""
+    fmu = tmp_path / "ExactX.fmu"
+    with zipfile.ZipFile(test_fmu("TestDecay")) as zin, zipfile.ZipFile(fmu, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                old = b'causality="output" variability="continuous" initial="calculated">\n      <Real />'
+                assert old in data
+                data = data.replace(old, b'causality="output" variability="continuous" initial="exact">\n'
+                                         b'      <Real start="1"/>')
+            zout.writestr(item, data)
+    rc, _, err = run_cli(capsys, ["run", fmu, "--out", tmp_path / "out", "--no-progress", "--set", "x=2"])
+    assert_one_line_error(rc, err, f"{fmu}: the values --set gave TestDecay: ", "x")
+    assert "components." not in err
