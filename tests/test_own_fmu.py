@@ -351,7 +351,7 @@ def _experiment_edited(tmp_path, src, attrs: str) -> "Path":
 # (attributes, words of the one line, a --set that gives the run a usable value instead)
 BAD_EXPERIMENTS = {
     "tolerance 0": ('stopTime="1" stepSize="0.1" tolerance="0"', ["DefaultExperiment tolerance = 0",
-                                                                  "a relative tolerance > 0"], "master.tolerance=1e-3"),
+                                                                  "relative tolerance > 0"], "master.tolerance=1e-3"),
     "tolerance -1": ('stopTime="1" stepSize="0.1" tolerance="-1"', ["DefaultExperiment tolerance = -1",
                                                                     "give master.tolerance"], "master.tolerance=1e-3"),
     "stepSize 1e-300": ('stopTime="1" stepSize="1e-300"', ["DefaultExperiment stepSize",
@@ -362,6 +362,17 @@ BAD_EXPERIMENTS = {
     "stopTime before startTime": ('startTime="2" stopTime="1" stepSize="0.1"',
                                   ["DefaultExperiment stopTime = 1", "a time > experiment.start (2 s)"],
                                   "experiment.stop=3"),
+    "stopTime INF": ('stopTime="INF" stepSize="0.1"', ["DefaultExperiment stopTime = inf", "expected a time"],
+                     "experiment.stop=1"),
+    "startTime -INF": ('startTime="-INF" stopTime="1" stepSize="0.1"',
+                       ["DefaultExperiment startTime = -inf", "expected a time"], "experiment.start=0"),
+    "stepSize NaN": ('stopTime="1" stepSize="NaN"', ["DefaultExperiment stepSize = nan", "expected a time"],
+                     "master.step=0.1"),
+    "tolerance NaN": ('stopTime="1" stepSize="0.1" tolerance="NaN"', ["DefaultExperiment tolerance = NaN",
+                                                                       "a finite relative tolerance > 0"],
+                      "master.tolerance=1e-3"),
+    "tolerance INF": ('stopTime="1" stepSize="0.1" tolerance="INF"', ["DefaultExperiment tolerance = INF"],
+                      "master.tolerance=1e-3"),
     "a startTime with no stopTime past a double's resolution": (
         'startTime="1e17" stepSize="0.1"', ["DefaultExperiment startTime (no stopTime: the run stops 1 s after it)"],
         ("experiment.start=0", "experiment.stop=1")),
@@ -396,10 +407,22 @@ def test_a_non_positive_default_tolerance_is_refused_where_a_scene_would_use_it(
     for cmd in (["validate", scene], ["run", scene, "--out", tmp_path / "out", "--no-progress"]):
         rc, _, err = run_cli(capsys, cmd)
         assert_one_line_error(rc, err, f"{edited}: modelDescription.xml: DefaultExperiment tolerance = -1",
-                              "a relative tolerance > 0", "master.tolerance")
+                              "relative tolerance > 0", "master.tolerance")
     rc, _, err = run_cli(capsys, ["run", scene, "--out", tmp_path / "out", "--no-progress",
                                   "--set", "master.tolerance=1e-6"])
     assert rc == 0, err
+
+
+def test_an_fmu_whose_default_experiment_says_inf_runs_in_a_scene_that_does_not_use_it(capsys, tmp_path):
+    """INF and NaN are xs:doubles: the FMU is legal, and a scene that sets what it uses runs it
+    (before: refused by the description check, whatever the scene said)."""
+    edited = _experiment_edited(tmp_path, test_fmu("TestDecay"), 'startTime="-INF" stopTime="INF" stepSize="NaN"')
+    scene = tmp_path / "scene.toml"
+    scene.write_text(f'[scene]\ntitle = "t"\n[components.m]\nfmu = "{edited}"\n[experiment]\nstop = 0.5\n'
+                     '[master]\nstep = 0.1\n')
+    for cmd in (["validate", scene], ["run", scene, "--out", tmp_path / "out", "--no-progress"], ["info", edited]):
+        rc, _, err = run_cli(capsys, cmd)
+        assert rc == 0, err
 
 
 # --- values that Python cannot turn into numbers, named by their key ---------------------------------

@@ -47,7 +47,7 @@ from fmpy.model_description import ModelVariable
 
 from ..errors import SceneError
 from ..hashing import sha256_file
-from ..numbers import shorten
+from ..numbers import XSD_SPECIAL, parse_real, shorten
 from ..paths import REPO, fmu_dir, in_checkout
 from .description_check import FLOAT32_MAX, INT_RANGES, DescriptionProblem, check_description
 
@@ -519,15 +519,16 @@ def default_tolerance(md) -> float | None:
     tol = getattr(de, "tolerance", None) if de is not None else None
     if tol in (None, "") or md.fmiVersion == "1.0":
         return None
-    return float(tol)
+    return parse_real(str(tol).strip(), XSD_SPECIAL)
 
 
 def default_tolerance_problem(md) -> str | None:
     """What is wrong with the DefaultExperiment's tolerance as the relative
     tolerance a run would hand the FMU, or None."""
     tol = default_tolerance(md)
-    if tol is not None and not tol > 0:
-        return "expected a relative tolerance > 0 (the FMU would be given it, a Model Exchange FMU integrated at it)"
+    if tol is not None and not 0 < tol < math.inf:
+        return ("expected a finite relative tolerance > 0 (the FMU would be given it, a Model Exchange FMU "
+                "integrated at it)")
     return None
 
 

@@ -25,11 +25,12 @@ analysis is a time series, and the default plot draws what is recorded.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from ..engine.description import FmuError, read_fmu
 from ..errors import SceneError
-from ..numbers import parse_real
+from ..numbers import XSD_SPECIAL, parse_real
 from .checks import instance_problem
 from .model import Component
 from .ssp.read import SspScene
@@ -56,8 +57,8 @@ def experiment_times(md, path: Path) -> tuple[dict, float]:
         text = getattr(de, name, None) if de is not None else None
         if text in (None, ""):
             return None
-        try:
-            return parse_real(str(text).strip())
+        try:  # xs:double: INF and NaN are refused by the scene's checks, named by this attribute
+            return parse_real(str(text).strip(), XSD_SPECIAL)
         except ValueError:
             raise SceneError(f"expected a decimal number, got {str(text)[:40]!r}", path,
                              f"modelDescription.xml: DefaultExperiment {name}") from None
@@ -78,10 +79,10 @@ def experiment_times(md, path: Path) -> tuple[dict, float]:
                 raise SceneError(f"expected a decimal number, got {str(fixed)[:40]!r}", path,
                                  "modelDescription.xml: CoSimulation fixedInternalStepSize") from None
             # fmpy doubles it to at most 1000 steps (a span that is not positive is refused later)
-            while span > 0 and step > 0 and span / step > 1000:
+            while 0 < span < math.inf and step > 0 and span / step > 1000:
                 step *= 2
-        else:
-            step = float(auto_interval(span)) if span > 0 else 1e-3  # fmpy.util.auto_interval
+        else:  # fmpy.util.auto_interval (a span that is not positive or finite is refused later)
+            step = float(auto_interval(span)) if 0 < span < math.inf else 1e-3
     return {"start": start, "stop": stop}, step
 
 
