@@ -360,6 +360,14 @@ def test_an_empty_array_loads_with_no_elements(tmp_path):
     assert variables(md)["a"].shape == (0,) and not [n for n in variables(md) if n.startswith("a[")]
 
 
+def test_an_empty_array_may_say_its_empty_start_list(tmp_path):
+    """start="" is an empty xs:list, valid for an array of size 0 (the schema's list type)."""
+    body = '<Float64 name="a" valueReference="1" causality="parameter" variability="fixed" start=""><Dimension ' \
+           'start="0"/></Float64>'
+    md = read_fmu(_description_only(tmp_path, "EmptyStart", body), need_binary=False)[0]
+    assert variables(md)["a"].shape == (0,)
+
+
 def test_an_fmu_alone_records_its_array_outputs_as_fmpy_does(tmp_path, capsys, fmu):
     """`clockwork run X.fmu` and `clockwork.simulate(X.fmu)` record every
     output, arrays included (element by element in the CSV; in the

@@ -161,7 +161,9 @@ class _Pass:
         if text is None:
             return []
         tokens = text.split() if self.fmi3 else [text]
-        if not tokens or (len(tokens) > 1 and not array):
+        # an array's start is an xs:list, which may be empty (an array of size 0); its count against the
+        # array's size is checked where the sizes are known (description._check_arrays)
+        if (not tokens and not array) or (len(tokens) > 1 and not array):
             why = " (the variable has no Dimension)" if len(tokens) > 1 else ""
             raise _fail(el, f"expected {'values' if array else 'one value'} of type {vtype}{why}", attr)
         out = []
