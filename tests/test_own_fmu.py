@@ -373,6 +373,9 @@ BAD_EXPERIMENTS = {
                       "master.tolerance=1e-3"),
     "tolerance INF": ('stopTime="1" stepSize="0.1" tolerance="INF"', ["DefaultExperiment tolerance = INF"],
                       "master.tolerance=1e-3"),
+    "a stopTime past the recording bound": ('stopTime="1e12" stepSize="0.1"',
+                                           ["DefaultExperiment stopTime: a run of 1e+12 s", "values in memory"],
+                                           "experiment.stop=1"),
     "a startTime with no stopTime past a double's resolution": (
         'startTime="1e17" stepSize="0.1"', ["DefaultExperiment startTime (no stopTime: the run stops 1 s after it)"],
         ("experiment.start=0", "experiment.stop=1")),

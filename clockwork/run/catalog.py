@@ -45,9 +45,12 @@ def load_scene(path: str | os.PathLike, overrides=(), input_file: str | os.PathL
     """Load, override and validate a scene file (or a bundled scene by name,
     an SSP, an FMU), with an input file when given; raises SceneError."""
     scene = _load_scene(find_scene(path), overrides, kinds(), input_file)
-    analyses.check_analysis(scene)
-    check_recording_bound(scene)
-    check_plot_axes(scene)
+    try:
+        analyses.check_analysis(scene)
+        check_recording_bound(scene)
+        check_plot_axes(scene)
+    except SceneError as e:  # named by where the value came from (--set, an FMU's DefaultExperiment...)
+        raise scene.refused_at(e) from None
     return scene
 
 

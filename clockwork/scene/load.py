@@ -347,6 +347,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
         max_step_given=max_step_given,
         notes=notes,
         inputs=inputs,
+        origins=dict(ctx.labels),
     )
     if sweep and any(a.parameter[0] in ("master", "experiment") for a in sweep.axes):
         for point in sweep.points():

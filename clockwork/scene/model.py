@@ -181,6 +181,21 @@ class Scene:
     max_step_given: bool = field(default=False, repr=False, compare=False)
     notes: tuple[str, ...] = field(default=(), repr=False, compare=False)  # what `validate` says beside "ok"
     inputs: Any = None  # scene.inputs.Inputs: samples that drive unconnected inputs, or None
+    # where a value came from, for refusals after loading: dotted key -> "--set <key>", or (file, key) of
+    # another file (an FMU's DefaultExperiment, an SSD's attribute); a key absent here is the scene file's
+    origins: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def refused_at(self, e: SceneError) -> SceneError:
+        """`e` (raised against this scene's file and a dotted key) named by
+        where the key's value came from instead, when it came from elsewhere."""
+        if e.key is None or e.path != str(self.path):
+            return e
+        base, rest = (e.key.split(" ", 1) + [""])[:2]
+        origin = self.origins.get(base)
+        if origin is None:
+            return e
+        path, key = origin if isinstance(origin, tuple) else (self.path, origin)
+        return SceneError(e.detail, path, f"{key} {rest}".rstrip())
 
     def parameters(self) -> dict[str, dict[str, object]]:
         """{instance: {variable: value}} for every component."""
