@@ -574,3 +574,19 @@ def test_a_value_an_fmu_alone_refuses_is_named_by_its_set_not_a_scene_key(capsys
     rc, _, err = run_cli(capsys, ["run", fmu, "--out", tmp_path / "out", "--no-progress", "--set", "x=2"])
     assert_one_line_error(rc, err, f"{fmu}: the values --set gave TestDecay: ", "x")
     assert "components." not in err
+
+
+@pytest.mark.parametrize("case", ["FMI 2.0 output initial=exact", "FMI 1.0 output with a fixed start"])
+def test_a_sweep_may_sweep_a_start_value_the_standard_lets_a_master_set(capsys, tmp_path, case):
+    version, attrs, start = SETTABLE_BEFORE_INIT[case]
+    fmu = _redeclared(tmp_path, version, attrs, start)
+    scene = tmp_path / "sweep.toml"
+    scene.write_text(f'[scene]\ntitle = "t"\n[components.TestDecay]\nfmu = "{fmu}"\n[experiment]\nstop = 0.5\n'
+                     '[master]\nstep = 0.1\n[sweep]\naxes = [{ parameter = "TestDecay.x0", values = [2, 3] }]\n')
+    rc, out, err = run_cli(capsys, ["validate", scene])
+    assert rc == 0 and "2 sweep points" in out, err
+    calculated = scene.read_text().replace("TestDecay.x0", "TestDecay.x")
+    scene.write_text(calculated)
+    rc, _, err = run_cli(capsys, ["validate", scene])
+    assert_one_line_error(rc, err, "sweep.axes[0].parameter", 'TestDecay.x is an output, not a parameter',
+                          'initial="calculated"')
