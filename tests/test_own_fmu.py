@@ -571,9 +571,17 @@ def test_a_value_an_fmu_alone_refuses_is_named_by_its_set_not_a_scene_key(capsys
                 data = data.replace(old, b'causality="output" variability="continuous" initial="exact">\n'
                                          b'      <Real start="1"/>')
             zout.writestr(item, data)
-    rc, _, err = run_cli(capsys, ["run", fmu, "--out", tmp_path / "out", "--no-progress", "--set", "x=2"])
-    assert_one_line_error(rc, err, f"{fmu}: the values --set gave TestDecay: ", "x")
-    assert "components." not in err
+    for cmd in (["validate", fmu], ["run", fmu, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, [*cmd, "--set", "x=2"])
+        assert_one_line_error(rc, err, f"{fmu}: the values --set gave TestDecay: ", "setting parameters (x = 2.0)")
+        assert "components." not in err
+    # in a scene file, the component's parameters; validate refuses it as run does (before: ok)
+    scene = tmp_path / "scene.toml"
+    scene.write_text(f'[scene]\ntitle = "t"\n[components.d]\nfmu = "{fmu}"\nparameters = {{ x = 2 }}\n'
+                     '[experiment]\nstop = 1\n')
+    for cmd in (["validate", scene], ["run", scene, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, cmd)
+        assert_one_line_error(rc, err, f"{scene}: components.d.parameters: ", "setting parameters (x = 2.0)")
 
 
 @pytest.mark.parametrize("case", ["FMI 2.0 output initial=exact", "FMI 1.0 output with a fixed start"])

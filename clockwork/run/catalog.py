@@ -15,7 +15,7 @@ from ..analyses import registry as analyses
 from ..analyses.bounds import MAX_KEPT_VALUES as MAX_RECORDED_VALUES
 from ..analyses.bounds import check_bounds
 from ..engine.fmu3 import make_instance
-from ..errors import SceneError
+from ..errors import ParametersRefused, SceneError, SimulationError
 from ..paths import scenarios_dir
 from ..results.plots import registry as plots
 from ..scene import Kinds
@@ -70,7 +70,32 @@ def check_loadable(scene) -> None:
             # an FMU alone or an SSP's component: the line names the FMU (an archive's member), which has no
             # scene key
             raise SceneError(e.detail) from None
-        inst.free()
+        try:
+            _set_values(scene, name, c, inst)
+        finally:
+            inst.free()
+
+
+def _set_values(scene, name: str, c, inst) -> None:
+    """Hand the component its values as the run does before its first step
+    (fmi2SetupExperiment, then each value, then Initialization Mode: the
+    instance is freed there): a value the FMU refuses to take is refused by
+    `validate` too, named as the run names it (scene_run). What fails after
+    the values are taken (the initialization itself, which depends on the
+    inputs the wiring gives) is the run's to find."""
+    if not c.parameters or c.model_exchange:
+        return
+    try:
+        inst.setup(scene.experiment.start, c.parameters, scene.master.tolerance)
+    except ParametersRefused as e:
+        if "setting parameters (" not in e.message:
+            return
+        if Path(scene.path).suffix.lower() == ".toml":
+            raise SceneError(e.message, scene.path, f"components.{name}.parameters") from None
+        given = "--set" if Path(scene.path).suffix.lower() == ".fmu" else "--set or the SSP's parameter values"
+        raise SceneError(e.message, scene.path, f"the values {given} gave {name}") from None
+    except (SimulationError, SceneError):
+        return
 
 
 def check_plot_axes(scene) -> None:
