@@ -143,8 +143,36 @@ def test_a_4_mib_model_identifier_is_echoed_shortened(tmp_path, capsys):
     fmu = _edited(tmp_path, fmu_file("Pendulum"), lambda xml: xml.replace('modelIdentifier="Pendulum"',
                                                                           f'modelIdentifier="{"x/" * (2 << 20)}"'))
     rc, _, err = run_cli(capsys, ["info", fmu])
-    assert_one_line_error(rc, err, "Edited.fmu", "modelIdentifier", "characters", "plain name")
+    assert_one_line_error(rc, err, "Edited.fmu", "modelIdentifier", "characters", "file name")
     assert len(err) < 1000, len(err)
+
+
+# Valid by the FMI 2.0 and 3.0 schemas (a unit's and a type's name is a required
+# xs:normalizedString, which may be empty): PythonFMU writes <Unit name="">.
+LEGAL = {
+    "an empty unit name": _sub(r'<Unit name="rad">', '<Unit name=""><BaseUnit/></Unit><Unit name="rad">'),
+    "an empty unit name used by a variable": lambda xml: _sub(r'<Unit name="rad">', '<Unit name=""/><Unit name="rad">')(
+        xml.replace('unit="kg"', 'unit=""', 1)),
+    "an empty type name": lambda xml: _sub(r"<UnitDefinitions>", '<TypeDefinitions><SimpleType name=""><Real/>'
+                                           "</SimpleType></TypeDefinitions><UnitDefinitions>")(xml),
+}
+LEGAL3 = {
+    "an empty unit name": LEGAL["an empty unit name"],
+    "an empty unit name used by a variable": LEGAL["an empty unit name used by a variable"],
+    "an empty type name": _sub(r"<UnitDefinitions>", '<TypeDefinitions><Float64Type name=""/></TypeDefinitions>'
+                                                     "<UnitDefinitions>"),
+}
+
+
+@pytest.mark.parametrize("version, case", [(2, c) for c in LEGAL] + [(3, c) for c in LEGAL3])
+def test_what_the_schema_allows_is_accepted(tmp_path, capsys, version, case):
+    edit = (LEGAL if version == 2 else LEGAL3)[case]
+    fmu = _edited(tmp_path, _fmu3() if version == 3 else fmu_file("Pendulum"), edit)
+    scene = tmp_path / "scene.toml"
+    scene.write_text(SCENE.format(fmu=fmu))
+    for cmd in (["validate", scene], ["info", fmu], ["run", scene, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, cmd)
+        assert rc == 0, (cmd[0], err)
 
 
 def test_aliases_by_value_reference_stay_allowed_in_fmi2(tmp_path, capsys):

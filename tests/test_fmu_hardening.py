@@ -65,8 +65,8 @@ def _refused_everywhere(capsys, tmp_path, path: Path, *needles):
 
 # --- modelIdentifier -------------------------------------------------------------
 
-IDENTIFIERS = ["../../x/Pendulum", "/tmp/Pendulum", "sub/Pendulum", "..", "Pendulum.so", "Pend ulum", "",
-               "Pendulum\\..\\x"]
+IDENTIFIERS = ["../../x/Pendulum", "/tmp/Pendulum", "sub/Pendulum", "..", ".", "", "Pendulum\\..\\x",
+               "Pend&#10;ulum", "Pend&#9;ulum", "P" * 300]
 
 
 @pytest.mark.parametrize("ident", IDENTIFIERS)
@@ -77,6 +77,63 @@ def test_a_model_identifier_that_is_not_a_plain_name_is_refused(capsys, tmp_path
         return data
     path = _copy(tmp_path, "ident", change)
     _refused_everywhere(capsys, tmp_path, path, "modelIdentifier")
+
+
+def _renamed(tmp_path: Path, ident: str, binary: str | None = None) -> Path:
+    """Pendulum.fmu whose modelIdentifier is `ident` and whose binary is named `binary`."""
+    def change(name, data):
+        if name == "modelDescription.xml":
+            return data.replace(b'modelIdentifier="Pendulum"', f'modelIdentifier="{ident}"'.encode())
+        return data
+    out = tmp_path / "renamed.fmu"
+    with zipfile.ZipFile(FMU_DIR / "Pendulum.fmu") as src, zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as dst:
+        for info in src.infolist():
+            name = BINARY.replace("Pendulum.so", binary) if info.filename == BINARY and binary else info.filename
+            dst.writestr(name, change(info.filename, src.read(info.filename)))
+    return out
+
+
+# File names fmpy loads (binaries/<platform>/<modelIdentifier>.so) that are no C names:
+# exporters write them (a hyphen), and fmpy, libcosim and ecos run them.
+FILE_NAMES = ["Pendulum-1", "pendulum-model.v2", "Pend ulum", "Pendulum.so", "P\u00e9ndule", "-Pendulum"]
+
+
+@pytest.mark.parametrize("ident", FILE_NAMES)
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_a_model_identifier_that_is_a_file_name_runs(capsys, tmp_path, ident, engine):
+    path = _renamed(tmp_path, ident, f"{ident}.so")
+    rc, out, err = run_cli(capsys, ["validate", path])
+    assert rc == 0, err
+    rc, _, err = run_cli(capsys, ["run", path, "--out", tmp_path / "out", "--no-progress",
+                                  "--set", "experiment.stop=0.2", "--set", f"master.engine={engine}"])
+    assert rc == 0, err
+    rc, _, err = run_cli(capsys, ["run", FMU_DIR / "Pendulum.fmu", "--out", tmp_path / "ref", "--no-progress",
+                                  "--set", "experiment.stop=0.2", "--set", f"master.engine={engine}"])
+    assert rc == 0, err
+    assert (tmp_path / "out" / "timeseries.csv").read_bytes() == (tmp_path / "ref" / "timeseries.csv").read_bytes()
+
+
+@pytest.mark.parametrize("ident", ["Pendulum-1", "Pendulum.so"])
+def test_a_binary_that_the_model_identifier_does_not_name_is_said(capsys, tmp_path, ident):
+    """The platform folder holds Pendulum.so, the modelIdentifier names another file: the line says both."""
+    path = _renamed(tmp_path, ident)
+    scene = _scene(tmp_path, path)
+    for argv in (["validate", scene], ["run", scene, "--out", tmp_path / "out", "--no-progress"], ["validate", path]):
+        rc, _, err = run_cli(capsys, argv)
+        assert_one_line_error(rc, err, str(path), f"binaries/linux64/{ident}.so", "binaries/linux64/ holds Pendulum.so",
+                              f"modelIdentifier {ident!r}", code=2)
+    assert not (tmp_path / "out" / "summary.json").exists()
+
+
+def test_a_binary_in_another_platform_folder_is_said(capsys, tmp_path):
+    path = tmp_path / "moved.fmu"
+    with zipfile.ZipFile(FMU_DIR / "Pendulum.fmu") as src, zipfile.ZipFile(path, "w") as dst:
+        for info in src.infolist():
+            name = info.filename.replace("binaries/linux64/", "binaries/x86_64-linux/")
+            dst.writestr(name, src.read(info.filename))
+    rc, _, err = run_cli(capsys, ["validate", path])
+    assert_one_line_error(rc, err, str(path), "Pendulum.so is in binaries/x86_64-linux/, not in binaries/linux64/",
+                          code=2)
 
 
 # --- binaries that are not a shared library for this machine ---------------------------

@@ -146,11 +146,53 @@ def test_inputs_of_other_types_run_in_python_and_say_why(tmp_path):
     assert s["TestStair.odd"][k + 1] == 1.0
 
 
-def test_compiled_asked_for_with_an_integer_input_is_refused(capsys, tmp_path):
-    (tmp_path / "in.csv").write_text("time,offset\n0,1\n")
-    rc, _, err = run_cli(capsys, ["run", test_fmu("TestStair"), "--input", tmp_path / "in.csv", "--set",
-                                  "master.engine=\"compiled\"", "--out", tmp_path / "r"])
-    assert_one_line_error(rc, err, "sets sampled Real inputs only", code=2)
+@pytest.mark.parametrize("columns, rows, column", [("offset", "0,1", "column 2 (TestStair.offset)"),
+                                                    ("offset,flip", "0,0,true", "column 2 (TestStair.offset)"),
+                                                    ("flip", "0,true", "column 2 (TestStair.flip)")])
+def test_compiled_asked_for_with_an_integer_input_is_refused(capsys, tmp_path, columns, rows, column):
+    """validate refuses what run refuses, both naming the input file and the column (before: validate
+    passed, and run's line named no file)."""
+    (tmp_path / "in.csv").write_text(f"time,{columns}\n{rows}\n")
+    for cmd in (["validate", test_fmu("TestStair")], ["run", test_fmu("TestStair"), "--out", tmp_path / "r"]):
+        rc, _, err = run_cli(capsys, [*cmd, "--input", tmp_path / "in.csv", "--set", "master.engine=\"compiled\""])
+        assert_one_line_error(rc, err, f"{tmp_path / 'in.csv'}: {column}", "sets sampled Real inputs only",
+                              'expected master.engine = "auto" or "python"', "--set master.engine", code=2)
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.fixture(scope="module")
+def linear_fmu(tmp_path_factory):
+    from fmi3_linear import build
+    return build(tmp_path_factory.mktemp("linear"))
+
+
+@pytest.mark.parametrize("column, hint", [("u", "u[0], u[1]"), ("k", "k[0], k[1], k[2]")])
+def test_an_input_column_for_a_whole_array_is_refused_naming_its_elements(capsys, tmp_path, linear_fmu, column,
+                                                                         hint):
+    """An FMI 3.0 array takes one value per element: a column of one number per row cannot set it
+    (before: validate passed, and the run failed in fmi3SetFloat64)."""
+    (tmp_path / "in.csv").write_text(f"time,{column}\n0,1\n1,2\n")
+    for cmd in (["validate", linear_fmu], ["run", linear_fmu, "--out", tmp_path / "r", "--no-progress"]):
+        rc, _, err = run_cli(capsys, [*cmd, "--input", tmp_path / "in.csv"])
+        assert_one_line_error(rc, err, f"{tmp_path / 'in.csv'}: line 1, column 2 ({column})", "an array of",
+                              f"expected a column per element ({hint}", code=2)
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_input_columns_for_array_elements_drive_them(capsys, tmp_path, linear_fmu, engine):
+    """u[0] and u[1] as columns: y = C x + D u with D = 0 here, so x's inputs show in x (B u)."""
+    (tmp_path / "in.csv").write_text("time,u[0],u[1]\n0,1,2\n2,1,2\n")
+    (tmp_path / "zero.csv").write_text("time,u[0],u[1]\n0,0,0\n2,0,0\n")
+    runs = {}
+    for name in ("in", "zero"):
+        rc, _, err = run_cli(capsys, ["run", linear_fmu, "--input", tmp_path / f"{name}.csv", "--out",
+                                      tmp_path / name, "--no-progress", "--set", f"master.engine={engine}"])
+        assert rc == 0, err
+        lines = (tmp_path / name / "timeseries.csv").read_text().splitlines()
+        runs[name] = dict(zip(lines[0].split(","), lines[-1].split(",")))
+    assert float(runs["in"]["Linear.x[0]"]) > float(runs["zero"]["Linear.x[0]"])
+    assert float(runs["in"]["Linear.x[1]"]) > float(runs["zero"]["Linear.x[1]"])
 
 
 # -- files for FMUs, scenes and SSPs ----------------------------------------------------

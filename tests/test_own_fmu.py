@@ -5,6 +5,7 @@ scene it used written back (docs/own-fmu.md)."""
 from __future__ import annotations
 
 import json
+import re
 import tomllib
 import zipfile
 
@@ -72,7 +73,8 @@ def test_set_experiment_and_master(capsys, tmp_path):
 
 @pytest.mark.parametrize("setting, needle", [
     ("kk=2", "has no variable kk (did you mean k?)"),
-    ("x=2", "TestDecay.x is an output; expected a parameter or an unconnected input"),
+    ("x=2", 'TestDecay.x is an output (initial="calculated": the FMU computes its value); expected a parameter, '
+            'an unconnected input or a variable with initial="exact" or "approx"'),
     ("k=fast", "expected"),
     ("experiment.stop=-1", "experiment.stop"),
     ("master.step=0", "master.step"),
@@ -205,3 +207,394 @@ def test_an_fmu_named_otherwise_is_pointed_to_its_suffix(capsys, tmp_path):
     f.write_bytes(test_fmu("TestDecay").read_bytes())
     with pytest.raises(SceneError, match="an FMU named X.fmu"):
         load_scene(f)
+
+
+# --- start values the FMI standard lets a master set before initialization ----------------------------
+# TestDecay with its parameter x0 (the start of x) declared as something else:
+# an output with initial="exact" (FMI 2.0, 3.0), a local with initial="approx",
+# an FMI 1.0 output with a start value (fixed, or a guess). The binary takes
+# the value before initialization either way, so x starts at it.
+
+def _redeclared(tmp_path, version: int, attrs: str, start: str = "") -> "Path":
+    src = {1: test_fmu("fmi1/TestDecay"), 2: test_fmu("TestDecay"), 3: test_fmu("fmi3/TestDecay")}[version]
+    out = tmp_path / f"Redeclared{version}.fmu"
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(out, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                xml = data.decode()
+                if version == 3:
+                    old = 'name="x0" valueReference="1" description="Initial value" causality="parameter" ' \
+                          'variability="fixed" start="1"'
+                    assert old in xml
+                    xml = xml.replace(old, f'name="x0" valueReference="1" {attrs}{start}')
+                    if 'causality="output"' in attrs:
+                        xml = xml.replace('<Output valueReference="20"', '<Output valueReference="1"/><Output '
+                                                                         'valueReference="20"')
+                elif version == 2:
+                    old = ('name="x0" valueReference="1" description="Initial value" causality="parameter" '
+                           'variability="fixed">\n      <Real start="1"/>')
+                    assert old in xml
+                    xml = xml.replace(old, f'name="x0" valueReference="1" {attrs}>\n      <Real{start}/>')
+                    if 'causality="output"' in attrs:
+                        xml = xml.replace('<Outputs>', '<Outputs>\n      <Unknown index="2" dependencies=""/>')
+                else:
+                    old = ('name="x0" valueReference="1" description="Initial value" variability="parameter" '
+                           'causality="internal">\n      <Real start="1" fixed="true"/>')
+                    assert old in xml
+                    xml = xml.replace(old, f'name="x0" valueReference="1" {attrs}>\n      <Real{start}/>')
+                data = xml.encode()
+            zout.writestr(item, data)
+    return out
+
+
+SETTABLE_BEFORE_INIT = {
+    "FMI 2.0 output initial=exact": (2, 'causality="output" variability="continuous" initial="exact"', ' start="1"'),
+    "FMI 2.0 local initial=approx": (2, 'causality="local" variability="continuous" initial="approx"', ' start="1"'),
+    "FMI 2.0 tunable local initial=exact": (2, 'causality="local" variability="tunable" initial="exact"', ' start="1"'),
+    "FMI 3.0 output initial=exact": (3, 'causality="output" variability="continuous" initial="exact"', ' start="1"'),
+    "FMI 1.0 output with a fixed start": (1, 'variability="continuous" causality="output"', ' start="1" fixed="true"'),
+    "FMI 1.0 output with a start (fixed by default)": (1, 'variability="continuous" causality="output"', ' start="1"'),
+    "FMI 1.0 internal with a guess": (1, 'variability="continuous" causality="internal"', ' start="1" fixed="false"'),
+}
+
+
+def _x_column(out) -> list[str]:
+    header, rows = _series(out)
+    return [row[header.index("TestDecay.x")] for row in rows]
+
+
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+@pytest.mark.parametrize("case", list(SETTABLE_BEFORE_INIT))
+def test_a_start_value_the_standard_lets_a_master_set_is_set(capsys, tmp_path, case, engine):
+    version, attrs, start = SETTABLE_BEFORE_INIT[case]
+    fmu = _redeclared(tmp_path, version, attrs, start)
+    ref = {1: test_fmu("fmi1/TestDecay"), 2: test_fmu("TestDecay"), 3: test_fmu("fmi3/TestDecay")}[version]
+    common = ["--no-progress", "--set", f"master.engine={engine}", "--set", "record.outputs=['TestDecay.x']",
+              "--set", "master.step=0.1", "--set", "experiment.stop=1"]
+    rc, _, err = run_cli(capsys, ["run", ref, "--out", tmp_path / "ref", "--set", "x0=2", *common])
+    assert rc == 0, err
+    expected = _x_column(tmp_path / "ref")
+    assert expected[0] == "2.0"
+    # --set on the FMU alone, a scene file's parameters, an SSD's parameter binding: all set it
+    rc, out, err = run_cli(capsys, ["validate", fmu, "--set", "x0=2"])
+    assert rc == 0, err
+    rc, _, err = run_cli(capsys, ["run", fmu, "--out", tmp_path / "alone", "--set", "x0=2", *common])
+    assert rc == 0, err
+    assert _x_column(tmp_path / "alone") == expected
+    scene = tmp_path / "scene.toml"
+    scene.write_text(f'[scene]\ntitle = "t"\n[components.TestDecay]\nfmu = "{fmu}"\nparameters = {{ x0 = 2 }}\n'
+                     '[experiment]\nstop = 1\n[master]\nstep = 0.1\n')
+    rc, _, err = run_cli(capsys, ["run", scene, "--out", tmp_path / "scene", *common])
+    assert rc == 0, err
+    assert _x_column(tmp_path / "scene") == expected
+    ssd = tmp_path / "SystemStructure.ssd"
+    ssd.write_text(f'''<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="1.0" name="one"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">
+  <ssd:System name="root"><ssd:Elements>
+    <ssd:Component name="TestDecay" source="{fmu.name}"><ssd:ParameterBindings><ssd:ParameterBinding>
+      <ssd:ParameterValues><ssv:ParameterSet version="1.0" name="p"><ssv:Parameters>
+        <ssv:Parameter name="x0"><ssv:Real value="2"/></ssv:Parameter>
+      </ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues>
+    </ssd:ParameterBinding></ssd:ParameterBindings></ssd:Component>
+  </ssd:Elements></ssd:System>
+  <ssd:DefaultExperiment startTime="0" stopTime="1"/>
+</ssd:SystemStructureDescription>
+''')
+    rc, _, err = run_cli(capsys, ["run", ssd, "--out", tmp_path / "ssd", *common])
+    assert rc == 0, err
+    assert _x_column(tmp_path / "ssd") == expected
+
+
+NOT_SETTABLE_BEFORE_INIT = {
+    "FMI 2.0 output initial=calculated": (2, "x=2", ['TestDecay.x is an output (initial="calculated"']),
+    "FMI 2.0 constant": (2, "x0=2", ['is a local (variability="constant"']),
+    "FMI 3.0 output initial=calculated": (3, "x=2", ['TestDecay.x is an output (initial="calculated"']),
+    "FMI 3.0 independent variable": (3, "time=2", ["TestDecay.time is an independent (the independent variable"]),
+    "FMI 1.0 output without a start": (1, "x=2", ['TestDecay.x is an output (initial="calculated"']),
+}
+
+
+@pytest.mark.parametrize("case", list(NOT_SETTABLE_BEFORE_INIT))
+def test_a_value_the_standard_does_not_let_a_master_set_is_refused(capsys, tmp_path, case):
+    version, setting, needles = NOT_SETTABLE_BEFORE_INIT[case]
+    if case == "FMI 2.0 constant":
+        fmu = _redeclared(tmp_path, 2, 'causality="local" variability="constant" initial="exact"', ' start="1"')
+    else:
+        fmu = {1: test_fmu("fmi1/TestDecay"), 2: test_fmu("TestDecay"), 3: test_fmu("fmi3/TestDecay")}[version]
+    for cmd in (["validate", fmu], ["run", fmu, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, [*cmd, "--set", setting])
+        assert_one_line_error(rc, err, str(fmu), f"--set TestDecay.{setting.split('=')[0]}", *needles,
+                              'expected a parameter, an unconnected input or a variable with initial="exact"')
+    assert not (tmp_path / "out").exists()
+
+
+# --- DefaultExperiment values that validate passed and the run misused ------------------------------
+
+def _experiment_edited(tmp_path, src, attrs: str) -> "Path":
+    """`src` with its DefaultExperiment replaced by one of `attrs`."""
+    out = tmp_path / "Edited.fmu"
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(out, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                xml = re.sub(r"<DefaultExperiment[^>]*/>", "", data.decode())
+                xml = re.sub(r"(<(CoSimulation|ModelExchange)\b)", f"<DefaultExperiment {attrs}/>\\1", xml, count=1)
+                data = xml.encode()
+            zout.writestr(item, data)
+    return out
+
+
+# (attributes, words of the one line, a --set that gives the run a usable value instead)
+BAD_EXPERIMENTS = {
+    "tolerance 0": ('stopTime="1" stepSize="0.1" tolerance="0"', ["DefaultExperiment tolerance = 0",
+                                                                  "relative tolerance > 0"], "master.tolerance=1e-3"),
+    "tolerance -1": ('stopTime="1" stepSize="0.1" tolerance="-1"', ["DefaultExperiment tolerance = -1",
+                                                                    "give master.tolerance"], "master.tolerance=1e-3"),
+    "stepSize 1e-300": ('stopTime="1" stepSize="1e-300"', ["DefaultExperiment stepSize",
+                                                           "expected a step >= master.min_step"], "master.step=0.1"),
+    "stepSize 0": ('stopTime="1" stepSize="0"', ["DefaultExperiment stepSize = 0", "a time > 0"], "master.step=0.1"),
+    "stepSize -0.1": ('stopTime="1" stepSize="-0.1"', ["DefaultExperiment stepSize = -0.1", "a time > 0"],
+                      "master.step=0.1"),
+    "stopTime before startTime": ('startTime="2" stopTime="1" stepSize="0.1"',
+                                  ["DefaultExperiment stopTime = 1", "a time > experiment.start (2 s)"],
+                                  "experiment.stop=3"),
+    "stopTime INF": ('stopTime="INF" stepSize="0.1"', ["DefaultExperiment stopTime = inf", "expected a time"],
+                     "experiment.stop=1"),
+    "startTime -INF": ('startTime="-INF" stopTime="1" stepSize="0.1"',
+                       ["DefaultExperiment startTime = -inf", "expected a time"], "experiment.start=0"),
+    "stepSize NaN": ('stopTime="1" stepSize="NaN"', ["DefaultExperiment stepSize = nan", "expected a time"],
+                     "master.step=0.1"),
+    "tolerance NaN": ('stopTime="1" stepSize="0.1" tolerance="NaN"', ["DefaultExperiment tolerance = NaN",
+                                                                       "a finite relative tolerance > 0"],
+                      "master.tolerance=1e-3"),
+    "tolerance INF": ('stopTime="1" stepSize="0.1" tolerance="INF"', ["DefaultExperiment tolerance = INF"],
+                      "master.tolerance=1e-3"),
+    "a stopTime past the recording bound": ('stopTime="1e12" stepSize="0.1"',
+                                           ["DefaultExperiment stopTime: a run of 1e+12 s", "values in memory"],
+                                           "experiment.stop=1"),
+    "a startTime with no stopTime past a double's resolution": (
+        'startTime="1e17" stepSize="0.1"', ["DefaultExperiment startTime (no stopTime: the run stops 1 s after it)"],
+        ("experiment.start=0", "experiment.stop=1")),
+}
+
+
+@pytest.mark.parametrize("version", [2, 3])
+@pytest.mark.parametrize("case", list(BAD_EXPERIMENTS))
+def test_a_default_experiment_value_the_run_cannot_use_is_refused_by_name(capsys, tmp_path, case, version):
+    attrs, needles, fix = BAD_EXPERIMENTS[case]
+    fmu = _experiment_edited(tmp_path, test_fmu("TestDecay" if version == 2 else "fmi3/TestDecay"), attrs)
+    for cmd in (["validate", fmu], ["run", fmu, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, cmd)
+        assert_one_line_error(rc, err, f"{fmu}: modelDescription.xml: ", *needles)
+    assert not (tmp_path / "out").exists()
+    fixes = (fix,) if isinstance(fix, str) else fix
+    rc, _, err = run_cli(capsys, ["run", fmu, "--out", tmp_path / "out", "--no-progress",
+                                  *[a for f in fixes for a in ("--set", f)]])
+    assert rc == 0, err
+
+
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+@pytest.mark.parametrize("fmu", ["TestDecay", "MeOscillator"])
+def test_a_non_positive_default_tolerance_is_refused_where_a_scene_would_use_it(capsys, tmp_path, fmu, engine):
+    """A scene without master.tolerance gives each FMU its DefaultExperiment's: a Model Exchange
+    FMU integrated at rtol -1 before; now refused naming the FMU's attribute, and master.tolerance
+    runs it."""
+    edited = _experiment_edited(tmp_path, test_fmu(fmu), 'stopTime="1" tolerance="-1"')
+    scene = tmp_path / "scene.toml"
+    scene.write_text(f'[scene]\ntitle = "t"\n[components.m]\nfmu = "{edited}"\n[experiment]\nstop = 0.5\n'
+                     f'[master]\nstep = 0.1\nengine = "{engine}"\n')
+    for cmd in (["validate", scene], ["run", scene, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, cmd)
+        assert_one_line_error(rc, err, f"{edited}: modelDescription.xml: DefaultExperiment tolerance = -1",
+                              "relative tolerance > 0", "master.tolerance")
+    rc, _, err = run_cli(capsys, ["run", scene, "--out", tmp_path / "out", "--no-progress",
+                                  "--set", "master.tolerance=1e-6"])
+    assert rc == 0, err
+
+
+def test_an_fmu_whose_default_experiment_says_inf_runs_in_a_scene_that_does_not_use_it(capsys, tmp_path):
+    """INF and NaN are xs:doubles: the FMU is legal, and a scene that sets what it uses runs it
+    (before: refused by the description check, whatever the scene said)."""
+    edited = _experiment_edited(tmp_path, test_fmu("TestDecay"), 'startTime="-INF" stopTime="INF" stepSize="NaN"')
+    scene = tmp_path / "scene.toml"
+    scene.write_text(f'[scene]\ntitle = "t"\n[components.m]\nfmu = "{edited}"\n[experiment]\nstop = 0.5\n'
+                     '[master]\nstep = 0.1\n')
+    for cmd in (["validate", scene], ["run", scene, "--out", tmp_path / "out", "--no-progress"], ["info", edited]):
+        rc, _, err = run_cli(capsys, cmd)
+        assert rc == 0, err
+
+
+# --- values that Python cannot turn into numbers, named by their key ---------------------------------
+
+@pytest.mark.parametrize("setting, needles", [
+    ("k=" + "9" * 100_000, ["--set k: an integer of more than 4300 digits"]),
+    ("master.step=" + "9" * 5000, ["--set master.step: an integer of more than 4300 digits"]),
+    ("master.tolerance=1" + "0" * 400, ["--set master.tolerance = 1000", "a relative tolerance > 0"]),
+    ("master.iteration_tolerance=1" + "0" * 400, ["--set master.iteration_tolerance = 1000", "a number > 0"]),
+    ("master.iterations=1" + "0" * 400, ["--set master.iterations = 1000", "an integer in [0, 2147483647]"]),
+    ("k=1" + "0" * 400, ["--set TestDecay.k = 1000", "expected a finite number"]),
+])
+def test_a_number_python_cannot_hold_is_refused_under_its_key(capsys, tmp_path, setting, needles):
+    for cmd in (["validate", test_fmu("TestDecay")],
+                ["run", test_fmu("TestDecay"), "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, [*cmd, "--set", setting])
+        assert_one_line_error(rc, err, str(test_fmu("TestDecay")), *needles)
+        assert len(err) < 1000
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_scene_file_with_an_integer_of_5000_digits_is_one_line(capsys, tmp_path):
+    scene = tmp_path / "scene.toml"
+    scene.write_text(f'[scene]\ntitle = "t"\n[components.m]\nfmu = "{test_fmu("TestDecay")}"\n'
+                     f'parameters = {{ k = {"9" * 5000} }}\n[experiment]\nstop = 1\n')
+    rc, _, err = run_cli(capsys, ["validate", scene])
+    assert_one_line_error(rc, err, str(scene), "malformed TOML: an integer of more than 4300 digits")
+
+
+def test_validate_refuses_the_integrator_the_run_would_refuse(monkeypatch):
+    """The Model Exchange wrapper chooses its integrator when the run starts: where CVode is asked
+    for and cannot be had, validate says so too, under master.me_solver (before: only the run)."""
+    from clockwork.engine import cvode
+    monkeypatch.setattr(cvode, "problem", lambda: "no SUNDIALS here (the test says so)")
+    fmu = test_fmu("MeOscillator")
+    with pytest.raises(SceneError) as e:
+        load_scene(fmu, ["master.me_solver=cvode"])
+    assert e.value.key == "--set master.me_solver" and "no SUNDIALS here" in e.value.detail
+    load_scene(fmu, ["master.me_solver=dp54"])  # the Runge-Kutta pairs need nothing
+
+
+# --- the default recorded columns are fmpy's --------------------------------------------------------
+
+def _no_outputs(tmp_path, src, version: int, states: bool = False):
+    """`src` with its outputs made locals (and their ModelStructure entries dropped)."""
+    out = tmp_path / f"NoOutputs{version}.fmu"
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(out, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                xml = data.decode()
+                if version == 1:
+                    xml = xml.replace('causality="output"', 'causality="internal"')
+                    xml = re.sub(r"<DirectDependency\s*/>|<DirectDependency>.*?</DirectDependency>", "", xml,
+                                 flags=re.S)
+                else:
+                    xml = xml.replace('causality="output"', 'causality="local"')
+                    xml = re.sub(r"<Outputs>.*?</Outputs>", "", xml, flags=re.S)
+                    xml = re.sub(r"<Output [^>]*/>", "", xml)
+                data = xml.encode()
+            zout.writestr(item, data)
+    return out
+
+
+def _fmpy_fields(fmu) -> list[str]:
+    import fmpy
+    return list(fmpy.simulate_fmu(str(fmu), stop_time=0.2, output_interval=0.1).dtype.names)
+
+
+@pytest.mark.parametrize("fmu, version", [("TestDecay", 2), ("fmi3/TestDecay", 3), ("fmi1/TestDecay", 1),
+                                          ("MeOscillator", 2), ("fmi3/MeOscillator", 3), ("TestTypes", 2)])
+def test_the_default_columns_of_an_fmu_without_outputs_are_fmpys(capsys, tmp_path, fmu, version):
+    """fmpy records, where an FMU has no output, its first five continuous states, else its first
+    five variables (its rule for locals compares the variability with "local", which never holds):
+    parameters and inputs too, numbers and Booleans (before: clockwork took up to five locals)."""
+    import clockwork
+    edited = _no_outputs(tmp_path, test_fmu(fmu), version)
+    want = _fmpy_fields(edited)
+    got = list(clockwork.simulate(str(edited), stop_time=0.2, output_interval=0.1).dtype.names)
+    assert got == want
+    assert len(want) > 1
+
+
+@pytest.mark.parametrize("fmu", ["TestTypes", "fmi3/TestStair", "TestStair"])
+def test_the_default_columns_of_an_fmu_with_outputs_are_fmpys_in_fmpys_order(fmu):
+    """Every output, grouped by type as fmpy's Recorder orders them (Real, Integer and Enumeration,
+    Boolean); a String output is recorded by clockwork only (fmpy drops it: docs/fmpy-migration.md)."""
+    import clockwork
+    got = list(clockwork.simulate(str(test_fmu(fmu)), stop_time=0.2, output_interval=0.1).dtype.names)
+    md = load_scene(test_fmu(fmu)).components
+    (comp,) = md.values()
+    strings = [v.name for v in comp.model_description.modelVariables if v.causality == "output" and
+               v.type in ("String", "Binary")]
+    assert [n for n in got if n not in strings] == _fmpy_fields(test_fmu(fmu))
+
+
+def test_an_fmu_alones_own_fault_is_named_as_the_fmu_not_connections(capsys, tmp_path):
+    """An FMI 3.0 Model Exchange FMU with arrays (which the wrapper does not serve), run alone: the
+    line names the FMU, not `connections` (it has none)."""
+    from fmi3_linear import MODEL_DESCRIPTION, build
+    fmu = build(tmp_path)
+    me = tmp_path / "LinearME.fmu"
+    with zipfile.ZipFile(fmu) as zin, zipfile.ZipFile(me, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                xml = re.sub(r"<CoSimulation [^>]*/>", '<ModelExchange modelIdentifier="Linear"/>', data.decode())
+                assert xml != MODEL_DESCRIPTION
+                data = xml.encode()
+            zout.writestr(item, data)
+    for cmd in (["validate", me], ["run", me, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, cmd)
+        assert_one_line_error(rc, err, f"{me}: Model Exchange with FMI 3.0 array variables is not supported")
+        assert "connections" not in err
+
+
+def test_an_fmu_alone_that_does_not_load_is_named_once_without_a_scene_key(capsys, tmp_path):
+    """The binary refuses the description's GUID: validate's load check names the FMU, once,
+    and no `components.<instance>.fmu` (an FMU alone has no scene file to hold that key)."""
+    fmu = tmp_path / "OtherGuid.fmu"
+    with zipfile.ZipFile(test_fmu("TestDecay")) as zin, zipfile.ZipFile(fmu, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                data = re.sub(rb'guid="[^"]*"', b'guid="{00000000-0000-0000-0000-000000000000}"', data, count=1)
+            zout.writestr(item, data)
+    for cmd in (["validate", fmu], ["run", fmu, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, cmd)
+        assert_one_line_error(rc, err, f"{fmu}: fmi2Instantiate refused the model description's GUID")
+        assert "components." not in err and err.count(str(fmu)) == 1, err
+
+
+def test_a_value_an_fmu_alone_refuses_is_named_by_its_set_not_a_scene_key(capsys, tmp_path):
+    """TestDecay declared with x initial="exact" (its binary refuses to set x): the FMU's refusal at the
+    start is bad input named by the --set that gave it, not `components.TestDecay.parameters`."""
+    fmu = tmp_path / "ExactX.fmu"
+    with zipfile.ZipFile(test_fmu("TestDecay")) as zin, zipfile.ZipFile(fmu, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                old = b'causality="output" variability="continuous" initial="calculated">\n      <Real />'
+                assert old in data
+                data = data.replace(old, b'causality="output" variability="continuous" initial="exact">\n'
+                                         b'      <Real start="1"/>')
+            zout.writestr(item, data)
+    for cmd in (["validate", fmu], ["run", fmu, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, [*cmd, "--set", "x=2"])
+        assert_one_line_error(rc, err, f"{fmu}: the values --set gave TestDecay: ", "setting parameters (x = 2.0)")
+        assert "components." not in err
+    # in a scene file, the component's parameters; validate refuses it as run does (before: ok)
+    scene = tmp_path / "scene.toml"
+    scene.write_text(f'[scene]\ntitle = "t"\n[components.d]\nfmu = "{fmu}"\nparameters = {{ x = 2 }}\n'
+                     '[experiment]\nstop = 1\n')
+    for cmd in (["validate", scene], ["run", scene, "--out", tmp_path / "out", "--no-progress"]):
+        rc, _, err = run_cli(capsys, cmd)
+        assert_one_line_error(rc, err, f"{scene}: components.d.parameters: ", "setting parameters (x = 2.0)")
+
+
+@pytest.mark.parametrize("case", ["FMI 2.0 output initial=exact", "FMI 1.0 output with a fixed start"])
+def test_a_sweep_may_sweep_a_start_value_the_standard_lets_a_master_set(capsys, tmp_path, case):
+    version, attrs, start = SETTABLE_BEFORE_INIT[case]
+    fmu = _redeclared(tmp_path, version, attrs, start)
+    scene = tmp_path / "sweep.toml"
+    scene.write_text(f'[scene]\ntitle = "t"\n[components.TestDecay]\nfmu = "{fmu}"\n[experiment]\nstop = 0.5\n'
+                     '[master]\nstep = 0.1\n[sweep]\naxes = [{ parameter = "TestDecay.x0", values = [2, 3] }]\n')
+    rc, out, err = run_cli(capsys, ["validate", scene])
+    assert rc == 0 and "2 sweep points" in out, err
+    calculated = scene.read_text().replace("TestDecay.x0", "TestDecay.x")
+    scene.write_text(calculated)
+    rc, _, err = run_cli(capsys, ["validate", scene])
+    assert_one_line_error(rc, err, "sweep.axes[0].parameter", 'TestDecay.x is an output, not a parameter',
+                          'initial="calculated"')

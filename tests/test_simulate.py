@@ -82,8 +82,9 @@ def test_integer_and_boolean_outputs_have_fmpys_types():
     f = test_fmu("TestStair")
     a = simulate_fmu(str(f), stop_time=3)
     b = clockwork.simulate(f, stop_time=3)
-    assert b.dtype == np.dtype([("time", "<f8"), ("counter", "<i4"), ("level", "<f8"), ("shifted", "<i4"),
-                                ("odd", "?")])
+    # fmpy's fields, in fmpy's order: by type (Real, then Integer, then Boolean)
+    assert b.dtype == a.dtype == np.dtype([("time", "<f8"), ("level", "<f8"), ("counter", "<i4"),
+                                           ("shifted", "<i4"), ("odd", "?")])
     _same(a, b, ["time", "counter", "level", "shifted", "odd"])
 
 

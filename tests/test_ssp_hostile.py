@@ -227,6 +227,69 @@ def test_an_unsupported_uri_scheme_is_named(tmp_path, capsys, uri, as_archive):
                     _edit('source="resources/Pendulum.fmu"', f'source="{uri.replace("&", "&amp;")}"'))
 
 
+# file: URIs (docs/scenes.md: a source is a relative path or file:): RFC 8089's
+# absolute forms, and the relative form tools write (file:resources/x.fmu).
+RELATIVE_FILE_URIS = ["file:resources/Pendulum.fmu", "file:./resources/Pendulum.fmu", "file:resources/Pendul%75m.fmu",
+                      "file:resources/../resources/Pendulum.fmu"]
+
+
+def _sources(uri: str, ssv_uri: str | None = None):
+    def apply(d: Path) -> Path:
+        p = d / SSD
+        text = p.read_text().replace('source="resources/Pendulum.fmu"', f'source="{uri}"')
+        if ssv_uri is not None:
+            text = text.replace('source="resources/escapement.ssv"', f'source="{ssv_uri}"')
+        p.write_text(text)
+        return p
+    return apply
+
+
+def _run_series(tmp_path, capsys, src: Path, name: str):
+    out = tmp_path / name
+    rc, _, err = run_cli(capsys, ["validate", src])
+    assert rc == 0, err
+    rc, _, err = run_cli(capsys, ["run", src, "--out", out, "--no-progress", *SHORT])
+    assert rc == 0, err
+    return (out / "timeseries.csv").read_bytes()
+
+
+@pytest.mark.parametrize("as_archive", [False, True], ids=["ssd", "ssp"])
+@pytest.mark.parametrize("uri", RELATIVE_FILE_URIS)
+def test_a_relative_file_uri_names_the_file_a_relative_path_names(tmp_path, capsys, uri, as_archive):
+    ref = _run_series(tmp_path, capsys, _both(tmp_path, fixture_dir(tmp_path, "flat10"), as_archive), "ref")
+    d = fixture_dir(tmp_path / "b", "flat10")
+    _sources(uri, "file:resources/escapement.ssv")(d)
+    assert _run_series(tmp_path, capsys, _both(tmp_path / "b", d, as_archive), "out") == ref
+
+
+@pytest.mark.parametrize("form", ["file:{p}", "file://{p}", "file://localhost{p}", "file://LOCALHOST{p}"])
+def test_an_absolute_file_uri_beside_an_ssd_names_that_file(tmp_path, capsys, form):
+    ref = _run_series(tmp_path, capsys, fixture_dir(tmp_path, "flat10") / SSD, "ref")
+    d = fixture_dir(tmp_path / "b", "flat10")
+    fmu = (d / "resources" / "Pendulum.fmu").resolve()
+    _sources(form.format(p=fmu.as_posix()))(d)
+    assert _run_series(tmp_path, capsys, d / SSD, "out") == ref
+
+
+FILE_URIS_REFUSED = {
+    "file:///tmp/Pendulum.fmu": ["expected a path inside the archive", "absolute path"],
+    "file:/tmp/Pendulum.fmu": ["expected a path inside the archive", "absolute path"],
+    "file://example.com/resources/Pendulum.fmu": ["expected a file on this machine", "example.com",
+                                                  "another host's file"],
+    "file:../Pendulum.fmu": ["expected a path inside the archive: this one leaves it"],
+    "file:///C:/fmus/Pendulum.fmu": ["Windows drive path"],
+    "file:resources/Missing.fmu": ["no such file in the archive", "resources/Missing.fmu"],
+    "file:resources/Pendulum.fmu?x=1": ["without scheme, host, query or fragment"],
+}
+
+
+@pytest.mark.parametrize("uri", list(FILE_URIS_REFUSED))
+def test_a_file_uri_that_leaves_the_archive_is_refused(tmp_path, capsys, uri):
+    d = fixture_dir(tmp_path, "flat10")
+    _sources(uri)(d)
+    _refused(tmp_path, capsys, zip_dir(d, tmp_path / "bad.ssp"), [SSD, "source=", *FILE_URIS_REFUSED[uri]])
+
+
 def test_a_windows_drive_path_is_named(tmp_path, capsys):
     d = fixture_dir(tmp_path, "flat10")
     _edit('source="resources/Pendulum.fmu"', 'source="C:/fmus/Pendulum.fmu"')(d)
@@ -360,6 +423,38 @@ BAD_OSP = {
 @pytest.mark.parametrize("case", list(BAD_OSP))
 def test_an_osp_annotation_the_master_cannot_honour_is_one_line(tmp_path, capsys, case, as_archive):
     edit, needles = BAD_OSP[case]
+    _refused_edited(tmp_path, capsys, [SSD, *needles], as_archive, _with_osp_ns, edit)
+
+
+# Values an SSD gives the sections, refused after it is read (by the checks a
+# scene file's values go through): each named by its own element and attribute,
+# not by the master key it became (before: a base step of 1e-300 was reported
+# as master.min_step, a stopTime before the startTime as experiment.stop).
+_OMS = ('<ssd:System name="root"><ssd:Annotations><ssc:Annotation type="org.openmodelica"><oms:Annotations '
+        'xmlns:oms="https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd">'
+        '<oms:SimulationInformation><oms:FixedStepMaster {attrs}/></oms:SimulationInformation></oms:Annotations>'
+        '</ssc:Annotation></ssd:Annotations>')
+ORIGINS = {
+    "a base step of 1e-300": (_osp('<osp:FixedStepAlgorithm baseStepSize="1e-300"/>'),
+                              ["osp:FixedStepAlgorithm baseStepSize='1e-300'", "expected a step >= master.min_step"]),
+    "a base step below the time resolution": (
+        _osp('<osp:FixedStepAlgorithm baseStepSize="1e-6"/>', 'startTime="1e9" stopTime="1.0000001e9"'),
+        ["osp:FixedStepAlgorithm baseStepSize='1e-6'", "expected a step of at least"]),
+    "a stop before the start": (_edit('startTime="0" stopTime="20"', 'startTime="30" stopTime="20"'),
+                                ["ssd:DefaultExperiment stopTime='20'", "a time > experiment.start (30 s)"]),
+    "a step hint of 1e-300": (lambda d: [_hint(c, "1e-300")(d) for c in ("pendulum", "escapement")],
+                              ["osp:StepSizeHint value='1e-300'", "expected a step >= master.min_step"]),
+    "OMSimulator's step of 1e-300": (_edit('<ssd:System name="root">', _OMS.format(attrs='stepSize="1e-300"')),
+                                     ["oms:FixedStepMaster stepSize='1e-300'", "master.min_step"]),
+    "OMSimulator's tolerance of 0": (_edit('<ssd:System name="root">', _OMS.format(attrs='relativeTolerance="0"')),
+                                     ["oms:FixedStepMaster relativeTolerance='0'", "a relative tolerance > 0"]),
+}
+
+
+@pytest.mark.parametrize("as_archive", [False, True], ids=["ssd", "ssp"])
+@pytest.mark.parametrize("case", list(ORIGINS))
+def test_a_value_the_ssd_gives_is_refused_under_its_own_origin(tmp_path, capsys, case, as_archive):
+    edit, needles = ORIGINS[case]
     _refused_edited(tmp_path, capsys, [SSD, *needles], as_archive, _with_osp_ns, edit)
 
 

@@ -47,7 +47,7 @@ from fmpy.model_description import ModelVariable
 
 from ..errors import SceneError
 from ..hashing import sha256_file
-from ..numbers import shorten
+from ..numbers import XSD_SPECIAL, parse_real, shorten
 from ..paths import REPO, fmu_dir, in_checkout
 from .description_check import FLOAT32_MAX, INT_RANGES, DescriptionProblem, check_description
 
@@ -275,10 +275,10 @@ def read_fmu(path: Path, need_binary: bool = True,
                            "<ModelExchange> element)")
         for face, interface in faces:
             ident = interface.modelIdentifier
-            if not isinstance(ident, str) or not NAME_RE.match(ident):
-                # fmpy loads binaries/<platform>/<modelIdentifier>.so: a path here would load a file outside the FMU.
+            problem = identifier_problem(ident)
+            if problem:
                 raise FmuError(f"{shown}: modelDescription.xml: {face} modelIdentifier {shorten(ident, 100)!r}: "
-                               "expected a plain name (letters, digits, underscores), the binary's file name")
+                               f"{problem}")
         if md.fmiVersion == "1.0":
             _check_fmi1(shown, md, xml)
         ident = faces[0][1].modelIdentifier  # the binary of the interface it runs through by default
@@ -286,18 +286,55 @@ def read_fmu(path: Path, need_binary: bool = True,
         digest = sha256_file(path)
         folder = fmpy.platform_tuple if md.fmiVersion == "3.0" else fmpy.platform
         binary = f"binaries/{folder}/{ident}{fmpy.sharedLibraryExtension}"
-        problem = binary_problem(heads[binary]) if binary in heads else "missing"
+        problem = binary_problem(heads[binary]) if binary in heads else _missing_binary(binary, ident, set(names))
         hit = (md, digest, indicators, problem, binary)
         _MD_CACHE.clear() if len(_MD_CACHE) > 256 else None
         _MD_CACHE[key] = hit
     md, digest, indicators, problem, binary = hit
     if md.fmiVersion not in versions:
         raise FmuError(f"{shown}: expected an FMI {' or '.join(versions)} FMU, found FMI {md.fmiVersion}")
-    if need_binary and problem == "missing":
-        raise FmuError(f"{shown} has no binary for this platform ({binary}); {_rebuild_advice(path)}")
+    if need_binary and problem is not None and problem.startswith("missing"):
+        raise FmuError(f"{shown} has no binary for this platform ({binary}){problem[len('missing'):]}; "
+                       f"{_rebuild_advice(path)}")
     if need_binary and problem is not None:
         raise FmuError(f"{shown}: {binary}: {problem}; {_rebuild_advice(path)}")
     return md, digest, indicators
+
+
+def identifier_problem(ident) -> str | None:
+    """Why a modelIdentifier cannot name the FMU's binary, or None. fmpy
+    loads binaries/<platform>/<modelIdentifier>.so, so any file name it can
+    open is accepted (a hyphen: exporters write them, and fmpy, libcosim and
+    ecos load them), but nothing that leaves that folder or is no file name."""
+    if not isinstance(ident, str) or not ident:
+        return "expected the binary's file name (without .so), got none"
+    if "/" in ident or "\\" in ident or ident in (".", ".."):
+        # a path here would load a library outside the FMU
+        return "expected the binary's file name (without .so), not a path"
+    if any(ord(c) < 32 or ord(c) == 127 for c in ident):
+        return "expected the binary's file name (without .so): it holds a control character"
+    if len((ident + ".dylib").encode("utf-8", "surrogatepass")) > 255:
+        return "expected the binary's file name (without .so): longer than a file name may be (255 bytes)"
+    return None
+
+
+def _missing_binary(binary: str, ident: str, names: set[str]) -> str:
+    """"missing", and what the FMU holds instead where that helps: a
+    library of another name in the platform's folder (a modelIdentifier
+    that does not match the file), or the binary in another folder."""
+    folder, _, file = binary.rpartition("/")
+    ext = file[len(ident):]
+    here = sorted(n.rpartition("/")[2] for n in names
+                  if n.startswith(folder + "/") and n.endswith(ext) and n.count("/") == binary.count("/"))
+    if here:
+        shown = ", ".join(shorten(n, 80) for n in here[:5]) + (", ..." if len(here) > 5 else "")
+        return (f"missing: {folder}/ holds {shown}, but the modelIdentifier {shorten(ident, 80)!r} in "
+                f"modelDescription.xml names {shorten(file, 80)} (the binary's file name must match it)")
+    elsewhere = sorted(n.rpartition("/")[0] for n in names if n.startswith("binaries/") and n.endswith("/" + file))
+    if elsewhere:
+        return (f"missing: {file} is in {', '.join(shorten(e, 80) for e in elsewhere[:3])}/, not in {folder}/ "
+                "(the folder this FMI version and platform use)")
+    return "missing"
 
 
 def _head(z: zipfile.ZipFile, name: str) -> bytes:
@@ -405,6 +442,13 @@ def _check_fmi1(path: Path, md, xml: bytes) -> None:
     for v in md.modelVariables:
         if v.causality == "none":  # a tool's own variable: read like a local one
             v.causality = "local"
+    for e in root.iterfind("ModelVariables/ScalarVariable"):
+        v = by_name.get(e.get("name"))
+        typed = next((c for c in e if isinstance(c.tag, str) and c.tag in ("Real", "Integer", "Boolean", "String",
+                                                                        "Enumeration")), None)
+        if v is not None and v.initial is None and typed is not None and typed.get("start") is not None:
+            # FMI 1.0's start: fixed (the default) or a guess; in FMI 2.0's terms, initial exact or approx
+            v.initial = "approx" if typed.get("fixed", "true").strip() in ("false", "0") else "exact"
     base = {}  # (type, value reference) -> the variable that is no alias
     elements = [e for e in root.iterfind("ModelVariables/ScalarVariable") if e.get("name") in by_name]
     for e in elements:
@@ -437,6 +481,55 @@ def _check_fmi1(path: Path, md, xml: bytes) -> None:
     md.outputs[:] = outputs
     _FMI1[md] = Fmi1Details(frozenset(negated), (model.get("type") if model is not None else None)
                             or STAND_ALONE_MIME_TYPE)
+
+
+def start_problem(v) -> str | None:
+    """Why the standard does not let a master set `v` before initialization,
+    or None where it does. A master sets start values in the state after
+    instantiation (fmi2SetupExperiment done, before
+    fmi2EnterInitializationMode; FMI 3.0 before
+    fmi3EnterInitializationMode; FMI 1.0 before fmiInitializeSlave), where
+    FMI 2.0 (Sec. 3.2.3 and 4.2.4, the table of fmi2SetXXX) and FMI 3.0
+    (Sec. 3.2.2, Instantiated) allow the variables whose variability is not
+    "constant" and whose initial is "exact" or "approx" (with the defaults
+    the standards give: a parameter's is "exact", an output's "calculated"),
+    and inputs; FMI 1.0 the variables with a start value (``_check_fmi1``
+    gives them initial "exact", or "approx" for fixed="false", a guess).
+    This is what fmpy sets (``settable_in_instantiated``), libcosim and ecos
+    too. A structural parameter is the caller's to refuse (configuration mode)."""
+    if v.causality == "input":
+        return None
+    if v.causality == "independent":
+        return "the independent variable (the time): no master sets it"
+    if getattr(v, "variability", None) == "constant":
+        return "variability=\"constant\": no master sets it"
+    initial = getattr(v, "initial", None)
+    if initial in ("exact", "approx"):
+        return None
+    initial = initial or "calculated"
+    return f'initial="{initial}": the FMU computes its value'
+
+
+
+def default_tolerance(md) -> float | None:
+    """The DefaultExperiment's relative tolerance, or None (none given;
+    FMI 1.0, whose Co-Simulation takes none). check_description has made
+    sure it is a finite number."""
+    de = md.defaultExperiment
+    tol = getattr(de, "tolerance", None) if de is not None else None
+    if tol in (None, "") or md.fmiVersion == "1.0":
+        return None
+    return parse_real(str(tol).strip(), XSD_SPECIAL)
+
+
+def default_tolerance_problem(md) -> str | None:
+    """What is wrong with the DefaultExperiment's tolerance as the relative
+    tolerance a run would hand the FMU, or None."""
+    tol = default_tolerance(md)
+    if tol is not None and not 0 < tol < math.inf:
+        return ("expected a finite relative tolerance > 0 (the FMU would be given it, a Model Exchange FMU "
+                "integrated at it)")
+    return None
 
 
 def fmi1_details(md) -> Fmi1Details:

@@ -122,11 +122,12 @@ class _Pass:
         for attr in ("numberOfEventIndicators", "numberOfContinuousStates"):
             self.integer(root, attr, 0, _VR_MAX)
         for d in root.iterfind("DefaultExperiment"):
+            # xs:double, INF and NaN included: the schema allows them, and an FMU is usable in a scene that
+            # takes none of these defaults; where one is used it is refused if unusable, by its name
+            # (scene/fmu.py for an FMU run alone, description.default_tolerance_problem)
             for attr in ("startTime", "stopTime", "tolerance", "stepSize"):
                 if d.get(attr) is not None:
-                    x = self.real(d, attr)
-                    if not math.isfinite(x):
-                        raise _fail(d, "expected a finite number", attr)
+                    self.real(d, attr)
         for cs in root.iterfind("CoSimulation"):
             self.integer(cs, "maxOutputDerivativeOrder", 0, _VR_MAX)
         self.units()
@@ -160,7 +161,9 @@ class _Pass:
         if text is None:
             return []
         tokens = text.split() if self.fmi3 else [text]
-        if not tokens or (len(tokens) > 1 and not array):
+        # an array's start is an xs:list, which may be empty (an array of size 0); its count against the
+        # array's size is checked where the sizes are known (description._check_arrays)
+        if (not tokens and not array) or (len(tokens) > 1 and not array):
             why = " (the variable has no Dimension)" if len(tokens) > 1 else ""
             raise _fail(el, f"expected {'values' if array else 'one value'} of type {vtype}{why}", attr)
         out = []
@@ -211,8 +214,9 @@ class _Pass:
                     self.real(d, "offset")
             return
         for u in self.root.iterfind("UnitDefinitions/Unit"):
-            if not u.get("name"):
-                raise _fail(u, "expected a unit name", "name")
+            # Required, but "" is a valid xs:normalizedString (PythonFMU writes <Unit name="">).
+            if u.get("name") is None:
+                raise _fail(u, "missing required attribute; expected a unit name", "name")
             for b in u.iterfind("BaseUnit"):
                 for k in ("kg", "m", "s", "A", "K", "mol", "cd", "rad"):
                     self.integer(b, k, -2**31, 2**31 - 1)
@@ -249,8 +253,8 @@ class _Pass:
                     raise _fail(t, f"expected one type element ({', '.join(_SCALAR_TYPES)})")
                 vtype = kind
             name = t.get("name")
-            if not name:
-                raise _fail(t, "expected a type name", "name")
+            if name is None:  # required; "" is a valid xs:normalizedString
+                raise _fail(t, "missing required attribute; expected a type name", "name")
             if name in self.types:
                 raise _fail(t, "expected a unique type name: this one is defined twice", "name")
             self.types[name] = vtype

@@ -30,7 +30,8 @@ from ..errors import ParametersRefused, SceneError, SimulationError, UsageError,
 from ..hashing import sha256_file
 from ..numbers import parse_json
 from ..paths import cache_root, core_library, scratch_dir
-from .description import check_archive, read_fmu, resolved, var_unit
+from .description import (check_archive, default_tolerance, default_tolerance_problem, read_fmu, resolved,
+                          var_unit)
 
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
 STATUS_NAMES = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
@@ -283,9 +284,7 @@ class Instance:
         self.model_name = self.md.modelName
         self.variables = instance_variables(self.md)
         self._read_capabilities()
-        experiment = self.md.defaultExperiment
-        tol = getattr(experiment, "tolerance", None) if experiment is not None else None
-        self.default_tolerance = float(tol) if tol not in (None, "") else None
+        self.default_tolerance = default_tolerance(self.md)
         self.event_indicators = list(described[2])
         self.messages: list[tuple[int, str]] = []
         self._slave = None
@@ -439,6 +438,10 @@ class Instance:
         initialization mode."""
         if tolerance is None:
             tolerance = self.default_tolerance
+            problem = default_tolerance_problem(self.md)
+            if problem:  # the scene layer refuses it first
+                raise SceneError(f"{self.shown}: modelDescription.xml: DefaultExperiment tolerance = {tolerance:g}: "
+                                 f"{problem}; or give master.tolerance")
         defined = tolerance is not None
         self.check(self.c_setup(self.component, int(defined), float(tolerance) if defined else 0.0, start, 0, 0.0),
                    "fmi2SetupExperiment")

@@ -7,6 +7,7 @@ import numbers
 from dataclasses import dataclass
 
 from ..errors import ClosedError, SceneError, UsageError
+from ..numbers import shorten
 
 
 ENGINES = ("auto", "python", "compiled")
@@ -210,8 +211,12 @@ class MasterSettings:
 
 
 def _positive(key: str, v) -> None:
-    if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or v <= 0:
-        raise SceneError(f"master.{key} = {v!r}: expected a finite number > 0")
+    try:
+        ok = not isinstance(v, bool) and isinstance(v, numbers.Real) and math.isfinite(v) and v > 0
+    except OverflowError:  # an integer beyond a double
+        ok = False
+    if not ok:
+        raise SceneError(f"master.{key} = {shorten(repr(v), 60)}: expected a finite number > 0")
 
 
 def check_run(instances: dict, t_now: float, t_stop, look: bool = True) -> float:

@@ -15,7 +15,7 @@ from ..analyses import registry as analyses
 from ..analyses.bounds import MAX_KEPT_VALUES as MAX_RECORDED_VALUES
 from ..analyses.bounds import check_bounds
 from ..engine.model_exchange import make_instance
-from ..errors import SceneError
+from ..errors import ParametersRefused, SceneError, SimulationError
 from ..paths import scenarios_dir
 from ..results.plots import registry as plots
 from ..scene import Kinds
@@ -45,9 +45,12 @@ def load_scene(path: str | os.PathLike, overrides=(), input_file: str | os.PathL
     """Load, override and validate a scene file (or a bundled scene by name,
     an SSP, an FMU), with an input file when given; raises SceneError."""
     scene = _load_scene(find_scene(path), overrides, kinds(), input_file)
-    analyses.check_analysis(scene)
-    check_recording_bound(scene)
-    check_plot_axes(scene)
+    try:
+        analyses.check_analysis(scene)
+        check_recording_bound(scene)
+        check_plot_axes(scene)
+    except SceneError as e:  # named by where the value came from (--set, an FMU's DefaultExperiment...)
+        raise scene.refused_at(e) from None
     return scene
 
 
@@ -62,8 +65,37 @@ def check_loadable(scene) -> None:
         try:
             inst.instantiate()
         except SceneError as e:  # nothing instantiated: nothing to free
-            raise SceneError(e.detail, scene.path, f"components.{name}.fmu") from None
-        inst.free()
+            if Path(scene.path).suffix.lower() == ".toml":
+                raise SceneError(e.detail, scene.path, f"components.{name}.fmu") from None
+            # an FMU alone or an SSP's component: the line names the FMU (an archive's member), which has no
+            # scene key
+            raise SceneError(e.detail) from None
+        try:
+            _set_values(scene, name, c, inst)
+        finally:
+            inst.free()
+
+
+def _set_values(scene, name: str, c, inst) -> None:
+    """Hand the component its values as the run does before its first step
+    (fmi2SetupExperiment, then each value, then Initialization Mode: the
+    instance is freed there): a value the FMU refuses to take is refused by
+    `validate` too, named as the run names it (scene_run). What fails after
+    the values are taken (the initialization itself, which depends on the
+    inputs the wiring gives) is the run's to find."""
+    if not c.parameters or c.model_exchange:
+        return
+    try:
+        inst.setup(scene.experiment.start, c.parameters, scene.master.tolerance)
+    except ParametersRefused as e:
+        if "setting parameters (" not in e.message:
+            return
+        if Path(scene.path).suffix.lower() == ".toml":
+            raise SceneError(e.message, scene.path, f"components.{name}.parameters") from None
+        given = "--set" if Path(scene.path).suffix.lower() == ".fmu" else "--set or the SSP's parameter values"
+        raise SceneError(e.message, scene.path, f"the values {given} gave {name}") from None
+    except (SimulationError, SceneError):
+        return
 
 
 def check_plot_axes(scene) -> None:

@@ -73,7 +73,11 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
         try:
             finished(0, run_point(scene, points[0], progress=progress))
         except ParametersRefused as e:  # the scene's values, not the run, are at fault
-            raise SceneError(e.message, scene.path, f"components.{e.instance}.parameters") from None
+            if Path(scene.path).suffix.lower() == ".toml":
+                raise SceneError(e.message, scene.path, f"components.{e.instance}.parameters") from None
+            # an FMU alone or an SSP: the values came from --set or the SSP's parameter values, not a table
+            given = "--set" if Path(scene.path).suffix.lower() == ".fmu" else "--set or the SSP's parameter values"
+            raise SceneError(e.message, scene.path, f"the values {given} gave {e.instance}") from None
         except SimulationError as e:
             # A failed run keeps its history: written and committed like a
             # result (summary.json says failed), then the error is raised.

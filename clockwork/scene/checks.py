@@ -12,8 +12,8 @@ import difflib
 import math
 from pathlib import Path
 
-from ..engine.description import (FLOAT32_MAX, INTEGER_TYPES, ArrayElement, int_range, shape_text, var_limit,
-                                  var_unit)
+from ..engine.description import (FLOAT32_MAX, INTEGER_TYPES, ArrayElement, int_range, shape_text, start_problem,
+                                  var_limit, var_unit)
 from ..engine.description import variables as variables_of
 from ..engine.names import instance_name_problem, split_ref
 from ..engine.settings import ENGINES, LOOP_MODES, MAX_THREADS, ME_SOLVERS
@@ -27,18 +27,28 @@ TOP_KEYS = ("scene", "components", "connections", "experiment", "master", "recor
 
 
 class Ctx:
-    def __init__(self, path: Path, labels: dict[str, str]):
+    def __init__(self, path: Path, labels: dict[str, str | tuple[str, str]]):
         self.path = path
-        self.labels = labels  # dotted key -> "--set x.y" for overridden keys
+        # dotted key -> where its value came from: "--set x.y" for overridden
+        # keys; (file, key) for a value another file gave (an FMU's
+        # DefaultExperiment, an SSD's annotation)
+        self.labels = labels
 
     def key(self, key: str) -> str:
-        return self.labels.get(key, key)
+        label = self.labels.get(key, key)
+        return label[1] if isinstance(label, tuple) else label
+
+    def where(self, key: str) -> tuple[object, str]:
+        """(file, key) that an error about `key` names."""
+        label = self.labels.get(key, key)
+        return label if isinstance(label, tuple) else (self.path, label)
 
     def fail(self, key: str, detail: str) -> SceneError:
-        return SceneError(detail, self.path, self.key(key))
+        return SceneError(detail, *self.where(key))
 
     def bad(self, key: str, value: object, expected: str) -> SceneError:
-        return SceneError(f"expected {expected}", self.path, f"{self.key(key)} = {show(value)}")
+        path, shown = self.where(key)
+        return SceneError(f"expected {expected}", path, f"{shown} = {show(value)}")
 
     def check_keys(self, table: dict, allowed, where: str, required=()) -> None:
         allowed = list(allowed)
@@ -116,6 +126,20 @@ def names_of(variables: dict, *causalities: str) -> list[str]:
     """Names of the variables of these causalities (an array by its own name, not its elements')."""
     return [n for n, v in variables.items() if v.causality in causalities and not isinstance(v, ArrayElement)]
 
+
+def settable_problem(v) -> str | None:
+    """Why a scene, an SSP or --set cannot give `v` a value, or None: the
+    parameters and inputs, and the variables the FMI standard lets a master
+    set before initialization (an output or local with initial="exact" or
+    "approx", FMI 1.0's start values: engine.description.start_problem).
+    A structural parameter is refused apart (STRUCTURAL)."""
+    if v.causality in ("parameter", "input"):
+        return None
+    return start_problem(v)
+
+
+SETTABLE = ('a parameter, an unconnected input or a variable with initial="exact" or "approx" (what the FMI '
+            'standard lets a master set before initialization)')
 
 STRUCTURAL = ("is a structural parameter (an array size): clockwork does not change structural parameters "
               "(FMI 3.0 configuration mode), the arrays keep the sizes of their start values")
@@ -256,12 +280,13 @@ def master_value(ctx: Ctx, key: str, value: object):
             raise ctx.bad(full, value, "true or false")
         return value
     if key == "tolerance":
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        x = _finite_number(value)
+        if x is None or x <= 0:
             raise ctx.bad(full, value, "a relative tolerance > 0 (given to every FMU's fmi2SetupExperiment)")
-        return float(value)
+        return x
     if key == "iterations":
-        if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < 2**31:
-            raise ctx.bad(full, value, f"an integer from 0 to {2**31 - 1} (0 = no fixed-point iteration)")
+        if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= INT_MAX:
+            raise ctx.bad(full, value, f"an integer in [0, {INT_MAX}] (0 = no fixed-point iteration)")
         return value
     if key == "threads":
         if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_THREADS:
@@ -269,9 +294,25 @@ def master_value(ctx: Ctx, key: str, value: object):
                                        "independent instances on)")
         return value
     # the remaining tolerances are bare positive numbers
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+    x = _finite_number(value)
+    if x is None or x <= 0:
         raise ctx.bad(full, value, "a number > 0")
-    return float(value)
+    return x
+
+
+INT_MAX = 2**31 - 1  # a C int: what the compiled core holds a count in
+
+
+def _finite_number(value: object) -> float | None:
+    """A TOML number as a finite float, else None (an integer beyond a
+    double, 10**400, is no number a setting can hold: float() overflows)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    try:
+        x = float(value)
+    except OverflowError:
+        return None
+    return x if math.isfinite(x) else None
 
 
 def parse_ref(ctx: Ctx, key: str, ref: object, components: dict[str, Component], what: str):

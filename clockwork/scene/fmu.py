@@ -18,23 +18,24 @@ an attribute is absent:
 - tolerance: ``tolerance``, passed to the FMU (the engine reads it: the
   scene leaves ``master.tolerance`` unset).
 
-Every output is recorded (where there is none, as fmpy: up to five
-continuous states, else up to five local variables), the analysis is a
-time series, and the default plot draws what is recorded.
+Every output is recorded (where there is none, as fmpy: the first five
+continuous states, else the first five variables: ``default_record``), the
+analysis is a time series, and the default plot draws what is recorded.
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
-from ..engine.description import FmuError, TEXT_TYPES, read_fmu
+from ..engine.description import FmuError, read_fmu
 from ..errors import SceneError
-from ..numbers import parse_real
+from ..numbers import XSD_SPECIAL, parse_real
 from .checks import instance_problem
 from .model import Component
 from .ssp.read import SspScene
 
-_MAX_FALLBACK = 5  # fmpy records at most this many states or locals when an FMU has no outputs
+_MAX_FALLBACK = 5  # fmpy records at most this many states or variables when an FMU has no outputs
 
 
 def instance_name(md) -> str:
@@ -56,8 +57,8 @@ def experiment_times(md, path: Path) -> tuple[dict, float]:
         text = getattr(de, name, None) if de is not None else None
         if text in (None, ""):
             return None
-        try:
-            return parse_real(str(text).strip())
+        try:  # xs:double: INF and NaN are refused by the scene's checks, named by this attribute
+            return parse_real(str(text).strip(), XSD_SPECIAL)
         except ValueError:
             raise SceneError(f"expected a decimal number, got {str(text)[:40]!r}", path,
                              f"modelDescription.xml: DefaultExperiment {name}") from None
@@ -78,27 +79,77 @@ def experiment_times(md, path: Path) -> tuple[dict, float]:
                 raise SceneError(f"expected a decimal number, got {str(fixed)[:40]!r}", path,
                                  "modelDescription.xml: CoSimulation fixedInternalStepSize") from None
             # fmpy doubles it to at most 1000 steps (a span that is not positive is refused later)
-            while span > 0 and step > 0 and span / step > 1000:
+            while 0 < span < math.inf and step > 0 and span / step > 1000:
                 step *= 2
-        else:
-            step = float(auto_interval(span)) if span > 0 else 1e-3  # fmpy.util.auto_interval
+        else:  # fmpy.util.auto_interval (a span that is not positive or finite is refused later)
+            step = float(auto_interval(span)) if 0 < span < math.inf else 1e-3
     return {"start": start, "stop": stop}, step
 
 
-def default_record(md, instance: str) -> list[str]:
-    """What fmpy records by default: every output; where there is none, up to
-    five continuous states, else up to five local variables."""
-    def usable(v) -> bool:  # an FMI 3.0 array is recorded element by element, as fmpy does
-        return v is not None and v.type not in ("Clock",)
+def experiment_labels(md, path: Path) -> dict[str, tuple[str, str]]:
+    """Where each value of ``experiment_times`` came from, for the errors
+    that refuse it later (load.py): the DefaultExperiment attribute, or what
+    stands in for an absent one."""
+    de = md.defaultExperiment
 
-    outputs = [v for v in md.modelVariables if v.causality == "output" and usable(v)]
-    if not outputs:
-        states = [getattr(d.variable, "derivative", None) for d in (md.derivatives or [])]
-        outputs = [v for v in states if usable(v) and v.type not in TEXT_TYPES][:_MAX_FALLBACK]
-    if not outputs:
-        outputs = [v for v in md.modelVariables
-                   if v.causality == "local" and usable(v) and v.type not in TEXT_TYPES][:_MAX_FALLBACK]
-    return [f"{instance}.{v.name}" for v in outputs]
+    def given(name: str) -> bool:
+        return de is not None and getattr(de, name, None) not in (None, "")
+
+    where = "modelDescription.xml: DefaultExperiment"
+    labels = {}
+    if given("startTime"):
+        labels["experiment.start"] = (str(path), f"{where} startTime")
+    if given("stopTime"):
+        labels["experiment.stop"] = (str(path), f"{where} stopTime")
+    elif given("startTime"):
+        labels["experiment.stop"] = (str(path), f"{where} startTime (no stopTime: the run stops 1 s after it)")
+    if given("stepSize"):
+        labels["master.step"] = (str(path), f"{where} stepSize")
+    elif md.coSimulation is not None and getattr(md.coSimulation, "fixedInternalStepSize", None) not in (None, ""):
+        labels["master.step"] = (str(path), "modelDescription.xml: CoSimulation fixedInternalStepSize (doubled to "
+                                            "at most 1000 steps)")
+    else:
+        labels["master.step"] = (str(path), f"{where} (no stepSize: fmpy's auto_interval of the span)")
+    return labels
+
+
+# What fmpy's Recorder keeps of the variables it is given (fmpy 0.3.32,
+# simulation.Recorder): numbers and Booleans; Strings, Binaries and Clocks
+# are dropped, and a variable named "time" (the time column's name).
+_FMPY_UNRECORDED = ("String", "Binary", "Clock")
+# The order of the Recorder's columns: by type (FMI 3.0's Float64 and Int32
+# under FMI 2.0's names here: Real, Integer), Enumerations with the integers
+# (Integer in FMI 1.0/2.0, Int64 in 3.0); text last (fmpy has none).
+_FMPY_TYPE_ORDER = {t: i for i, t in enumerate(
+    ("Float32", "Real", "Int8", "UInt8", "Int16", "UInt16", "Integer", "UInt32", "Int64", "UInt64", "Boolean"))}
+
+
+def default_record(md, instance: str) -> list[str]:
+    """What fmpy's simulate_fmu records by default (fmpy.simulation.
+    _get_output_variables): every output; where there is none, the first
+    five continuous states; else the first five variables of the model,
+    whatever their causality (fmpy's rule for "local variables" compares
+    the variability with "local", which no variable has, so this is what it
+    records). Of those, what fmpy's Recorder drops is dropped here too, and
+    so is the independent variable (it is the time column) and an FMI 3.0
+    structural parameter (a size: recorded only when asked for by name).
+    An output of type String is recorded, where fmpy drops it: clockwork
+    writes text columns (docs/fmpy-migration.md)."""
+    def kept(v) -> bool:
+        return (v is not None and v.name != "time" and v.type not in _FMPY_UNRECORDED
+                and v.causality not in ("independent", "structuralParameter"))
+
+    chosen = [v for v in md.modelVariables if v.causality == "output" and v.type != "Clock"]
+    if not chosen:
+        states = [getattr(d.variable, "derivative", None) for d in (md.derivatives or [])][:_MAX_FALLBACK]
+        chosen = [v for v in states if kept(v)]
+        if not states:
+            chosen = [v for v in md.modelVariables[:_MAX_FALLBACK] if kept(v)]
+    # fmpy's columns come by type, in the order of the model's variables within a type
+    enum = "Int64" if md.fmiVersion.startswith("3") else "Integer"
+    chosen.sort(key=lambda v: _FMPY_TYPE_ORDER.get(enum if v.type == "Enumeration" else v.type,
+                                                   len(_FMPY_TYPE_ORDER)))
+    return [f"{instance}.{v.name}" for v in chosen]
 
 
 def read_fmu_scene(path: str | Path) -> SspScene:
@@ -117,4 +168,5 @@ def read_fmu_scene(path: str | Path) -> SspScene:
     sections = {"experiment": experiment, "master": {"step": step},
                 "record": {"outputs": default_record(md, name)}}
     component = Component(name, path.resolve(), digest, md, {}, indicators)
-    return SspScene(md.modelName, md.description or "", {name: component}, (), sections, digest)
+    return SspScene(md.modelName, md.description or "", {name: component}, (), sections, digest,
+                    labels=experiment_labels(md, path))

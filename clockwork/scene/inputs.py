@@ -26,7 +26,7 @@ from array import array
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..engine.description import FLOAT32_MAX, INTEGER_TYPES, TEXT_TYPES, int_range, var_limit
+from ..engine.description import FLOAT32_MAX, INTEGER_TYPES, TEXT_TYPES, element_names, int_range, var_limit
 from ..engine.description import variables as variables_of
 from ..engine.names import split_ref
 from ..engine.samples import Samples, Signal, is_continuous
@@ -101,6 +101,12 @@ def targets(names: list[str], components: dict, connected: set, parameters: set,
                                 "a parameter binding or --set): expected it in one place")
         if v.type in TEXT_TYPES:
             raise fail(line, j, f"{inst}.{var} is a {v.type}: an input file drives numbers and Booleans")
+        if getattr(v, "shape", None):  # an FMI 3.0 array: one number per column cannot fill it
+            elements = element_names(v)
+            shown = ", ".join(f"{inst}.{e}" if only is None else e for e in elements[:3])
+            raise fail(line, j, f"{inst}.{var} is an array of {len(elements)} values: expected a column per element"
+                                f" ({shown}{', ...' if len(elements) > 3 else ''})" if elements else
+                       f"{inst}.{var} is an empty array: no value to drive")
         if (inst, var) in seen:
             raise fail(line, j, f"{inst}.{var} is also column {seen[(inst, var)] + 1}: expected each input once")
         seen[(inst, var)] = j

@@ -19,21 +19,23 @@ import difflib
 import hashlib
 import os
 import re
+import sys
 import tomllib
 from pathlib import Path
 
-from ..engine import compiled
-from ..engine.description import (TEXT_TYPES, FmuError, element_names, link_shape_problem, read_fmu, resolve_fmu,
-                                  type_name, types_connect, var_unit)
+from ..engine import compiled, cvode
+from ..engine.description import (TEXT_TYPES, FmuError, default_tolerance_problem, element_names, link_shape_problem,
+                                  read_fmu, resolve_fmu, type_name, types_connect, var_unit)
 from ..engine.description import variables as variables_of
+from ..engine.me_step import MAX_RK_STATES
 from ..engine.model_exchange import INTERFACES, interface_of, make_instance, model_exchange_problem
 from ..engine.names import split_link, split_ref
 from ..engine.wiring import Link, loop_name
 from ..engine.wiring import build as build_wiring
 from ..errors import SceneError, say
 from ..numbers import shorten
-from .checks import (STRUCTURAL, TOP_KEYS, Ctx, article, component, convert_value, instance_problem, lookup,
-                     master_value, names_of, parse_ref, read_bounded)
+from .checks import (SETTABLE, STRUCTURAL, TOP_KEYS, Ctx, article, component, convert_value, instance_problem,
+                     lookup, master_value, names_of, parse_ref, read_bounded, settable_problem)
 from .fmu import read_fmu_scene
 from .inputs import Inputs, read_inputs
 from .kinds import NO_KINDS, Invalid, Kinds
@@ -115,6 +117,16 @@ def _override_value(lhs: str, rhs: str) -> object:
         return rhs.strip()
     except RecursionError:
         raise ValueError(f"--set {lhs}: the value is nested deeper than Python can read") from None
+    except ValueError as e:  # Python's own limits: int() of more than 4300 digits
+        raise ValueError(f"--set {lhs}: {_number_limit(e)}") from None
+
+
+def _number_limit(e: ValueError) -> str:
+    """What a ValueError of tomllib's number conversion means for the user."""
+    if "digits" in str(e):
+        return (f"an integer of more than {sys.get_int_max_str_digits()} digits, more than Python reads (and far "
+                "beyond any FMU type): expected a number a variable can hold")
+    return f"expected a number that can be read ({shorten(str(e), 100)})"
 
 
 def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
@@ -148,6 +160,8 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
         elif "end of document" in msg:
             where = f"line {text.count(chr(10)) + 1}"
         raise SceneError(f"malformed TOML: {msg}", path, where) from None
+    except ValueError as e:  # Python's own limit, not TOML's: int() of more than 4300 digits
+        raise SceneError(f"malformed TOML: {_number_limit(e)}", path) from None
 
     labels: dict[str, str] = {}
     applied = []
@@ -224,7 +238,7 @@ def _load_system(path: Path, ssp, overrides, kinds: Kinds, input_file) -> Scene:
     raw = {"scene": {"title": ssp.name, "description": ssp.description}, **ssp.sections}
     components = dict(ssp.components)
     connected = {(c.dst_instance, c.dst_var) for c in ssp.connections}
-    labels: dict[str, str] = {}
+    labels: dict[str, str | tuple[str, str]] = dict(ssp.labels)  # where each section value came from
     applied = []
     only = variables_of(next(iter(components.values())).model_description) if len(components) == 1 else None
     for text in overrides:
@@ -250,12 +264,15 @@ def _load_system(path: Path, ssp, overrides, kinds: Kinds, input_file) -> Scene:
         v = lookup(ctx, label, variables_of(comp.model_description), var, inst, comp.model_name, want="parameter")
         if v.causality == "structuralParameter":
             raise SceneError(f"{inst}.{var} {STRUCTURAL}", path, label)
-        if v.causality not in ("parameter", "input") or (inst, var) in connected:
-            what = "a connected input" if v.causality == "input" else f"{article(v.causality)} {v.causality}"
-            raise SceneError(f"{inst}.{var} is {what}; expected a parameter or an unconnected input", path, label)
+        if v.causality == "input" and (inst, var) in connected:
+            raise SceneError(f"{inst}.{var} is a connected input; expected {SETTABLE}", path, label)
+        problem = settable_problem(v)
+        if problem:
+            raise SceneError(f"{inst}.{var} is {article(v.causality)} {v.causality} ({problem}); expected {SETTABLE}",
+                             path, label)
         value = convert_value(ctx, label, value, v, comp.model_description)
         components[inst] = dataclasses.replace(comp, parameters={**comp.parameters, var: value})
-    _ssp_stop(ssp, raw)
+    _ssp_stop(ssp, raw, labels)
     _ssp_step_hints(ssp, raw, components, labels)
     outputs = raw.get("record", {}).get("outputs")
     if isinstance(outputs, list) and all(isinstance(o, str) for o in outputs):
@@ -266,7 +283,7 @@ def _load_system(path: Path, ssp, overrides, kinds: Kinds, input_file) -> Scene:
     return _build(ctx, raw, tuple(applied), ssp.sha256, kinds, (components, ssp.connections), input_file)
 
 
-def _ssp_stop(ssp, raw: dict) -> None:
+def _ssp_stop(ssp, raw: dict, labels: dict) -> None:
     """An SSD without a stopTime (and no --set experiment.stop) stops 1 s
     after its start, as fmpy does (and OMSimulator, from 0 s), with a note."""
     experiment = raw.setdefault("experiment", {})
@@ -278,6 +295,7 @@ def _ssp_stop(ssp, raw: dict) -> None:
         return  # refused under experiment.start
     experiment["stop"] = start + 1.0
     label, key = ssp.no_stop
+    labels.setdefault("experiment.stop", (label, f"{key} (no stopTime: the start + 1 s)"))
     say("note", f"{label}: {key}: no ssd:DefaultExperiment stopTime: the run stops 1 s after the start, at "
                 f"{fmt(start + 1.0)} s, as fmpy does (--set experiment.stop=<time> for another)")
 
@@ -293,7 +311,7 @@ def _ssp_step_hints(ssp, raw: dict, components: dict, labels: dict) -> None:
     hints = ssp.step_hints
     if not hints:
         return
-    if "master.step" in labels:
+    if isinstance(labels.get("master.step"), str):  # a --set (the SSD's own steps are (file, key) pairs)
         label, key = next(iter(hints.values()))[1:]
         say("note", f"{label}: {key}: --set master.step steps every component alike; the "
                     f"components' osp:StepSizeHint ({len(hints)}) are not applied")
@@ -305,6 +323,8 @@ def _ssp_step_hints(ssp, raw: dict, components: dict, labels: dict) -> None:
     odd = next((inst for inst, h in steps.items() if h != steps[first]), None)
     if odd is None:
         master["step"] = steps[first]
+        if first in hints:
+            labels["master.step"] = tuple(hints[first][1:])
         return
     inst = odd if odd in hints else first
     label, key = hints[inst][1:]
@@ -344,6 +364,11 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     problem = consistency(master, experiment, components) or _fmi3_inputs(master, components, connections)
     if problem:
         raise ctx.fail(*problem)
+    if master.tolerance is None:
+        _check_default_tolerances(components)
+    problem = _me_solver_problem(master, components)
+    if problem:
+        raise ctx.fail("master.me_solver", problem)
     if master.engine == "compiled":
         # Asked for by name: links the core cannot pass on are refused now, not at run time.
         reason = compiled.unsupported_links(
@@ -361,6 +386,8 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
             plots = _default_plot(ctx, record, components, kinds)
         _check_series_plots(ctx, plots, record, components)
     inputs = _inputs(ctx, ctx.table(raw, "inputs", ""), components, connections, input_file)
+    if inputs is not None and master.engine == "compiled":
+        _check_compiled_inputs(ctx, inputs, components)
 
     scene = Scene(
         path=ctx.path,
@@ -380,6 +407,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
         max_step_given=max_step_given,
         notes=notes,
         inputs=inputs,
+        origins=dict(ctx.labels),
     )
     if sweep and any(a.parameter[0] in ("master", "experiment") for a in sweep.axes):
         for point in sweep.points():
@@ -470,22 +498,78 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
                 input_params.add((name, pname, key))
             elif v.causality == "structuralParameter":
                 raise ctx.fail(key, f"{md.modelName}.{pname} {STRUCTURAL}")
-            elif v.causality != "parameter":
+            elif settable_problem(v):
                 raise ctx.fail(
-                    key, f"{md.modelName}.{pname} is {article(v.causality)} {v.causality}, not a parameter; "
-                    f"parameters: {', '.join(names_of(variables, 'parameter'))}")
+                    key, f"{md.modelName}.{pname} is {article(v.causality)} {v.causality}, not a parameter "
+                    f"({settable_problem(v)}); parameters: {', '.join(names_of(variables, 'parameter'))}")
             params[pname] = convert_value(ctx, key, value, v, md)
         out[name] = Component(name, fpath, digest, md, params, indicators, interface)
     return out, input_params
+
+
+def _me_solver_problem(master: MasterConfig, components: dict[str, Component]) -> str | None:
+    """What the Model Exchange wrapper refuses when it chooses its
+    integrator at the start of the run (model_exchange._choose_method),
+    said by validate too: more states than the Runge-Kutta pairs take, or
+    CVode where this platform has no SUNDIALS."""
+    for name, c in components.items():
+        if not c.model_exchange:
+            continue
+        n = len(c.model_description.derivatives or [])
+        solver = master.me_solver
+        if solver == "cvode" or (solver == "auto" and n > MAX_RK_STATES):
+            problem = cvode.problem()
+            if problem:
+                return f"{name} ({Path(c.fmu_shown).name}): {problem}"
+        elif n > MAX_RK_STATES:
+            return (f"{name} ({Path(c.fmu_shown).name}) has {n} continuous states, the Runge-Kutta pairs take at "
+                    f"most {MAX_RK_STATES}; expected 'cvode' or 'auto'")
+    return None
+
+
+def _check_compiled_inputs(ctx: Ctx, inputs: Inputs, components: dict[str, Component]) -> None:
+    """master.engine = "compiled" asked for by name: an input column the
+    core cannot set (it sets Real inputs only) is refused now, naming the
+    column, as the run would refuse it (engine.compiled.make_master)."""
+    for j, sig in enumerate(inputs.samples.signals, start=1):
+        reason = compiled.unsupported_inputs([(sig.name, components[sig.instance].variable(sig.variable).type)])
+        if reason:
+            path, key = ctx.where("master.engine")
+            raise SceneError(f'{reason}: expected master.engine = "auto" or "python" ({key} asks for the compiled '
+                             f'core{"" if path == ctx.path else f" in {path}"})', inputs.file or ctx.path,
+                             f"column {j + 1} ({shorten(sig.name, 60)})")
+
+
+def _check_default_tolerances(components: dict[str, Component]) -> None:
+    """Without master.tolerance each FMU gets its DefaultExperiment's
+    tolerance (fmi2SetupExperiment, fmi3EnterInitializationMode; the Model
+    Exchange wrapper integrates at it). A relative tolerance that is not > 0
+    is refused where it would be used, naming the FMU's attribute: the
+    schema lets any xs:double through, and an integrator at rtol -1 is no
+    integration. FMI 1.0 Co-Simulation takes no tolerance: not used there."""
+    for c in components.values():
+        md = c.model_description
+        problem = default_tolerance_problem(md)
+        if problem:
+            raise SceneError(f"{problem}; or give master.tolerance (the run's, for every FMU)", c.fmu_shown,
+                             f"modelDescription.xml: DefaultExperiment tolerance = {md.defaultExperiment.tolerance}")
 
 
 def _check_wiring(ctx: Ctx, components: dict[str, Component], connections) -> list[tuple[str, list[Link]]]:
     """The wiring as the master will build it, by the engine's own code:
     what it refuses is refused now. Returns the algebraic loops (name,
     links inside)."""
+    instances = {}
+    for n, c in components.items():
+        try:
+            instances[n] = make_instance(n, c.fmu_path, c.model_description, interface=c.interface)
+        except SceneError as e:
+            # the FMU's own fault, not the wiring's: named as the FMU (never its cache copy) and its key
+            detail = str(e).replace(str(c.fmu_path), c.fmu_shown)
+            if ctx.path.suffix.lower() == ".toml":
+                raise ctx.fail(f"components.{n}.fmu", detail) from None
+            raise SceneError(detail if c.fmu_shown in detail else f"{c.fmu_shown}: {detail}") from None
     try:
-        instances = {n: make_instance(n, c.fmu_path, c.model_description, interface=c.interface)
-                     for n, c in components.items()}
         wiring = build_wiring(instances, [Link(*c) for c in connections])
     except SceneError as e:
         raise ctx.fail("connections", e.detail) from None

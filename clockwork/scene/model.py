@@ -181,6 +181,21 @@ class Scene:
     max_step_given: bool = field(default=False, repr=False, compare=False)
     notes: tuple[str, ...] = field(default=(), repr=False, compare=False)  # what `validate` says beside "ok"
     inputs: Any = None  # scene.inputs.Inputs: samples that drive unconnected inputs, or None
+    # where a value came from, for refusals after loading: dotted key -> "--set <key>", or (file, key) of
+    # another file (an FMU's DefaultExperiment, an SSD's attribute); a key absent here is the scene file's
+    origins: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def refused_at(self, e: SceneError) -> SceneError:
+        """`e` (raised against this scene's file and a dotted key) named by
+        where the key's value came from instead, when it came from elsewhere."""
+        if e.key is None or e.path != str(self.path):
+            return e
+        base, rest = (e.key.split(" ", 1) + [""])[:2]
+        origin = self.origins.get(base)
+        if origin is None:
+            return e
+        path, key = origin if isinstance(origin, tuple) else (self.path, origin)
+        return SceneError(e.detail, path, f"{key} {rest}".rstrip())
 
     def parameters(self) -> dict[str, dict[str, object]]:
         """{instance: {variable: value}} for every component."""
@@ -235,6 +250,9 @@ def consistency(m: MasterConfig, e: Experiment, components: dict[str, Component]
         return "experiment.stop", (f"expected stop more than {fmt(SPAN_RESOLUTION * max(1.0, abs(e.stop)))} s "
                                    f"after start ({fmt(e.start)} s), got {fmt(e.stop)} s")
     if m.min_step > m.step:
+        if m.min_step == MasterConfig.min_step:  # the default: the step is what was given too small
+            return "master.step", (f"expected a step >= master.min_step ({fmt(m.min_step)} s, its default), got "
+                                   f"{fmt(m.step)} s")
         return "master.min_step", f"expected min_step <= step ({fmt(m.step)} s), got {fmt(m.min_step)} s"
     if m.max_step < m.step:
         return "master.max_step", f"expected max_step >= step ({fmt(m.step)} s), got {fmt(m.max_step)} s"

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..engine.description import INTEGER_TYPES, REAL_TYPES, element_names
 from ..errors import SceneError
-from .checks import Ctx, article, convert_value, master_value, parse_ref
+from .checks import Ctx, article, convert_value, master_value, parse_ref, settable_problem
 from .model import Component, Sweep, SweepAxis, show
 
 MAX_POINTS = 1_000_000  # at a millisecond a point, a quarter of an hour; more is a slip
@@ -54,8 +54,9 @@ def parse_sweep(ctx: Ctx, t: dict | None, components: dict[str, Component], conn
             var = None
         else:
             comp, var = parse_ref(ctx, pkey, ref, components, "a parameter")
-            if var.causality not in ("parameter", "input"):
-                raise ctx.fail(pkey, f"{ref} is {article(var.causality)} {var.causality}, not a parameter")
+            if var.causality == "structuralParameter" or settable_problem(var):
+                why = settable_problem(var) or "a structural parameter (an array size), which clockwork does not change"
+                raise ctx.fail(pkey, f"{ref} is {article(var.causality)} {var.causality}, not a parameter ({why})")
             if getattr(var, "shape", None):
                 raise ctx.fail(pkey, f"{ref} is an array: sweep one of its elements (e.g. "
                                      f"{comp.name}.{element_names(var)[0]})" if element_names(var) else
@@ -147,7 +148,8 @@ def _master_value_at(ctx: Ctx, key: str, name: str, value: object):
     try:
         return master_value(ctx, name, value)
     except SceneError as e:
-        raise SceneError(e.detail, ctx.path, f"{ctx.key(key)} = {show(value)}") from None
+        path, shown = ctx.where(key)
+        raise SceneError(e.detail, path, f"{shown} = {show(value)}") from None
 
 
 def _range_end(ctx: Ctx, key: str, value: object, var, convert) -> float:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import math
 import posixpath
+import re
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -103,7 +104,11 @@ class Store:
         return f"{self.path}/{member}" if self.zip is not None else member
 
     def resolve(self, doc: Doc, el, attr: str) -> str | Path:
-        """The file an element's URI attribute names, relative to the document that holds it."""
+        """The file an element's URI attribute names, relative to the document
+        that holds it: a relative URI reference, or a `file:` URI (RFC 8089:
+        `file:/abs`, `file:///abs`, `file://localhost/abs`; `file:rel/x`, the
+        relative form tools write, resolves as `rel/x`). Inside an archive
+        the file must be one of its entries; beside an .ssd, any file."""
         uri = el.get(attr)
         try:
             parts = urlsplit(uri)
@@ -115,12 +120,22 @@ class Store:
             # proxyfmu:// (libcosim's and ecos' remote FMUs), http://, fmu://...
             raise doc.fail(el, f"the URI scheme {parts.scheme}: is not supported: clockwork reads the files of the "
                                "archive or beside the SSD; expected a relative path", attr)
-        if parts is None or parts.netloc or parts.query or parts.fragment or not parts.path:
+        if parts is None or parts.query or parts.fragment or not parts.path:
             raise doc.fail(el, "expected a relative path (a URI without scheme, host, query or fragment)", attr)
+        if parts.netloc and not (parts.scheme == "file" and parts.netloc.lower() == "localhost"):
+            what = "another host's file" if parts.scheme == "file" else "a network path"
+            raise doc.fail(el, f"expected a file on this machine: {shorten(parts.netloc, 100)} names {what}", attr)
+        if parts.netloc and not parts.path.startswith("/"):
+            raise doc.fail(el, "expected an absolute path after the host in a file: URI", attr)
         rel = unquote(parts.path)
+        if re.match(r"/?[A-Za-z]:[/\\]", rel):  # file:///C:/x, file:C:/x
+            raise doc.fail(el, "expected a relative path: this is a Windows drive path", attr)
+        if "\0" in rel:
+            raise doc.fail(el, "expected a path without a NUL character", attr)
         if self.zip is not None:
-            if rel.startswith("/") or parts.scheme:
-                raise doc.fail(el, "expected a path inside the archive, relative to the SSD", attr)
+            if rel.startswith("/"):
+                raise doc.fail(el, "expected a path inside the archive, relative to the SSD (an absolute path "
+                                   "names a file outside it)", attr)
             member = posixpath.normpath(posixpath.join(doc.base, rel))
             if member == ".." or member.startswith("../"):
                 raise doc.fail(el, "expected a path inside the archive: this one leaves it", attr)

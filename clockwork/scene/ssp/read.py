@@ -40,7 +40,7 @@ from ...engine.description import variables as variables_of
 from ...engine.model_exchange import interface_of, model_exchange_problem
 from ...errors import SceneError
 from ...numbers import parse_int, parse_real, shorten
-from ..checks import Ctx, convert_value, instance_problem
+from ..checks import SETTABLE, STRUCTURAL, Ctx, convert_value, instance_problem, settable_problem
 from ..model import Component, Connection, MasterConfig
 from .common import CW_ANNOTATION, CW_NS, NS, OMS_NS, OSP_ANNOTATION, OSP_NS, VERSIONS, q
 from .documents import SSD_NAME, Doc, Store, boolean, conversion, fmu_units, number, tag_name, unit_table
@@ -103,6 +103,9 @@ class SspScene:
     step_hints: dict[str, tuple[float, str, str]] = field(default_factory=dict)
     # where the SSD gives no stopTime: (file, key) for the note that 1 s is taken
     no_stop: tuple[str, str] | None = None
+    # where a section's value came from: dotted key ("master.step") -> (file, key), so that a value
+    # refused later is named by its own origin (an osp:FixedStepAlgorithm's baseStepSize, a DefaultExperiment's)
+    labels: dict[str, tuple[str, str]] = field(default_factory=dict)
 
 
 # ---------------------------------------------------------------- structure
@@ -156,6 +159,7 @@ class _Reader:
         self.systems: dict[str, _Element] = {}
         self.edges: list[_Edge] = []
         self.step_hints: dict[str, tuple[float, str, str]] = {}
+        self.labels: dict[str, tuple[str, str]] = {}  # SspScene.labels
         self._warned: dict[str, list[str]] = {}  # kind -> its warnings, in order
 
     def warn(self, label: str, key: str, text: str, kind: str | None = None) -> None:
@@ -213,7 +217,7 @@ class _Reader:
         self.warnings = self._summarised_warnings()
         return SspScene(root.get("name") or self.path.stem, system.get("description") or "", components,
                         tuple(connections), sections, digest, self.warnings, self.aliases, self.step_hints,
-                        no_stop)
+                        no_stop, self.labels)
 
     def _connectors(self, doc: Doc, el, md=None) -> dict[str, _Connector]:
         out: dict[str, _Connector] = {}
@@ -727,10 +731,13 @@ class _Reader:
             elem = self.instances[inst]
             variable = variables_of(elem.md)[var]
             label, key = v[3], v[4]
-            if variable.causality not in ("parameter", "input"):
-                raise SceneError(f"expected a parameter or an input: {elem.md.modelName}.{_s(var)} is "
-                                 f"{'an' if variable.causality[0] in 'aeiou' else 'a'} {variable.causality}",
-                                 label, key)
+            if variable.causality == "structuralParameter":
+                raise SceneError(f"{elem.md.modelName}.{_s(var)} {STRUCTURAL}", label, key)
+            problem = settable_problem(variable)
+            if problem:
+                raise SceneError(f"expected {SETTABLE}: {elem.md.modelName}.{_s(var)} is "
+                                 f"{'an' if variable.causality[0] in 'aeiou' else 'a'} {variable.causality} "
+                                 f"({problem})", label, key)
             if (inst, var) in linked and variable.causality == "input":
                 self.warn(label, key, f"{_s(inst + '.' + var)} is a connected input; its connection wins over this "
                                       "value",
@@ -782,10 +789,10 @@ class _Reader:
         out = {}
         if exp is None:
             return out, None
-        if exp.get("startTime") is not None:
-            out["start"] = number(doc, exp, "startTime")
-        if exp.get("stopTime") is not None:
-            out["stop"] = number(doc, exp, "stopTime")
+        for key, attr in (("start", "startTime"), ("stop", "stopTime")):
+            if exp.get(attr) is not None:
+                out[key] = number(doc, exp, attr)
+                self.labels[f"experiment.{key}"] = (doc.label, doc.key(exp, attr))
         step = None
         osp = self._annotation(doc, exp, OSP_ANNOTATION)
         if osp is not None:
@@ -852,13 +859,16 @@ class _Reader:
 
     def _master(self, doc: Doc, system, osp_step: tuple | None) -> dict:
         out: dict = {}
+        labels: dict[str, tuple[str, str]] = {}
         oms = self._annotation(doc, system, "org.openmodelica")
         if oms is not None:
             fixed = oms.find(f"{{{OMS_NS}}}Annotations/{{{OMS_NS}}}SimulationInformation/{{{OMS_NS}}}FixedStepMaster")
             if fixed is not None and fixed.get("stepSize") is not None:
                 out["step"] = number(doc, fixed, "stepSize")
+                labels["master.step"] = (doc.label, doc.key(fixed, "stepSize"))
             if fixed is not None and fixed.get("relativeTolerance") is not None and "tolerance" in _MASTER_FIELDS:
                 out["tolerance"] = number(doc, fixed, "relativeTolerance")
+                labels["master.tolerance"] = (doc.label, doc.key(fixed, "relativeTolerance"))
         if osp_step is not None:
             base, el = osp_step
             if "step" in out and out["step"] != base:
@@ -866,14 +876,18 @@ class _Reader:
                                    f"{out['step']:g} s, this one {base:g} s; expected one, or --set master.step",
                                "baseStepSize")
             out["step"] = base
+            labels["master.step"] = (doc.label, doc.key(el, "baseStepSize"))
         cw = self._annotation(doc, system, CW_ANNOTATION)
         if cw is not None:
             out = {}  # clockwork's own settings are complete: the other tools' do not mix in
+            labels = {}
             m = cw.find(f"{{{CW_NS}}}Settings/{{{CW_NS}}}Master")
             for k, text in (m.attrib.items() if m is not None else []):
                 if k not in _MASTER_FIELDS:
                     raise doc.fail(m, f"unknown master setting; allowed: {', '.join(_MASTER_FIELDS)}", k)
                 out[k] = _typed(text)
+                labels[f"master.{k}"] = (doc.label, doc.key(m, k))
+        self.labels.update(labels)
         return out
 
     def _record(self, doc: Doc, system) -> dict:
@@ -886,6 +900,7 @@ class _Reader:
             if k not in _RECORD_KEYS:
                 raise doc.fail(r, f"unknown record setting; allowed: {', '.join(_RECORD_KEYS)}", k)
             out[k] = _typed(text)
+            self.labels[f"record.{k}"] = (doc.label, doc.key(r, k))
         outputs = [o.get("name") for o in r.iterfind(f"{{{CW_NS}}}Output")]
         if outputs:
             out["outputs"] = outputs
