@@ -659,7 +659,8 @@ def _experiment(ctx: Ctx, t: dict) -> Experiment:
     start = ctx.time("experiment.start", t.get("start", 0.0))
     stop = ctx.time("experiment.stop", t["stop"])
     if not stop > start:
-        if "experiment.start" in ctx.labels and "experiment.stop" not in ctx.labels:  # the start given moved past it
+        # the start given moved past a stop the user did not give (a file's own stop has a (file, key) origin)
+        if isinstance(ctx.labels.get("experiment.start"), str) and not isinstance(ctx.labels.get("experiment.stop"), str):
             raise ctx.bad("experiment.start", t["start"], f"a time < experiment.stop ({fmt(stop)} s)")
         raise ctx.bad("experiment.stop", t["stop"], f"a time > experiment.start ({fmt(start)} s)")
     return Experiment(start, stop)
