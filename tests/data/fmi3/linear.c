@@ -220,6 +220,9 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
         return fail(a, "fmi3DoStep: the communication point is not the FMU's time");
     const double end = currentCommunicationPoint + communicationStepSize;
     if (end > a->t_fail) {
+#ifdef CW_CRASH_AFTER_T_FAIL  /* tests/test_fmu_crash.py: a NULL dereference instead */
+        *(volatile int *)(a->t_fail > 0 ? NULL : a) = 1;
+#endif
         char text[120];
         snprintf(text, sizeof text, "the model fails after t_fail = %.17g s", a->t_fail);
         return fail(a, text);
