@@ -6,7 +6,8 @@ handler: the watchdog thread (clockwork/watchdog.py) ends the run within
 a second of SIGTERM or SIGINT, exit code 128 + the signal, one line, the
 scratch folder and the staging folder removed, the earlier result in the
 directory intact; with pool workers too. A sweep worker that is killed
-fails the run with one line.
+fails the run with one line; a point is written into an unnamed file, so
+a process killed while writing it leaves no .part.
 """
 
 from __future__ import annotations
@@ -137,3 +138,18 @@ def test_a_killed_sweep_worker_fails_the_run_with_one_line(tmp_path, hostile):
     assert len(lines) == 1 and "sweep worker process ended abruptly (killed by SIGKILL)" in lines[0], err
     assert not list(tmp.iterdir())
 
+
+def test_a_process_killed_while_writing_a_point_leaves_no_part_file(tmp_path):
+    points = tmp_path / "points"
+    points.mkdir()
+    for existing in (False, True):
+        target = points / "abc.json"
+        if existing:
+            target.write_text("{}")
+        code = ("import os, signal\n"
+                "os.fsync = lambda fd: os.kill(os.getpid(), signal.SIGKILL)  # killed in the middle of the write\n"
+                "from clockwork.results.files import write_json_atomic\n"
+                f"write_json_atomic({str(target)!r}, {{'x': 1}}, unnamed=True)\n")
+        r = subprocess.run([sys.executable, "-c", code], env=dict(os.environ, PYTHONPATH=str(ROOT)))
+        assert r.returncode == -signal.SIGKILL
+        assert [p.name for p in points.iterdir()] == (["abc.json"] if existing else [])
