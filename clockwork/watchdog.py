@@ -6,7 +6,9 @@ stop signal (SIGINT, SIGTERM, SIGHUP) that arrives while an FMU call blocks
 C handler also writes the signal's number to the wakeup fd
 (`signal.set_wakeup_fd`), at once, from any thread; this module's thread
 reads it. When the main thread has not taken the signal within `GRACE`
-seconds (clockwork.cli's handler calls `taken`), the thread does what the
+seconds (clockwork.cli's handler calls `taken`), or has not ended the run
+`CLEANUP` seconds after taking it (its cleanup called into another FMU
+that hangs), the thread does what the
 main thread's `with` blocks would have done: the registered cleanups (the
 worker and plot processes killed and reaped, the staging folder removed; a
 commit under way is left to the next run, as a kill would be), then the
@@ -32,6 +34,7 @@ import time
 from typing import Callable
 
 GRACE = 0.4  # s the main thread has to take a stop signal itself
+CLEANUP = 10.0  # s it then has to finish its cleanup (a second hung FMU call)
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 FATAL_SIGNALS = (signal.SIGSEGV, signal.SIGBUS, signal.SIGFPE, signal.SIGILL, signal.SIGABRT)
 
@@ -42,6 +45,7 @@ _taken: list[int] = []
 _cleanups: dict[int, Callable[[], None]] = {}
 _tokens = itertools.count()
 _abandoning = threading.Event()
+_watching = [0]  # a new number for every start() and stop(): a wait of an earlier one is over
 _crash_text: list[Callable[[], str]] = []  # what names a crash the core could not return from
 
 
@@ -51,6 +55,7 @@ def start() -> None:
     global _pipe, _thread
     with _lock:
         _taken.clear()
+        _watching[0] += 1
         if _thread is not None:
             try:
                 signal.set_wakeup_fd(_pipe[1], warn_on_full_buffer=False)
@@ -82,6 +87,7 @@ def stop() -> None:
             except ValueError:
                 pass
         _taken.clear()
+        _watching[0] += 1
 
 
 def is_watchdog(thread: threading.Thread) -> bool:
@@ -159,13 +165,18 @@ def _watch(fd: int) -> None:
 
 
 def _stop(signo: int) -> None:
-    deadline = time.monotonic() + GRACE
-    while time.monotonic() < deadline:
-        if _taken:
-            return  # the main thread ends the run
+    """The main thread takes the signal within GRACE and ends the run within
+    CLEANUP (its cleanup may call into another FMU that hangs); else this
+    thread ends it. A stop() of the watching ends the wait."""
+    watching = _watching[0]
+    began = time.monotonic()
+    while time.monotonic() - began < GRACE + CLEANUP:
+        if _watching[0] != watching:
+            return  # main() returned: nothing to end
+        if not _taken and time.monotonic() - began > GRACE:
+            break
         time.sleep(0.02)
-    if _taken:
-        return
+    signo = _taken[0] if _taken else signo
     name = "interrupted" if signo == signal.SIGINT else f"interrupted by {signal.Signals(signo).name}"
     _abandon(f"clockwork: error: {name}", 128 + signo)
 

@@ -564,7 +564,7 @@ class Instance:
                 return text
         for _, status, text in reversed(unattributed):  # logged through a bad environment and name
             if status >= DISCARD and text:
-                return text
+                return f"{text} (logged through no live instance's environment or name)"
         return ""
 
     def fail(self, what: str, status: int, time: float | None = None,
