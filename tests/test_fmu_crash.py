@@ -204,3 +204,28 @@ def test_a_crash_in_an_fmi3_do_step_is_a_failed_run(tmp_path, engine):
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["result"]["failed"]["instance"] == "Linear"
     assert not list(tmp.iterdir())
+
+
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_an_fmi1_fmu_that_logs_bad_strings_and_crashes_is_a_failed_run(tmp_path, engine):
+    import shutil
+    import zipfile
+
+    import fmpy
+
+    data = Path(__file__).parent / "data" / "fmi1"
+    binary = tmp_path / "Hold.so"
+    cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
+    subprocess.run([cc, "-shared", "-fPIC", "-O1", "-std=gnu99", "-DCW_HOSTILE",
+                    f"-I{Path(fmpy.__file__).parent / 'c-code'}", str(data / "hold.c"), "-o", str(binary)],
+                   check=True)
+    fmu = tmp_path / "Hold.fmu"
+    with zipfile.ZipFile(fmu, "w") as z:
+        z.write(data / "modelDescription.xml", "modelDescription.xml")
+        z.write(binary, "binaries/linux64/Hold.so")
+    r, tmp = _run(tmp_path, fmu, "master.step=0.1", f"master.engine={engine}")
+    _one_line(r, 1, "fmiDoStep", "SIGSEGV", "crashed")
+    with open(tmp_path / "out" / "timeseries.csv") as f:
+        times = [round(float(row[0]), 9) for row in list(csv.reader(f))[1:]]
+    assert times == [0.0, 0.1, 0.2, 0.3]
+    assert not list(tmp.iterdir())

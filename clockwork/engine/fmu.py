@@ -92,6 +92,9 @@ def formatting_logger():
                 lib.cw_crash_info.restype = c_int
                 lib.cw_crash_line.argtypes = []
                 lib.cw_crash_line.restype = c_char_p
+                # A forked child (a pool worker) has no watchdog: its crash
+                # handler must not write to the parent's pipe's number.
+                os.register_at_fork(after_in_child=lambda: lib.cw_crash_install(-1))
                 _formatter.append((ctypes.cast(lib.cw_logger, fmi2CallbackLoggerTYPE), lib))
             except (OSError, AttributeError):
                 _formatter.append(None)
