@@ -30,7 +30,8 @@ def fork_is_safe() -> bool:
     Linux (prctl ties the child to its parent) and no other thread (a lock
     another thread held at the fork would stay locked in the child)."""
     # The watchdog's thread sleeps in os.read, holding no lock.
-    others = [t for t in threading.enumerate() if t is not threading.current_thread() and not watchdog.is_watchdog(t)]
+    others = [t for t in threading.enumerate()
+              if t is not threading.current_thread() and not watchdog.is_watchdog(t)]
     return sys.platform.startswith("linux") and hasattr(os, "fork") and not others
 
 

@@ -121,9 +121,9 @@ def guard_library(dll, names: tuple[str, ...], instance: str) -> int | None:
         if lib.cw_crash_binary(c_void_p(address)) != 0:
             return None
         with _formatter_lock:
-            names = _guarded_names.setdefault(address, [])
-            if instance not in names:
-                names.append(instance)
+            instances = _guarded_names.setdefault(address, [])
+            if instance not in instances:
+                instances.append(instance)
         return address
     return None
 
@@ -169,7 +169,8 @@ def crash_of(address: int | None, seen: int = 0) -> str | None:
         name = signal.Signals(sig).name
     except ValueError:
         name = f"signal {sig}"
-    return f"{call.value.decode('utf-8', 'replace') or 'an FMI call'} ({name}, {_SIGNAL_WHAT.get(name, 'a crash')})"
+    call_name = call.value.decode("utf-8", "replace") or "an FMI call"
+    return f"{call_name} ({name}, {_SIGNAL_WHAT.get(name, 'a crash')})"
 
 
 def read_string(address) -> str:
@@ -444,7 +445,6 @@ class Instance:
             del messages[:-50]
 
         self._guarded = guard_library(self._slave.dll, ("fmi2Instantiate",), self.name)
-
         self._crashes_seen = crashes(self._guarded)  # an earlier instance's crash is not this one's
         self._callbacks = fmi2CallbackFunctions()
         core = formatting_logger()

@@ -42,7 +42,8 @@ from __future__ import annotations
 
 import copy
 import ctypes
-from ctypes import CFUNCTYPE, POINTER, Structure, c_char, c_char_p, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
+from ctypes import (CFUNCTYPE, POINTER, Structure, c_char, c_char_p, c_double, c_int, c_longlong, c_size_t, c_uint,
+                    c_void_p)
 from pathlib import Path
 
 from fmpy import calloc, free

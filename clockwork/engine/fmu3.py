@@ -52,8 +52,8 @@ import copy
 import ctypes
 import math
 import weakref
-from ctypes import (CFUNCTYPE, POINTER, Structure, byref, c_bool, c_char_p, c_double, c_float, c_int, c_int8, c_int16, c_int32,
-                    c_int64, c_longlong, c_size_t, c_uint, c_uint8, c_uint16, c_uint32, c_uint64, c_void_p)
+from ctypes import (CFUNCTYPE, POINTER, Structure, byref, c_bool, c_char_p, c_double, c_float, c_int, c_int8, c_int16,
+                    c_int32, c_int64, c_longlong, c_size_t, c_uint, c_uint8, c_uint16, c_uint32, c_uint64, c_void_p)
 
 from fmpy.fmi3 import FMU3Slave, fmi3IntermediateUpdateCallback, fmi3LogMessageCallback
 
@@ -320,7 +320,8 @@ class Instance3(Instance):
             del messages[:-50]
 
         self._register_env()
-        self._guarded = guard_library(self._slave.dll, ("fmi3InstantiateCoSimulation", "fmi3GetVersion"), self.name)
+        self._guarded = guard_library(self._slave.dll, ("fmi3InstantiateCoSimulation", "fmi3GetVersion"),
+                                      self.name)
         self._crashes_seen = crashes(self._guarded)  # an earlier instance's crash is not this one's
         try:
             self._instantiate(logger)
