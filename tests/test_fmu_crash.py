@@ -229,3 +229,41 @@ def test_an_fmi1_fmu_that_logs_bad_strings_and_crashes_is_a_failed_run(tmp_path,
         times = [round(float(row[0]), 9) for row in list(csv.reader(f))[1:]]
     assert times == [0.0, 0.1, 0.2, 0.3]
     assert not list(tmp.iterdir())
+
+
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_a_crash_the_handler_cannot_return_from_ends_the_run_with_one_line(tmp_path, engine):
+    # Without unwind tables the handler cannot find the FMU's caller: it
+    # parks the thread and the watchdog ends the run (no history kept).
+    fmu = fmi2_hostile.build(tmp_path, "NoUnwind", ("-fno-asynchronous-unwind-tables", "-fno-unwind-tables"))
+    r, tmp = _run(tmp_path, fmu, "Hostile.fault=1", "Hostile.t_fault=0.3", f"master.engine={engine}")
+    _one_line(r, 1, "Hostile", "fmi2DoStep", "SIGSEGV", "crashed")
+    assert not list(tmp.iterdir())
+    assert not [p for p in (tmp_path / "out").rglob("*") if p.name.endswith(".part") or p.name.startswith(".")]
+
+
+def test_a_sweep_worker_ended_by_a_crash_fails_the_run_with_one_line(tmp_path):
+    fmu = fmi2_hostile.build(tmp_path, "NoUnwind", ("-fno-asynchronous-unwind-tables", "-fno-unwind-tables"))
+    scene = tmp_path / "s.toml"
+    scene.write_text(f"""
+[scene]
+title = "a sweep whose worker dies"
+[components.h]
+fmu = "{fmu}"
+parameters = {{ fault = 1 }}
+[experiment]
+stop = "1 s"
+[master]
+step = "0.1 s"
+[record]
+outputs = ["h.x"]
+[sweep]
+axes = [ {{ parameter = "h.t_fault", values = [0.2, 5] }} ]
+""")
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT), CLOCKWORK_CACHE="off")
+    r = subprocess.run([sys.executable, "-m", "clockwork", "run", str(scene), "--out", str(tmp_path / "out"),
+                        "--no-plot", "--workers", "2"], env=env, capture_output=True, text=True, timeout=120)
+    _one_line(r, 1, "sweep worker process ended abruptly")
+    assert not list(tmp.iterdir())

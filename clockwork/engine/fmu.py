@@ -101,6 +101,19 @@ def formatting_logger():
         return _formatter[0]
 
 
+def quiet_crashes() -> None:
+    """In a sweep worker: a crash the core cannot return from ends the
+    process without a line of its own (the parent reports the worker's end)."""
+    global _quiet
+    core = formatting_logger()
+    if core is not None:
+        core[1].cw_crash_install(-2)
+    _quiet = True
+
+
+_quiet = False
+
+
 def guard_library(dll, names: tuple[str, ...], instance: str) -> int | None:
     """Put the FMU library `dll` under the core's crash handler (cw_guard.c):
     a fatal signal inside it makes the FMI call it was in return fmi2Fatal
@@ -116,7 +129,8 @@ def guard_library(dll, names: tuple[str, ...], instance: str) -> int | None:
         except AttributeError:
             continue
         lib = core[1]
-        lib.cw_crash_install(watchdog.crash_fd())
+        if not _quiet:
+            lib.cw_crash_install(watchdog.crash_fd())
         watchdog.describe_crash(_describe_crash)
         if lib.cw_crash_binary(c_void_p(address)) != 0:
             return None

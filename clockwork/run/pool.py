@@ -35,6 +35,9 @@ def _start_worker(parent: int, scratch: str) -> None:
     run that outlives it."""
     die_with_parent(parent)
     scratch_inside(Path(scratch))
+    from ..engine.fmu import quiet_crashes
+
+    quiet_crashes()  # a crash that ends this process is reported by the parent, in its one line
     for sig in (signal.SIGTERM, signal.SIGHUP):
         if signal.getsignal(sig) is not signal.SIG_IGN:
             signal.signal(sig, signal.SIG_DFL)
@@ -74,7 +77,7 @@ def run_in_pool(scene, points: list[dict], indices: list[int], workers: int):
                 result = f.result()
             except BrokenProcessPool:
                 raise SimulationError(
-                    f"a sweep worker process ended abruptly ({_how_workers_ended(pool)}) while the point of sweep "
+                    f"a sweep worker process ended abruptly{_how_workers_ended(pool)} while the point of sweep "
                     f"index {futures[f]} ran: the sweep stops; its finished points are kept in points/ for a "
                     f"rerun") from None
             yield futures[f], result
@@ -89,7 +92,8 @@ def run_in_pool(scene, points: list[dict], indices: list[int], workers: int):
 
 
 def _how_workers_ended(pool: ProcessPoolExecutor) -> str:
-    """The exit of the pool's dead workers, as "killed by SIGKILL", "exit code 1"."""
+    """The exit of the pool's dead workers, as " (killed by SIGKILL)", " (exit code 1)", or "" when
+    the pool no longer says."""
     ends = set()
     for w in list((getattr(pool, "_processes", None) or {}).values()):
         code = w.exitcode
@@ -102,7 +106,7 @@ def _how_workers_ended(pool: ProcessPoolExecutor) -> str:
                 ends.add(f"killed by signal {-code}")
         elif code:
             ends.add(f"exit code {code}")
-    return ", ".join(sorted(ends)) or "killed"
+    return f" ({', '.join(sorted(ends))})" if ends else ""
 
 
 def _kill_workers(pool: ProcessPoolExecutor) -> None:

@@ -681,14 +681,17 @@ static void on_fatal(int sig, siginfo_t *si, void *context)
             nanosleep(&nap, NULL);
         }
     }
-    say("clockwork: error: ");
-    say(crash_line);
-    say("\n");
+    if (crash_fd != -2) {  /* -2: a sweep worker, whose end its parent reports */
+        say("clockwork: error: ");
+        say(crash_line);
+        say("\n");
+    }
     _exit(1);
 }
 
 /* Install the handler (once; later calls only set the watchdog's pipe,
- * fd, or -1 for none): 0, or -1 when sigaction refused. */
+ * fd, or -1 for none, -2 for none and no line): 0, or -1 when sigaction
+ * refused. */
 CW_EXPORT int cw_crash_install(int fd)
 {
     static int installed;
