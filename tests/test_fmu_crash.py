@@ -136,11 +136,11 @@ def test_an_fmu_that_logs_through_bad_environments_runs_and_its_error_reaches_it
 
 # -- crashes ------------------------------------------------------------------
 
-FAULTS = {1: "SIGSEGV", 2: "SIGFPE", 3: "SIGABRT"}
+FAULTS = {1: "SIGSEGV", 2: "SIGFPE", 3: "SIGABRT", 6: "SIGSEGV"}  # 6: a call of the NULL stepFinished
 
 
 @pytest.mark.parametrize("engine", ["python", "compiled"])
-@pytest.mark.parametrize("fault", sorted(FAULTS), ids=lambda f: FAULTS[f])
+@pytest.mark.parametrize("fault", sorted(FAULTS), ids=lambda f: f"{f}-{FAULTS[f]}")
 def test_a_crash_in_do_step_is_a_failed_run_that_keeps_its_history(tmp_path, fmus, fault, engine):
     r, tmp = _run(tmp_path, fmus["hostile"], f"Hostile.fault={fault}", "Hostile.t_fault=0.3",
                   f"master.engine={engine}")

@@ -617,6 +617,17 @@ static void append(char *dst, size_t cap, const char *s)
     dst[n] = '\0';
 }
 
+#if defined(__x86_64__)
+/* Where a call through a bad pointer from inside an FMU (a NULL
+ * stepFinished) is resumed: as if the FMU had called this, whose ud2 then
+ * gives the handler frames it can walk (at its first instruction the CFA
+ * is rsp + 8, the return address into the FMU at rsp). */
+void cw_trap(void);
+__asm__(".text\n.globl cw_trap\n.hidden cw_trap\n.type cw_trap, @function\ncw_trap:\n"
+        ".cfi_startproc\nud2\n.cfi_endproc\n.size cw_trap, .-cw_trap\n");
+#endif
+static volatile int trap_sig;  /* the signal of such a call, while cw_trap re-raises it */
+
 static void on_fatal(int sig, siginfo_t *si, void *context)
 {
     if (in_handler) {  /* a crash while handling one */
@@ -624,9 +635,29 @@ static void on_fatal(int sig, siginfo_t *si, void *context)
         _exit(1);
     }
     in_handler = 1;
+#if defined(__x86_64__)
+    greg_t *r = ((ucontext_t *)context)->uc_mcontext.gregs;
+    if (trap_sig && sig == SIGILL && r[REG_RIP] == (greg_t)cw_trap)
+        sig = trap_sig;
+    trap_sig = 0;
+#endif
     walk_t w;
     memset(&w, 0, sizeof w);
     _Unwind_Backtrace(each_frame, &w);
+#if defined(__x86_64__)
+    Dl_info info;
+    uintptr_t ret = 0;
+    if (!w.found && !dladdr((void *)r[REG_RIP], &info) &&
+        read_remote((char *)&ret, (const char *)r[REG_RSP], sizeof ret) == (long)sizeof ret &&
+        dladdr((void *)(ret - 1), &info) && binary_at(info.dli_fbase)) {
+        /* The program counter is in no library and the stack's top is a
+         * return address into an FMU: a call through a bad pointer. */
+        trap_sig = sig;
+        r[REG_RIP] = (greg_t)cw_trap;
+        in_handler = 0;
+        return;
+    }
+#endif
     if (!w.found) {  /* not an FMU's: the earlier action, as if this handler were not there */
         in_handler = 0;
         struct sigaction *was = &previous[sig];
@@ -650,8 +681,6 @@ static void on_fatal(int sig, siginfo_t *si, void *context)
 #if defined(__x86_64__)
     if (w.call_ok && w.caller_ok && !w.pending) {
         /* Return from the FMI call into its caller: rax is what it returns. */
-        ucontext_t *uc = context;
-        greg_t *r = uc->uc_mcontext.gregs;
         r[REG_RIP] = (greg_t)w.resume_ip;
         r[REG_RSP] = (greg_t)w.resume_sp;
         r[REG_RBX] = (greg_t)w.regs[0];

@@ -9,7 +9,8 @@
  * - at t >= t_fault its doStep does what `fault` says: 1 dereferences NULL,
  *   2 raises SIGFPE, 3 calls abort(), 4 never returns (sleeps in a loop),
  *   5 logs an error through environment (void *)1 with its instance name
- *   and returns fmi2Error;
+ *   and returns fmi2Error, 6 calls the stepFinished callback it was not
+ *   given (NULL);
  * - built with -DCW_ABORT_IN_INSTANTIATE, fmi2Instantiate calls abort().
  *
  * All its state is in its instance (no globals). */
@@ -122,6 +123,9 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet
                 struct timespec nap = {0, 10000000};
                 nanosleep(&nap, NULL);
             }
+        case 6:  /* a callback the environment did not give (stepFinished is NULL) */
+            s->cb.stepFinished(s->cb.componentEnvironment, fmi2OK);
+            break;
         case 5:
             s->cb.logger((fmi2ComponentEnvironment)1, s->name, fmi2Error, "logStatusError",
                          "hostile failure at t=%g (%s)", t + h, "formatted");
