@@ -31,6 +31,7 @@
 #include <dlfcn.h>
 #include <errno.h>
 #include <execinfo.h>
+#include <fcntl.h>
 #include <limits.h>
 #include <pthread.h>
 #include <signal.h>
@@ -71,7 +72,7 @@ static long read_remote(char *dst, const char *src, size_t n)
      * memory in the kernel too (EFAULT), one page at most at a time. */
     pthread_mutex_lock(&lock);
     long done = -1;
-    if (probe[0] >= 0 || pipe(probe) == 0) {
+    if (probe[0] >= 0 || pipe2(probe, O_CLOEXEC) == 0) {
         ssize_t w = write(probe[1], src, n);
         if (w > 0) {
             ssize_t r = read(probe[0], dst, (size_t)w);
@@ -598,7 +599,9 @@ static _Unwind_Reason_Code each_frame(struct _Unwind_Context *ctx, void *arg)
     if (w->pending) {  /* the caller of the outermost FMU frame so far */
         w->pending = 0;
         const char *file = known && info.dli_fname ? info.dli_fname : "";
-        w->caller_ok = known && (info.dli_fbase == own_base || strstr(file, "ffi") || strstr(file, "_ctypes"));
+        const char *base = strrchr(file, '/') ? strrchr(file, '/') + 1 : file;
+        w->caller_ok = known && (info.dli_fbase == own_base || strncmp(base, "libffi", 6) == 0 ||
+                                 strncmp(base, "_ctypes", 7) == 0);
         w->resume_ip = ip;
         /* libgcc's CFA of a frame's context is the stack pointer of that
          * frame at the call: where the FMU's `ret` would have left it. */
