@@ -198,7 +198,7 @@ def test_a_crash_in_an_fmi3_do_step_is_a_failed_run(tmp_path, engine):
 
     source = SOURCE.read_text()
     fmu = pack(tmp_path, "LinearCrash", "Linear", source, source, MODEL_DESCRIPTION,
-               ("-Wall", "-DCW_CRASH_AFTER_T_FAIL"))
+               ("-Wall", "-DCW_CRASH_AFTER_T_FAIL", "-DCW_HOSTILE_LOG"))  # logs unreadable strings first
     r, tmp = _run(tmp_path, fmu, "Linear.t_fail=0.45", f"master.engine={engine}")
     _one_line(r, 1, "Linear", "fmi3DoStep", "SIGSEGV", "crashed")
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
