@@ -45,7 +45,7 @@ class Child:
         self.job_fd: int | None = job_fd
         self.answer_fd: int | None = answer_fd
         # Killed and reaped when the watchdog ends a run whose main thread is stuck.
-        self._abandon = watchdog.on_abandon(self._kill)
+        self._abandon = watchdog.on_abandon(self._kill, process=True)
 
     def _kill(self) -> None:
         pid = self.pid

@@ -42,7 +42,7 @@ _lock = threading.Lock()
 _pipe: tuple[int, int] | None = None
 _thread: threading.Thread | None = None
 _taken: list[int] = []
-_cleanups: dict[int, Callable[[], None]] = {}
+_cleanups: dict[int, tuple[int, Callable[[], None]]] = {}
 _tokens = itertools.count()
 _abandoning = threading.Event()
 _watching = [0]  # a new number for every start() and stop(): a wait of an earlier one is over
@@ -109,11 +109,13 @@ def taken(signo: int) -> None:
         time.sleep(1)
 
 
-def on_abandon(cleanup: Callable[[], None]) -> int:
+def on_abandon(cleanup: Callable[[], None], process: bool = False) -> int:
     """Run `cleanup` (from the watchdog's thread) when the watchdog ends the
-    process; returns a token for `forget`. Cleanups run last registered first."""
+    process; returns a token for `forget`. Those that end a `process` run
+    first (it may be writing into a folder another removes), then the
+    others, each group last registered first."""
     token = next(_tokens)
-    _cleanups[token] = cleanup
+    _cleanups[token] = (0 if process else 1, cleanup)
     return token
 
 
@@ -193,9 +195,10 @@ def _abandon(line: str, code: int) -> None:
     """End the process as the main thread's cleanup would have: every
     registered cleanup, the scratch folder, the one line, exit `code`."""
     _abandoning.set()
-    for token in sorted(_cleanups, reverse=True):
+    for _, _, cleanup in sorted(((group, -token, fn) for token, (group, fn) in list(_cleanups.items())),
+                                key=lambda c: c[:2]):
         try:
-            _cleanups[token]()
+            cleanup()
         except BaseException:  # noqa: BLE001 (the others must run)
             pass
     from . import paths  # the scratch folder the main thread would remove at exit

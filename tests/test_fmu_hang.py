@@ -84,7 +84,7 @@ def _ended(proc, sig) -> str:
 
 
 @pytest.mark.parametrize("engine", ["python", "compiled"])
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=lambda s: s.name)
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP], ids=lambda s: s.name)
 def test_a_signal_ends_a_run_whose_fmu_never_returns(tmp_path, hostile, sig, engine):
     env, tmp = _env(tmp_path)
     out = tmp_path / "out"

@@ -65,7 +65,7 @@ def run_in_pool(scene, points: list[dict], indices: list[int], workers: int):
     pool = ProcessPoolExecutor(workers, initializer=_start_worker, initargs=(os.getpid(), str(scratch_dir())))
     # Killed at once when the watchdog ends a run whose main thread is stuck
     # (before the scratch folder they write into is removed).
-    token = watchdog.on_abandon(lambda: _kill_workers(pool))
+    token = watchdog.on_abandon(lambda: _kill_workers(pool), process=True)
     try:
         futures = {
             pool.submit(_worker, str(scene.path), tuple(scene.overrides),
