@@ -46,26 +46,28 @@ _cleanups: dict[int, tuple[int, Callable[[], None]]] = {}
 _tokens = itertools.count()
 _abandoning = threading.Event()
 _watching = [0]  # a new number for every start() and stop(): a wait of an earlier one is over
+_previous_fd = [-1]  # the wakeup fd before start()
 _crash_text: list[Callable[[], str]] = []  # what names a crash the core could not return from
 
 
 def start() -> None:
     """Watch for stop signals (call in the main thread, with the handlers of
-    the stop signals installed). A second call does nothing."""
+    the stop signals installed). The thread and its pipe are made once; a
+    later call (after stop) watches again."""
     global _pipe, _thread
     with _lock:
         _taken.clear()
         _watching[0] += 1
         if _thread is not None:
             try:
-                signal.set_wakeup_fd(_pipe[1], warn_on_full_buffer=False)
+                _previous_fd[0] = signal.set_wakeup_fd(_pipe[1], warn_on_full_buffer=False)
             except ValueError:
                 pass
             return
         r, w = os.pipe()
         os.set_blocking(w, False)
         try:
-            signal.set_wakeup_fd(w, warn_on_full_buffer=False)
+            _previous_fd[0] = signal.set_wakeup_fd(w, warn_on_full_buffer=False)
         except ValueError:  # not the main thread
             os.close(r)
             os.close(w)
@@ -83,7 +85,7 @@ def stop() -> None:
     with _lock:
         if _pipe is not None:
             try:
-                signal.set_wakeup_fd(-1)
+                signal.set_wakeup_fd(_previous_fd[0])  # a program's own, when main() ran inside one
             except ValueError:
                 pass
         _taken.clear()
