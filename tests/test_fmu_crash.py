@@ -60,12 +60,17 @@ def _one_line(r, code: int, *needles: str) -> str:
 # -- the logger ---------------------------------------------------------------
 
 
-def test_the_logger_looks_environments_up_and_reads_nothing_it_was_not_given():
+@pytest.mark.parametrize("reads", ["kernel", "direct"])
+def test_the_logger_looks_environments_up_and_reads_nothing_it_was_not_given(reads):
+    # Strings are read through process_vm_readv, or directly under the
+    # crash handler once it is installed (as it is when an FMU is loaded).
     from clockwork.engine import fmu as fmu_module
 
     core = fmu_module.formatting_logger()
     assert core is not None, "the compiled core is not built"
     lib = core[1]
+    if reads == "direct":
+        assert lib.cw_crash_install(-1) == 0
     got = {"a": [], "b": []}
     sinks = {name: fmu_module._SINK(lambda i, s, c, t, name=name: got[name].append(t.decode()))
              for name in got}
