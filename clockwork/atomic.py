@@ -10,7 +10,9 @@ the name tells a later run that nobody is writing it any more
 
 from __future__ import annotations
 
+import errno
 import os
+import secrets
 import tempfile
 from pathlib import Path
 
@@ -75,6 +77,57 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
             raise OSError(e.errno, e.strerror, str(path)) from None
         raise
     fsync_dir(path.parent)
+    return path
+
+
+def write_bytes_unnamed(path: str | os.PathLike, data: bytes) -> Path:
+    """write_bytes_atomic, written into an unnamed file (Linux O_TMPFILE)
+    that is given its name only once complete: a process killed while
+    writing it (a sweep killed between points) leaves nothing behind. A
+    target that exists already is replaced through a .part name linked in
+    the instant before the rename. Where the file system has no O_TMPFILE
+    (or /proc is not mounted), as write_bytes_atomic."""
+    path = Path(path)
+    flag = getattr(os, "O_TMPFILE", None)
+    if flag is None or not os.path.isdir("/proc/self/fd"):
+        return write_bytes_atomic(path, data)
+    try:
+        folder = os.open(path.parent, os.O_RDONLY | os.O_DIRECTORY)
+    except OSError as e:
+        raise OSError(e.errno, e.strerror, str(path)) from None
+    try:
+        try:
+            fd = os.open(".", flag | os.O_WRONLY, 0o644, dir_fd=folder)
+        except OSError as e:
+            if e.errno in (errno.EOPNOTSUPP, errno.EISDIR, errno.EINVAL):
+                return write_bytes_atomic(path, data)
+            raise
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+            os.fchmod(f.fileno(), 0o644)
+            # With a dir_fd, os.link is linkat(AT_SYMLINK_FOLLOW): the link
+            # is to the open file, not to /proc's symbolic link.
+            unnamed = f"/proc/self/fd/{f.fileno()}"
+            try:
+                os.link(unnamed, path.name, dst_dir_fd=folder)
+            except FileExistsError:
+                tmp = f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}{PART}"
+                os.link(unnamed, tmp, dst_dir_fd=folder)
+                try:
+                    os.replace(tmp, path.name, src_dir_fd=folder, dst_dir_fd=folder)
+                except BaseException:
+                    os.unlink(tmp, dir_fd=folder)
+                    raise
+        try:
+            os.fsync(folder)  # the new name, durable
+        except OSError:
+            pass
+    except OSError as e:
+        raise OSError(e.errno, e.strerror, str(path)) from None
+    finally:
+        os.close(folder)
     return path
 
 

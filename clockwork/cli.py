@@ -22,6 +22,7 @@ from pathlib import Path
 from .version import __version__
 from .errors import Interrupted, SceneError, SimulationError, UsageError, printable, say
 from .paths import matplotlib_folder, scenarios_dir
+from . import watchdog
 from .processes import Child, die_with_parent, fork_child, fork_is_safe
 
 
@@ -626,6 +627,7 @@ def _signals_as_interrupts():
     def stop(signo, frame):
         if first:
             return  # already on the way out
+        watchdog.taken(signo)
         first.append(signo)
         if signo == signal.SIGINT:
             raise KeyboardInterrupt
@@ -633,9 +635,13 @@ def _signals_as_interrupts():
 
     before = {sig: signal.signal(sig, stop) for sig in _STOP_SIGNALS
               if signal.getsignal(sig) in (signal.default_int_handler, signal.SIG_DFL)}
+    # A signal that arrives while an FMU call blocks (the main thread never
+    # gets to run `stop`) ends the run from the watchdog's thread.
+    watchdog.start()
     try:
         yield
     finally:
+        watchdog.stop()
         for sig, handler in before.items():
             signal.signal(sig, handler)
 

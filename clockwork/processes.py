@@ -8,6 +8,8 @@ import sys
 import threading
 from typing import Callable
 
+from . import watchdog
+
 
 def die_with_parent(parent: int) -> None:
     """Call first thing in a child process: when `parent` dies (even by
@@ -27,7 +29,10 @@ def fork_is_safe() -> bool:
     """Whether this process may fork a child that goes on running Python:
     Linux (prctl ties the child to its parent) and no other thread (a lock
     another thread held at the fork would stay locked in the child)."""
-    return sys.platform.startswith("linux") and hasattr(os, "fork") and threading.active_count() == 1
+    # The watchdog's thread sleeps in os.read, holding no lock.
+    others = [t for t in threading.enumerate()
+              if t is not threading.current_thread() and not watchdog.is_watchdog(t)]
+    return sys.platform.startswith("linux") and hasattr(os, "fork") and not others
 
 
 class Child:
@@ -39,6 +44,17 @@ class Child:
         self.pid: int | None = pid
         self.job_fd: int | None = job_fd
         self.answer_fd: int | None = answer_fd
+        # Killed and reaped when the watchdog ends a run whose main thread is stuck.
+        self._abandon = watchdog.on_abandon(self._kill, process=True)
+
+    def _kill(self) -> None:
+        pid = self.pid
+        if pid is not None:
+            try:
+                os.kill(pid, signal.SIGKILL)
+                os.waitpid(pid, 0)
+            except OSError:
+                pass
 
     def take_job_fd(self) -> int | None:
         """The pipe to the child, which the caller now owns (and closes)."""
@@ -53,6 +69,7 @@ class Child:
     def reap(self) -> int | None:
         """Wait for the child to end: its exit status, or None when it was already reaped."""
         pid, self.pid = self.pid, None
+        watchdog.forget(self._abandon)
         if pid is None:
             return None
         try:

@@ -7,11 +7,13 @@ communication step costs a few ctypes calls and no Python-side allocation.
 
 from __future__ import annotations
 
+import collections
 import copy
 import ctypes
 import json
 import os
 import shutil
+import signal
 import tempfile
 import threading
 import weakref
@@ -25,6 +27,7 @@ from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
 from fmpy import calloc, free
 
+from .. import watchdog
 from ..atomic import alive
 from ..errors import ParametersRefused, SceneError, SimulationError, UsageError, say
 from ..hashing import sha256_file
@@ -42,22 +45,163 @@ NO_MESSAGE = "(the FMU logged no message)"
 # What the compiled core's formatting logger (cw_logger) hands on: the
 # instance name, the status, the category and the formatted text.
 _SINK = CFUNCTYPE(None, c_char_p, c_int, c_char_p, c_char_p)
-_formatter: list = []  # [cw_logger as an fmi2 logger, or None]
+NO_SINK = _SINK()  # NULL: an environment that is no logger's (FMI 3.0's intermediate update)
+_formatter: list = []  # [(cw_logger as an fmi2 logger, the core library), or None]
 _formatter_lock = threading.Lock()
+
+# Messages an FMU logged through an environment and an instance name that
+# are no live instance's (cw_guard.c routes them here): kept, the last 50,
+# for last_message() of an instance that failed without a message of its own.
+unattributed: collections.deque = collections.deque(maxlen=50)
+
+
+def _unattributed(instance, status, category, text):
+    name = instance.decode("utf-8", "replace") if instance else ""
+    unattributed.append((name, status, text.decode("utf-8", "replace") if text else ""))
+
+
+_fallback_sink = _SINK(_unattributed)
 
 
 def formatting_logger():
     """The core library's cw_logger, which formats an FMU's printf-style
-    message with its arguments (ctypes cannot reach C varargs), or None
-    when the library is not built: then messages are the raw format."""
+    message with its arguments (ctypes cannot reach C varargs) and hands it
+    to the sink registered for the componentEnvironment (cw_guard.c: it
+    trusts nothing the FMU passes), with the library; or None when the
+    library is not built: then messages are the raw format."""
     with _formatter_lock:
         if not _formatter:
             try:
                 lib = ctypes.CDLL(str(core_library()))
-                _formatter.append(ctypes.cast(lib.cw_logger, fmi2CallbackLoggerTYPE))
+                lib.cw_env_register.argtypes = [c_void_p, c_char_p, _SINK]
+                lib.cw_env_register.restype = c_int
+                lib.cw_env_unregister.argtypes = [c_void_p]
+                lib.cw_env_unregister.restype = None
+                lib.cw_env_fallback.argtypes = [_SINK]
+                lib.cw_env_fallback.restype = None
+                lib.cw_env_fallback(_fallback_sink)
+                lib.cw_env_known.argtypes = [c_void_p]
+                lib.cw_env_known.restype = c_int
+                lib.cw_read_string.argtypes = [c_void_p, c_char_p, c_size_t]
+                lib.cw_read_string.restype = ctypes.c_long
+                lib.cw_crash_install.argtypes = [c_int]
+                lib.cw_crash_install.restype = c_int
+                lib.cw_crash_binary.argtypes = [c_void_p]
+                lib.cw_crash_binary.restype = c_int
+                lib.cw_crash_info.argtypes = [c_void_p, POINTER(c_int), c_char_p, c_size_t]
+                lib.cw_crash_info.restype = c_int
+                lib.cw_crash_line.argtypes = []
+                lib.cw_crash_line.restype = c_char_p
+                # A forked child (a pool worker) has no watchdog: its crash
+                # handler must not write to the parent's pipe's number.
+                os.register_at_fork(after_in_child=lambda: lib.cw_crash_install(-1))
+                _formatter.append((ctypes.cast(lib.cw_logger, fmi2CallbackLoggerTYPE), lib))
             except (OSError, AttributeError):
                 _formatter.append(None)
         return _formatter[0]
+
+
+def quiet_crashes() -> None:
+    """In a sweep worker: a crash the core cannot return from ends the
+    process without a line of its own (the parent reports the worker's end)."""
+    global _quiet
+    core = formatting_logger()
+    if core is not None:
+        core[1].cw_crash_install(-2)
+    _quiet = True
+
+
+_quiet = False
+
+
+def guard_library(dll, names: tuple[str, ...], instance: str) -> int | None:
+    """Put the FMU library `dll` under the core's crash handler (cw_guard.c):
+    a fatal signal inside it makes the FMI call it was in return fmi2Fatal
+    (or NULL), and the run fail. Returns the address of one of its
+    functions (`names`: the first it has), which names the library to
+    cw_crash_info; None without the core. Nothing is added to any call."""
+    core = formatting_logger()
+    if core is None:
+        return None
+    for name in names:
+        try:
+            address = ctypes.cast(getattr(dll, name), c_void_p).value
+        except AttributeError:
+            continue
+        lib = core[1]
+        if not _quiet:
+            lib.cw_crash_install(watchdog.crash_fd())
+        watchdog.describe_crash(_describe_crash)
+        if lib.cw_crash_binary(c_void_p(address)) != 0:
+            return None
+        with _formatter_lock:
+            instances = _guarded_names.setdefault(address, [])
+            if instance not in instances:
+                instances.append(instance)
+        return address
+    return None
+
+
+_guarded_names: dict[int, list[str]] = {}  # guard_library's address -> the instances of that library
+
+
+def _describe_crash() -> str:
+    """The line for a crash the core could not return from (watchdog)."""
+    for address, names in list(_guarded_names.items()):
+        crash = crash_of(address)
+        if crash is not None:
+            return f"{', '.join(names[:5])}: the FMU crashed in {crash}"
+    core = formatting_logger()
+    return core[1].cw_crash_line().decode("utf-8", "replace") if core else ""
+
+
+_SIGNAL_WHAT = {"SIGSEGV": "a segmentation fault", "SIGBUS": "a bus error", "SIGFPE": "an arithmetic fault",
+                "SIGILL": "an illegal instruction", "SIGABRT": "an abort"}
+
+
+def crashes(address: int | None) -> int:
+    """How many times the library that holds `address` (guard_library) crashed."""
+    core = formatting_logger()
+    if core is None or not address:
+        return 0
+    return core[1].cw_crash_info(c_void_p(address), None, None, 0)
+
+
+def crash_of(address: int | None, seen: int = 0) -> str | None:
+    """What crashed the library that holds `address` (guard_library) last,
+    as "fmi2DoStep (SIGSEGV, a segmentation fault)", or None when it did not
+    crash more than `seen` times."""
+    core = formatting_logger()
+    if core is None or not address:
+        return None
+    call = ctypes.create_string_buffer(96)
+    signo = c_int(0)
+    if core[1].cw_crash_info(c_void_p(address), byref(signo), call, len(call)) <= seen:
+        return None
+    sig = signo.value
+    try:
+        name = signal.Signals(sig).name
+    except ValueError:
+        name = f"signal {sig}"
+    call_name = call.value.decode("utf-8", "replace") or "an FMI call"
+    return f"{call_name} ({name}, {_SIGNAL_WHAT.get(name, 'a crash')})"
+
+
+def read_string(address) -> str:
+    """A string an FMU passed to a callback (an address, or None), read
+    without trusting it: through the core's cw_read_string (an unreadable
+    address is no fault), else as ctypes reads it."""
+    if not address:
+        return ""
+    core = formatting_logger()
+    if core is None:
+        return ctypes.string_at(address).decode("utf-8", "replace")
+    buf = ctypes.create_string_buffer(65536)
+    n = core[1].cw_read_string(c_void_p(address), buf, len(buf))
+    if n < 0:
+        return "(the FMU passed an unreadable message)"
+    return buf.raw[:n].decode("utf-8", "replace")
+
 
 _extract_lock = threading.Lock()
 _extracted: dict[tuple, Path] = {}  # (path, mtime, size) -> unzipped folder
@@ -311,14 +455,22 @@ class Instance:
             messages.append((status, message.decode("utf-8", "replace") if message else ""))
             del messages[:-50]
 
+        self._guarded = guard_library(self._slave.dll, ("fmi2Instantiate",), self.name)
+        self._crashes_seen = crashes(self._guarded)  # an earlier instance's crash is not this one's
         self._callbacks = fmi2CallbackFunctions()
-        formatter = formatting_logger()
-        if formatter is not None:
+        core = formatting_logger()
+        if core is not None:
             # cw_logger formats and hands the text to this instance's sink,
-            # which it finds in the componentEnvironment: no global state.
+            # which it finds in the core's registry of live environments by
+            # the componentEnvironment (or, when the FMU passes another, by
+            # the instance name): an environment is only ever looked up.
             self._sink = _SINK(lambda instance, status, category, text: keep(status, text))
-            self._callbacks.logger = formatter
-            self._callbacks.componentEnvironment = ctypes.cast(self._sink, c_void_p)
+            env = ctypes.cast(self._sink, c_void_p).value
+            self._callbacks.logger = core[0]
+            self._callbacks.componentEnvironment = env
+            core[1].cw_env_register(env, self.name.encode("utf-8", "replace"), self._sink)
+            # Forgotten when freed (free() calls it), or when this object goes.
+            self._forget_env = weakref.finalize(self, core[1].cw_env_unregister, env)
         else:
             self._callbacks.logger = fmi2CallbackLoggerTYPE(
                 lambda env, instance, status, category, message: keep(status, message))
@@ -329,6 +481,8 @@ class Instance:
         try:
             self._slave.instantiate(callbacks=self._callbacks)
         except Exception as e:
+            self._forget()
+            self.check_crash("fmi2Instantiate")
             # The binary refused its own model description (another build or
             # another model): the FMU file is broken, which is bad input.
             raise SceneError(
@@ -376,8 +530,25 @@ class Instance:
         """Whether free() ran (an instance never instantiated is not freed)."""
         return self._slave is None and hasattr(self, "component")
 
+    def crash(self) -> str | None:
+        """What crashed this instance's FMU binary in this process (its call
+        and the signal), or None: such an FMU is not called again."""
+        return crash_of(getattr(self, "_guarded", None), getattr(self, "_crashes_seen", 0))
+
+    def check_crash(self, what: str) -> None:
+        """Raise the failed run when the FMU crashed (a failed instantiate)."""
+        crash = self.crash()
+        if crash is not None:
+            raise SimulationError(f"{self.model_name}: {what} crashed the FMU in {crash}; the call was "
+                                  f"abandoned", instance=self.name)
+
     def free(self) -> None:
         if self._slave is None:
+            return
+        if self.crash() is not None:  # its code and state are not to be trusted again: left as it is
+            self._slave = None
+            self._forget()
+            Instance.frees += 1
             return
         if self._state.value:
             self.c_freeState(self.component, byref(self._state))
@@ -385,7 +556,14 @@ class Instance:
             self._free_instance()
         finally:
             self._slave = None
+            self._forget()
             Instance.frees += 1
+
+    def _forget(self) -> None:
+        """Take this instance's logger environment out of the core's registry."""
+        forget = getattr(self, "_forget_env", None)
+        if forget is not None:
+            forget()
 
     def _free_instance(self) -> None:
         self._slave.fmi2FreeInstance(self.component)
@@ -398,10 +576,17 @@ class Instance:
         for status, text in reversed(self.messages):
             if status >= DISCARD and text:
                 return text
+        for _, status, text in reversed(unattributed):  # logged through a bad environment and name
+            if status >= DISCARD and text:
+                return f"{text} (logged through no live instance's environment or name)"
         return ""
 
     def fail(self, what: str, status: int, time: float | None = None,
              error: type[SimulationError] = SimulationError) -> SimulationError:
+        crash = self.crash()
+        if crash is not None:
+            return error(f"{self.model_name}: {what} crashed the FMU in {crash}; the call was abandoned",
+                         time=time, instance=self.name)
         name = STATUS_NAMES[status] if 0 <= status < len(STATUS_NAMES) else f"status {status}"
         text = f"{self.model_name}: {what} returned {name}: {self.last_message() or NO_MESSAGE}"
         return error(text, time=time, instance=self.name)

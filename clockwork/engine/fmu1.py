@@ -42,7 +42,8 @@ from __future__ import annotations
 
 import copy
 import ctypes
-from ctypes import POINTER, Structure, c_char, c_char_p, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
+from ctypes import (CFUNCTYPE, POINTER, Structure, c_char, c_char_p, c_double, c_int, c_longlong, c_size_t, c_uint,
+                    c_void_p)
 from pathlib import Path
 
 from fmpy import calloc, free
@@ -51,7 +52,10 @@ from fmpy.fmi1 import (FMU1Slave, fmi1CallbackAllocateMemoryTYPE, fmi1CallbackFr
 
 from ..errors import ParametersRefused, SceneError, SimulationError
 from .description import fmi1_details, read_fmu
-from .fmu import ERROR, OK, WARNING, Instance, extract
+from .fmu import ERROR, OK, WARNING, Instance, crashes, extract, guard_library, read_string
+
+# fmi1CallbackLogger with the strings as addresses, read by read_string.
+_LOGGER = CFUNCTYPE(None, c_void_p, c_void_p, c_int, c_void_p, c_void_p)
 
 PENDING = 5  # fmiPending: an asynchronous step
 TRUE, FALSE = b"\x01", b"\x00"  # fmiBoolean (a char)
@@ -128,11 +132,15 @@ class Instance1(Instance):
         messages = self.messages
 
         def keep(component, instance, status, category, message):
-            messages.append((status, message.decode("utf-8", "replace") if message else ""))
+            # Addresses, read without trusting them (the arguments of the
+            # format are out of ctypes' reach: FMI 1.0 gives no environment
+            # through which the core's formatting logger could route them).
+            messages.append((status, read_string(message)))
             del messages[:-50]
 
         callbacks = self._callbacks = fmi1CallbackFunctions()
-        callbacks.logger = fmi1CallbackLoggerTYPE(keep)
+        self._logger = _LOGGER(keep)  # kept from GC
+        callbacks.logger = ctypes.cast(self._logger, fmi1CallbackLoggerTYPE)
         callbacks.allocateMemory = ctypes.cast(calloc, fmi1CallbackAllocateMemoryTYPE)
         callbacks.freeMemory = ctypes.cast(free, fmi1CallbackFreeMemoryTYPE)
         callbacks.stepFinished = None  # synchronous steps
@@ -140,9 +148,12 @@ class Instance1(Instance):
         instantiate.argtypes = [c_char_p, c_char_p, c_char_p, c_char_p, c_double, c_char, c_char,
                                 fmi1CallbackFunctions, c_char]
         instantiate.restype = c_void_p
+        self._guarded = guard_library(self._slave.dll, (f"{ident}_fmiInstantiateSlave",), self.name)
+        self._crashes_seen = crashes(self._guarded)  # an earlier instance's crash is not this one's
         component = instantiate(self.name.encode(), self.md.guid.encode(), Path(unzip).as_uri().encode(),
                                 self.details.mime_type.encode(), 0.0, FALSE, FALSE, callbacks, FALSE)
         if not component:
+            self.check_crash("fmiInstantiateSlave")
             self._slave = None  # nothing to free
             raise SceneError(f"{self.path}: fmiInstantiateSlave made no instance (GUID {self.md.guid}): "
                              f"{self.last_message() or 'it logged no message'}")

@@ -51,16 +51,21 @@ from __future__ import annotations
 import copy
 import ctypes
 import math
-from ctypes import (POINTER, Structure, byref, c_bool, c_char_p, c_double, c_float, c_int, c_int8, c_int16, c_int32,
-                    c_int64, c_longlong, c_size_t, c_uint, c_uint8, c_uint16, c_uint32, c_uint64, c_void_p)
+import weakref
+from ctypes import (CFUNCTYPE, POINTER, Structure, byref, c_bool, c_char_p, c_double, c_float, c_int, c_int8, c_int16,
+                    c_int32, c_int64, c_longlong, c_size_t, c_uint, c_uint8, c_uint16, c_uint32, c_uint64, c_void_p)
 
 from fmpy.fmi3 import FMU3Slave, fmi3IntermediateUpdateCallback, fmi3LogMessageCallback
 
 from ..errors import SceneError, SimulationError
 from ..paths import core_library
 from .description import array_elements, fmi_version, int_range, read_fmu, type_name
-from .fmu import DISCARD, ERROR, OK, WARNING, Instance, Variable, declared, extract, new_slave
+from .fmu import (DISCARD, ERROR, NO_SINK, OK, WARNING, Instance, Variable, declared, extract, formatting_logger,
+                  crashes, guard_library, new_slave, read_string)
 from .fmu1 import Instance1
+
+# fmi3LogMessageCallback with the strings as addresses, read by read_string.
+LOG_MESSAGE = CFUNCTYPE(None, c_void_p, c_int, c_void_p, c_void_p)
 
 MAX_EVENT_ITERATIONS = 1000  # fmi3UpdateDiscreteStates calls per event before giving up
 MAX_STALLED_RETURNS = 100  # early returns in a row that do not move the FMU's time
@@ -310,14 +315,21 @@ class Instance3(Instance):
         messages = self.messages
 
         def logger(env, status, category, message):
-            messages.append((status, message.decode("utf-8", "replace")))
+            # Addresses, read without trusting them; env is not used.
+            messages.append((status, read_string(message)))
             del messages[:-50]
 
+        self._register_env()
+        self._guarded = guard_library(self._slave.dll, ("fmi3InstantiateCoSimulation", "fmi3GetVersion"),
+                                      self.name)
+        self._crashes_seen = crashes(self._guarded)  # an earlier instance's crash is not this one's
         try:
             self._instantiate(logger)
         except Exception as e:
+            self.check_crash("fmi3InstantiateCoSimulation")
             refusal = self.last_message() or str(e)
             if not self.event_mode_used:
+                self._forget()
                 raise SceneError(
                     f"{self.shown}: fmi3InstantiateCoSimulation refused the model description's instantiation "
                     f"token {self.md.guid}: {refusal}") from None
@@ -329,6 +341,7 @@ class Instance3(Instance):
             try:
                 self._instantiate(logger)
             except Exception:
+                self._forget()
                 raise SceneError(
                     f"{self.shown}: fmi3InstantiateCoSimulation refused the model description's instantiation "
                     f"token {self.md.guid}, with Event Mode ({refusal}) and without it "
@@ -339,19 +352,26 @@ class Instance3(Instance):
         self.component = self._slave.component
         self._bind(self._slave.dll)
 
-    def _instantiate(self, logger) -> None:
-        if self.intermediate_update:
-            self._instantiate_with_callback(logger)
-        else:
-            self._slave.instantiate(eventModeUsed=self.event_mode_used,
-                                    earlyReturnAllowed=self.early_return_allowed, logMessage=logger)
+    def _register_env(self) -> None:
+        """Put this instance's ``_Events`` (the instanceEnvironment) into the
+        core's registry of live environments: cw3_intermediateUpdate serves
+        only an environment found there, whatever pointer the FMU passes."""
+        core = formatting_logger()
+        if core is not None:
+            env = ctypes.addressof(self.events)
+            core[1].cw_env_register(env, self.name.encode("utf-8", "replace"), NO_SINK)
+            self._forget_env = weakref.finalize(self, core[1].cw_env_unregister, env)
 
-    def _instantiate_with_callback(self, logger) -> None:
-        """fmi3InstantiateCoSimulation with the core's C intermediate-update
-        callback and this instance's ``_Events`` as its environment."""
+    def _instantiate(self, logger) -> None:
+        """fmi3InstantiateCoSimulation with this instance's ``_Events`` as its
+        environment, the core's C intermediate-update callback when inputs go
+        through it, and a logger that takes the FMU's strings as addresses
+        (fmpy's type would read them, whatever they point at)."""
         slave = self._slave
-        slave.logMessage = fmi3LogMessageCallback(logger)  # kept from GC
-        slave.intermediateUpdate = fmi3IntermediateUpdateCallback(_core_adapter()[0])
+        self._log_callback = LOG_MESSAGE(logger)  # kept from GC
+        slave.logMessage = ctypes.cast(self._log_callback, fmi3LogMessageCallback)
+        slave.intermediateUpdate = (fmi3IntermediateUpdateCallback(_core_adapter()[0]) if self.intermediate_update
+                                    else fmi3IntermediateUpdateCallback())
         resources = str(extract(self.path) / "resources") + "/"
         slave.component = slave.fmi3InstantiateCoSimulation(
             self.name.encode(), self.md.guid.encode(), resources.encode(), False, False,

@@ -44,13 +44,13 @@ from ctypes import (POINTER, Structure, byref, c_bool, c_char, c_char_p, c_doubl
 from dataclasses import dataclass
 
 from fmpy.fmi2 import FMU2Model, fmi2EventInfo
-from fmpy.fmi3 import FMU3Model
+from fmpy.fmi3 import FMU3Model, fmi3LogMessageCallback
 
 from ..errors import SceneError, SimulationError
 from . import cvode, rk
 from .description import fmi_version, read_fmu
-from .fmu import ERROR, OK, WARNING, Instance, extract
-from .fmu3 import Instance3, make_instance as make_cs_instance
+from .fmu import ERROR, OK, WARNING, Instance, crashes, extract, guard_library, read_string
+from .fmu3 import LOG_MESSAGE, Instance3, make_instance as make_cs_instance
 from .me_step import (AUTO, CALLS, CONTINUOUS, CVODE, DEFAULT_RTOL, EVENT, FAIL_CVODE, FAIL_LOCATE, FAIL_RK,
                       FAIL_SETTLE, FAIL_TIME, FAIL_TIME_EVENTS, INITIALIZATION, INSTANTIATED, MAX_CVODE_STEPS,
                       MAX_EVENT_ITERATIONS, MAX_RK_STATES, MAX_TRIALS, METHOD_NAMES, RK_FAILURES, SOLVERS, STATS,
@@ -576,12 +576,24 @@ class MEInstance3(MEInstance):
         messages = self.messages
 
         def logger(env, status, category, message):
-            messages.append((status, message.decode("utf-8", "replace")))
+            # Addresses, read without trusting them; env is not used.
+            messages.append((status, read_string(message)))
             del messages[:-50]
 
+        slave = self._slave
+        self._guarded = guard_library(slave.dll, ("fmi3InstantiateModelExchange", "fmi3GetVersion"), self.name)
+        self._crashes_seen = crashes(self._guarded)  # an earlier instance's crash is not this one's
         try:
-            self._slave.instantiate(logMessage=logger)
+            # As fmpy's instantiate, with a logger that takes the strings as addresses.
+            self._log_callback = LOG_MESSAGE(logger)
+            slave.logMessage = ctypes.cast(self._log_callback, fmi3LogMessageCallback)
+            slave.component = slave.fmi3InstantiateModelExchange(
+                self.name.encode(), self.md.guid.encode(), (str(unzip / "resources") + "/").encode(),
+                False, False, None, slave.logMessage)
+            if not slave.component:
+                raise Exception("Failed to instantiate FMU")
         except Exception as e:
+            self.check_crash("fmi3InstantiateModelExchange")
             raise SceneError(
                 f"{self.path}: fmi3InstantiateModelExchange refused the model description's instantiation "
                 f"token {self.md.guid}: {self.last_message() or e}") from None

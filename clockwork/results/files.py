@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..atomic import PART, write_text_atomic
+from ..atomic import PART, write_bytes_unnamed, write_text_atomic
 from ..errors import UsageError
 
 def _json_default(obj):
@@ -61,8 +61,11 @@ def _plain(x):
     return x
 
 
-def write_json_atomic(path: str | os.PathLike, obj) -> Path:
-    """Strict JSON (``json_text``), written atomically."""
+def write_json_atomic(path: str | os.PathLike, obj, unnamed: bool = False) -> Path:
+    """Strict JSON (``json_text``), written atomically; with `unnamed`, into
+    a file named only once complete (atomic.write_bytes_unnamed)."""
+    if unnamed:
+        return write_bytes_unnamed(path, json_text(obj).encode("utf-8"))
     return write_text_atomic(path, json_text(obj))
 
 

@@ -37,6 +37,7 @@ import os
 import shutil
 from pathlib import Path
 
+from .. import watchdog
 from ..errors import SimulationError, UsageError
 from ..atomic import PART, fsync_dir, remove_stale_parts, write_text_atomic
 from ..numbers import parse_json
@@ -75,12 +76,22 @@ class OutputDir:
             remove_stale_parts(self.points, every=True)
             self.staging = self.path / f"{STAGING}{os.getpid()}"
             self.staging.mkdir()
+            # Removed by the watchdog if it ends a run whose main thread is stuck.
+            self._abandon = watchdog.on_abandon(self._abandoned)
         except BaseException:
             self._unlock()
             raise
         return self
 
+    def _abandoned(self) -> None:
+        """The staging folder of a run that ends without this process's
+        `with` blocks: removed, unless a commit is under way (its journal
+        says; the next run finishes or undoes it, as after a kill)."""
+        if self.staging is not None and not (self.staging / _JOURNAL).exists():
+            shutil.rmtree(self.staging, ignore_errors=True)
+
     def __exit__(self, *exc) -> None:
+        watchdog.forget(getattr(self, "_abandon", None))
         if self.staging is not None:
             try:
                 if (self.staging / _JOURNAL).exists():

@@ -10,9 +10,12 @@ import atexit
 import os
 import signal
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
+from .. import watchdog
 from ..analyses.context import reusing_systems
+from ..errors import SimulationError
 from ..paths import scratch_dir, scratch_inside
 from ..processes import die_with_parent
 from .catalog import load_scene
@@ -32,6 +35,9 @@ def _start_worker(parent: int, scratch: str) -> None:
     run that outlives it."""
     die_with_parent(parent)
     scratch_inside(Path(scratch))
+    from ..engine.fmu import quiet_crashes
+
+    quiet_crashes()  # a crash that ends this process is reported by the parent, in its one line
     for sig in (signal.SIGTERM, signal.SIGHUP):
         if signal.getsignal(sig) is not signal.SIG_IGN:
             signal.signal(sig, signal.SIG_DFL)
@@ -57,6 +63,9 @@ def default_workers(n_points: int) -> int:
 def run_in_pool(scene, points: list[dict], indices: list[int], workers: int):
     """Run `points` (their sweep `indices`) in `workers` processes; yield (index, result)."""
     pool = ProcessPoolExecutor(workers, initializer=_start_worker, initargs=(os.getpid(), str(scratch_dir())))
+    # Killed at once when the watchdog ends a run whose main thread is stuck
+    # (before the scratch folder they write into is removed).
+    token = watchdog.on_abandon(lambda: _kill_workers(pool), process=True)
     try:
         futures = {
             pool.submit(_worker, str(scene.path), tuple(scene.overrides),
@@ -64,13 +73,49 @@ def run_in_pool(scene, points: list[dict], indices: list[int], workers: int):
             for i, p in zip(indices, points)
         }
         for f in as_completed(futures):
-            yield futures[f], f.result()
+            try:
+                result = f.result()
+            except BrokenProcessPool:
+                raise SimulationError(
+                    f"a sweep worker process ended abruptly{_how_workers_ended(pool)} while the point of sweep "
+                    f"index {futures[f]} ran: the sweep stops; its finished points are kept in points/ for a "
+                    f"rerun") from None
+            yield futures[f], result
     except BaseException:
         # Interrupted (or the consumer stopped): the points still running are
         # not waited for; the finished ones are already stored for a rerun.
         _stop_now(pool)
         raise
+    finally:
+        watchdog.forget(token)
     pool.shutdown(wait=True)
+
+
+def _how_workers_ended(pool: ProcessPoolExecutor) -> str:
+    """The exit of the pool's dead workers, as " (killed by SIGKILL)", " (exit code 1)", or "" when
+    the pool no longer says."""
+    ends = set()
+    for w in list((getattr(pool, "_processes", None) or {}).values()):
+        code = w.exitcode
+        if code is None:
+            continue
+        if code < 0:
+            try:
+                ends.add(f"killed by {signal.Signals(-code).name}")
+            except ValueError:
+                ends.add(f"killed by signal {-code}")
+        elif code:
+            ends.add(f"exit code {code}")
+    return f" ({', '.join(sorted(ends))})" if ends else ""
+
+
+def _kill_workers(pool: ProcessPoolExecutor) -> None:
+    for w in list((getattr(pool, "_processes", None) or {}).values()):
+        try:
+            w.kill()
+            w.join(timeout=2)
+        except (OSError, ValueError, AssertionError):
+            pass
 
 
 def _stop_now(pool: ProcessPoolExecutor) -> None:

@@ -58,14 +58,15 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
             if results[i] is None:
                 results[i] = cache_load(k, label, kind)
                 if results[i] is not None:
-                    write_json_atomic(out.points / f"{k}.json", results[i])
+                    write_json_atomic(out.points / f"{k}.json", results[i], unnamed=True)
     todo = [i for i, r in enumerate(results) if r is None]
     reused = len(points) - len(todo)
 
     def finished(i: int, r: dict) -> None:
         results[i] = r
         if sweep:
-            write_json_atomic(out.points / f"{keys[i]}.json", r)
+            # Unnamed until complete: a sweep killed while writing a point leaves no .part.
+            write_json_atomic(out.points / f"{keys[i]}.json", r, unnamed=True)
             cache_store(keys[i], r)
 
     failure = None

@@ -2158,49 +2158,8 @@ CW_EXPORT int cw_run_schedule(cw_master *m, int n, const double *times, const in
     return CW_DONE;
 }
 
-/* -- FMU log messages ------------------------------------------------------------------ */
-
-/* What cw_logger hands the formatted message to: the instance's own sink,
- * passed to the FMU as its componentEnvironment (one per instance, no
- * global state). */
-typedef void (*cw_log_sink_t)(const char *instance, int status, const char *category, const char *text);
-
-/* The fmi2CallbackLogger of every instance: an FMU's message is a printf
- * format with arguments (FMI 2.0, 2.1.5), which ctypes cannot reach. */
-CW_EXPORT void cw_logger(void *env, const char *instance, int status, const char *category,
-                         const char *message, ...)
-{
-    cw_log_sink_t sink = (cw_log_sink_t)env;
-    if (!sink)
-        return;
-    if (!message) {
-        sink(instance, status, category, "");
-        return;
-    }
-    char small[1024];
-    va_list ap;
-    va_start(ap, message);
-    int n = vsnprintf(small, sizeof small, message, ap);
-    va_end(ap);
-    if (n < 0) {  /* a broken format: hand on the format itself */
-        sink(instance, status, category, message);
-        return;
-    }
-    if ((size_t)n < sizeof small) {
-        sink(instance, status, category, small);
-        return;
-    }
-    char *big = malloc((size_t)n + 1);
-    if (!big) {
-        sink(instance, status, category, small);  /* truncated rather than lost */
-        return;
-    }
-    va_start(ap, message);
-    vsnprintf(big, (size_t)n + 1, message, ap);
-    va_end(ap);
-    sink(instance, status, category, big);
-    free(big);
-}
+/* FMU log messages: cw_logger, in cw_guard.c (it trusts nothing an FMU passes). */
+int cw_env_known(const void *key);
 
 /* ---- FMI 3.0: the adapter (the twin of clockwork/engine/fmu3.py) ----------
  *
@@ -2327,11 +2286,15 @@ CW_EXPORT void cw3_intermediateUpdate(void *env, double t, bool set_requested, b
                                       bool step_finished, bool can_return_early, bool *early_requested,
                                       double *early_time)
 {
-    cw_fmi3 *a = env;
     (void)get_allowed; (void)step_finished; (void)can_return_early; (void)early_time;
     if (early_requested)
         *early_requested = false;
-    if (!set_requested || !a->iu_poly)
+    /* Only an environment the master gave (cw_guard.c's registry): an FMU
+     * may pass any pointer back. */
+    if (!set_requested || !cw_env_known(env))
+        return;
+    cw_fmi3 *a = env;
+    if (!a->iu_poly)
         return;
     size_t m = 0;
     for (int k = 0; k < a->n_iu; k++)

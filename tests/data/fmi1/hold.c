@@ -60,6 +60,12 @@ EXPORT fmi1Status Hold_fmiInitializeSlave(fmi1Component c, fmi1Real t, fmi1Boole
 EXPORT fmi1Status Hold_fmiDoStep(fmi1Component c, fmi1Real t, fmi1Real dt, fmi1Boolean new_step) {
     Hold *h = c;
     if (!new_step || dt < 0 || t != h->time) return refuse(h, "Hold: a step that does not start where Hold stands");
+#ifdef CW_HOSTILE  /* tests/test_fmu_crash.py: bad strings to the logger, then a NULL dereference past t = 0.3 */
+    h->cb.logger(h, (const char *)8, fmi1OK, (const char *)16, (const char *)24);
+    h->cb.logger(NULL, NULL, fmi1OK, NULL, NULL);
+    if (t + dt > 0.3 + 1e-9)
+        *(volatile int *)(t > -1 ? NULL : h) = 1;
+#endif
     h->y = h->u; /* the output, computed here only */
     h->time = t + dt;
     if (dt == 0) h->zero_steps++;

@@ -219,7 +219,16 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     if (currentCommunicationPoint != a->time)
         return fail(a, "fmi3DoStep: the communication point is not the FMU's time");
     const double end = currentCommunicationPoint + communicationStepSize;
+#ifdef CW_HOSTILE_LOG  /* tests/test_fmu_crash.py: unreadable strings and environments to the logger */
+    if (a->log) {
+        a->log((fmi3InstanceEnvironment)1, fmi3OK, (fmi3String)16, (fmi3String)24);
+        a->log(NULL, fmi3OK, NULL, NULL);
+    }
+#endif
     if (end > a->t_fail) {
+#ifdef CW_CRASH_AFTER_T_FAIL  /* tests/test_fmu_crash.py: a NULL dereference instead */
+        *(volatile int *)(a->t_fail > 0 ? NULL : a) = 1;
+#endif
         char text[120];
         snprintf(text, sizeof text, "the model fails after t_fail = %.17g s", a->t_fail);
         return fail(a, text);
