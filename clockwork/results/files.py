@@ -18,6 +18,7 @@ import numpy as np
 
 from ..atomic import PART, write_text_atomic
 from ..errors import UsageError
+from ..files import absent
 
 def _json_default(obj):
     if isinstance(obj, np.ndarray):
@@ -151,6 +152,8 @@ def check_output_file(path: str | os.PathLike, option: str) -> Path:
     path = Path(path)
     if path.is_dir():
         raise UsageError(f"{option} {path}: is a directory: expected a file name")
+    if path.exists() and not path.is_file():  # a FIFO, a device, a socket: written by a rename over it
+        raise UsageError(f"{option} {path}: {absent(path, 'a file name (a regular file, or none)')}")
     if not path.parent.is_dir():
         raise UsageError(f"{option} {path}: no such directory: {path.parent}")
     try:

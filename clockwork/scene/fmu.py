@@ -29,6 +29,7 @@ from pathlib import Path
 
 from ..engine.description import FmuError, TEXT_TYPES, read_fmu
 from ..errors import SceneError
+from ..files import absent
 from ..numbers import parse_real
 from .checks import instance_problem
 from .model import Component
@@ -105,7 +106,7 @@ def read_fmu_scene(path: str | Path) -> SspScene:
     """An FMU alone, as a scene's components and sections; raises SceneError."""
     path = Path(path)
     if not path.exists():
-        raise SceneError("no such FMU file", path)
+        raise SceneError(absent(path, "an FMU file", "no such FMU file"), path)
     if path.is_dir():
         raise SceneError("is a directory, expected an FMU file (a zip archive)", path)
     try:

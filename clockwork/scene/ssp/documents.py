@@ -16,6 +16,7 @@ from urllib.parse import unquote, urlsplit
 
 from ...atomic import write_bytes_atomic
 from ...errors import SceneError
+from ...files import NotRegularFile, open_regular
 from ...numbers import XSD_SPECIAL, parse_int, parse_real, shorten
 from ...paths import cache_root, scratch_dir
 from ...engine.description import MAX_ENTRIES, entry_problem, max_unzipped_bytes
@@ -68,12 +69,20 @@ class Store:
         self.zip: zipfile.ZipFile | None = None
         self.digest = hashlib.sha256()  # of the archive, or of the SSD and every file it reads
         self._fmus: dict[str, Path] = {}  # archive entry -> its copy (components may share an FMU)
+        self._file = None
         if path.suffix.lower() == ".ssp":
-            if not zipfile.is_zipfile(path):
+            try:
+                self._file = open_regular(path, "an SSP archive (a zip file)")
+            except NotRegularFile as e:
+                raise SceneError(e.detail, path) from None
+            except OSError as e:
+                raise SceneError(f"cannot read: {e.strerror}", path) from None
+            if not zipfile.is_zipfile(self._file):
+                self.close()
                 raise SceneError("expected an SSP archive: a zip file with SystemStructure.ssd at its root; "
                                  "this is not a zip file", path)
             try:
-                self.zip = zipfile.ZipFile(path)
+                self.zip = zipfile.ZipFile(self._file)
                 names = self.zip.namelist()
             except (zipfile.BadZipFile, OSError, ValueError) as e:
                 raise SceneError(f"expected an SSP archive: unreadable zip file ({e})", path) from None
@@ -98,6 +107,8 @@ class Store:
     def close(self) -> None:
         if self.zip is not None:
             self.zip.close()
+        if self._file is not None:
+            self._file.close()
 
     def label(self, member: str) -> str:
         return f"{self.path}/{member}" if self.zip is not None else member
@@ -156,8 +167,10 @@ class Store:
             except (zipfile.BadZipFile, OSError, ValueError) as e:
                 raise SceneError(f"unreadable archive entry: {e}", self.label(where)) from None
         try:
-            with open(where, "rb") as f:
+            with open_regular(where, "an SSP XML file") as f:
                 data = f.read(MAX_XML_BYTES + 1)
+        except NotRegularFile as e:
+            raise SceneError(e.detail, where) from None
         except OSError as e:
             raise SceneError(f"cannot read: {e.strerror}", where) from None
         if len(data) > MAX_XML_BYTES:
