@@ -38,12 +38,14 @@ class Recorder:
         self.columns: dict[str, list[float]] = {"time": [], **{n: [] for n in self.names}}
         self.ticks: list[float] = []
         self._sources = []
+        # Positions by name, once (list.index per output made 100,000 outputs quadratic).
+        discrete = {i: set(names) for i, names in master.discrete_outputs.items()}
+        out_pos = master.ports.out_pos
         for i, v in self.outputs:
-            if v in master.discrete_outputs.get(i, []):
+            if v in discrete.get(i, ()):
                 self._sources.append((_DiscreteOutput(master.instances[i], v), 0))
             else:
-                port = master.ports[i]
-                self._sources.append((port.out, port.out_names.index(v)))
+                self._sources.append((master.ports[i].out, out_pos[i][v]))
         self._tick_port = master.ports[ticks_of] if ticks_of else None
         self._tick_pos = self._tick_port.out_names.index("tick_time") if ticks_of else 0
         self._last_tick = self._tick_port.out[self._tick_pos] if self._tick_port else 0.0
