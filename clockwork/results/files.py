@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..atomic import PART, write_text_atomic
+from ..atomic import PART, write_bytes_atomic, write_text_atomic
 from ..errors import UsageError
 from ..files import absent
 
@@ -100,13 +100,26 @@ def write_csv_atomic(path: str | os.PathLike, header: Sequence[str], columns: Se
     for h in header:
         if any(c in h for c in "\n\r"):
             raise ValueError(f"{path}: header name {h!r} contains a newline")
-    cols = [_column_strings(c) for c in columns]
-    lengths = {len(c) for c in cols}
+    for c in columns:
+        if isinstance(c, np.ndarray) and c.ndim != 1:
+            raise ValueError(f"CSV columns must be 1-D, got shape {c.shape}")
+    lengths = {len(c) for c in columns}
     if len(lengths) > 1:
         raise ValueError(f"{path}: columns of different lengths {sorted(lengths)}")
-    lines = [",".join(_field(h) for h in header)]  # FMI names such as a[1,2] are quoted
-    lines += [",".join(row) for row in zip(*cols)]
-    return write_text_atomic(path, "\n".join(lines) + "\n")
+    head = ",".join(_field(h) for h in header)  # FMI names such as a[1,2] are quoted
+    return write_bytes_atomic(path, _csv_chunks(head, columns, lengths.pop() if lengths else 0))
+
+
+_CSV_VALUES = 1 << 16  # values made into text at a time: the file is never whole in memory
+
+
+def _csv_chunks(head: str, columns: Sequence, n: int):
+    """The CSV's bytes in chunks of about _CSV_VALUES values: as "\n".join of every line, plus a final newline."""
+    yield (head + "\n").encode("utf-8")
+    rows = max(1, _CSV_VALUES // max(1, len(columns)))
+    for a in range(0, n, rows):
+        cols = [_column_strings(c[a:a + rows]) for c in columns]
+        yield ("".join(",".join(row) + "\n" for row in zip(*cols))).encode("utf-8")
 
 
 def check_output_dir(path: str | os.PathLike) -> Path:
