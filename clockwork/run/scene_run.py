@@ -43,6 +43,16 @@ def run_scene(scene, out_dir, workers: int | None = None, scheduler: str | None 
             plotter.close()  # before the staging folder goes: nothing may write into it after
 
 
+def _kept(r: dict | None, i: int) -> dict | None:
+    """What a sweep keeps of a point once it is written to points/: its
+    result, not its recorded series and ticks (only the first point's are
+    kept), which no sweep output reads. Every point's series held until the
+    end made the bound per point no bound on the sweep."""
+    if r is None or i == 0:
+        return r
+    return {k: v for k, v in r.items() if k not in ("series", "ticks")}
+
+
 def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, progress: bool,
          plotter: Plotter, t_start: float) -> dict:
     points = scene.points()
@@ -59,6 +69,7 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
                 results[i] = cache_load(k, label, kind)
                 if results[i] is not None:
                     write_json_atomic(out.points / f"{k}.json", results[i])
+            results[i] = _kept(results[i], i)
     todo = [i for i, r in enumerate(results) if r is None]
     reused = len(points) - len(todo)
 
@@ -67,6 +78,7 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
         if sweep:
             write_json_atomic(out.points / f"{keys[i]}.json", r)
             cache_store(keys[i], r)
+            results[i] = _kept(r, i)
 
     failure = None
     if not sweep:
