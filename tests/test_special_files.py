@@ -140,3 +140,16 @@ def test_open_regular_does_not_block_on_a_fifo_and_reads_a_file(tmp_path):
         read_regular(tmp_path / "a", limit=2)
     with pytest.raises(FileNotFoundError):
         open_regular(tmp_path / "none")
+
+
+@pytest.mark.parametrize("kind", ["fifo", "socket", "/dev/zero", "directory"])
+def test_plot_out_onto_a_special_file_is_refused(capsys, tmp_path, kind):
+    from cwtest import test_fmu
+
+    rc, _, err = run_cli(capsys, ["run", test_fmu("TestDecay"), "--out", tmp_path / "r", "--no-progress", "--no-plot"])
+    assert rc == 0, err
+    target = _make(kind, tmp_path / "page.png")
+    with _deadline():
+        rc, _, err = run_cli(capsys, ["plot", tmp_path / "r", "--out", target])
+    assert_one_line_error(rc, err, target, "--out")
+    assert not (tmp_path / "page.png").is_file()

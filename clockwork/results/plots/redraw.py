@@ -14,6 +14,7 @@ import re
 from pathlib import Path
 
 from ...errors import UsageError
+from ...files import absent
 from ...numbers import CSV_SPECIAL, parse_json, parse_real, shorten
 from .outputs import columns, draw_outputs
 from .registry import load_matplotlib, page_names, save
@@ -81,6 +82,8 @@ def redraw(result_dir: str | Path, only: list[str] | None = None, out: str | Pat
         raise UsageError(f"--out {target}: expected a file name ending .png")
     if not target.parent.is_dir():
         raise UsageError(f"--out {target}: no such directory: {target.parent}")
+    if target.exists() and not target.is_file():  # a FIFO, a device: the page would be renamed over it
+        raise UsageError(f"--out {target}: {absent(target, 'a .png file name (a regular file, or none)')}")
     summary = _summary(folder)
     info = summary.get("columns") if isinstance(summary.get("columns"), dict) else {}
     series = _series(folder / "timeseries.csv", info)
