@@ -153,3 +153,19 @@ def test_plot_out_onto_a_special_file_is_refused(capsys, tmp_path, kind):
         rc, _, err = run_cli(capsys, ["plot", tmp_path / "r", "--out", target])
     assert_one_line_error(rc, err, target, "--out")
     assert not (tmp_path / "page.png").is_file()
+
+
+@pytest.mark.parametrize("kind", ["fifo", "/dev/zero", "directory"])
+@pytest.mark.parametrize("entry", ["resources/escapement.ssv", "resources/Pendulum.fmu"])
+def test_an_ssd_that_names_a_special_file_is_refused(capsys, tmp_path, entry, kind):
+    """The files an .ssd names beside it: a parameter file (.ssv), an FMU."""
+    from test_ssp import fixture_dir
+
+    d = fixture_dir(tmp_path, "flat10")
+    (d / entry).unlink()
+    _make(kind, d / entry)
+    with _deadline():
+        rc, _, err = run_cli(capsys, ["validate", d / "SystemStructure.ssd"])
+    lines = [ln for ln in err.splitlines() if not ln.startswith(("clockwork: warning:", "clockwork: note:"))]
+    assert_one_line_error(rc, "\n".join(lines), WHAT[kind])
+    assert entry.split("/")[-1] in err or "/dev/zero" in err, err

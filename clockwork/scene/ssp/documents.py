@@ -16,7 +16,7 @@ from urllib.parse import unquote, urlsplit
 
 from ...atomic import write_bytes_atomic
 from ...errors import SceneError
-from ...files import NotRegularFile, open_regular
+from ...files import NotRegularFile, absent, open_regular
 from ...numbers import XSD_SPECIAL, parse_int, parse_real, shorten
 from ...paths import cache_root, scratch_dir
 from ...engine.description import MAX_ENTRIES, entry_problem, max_unzipped_bytes
@@ -145,7 +145,7 @@ class Store:
         except OSError as e:  # a name too long, a loop of links
             raise doc.fail(el, f"cannot read {shorten(p, 300)}: {e.strerror}", attr) from None
         if not found:
-            raise doc.fail(el, f"no such file: {shorten(p, 300)}", attr)
+            raise doc.fail(el, f"{shorten(p, 300)}: {absent(p, 'a regular file')}", attr)
         return p
 
     def entry(self, where: str) -> zipfile.ZipInfo:
