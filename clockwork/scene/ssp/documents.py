@@ -77,32 +77,39 @@ class Store:
                 raise SceneError(e.detail, path) from None
             except OSError as e:
                 raise SceneError(f"cannot read: {e.strerror}", path) from None
-            if not zipfile.is_zipfile(self._file):
-                self.close()
-                raise SceneError("expected an SSP archive: a zip file with SystemStructure.ssd at its root; "
-                                 "this is not a zip file", path)
             try:
-                self.zip = zipfile.ZipFile(self._file)
-                names = self.zip.namelist()
-            except (zipfile.BadZipFile, OSError, ValueError) as e:
-                raise SceneError(f"expected an SSP archive: unreadable zip file ({e})", path) from None
-            if len(names) > MAX_ENTRIES:
-                raise SceneError(f"{len(names)} entries in the archive, more than {MAX_ENTRIES}: not read", path)
-            seen = set()
-            for name in names:
-                parts = name.split("/")
-                if "\\" in name or name.startswith("/") or ".." in parts or (parts and ":" in parts[0]):
-                    raise SceneError("expected a relative path inside the archive (no '..', no absolute path, "
-                                     "no backslash)", path, f"archive entry {shorten(name, 100)!r}")
-                if name in seen:
-                    # zipfile would read the last one: which file is meant is not said
-                    raise SceneError("expected each entry once: the archive holds two entries of this name",
-                                     path, f"archive entry {shorten(name, 100)!r}")
-                seen.add(name)
-            self.members = seen
-            if SSD_NAME not in self.members:
-                raise SceneError(f"expected {SSD_NAME} at the root of the archive; entries: "
-                                 f"{', '.join(sorted(self.members)[:8]) or 'none'}", path)
+                self._open_archive(path)
+            except BaseException:
+                self.close()  # the archive's file, which no caller holds yet
+                raise
+
+    def _open_archive(self, path: Path) -> None:
+        """The zip directory of the open archive, its entries checked."""
+        if not zipfile.is_zipfile(self._file):
+            raise SceneError("expected an SSP archive: a zip file with SystemStructure.ssd at its root; "
+                             "this is not a zip file", path)
+        try:
+            self.zip = zipfile.ZipFile(self._file)
+            names = self.zip.namelist()
+        except (zipfile.BadZipFile, OSError, ValueError) as e:
+            raise SceneError(f"expected an SSP archive: unreadable zip file ({e})", path) from None
+        if len(names) > MAX_ENTRIES:
+            raise SceneError(f"{len(names)} entries in the archive, more than {MAX_ENTRIES}: not read", path)
+        seen = set()
+        for name in names:
+            parts = name.split("/")
+            if "\\" in name or name.startswith("/") or ".." in parts or (parts and ":" in parts[0]):
+                raise SceneError("expected a relative path inside the archive (no '..', no absolute path, "
+                                 "no backslash)", path, f"archive entry {shorten(name, 100)!r}")
+            if name in seen:
+                # zipfile would read the last one: which file is meant is not said
+                raise SceneError("expected each entry once: the archive holds two entries of this name",
+                                 path, f"archive entry {shorten(name, 100)!r}")
+            seen.add(name)
+        self.members = seen
+        if SSD_NAME not in self.members:
+            raise SceneError(f"expected {SSD_NAME} at the root of the archive; entries: "
+                             f"{', '.join(sorted(self.members)[:8]) or 'none'}", path)
 
     def close(self) -> None:
         if self.zip is not None:
