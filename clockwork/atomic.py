@@ -15,6 +15,7 @@ import os
 import secrets
 import tempfile
 from pathlib import Path
+from typing import Iterable
 
 PART = ".part"  # the suffix of a file being written
 
@@ -57,12 +58,17 @@ def alive(pid: int) -> bool:
     return True
 
 
-def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
+def write_bytes_atomic(path: str | os.PathLike, data: bytes | Iterable[bytes]) -> Path:
+    """`data`, or the chunks it yields (a large file is then never whole in memory)."""
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=PART, dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as f:
-            f.write(data)
+            if isinstance(data, (bytes, bytearray, memoryview)):
+                f.write(data)
+            else:
+                for chunk in data:
+                    f.write(chunk)
             f.flush()
             os.fsync(f.fileno())
         os.chmod(tmp, 0o644)
@@ -80,7 +86,7 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
     return path
 
 
-def write_bytes_unnamed(path: str | os.PathLike, data: bytes) -> Path:
+def write_bytes_unnamed(path: str | os.PathLike, data: bytes | Iterable[bytes]) -> Path:
     """write_bytes_atomic, written into an unnamed file (Linux O_TMPFILE)
     that is given its name only once complete: a process killed while
     writing it (a sweep killed between points) leaves nothing behind. A
@@ -103,7 +109,8 @@ def write_bytes_unnamed(path: str | os.PathLike, data: bytes) -> Path:
                 return write_bytes_atomic(path, data)
             raise
         with os.fdopen(fd, "wb") as f:
-            f.write(data)
+            for chunk in (data,) if isinstance(data, (bytes, bytearray, memoryview)) else data:
+                f.write(chunk)
             f.flush()
             os.fsync(f.fileno())
             os.fchmod(f.fileno(), 0o644)

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from .version import __version__
 from .errors import Interrupted, SceneError, SimulationError, UsageError, printable, say
+from .files import absent
 from .paths import matplotlib_folder, scenarios_dir
 from . import watchdog
 from .processes import Child, die_with_parent, fork_child, fork_is_safe
@@ -348,7 +349,7 @@ def cmd_list(args) -> int:
 
     d = Path(args.dir) if args.dir else scenarios_dir()
     if not d.is_dir():
-        raise UsageError(f"no such directory: {d}")
+        raise UsageError(f"{d}: {absent(d, 'a directory of scene files', 'no such directory')}")
     files = sorted(d.glob("*.toml"))
     width = max((len(f.name) for f in files), default=0)
     broken = 0

@@ -163,3 +163,47 @@ def test_every_kind_that_runs_over_a_span_declares_what_it_keeps():
 def test_the_bundled_long_scenes_are_within_the_bounds(capsys, scene):
     rc, out, err = run_cli(capsys, ["validate", scene])
     assert rc == 0 and out.startswith("ok"), err
+
+
+# --- rows at events count against the bound ---------------------------------------------
+
+
+def test_input_events_count_against_the_recording_bound_at_validate(capsys, tmp_path):
+    """Without record.interval every input event keeps a row off the grid:
+    20,000 toggles of an input of an FMU with 1001 outputs keep 2.1e7
+    values, past the bound, though the grid alone keeps 1e6 (accepted before)."""
+    from cwtest import test_fmu
+    from wide_fmu import wide_fmu
+
+    fmu = wide_fmu(test_fmu("TestSink"), 1000, tmp_path / "wide.fmu")
+    lines = ["time,u[1]"]
+    for k in range(1, 20_001):
+        t = k * 4.9e-5
+        lines += [f"{t!r},{k % 2}", f"{t!r},{(k + 1) % 2}"]  # a time twice: a step, an input event
+    (tmp_path / "in.csv").write_text("\n".join(lines) + "\n")
+    args = ["validate", fmu, "--input", tmp_path / "in.csv", "--set", "experiment.stop=1", "--set", "master.step=0.001"]
+    rc, _, err = run_cli(capsys, args)
+    assert_one_line_error(rc, err, "experiment.stop", "2.1e+07 values", code=2)
+    rc, out, err = run_cli(capsys, args + ["--set", "record.interval=0.001"])  # events keep no row then
+    assert rc == 0, err
+
+
+@pytest.mark.parametrize("engine", ["compiled", "python"])
+def test_rows_at_located_events_count_against_the_bound_at_run_time(capsys, tmp_path, monkeypatch, engine):
+    """Located events keep rows no check before the run can count: the run
+    stops at the bound with one line, exit 1, and keeps what it recorded."""
+    import json
+
+    from clockwork.analyses import time_series
+
+    # 2 s at 0.01 s: 201 grid rows of 2 columns (time, phi), 3 more at events; the bound lets 202 rows in.
+    monkeypatch.setattr(time_series, "MAX_KEPT_VALUES", 404)
+    f = _scene(tmp_path, stop=2.0, edit=lambda s: s.replace('ticks = "pendulum"', ""))
+    rc, _, err = run_cli(capsys, ["run", f, "--out", tmp_path / "out", "--no-progress", "--no-plot",
+                                  "--set", f"master.engine={engine}"])
+    assert_one_line_error(rc, err, "recorded values", "record.interval", code=1)
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert "recorded values" in summary["result"]["failed"]["message"]
+    rows = (tmp_path / "out" / "timeseries.csv").read_text().splitlines()
+    assert 1 + 202 <= len(rows) <= 1 + 210
+

@@ -374,3 +374,44 @@ def test_a_sweep_with_inputs_runs_in_workers_and_its_points_know_the_file(capsys
     assert [r["series"]["d.x"][-1] for r in loaded] == here
     (tmp_path / "v.csv").write_text("time,d.v\n0,0\n0.5,4\n")
     assert point_key(load_scene(tmp_path / "s.toml"), scene.points()[0]) != keys[0]
+
+
+def test_an_input_file_is_read_in_memory_proportional_to_its_numbers(tmp_path):
+    """A 100 MB input file took 858 MB to validate (the text whole, its lines,
+    then a Python float of 32 bytes per 2-byte cell): now it is read a line
+    at a time into arrays of doubles, about 4 bytes of memory a byte of file
+    at worst (cells "0,"), and the bound on its size (128 MiB) is set by that."""
+    import tracemalloc
+
+    from clockwork.scene.inputs import MAX_INPUT_BYTES, read_inputs
+
+    width = 100
+    f = tmp_path / "zeros.csv"
+    with open(f, "w") as out:
+        out.write("time," + ",".join(f"u[{k}]" for k in range(1, width + 1)) + "\n")
+        out.write((",".join(["0"] * (width + 1)) + "\n") * 5000)
+    size = f.stat().st_size
+    scene = load_scene(test_fmu("TestSink"))
+    tracemalloc.start()
+    try:
+        inputs = read_inputs(f, scene.components)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert len(inputs.samples.times) == 5000 and len(inputs.samples.signals) == width
+    assert peak < 4.5 * size + 200_000, (peak, size)  # before: 19 times the file
+    assert MAX_INPUT_BYTES * 8 < 1.2e9  # Booleans at worst: 8 bytes a byte (and a transient copy)
+
+
+def test_an_input_file_over_the_bound_is_refused_by_its_size(capsys, tmp_path):
+    from clockwork.scene.inputs import MAX_INPUT_BYTES
+
+    f = tmp_path / "big.csv"
+    with open(f, "wb") as out:
+        out.write(b"time,u[1]\n0,1\n")
+        out.truncate(MAX_INPUT_BYTES + 1)  # sparse: no disk, and nothing read
+    rc, _, err = run_cli(capsys, ["validate", test_fmu("TestSink"), "--input", f])
+    assert_one_line_error(rc, err, str(f), f"at most {MAX_INPUT_BYTES} bytes")
+    f.write_bytes(b"time,u[1]\n0," + b"1" * (1 << 22) + b"\n")
+    rc, _, err = run_cli(capsys, ["validate", test_fmu("TestSink"), "--input", f])
+    assert_one_line_error(rc, err, str(f), "line 2", "longer than")

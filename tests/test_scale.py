@@ -382,3 +382,65 @@ def test_a_run_without_plots_draws_none_and_plot_draws_them_later(tmp_path, caps
     assert json.loads((tmp_path / "run" / "summary.json").read_text())["files"] == ["timeseries.csv", "summary.json"]
     rc, out, err = run_cli(capsys, ["plot", tmp_path / "run"])
     assert rc == 0 and (tmp_path / "run" / "outputs.png").is_file(), err
+
+
+# -- many outputs ------------------------------------------------------------------------------
+
+
+class _Name(str):
+    """An output name that counts the comparisons made with it: a search of a
+    list compares it with each entry, a dict or set lookup about once."""
+
+    compared = 0
+
+    def __eq__(self, other):
+        type(self).compared += 1
+        return str.__eq__(self, other)
+
+    def __ne__(self, other):
+        type(self).compared += 1
+        return str.__ne__(self, other)
+
+    __hash__ = str.__hash__
+
+
+def _wide_run_work(tmp_path, n: int, engine: str) -> int:
+    """Comparisons of output names while a System of one FMU with n outputs
+    is built, recorded and stepped twice."""
+    from wide_fmu import wide_fmu
+
+    fmu = wide_fmu(test_fmu("TestSink"), n, tmp_path / f"wide{n}.fmu")
+    names = [_Name(f"w[{k}]") for k in range(1, n + 1)]
+    _Name.compared = 0
+    with System({"w": (str(fmu), {})}, [], MasterSettings(step=0.1, engine=engine), record={"w": names}) as s:
+        rec = Recorder(s.master, [("w", x) for x in names])
+        rec.start()
+        s.master.run_until(0.2, rec)
+        assert len(rec.columns) == n + 1 and len(rec.columns["time"]) == 3
+    return _Name.compared
+
+
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_recording_many_outputs_does_work_linear_in_them(tmp_path, engine):
+    """100,000 outputs never finished: the ports and the recorder searched
+    lists of output names for each output (n^2 / 2 comparisons)."""
+    work = {n: _wide_run_work(tmp_path, n, engine) for n in (1000, 2000, 4000)}
+    assert work[4000] <= 2.1 * work[2000] and work[2000] <= 2.1 * work[1000], work
+    assert work[4000] < 10 * 4000, work  # a few per output, not one per pair
+
+
+def test_the_compiled_recording_buffer_is_bounded_whatever_the_width(tmp_path):
+    """The compiled core's buffer of recorded rows held 4096 rows of every
+    column: 3.3 GB for 100,000 outputs before a step was taken."""
+    import ctypes
+
+    from wide_fmu import wide_fmu
+
+    fmu = wide_fmu(test_fmu("TestSink"), 4000, tmp_path / "wide.fmu")
+    names = [f"w[{k}]" for k in range(1, 4001)]
+    with System({"w": (str(fmu), {})}, [], MasterSettings(step=0.1, engine="compiled"), record={"w": names}) as s:
+        rec = Recorder(s.master, [("w", x) for x in names])
+        native, _ = s.master._make_native(rec)
+        rows, _ = native._buffers
+        assert ctypes.sizeof(rows) <= 8 * (1 << 22) + 8 * 16 * 4001
+        assert native.capacity >= 16

@@ -223,3 +223,33 @@ def test_one_and_two_workers_bit_identical(tmp_path):
         b = json.loads((tmp_path / "w2" / "points" / f.name).read_text())
         for k in ("result", "series", "ticks", "statistics"):
             assert a[k] == b[k], k
+
+
+def test_a_sweep_keeps_no_point_series_once_the_point_is_written(capsys, tmp_path, monkeypatch):
+    """Every point's recorded series stayed in memory until the sweep's end:
+    the recording bound per point bounded no sweep (6 points of 2e6 values:
+    615,152 KiB; 388,296 KiB now). Written points keep their series in
+    points/<key>.json; in memory only the first point's stays."""
+    from clockwork.results import report
+    from clockwork.run import scene_run
+    from cwtest import CLOCK_SCENE, fmu_file, run_cli
+
+    fmu_file("Pendulum")
+    sweep = '\n[sweep]\naxes = [ { parameter = "escapement.torque", values = ["0.4 N.cm", "0.45 N.cm", "0.5 N.cm"] } ]\n'
+    f = tmp_path / "s.toml"
+    f.write_text(CLOCK_SCENE.format(stop=1.0, sweep=sweep))
+    monkeypatch.setenv("CLOCKWORK_CACHE", str(tmp_path / "cache"))
+    seen = []
+    real = report.write_outputs
+
+    def spy(scene, out, results, *a, **k):
+        seen.append([sorted(k for k in r if k in ("series", "ticks")) for r in results])
+        return real(scene, out, results, *a, **k)
+
+    monkeypatch.setattr(scene_run, "write_outputs", spy)
+    for _ in range(2):  # computed, then read back from points/
+        rc, _, err = run_cli(capsys, ["run", f, "--out", tmp_path / "out", "--no-progress", "--no-plot", "--workers", "1"])
+        assert rc == 0, err
+    assert seen == [[["series", "ticks"], [], []]] * 2, seen
+    points = sorted((tmp_path / "out" / "points").glob("*.json"))
+    assert len(points) == 3 and all("series" in json.loads(p.read_text()) for p in points)

@@ -17,7 +17,11 @@ from dataclasses import dataclass
 from ..errors import SceneError
 from .context import find_component, parameters
 
-MAX_KEPT_VALUES = 20_000_000  # about 640 MB of Python floats (32 bytes each, in lists)
+MAX_KEPT_VALUES = 20_000_000  # about 820 MB of Python floats in lists (BYTES_PER_VALUE each)
+# A kept value's cost at a run's peak: a float (24) and its place in a list
+# (8, and the list's growth), measured at 41 with the result CSV written
+# (docs/reliability.md, "Bounds known before the work starts").
+BYTES_PER_VALUE = 41
 MAX_STEPS = 10_000_000_000  # communication steps of one point: hours at the compiled core's 0.3 us per FMU-step
 MAX_PYTHON_STEPS = 1_000_000_000  # steps of a loop in Python (ziemkiewicz_fig11's Eq. A1 takes 2e8, minutes)
 MAX_LIST = 1000  # entries of a list an analysis runs one co-simulation per entry of
@@ -141,5 +145,5 @@ def check_bounds(scene, kind: str) -> None:
         key = max(terms, key=terms.get)
         advice = ("a longer analysis.sample_interval or " if key == "analysis.sample_interval" else "") + shorter
         raise SceneError(f"{kind} over {span:g} s keeps about {n:.3g} values in memory, more than "
-                         f"{MAX_KEPT_VALUES:.0e} (about {MAX_KEPT_VALUES * 32 / 1e6:.0f} MB): give {advice}",
+                         f"{MAX_KEPT_VALUES:.0e} (about {MAX_KEPT_VALUES * BYTES_PER_VALUE / 1e6:.0f} MB): give {advice}",
                          scene.path, key)

@@ -21,6 +21,7 @@ import numpy as np
 from ..engine.recording import Recorder
 from ..errors import SimulationError
 from ..scene.model import SPAN_RESOLUTION
+from .bounds import MAX_KEPT_VALUES
 from .context import build_system, experiment, find_component, parameters
 from .registry import register
 
@@ -57,7 +58,8 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
     system = build_system(scene, point, record=record)
     with system:
         m = system.master
-        recorder = Recorder(m, outputs, scene.record.interval, tick_inst, times=times)
+        # Rows at events off the grid are kept too: what no check before the run counts is bounded here.
+        recorder = Recorder(m, outputs, scene.record.interval, tick_inst, times=times, limit=MAX_KEPT_VALUES)
         recorder.start()
         try:
             run_with_progress(m, stop, recorder, progress, label=scene.path.stem)

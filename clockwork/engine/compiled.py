@@ -583,6 +583,8 @@ class CompiledMaster(Master):
                 self._orders_lowered()
             if columns is not None:
                 self._drain(on_point, rec, columns)
+                if on_point.limit is not None:
+                    on_point.check_limit(self._core.t)
             if rc == _DONE:
                 return
             if rc == _CHECK_DIVERGENCE:
@@ -686,12 +688,14 @@ class CompiledMaster(Master):
     def _make_native(self, recorder: Recorder):
         index = {id(p.out): i for i, p in enumerate(self.ports.all)}
         ports = [index[id(arr)] for arr, _ in recorder._sources]
-        rows = (c_double * (ROWS_PER_CALL * (len(ports) + 1)))()
+        # At most about 32 MiB of rows, whatever the width (4096 rows of 100,000 columns were 3.3 GB).
+        capacity = max(16, min(ROWS_PER_CALL, (1 << 22) // (len(ports) + 1)))
+        rows = (c_double * (capacity * (len(ports) + 1)))()
         ticks = (c_double * ROWS_PER_CALL)()
         rec = _Recorder(col_port=self._ref(_array(c_int, ports)),
                         col_pos=self._ref(_array(c_int, (j for _, j in recorder._sources))),
                         rows=ctypes.addressof(rows), ticks=ctypes.addressof(ticks),
-                        n_cols=len(ports), capacity=ROWS_PER_CALL, tick_capacity=ROWS_PER_CALL,
+                        n_cols=len(ports), capacity=capacity, tick_capacity=ROWS_PER_CALL,
                         stride=recorder._stride, has_interval=int(bool(recorder._interval)),
                         tick_port=-1 if recorder._tick_port is None else index[id(recorder._tick_port.out)],
                         tick_pos=recorder._tick_pos)

@@ -46,6 +46,7 @@ import attrs
 from fmpy.model_description import ModelVariable
 
 from ..errors import SceneError
+from ..files import NotRegularFile, absent, open_regular
 from ..hashing import sha256_file
 from ..numbers import XSD_SPECIAL, parse_real, shorten
 from ..paths import REPO, fmu_dir, in_checkout
@@ -190,6 +191,8 @@ def resolve_fmu(spec: str, base_dir: Path | None = None, fmi_version: int = 2) -
             p = (base_dir or Path.cwd()) / p
         if p.is_dir():
             raise FmuError(f"{p} is a directory, not an FMU file (a zip archive)")
+        if p.exists() and not p.is_file():
+            raise FmuError(f"{p} {absent(p, 'an FMU file (a zip archive)')}")
         if not p.is_file():
             if Path(spec).is_absolute():
                 where = ""
@@ -235,21 +238,16 @@ def read_fmu(path: Path, need_binary: bool = True,
     key = (str(path), st.st_mtime_ns, st.st_size)
     hit = _MD_CACHE.get(key)
     if hit is None:
-        if not zipfile.is_zipfile(path):
-            raise FmuError(f"{shown} is not an FMU: not a zip archive")
         try:
-            with zipfile.ZipFile(path) as z:
-                infos = z.infolist()
-                names = {i.filename for i in infos}
-                if "modelDescription.xml" not in names:
-                    raise FmuError(f"{shown} is not an FMU: no modelDescription.xml in the archive")
-                check_archive(shown, infos)
-                xml = z.read("modelDescription.xml")
-                # FMI 3.0 names binary folders by platform tuple (x86_64-linux), FMI 2.0 by platform (linux64).
-                heads = {n: _head(z, n) for n in names
-                         if n.startswith((f"binaries/{fmpy.platform}/", f"binaries/{fmpy.platform_tuple}/"))}
-        except (zipfile.BadZipFile, OSError) as e:
-            raise FmuError(f"{shown} is not a readable FMU: {e}") from None
+            f = open_regular(path, "an FMU (a zip archive)")
+        except NotRegularFile as e:
+            raise FmuError(f"{shown} {e}") from None
+        except OSError as e:
+            raise FmuError(f"cannot read {shown}: {e.strerror}") from None
+        with f:
+            if not zipfile.is_zipfile(f):
+                raise FmuError(f"{shown} is not an FMU: not a zip archive")
+            xml, heads, names = _read_archive(f, shown)
         try:
             check_description(xml)
         except DescriptionProblem as e:
@@ -286,7 +284,7 @@ def read_fmu(path: Path, need_binary: bool = True,
         digest = sha256_file(path)
         folder = fmpy.platform_tuple if md.fmiVersion == "3.0" else fmpy.platform
         binary = f"binaries/{folder}/{ident}{fmpy.sharedLibraryExtension}"
-        problem = binary_problem(heads[binary]) if binary in heads else _missing_binary(binary, ident, set(names))
+        problem = binary_problem(heads[binary]) if binary in heads else _missing_binary(binary, ident, names)
         hit = (md, digest, indicators, problem, binary)
         _MD_CACHE.clear() if len(_MD_CACHE) > 256 else None
         _MD_CACHE[key] = hit
@@ -335,6 +333,27 @@ def _missing_binary(binary: str, ident: str, names: set[str]) -> str:
         return (f"missing: {file} is in {', '.join(shorten(e, 80) for e in elsewhere[:3])}/, not in {folder}/ "
                 "(the folder this FMI version and platform use)")
     return "missing"
+
+
+def _read_archive(f, shown) -> tuple[bytes, dict[str, bytes], set[str]]:
+    """(modelDescription.xml, {binary entry: its first 64 bytes}, every entry's name) of an open FMU
+    file, its bounds checked."""
+    import fmpy
+
+    try:
+        with zipfile.ZipFile(f) as z:
+            infos = z.infolist()
+            names = {i.filename for i in infos}
+            if "modelDescription.xml" not in names:
+                raise FmuError(f"{shown} is not an FMU: no modelDescription.xml in the archive")
+            check_archive(shown, infos)
+            xml = z.read("modelDescription.xml")
+            # FMI 3.0 names binary folders by platform tuple (x86_64-linux), FMI 2.0 by platform (linux64).
+            heads = {n: _head(z, n) for n in names
+                     if n.startswith((f"binaries/{fmpy.platform}/", f"binaries/{fmpy.platform_tuple}/"))}
+    except (zipfile.BadZipFile, OSError) as e:
+        raise FmuError(f"{shown} is not a readable FMU: {e}") from None
+    return xml, heads, names
 
 
 def _head(z: zipfile.ZipFile, name: str) -> bytes:

@@ -30,6 +30,7 @@ from fmpy import calloc, free
 from .. import watchdog
 from ..atomic import alive
 from ..errors import ParametersRefused, SceneError, SimulationError, UsageError, say
+from ..files import open_regular, read_regular
 from ..hashing import sha256_file
 from ..numbers import parse_json
 from ..paths import cache_root, core_library, scratch_dir
@@ -270,7 +271,7 @@ def _extract_into(path: Path, target: Path) -> Path:
 
 
 def _unzip(path: Path, target: Path) -> None:
-    with zipfile.ZipFile(path) as z:
+    with open_regular(path, "an FMU (a zip archive)") as f, zipfile.ZipFile(f) as z:
         check_archive(path, z.infolist())  # also when read_fmu's check was done on another file
         try:
             z.extractall(target)
@@ -287,7 +288,7 @@ def _unzip(path: Path, target: Path) -> None:
 def _intact(folder: Path) -> bool:
     """Every file of the manifest is there with its size."""
     try:
-        manifest = parse_json((folder / _MANIFEST).read_bytes())
+        manifest = parse_json(read_regular(folder / _MANIFEST))
         return isinstance(manifest, dict) and all(
             (folder / name).stat().st_size == size for name, size in manifest.items())
     except (OSError, ValueError, TypeError):

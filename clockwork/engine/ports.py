@@ -166,9 +166,12 @@ class Ports(dict):
                                  f"transformation needs Real variables, these are {kind}")
             (real_links if kind == "Real" else discrete_links).append(link)
         links = real_links
+        # Sets beside the lists: an instance may have 100,000 outputs, and `in` on a list made loading quadratic.
+        known: dict[str, set[str]] = {n: set() for n in instances}
         for link in links:
             inputs[link.dst].append(link.input)
-            if link.output not in outputs[link.src]:
+            if link.output not in known[link.src]:
+                known[link.src].add(link.output)
                 outputs[link.src].append(link.output)
         # An input array's elements go together, in order: FMI 3.0 sets an array whole.
         inputs = {n: _arrays_together(instances[n], names) for n, names in inputs.items()}
@@ -178,7 +181,8 @@ class Ports(dict):
             for x in (y for name in names for y in instances[n].elements.get(name, [name])):
                 if instances[n].variables[x].type != "Real":
                     self.discrete_outputs[n].append(x)
-                elif x not in outputs[n]:
+                elif x not in known[n]:
+                    known[n].add(x)
                     outputs[n].append(x)
         for n, inst in instances.items():
             self[n] = Port(inst, inputs[n], outputs[n], inst.event_indicators if event_location else [])
@@ -188,19 +192,24 @@ class Ports(dict):
             n = max(1, p.n_out)
             p.out = (c_double * n).from_buffer(self.buffer, offset * 8)
             offset += n
+        dout_pos: dict[str, dict[str, int]] = {n: {} for n in instances}
         for link in discrete_links:
             dst, src = self[link.dst], self[link.src]
-            if link.output not in src.dout_names:
+            at = dout_pos[link.src]
+            if link.output not in at:
+                at[link.output] = len(src.dout_names)
                 src.dout_names.append(link.output)
                 # Until the source is first read, as a Real output's buffer: zero (or empty text).
                 src.dout.append(_unread(src.inst, link.output))
             dst.din_names.append(link.input)
-            dst.din_sources.append((src, src.dout_names.index(link.output)))
+            dst.din_sources.append((src, at[link.output]))
             dst.has_inputs = True
         self.has_discrete_links = bool(discrete_links)
+        self.dout_pos = dout_pos
         # Positions by name, once per port: a sink may have thousands of inputs.
         in_pos = {n: _first_positions(p.in_names) for n, p in self.items()}
         out_pos = {n: _first_positions(p.out_names) for n, p in self.items()}
+        self.out_pos = out_pos  # {instance: {output: its position in the port's `out`}}, for the recorder
         for link in links:
             dst, src = self[link.dst], self[link.src]
             k = in_pos[link.dst][link.input]
@@ -261,7 +270,7 @@ class Ports(dict):
         discrete = []
         for link in discrete_links:
             src = self[link.src]
-            discrete.append((self[link.dst], link.input, src, src.dout_names.index(link.output),
+            discrete.append((self[link.dst], link.input, src, self.dout_pos[link.src][link.output],
                              f"{link.src}.{link.output} -> {link.dst}.{link.input}",
                              src.inst.variables[link.output].type))
         return Loop(owner, loop_name(members, wiring.loop_links[index]), ports, unknowns, discrete, mode,

@@ -11,6 +11,7 @@ as text); Real ones come from the master's output buffer.
 
 from __future__ import annotations
 
+from ..errors import SimulationError
 from .description import TEXT_TYPES
 
 
@@ -30,7 +31,11 @@ class _DiscreteOutput:
 
 class Recorder:
     def __init__(self, master, outputs: list[tuple[str, str]], interval: float | None = None,
-                 ticks_of: str | None = None, times: bool = False):
+                 ticks_of: str | None = None, times: bool = False,
+                 limit: int | None = None):
+        """`limit`: the values (rows x columns, time included) it may keep;
+        a run that would keep more (rows at events off the grid, which no
+        check before the run can count) fails with SimulationError."""
         self.master = master
         # An FMI 3.0 array is recorded element by element ("y[0]", "A[1,2]").
         self.outputs = [(i, x) for i, v in outputs for x in master.instances[i].elements.get(v, [v])]
@@ -40,18 +45,22 @@ class Recorder:
         self.columns: dict[str, list[float]] = {"time": [], **{n: [] for n in self.names}}
         self.ticks: list[float] = []
         self._sources = []
+        # Positions by name, once (list.index per output made 100,000 outputs quadratic).
+        discrete = {i: set(names) for i, names in master.discrete_outputs.items()}
+        out_pos = master.ports.out_pos
         for i, v in self.outputs:
-            if v in master.discrete_outputs.get(i, []):
+            if v in discrete.get(i, ()):
                 self._sources.append((_DiscreteOutput(master.instances[i], v), 0))
             else:
-                port = master.ports[i]
-                self._sources.append((port.out, port.out_names.index(v)))
+                self._sources.append((master.ports[i].out, out_pos[i][v]))
         self._tick_port = master.ports[ticks_of] if ticks_of else None
         self._tick_pos = self._tick_port.out_names.index("tick_time") if ticks_of else 0
         self._last_tick = self._tick_port.out[self._tick_pos] if self._tick_port else 0.0
         self._interval = interval
         self._stride = max(1, round(interval / master.settings.step)) if interval else 1
         self._k = 0  # grid points seen
+        self.limit = limit
+        self._rows_left = (limit // (len(self.names) + 1)) if limit is not None else -1
 
     def start(self) -> None:
         """Record the first row, at the master's current point."""
@@ -59,9 +68,28 @@ class Recorder:
             self._row(self.master.t)
 
     def _row(self, t: float) -> None:
+        if self._rows_left >= 0:
+            if self._rows_left == 0:
+                raise self.over(t)
+            self._rows_left -= 1
         self.columns["time"].append(t)
         for name, (arr, j) in zip(self.names, self._sources):
             self.columns[name].append(arr[j])
+
+    def over(self, t: float) -> SimulationError:
+        """The error of a run that would keep more than `limit` values."""
+        rows = len(self.columns["time"])
+        e = SimulationError(
+            f"the run would keep more than {self.limit:.3g} recorded values in memory ({rows} rows of "
+            f"{len(self.names) + 1} columns; rows at events off the record grid count too): give a "
+            "record.interval, a shorter span (experiment.stop) or fewer record.outputs", time=t)
+        e.last_point = self.columns["time"][-1] if rows else None
+        return e
+
+    def check_limit(self, t: float) -> None:
+        """After rows were added in bulk (the compiled core): raise when past `limit`."""
+        if self.limit is not None and len(self.columns["time"]) * (len(self.names) + 1) > self.limit:
+            raise self.over(t)
 
     def __call__(self, master) -> None:
         if self._tick_port is not None:

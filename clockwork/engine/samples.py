@@ -76,7 +76,8 @@ class Samples:
     """Sample times (s, non-decreasing) and the signals sampled at them."""
 
     def __init__(self, times, signals):
-        times = [float(t) for t in times]
+        # An array of doubles is taken as it is (a list of floats costs 4 times its memory).
+        times = times if isinstance(times, array) and times.typecode == "d" else array("d", map(float, times))
         if not times:
             raise UsageError("input samples: expected at least one sample time")
         for k, t in enumerate(times):
@@ -85,7 +86,7 @@ class Samples:
             if k and t < times[k - 1]:
                 raise UsageError(f"input samples: time {t!r} (sample {k}) is before {times[k - 1]!r}: "
                                  "expected times that never decrease")
-        self.times = array("d", times)
+        self.times = times
         self.signals: tuple[Signal, ...] = tuple(signals)
         for s in self.signals:
             if len(s.values) != len(times):

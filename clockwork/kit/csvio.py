@@ -30,6 +30,7 @@ import numpy as np
 
 from ..atomic import write_text_atomic
 from ..errors import UsageError
+from ..files import absent, open_regular
 from ..numbers import CSV_SPECIAL, parse_real, shorten
 
 _TIME = ("time", "t")
@@ -56,7 +57,7 @@ def _read_table(path: Path) -> tuple[list[str], np.ndarray]:
     (8 bytes each) and one line at a time, never the text. A UTF-8 byte order
     mark (Excel writes one) is skipped; a column name given twice is refused."""
     try:
-        with open(path, encoding="utf-8-sig", newline="") as f:
+        with io.TextIOWrapper(open_regular(path, "a result CSV file"), encoding="utf-8-sig", newline="") as f:
             return _parse(path, f)
     except (OSError, UnicodeDecodeError) as e:
         raise UsageError(f"{path}: cannot read: {getattr(e, 'strerror', None) or e}") from None
@@ -192,7 +193,7 @@ def read_result(path: str | Path) -> Result:
     if path.is_dir():
         return _read_slave_dir(path)
     if not path.is_file():
-        raise UsageError(f"{path}: no such file")
+        raise UsageError(f"{path}: {absent(path, 'a result CSV file')}")
     header, data = _read_table(path)
     return _result(str(path), header, data, path)
 

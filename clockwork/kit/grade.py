@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UsageError
+from ..files import read_regular
 from ..numbers import parse_json, shorten
 from . import events
 from .csvio import Result, read_result
@@ -131,7 +132,7 @@ def load_case(spec: str | Path) -> CaseData:
 
 def _read_case(path: Path) -> CaseData:
     try:
-        meta = parse_json(path.read_bytes())
+        meta = parse_json(read_regular(path, "a JSON case file"))
     except (OSError, ValueError) as e:
         raise UsageError(f"{path}: not a readable case file: {getattr(e, 'strerror', None) or e}") from None
     field = _CaseField(path, meta)

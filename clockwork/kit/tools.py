@@ -28,11 +28,12 @@ from pathlib import Path
 import numpy as np
 
 from ..engine.names import split_ref
+from ..files import read_regular
 from ..numbers import parse_json
 
 
 def _meta(case_dir: Path) -> dict:
-    return parse_json(next(case_dir.glob("*_case.json")).read_bytes())
+    return parse_json(read_regular(next(case_dir.glob("*_case.json")), "a JSON case file"))
 
 
 def _steps(meta: dict, h: float) -> int:

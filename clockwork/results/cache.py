@@ -22,6 +22,7 @@ from pathlib import Path
 
 from ..errors import say
 from ..hashing import source_digest
+from ..files import read_regular
 from ..numbers import parse_json
 from ..paths import cache_root
 from ..atomic import remove_stale_parts
@@ -113,7 +114,7 @@ def _first_bad_number(x, where: str = "") -> str | None:
 def read_point(path: Path, label: dict, kind: str) -> dict | None:
     """A stored point's result, or None (missing; or damaged, with one warning line)."""
     try:
-        text = path.read_text()
+        text = read_regular(path, "a JSON file").decode()
     except FileNotFoundError:
         return None
     except OSError as e:

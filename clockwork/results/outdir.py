@@ -39,6 +39,7 @@ from pathlib import Path
 
 from .. import watchdog
 from ..errors import SimulationError, UsageError
+from ..files import read_regular
 from ..atomic import PART, fsync_dir, remove_stale_parts, write_text_atomic
 from ..numbers import parse_json
 from .files import check_output_dir
@@ -154,7 +155,7 @@ class OutputDir:
 def _recover(directory: Path, staging: Path) -> None:
     """Finish (new summary.json in place) or undo a journaled commit."""
     try:
-        journal = parse_json((staging / _JOURNAL).read_bytes())
+        journal = parse_json(read_regular(staging / _JOURNAL))
         new, old = [_plain(n) for n in journal["new"]], [_plain(n) for n in journal["old"]]
     except (OSError, ValueError, KeyError, TypeError):
         # Written atomically, so not a cut-short write: a hand-damaged journal.
@@ -183,7 +184,7 @@ def _plain(name) -> str:
 def _earlier_files(directory: Path) -> set[str]:
     names = set(RESULT_FILES)
     try:
-        listed = parse_json((directory / SUMMARY).read_bytes()).get("files", [])
+        listed = parse_json(read_regular(directory / SUMMARY)).get("files", [])
     except (OSError, ValueError, AttributeError):
         return names  # no earlier result, or one that a killed run cut short
     # Only plain file names: a hand-edited summary must not reach elsewhere.

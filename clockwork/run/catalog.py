@@ -6,14 +6,18 @@ analyses and the plots register (importing them registers them all).
 
 from __future__ import annotations
 
+import bisect
 import difflib
 import math
 import os
 from pathlib import Path
 
 from ..analyses import registry as analyses
+from ..analyses.bounds import BYTES_PER_VALUE
 from ..analyses.bounds import MAX_KEPT_VALUES as MAX_RECORDED_VALUES
 from ..analyses.bounds import check_bounds
+from ..engine.description import array_size
+from ..engine.description import variables as variables_of
 from ..engine.model_exchange import make_instance
 from ..errors import ParametersRefused, SceneError, SimulationError
 from ..paths import scenarios_dir
@@ -132,8 +136,26 @@ def _refuse(scene, i: int, key: str, name: str, what: str, choices: list[str], e
 
 
 # What a run that records at communication points may keep in memory: each
-# value is a Python float in a list (32 bytes) until the point is written.
+# value is a Python float in a list (about 41 bytes at the peak, measured:
+# docs/reliability.md) until the point is written.
 _RECORDING_KINDS = ("time_series", "ticks")
+
+
+def _recorded_columns(scene) -> int:
+    """Columns the recorder keeps: time and every recorded output, an FMI 3.0
+    array by its elements (each a column)."""
+    n = 1
+    for inst, name in scene.record.outputs:
+        comp = scene.components.get(inst)
+        v = variables_of(comp.model_description).get(name) if comp is not None else None
+        n += array_size(v) if v is not None else 1
+    return n
+
+
+def _input_events(scene, start: float, stop: float) -> int:
+    """Input events inside the span: each may add a row off the grid."""
+    events = scene.inputs.samples.events if scene.inputs is not None else ()
+    return bisect.bisect_right(events, stop) - bisect.bisect_left(events, start)
 
 
 def recorded_values(scene) -> tuple[int, float, float]:
@@ -146,9 +168,12 @@ def recorded_values(scene) -> tuple[int, float, float]:
         return 0, 0.0, 0.0
     span = scene.experiment.stop - scene.experiment.start
     every = scene.record.interval or scene.master.step
-    columns = len(scene.record.outputs) + 1 if scene.record.outputs and kind == "time_series" else 0
+    columns = _recorded_columns(scene) if scene.record.outputs and kind == "time_series" else 0
     ticks = scene.record.ticks is not None or kind == "ticks"
-    n = (math.floor(span / every) + 1) * columns + (math.floor(span / scene.master.step) + 1 if ticks else 0)
+    rows = math.floor(span / every) + 1
+    if not scene.record.interval:  # every point is kept: an input event's too
+        rows += _input_events(scene, scene.experiment.start, scene.experiment.stop)
+    n = rows * columns + (math.floor(span / scene.master.step) + 1 if ticks else 0)
     return n, span, every
 
 
@@ -162,7 +187,8 @@ def check_recording_bound(scene) -> None:
     n, span, every = max(recorded_values(v) for v in variants)
     if n > MAX_RECORDED_VALUES:
         raise SceneError(f"a run of {span:g} s recording every {every:g} s keeps about {n:.3g} values in memory, "
-                         f"more than {MAX_RECORDED_VALUES:.0e} (about {MAX_RECORDED_VALUES * 32 / 1e6:.0f} MB): "
+                         f"more than {MAX_RECORDED_VALUES:.0e} (about {MAX_RECORDED_VALUES * BYTES_PER_VALUE / 1e6:.0f} "
+                         "MB): "
                          "give a longer record.interval, a shorter span (experiment.stop), fewer record.outputs, "
                          "or a longer master.step", scene.path, "experiment.stop")
     kind = (scene.analysis or {}).get("kind", "time_series")

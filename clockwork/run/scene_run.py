@@ -43,6 +43,16 @@ def run_scene(scene, out_dir, workers: int | None = None, scheduler: str | None 
             plotter.close()  # before the staging folder goes: nothing may write into it after
 
 
+def _kept(r: dict | None, i: int) -> dict | None:
+    """What a sweep keeps of a point once it is written to points/: its
+    result, not its recorded series and ticks (only the first point's are
+    kept), which no sweep output reads. Every point's series held until the
+    end made the bound per point no bound on the sweep."""
+    if r is None or i == 0:
+        return r
+    return {k: v for k, v in r.items() if k not in ("series", "ticks")}
+
+
 def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, progress: bool,
          plotter: Plotter, t_start: float) -> dict:
     points = scene.points()
@@ -59,6 +69,7 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
                 results[i] = cache_load(k, label, kind)
                 if results[i] is not None:
                     write_json_atomic(out.points / f"{k}.json", results[i], unnamed=True)
+            results[i] = _kept(results[i], i)
     todo = [i for i, r in enumerate(results) if r is None]
     reused = len(points) - len(todo)
 
@@ -68,6 +79,7 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
             # Unnamed until complete: a sweep killed while writing a point leaves no .part.
             write_json_atomic(out.points / f"{keys[i]}.json", r, unnamed=True)
             cache_store(keys[i], r)
+            results[i] = _kept(r, i)
 
     failure = None
     if not sweep:

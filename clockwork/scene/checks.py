@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
 from pathlib import Path
 
 from ..engine.description import (FLOAT32_MAX, INTEGER_TYPES, ArrayElement, int_range, shape_text, start_problem,
@@ -18,6 +19,7 @@ from ..engine.description import variables as variables_of
 from ..engine.names import instance_name_problem, split_ref
 from ..engine.settings import ENGINES, LOOP_MODES, MAX_THREADS, ME_SOLVERS
 from ..errors import SceneError
+from ..files import NotRegularFile, open_regular
 from ..numbers import shorten
 from .model import Component, ComponentVariables, show
 from .units import UnitError, fmt, parse_quantity, to_seconds, to_unit
@@ -92,13 +94,14 @@ def read_bounded(path: Path, limit: int, noun: str, expected: str) -> bytes:
     most `limit` of them; SceneError naming it otherwise (`noun`: "scene
     file"; `expected`: what a directory is not, "a .toml scene file")."""
     try:
-        # Read at most one byte past the limit: a device or a pipe reports no size.
-        with open(path, "rb") as f:
-            data = f.read(limit + 1)
-        if len(data) > limit:
-            size = path.stat().st_size if path.is_file() else None
-            raise SceneError(f"{size if size else 'more than ' + str(limit)} bytes: "
-                             f"{article(noun)} {noun} is at most {limit} bytes", path)
+        # Refused before a byte is read: a FIFO, a socket, a device, a directory, a file over the bound.
+        with open_regular(path, expected) as f:
+            size = os.fstat(f.fileno()).st_size
+            data = f.read(limit + 1) if size <= limit else b""
+        if size > limit or len(data) > limit:
+            raise SceneError(f"{max(size, len(data))} bytes: {article(noun)} {noun} is at most {limit} bytes", path)
+    except NotRegularFile as e:
+        raise SceneError(e.detail, path) from None
     except FileNotFoundError:
         raise SceneError(f"no such {noun}", path) from None
     except IsADirectoryError:

@@ -30,6 +30,7 @@ from pathlib import Path
 
 from ..engine.description import FmuError, read_fmu
 from ..errors import SceneError
+from ..files import absent
 from ..numbers import XSD_SPECIAL, parse_real
 from .checks import instance_problem
 from .model import Component
@@ -156,7 +157,7 @@ def read_fmu_scene(path: str | Path) -> SspScene:
     """An FMU alone, as a scene's components and sections; raises SceneError."""
     path = Path(path)
     if not path.exists():
-        raise SceneError("no such FMU file", path)
+        raise SceneError(absent(path, "an FMU file", "no such FMU file"), path)
     if path.is_dir():
         raise SceneError("is a directory, expected an FMU file (a zip archive)", path)
     try:

@@ -22,6 +22,7 @@ from __future__ import annotations
 import csv
 import difflib
 import hashlib
+import os
 from array import array
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,11 +32,19 @@ from ..engine.description import variables as variables_of
 from ..engine.names import split_ref
 from ..engine.samples import Samples, Signal, is_continuous
 from ..errors import SceneError
+from ..files import NotRegularFile, open_regular
 from ..numbers import parse_int, parse_real, shorten
-from .checks import read_bounded
 from .units import fmt
 
-MAX_INPUT_BYTES = 1 << 30  # a sample table of about 10^8 numbers; beyond that, not an input file
+# An input file's bytes. Its samples are kept as 8-byte numbers (a cell "0,"
+# is 2 bytes: 4 bytes of memory a byte of file), Booleans as pointers to
+# True and False (8 bytes, and as much again while the column becomes a
+# tuple): at most about 1.1 GB for 128 MiB; a file of Real samples written
+# with all their digits (about 20 bytes a cell) takes far less
+# (docs/reliability.md, "Bounds known before the work starts").
+MAX_INPUT_BYTES = 1 << 27
+MAX_LINE = 1 << 22  # bytes of one line: 100,000 columns of 40 characters
+REAL_TYPES = ("Real", "Float32", "Float64")
 
 
 @dataclass(frozen=True)
@@ -163,23 +172,61 @@ def make_samples(times, columns: list, bound: list) -> Samples:
     """Samples of the checked columns (Real ones as arrays of doubles)."""
     signals = []
     for (inst, var, v), values in zip(bound, columns):
-        kept = array("d", values) if v.type in ("Real", "Float32", "Float64") else tuple(values)
+        if v.type in REAL_TYPES:
+            kept = values if isinstance(values, array) and values.typecode == "d" else array("d", values)
+        else:
+            kept = values if isinstance(values, array) else tuple(values)
         signals.append(Signal(inst, var, kept, is_continuous(v)))
     return Samples(times, signals)
 
 
 def read_inputs(path: Path, components: dict, connected: set = frozenset(), parameters: set = frozenset()) -> Inputs:
-    """An input file, read and checked against the scene's components."""
+    """An input file, read and checked against the scene's components: read
+    as a stream, a line at a time, into arrays of doubles (memory holds the
+    numbers, not the text: docs/reliability.md)."""
     path = Path(path)
-    data = read_bounded(path, MAX_INPUT_BYTES, "input file", "a CSV input file")
-    digest = hashlib.sha256(data).hexdigest()
     try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as e:
-        raise SceneError(f"not UTF-8 text (byte {e.start}): expected a CSV input file", path) from None
-    del data
-    lines = ((k, ln) for k, ln in enumerate(text.split("\n"), start=1)
-             if ln.strip() and not ln.lstrip().startswith("#"))
+        f = open_regular(path, "a CSV input file")
+    except NotRegularFile as e:
+        raise SceneError(e.detail, path) from None
+    except FileNotFoundError:
+        raise SceneError("no such input file", path) from None
+    except OSError as e:
+        raise SceneError(f"cannot read: {e.strerror}", path) from None
+    with f:
+        size = os.fstat(f.fileno()).st_size
+        if size > MAX_INPUT_BYTES:
+            raise SceneError(f"{size} bytes: an input file is at most {MAX_INPUT_BYTES} bytes", path)
+        digest = hashlib.sha256()
+        try:
+            return _parse(path, _lines(path, f, digest), digest, components, connected, parameters)
+        except OSError as e:
+            raise SceneError(f"cannot read: {e.strerror}", path) from None
+
+
+def _lines(path: Path, f, digest):
+    """(line number, text) of the lines that are neither blank nor comments,
+    each at most MAX_LINE bytes; every byte read goes into `digest`."""
+    k = offset = 0
+    while True:
+        raw = f.readline(MAX_LINE + 1)
+        if not raw:
+            return
+        digest.update(raw)
+        k += 1
+        if len(raw) > MAX_LINE:
+            raise SceneError(f"longer than {MAX_LINE:,} bytes: expected a CSV input file", path, f"line {k}")
+        start = 3 if k == 1 and raw.startswith(b"\xef\xbb\xbf") else 0  # a byte order mark (Excel writes one)
+        try:
+            line = raw[start:].decode("utf-8")
+        except UnicodeDecodeError as e:
+            raise SceneError(f"not UTF-8 text (byte {offset + start + e.start})", path) from None
+        offset += len(raw)
+        if line.strip() and not line.lstrip().startswith("#"):
+            yield k, line.rstrip("\n")
+
+
+def _parse(path: Path, lines, digest, components: dict, connected: set, parameters: set) -> Inputs:
     first = next(lines, None)
     if first is None:
         raise SceneError("empty: expected a header line (time, then inputs) and rows of samples", path)
@@ -195,7 +242,8 @@ def read_inputs(path: Path, components: dict, connected: set = frozenset(), para
             raise fail(header_line, j, "an empty column name: expected time, then input names")
     bound = targets(names, components, connected, parameters, fail, header_line)
     times: array = array("d")
-    columns = [[] for _ in bound]
+    # Real columns straight into arrays of doubles: 8 bytes a number, not a float object's 32.
+    columns = [_column(v.type) for _, _, v in bound]
     for k, raw in lines:
         cells = _cells(raw.rstrip("\r"), path, k)
         if len(cells) != len(names):
@@ -219,7 +267,18 @@ def read_inputs(path: Path, components: dict, connected: set = frozenset(), para
                 raise fail(k, j, f"{e}, got {shorten(cell, 40)!r}") from None
     if not times:
         raise SceneError("no samples: expected rows of numbers after the header line", path)
-    return Inputs(path, digest, make_samples(times, columns, bound))
+    return Inputs(path, digest.hexdigest(), make_samples(times, columns, bound))
+
+
+def _column(kind: str):
+    """An empty column for samples of an input of this type: an array of
+    doubles or of 64-bit integers where the type fits one (8 bytes a sample),
+    else a list (Booleans: True and False are shared objects)."""
+    if kind in REAL_TYPES:
+        return array("d")
+    if kind in INTEGER_TYPES:
+        return array("Q" if kind == "UInt64" else "q")
+    return []
 
 
 def _cells(line: str, path: Path, k: int) -> list[str]:

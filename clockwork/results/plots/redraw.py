@@ -22,6 +22,7 @@ import re
 from pathlib import Path
 
 from ...errors import UsageError, say
+from ...files import absent
 from ...numbers import CSV_SPECIAL, parse_json, parse_real, shorten
 from .outputs import columns, output_pages
 from .registry import load_matplotlib, page_names, quiet_matplotlib, save
@@ -123,6 +124,8 @@ def redraw(result_dir: str | Path, only: list[str] | None = None, out: str | Pat
         raise UsageError(f"--out {target}: no such directory: {target.parent}")
     if target.is_dir():
         raise UsageError(f"--out {target}: is a directory: expected a file name ending .png")
+    if target.exists() and not target.is_file():  # a FIFO, a device: the page would be renamed over it
+        raise UsageError(f"--out {target}: {absent(target, 'a .png file name (a regular file, or none)')}")
     summary = _summary(folder)
     info = summary.get("columns", {})
     series = _series(folder / "timeseries.csv", info)

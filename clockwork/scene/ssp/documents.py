@@ -17,6 +17,7 @@ from urllib.parse import unquote, urlsplit
 
 from ...atomic import write_bytes_atomic
 from ...errors import SceneError
+from ...files import NotRegularFile, absent, open_regular
 from ...numbers import XSD_SPECIAL, parse_int, parse_real, shorten
 from ...paths import cache_root, scratch_dir
 from ...engine.description import MAX_ENTRIES, entry_problem, max_unzipped_bytes
@@ -69,36 +70,53 @@ class Store:
         self.zip: zipfile.ZipFile | None = None
         self.digest = hashlib.sha256()  # of the archive, or of the SSD and every file it reads
         self._fmus: dict[str, Path] = {}  # archive entry -> its copy (components may share an FMU)
+        self._file = None
         if path.suffix.lower() == ".ssp":
-            if not zipfile.is_zipfile(path):
-                raise SceneError("expected an SSP archive: a zip file with SystemStructure.ssd at its root; "
-                                 "this is not a zip file", path)
             try:
-                self.zip = zipfile.ZipFile(path)
-                names = self.zip.namelist()
-            except (zipfile.BadZipFile, OSError, ValueError) as e:
-                raise SceneError(f"expected an SSP archive: unreadable zip file ({e})", path) from None
-            if len(names) > MAX_ENTRIES:
-                raise SceneError(f"{len(names)} entries in the archive, more than {MAX_ENTRIES}: not read", path)
-            seen = set()
-            for name in names:
-                parts = name.split("/")
-                if "\\" in name or name.startswith("/") or ".." in parts or (parts and ":" in parts[0]):
-                    raise SceneError("expected a relative path inside the archive (no '..', no absolute path, "
-                                     "no backslash)", path, f"archive entry {shorten(name, 100)!r}")
-                if name in seen:
-                    # zipfile would read the last one: which file is meant is not said
-                    raise SceneError("expected each entry once: the archive holds two entries of this name",
-                                     path, f"archive entry {shorten(name, 100)!r}")
-                seen.add(name)
-            self.members = seen
-            if SSD_NAME not in self.members:
-                raise SceneError(f"expected {SSD_NAME} at the root of the archive; entries: "
-                                 f"{', '.join(sorted(self.members)[:8]) or 'none'}", path)
+                self._file = open_regular(path, "an SSP archive (a zip file)")
+            except NotRegularFile as e:
+                raise SceneError(e.detail, path) from None
+            except OSError as e:
+                raise SceneError(f"cannot read: {e.strerror}", path) from None
+            try:
+                self._open_archive(path)
+            except BaseException:
+                self.close()  # the archive's file, which no caller holds yet
+                raise
+
+    def _open_archive(self, path: Path) -> None:
+        """The zip directory of the open archive, its entries checked."""
+        if not zipfile.is_zipfile(self._file):
+            raise SceneError("expected an SSP archive: a zip file with SystemStructure.ssd at its root; "
+                             "this is not a zip file", path)
+        try:
+            self.zip = zipfile.ZipFile(self._file)
+            names = self.zip.namelist()
+        except (zipfile.BadZipFile, OSError, ValueError) as e:
+            raise SceneError(f"expected an SSP archive: unreadable zip file ({e})", path) from None
+        if len(names) > MAX_ENTRIES:
+            raise SceneError(f"{len(names)} entries in the archive, more than {MAX_ENTRIES}: not read", path)
+        seen = set()
+        for name in names:
+            parts = name.split("/")
+            if "\\" in name or name.startswith("/") or ".." in parts or (parts and ":" in parts[0]):
+                raise SceneError("expected a relative path inside the archive (no '..', no absolute path, "
+                                 "no backslash)", path, f"archive entry {shorten(name, 100)!r}")
+            if name in seen:
+                # zipfile would read the last one: which file is meant is not said
+                raise SceneError("expected each entry once: the archive holds two entries of this name",
+                                 path, f"archive entry {shorten(name, 100)!r}")
+            seen.add(name)
+        self.members = seen
+        if SSD_NAME not in self.members:
+            raise SceneError(f"expected {SSD_NAME} at the root of the archive; entries: "
+                             f"{', '.join(sorted(self.members)[:8]) or 'none'}", path)
 
     def close(self) -> None:
         if self.zip is not None:
             self.zip.close()
+        if self._file is not None:
+            self._file.close()
 
     def label(self, member: str) -> str:
         return f"{self.path}/{member}" if self.zip is not None else member
@@ -149,7 +167,7 @@ class Store:
         except OSError as e:  # a name too long, a loop of links
             raise doc.fail(el, f"cannot read {shorten(p, 300)}: {e.strerror}", attr) from None
         if not found:
-            raise doc.fail(el, f"no such file: {shorten(p, 300)}", attr)
+            raise doc.fail(el, f"{shorten(p, 300)}: {absent(p, 'a regular file')}", attr)
         return p
 
     def entry(self, where: str) -> zipfile.ZipInfo:
@@ -171,8 +189,10 @@ class Store:
             except (zipfile.BadZipFile, OSError, ValueError) as e:
                 raise SceneError(f"unreadable archive entry: {e}", self.label(where)) from None
         try:
-            with open(where, "rb") as f:
+            with open_regular(where, "an SSP XML file") as f:
                 data = f.read(MAX_XML_BYTES + 1)
+        except NotRegularFile as e:
+            raise SceneError(e.detail, where) from None
         except OSError as e:
             raise SceneError(f"cannot read: {e.strerror}", where) from None
         if len(data) > MAX_XML_BYTES:

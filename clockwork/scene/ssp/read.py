@@ -31,7 +31,6 @@ connectors, mapping transformations other than linear ones.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -39,6 +38,8 @@ from ...engine.description import FmuError, read_fmu, types_connect, var_unit
 from ...engine.description import variables as variables_of
 from ...engine.model_exchange import interface_of, model_exchange_problem
 from ...errors import SceneError
+from ...files import absent
+from ...hashing import sha256_file
 from ...numbers import parse_int, parse_real, shorten
 from ..checks import SETTABLE, STRUCTURAL, Ctx, convert_value, instance_problem, settable_problem
 from ..model import Component, Connection, MasterConfig
@@ -207,7 +208,7 @@ class _Reader:
         if "outputs" not in sections["record"]:
             sections["record"]["outputs"] = self._default_record()
         if self.store.zip is not None:
-            digest = hashlib.sha256(self.path.read_bytes()).hexdigest()
+            digest = sha256_file(self.path)  # streamed: an archive may be large
         else:
             digest = self.store.digest.hexdigest()
         no_stop = None
@@ -981,7 +982,7 @@ def read_ssp(path: str | Path) -> SspScene:
     """An .ssp archive or an .ssd file, read and flattened; raises SceneError."""
     path = Path(path)
     if not path.exists():
-        raise SceneError("no such file", path)
+        raise SceneError(absent(path, "an .ssp archive or an .ssd file"), path)
     if path.is_dir():
         raise SceneError("is a directory, expected an .ssp archive or an .ssd file", path)
     reader = _Reader(path)
