@@ -14,14 +14,15 @@
  *    names, else the fallback sink: never a crash, never silently dropped.
  *
  * 2. A fatal signal (SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT) inside an
- *    FMU's own code (cw_crash_install): the handler finds the FMU from the
- *    frames of the crashed thread with dladdr (Python registers each FMU
- *    binary with its instance names), writes what it found to a pipe that
- *    a Python thread waits on, and parks the thread; that thread ends the
- *    run as a failed one. A crash outside any FMU, or a second one, keeps
- *    the signal's default action (a core dump is the right report of a bug
- *    of clockwork's own). Nothing runs per FMI call: the cost is the
- *    handler's installation, once.
+ *    FMU's own code (cw_crash_install): the handler finds the FMU and the
+ *    FMI call from the frames of the crashed thread with dladdr (Python
+ *    registers each FMU binary) and returns into the master's or ctypes'
+ *    frame as if the call had returned fmi2Fatal, so the run fails as for
+ *    any error, its history kept; where it cannot (below) it parks the
+ *    thread and the watchdog thread ends the run. A crash outside any FMU,
+ *    or a second one, keeps the signal's earlier action (a core dump is the
+ *    right report of a bug of clockwork's own). Nothing runs per FMI call:
+ *    the cost is the handler's installation, once.
  *
  * The registry is the master library's only mutable global state, behind
  * one mutex; the FMUs keep none.
