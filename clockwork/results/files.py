@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..atomic import PART, write_bytes_atomic, write_bytes_unnamed
+from ..atomic import PART, write_bytes_atomic, write_bytes_unnamed, write_text_atomic  # noqa: F401 (tests import it here)
 from ..errors import UsageError
 from ..files import absent
 
