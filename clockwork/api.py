@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .analyses.time_series import time_series
-from .arguments import Either, Flag, Instance, Mapping, Optional, Real, Spec, Text, checked, show
+from .arguments import Either, Flag, Instance, Mapping, Optional, Real, Spec, Text, checked, fspath, show
 from .arguments import Path as PathSpec
 from .engine.description import variables as variables_of
 from .engine.names import split_ref
@@ -81,13 +81,27 @@ def _toml(value, depth: int = 0):
     """`value` as TOML would give it: numpy scalars and arrays, tuples and
     fractions as Python's bool, int, float, str and list; ValueError for
     anything TOML has no kind for (None, complex, Decimal, dicts, sets,
-    bytes, dates, objects)."""
+    bytes, dates, objects), for a masked value (numpy.ma: no value, not
+    its placeholder) and for a number or string whose conversion fails."""
+    if isinstance(value, np.ma.MaskedArray):
+        if np.ma.is_masked(value):
+            raise ValueError(value)
+        value = np.asarray(value.data)
+    try:
+        return _plain(value, depth)
+    except ValueError:
+        raise
+    except Exception:  # a hostile __float__, __int__, __index__ or __iter__: a value TOML has no kind for
+        raise ValueError(value) from None
+
+
+def _plain(value, depth: int):
     if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "biufU":
         value = value.item()
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
-    if isinstance(value, (str, np.str_)):
-        return str(value)
+    if isinstance(value, str):  # np.str_ too; a subclass's own __str__ may say anything
+        return str.__str__(value)
     if isinstance(value, (np.datetime64, np.timedelta64)):  # numpy counts a timedelta as an integer
         raise ValueError(value)
     if isinstance(value, numbers.Integral):
@@ -126,7 +140,8 @@ def _names(value) -> list[str] | None:
         names = list(value)
     except TypeError:
         return None
-    return [str(n) for n in names] if all(isinstance(n, str) for n in names) else None
+    # the names' characters: a str subclass's __str__, __eq__ and __hash__ are not asked
+    return [str.__str__(n) for n in names] if all(isinstance(n, str) for n in names) else None
 
 
 class _Signals(Spec):
@@ -186,17 +201,30 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
         if name not in FMPY_ONLY:
             raise UsageError(f"simulate() got an unexpected argument {name}= (neither clockwork's nor fmpy's)")
         default = FMPY_ONLY[name]
+        # compared without the value's own __eq__ (an array's gives an array, a hostile one anything)
         if value is default or (type(value) is type(default) and value == default) or (
-                name == "fmi_type" and value == "CoSimulation"):
+                type(default) is bool and Flag().accepts(value) and bool(value) is default) or (
+                name == "fmi_type" and type(value) is str and value == "CoSimulation"):
             continue
         why = _INSTEAD.get(name, "fmpy's option has no counterpart in clockwork")
         raise UsageError(f"simulate({name}={show(value)}): not supported ({why}); leave it out, or give "
                          f"fmpy's default {default!r}")
+    filename = fspath(filename)  # checked: a plain str now, __fspath__ asked once
+    if isinstance(input, (str, os.PathLike)):
+        input = fspath(input)
+    # a str subclass key is its characters (its __str__, __eq__, __hash__ are not asked)
+    start_values = {str.__str__(k): v for k, v in start_values.items()}
+    if isinstance(master, dict):
+        master = {str.__str__(k): v for k, v in master.items()}
     start_time, stop_time, step_size, relative_tolerance, output_interval = (
         None if x is None else float(x) for x in (start_time, stop_time, step_size, relative_tolerance,
                                                    output_interval))
     if output is not None:
-        names = _names(output)  # read once: a generator is used up by it
+        try:
+            names = _names(output)  # read once: a generator is used up by it
+        except Exception as e:  # a generator that raises
+            raise UsageError(f"simulate(): output = {show(output)}: expected a list of variable names "
+                             f"(reading it raised {type(e).__name__})") from None
         if names is None:
             raise UsageError(f"simulate(): output = {show(output)}: expected a list of variable names")
         output = names
@@ -275,6 +303,13 @@ def _is_structured(x) -> bool:
 
 def _array_inputs(signals: np.ndarray, scene) -> Inputs:
     """fmpy's input array as the scene's input samples, checked as an input file is."""
+    if isinstance(signals, np.ma.MaskedArray):
+        # a masked entry has no value: its placeholder is not one (a structured mask: field by field)
+        rows = sorted({int(i) for f in signals.dtype.names for i in np.flatnonzero(np.ma.getmaskarray(signals[f]))})
+        if rows:
+            raise UsageError(f"simulate(input=...): row {rows[0]} is masked: expected a value in every field "
+                             "(fill it, or leave the row out)")
+        signals = np.asarray(signals.data)
     names = list(signals.dtype.names)
     if names[0] != "time":
         raise UsageError(f"simulate(input=...): the first field is {names[0]!r}: expected time (fmpy's layout)")

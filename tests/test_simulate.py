@@ -568,3 +568,140 @@ def test_a_step_that_does_not_divide_the_span_ends_at_the_stop_as_fmpy(engine, k
     if "step_size" in ref:
         ref["output_interval"] = float(ref.pop("step_size"))
     _same(clockwork.simulate(f, **kw, master={"engine": engine}), simulate_fmu(str(f), **ref))
+
+
+# --- hostile objects: what they raise while simulate() looks at them is a refusal (audit of issue 37) --------
+#
+# A float or int subclass whose __float__/__int__ raises, a str subclass
+# whose __str__ lies, a path-like whose __fspath__ fails or gives bytes, an
+# iterable or mapping that raises when read, an array's __eq__, a masked
+# value: one ClockworkError naming the argument, never the object's own
+# exception (before: RuntimeError, TypeError, ValueError from inside).
+
+class _FloatRaises(float):
+    def __float__(self):
+        raise RuntimeError("boom")
+
+
+class _IntRaises(int):
+    def __int__(self):
+        raise RuntimeError("boom")
+
+    def __index__(self):
+        raise RuntimeError("boom")
+
+
+class _IntTypeError(int):
+    def __int__(self):
+        raise TypeError("no")
+
+
+class _StrLies(str):
+    def __str__(self):
+        return 5
+
+
+class _EqAll(str):
+    def __eq__(self, other):
+        return True
+
+    def __hash__(self):
+        return 1
+
+
+class _FsRaises:
+    def __fspath__(self):
+        raise RuntimeError("boom")
+
+
+class _FsBytes:
+    def __init__(self, path):
+        self.path = path
+
+    def __fspath__(self):
+        return bytes(self.path)
+
+
+class _IterRaises:
+    def __iter__(self):
+        raise RuntimeError("boom")
+
+
+class _LenRaises(list):
+    def __len__(self):
+        raise RuntimeError("boom")
+
+
+class _ItemsRaise(dict):
+    def items(self):
+        raise RuntimeError("boom")
+
+
+class _ArrayEq:
+    def __eq__(self, other):
+        return np.array([True, False])
+
+
+HOSTILE = {
+    "start_time=float raising": (dict(start_time=_FloatRaises(0.0)), "start_time"),
+    "stop_time=float raising": (dict(stop_time=_FloatRaises(1.0)), "stop_time"),
+    "step_size=float raising": (dict(step_size=_FloatRaises(0.1)), "step_size"),
+    "start value float raising": (dict(start_values={"k": _FloatRaises(2.0)}), "start_values['k']"),
+    "start value int raising": (dict(start_values={"k": _IntRaises(2)}), "start_values['k']"),
+    "start value int TypeError": (dict(start_values={"k": _IntTypeError(2)}), "start_values['k']"),
+    "start value list of them": (dict(start_values={"k": [_FloatRaises(1.0)]}), "start_values['k']"),
+    "master iterations int raising": (dict(master={"iterations": _IntRaises(1)}), "master"),
+    "master step float raising": (dict(master={"step": _FloatRaises(0.1)}), "master"),
+    "start values items raising": (dict(start_values=_ItemsRaise(k=1.0)), "start_values"),
+    "output iter raising": (dict(output=_IterRaises()), "output"),
+    "output len raising": (dict(output=_LenRaises(["x"])), "output"),
+    "output generator raising": (dict(output=(1 / 0 for _ in range(1))), "output"),
+    "filename fspath raising": (dict(filename=_FsRaises()), "filename"),
+    "filename fspath bytes": (dict(filename="bytes"), "filename"),
+    "input fspath raising": (dict(input=_FsRaises()), "input"),
+    "fmi_type array": (dict(fmi_type=np.array(["a", "b"])), "fmi_type"),
+    "fmi_type eq array": (dict(fmi_type=_ArrayEq()), "fmi_type"),
+    "masked start value": (dict(start_values={"k": np.ma.masked}), "start_values['k']"),
+    "masked array start value": (dict(start_values={"k": np.ma.array([1.0], mask=[True])}), "start_values['k']"),
+    "masked master step": (dict(master={"step": np.ma.masked}), "master"),
+    "masked input row": (dict(input=np.ma.array(np.array([(0.0, 1.0), (0.5, 2.0)],
+                                                         dtype=[("time", float), ("v", float)]),
+                                                mask=[(False, False), (False, True)])), "input"),
+}
+
+
+@pytest.mark.parametrize("case", list(HOSTILE))
+def test_a_hostile_object_is_one_line_naming_the_argument(case):
+    kwargs, needle = HOSTILE[case]
+    kwargs = dict(kwargs)
+    f = test_fmu("TestDecay")
+    if kwargs.get("filename") == "bytes":
+        kwargs["filename"] = _FsBytes(f)
+    kwargs.setdefault("filename", f)
+    _one_error(lambda: clockwork.simulate(**kwargs), needle)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_str_subclasses_are_their_characters(engine):
+    """A str subclass (as a name, a key, a value, a path) is its characters:
+    its own __str__, __eq__ and __hash__ are not asked (before: a __str__
+    that returns no str raised TypeError; an __eq__ true for all matched
+    no variable)."""
+    f = test_fmu("TestDecay")
+    plain = clockwork.simulate(f, start_values={"k": 2.0, "x0": "3"}, output=["x"], master={"engine": engine})
+    odd = clockwork.simulate(_StrLies(str(f)), start_values={_StrLies("k"): 2.0, _EqAll("x0"): _StrLies("3")},
+                             output=[_StrLies("x")], master={_StrLies("engine"): _StrLies(engine)})
+    _same(plain, odd)
+    _same(plain, simulate_fmu(str(f), start_values={"k": 2.0, "x0": 3.0}, output=["x"]))
+
+
+def test_an_unmasked_masked_array_is_its_data():
+    f = test_fmu("TestDecay")
+    sig = np.array([(0.0, 0.0), (0.35, 1.0), (0.8, 3.0)], dtype=[("time", float), ("v", float)])
+    _same(clockwork.simulate(f, input=sig, start_values={"k": 2.0}),
+          clockwork.simulate(f, input=np.ma.array(sig), start_values={"k": np.ma.array(2.0)}))
+
+
+def test_fmpys_bool_defaults_take_numpys_bool():
+    f = test_fmu("TestDecay")
+    _same(clockwork.simulate(f), clockwork.simulate(f, validate=np.True_, debug_logging=np.False_))
