@@ -705,3 +705,18 @@ def test_an_unmasked_masked_array_is_its_data():
 def test_fmpys_bool_defaults_take_numpys_bool():
     f = test_fmu("TestDecay")
     _same(clockwork.simulate(f), clockwork.simulate(f, validate=np.True_, debug_logging=np.False_))
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("interval, stop, rows", [(0.3, 1.0, [0, 3, 6, 9, 10]), (0.2, 0.5, [0, 2, 4, 5]),
+                                                  (10.0, 1.0, [0, 10]), (0.5, 1.0, [0, 5, 10])])
+def test_an_output_interval_off_the_stop_still_ends_at_the_stop_as_fmpy(engine, interval, stop, rows):
+    """step_size with an output_interval the span is no multiple of: the
+    rows of the interval, then the stop, as fmpy's result always ends there
+    (before: the stop was left out, and an interval longer than the span
+    gave the start alone)."""
+    f = test_fmu("TestDecay")
+    every = clockwork.simulate(f, step_size=0.1, stop_time=stop, master={"engine": engine})
+    some = clockwork.simulate(f, step_size=0.1, stop_time=stop, output_interval=interval, master={"engine": engine})
+    _same(every[rows], some)
+    assert some["time"][-1] == simulate_fmu(str(f), stop_time=stop, output_interval=interval)["time"][-1] == stop
