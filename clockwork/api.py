@@ -25,6 +25,7 @@ import numpy as np
 from .analyses.time_series import time_series
 from .arguments import Either, Flag, Instance, Mapping, Optional, Real, Spec, Text, checked, fspath, show
 from .arguments import Path as PathSpec
+from .engine.description import element_name
 from .engine.description import variables as variables_of
 from .engine.names import split_ref
 from .engine.settings import MasterSettings
@@ -319,15 +320,29 @@ def _array_inputs(signals: np.ndarray, scene) -> Inputs:
         return UsageError(f"simulate(input=...):{field}: {detail}")
 
     # Each field's kind first: numpy would turn text, dates and objects into
-    # floats (or fail) its own way; a field of arrays is not a column.
+    # floats (or fail) its own way. A field of arrays (fmpy's layout for an
+    # FMI 3.0 array input, u of shape (2,)) is a column per element, u[0]
+    # and u[1], row-major; the element names say whether the input has it.
+    columns = []
     for j, n in enumerate(names):
         dt = signals.dtype[n]
         kinds = "iuf" if j == 0 else "biuf"
-        if dt.shape or dt.kind not in kinds:
+        if (dt.shape and (j == 0 or 0 in dt.shape)) or dt.base.kind not in kinds:
             what = "times in s (a field of floats or integers)" if j == 0 else \
-                "a value per row (a field of floats, integers or bools)"
-            got = f"a field of shape {dt.shape}" if dt.shape else f"dtype {dt.str}"
+                "a value per row (a field of floats, integers or bools, or an array of them)"
+            got = f"a field of shape {dt.shape}" if dt.shape and dt.base.kind in kinds else f"dtype {dt.str}"
             raise fail(None, j, f"expected {what}, got {got}")
+        if dt.shape:
+            shape = _shape_of(scene, n)
+            if shape != dt.shape:
+                has = "names no variable" if shape is None else \
+                    f"is of shape {shape}" if shape else "is a scalar"
+                raise fail(None, j, f"a field of shape {dt.shape}: expected a field of the shape of the array input "
+                                    f"it names ({n} {has})")
+            columns += [(element_name(n, idx), signals[n][(slice(None), *idx)]) for idx in np.ndindex(*dt.shape)]
+        else:
+            columns.append((n, signals[n]))
+    names = [n for n, _ in columns]
     if len(signals) == 0:
         raise UsageError("simulate(input=...): no rows: expected at least one sample (a row per time)")
     times = [float(t) for t in signals["time"]]
@@ -343,7 +358,7 @@ def _array_inputs(signals: np.ndarray, scene) -> Inputs:
     cols = []
     for j, (inst, var, v) in enumerate(bound, start=1):
         column = []
-        for k, x in enumerate(signals[names[j]].tolist()):  # Python's numbers (numpy's repr is not theirs)
+        for k, x in enumerate(columns[j][1].tolist()):  # Python's numbers (numpy's repr is not theirs)
             try:
                 column.append(sample_value(x, v))
             except ValueError as e:
@@ -352,6 +367,16 @@ def _array_inputs(signals: np.ndarray, scene) -> Inputs:
     samples = make_samples(times, cols, bound)
     digest = hashlib.sha256(signals.tobytes() + repr(signals.dtype).encode()).hexdigest()
     return Inputs(None, digest, samples)
+
+
+def _shape_of(scene, name: str) -> tuple | None:
+    """The shape of the variable an input field names (() for a scalar), or None."""
+    variables = {n: variables_of(c.model_description) for n, c in scene.components.items()}
+    split = split_ref(name, variables)
+    if (split is None or split[1] not in variables[split[0]]) and len(variables) == 1:
+        split = (next(iter(variables)), name)
+    v = variables[split[0]].get(split[1]) if split is not None else None
+    return None if v is None else tuple(getattr(v, "shape", None) or ())
 
 
 def _empty_arrays(scene, recorded: list[str] | None) -> list:

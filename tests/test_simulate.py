@@ -720,3 +720,55 @@ def test_an_output_interval_off_the_stop_still_ends_at_the_stop_as_fmpy(engine, 
     some = clockwork.simulate(f, step_size=0.1, stop_time=stop, output_interval=interval, master={"engine": engine})
     _same(every[rows], some)
     assert some["time"][-1] == simulate_fmu(str(f), stop_time=stop, output_interval=interval)["time"][-1] == stop
+
+
+@pytest.fixture(scope="module")
+def linear(tmp_path_factory):
+    import fmi3_linear
+
+    return fmi3_linear.build(tmp_path_factory.mktemp("linear"))
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("dtype", ["f8", "f4", ">i4", "u1"])
+def test_an_fmi3_array_input_field_drives_the_array_as_fmpy(linear, engine, dtype):
+    """fmpy's layout for an FMI 3.0 array input, a field u of shape (2,):
+    a column per element, fmpy's bits (before: refused as a field of
+    shape (2,)); its element columns u[1], u[0] in any order the same."""
+    u = np.array([(0.0, [1, 2]), (0.55, [3, 4]), (1.0, [0, 5])], dtype=[("time", "f8"), ("u", dtype, (2,))])
+    b = clockwork.simulate(linear, input=u, master={"engine": engine})
+    a = simulate_fmu(str(linear), input=u)
+    _same(a, b, a.dtype.names)
+    assert not np.array_equal(b["y"], clockwork.simulate(linear)["y"])  # the input reaches the FMU
+    split = np.array([(t, v[1], v[0]) for t, v in u.tolist()], dtype=[("time", "f8"), ("u[1]", "f8"), ("u[0]", "f8")])
+    _same(b, clockwork.simulate(linear, input=split, master={"engine": engine}))
+
+
+@pytest.mark.parametrize("fields, rows, needle", [
+    ([("u[1]", "f8")], [(0.0, 1.0)], "Linear.u[0] is missing"),
+    ([("u[0]", "f8")], [(0.0, 1.0)], "Linear.u[1] is missing"),
+    ([("u", "f8", (3,))], [(0.0, [1.0, 2.0, 3.0])], "field 'u': a field of shape (3,)"),
+    ([("u", "f8", (2, 1))], [(0.0, [[1.0], [2.0]])], "u is of shape (2,)"),
+    ([("w", "f8", (2,))], [(0.0, [1.0, 2.0])], "w is a scalar"),
+    ([("zz", "f8", (2,))], [(0.0, [1.0, 2.0])], "zz names no variable"),
+    ([("u", "f8", (0,))], [(0.0, [])], "field 'u'"),
+    ([("u", "U3", (2,))], [(0.0, ["a", "b"])], "field 'u'"),
+])
+def test_part_of_an_fmi3_array_input_is_refused_before_the_run(linear, fields, rows, needle):
+    """An FMI 3.0 array is set whole: columns for some of its elements, or
+    a field of another shape, are one UsageError before the run (before:
+    u[1] alone passed the checks and failed the run in fmi3SetFloat64)."""
+    u = np.array(rows, dtype=[("time", "f8"), *fields])
+    text = _one_error(lambda: clockwork.simulate(linear, input=u), "simulate(input=...)", needle)
+    assert "fmi3Set" not in text
+
+
+def test_validate_refuses_an_input_file_with_part_of_an_array(linear, tmp_path):
+    """What run would fail on, validate refuses (issue 37, class 7): exit 2, one line."""
+    import subprocess
+    import sys
+
+    (tmp_path / "u.csv").write_text("time,u[1]\n0,1\n0.5,2\n")
+    p = subprocess.run([sys.executable, "-m", "clockwork", "validate", str(linear), "--input", str(tmp_path / "u.csv")],
+                       capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert p.returncode == 2 and "Linear.u[0] is missing" in p.stderr and len(p.stderr.splitlines()) == 1, p.stderr
