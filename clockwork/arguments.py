@@ -264,9 +264,46 @@ class Tuple(Spec):
         return value
 
 
-# One value of every kind a caller might give by mistake.
+class _FloatRaises(float):
+    """A float whose conversion raises (a hostile number)."""
+
+    def __float__(self):
+        raise RuntimeError("__float__")
+
+    def __repr__(self):
+        return "_FloatRaises()"
+
+
+class _IntRaises(int):
+    def __int__(self):
+        raise RuntimeError("__int__")
+
+    __index__ = __int__
+
+    def __repr__(self):
+        return "_IntRaises()"
+
+
+class _PathRaises:
+    def __fspath__(self):
+        raise RuntimeError("__fspath__")
+
+
+class _IterRaises:
+    def __iter__(self):
+        raise RuntimeError("__iter__")
+
+
+class _ItemsRaise(dict):
+    def items(self):
+        raise RuntimeError("items")
+
+
+# One value of every kind a caller might give by mistake, and hostile
+# objects whose conversion or reading raises (refused as the value is).
 _SAMPLES = ["", "abc", 42, -1, 0, 1.5, math.nan, math.inf, True, None, [1, 2], ("a", "b"), {"a": 1}, b"x",
-            object(), len, 10**400, -10**400, 1 + 2j, decimal.Decimal("1.5"), {1, 2}, bytearray(b"x")]
+            object(), len, 10**400, -10**400, 1 + 2j, decimal.Decimal("1.5"), {1, 2}, bytearray(b"x"),
+            _FloatRaises(1.5), _IntRaises(2), _PathRaises(), _IterRaises(), _ItemsRaise(a=1)]
 
 
 def checked(**specs: Spec):
