@@ -54,6 +54,10 @@ _INSTEAD = {
     "early_return_allowed": "master={'early_return': ...} sets it",
 }
 
+# More output names than an FMU has variables: an iterator that gives more
+# is taken for an endless one (itertools.count, repeat), refused.
+MAX_OUTPUT_NAMES = 1_000_000
+
 # FMI types of recorded columns -> NumPy types (fmpy's: Enumeration as Integer in FMI 2.0, Int64 in 3.0).
 _DTYPES = {"Real": np.float64, "Float64": np.float64, "Float32": np.float32, "Integer": np.int32,
            "Int32": np.int32, "Int8": np.int8, "UInt8": np.uint8, "Int16": np.int16, "UInt16": np.uint16,
@@ -138,11 +142,18 @@ def _names(value) -> list[str] | None:
     if isinstance(value, (str, bytes, bytearray, dict)) or (isinstance(value, np.ndarray) and value.ndim != 1):
         return None
     try:
-        names = list(value)
+        items = iter(value)
     except TypeError:
         return None
-    # the names' characters: a str subclass's __str__, __eq__ and __hash__ are not asked
-    return [str.__str__(n) for n in names] if all(isinstance(n, str) for n in names) else None
+    names = []
+    for n in items:  # read one at a time: an endless iterator is refused, not listed until memory ends
+        if not isinstance(n, str):
+            return None
+        if len(names) >= MAX_OUTPUT_NAMES:
+            raise UsageError(f"simulate(): output = {show(value)}: more than {MAX_OUTPUT_NAMES:,} names: expected "
+                             "a list of variable names (an endless iterator?)")
+        names.append(str.__str__(n))  # its characters: a str subclass's __str__, __eq__, __hash__ are not asked
+    return names
 
 
 class _Signals(Spec):
@@ -223,6 +234,8 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
     if output is not None:
         try:
             names = _names(output)  # read once: a generator is used up by it
+        except UsageError:
+            raise
         except Exception as e:  # a generator that raises
             raise UsageError(f"simulate(): output = {show(output)}: expected a list of variable names "
                              f"(reading it raised {type(e).__name__})") from None

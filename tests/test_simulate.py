@@ -627,11 +627,6 @@ class _IterRaises:
         raise RuntimeError("boom")
 
 
-class _LenRaises(list):
-    def __len__(self):
-        raise RuntimeError("boom")
-
-
 class _ItemsRaise(dict):
     def items(self):
         raise RuntimeError("boom")
@@ -654,7 +649,6 @@ HOSTILE = {
     "master step float raising": (dict(master={"step": _FloatRaises(0.1)}), "master"),
     "start values items raising": (dict(start_values=_ItemsRaise(k=1.0)), "start_values"),
     "output iter raising": (dict(output=_IterRaises()), "output"),
-    "output len raising": (dict(output=_LenRaises(["x"])), "output"),
     "output generator raising": (dict(output=(1 / 0 for _ in range(1))), "output"),
     "filename fspath raising": (dict(filename=_FsRaises()), "filename"),
     "filename fspath bytes": (dict(filename="bytes"), "filename"),
@@ -772,3 +766,15 @@ def test_validate_refuses_an_input_file_with_part_of_an_array(linear, tmp_path):
     p = subprocess.run([sys.executable, "-m", "clockwork", "validate", str(linear), "--input", str(tmp_path / "u.csv")],
                        capture_output=True, text=True, cwd=tmp_path, timeout=120)
     assert p.returncode == 2 and "Linear.u[0] is missing" in p.stderr and len(p.stderr.splitlines()) == 1, p.stderr
+
+
+@pytest.mark.parametrize("output", ["repeat", "count", "cycle"])
+def test_an_endless_output_iterator_is_one_line_not_a_hang(output):
+    """An endless iterator of names (or of anything) is refused after at
+    most MAX_OUTPUT_NAMES names (before: read until memory ran out; fmpy
+    hangs the same way). The names are read one at a time, never by len()."""
+    import itertools
+
+    it = {"repeat": lambda: itertools.repeat("x"), "count": itertools.count,
+          "cycle": lambda: itertools.cycle(["x", "k"])}[output]()
+    _one_error(lambda: clockwork.simulate(test_fmu("TestDecay"), output=it), "output")
