@@ -164,14 +164,24 @@ class _Signals(Spec):
         return _is_structured(value) or PathSpec().accepts(value)
 
 
+class _Number(Real):
+    """Real's numbers, and a 0-d numpy array of one (np.array(2.0), as fmpy
+    takes and start_values already did)."""
+
+    def accepts(self, value) -> bool:
+        if isinstance(value, np.ndarray) and not isinstance(value, np.ma.MaskedArray) and value.ndim == 0:
+            return value.dtype.kind in "iuf" and super().accepts(value.item())
+        return super().accepts(value)
+
+
 _TIME = "a finite time in s"
 _POSITIVE = "a number > 0 (s)"
 _ARGUMENTS = dict(
     filename=PathSpec("the path of an .fmu, .ssp, .ssd or .toml file"),
-    start_time=Optional(Real(_TIME)), stop_time=Optional(Real(_TIME)),
-    step_size=Optional(Real(_POSITIVE, positive=True)),
-    relative_tolerance=Optional(Real("a relative tolerance > 0", positive=True)),
-    output_interval=Optional(Real(_POSITIVE, positive=True)),
+    start_time=Optional(_Number(_TIME)), stop_time=Optional(_Number(_TIME)),
+    step_size=Optional(_Number(_POSITIVE, positive=True)),
+    relative_tolerance=Optional(_Number("a relative tolerance > 0", positive=True)),
+    output_interval=Optional(_Number(_POSITIVE, positive=True)),
     start_values=Mapping(Text("a variable name"), _Value(), "a dict {variable name: value}"),
     input=Optional(_Signals()), output=Optional(_Names()),
     master=Optional(Either(Instance(MasterSettings, "a MasterSettings"),
@@ -229,8 +239,8 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
     if isinstance(master, dict):
         master = {str.__str__(k): v for k, v in master.items()}
     start_time, stop_time, step_size, relative_tolerance, output_interval = (
-        None if x is None else float(x) for x in (start_time, stop_time, step_size, relative_tolerance,
-                                                   output_interval))
+        None if x is None else float(x.item() if isinstance(x, np.ndarray) else x)  # a 0-d array: its number
+        for x in (start_time, stop_time, step_size, relative_tolerance, output_interval))
     if output is not None:
         try:
             names = _names(output)  # read once: a generator is used up by it

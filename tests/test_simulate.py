@@ -778,3 +778,19 @@ def test_an_endless_output_iterator_is_one_line_not_a_hang(output):
     it = {"repeat": lambda: itertools.repeat("x"), "count": itertools.count,
           "cycle": lambda: itertools.cycle(["x", "k"])}[output]()
     _one_error(lambda: clockwork.simulate(test_fmu("TestDecay"), output=it), "output")
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("dtype", [np.float64, np.float32, np.int64, np.uint8])
+def test_times_given_as_0d_arrays_give_the_plain_values_result(engine, dtype):
+    """np.array(2.0) for a time, a step or a tolerance, as fmpy takes it
+    (start values took 0-d arrays already; before: refused)."""
+    f = test_fmu("TestDecay")
+    kw = dict(start_time=0.0, stop_time=2.0, step_size=0.25, relative_tolerance=1.0)
+    plain = clockwork.simulate(f, **kw, master={"engine": engine})
+    _same(plain, clockwork.simulate(f, **{k: np.array(v, dtype=dtype) if v != 0.25 else np.array(v) for k, v in
+                                           kw.items()}, master={"engine": engine}))
+    _same(clockwork.simulate(f, output_interval=np.array(0.25), stop_time=np.array(2)),
+          simulate_fmu(str(f), output_interval=np.array(0.25), stop_time=np.array(2)))
+    for bad in (np.array(True), np.array(1 + 2j), np.array("1"), np.array(np.nan), np.ma.masked, np.array(-1.0)):
+        _one_error(lambda: clockwork.simulate(f, step_size=bad), "step_size")
