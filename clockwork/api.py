@@ -276,12 +276,16 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
     only = next(iter(scene.components)) if len(scene.components) == 1 else None
     if output is not None:  # one FMU: its variables by their own names, as fmpy names them
         own = variables_of(scene.components[only].model_description) if only is not None else {}
-        names, items = [], []
+        names, items, seen = [], [], set()  # a set: a list's `in` made 100,000 names take minutes
         for i, o in enumerate(output):  # a name given twice is recorded once, as fmpy does
             ref = f"{only}.{o}" if o in own else o
-            if ref not in names:
+            if ref not in seen:
+                seen.add(ref)
                 names.append(ref)
                 items.append(f"output[{i}]")
+        # an element of an array asked for whole too is in the whole (fmpy records y for y and y[0])
+        keep = [k for k, ref in enumerate(names) if _array_of(scene, ref) not in seen]
+        names, items = [names[k] for k in keep], [items[k] for k in keep]
         # the scene's plots are not drawn here, and may name columns left out
         given += [Given("record", "outputs", names, "output", tuple(items)), Given("plot", None, [], "output")]
         scene = load_scene(filename, given, path_input)
@@ -390,6 +394,20 @@ def _array_inputs(signals: np.ndarray, scene) -> Inputs:
     samples = make_samples(times, cols, bound)
     digest = hashlib.sha256(signals.tobytes() + repr(signals.dtype).encode()).hexdigest()
     return Inputs(None, digest, samples)
+
+
+def _array_of(scene, ref: str) -> str | None:
+    """"instance.array" when `ref` ("instance.variable") names an element of an FMI 3.0 array, else None."""
+    inst, dot, var = ref.partition(".")
+    while dot and inst not in scene.components:  # instance names may hold dots
+        head, dot, var = var.partition(".")
+        inst = f"{inst}.{head}"
+    component = scene.components.get(inst)
+    if component is None:
+        return None
+    v = variables_of(component.model_description).get(var)
+    array = getattr(v, "array", None)
+    return None if array is None else f"{inst}.{array.name}"
 
 
 def _shape_of(scene, name: str) -> tuple | None:

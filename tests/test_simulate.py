@@ -794,3 +794,16 @@ def test_times_given_as_0d_arrays_give_the_plain_values_result(engine, dtype):
           simulate_fmu(str(f), output_interval=np.array(0.25), stop_time=np.array(2)))
     for bad in (np.array(True), np.array(1 + 2j), np.array("1"), np.array(np.nan), np.ma.masked, np.array(-1.0)):
         _one_error(lambda: clockwork.simulate(f, step_size=bad), "step_size")
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("output, fields", [
+    (["y", "y[0]"], ("time", "y")), (["y[0]", "y"], ("time", "y")), (["y[1]", "y", "x[2]"], ("time", "y", "x[2]")),
+    (["Linear.y", "y[1]"], ("time", "y")),
+])
+def test_an_element_of_an_array_also_asked_whole_is_in_the_whole_as_fmpy(linear, engine, output, fields):
+    """fmpy records y for ["y", "y[0]"]; clockwork refused it ("Linear.y[0]
+    is listed twice"). The whole array's field, fmpy's bits."""
+    b = clockwork.simulate(linear, output=output, master={"engine": engine})
+    assert b.dtype.names == fields
+    _same(simulate_fmu(str(linear), output=["y"]), b, ["time", "y"])
