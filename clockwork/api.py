@@ -54,8 +54,8 @@ _INSTEAD = {
     "early_return_allowed": "master={'early_return': ...} sets it",
 }
 
-# More output names than an FMU has variables: an iterator that gives more
-# is taken for an endless one (itertools.count, repeat), refused.
+# More output names than an FMU has variables: an iterator (not a list)
+# that gives more is taken for an endless one (itertools.count, repeat).
 MAX_OUTPUT_NAMES = 1_000_000
 
 # FMI types of recorded columns -> NumPy types (fmpy's: Enumeration as Integer in FMI 2.0, Int64 in 3.0).
@@ -146,10 +146,11 @@ def _names(value) -> list[str] | None:
     except TypeError:
         return None
     names = []
+    endless = items is value  # an iterator may never end; a list, tuple or array has its length
     for n in items:  # read one at a time: an endless iterator is refused, not listed until memory ends
         if not isinstance(n, str):
             return None
-        if len(names) >= MAX_OUTPUT_NAMES:
+        if endless and len(names) >= MAX_OUTPUT_NAMES:
             raise UsageError(f"simulate(): output = {show(value)}: more than {MAX_OUTPUT_NAMES:,} names: expected "
                              "a list of variable names (an endless iterator?)")
         names.append(str.__str__(n))  # its characters: a str subclass's __str__, __eq__, __hash__ are not asked
