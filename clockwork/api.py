@@ -23,8 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from .analyses.time_series import time_series
-from .arguments import Either, Flag, Instance, Mapping, Optional, Real, Spec, Text, checked, show
+from .arguments import Either, Flag, Instance, Mapping, Optional, Real, Spec, Text, checked, fspath, show
 from .arguments import Path as PathSpec
+from .engine.description import element_name
 from .engine.description import variables as variables_of
 from .engine.names import split_ref
 from .engine.settings import MasterSettings
@@ -52,6 +53,10 @@ _INSTEAD = {
     "set_input_derivatives": "master={'extrapolation': 1} hands input polynomials to FMUs that take them",
     "early_return_allowed": "master={'early_return': ...} sets it",
 }
+
+# More output names than an FMU has variables: an iterator (not a list)
+# that gives more is taken for an endless one (itertools.count, repeat).
+MAX_OUTPUT_NAMES = 1_000_000
 
 # FMI types of recorded columns -> NumPy types (fmpy's: Enumeration as Integer in FMI 2.0, Int64 in 3.0).
 _DTYPES = {"Real": np.float64, "Float64": np.float64, "Float32": np.float32, "Integer": np.int32,
@@ -81,13 +86,27 @@ def _toml(value, depth: int = 0):
     """`value` as TOML would give it: numpy scalars and arrays, tuples and
     fractions as Python's bool, int, float, str and list; ValueError for
     anything TOML has no kind for (None, complex, Decimal, dicts, sets,
-    bytes, dates, objects)."""
+    bytes, dates, objects), for a masked value (numpy.ma: no value, not
+    its placeholder) and for a number or string whose conversion fails."""
+    if isinstance(value, np.ma.MaskedArray):
+        if np.ma.is_masked(value):
+            raise ValueError(value)
+        value = np.asarray(value.data)
+    try:
+        return _plain(value, depth)
+    except ValueError:
+        raise
+    except Exception:  # a hostile __float__, __int__, __index__ or __iter__: a value TOML has no kind for
+        raise ValueError(value) from None
+
+
+def _plain(value, depth: int):
     if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "biufU":
         value = value.item()
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
-    if isinstance(value, (str, np.str_)):
-        return str(value)
+    if isinstance(value, str):  # np.str_ too; a subclass's own __str__ may say anything
+        return str.__str__(value)
     if isinstance(value, (np.datetime64, np.timedelta64)):  # numpy counts a timedelta as an integer
         raise ValueError(value)
     if isinstance(value, numbers.Integral):
@@ -123,10 +142,19 @@ def _names(value) -> list[str] | None:
     if isinstance(value, (str, bytes, bytearray, dict)) or (isinstance(value, np.ndarray) and value.ndim != 1):
         return None
     try:
-        names = list(value)
+        items = iter(value)
     except TypeError:
         return None
-    return [str(n) for n in names] if all(isinstance(n, str) for n in names) else None
+    names = []
+    endless = items is value  # an iterator may never end; a list, tuple or array has its length
+    for n in items:  # read one at a time: an endless iterator is refused, not listed until memory ends
+        if not isinstance(n, str):
+            return None
+        if endless and len(names) >= MAX_OUTPUT_NAMES:
+            raise UsageError(f"simulate(): output = {show(value)}: more than {MAX_OUTPUT_NAMES:,} names: expected "
+                             "a list of variable names (an endless iterator?)")
+        names.append(str.__str__(n))  # its characters: a str subclass's __str__, __eq__, __hash__ are not asked
+    return names
 
 
 class _Signals(Spec):
@@ -137,14 +165,24 @@ class _Signals(Spec):
         return _is_structured(value) or PathSpec().accepts(value)
 
 
+class _Number(Real):
+    """Real's numbers, and a 0-d numpy array of one (np.array(2.0), as fmpy
+    takes and start_values already did)."""
+
+    def accepts(self, value) -> bool:
+        if isinstance(value, np.ndarray) and not isinstance(value, np.ma.MaskedArray) and value.ndim == 0:
+            return value.dtype.kind in "iuf" and super().accepts(value.item())
+        return super().accepts(value)
+
+
 _TIME = "a finite time in s"
 _POSITIVE = "a number > 0 (s)"
 _ARGUMENTS = dict(
     filename=PathSpec("the path of an .fmu, .ssp, .ssd or .toml file"),
-    start_time=Optional(Real(_TIME)), stop_time=Optional(Real(_TIME)),
-    step_size=Optional(Real(_POSITIVE, positive=True)),
-    relative_tolerance=Optional(Real("a relative tolerance > 0", positive=True)),
-    output_interval=Optional(Real(_POSITIVE, positive=True)),
+    start_time=Optional(_Number(_TIME)), stop_time=Optional(_Number(_TIME)),
+    step_size=Optional(_Number(_POSITIVE, positive=True)),
+    relative_tolerance=Optional(_Number("a relative tolerance > 0", positive=True)),
+    output_interval=Optional(_Number(_POSITIVE, positive=True)),
     start_values=Mapping(Text("a variable name"), _Value(), "a dict {variable name: value}"),
     input=Optional(_Signals()), output=Optional(_Names()),
     master=Optional(Either(Instance(MasterSettings, "a MasterSettings"),
@@ -186,17 +224,32 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
         if name not in FMPY_ONLY:
             raise UsageError(f"simulate() got an unexpected argument {name}= (neither clockwork's nor fmpy's)")
         default = FMPY_ONLY[name]
+        # compared without the value's own __eq__ (an array's gives an array, a hostile one anything)
         if value is default or (type(value) is type(default) and value == default) or (
-                name == "fmi_type" and value == "CoSimulation"):
+                type(default) is bool and Flag().accepts(value) and bool(value) is default) or (
+                name == "fmi_type" and type(value) is str and value == "CoSimulation"):
             continue
         why = _INSTEAD.get(name, "fmpy's option has no counterpart in clockwork")
         raise UsageError(f"simulate({name}={show(value)}): not supported ({why}); leave it out, or give "
                          f"fmpy's default {default!r}")
+    filename = fspath(filename)  # checked: a plain str now, __fspath__ asked once
+    if isinstance(input, (str, os.PathLike)):
+        input = fspath(input)
+    # a str subclass key is its characters (its __str__, __eq__, __hash__ are not asked)
+    start_values = {str.__str__(k): v for k, v in start_values.items()}
+    if isinstance(master, dict):
+        master = {str.__str__(k): v for k, v in master.items()}
     start_time, stop_time, step_size, relative_tolerance, output_interval = (
-        None if x is None else float(x) for x in (start_time, stop_time, step_size, relative_tolerance,
-                                                   output_interval))
+        None if x is None else float(x.item() if isinstance(x, np.ndarray) else x)  # a 0-d array: its number
+        for x in (start_time, stop_time, step_size, relative_tolerance, output_interval))
     if output is not None:
-        names = _names(output)  # read once: a generator is used up by it
+        try:
+            names = _names(output)  # read once: a generator is used up by it
+        except UsageError:
+            raise
+        except Exception as e:  # a generator that raises
+            raise UsageError(f"simulate(): output = {show(output)}: expected a list of variable names "
+                             f"(reading it raised {type(e).__name__})") from None
         if names is None:
             raise UsageError(f"simulate(): output = {show(output)}: expected a list of variable names")
         output = names
@@ -224,12 +277,16 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
     only = next(iter(scene.components)) if len(scene.components) == 1 else None
     if output is not None:  # one FMU: its variables by their own names, as fmpy names them
         own = variables_of(scene.components[only].model_description) if only is not None else {}
-        names, items = [], []
+        names, items, seen = [], [], set()  # a set: a list's `in` made 100,000 names take minutes
         for i, o in enumerate(output):  # a name given twice is recorded once, as fmpy does
             ref = f"{only}.{o}" if o in own else o
-            if ref not in names:
+            if ref not in seen:
+                seen.add(ref)
                 names.append(ref)
                 items.append(f"output[{i}]")
+        # an element of an array asked for whole too is in the whole (fmpy records y for y and y[0])
+        keep = [k for k, ref in enumerate(names) if _array_of(scene, ref) not in seen]
+        names, items = [names[k] for k in keep], [items[k] for k in keep]
         # the scene's plots are not drawn here, and may name columns left out
         given += [Given("record", "outputs", names, "output", tuple(items)), Given("plot", None, [], "output")]
         scene = load_scene(filename, given, path_input)
@@ -275,6 +332,13 @@ def _is_structured(x) -> bool:
 
 def _array_inputs(signals: np.ndarray, scene) -> Inputs:
     """fmpy's input array as the scene's input samples, checked as an input file is."""
+    if isinstance(signals, np.ma.MaskedArray):
+        # a masked entry has no value: its placeholder is not one (a structured mask: field by field)
+        rows = sorted({int(i) for f in signals.dtype.names for i in np.flatnonzero(np.ma.getmaskarray(signals[f]))})
+        if rows:
+            raise UsageError(f"simulate(input=...): row {rows[0]} is masked: expected a value in every field "
+                             "(fill it, or leave the row out)")
+        signals = np.asarray(signals.data)
     names = list(signals.dtype.names)
     if names[0] != "time":
         raise UsageError(f"simulate(input=...): the first field is {names[0]!r}: expected time (fmpy's layout)")
@@ -284,15 +348,29 @@ def _array_inputs(signals: np.ndarray, scene) -> Inputs:
         return UsageError(f"simulate(input=...):{field}: {detail}")
 
     # Each field's kind first: numpy would turn text, dates and objects into
-    # floats (or fail) its own way; a field of arrays is not a column.
+    # floats (or fail) its own way. A field of arrays (fmpy's layout for an
+    # FMI 3.0 array input, u of shape (2,)) is a column per element, u[0]
+    # and u[1], row-major; the element names say whether the input has it.
+    columns = []
     for j, n in enumerate(names):
         dt = signals.dtype[n]
         kinds = "iuf" if j == 0 else "biuf"
-        if dt.shape or dt.kind not in kinds:
+        if (dt.shape and (j == 0 or 0 in dt.shape)) or dt.base.kind not in kinds:
             what = "times in s (a field of floats or integers)" if j == 0 else \
-                "a value per row (a field of floats, integers or bools)"
-            got = f"a field of shape {dt.shape}" if dt.shape else f"dtype {dt.str}"
+                "a value per row (a field of floats, integers or bools, or an array of them)"
+            got = f"a field of shape {dt.shape}" if dt.shape and dt.base.kind in kinds else f"dtype {dt.str}"
             raise fail(None, j, f"expected {what}, got {got}")
+        if dt.shape:
+            shape = _shape_of(scene, n)
+            if shape != dt.shape:
+                has = "names no variable" if shape is None else \
+                    f"is of shape {shape}" if shape else "is a scalar"
+                raise fail(None, j, f"a field of shape {dt.shape}: expected a field of the shape of the array input "
+                                    f"it names ({n} {has})")
+            columns += [(element_name(n, idx), signals[n][(slice(None), *idx)]) for idx in np.ndindex(*dt.shape)]
+        else:
+            columns.append((n, signals[n]))
+    names = [n for n, _ in columns]
     if len(signals) == 0:
         raise UsageError("simulate(input=...): no rows: expected at least one sample (a row per time)")
     times = [float(t) for t in signals["time"]]
@@ -308,7 +386,7 @@ def _array_inputs(signals: np.ndarray, scene) -> Inputs:
     cols = []
     for j, (inst, var, v) in enumerate(bound, start=1):
         column = []
-        for k, x in enumerate(signals[names[j]].tolist()):  # Python's numbers (numpy's repr is not theirs)
+        for k, x in enumerate(columns[j][1].tolist()):  # Python's numbers (numpy's repr is not theirs)
             try:
                 column.append(sample_value(x, v))
             except ValueError as e:
@@ -317,6 +395,30 @@ def _array_inputs(signals: np.ndarray, scene) -> Inputs:
     samples = make_samples(times, cols, bound)
     digest = hashlib.sha256(signals.tobytes() + repr(signals.dtype).encode()).hexdigest()
     return Inputs(None, digest, samples)
+
+
+def _array_of(scene, ref: str) -> str | None:
+    """"instance.array" when `ref` ("instance.variable") names an element of an FMI 3.0 array, else None."""
+    inst, dot, var = ref.partition(".")
+    while dot and inst not in scene.components:  # instance names may hold dots
+        head, dot, var = var.partition(".")
+        inst = f"{inst}.{head}"
+    component = scene.components.get(inst)
+    if component is None:
+        return None
+    v = variables_of(component.model_description).get(var)
+    array = getattr(v, "array", None)
+    return None if array is None else f"{inst}.{array.name}"
+
+
+def _shape_of(scene, name: str) -> tuple | None:
+    """The shape of the variable an input field names (() for a scalar), or None."""
+    variables = {n: variables_of(c.model_description) for n, c in scene.components.items()}
+    split = split_ref(name, variables)
+    if (split is None or split[1] not in variables[split[0]]) and len(variables) == 1:
+        split = (next(iter(variables)), name)
+    v = variables[split[0]].get(split[1]) if split is not None else None
+    return None if v is None else tuple(getattr(v, "shape", None) or ())
 
 
 def _empty_arrays(scene, recorded: list[str] | None) -> list:

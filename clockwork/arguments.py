@@ -38,12 +38,34 @@ class Spec:
 
     def refused(self) -> list:
         """Values this spec refuses (for the tests: one of each other kind)."""
-        return [v for v in _SAMPLES if not self.accepts(v)]
+        out = []
+        for v in _SAMPLES:
+            try:
+                ok = self.accepts(v)
+            except Exception:  # a hostile sample: what safe_check refuses
+                ok = False
+            if not ok:
+                out.append(v)
+        return out
 
     def check(self, where: str, value):
         if not self.accepts(value):
             raise UsageError(f"{where} = {show(value)}: expected {self.what}")
         return value
+
+    def safe_check(self, where: str, value):
+        """check(), with whatever a hostile value raises while it is looked
+        at (a __float__, __iter__, __len__ or items() that fails) refused
+        as the value is: one UsageError naming the argument."""
+        try:
+            return self.check(where, value)
+        except UsageError:
+            raise
+        except RecursionError:
+            raise UsageError(f"{where} = {show(value)}: expected {self.what} (nested too deep to read)") from None
+        except Exception as e:
+            raise UsageError(f"{where} = {show(value)}: expected {self.what} (reading it raised "
+                             f"{type(e).__name__})") from None
 
 
 def show(value) -> str:
@@ -84,7 +106,7 @@ class Real(Spec):
             return False
         try:
             x = float(value)
-        except (OverflowError, TypeError, ValueError):  # 10**400, a Real whose __float__ fails
+        except Exception:  # 10**400, a Real whose __float__ fails (any way it likes)
             return False
         if math.isnan(x) or (self.finite and math.isinf(x)):
             return False
@@ -98,8 +120,13 @@ class Integer(Spec):
         self.what = what
 
     def accepts(self, value) -> bool:
-        return (not isinstance(value, bool) and isinstance(value, numbers.Integral)
-                and -2**63 <= int(value) < 2**63)
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+            return False
+        try:
+            n = int(value)
+        except Exception:  # an Integral whose __int__ fails
+            return False
+        return type(n) is int and -2**63 <= n < 2**63
 
 
 class Flag(Spec):
@@ -117,7 +144,23 @@ class Path(Spec):
         self.what = what
 
     def accepts(self, value) -> bool:
-        return (isinstance(value, str) and bool(value)) or isinstance(value, os.PathLike)
+        return fspath(value) is not None
+
+
+def fspath(value) -> str | None:
+    """A path argument as a plain str (a str subclass's own text, an
+    os.PathLike's __fspath__ called once): None when it is empty, bytes,
+    or its __fspath__ fails or gives something else."""
+    if not isinstance(value, (str, os.PathLike)):
+        return None
+    try:
+        text = os.fspath(value)
+    except Exception:
+        return None
+    if not isinstance(text, str):
+        return None
+    text = str.__str__(text)  # the characters, whatever a subclass's __str__ says
+    return text or None
 
 
 class Call(Spec):
@@ -221,9 +264,46 @@ class Tuple(Spec):
         return value
 
 
-# One value of every kind a caller might give by mistake.
+class _FloatRaises(float):
+    """A float whose conversion raises (a hostile number)."""
+
+    def __float__(self):
+        raise RuntimeError("__float__")
+
+    def __repr__(self):
+        return "_FloatRaises()"
+
+
+class _IntRaises(int):
+    def __int__(self):
+        raise RuntimeError("__int__")
+
+    __index__ = __int__
+
+    def __repr__(self):
+        return "_IntRaises()"
+
+
+class _PathRaises:
+    def __fspath__(self):
+        raise RuntimeError("__fspath__")
+
+
+class _IterRaises:
+    def __iter__(self):
+        raise RuntimeError("__iter__")
+
+
+class _ItemsRaise(dict):
+    def items(self):
+        raise RuntimeError("items")
+
+
+# One value of every kind a caller might give by mistake, and hostile
+# objects whose conversion or reading raises (refused as the value is).
 _SAMPLES = ["", "abc", 42, -1, 0, 1.5, math.nan, math.inf, True, None, [1, 2], ("a", "b"), {"a": 1}, b"x",
-            object(), len, 10**400, -10**400, 1 + 2j, decimal.Decimal("1.5"), {1, 2}, bytearray(b"x")]
+            object(), len, 10**400, -10**400, 1 + 2j, decimal.Decimal("1.5"), {1, 2}, bytearray(b"x"),
+            _FloatRaises(1.5), _IntRaises(2), _PathRaises(), _IterRaises(), _ItemsRaise(a=1)]
 
 
 def checked(**specs: Spec):
@@ -269,9 +349,9 @@ def checked(**specs: Spec):
             for name, spec in specs.items():
                 i = index.get(name)
                 if i is not None and i < len(args):
-                    spec.check(f"{call}(): {name}", args[i])
+                    spec.safe_check(f"{call}(): {name}", args[i])
                 elif name in kwargs:
-                    spec.check(f"{call}(): {name}", kwargs[name])
+                    spec.safe_check(f"{call}(): {name}", kwargs[name])
             return func(*args, **kwargs)
 
         wrapper.__arguments__ = dict(specs)

@@ -569,3 +569,242 @@ def test_a_step_that_does_not_divide_the_span_ends_at_the_stop_as_fmpy(engine, k
     if "step_size" in ref:
         ref["output_interval"] = float(ref.pop("step_size"))
     _same(clockwork.simulate(f, **kw, master={"engine": engine}), simulate_fmu(str(f), **ref))
+
+
+# --- hostile objects: what they raise while simulate() looks at them is a refusal (audit of issue 37) --------
+#
+# A float or int subclass whose __float__/__int__ raises, a str subclass
+# whose __str__ lies, a path-like whose __fspath__ fails or gives bytes, an
+# iterable or mapping that raises when read, an array's __eq__, a masked
+# value: one ClockworkError naming the argument, never the object's own
+# exception (before: RuntimeError, TypeError, ValueError from inside).
+
+class _FloatRaises(float):
+    def __float__(self):
+        raise RuntimeError("boom")
+
+
+class _IntRaises(int):
+    def __int__(self):
+        raise RuntimeError("boom")
+
+    def __index__(self):
+        raise RuntimeError("boom")
+
+
+class _IntTypeError(int):
+    def __int__(self):
+        raise TypeError("no")
+
+
+class _StrLies(str):
+    def __str__(self):
+        return 5
+
+
+class _EqAll(str):
+    def __eq__(self, other):
+        return True
+
+    def __hash__(self):
+        return 1
+
+
+class _FsRaises:
+    def __fspath__(self):
+        raise RuntimeError("boom")
+
+
+class _FsBytes:
+    def __init__(self, path):
+        self.path = path
+
+    def __fspath__(self):
+        return bytes(self.path)
+
+
+class _IterRaises:
+    def __iter__(self):
+        raise RuntimeError("boom")
+
+
+class _ItemsRaise(dict):
+    def items(self):
+        raise RuntimeError("boom")
+
+
+class _ArrayEq:
+    def __eq__(self, other):
+        return np.array([True, False])
+
+
+HOSTILE = {
+    "start_time=float raising": (dict(start_time=_FloatRaises(0.0)), "start_time"),
+    "stop_time=float raising": (dict(stop_time=_FloatRaises(1.0)), "stop_time"),
+    "step_size=float raising": (dict(step_size=_FloatRaises(0.1)), "step_size"),
+    "start value float raising": (dict(start_values={"k": _FloatRaises(2.0)}), "start_values['k']"),
+    "start value int raising": (dict(start_values={"k": _IntRaises(2)}), "start_values['k']"),
+    "start value int TypeError": (dict(start_values={"k": _IntTypeError(2)}), "start_values['k']"),
+    "start value list of them": (dict(start_values={"k": [_FloatRaises(1.0)]}), "start_values['k']"),
+    "master iterations int raising": (dict(master={"iterations": _IntRaises(1)}), "master"),
+    "master step float raising": (dict(master={"step": _FloatRaises(0.1)}), "master"),
+    "start values items raising": (dict(start_values=_ItemsRaise(k=1.0)), "start_values"),
+    "output iter raising": (dict(output=_IterRaises()), "output"),
+    "output generator raising": (dict(output=(1 / 0 for _ in range(1))), "output"),
+    "filename fspath raising": (dict(filename=_FsRaises()), "filename"),
+    "filename fspath bytes": (dict(filename="bytes"), "filename"),
+    "input fspath raising": (dict(input=_FsRaises()), "input"),
+    "fmi_type array": (dict(fmi_type=np.array(["a", "b"])), "fmi_type"),
+    "fmi_type eq array": (dict(fmi_type=_ArrayEq()), "fmi_type"),
+    "masked start value": (dict(start_values={"k": np.ma.masked}), "start_values['k']"),
+    "masked array start value": (dict(start_values={"k": np.ma.array([1.0], mask=[True])}), "start_values['k']"),
+    "masked master step": (dict(master={"step": np.ma.masked}), "master"),
+    "masked input row": (dict(input=np.ma.array(np.array([(0.0, 1.0), (0.5, 2.0)],
+                                                         dtype=[("time", float), ("v", float)]),
+                                                mask=[(False, False), (False, True)])), "input"),
+}
+
+
+@pytest.mark.parametrize("case", list(HOSTILE))
+def test_a_hostile_object_is_one_line_naming_the_argument(case):
+    kwargs, needle = HOSTILE[case]
+    kwargs = dict(kwargs)
+    f = test_fmu("TestDecay")
+    if kwargs.get("filename") == "bytes":
+        kwargs["filename"] = _FsBytes(f)
+    kwargs.setdefault("filename", f)
+    _one_error(lambda: clockwork.simulate(**kwargs), needle)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_str_subclasses_are_their_characters(engine):
+    """A str subclass (as a name, a key, a value, a path) is its characters:
+    its own __str__, __eq__ and __hash__ are not asked (before: a __str__
+    that returns no str raised TypeError; an __eq__ true for all matched
+    no variable)."""
+    f = test_fmu("TestDecay")
+    plain = clockwork.simulate(f, start_values={"k": 2.0, "x0": "3"}, output=["x"], master={"engine": engine})
+    odd = clockwork.simulate(_StrLies(str(f)), start_values={_StrLies("k"): 2.0, _EqAll("x0"): _StrLies("3")},
+                             output=[_StrLies("x")], master={_StrLies("engine"): _StrLies(engine)})
+    _same(plain, odd)
+    _same(plain, simulate_fmu(str(f), start_values={"k": 2.0, "x0": 3.0}, output=["x"]))
+
+
+def test_an_unmasked_masked_array_is_its_data():
+    f = test_fmu("TestDecay")
+    sig = np.array([(0.0, 0.0), (0.35, 1.0), (0.8, 3.0)], dtype=[("time", float), ("v", float)])
+    _same(clockwork.simulate(f, input=sig, start_values={"k": 2.0}),
+          clockwork.simulate(f, input=np.ma.array(sig), start_values={"k": np.ma.array(2.0)}))
+
+
+def test_fmpys_bool_defaults_take_numpys_bool():
+    f = test_fmu("TestDecay")
+    _same(clockwork.simulate(f), clockwork.simulate(f, validate=np.True_, debug_logging=np.False_))
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("interval, stop, rows", [(0.3, 1.0, [0, 3, 6, 9, 10]), (0.2, 0.5, [0, 2, 4, 5]),
+                                                  (10.0, 1.0, [0, 10]), (0.5, 1.0, [0, 5, 10])])
+def test_an_output_interval_off_the_stop_still_ends_at_the_stop_as_fmpy(engine, interval, stop, rows):
+    """step_size with an output_interval the span is no multiple of: the
+    rows of the interval, then the stop, as fmpy's result always ends there
+    (before: the stop was left out, and an interval longer than the span
+    gave the start alone)."""
+    f = test_fmu("TestDecay")
+    every = clockwork.simulate(f, step_size=0.1, stop_time=stop, master={"engine": engine})
+    some = clockwork.simulate(f, step_size=0.1, stop_time=stop, output_interval=interval, master={"engine": engine})
+    _same(every[rows], some)
+    assert some["time"][-1] == simulate_fmu(str(f), stop_time=stop, output_interval=interval)["time"][-1] == stop
+
+
+@pytest.fixture(scope="module")
+def linear(tmp_path_factory):
+    import fmi3_linear
+
+    return fmi3_linear.build(tmp_path_factory.mktemp("linear"))
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("dtype", ["f8", "f4", ">i4", "u1"])
+def test_an_fmi3_array_input_field_drives_the_array_as_fmpy(linear, engine, dtype):
+    """fmpy's layout for an FMI 3.0 array input, a field u of shape (2,):
+    a column per element, fmpy's bits (before: refused as a field of
+    shape (2,)); its element columns u[1], u[0] in any order the same."""
+    u = np.array([(0.0, [1, 2]), (0.55, [3, 4]), (1.0, [0, 5])], dtype=[("time", "f8"), ("u", dtype, (2,))])
+    b = clockwork.simulate(linear, input=u, master={"engine": engine})
+    a = simulate_fmu(str(linear), input=u)
+    _same(a, b, a.dtype.names)
+    assert not np.array_equal(b["y"], clockwork.simulate(linear)["y"])  # the input reaches the FMU
+    split = np.array([(t, v[1], v[0]) for t, v in u.tolist()], dtype=[("time", "f8"), ("u[1]", "f8"), ("u[0]", "f8")])
+    _same(b, clockwork.simulate(linear, input=split, master={"engine": engine}))
+
+
+@pytest.mark.parametrize("fields, rows, needle", [
+    ([("u[1]", "f8")], [(0.0, 1.0)], "Linear.u[0] is missing"),
+    ([("u[0]", "f8")], [(0.0, 1.0)], "Linear.u[1] is missing"),
+    ([("u", "f8", (3,))], [(0.0, [1.0, 2.0, 3.0])], "field 'u': a field of shape (3,)"),
+    ([("u", "f8", (2, 1))], [(0.0, [[1.0], [2.0]])], "u is of shape (2,)"),
+    ([("w", "f8", (2,))], [(0.0, [1.0, 2.0])], "w is a scalar"),
+    ([("zz", "f8", (2,))], [(0.0, [1.0, 2.0])], "zz names no variable"),
+    ([("u", "f8", (0,))], [(0.0, [])], "field 'u'"),
+    ([("u", "U3", (2,))], [(0.0, ["a", "b"])], "field 'u'"),
+])
+def test_part_of_an_fmi3_array_input_is_refused_before_the_run(linear, fields, rows, needle):
+    """An FMI 3.0 array is set whole: columns for some of its elements, or
+    a field of another shape, are one UsageError before the run (before:
+    u[1] alone passed the checks and failed the run in fmi3SetFloat64)."""
+    u = np.array(rows, dtype=[("time", "f8"), *fields])
+    text = _one_error(lambda: clockwork.simulate(linear, input=u), "simulate(input=...)", needle)
+    assert "fmi3Set" not in text
+
+
+def test_validate_refuses_an_input_file_with_part_of_an_array(linear, tmp_path):
+    """What run would fail on, validate refuses (issue 37, class 7): exit 2, one line."""
+    import subprocess
+    import sys
+
+    (tmp_path / "u.csv").write_text("time,u[1]\n0,1\n0.5,2\n")
+    p = subprocess.run([sys.executable, "-m", "clockwork", "validate", str(linear), "--input", str(tmp_path / "u.csv")],
+                       capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert p.returncode == 2 and "Linear.u[0] is missing" in p.stderr and len(p.stderr.splitlines()) == 1, p.stderr
+
+
+@pytest.mark.parametrize("output", ["repeat", "count", "cycle"])
+def test_an_endless_output_iterator_is_one_line_not_a_hang(output):
+    """An endless iterator of names (or of anything) is refused after at
+    most MAX_OUTPUT_NAMES names (before: read until memory ran out; fmpy
+    hangs the same way). The names are read one at a time, never by len()."""
+    import itertools
+
+    it = {"repeat": lambda: itertools.repeat("x"), "count": itertools.count,
+          "cycle": lambda: itertools.cycle(["x", "k"])}[output]()
+    _one_error(lambda: clockwork.simulate(test_fmu("TestDecay"), output=it), "output")
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("dtype", [np.float64, np.float32, np.int64, np.uint8])
+def test_times_given_as_0d_arrays_give_the_plain_values_result(engine, dtype):
+    """np.array(2.0) for a time, a step or a tolerance, as fmpy takes it
+    (start values took 0-d arrays already; before: refused)."""
+    f = test_fmu("TestDecay")
+    kw = dict(start_time=0.0, stop_time=2.0, step_size=0.25, relative_tolerance=1.0)
+    plain = clockwork.simulate(f, **kw, master={"engine": engine})
+    _same(plain, clockwork.simulate(f, **{k: np.array(v, dtype=dtype) if v != 0.25 else np.array(v) for k, v in
+                                           kw.items()}, master={"engine": engine}))
+    _same(clockwork.simulate(f, output_interval=np.array(0.25), stop_time=np.array(2)),
+          simulate_fmu(str(f), output_interval=np.array(0.25), stop_time=np.array(2)))
+    for bad in (np.array(True), np.array(1 + 2j), np.array("1"), np.array(np.nan), np.ma.masked, np.array(-1.0)):
+        _one_error(lambda: clockwork.simulate(f, step_size=bad), "step_size")
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("output, fields", [
+    (["y", "y[0]"], ("time", "y")), (["y[0]", "y"], ("time", "y")), (["y[1]", "y", "x[2]"], ("time", "y", "x[2]")),
+    (["Linear.y", "y[1]"], ("time", "y")),
+])
+def test_an_element_of_an_array_also_asked_whole_is_in_the_whole_as_fmpy(linear, engine, output, fields):
+    """fmpy records y for ["y", "y[0]"]; clockwork refused it ("Linear.y[0]
+    is listed twice"). The whole array's field, fmpy's bits."""
+    b = clockwork.simulate(linear, output=output, master={"engine": engine})
+    assert b.dtype.names == fields
+    _same(simulate_fmu(str(linear), output=["y"]), b, ["time", "y"])

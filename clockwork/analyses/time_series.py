@@ -63,6 +63,8 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
         recorder.start()
         try:
             run_with_progress(m, stop, recorder, progress, label=scene.path.stem)
+            if times:  # clockwork.simulate: the last row is the end, as fmpy's (record.interval may skip it)
+                recorder.finish()
         except SimulationError as e:
             # A failed run keeps its history: what was recorded until the
             # last good communication point goes with the error (run.points).

@@ -67,6 +67,12 @@ class Recorder:
         if self._rows:
             self._row(self.master.t)
 
+    def finish(self) -> None:
+        """Record the run's end when the interval left it out (a stop off
+        the recording grid): fmpy's result always ends at its stop."""
+        if self._rows and (not self.columns["time"] or self.columns["time"][-1] < self.master.t):
+            self._row(self.master.t)
+
     def _row(self, t: float) -> None:
         if self._rows_left >= 0:
             if self._rows_left == 0:

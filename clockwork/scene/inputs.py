@@ -22,6 +22,7 @@ from __future__ import annotations
 import csv
 import difflib
 import hashlib
+import math
 import os
 from array import array
 from dataclasses import dataclass
@@ -120,7 +121,28 @@ def targets(names: list[str], components: dict, connected: set, parameters: set,
             raise fail(line, j, f"{inst}.{var} is also column {seen[(inst, var)] + 1}: expected each input once")
         seen[(inst, var)] = j
         out.append((inst, var, v))
+    _whole_arrays(out, variables, names, seen, fail, line)
     return out
+
+
+def _whole_arrays(out: list, variables: dict, names: list[str], seen: dict, fail, line) -> None:
+    """Columns for elements of an FMI 3.0 array ("u[1]") drive it only
+    when every element has one: the FMU takes an array whole (fmi3Set*
+    of part of one is an error at the run), so a missing element is
+    refused here, where validate sees it too."""
+    given: dict[tuple[str, int], list] = {}
+    for inst, var, v in out:
+        array = getattr(v, "array", None)
+        if array is not None:
+            given.setdefault((inst, id(array)), [array, set(), seen[(inst, var)]])[1].add(getattr(v, "index", 0))
+    for (inst, _), (array, indices, j) in given.items():
+        size = math.prod(array.shape)
+        if len(indices) < size:
+            missing = min(set(range(size)) - indices)
+            name = next((n for n, x in variables[inst].items()
+                         if getattr(x, "array", None) is array and getattr(x, "index", 0) == missing), str(missing))
+            raise fail(line, j, f"{inst}.{array.name} is an array of {size} values set whole: expected a column "
+                                f"for each element, {inst}.{name} is missing ({len(indices)} of {size} given)")
 
 
 def sample_value(x, v):
@@ -177,7 +199,23 @@ def make_samples(times, columns: list, bound: list) -> Samples:
         else:
             kept = values if isinstance(values, array) else tuple(values)
         signals.append(Signal(inst, var, kept, is_continuous(v)))
-    return Samples(times, signals)
+    return Samples(times, _elements_in_order(signals, bound))
+
+
+def _elements_in_order(signals: list, bound: list) -> list:
+    """The signals with the elements of each FMI 3.0 array side by side in
+    the array's order (u[1], x, u[0] -> u[0], u[1], x): the FMU takes an
+    array in one fmi3Set* call of its elements in order, whatever order the
+    columns came in. Other signals keep their place."""
+    first: dict[tuple[str, int], int] = {}
+    keys = []
+    for k, (inst, _, v) in enumerate(bound):
+        array = getattr(v, "array", None)
+        if array is None:
+            keys.append((k, 0))
+        else:
+            keys.append((first.setdefault((inst, id(array)), k), getattr(v, "index", 0)))
+    return [s for _, s in sorted(zip(keys, signals), key=lambda p: p[0])]
 
 
 def read_inputs(path: Path, components: dict, connected: set = frozenset(), parameters: set = frozenset()) -> Inputs:
