@@ -519,3 +519,29 @@ def test_an_fmi1_unit_converts_to_itself_only(tmp_path, capsys):
     ssv.write_text(ssv.read_text().replace('value="1.5"', 'value="1500" unit="mm"'))
     rc, _, err = run_cli(capsys, ["validate", ssd])
     assert_one_line_error(rc, err, "a.ssv", "the unit")
+
+
+@pytest.mark.parametrize("name", ["GrasshopperEscapement", "ChronometerEscapement"])
+def test_an_fmi1_escapement_alone_runs_as_fmpy_runs_it(name):
+    """An FMU alone takes the master's defaults, and locating its events
+    would roll it back, which an FMI 1.0 FMU cannot: the default was refused
+    ("master.event_location: expected false") although the user asked for
+    nothing and fmpy runs it. Alone it now runs on the grid with fmpy's
+    numbers, on both engines; asking for event location is still refused."""
+    import numpy as np
+    from fmpy import simulate_fmu
+
+    import clockwork
+
+    path = fmi1(name)
+    ref = simulate_fmu(path, output_interval=0.04)
+    for engine in ("python", "compiled"):
+        res = clockwork.simulate(path, step_size=0.04, master={"engine": engine})
+        common = [n for n in ref.dtype.names if n in res.dtype.names and n != "time"]
+        assert common
+        t = np.intersect1d(res["time"], ref["time"])
+        assert len(t) > 100
+        for n in common:
+            assert np.array_equal(res[n][np.isin(res["time"], t)], ref[n][np.isin(ref["time"], t)]), (engine, n)
+    with pytest.raises(SceneError, match="event_location.*FMI 1.0 FMU, which has no FMU state"):
+        clockwork.simulate(path, master={"event_location": True})

@@ -166,7 +166,13 @@ def read_fmu_scene(path: str | Path) -> SspScene:
         raise SceneError(str(e)) from None
     name = instance_name(md)
     experiment, step = experiment_times(md, path)
-    sections = {"experiment": experiment, "master": {"step": step},
+    master = {"step": step}
+    cs = md.coSimulation
+    if indicators and cs is not None and (md.fmiVersion == "1.0" or not cs.canGetAndSetFMUstate):
+        # Locating its own events would roll it back, which it cannot: alone, it runs on the
+        # grid as fmpy runs it (--set master.event_location=true is still refused, saying why).
+        master["event_location"] = False
+    sections = {"experiment": experiment, "master": master,
                 "record": {"outputs": default_record(md, name)}}
     component = Component(name, path.resolve(), digest, md, {}, indicators)
     return SspScene(md.modelName, md.description or "", {name: component}, (), sections, digest,
