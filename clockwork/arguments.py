@@ -17,7 +17,6 @@ Real) the engine checks next, with the same kind of line.
 
 from __future__ import annotations
 
-import decimal
 import functools
 import inspect
 import math
@@ -39,7 +38,7 @@ class Spec:
     def refused(self) -> list:
         """Values this spec refuses (for the tests: one of each other kind)."""
         out = []
-        for v in _SAMPLES:
+        for v in _samples():
             try:
                 ok = self.accepts(v)
             except Exception:  # a hostile sample: what safe_check refuses
@@ -301,7 +300,10 @@ class _ItemsRaise(dict):
 
 # One value of every kind a caller might give by mistake, and hostile
 # objects whose conversion or reading raises (refused as the value is).
-_SAMPLES = ["", "abc", 42, -1, 0, 1.5, math.nan, math.inf, True, None, [1, 2], ("a", "b"), {"a": 1}, b"x",
+def _samples() -> list:
+    import decimal  # for the tests only: not on every command's start-up path
+
+    return ["", "abc", 42, -1, 0, 1.5, math.nan, math.inf, True, None, [1, 2], ("a", "b"), {"a": 1}, b"x",
             object(), len, 10**400, -10**400, 1 + 2j, decimal.Decimal("1.5"), {1, 2}, bytearray(b"x"),
             _FloatRaises(1.5), _IntRaises(2), _PathRaises(), _IterRaises(), _ItemsRaise(a=1)]
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import errno
 import os
-import secrets
 import tempfile
 from pathlib import Path
 from typing import Iterable
@@ -120,7 +119,7 @@ def write_bytes_unnamed(path: str | os.PathLike, data: bytes | Iterable[bytes]) 
             try:
                 os.link(unnamed, path.name, dst_dir_fd=folder)
             except FileExistsError:
-                tmp = f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}{PART}"
+                tmp = f".{path.name}.{os.getpid()}.{os.urandom(4).hex()}{PART}"
                 os.link(unnamed, tmp, dst_dir_fd=folder)
                 try:
                     os.replace(tmp, path.name, src_dir_fd=folder, dst_dir_fd=folder)

@@ -128,8 +128,7 @@ def _one_line(text: str) -> str:
 # isolates (they reorder what follows them on the line), the line and
 # paragraph separators, and lone surrogates (a file name's undecodable
 # bytes, which the terminal's encoder would refuse).
-_UNPRINTABLE = re.compile("[\x00-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028-\u202e\u2066-\u2069"
-                          "\ud800-\udfff]")
+_UNPRINTABLE = "[\x00-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028-\u202e\u2066-\u2069\ud800-\udfff]"
 
 
 def _escape(m: re.Match) -> str:
@@ -142,7 +141,8 @@ def printable(text: object) -> str:
     sequence, a carriage return, a bidirectional override) written as a
     visible escape, ``\\x1b`` or ``\\u202e``: text from a file (a variable
     name, a CSV header, a unit) quoted in a line on stderr or in a plot."""
-    return _UNPRINTABLE.sub(_escape, str(text))
+    # re caches the compiled pattern: compiled on the first message, not at every start-up
+    return re.sub(_UNPRINTABLE, _escape, str(text))
 
 
 def say(kind: str, text: object) -> None:

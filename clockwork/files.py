@@ -14,6 +14,7 @@ it refuses a huge (or sparse) file without reading a byte.
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import os
 import stat
@@ -50,7 +51,7 @@ def open_regular(path: str | os.PathLike, expected: str = "a regular file", limi
     try:
         fd = os.open(os.fspath(path), os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC | getattr(os, "O_NOCTTY", 0))
     except OSError as e:
-        if e.errno in (6, 95):  # ENXIO, EOPNOTSUPP: a socket cannot be opened; say what it is
+        if e.errno in (errno.ENXIO, errno.EOPNOTSUPP):  # a socket cannot be opened: say what it is
             try:
                 st = os.stat(path)
             except OSError:
@@ -92,7 +93,6 @@ def check_regular(path: str | os.PathLike, expected: str = "a regular file") -> 
         return
     if not stat.S_ISREG(st.st_mode):
         raise NotRegularFile(Path(path), f"is {kind_of(st.st_mode)}, expected {expected}")
-
 
 
 def absent(path: str | os.PathLike, expected: str, missing: str = "no such file") -> str:

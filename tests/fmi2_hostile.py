@@ -73,3 +73,24 @@ def build(folder: Path, name: str = "Hostile", cflags: tuple[str, ...] = ()) -> 
         z.write(binary, "binaries/linux64/Hostile.so")
     shutil.rmtree(work)
     return fmu
+
+
+def sweep_scene(folder: Path, fmu: Path, fault: int, t_faults: list[float], title: str) -> Path:
+    """folder/s.toml: a sweep of the hostile FMU over `t_faults`, 1 s in steps of 0.1 s, x recorded."""
+    scene = Path(folder) / "s.toml"
+    scene.write_text(f"""
+[scene]
+title = "{title}"
+[components.h]
+fmu = "{fmu}"
+parameters = {{ fault = {fault} }}
+[experiment]
+stop = "1 s"
+[master]
+step = "0.1 s"
+[record]
+outputs = ["h.x"]
+[sweep]
+axes = [ {{ parameter = "h.t_fault", values = {list(t_faults)!r} }} ]
+""")
+    return scene

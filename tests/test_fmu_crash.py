@@ -169,22 +169,7 @@ def test_an_abort_in_instantiate_is_a_failed_run(tmp_path, fmus, engine):
 
 
 def test_a_crash_in_a_sweep_worker_fails_that_point(tmp_path, fmus):
-    scene = tmp_path / "s.toml"
-    scene.write_text(f"""
-[scene]
-title = "hostile sweep"
-[components.h]
-fmu = "{fmus['hostile']}"
-parameters = {{ fault = 1 }}
-[experiment]
-stop = "1 s"
-[master]
-step = "0.1 s"
-[record]
-outputs = ["h.x"]
-[sweep]
-axes = [ {{ parameter = "h.t_fault", values = [0.2, 5] }} ]
-""")
+    scene = fmi2_hostile.sweep_scene(tmp_path, fmus["hostile"], 1, [0.2, 5], "hostile sweep")
     tmp = tmp_path / "tmp"
     tmp.mkdir()
     env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT), CLOCKWORK_CACHE="off")
@@ -249,22 +234,7 @@ def test_a_crash_the_handler_cannot_return_from_ends_the_run_with_one_line(tmp_p
 
 def test_a_sweep_worker_ended_by_a_crash_fails_the_run_with_one_line(tmp_path):
     fmu = fmi2_hostile.build(tmp_path, "NoUnwind", ("-fno-asynchronous-unwind-tables", "-fno-unwind-tables"))
-    scene = tmp_path / "s.toml"
-    scene.write_text(f"""
-[scene]
-title = "a sweep whose worker dies"
-[components.h]
-fmu = "{fmu}"
-parameters = {{ fault = 1 }}
-[experiment]
-stop = "1 s"
-[master]
-step = "0.1 s"
-[record]
-outputs = ["h.x"]
-[sweep]
-axes = [ {{ parameter = "h.t_fault", values = [0.2, 5] }} ]
-""")
+    scene = fmi2_hostile.sweep_scene(tmp_path, fmu, 1, [0.2, 5], "a sweep whose worker dies")
     tmp = tmp_path / "tmp"
     tmp.mkdir()
     env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT), CLOCKWORK_CACHE="off")

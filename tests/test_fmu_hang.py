@@ -43,23 +43,7 @@ def _env(tmp_path: Path) -> tuple[dict, Path]:
 
 
 def _sweep_scene(tmp_path: Path, fmu: Path) -> Path:
-    scene = tmp_path / "s.toml"
-    scene.write_text(f"""
-[scene]
-title = "a sweep whose points hang"
-[components.h]
-fmu = "{fmu}"
-parameters = {{ fault = 4 }}
-[experiment]
-stop = "1 s"
-[master]
-step = "0.1 s"
-[record]
-outputs = ["h.x"]
-[sweep]
-axes = [ {{ parameter = "h.t_fault", values = [0.2, 0.3, 0.4, 0.5] }} ]
-""")
-    return scene
+    return fmi2_hostile.sweep_scene(tmp_path, fmu, 4, [0.2, 0.3, 0.4, 0.5], "a sweep whose points hang")
 
 
 def _wait_for_hang(proc, seconds: float = 3.0) -> None:
