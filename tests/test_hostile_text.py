@@ -268,3 +268,38 @@ def test_info_validate_and_list_print_file_text_escaped(capsys, tmp_path):
     for cmd in (["validate", d / "s.toml"], ["list", d]):
         rc, out, err = run_cli(capsys, cmd)
         assert rc == 0 and r"t\x1b[2Jx\u202e" in out and not any(c in out for c in "\x1b\u202e"), (cmd, out, err)
+
+
+def test_the_progress_bar_names_the_scene_escaped(capsys, tmp_path, monkeypatch):
+    """The bar's label is the scene file's name, which may hold terminal
+    escapes: shown escaped, as every other text from the user's files."""
+    import sys
+    import types
+
+    from cwtest import CLOCK_SCENE, fmu_file, run_cli
+
+    fmu_file("Pendulum")
+    sweep = '\n[sweep]\naxes = [ { parameter = "escapement.torque", values = ["0.4 N.cm", "0.45 N.cm"] } ]\n'
+    f = tmp_path / "s\x1b[2J\u202e.toml"
+    f.write_text(CLOCK_SCENE.format(stop=0.2, sweep=sweep))
+    labels = []
+
+    class Bar:
+        def __init__(self, *a, desc="", **k):
+            labels.append(desc)
+
+        def update(self, *a, **k):
+            pass
+
+        def close(self):
+            pass
+
+        def __getattr__(self, name):
+            return lambda *a, **k: None
+
+    monkeypatch.setitem(sys.modules, "tqdm", types.SimpleNamespace(tqdm=Bar))
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)  # a bar only on a terminal
+    monkeypatch.setenv("CLOCKWORK_CACHE", "off")
+    rc, _, err = run_cli(capsys, ["run", f, "--out", tmp_path / "out", "--no-plot", "--workers", "1"])
+    assert rc == 0, err
+    assert labels == ["s\\x1b[2J\\u202e"], labels

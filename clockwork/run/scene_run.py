@@ -16,7 +16,7 @@ from pathlib import Path
 
 from ..version import __version__
 from ..analyses.context import reusing_systems
-from ..errors import ParametersRefused, SceneError, SimulationError
+from ..errors import ParametersRefused, SceneError, SimulationError, printable
 from ..processes import Child
 from ..results.cache import cache_load, cache_store, read_point
 from ..results.files import write_json_atomic
@@ -102,7 +102,7 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
         if progress:
             from tqdm import tqdm  # a bar's: tqdm's imports take 20-30 ms that a run without one is spared
 
-            bar = tqdm(total=len(points), initial=reused, delay=1.0, desc=scene.path.stem, unit="point")
+            bar = tqdm(total=len(points), initial=reused, delay=1.0, desc=printable(scene.path.stem), unit="point")
         else:
             bar = _NoBar()
         n_workers = workers or default_workers(len(todo))
