@@ -808,3 +808,20 @@ def test_an_element_of_an_array_also_asked_whole_is_in_the_whole_as_fmpy(linear,
     b = clockwork.simulate(linear, output=output, master={"engine": engine})
     assert b.dtype.names == fields
     _same(simulate_fmu(str(linear), output=["y"]), b, ["time", "y"])
+
+
+def test_a_connected_input_set_by_the_caller_is_named_as_the_caller_set_it(tmp_path, capsys):
+    """An input that a connection drives and a start value or --set also
+    sets: the line named the scene key components.<c>.parameters.<v>, which
+    the caller never wrote, instead of what they did write."""
+    from cwtest import CLOCK_SCENE, fmu_file, run_cli
+
+    from clockwork.errors import SceneError
+
+    fmu_file("Pendulum")
+    scene = tmp_path / "clock.toml"
+    scene.write_text(CLOCK_SCENE.format(stop=0.2, sweep=""))
+    with pytest.raises(SceneError, match=r"also set in start_values\['pendulum.tau_escapement'\]$"):
+        clockwork.simulate(scene, start_values={"pendulum.tau_escapement": 0.1})
+    rc, _, err = run_cli(capsys, ["validate", scene, "--set", "pendulum.tau_escapement=0.1"])
+    assert rc == 2 and err.rstrip().endswith("also set in --set pendulum.tau_escapement"), err

@@ -625,7 +625,7 @@ def _connections(ctx: Ctx, conns, components: dict[str, Component],
         if (di, dv) in seen:
             raise ctx.fail(key, f"input {di}.{dv} is connected twice (also by connections[{seen[(di, dv)]}])")
         if (di, dv) in set_inputs:
-            raise ctx.fail(key, f"input {di}.{dv} is connected and also set in {set_inputs[(di, dv)]}")
+            raise ctx.fail(key, f"input {di}.{dv} is connected and also set in {ctx.key(set_inputs[(di, dv)])}")
         seen[(di, dv)] = i
         checked.append((key, si, sv, di, dv, sc, s, dc, d))
     # Structure first (names, directions, duplicates), then types and units.
