@@ -129,6 +129,37 @@ def _number_limit(e: ValueError) -> str:
     return f"expected a number that can be read ({shorten(str(e), 100)})"
 
 
+_SCENE_FORMATS = "a .toml scene file, an .ssp archive, an .ssd file or an FMU named X.fmu"
+
+# Root elements of XML files a user may hand over for a scene, and what each is.
+_XML_ROOTS = {
+    "OspSystemStructure": "an Open Simulation Platform system structure (libcosim's OspSystemStructure.xml), "
+                          "which clockwork does not read",
+    "SystemStructureDescription": "an SSP system structure description (name it .ssd)",
+    "fmiModelDescription": "an FMU's modelDescription.xml (give the .fmu that holds it)",
+    "ParameterSet": "an SSP parameter set (.ssv): an .ssd or a scene names it",
+    "ParameterMapping": "an SSP parameter mapping (.ssm): an .ssd names it",
+    "OspModelDescription": "an OSP model description (*_OspModelDescription.xml)",
+}
+
+
+def _other_format(path: Path, text: str) -> str | None:
+    """What a file that is no TOML is instead, where it can be told (XML by
+    its root element, a zip archive, JSON), for the line that refuses it."""
+    head = text.lstrip("\ufeff \t\r\n")
+    if head.startswith("<"):
+        m = re.search(r"<(?![?!])(?:[\w.-]+:)?([\w.-]+)", head[:65536])
+        root = m.group(1) if m else None
+        return _XML_ROOTS.get(root, f"an XML file (root element {shorten(root or '?', 60)})")
+    if head.startswith("PK\x03\x04"):
+        return "a zip archive"
+    if head[:1] in "{[" and path.suffix.lower() == ".json":
+        return "a JSON file"
+    if path.suffix and path.suffix.lower() != ".toml":  # a .toml file's own TOML error says more
+        return f"a {shorten(path.suffix, 20)} file that is no TOML"
+    return None
+
+
 def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
                input_file: str | os.PathLike | None = None) -> Scene:
     """Load, override and validate a scene file (or an .ssp/.ssd, or an
@@ -144,14 +175,16 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
         text = data.decode("utf-8")
     except UnicodeDecodeError as e:
         if data[:4] == b"PK\x03\x04":  # a zip archive: an FMU or an SSP given where a scene goes
-            raise SceneError("a zip archive, not a scene: expected a .toml scene file, an .ssp archive, "
-                             "an .ssd file or an FMU named X.fmu", path) from None
+            raise SceneError(f"a zip archive, not a scene: expected {_SCENE_FORMATS}", path) from None
         raise SceneError(f"not UTF-8 text (byte {e.start})", path) from None
     try:
         raw = tomllib.loads(text)
     except RecursionError:
         raise SceneError("malformed TOML: arrays or tables nested too deeply", path) from None
     except tomllib.TOMLDecodeError as e:
+        other = _other_format(path, text)
+        if other:
+            raise SceneError(f"{other}, not a scene: expected {_SCENE_FORMATS}", path) from None
         msg = str(e)
         m = re.search(r"\(at line (\d+), column (\d+)\)", msg)
         where = f"line {m.group(1)}" if m else "line ?"
