@@ -292,3 +292,27 @@ def test_a_kill_while_a_failed_run_commits_leaves_old_or_new(capsys, tmp_path, f
             outcomes.append("old")
     assert outcomes[0] == "old" and outcomes[-1] == "new"
     assert outcomes == sorted(outcomes, key=lambda o: o == "new")
+
+
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_the_divergence_limit_is_a_scene_key(tmp_path, capsys, engine):
+    """master.divergence_limit, a MasterSettings field, was refused as an
+    unknown key in a scene and by --set: now it is one, checked once, and
+    reaches both engines."""
+    import json
+
+    from cwtest import CLOCK_SCENE, fmu_file, run_cli
+
+    fmu_file("Pendulum")
+    scene = tmp_path / "clock.toml"
+    scene.write_text(CLOCK_SCENE.format(stop=0.3, sweep="").replace("[master]", "[master]\ndivergence_limit = 0.5"))
+    rc, _, err = run_cli(capsys, ["run", scene, "--out", tmp_path / "low", "--no-plot", "--no-progress",
+                                  "--set", f"master.engine={engine}"])
+    assert rc == 1 and "exceeds the divergence limit 0.5" in err, err
+    assert json.loads((tmp_path / "low" / "summary.json").read_text())["result"]["failed"]
+    rc, _, err = run_cli(capsys, ["run", scene, "--out", tmp_path / "high", "--no-plot", "--no-progress",
+                                  "--set", f"master.engine={engine}", "--set", "master.divergence_limit=1e12"])
+    assert rc == 0, err
+    for bad in ("0", "-1", "inf", '"big"'):
+        rc, _, err = run_cli(capsys, ["validate", scene, "--set", f"master.divergence_limit={bad}"])
+        assert rc == 2 and "master.divergence_limit" in err and len(err.strip().splitlines()) == 1, err

@@ -123,6 +123,7 @@ class MasterConfig:
     me_solver: str = "auto"  # integrator of Model Exchange FMUs: "auto", "dp54", "dop853" or "cvode"
     algebraic_loops: str = "solve"  # "solve" (fixed point at every communication point) or "delay"
     threads: int = 1  # the compiled core steps independent instances on this many threads
+    divergence_limit: float = 1e8  # |output| beyond this fails the run as diverged
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
