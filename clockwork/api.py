@@ -261,11 +261,13 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
     # section key (an FMU variable may be called experiment.stop).
     given = [Given("experiment", k, v, label) for k, v, label in
              (("start", start_time, "start_time"), ("stop", stop_time, "stop_time")) if v is not None]
+    step_label = "step_size"
     if step_size is None and "step" not in settings and output_interval is not None:
-        step_size, output_interval = output_interval, None  # fmpy's Co-Simulation steps at its output interval
+        # fmpy's Co-Simulation steps at its output interval (and a refused step is named so)
+        step_size, output_interval, step_label = output_interval, None, "output_interval"
     labels = {k: f"master[{show(k)}]" for k in settings}
     if step_size is not None:
-        settings["step"], labels["step"] = step_size, "step_size"
+        settings["step"], labels["step"] = step_size, step_label
     if relative_tolerance is not None:
         settings["tolerance"], labels["tolerance"] = relative_tolerance, "relative_tolerance"
     given += [Given("master", k, v, labels[k]) for k, v in settings.items()]

@@ -825,3 +825,17 @@ def test_a_connected_input_set_by_the_caller_is_named_as_the_caller_set_it(tmp_p
         clockwork.simulate(scene, start_values={"pendulum.tau_escapement": 0.1})
     rc, _, err = run_cli(capsys, ["validate", scene, "--set", "pendulum.tau_escapement=0.1"])
     assert rc == 2 and err.rstrip().endswith("also set in --set pendulum.tau_escapement"), err
+
+
+@pytest.mark.parametrize("kwargs, named", [
+    ({"step_size": 1e-300}, "step_size"),
+    ({"output_interval": 1e-300}, "output_interval"),  # the step when no step_size: named as given
+    ({"step_size": 1e-13, "output_interval": 0.1}, "step_size"),
+    ({"master": {"step": 1e-300}}, "master['step']"),
+])
+def test_a_step_below_the_smallest_is_named_as_the_caller_gave_it(kwargs, named):
+    from clockwork.errors import SceneError
+
+    with pytest.raises(SceneError) as e:
+        clockwork.simulate(fmu_file("Pendulum"), **kwargs)
+    assert f": {named}: expected a step >= master.min_step" in str(e.value), str(e.value)
