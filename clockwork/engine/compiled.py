@@ -583,8 +583,7 @@ class CompiledMaster(Master):
                 self._orders_lowered()
             if columns is not None:
                 self._drain(on_point, rec, columns)
-                if on_point.limit is not None:
-                    on_point.check_limit(self._core.t)
+                on_point.check_limit(self._core.t)
             if rc == _DONE:
                 return
             if rc == _CHECK_DIVERGENCE:

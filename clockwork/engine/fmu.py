@@ -403,6 +403,16 @@ class Instance:
     # Instances freed in this process: a master looks for a freed instance
     # of its own before a run only when this changed (systems have thousands).
     frees = 0
+    # Its binary under the core's crash handler (guard_library's address, or
+    # None), and the crashes of that binary before this instance was made.
+    _guarded: int | None = None
+    _crashes_seen = 0
+
+    def _guard(self, dll, names: tuple[str, ...]) -> None:
+        """Put this instance's binary under the crash handler (`names`: the
+        functions that may name the library, the first it has)."""
+        self._guarded = guard_library(dll, names, self.name)
+        self._crashes_seen = crashes(self._guarded)  # an earlier instance's crash is not this one's
 
     def _interface(self):
         """The modelDescription element of the interface it runs through."""
@@ -456,8 +466,7 @@ class Instance:
             messages.append((status, message.decode("utf-8", "replace") if message else ""))
             del messages[:-50]
 
-        self._guarded = guard_library(self._slave.dll, ("fmi2Instantiate",), self.name)
-        self._crashes_seen = crashes(self._guarded)  # an earlier instance's crash is not this one's
+        self._guard(self._slave.dll, ("fmi2Instantiate",))
         self._callbacks = fmi2CallbackFunctions()
         core = formatting_logger()
         if core is not None:
@@ -534,14 +543,12 @@ class Instance:
     def crash(self) -> str | None:
         """What crashed this instance's FMU binary in this process (its call
         and the signal), or None: such an FMU is not called again."""
-        return crash_of(getattr(self, "_guarded", None), getattr(self, "_crashes_seen", 0))
+        return crash_of(self._guarded, self._crashes_seen)
 
     def check_crash(self, what: str) -> None:
         """Raise the failed run when the FMU crashed (a failed instantiate)."""
-        crash = self.crash()
-        if crash is not None:
-            raise SimulationError(f"{self.model_name}: {what} crashed the FMU in {crash}; the call was "
-                                  f"abandoned", instance=self.name)
+        if self.crash() is not None:
+            raise self.fail(what, FATAL)
 
     def free(self) -> None:
         if self._slave is None:

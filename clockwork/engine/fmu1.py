@@ -52,7 +52,7 @@ from fmpy.fmi1 import (FMU1Slave, fmi1CallbackAllocateMemoryTYPE, fmi1CallbackFr
 
 from ..errors import ParametersRefused, SceneError, SimulationError
 from .description import fmi1_details, read_fmu
-from .fmu import ERROR, OK, WARNING, Instance, crashes, extract, guard_library, read_string
+from .fmu import ERROR, OK, WARNING, Instance, extract, read_string
 
 # fmi1CallbackLogger with the strings as addresses, read by read_string.
 _LOGGER = CFUNCTYPE(None, c_void_p, c_void_p, c_int, c_void_p, c_void_p)
@@ -148,8 +148,7 @@ class Instance1(Instance):
         instantiate.argtypes = [c_char_p, c_char_p, c_char_p, c_char_p, c_double, c_char, c_char,
                                 fmi1CallbackFunctions, c_char]
         instantiate.restype = c_void_p
-        self._guarded = guard_library(self._slave.dll, (f"{ident}_fmiInstantiateSlave",), self.name)
-        self._crashes_seen = crashes(self._guarded)  # an earlier instance's crash is not this one's
+        self._guard(self._slave.dll, (f"{ident}_fmiInstantiateSlave",))
         component = instantiate(self.name.encode(), self.md.guid.encode(), Path(unzip).as_uri().encode(),
                                 self.details.mime_type.encode(), 0.0, FALSE, FALSE, callbacks, FALSE)
         if not component:

@@ -61,7 +61,7 @@ from ..errors import SceneError, SimulationError
 from ..paths import core_library
 from .description import array_elements, fmi_version, int_range, read_fmu, type_name
 from .fmu import (DISCARD, ERROR, NO_SINK, OK, WARNING, Instance, Variable, declared, extract, formatting_logger,
-                  crashes, guard_library, new_slave, read_string)
+                  new_slave, read_string)
 from .fmu1 import Instance1
 
 # fmi3LogMessageCallback with the strings as addresses, read by read_string.
@@ -320,9 +320,7 @@ class Instance3(Instance):
             del messages[:-50]
 
         self._register_env()
-        self._guarded = guard_library(self._slave.dll, ("fmi3InstantiateCoSimulation", "fmi3GetVersion"),
-                                      self.name)
-        self._crashes_seen = crashes(self._guarded)  # an earlier instance's crash is not this one's
+        self._guard(self._slave.dll, ("fmi3InstantiateCoSimulation", "fmi3GetVersion"))
         try:
             self._instantiate(logger)
         except Exception as e:

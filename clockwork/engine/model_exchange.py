@@ -49,7 +49,7 @@ from fmpy.fmi3 import FMU3Model, fmi3LogMessageCallback
 from ..errors import SceneError, SimulationError
 from . import cvode, rk
 from .description import fmi_version, read_fmu
-from .fmu import ERROR, OK, WARNING, Instance, crashes, extract, guard_library, read_string
+from .fmu import ERROR, OK, WARNING, Instance, extract, read_string
 from .fmu3 import LOG_MESSAGE, Instance3, make_instance as make_cs_instance
 from .me_step import (AUTO, CALLS, CONTINUOUS, CVODE, DEFAULT_RTOL, EVENT, FAIL_CVODE, FAIL_LOCATE, FAIL_RK,
                       FAIL_SETTLE, FAIL_TIME, FAIL_TIME_EVENTS, INITIALIZATION, INSTANTIATED, MAX_CVODE_STEPS,
@@ -581,8 +581,7 @@ class MEInstance3(MEInstance):
             del messages[:-50]
 
         slave = self._slave
-        self._guarded = guard_library(slave.dll, ("fmi3InstantiateModelExchange", "fmi3GetVersion"), self.name)
-        self._crashes_seen = crashes(self._guarded)  # an earlier instance's crash is not this one's
+        self._guard(slave.dll, ("fmi3InstantiateModelExchange", "fmi3GetVersion"))
         try:
             # As fmpy's instantiate, with a logger that takes the strings as addresses.
             self._log_callback = LOG_MESSAGE(logger)

@@ -60,7 +60,8 @@ class Recorder:
         self._stride = max(1, round(interval / master.settings.step)) if interval else 1
         self._k = 0  # grid points seen
         self.limit = limit
-        self._rows_left = (limit // (len(self.names) + 1)) if limit is not None else -1
+        # rows x columns (time included) > limit  <=>  rows > limit // columns
+        self._max_rows = limit // (len(self.names) + 1) if limit is not None else None
 
     def start(self) -> None:
         """Record the first row, at the master's current point."""
@@ -74,10 +75,8 @@ class Recorder:
             self._row(self.master.t)
 
     def _row(self, t: float) -> None:
-        if self._rows_left >= 0:
-            if self._rows_left == 0:
-                raise self.over(t)
-            self._rows_left -= 1
+        if self._max_rows is not None and len(self.columns["time"]) >= self._max_rows:
+            raise self.over(t)
         self.columns["time"].append(t)
         for name, (arr, j) in zip(self.names, self._sources):
             self.columns[name].append(arr[j])
@@ -94,7 +93,7 @@ class Recorder:
 
     def check_limit(self, t: float) -> None:
         """After rows were added in bulk (the compiled core): raise when past `limit`."""
-        if self.limit is not None and len(self.columns["time"]) * (len(self.names) + 1) > self.limit:
+        if self._max_rows is not None and len(self.columns["time"]) > self._max_rows:
             raise self.over(t)
 
     def __call__(self, master) -> None:
