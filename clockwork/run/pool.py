@@ -9,6 +9,7 @@ from __future__ import annotations
 import atexit
 import os
 import signal
+import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
@@ -72,12 +73,16 @@ def run_in_pool(scene, points: list[dict], indices: list[int], workers: int):
                         [[list(k), v] for k, v in p.items()]): i
             for i, p in zip(indices, points)
         }
+        # The workers, held here: a broken pool's manager thread may drop its
+        # own list before the line below asks how they ended (forked workers
+        # all start at the first submit).
+        workers = list((getattr(pool, "_processes", None) or {}).values())
         for f in as_completed(futures):
             try:
                 result = f.result()
             except BrokenProcessPool:
                 raise SimulationError(
-                    f"a sweep worker process ended abruptly{_how_workers_ended(pool)} while the point of sweep "
+                    f"a sweep worker process ended abruptly{_how_workers_ended(workers)} while the point of sweep "
                     f"index {futures[f]} ran: the sweep stops; its finished points are kept in points/ for a "
                     f"rerun") from None
             yield futures[f], result
@@ -91,11 +96,24 @@ def run_in_pool(scene, points: list[dict], indices: list[int], workers: int):
     pool.shutdown(wait=True)
 
 
-def _how_workers_ended(pool: ProcessPoolExecutor) -> str:
-    """The exit of the pool's dead workers, as " (killed by SIGKILL)", " (exit code 1)", or "" when
-    the pool no longer says."""
+def _how_workers_ended(workers: list) -> str:
+    """The exit of the dead ones of `workers` (multiprocessing processes), as " (killed by SIGKILL)",
+    " (exit code 1)", or "" when none has ended."""
+    # A killed worker's pipe closes (which breaks the pool) a moment before
+    # its exit status can be read: wait a little for one to show.
+    deadline = time.monotonic() + 1.0
+    ends = _exits(workers)
+    while not ends and workers and time.monotonic() < deadline:
+        time.sleep(0.01)
+        ends = _exits(workers)
+    # The broken pool terminates the others (SIGTERM): what ended first is the cause.
+    ends = ends - {"killed by SIGTERM"} or ends
+    return f" ({', '.join(sorted(ends))})" if ends else ""
+
+
+def _exits(workers: list) -> set[str]:
     ends = set()
-    for w in list((getattr(pool, "_processes", None) or {}).values()):
+    for w in workers:
         code = w.exitcode
         if code is None:
             continue
@@ -106,7 +124,7 @@ def _how_workers_ended(pool: ProcessPoolExecutor) -> str:
                 ends.add(f"killed by signal {-code}")
         elif code:
             ends.add(f"exit code {code}")
-    return f" ({', '.join(sorted(ends))})" if ends else ""
+    return ends
 
 
 def _kill_workers(pool: ProcessPoolExecutor) -> None:
