@@ -51,7 +51,7 @@ def _positive_int(text: str) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="clockwork", description="Pendulum-clock co-simulation on FMI 2.0 FMUs.")
+    p = _Parser(prog="clockwork", description="Pendulum-clock co-simulation: run and check FMUs (FMI 1.0, 2.0 and 3.0; Co-Simulation and Model Exchange), SSP files and scenes.")
     p.add_argument("--version", action="version", version=f"clockwork {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
 

@@ -1,11 +1,14 @@
 """Generate a model's C variable table, modelDescription.xml, documentation and icon from model.toml.
 
 Usage: python fmugen.py MODEL_DIR OUT_DIR [--sources a.c b.c ...] [--sources3 a.c ...]
+                        [--fmi2-only] [--fmi1]
 
 Writes OUT_DIR/cw_vars.h and, for the FMI 2.0 build, modelDescription.xml,
 documentation/index.html and model.png (the last two by fmudoc.py); for the
 FMI 3.0 build, OUT_DIR/fmi3/: modelDescription.xml, buildDescription.xml and
-documentation/index.html (its icon is the same model.png).
+documentation/index.html (its icon is the same model.png); with --fmi1,
+OUT_DIR/fmi1/modelDescription.xml for the FMI 1.0 Co-Simulation build
+(test FMUs). CMakeLists.txt runs it for every model.
 
 The TOML file is the single description of a model's variables; the C side
 (value-reference enum and the metadata table the runtime checks against)

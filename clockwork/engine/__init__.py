@@ -1,9 +1,10 @@
-"""The engine: co-simulation of FMI 1.0, 2.0 and 3.0 Co-Simulation FMUs, and nothing else.
+"""The engine: co-simulation of FMUs: FMI 1.0, 2.0 and 3.0 Co-Simulation, FMI 2.0
+and 3.0 Model Exchange (each with an integrator of the engine's own).
 
 It loads FMUs (``description``; ``fmu``, ``fmu1``, ``fmu3``: an instance
-of each version behind the same calls), wires them (``wiring``, ``ports``,
-``loops``: algebraic loops),
-steps them (``master``: the loop; ``coupling``, ``location``,
+of each version behind the same calls; ``model_exchange``, ``me_step``,
+``rk``, ``cvode``: a Model Exchange FMU stepped as a Co-Simulation one),
+wires them (``wiring``, ``ports``, ``loops``: algebraic loops), steps them (``master``: the loop; ``coupling``, ``location``,
 ``checkpoints``, ``richardson``: what makes a step accurate; ``recording``:
 what is kept of a run) and shoots for periodic orbits (``shooting``). It
 knows nothing of scene files, papers, plots or result files.
