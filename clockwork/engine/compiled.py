@@ -28,6 +28,7 @@ from ctypes import POINTER, Structure, byref, c_double, c_int, c_longlong, c_siz
 
 from ..errors import SceneError, SimulationError
 from ..paths import core_library
+from . import cvode, layout
 from .fmu import Instance
 from .fmu1 import _Fmi1
 from .fmu3 import _Events
@@ -91,7 +92,7 @@ class _Master(_Strict):
          "after_event_step", "sample_countdown", "prev_valid", "stale_sources", "snap_valid",
          "snap_after_event", "n_since", "max_replay_steps", "diverged", "err_port", "err_call", "err_status",
          "orders_lowered"]
-    ) + [("n_fmi3", c_int), ("fmi3", c_void_p)] + _fields(  # FMI 3.0 adapters (fmu3._Events), whose time events cap the step
+    ) + [("n_fmi3", c_int), ("pad4_", c_int), ("fmi3", c_void_p)] + _fields(  # FMI 3.0 adapters (fmu3._Events), whose time events cap the step
         ["pred_kind", "pred_u", "pred_du", "pred_ddu", "last_z"],  # prediction (EventLocator.sample, .plan)
         ["sampled_t", "sampled_before_t", "last_t"], ["predicted_landings", "mispredicted"],
         ["predicting", "last_valid"]
@@ -152,13 +153,16 @@ def load_core():
             except OSError as e:
                 _lib_error = f"the compiled core {path} cannot be loaded ({e}); build it with tools/setup.sh"
                 return None
-            for name, struct in (("port", _Port), ("master", _Master), ("recorder", _Recorder), ("fmi3", _Events),
-                                 ("ticks", _Ticks), ("fmi1", _Fmi1), ("me", _ME), ("loop", _Loop),
-                                 ("loops", _Loops), ("inputs", _Inputs)):
-                size = getattr(lib, f"cw_sizeof_{name}")
-                size.restype = c_size_t
-                if size() != ctypes.sizeof(struct):
-                    _lib_error = f"{path} was built from another version of the core ({name} layout differs)"
+            for lookup, name, struct in (
+                    ("cw_layout", "port", _Port), ("cw_layout", "master", _Master),
+                    ("cw_layout", "recorder", _Recorder), ("cw_layout", "fmi3", _Events),
+                    ("cw_layout", "ticks", _Ticks), ("cw_layout", "fmi1", _Fmi1), ("cw_layout", "loop", _Loop),
+                    ("cw_layout", "loops", _Loops), ("cw_layout", "inputs", _Inputs),
+                    ("cwme_layout", "me", _ME), ("cwme_layout", "sundials", cvode.Table)):
+                differs = layout.problem(lib, lookup, name, struct)
+                if differs:
+                    _lib_error = (f"{path} was built from another version of the core ({differs}); "
+                                  "rebuild it with tools/setup.sh")
                     return None
             lib.cw_step.argtypes = [POINTER(_Master), c_double, POINTER(c_double)]
             lib.cw_step.restype = c_int

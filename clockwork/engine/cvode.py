@@ -56,7 +56,7 @@ _SIGNATURES = (
 RHS = CFUNCTYPE(c_int, c_double, c_void_p, c_void_p, c_void_p)  # CVRhsFn
 
 
-class _Table(Structure):
+class Table(Structure):
     """cw_sundials in src_c/master/cw_me.c: the addresses of the functions above."""
 
     _fields_ = [(name, c_void_p) for _, name, _, _ in _SIGNATURES]
@@ -71,7 +71,7 @@ class Sundials:
         libs = {"core": libraries.sundials_core, "nvec": libraries.sundials_nvecserial,
                 "mat": libraries.sundials_sunmatrixdense, "ls": libraries.sundials_sunlinsoldense,
                 "cvode": libraries.sundials_cvode}
-        self.table = _Table()
+        self.table = Table()
         for lib, name, restype, argtypes in _SIGNATURES:
             f = libs[lib][name]  # a function object of its own: fmpy keeps its own signatures
             f.restype, f.argtypes = restype, argtypes

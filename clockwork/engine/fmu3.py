@@ -59,6 +59,7 @@ from fmpy.fmi3 import FMU3Slave, fmi3IntermediateUpdateCallback, fmi3LogMessageC
 
 from ..errors import SceneError, SimulationError
 from ..paths import core_library
+from . import layout
 from .description import array_elements, fmi_version, int_range, read_fmu, type_name
 from .fmu import (DISCARD, ERROR, NO_SINK, OK, WARNING, Instance, Variable, declared, extract, formatting_logger,
                   new_slave, read_string)
@@ -128,8 +129,7 @@ def _core_adapter():
     if _core is None:
         try:
             lib = ctypes.CDLL(str(core_library()))
-            lib.cw_sizeof_fmi3.restype = c_size_t
-            if lib.cw_sizeof_fmi3() != ctypes.sizeof(_Events):
+            if layout.problem(lib, "cw_layout", "fmi3", _Events):
                 raise OSError("another version of the core")
             fns = []
             vrs, doubles = POINTER(c_uint), POINTER(c_double)

@@ -38,6 +38,8 @@
 
 #define CW_EXPORT __attribute__((visibility("default")))
 
+#include "cw_layout.h"
+
 typedef int (*cw_doStep_t)(void *, double, double, int);
 typedef int (*cw_getReal_t)(void *, const unsigned *, size_t, double *);
 typedef int (*cw_setReal_t)(void *, const unsigned *, size_t, const double *);
@@ -177,6 +179,7 @@ typedef struct {
     int err_port, err_call, err_status;
     int orders_lowered;        /* a port's ext_order was lowered: Python says so */
     int n_fmi3;                /* FMI 3.0 instances, whose announced time events cap the step */
+    int pad4_;
     struct cw_fmi3 **fmi3;
     /* Prediction (EventLocator.sample and .plan): per indicator, the
      * sources at the last two sampled step starts, [0, n_z) the newer and
@@ -227,12 +230,6 @@ typedef struct {
     int has_interval, pad_;
 } cw_recorder;
 
-CW_EXPORT size_t cw_sizeof_port(void) { return sizeof(cw_port); }
-CW_EXPORT size_t cw_sizeof_master(void) { return sizeof(cw_master); }
-CW_EXPORT size_t cw_sizeof_recorder(void) { return sizeof(cw_recorder); }
-CW_EXPORT size_t cw_sizeof_loop(void) { return sizeof(cw_loop); }
-CW_EXPORT size_t cw_sizeof_loops(void) { return sizeof(cw_loops); }
-CW_EXPORT size_t cw_sizeof_inputs(void) { return sizeof(cw_inputs); }
 
 static double py_min(double a, double b) { return b < a ? b : a; }
 static double py_max(double a, double b) { return b > a ? b : a; }
@@ -2065,7 +2062,6 @@ typedef struct {
     int n_watch, capacity, n_rows, has_prev;
 } cw_ticks;
 
-CW_EXPORT size_t cw_sizeof_ticks(void) { return sizeof(cw_ticks); }
 
 /* Step toward t_stop with steps of at most max_step, landing on k->mark
  * while it lies ahead and taking steps of k->margin after it; a row where
@@ -2233,7 +2229,6 @@ typedef struct cw_fmi3 {
     int scratch_cap, scratch_val_cap;
 } cw_fmi3;
 
-CW_EXPORT size_t cw_sizeof_fmi3(void) { return sizeof(cw_fmi3); }
 
 static double fmi3_next_event_time(const cw_fmi3 *a) { return a->next_event_time; }
 static int fmi3_terminated(const cw_fmi3 *a) { return a->terminated; }
@@ -2581,7 +2576,6 @@ typedef struct cw_fmi1 {
     int pad_;
 } cw_fmi1;
 
-CW_EXPORT size_t cw_sizeof_fmi1(void) { return sizeof(cw_fmi1); }
 
 enum { CW1_CHUNK = 64 };  /* value references translated at a time */
 
@@ -2717,4 +2711,130 @@ CW_EXPORT int cw1_setState(void *comp, void *state)
     (void)comp;
     (void)state;
     return FMI_ERROR;
+}
+
+/* The layouts Python checks its ctypes mirrors against (cw_layout.h). */
+static const cw_field port_layout[] = {
+    CW_FIELD(cw_port, comp), CW_FIELD(cw_port, doStep), CW_FIELD(cw_port, getReal),
+    CW_FIELD(cw_port, setReal), CW_FIELD(cw_port, setInputDerivatives),
+    CW_FIELD(cw_port, getOutputDerivatives), CW_FIELD(cw_port, getState), CW_FIELD(cw_port, setState),
+    CW_FIELD(cw_port, state), CW_FIELD(cw_port, out_vr), CW_FIELD(cw_port, out), CW_FIELD(cw_port, in_vr),
+    CW_FIELD(cw_port, inp), CW_FIELD(cw_port, der_vr), CW_FIELD(cw_port, der_order), CW_FIELD(cw_port, der),
+    CW_FIELD(cw_port, src_port), CW_FIELD(cw_port, src_pos), CW_FIELD(cw_port, sent),
+    CW_FIELD(cw_port, dsrc_port), CW_FIELD(cw_port, dsrc_vr), CW_FIELD(cw_port, dsrc_m),
+    CW_FIELD(cw_port, hist_t), CW_FIELD(cw_port, hist_v), CW_FIELD(cw_port, snap_hist_t),
+    CW_FIELD(cw_port, snap_hist_v), CW_FIELD(cw_port, scaled), CW_FIELD(cw_port, in_factor),
+    CW_FIELD(cw_port, in_offset), CW_FIELD(cw_port, out_time), CW_FIELD(cw_port, lowered_at),
+    CW_FIELD(cw_port, n_out), CW_FIELD(cw_port, n_in), CW_FIELD(cw_port, n_z),
+    CW_FIELD(cw_port, max_output_derivative_order), CW_FIELD(cw_port, sent_valid), CW_FIELD(cw_port, hist_n),
+    CW_FIELD(cw_port, snap_hist_n), CW_FIELD(cw_port, n_scaled), CW_FIELD(cw_port, ext_order),
+    CW_FIELD(cw_port, pad_), CW_FIELD(cw_port, it_start), CW_FIELD(cw_port, it_end),
+    CW_FIELD(cw_port, can_interpolate), CW_FIELD(cw_port, pad2_),
+};
+static const cw_field loop_layout[] = {
+    CW_FIELD(cw_loop, members), CW_FIELD(cw_loop, u_port), CW_FIELD(cw_loop, u_pos), CW_FIELD(cw_loop, u_src),
+    CW_FIELD(cw_loop, u_src_pos), CW_FIELD(cw_loop, u_factor), CW_FIELD(cw_loop, u_offset),
+    CW_FIELD(cw_loop, u_scaled), CW_FIELD(cw_loop, r), CW_FIELD(cw_loop, fail_worst),
+    CW_FIELD(cw_loop, n_members), CW_FIELD(cw_loop, n), CW_FIELD(cw_loop, fail_why),
+    CW_FIELD(cw_loop, fail_at), CW_FIELD(cw_loop, fail_sweeps), CW_FIELD(cw_loop, fail_newton),
+};
+static const cw_field loops_layout[] = {
+    CW_FIELD(cw_loops, loop), CW_FIELD(cw_loops, tolerance), CW_FIELD(cw_loops, iterations),
+    CW_FIELD(cw_loops, fallbacks), CW_FIELD(cw_loops, n_loops), CW_FIELD(cw_loops, pad_),
+};
+static const cw_field master_layout[] = {
+    CW_FIELD(cw_master, ports), CW_FIELD(cw_master, first), CW_FIELD(cw_master, dynamic),
+    CW_FIELD(cw_master, first_in_order), CW_FIELD(cw_master, final_order), CW_FIELD(cw_master, buffer),
+    CW_FIELD(cw_master, z_port), CW_FIELD(cw_master, z_pos), CW_FIELD(cw_master, z_start),
+    CW_FIELD(cw_master, z_end), CW_FIELD(cw_master, zs_port), CW_FIELD(cw_master, zs_pos),
+    CW_FIELD(cw_master, zs_vr), CW_FIELD(cw_master, prev_kind), CW_FIELD(cw_master, prev_u),
+    CW_FIELD(cw_master, prev_du), CW_FIELD(cw_master, amp_u), CW_FIELD(cw_master, amp_du),
+    CW_FIELD(cw_master, z_seen), CW_FIELD(cw_master, end_rate_set), CW_FIELD(cw_master, end_rate),
+    CW_FIELD(cw_master, snap_z_end), CW_FIELD(cw_master, since), CW_FIELD(cw_master, t),
+    CW_FIELD(cw_master, start_time), CW_FIELD(cw_master, step), CW_FIELD(cw_master, event_time_tolerance),
+    CW_FIELD(cw_master, event_indicator_tolerance), CW_FIELD(cw_master, divergence_limit),
+    CW_FIELD(cw_master, time_to_zero), CW_FIELD(cw_master, step_cap), CW_FIELD(cw_master, located_from),
+    CW_FIELD(cw_master, snap_t), CW_FIELD(cw_master, snap_time_to_zero), CW_FIELD(cw_master, err_t),
+    CW_FIELD(cw_master, err_h), CW_FIELD(cw_master, steps), CW_FIELD(cw_master, events),
+    CW_FIELD(cw_master, event_iterations), CW_FIELD(cw_master, rollbacks), CW_FIELD(cw_master, replays),
+    CW_FIELD(cw_master, states_saved), CW_FIELD(cw_master, n_ports), CW_FIELD(cw_master, n_first),
+    CW_FIELD(cw_master, n_dynamic), CW_FIELD(cw_master, n_first_in_order), CW_FIELD(cw_master, n_final),
+    CW_FIELD(cw_master, n_buffer), CW_FIELD(cw_master, n_z), CW_FIELD(cw_master, cap_since),
+    CW_FIELD(cw_master, jacobi), CW_FIELD(cw_master, extrapolation), CW_FIELD(cw_master, locating),
+    CW_FIELD(cw_master, has_sources), CW_FIELD(cw_master, after_event), CW_FIELD(cw_master, after_event_step),
+    CW_FIELD(cw_master, sample_countdown), CW_FIELD(cw_master, prev_valid),
+    CW_FIELD(cw_master, stale_sources), CW_FIELD(cw_master, snap_valid),
+    CW_FIELD(cw_master, snap_after_event), CW_FIELD(cw_master, n_since),
+    CW_FIELD(cw_master, max_replay_steps), CW_FIELD(cw_master, diverged), CW_FIELD(cw_master, err_port),
+    CW_FIELD(cw_master, err_call), CW_FIELD(cw_master, err_status), CW_FIELD(cw_master, orders_lowered),
+    CW_FIELD(cw_master, n_fmi3), CW_FIELD(cw_master, pad4_), CW_FIELD(cw_master, fmi3), CW_FIELD(cw_master, pred_kind),
+    CW_FIELD(cw_master, pred_u), CW_FIELD(cw_master, pred_du), CW_FIELD(cw_master, pred_ddu),
+    CW_FIELD(cw_master, last_z), CW_FIELD(cw_master, sampled_t), CW_FIELD(cw_master, sampled_before_t),
+    CW_FIELD(cw_master, last_t), CW_FIELD(cw_master, predicted_landings),
+    CW_FIELD(cw_master, mispredicted), CW_FIELD(cw_master, predicting), CW_FIELD(cw_master, last_valid),
+    CW_FIELD(cw_master, iteration_tolerance), CW_FIELD(cw_master, coupling_iterations),
+    CW_FIELD(cw_master, iterations), CW_FIELD(cw_master, pad3_), CW_FIELD(cw_master, loops),
+    CW_FIELD(cw_master, pool), CW_FIELD(cw_master, par_end), CW_FIELD(cw_master, par_status),
+    CW_FIELD(cw_master, after_start), CW_FIELD(cw_master, after_order), CW_FIELD(cw_master, inputs),
+};
+static const cw_field inputs_layout[] = {
+    CW_FIELD(cw_inputs, times), CW_FIELD(cw_inputs, values), CW_FIELD(cw_inputs, continuous),
+    CW_FIELD(cw_inputs, events), CW_FIELD(cw_inputs, port_start), CW_FIELD(cw_inputs, vr),
+    CW_FIELD(cw_inputs, signal), CW_FIELD(cw_inputs, value), CW_FIELD(cw_inputs, n_times),
+    CW_FIELD(cw_inputs, n_signals), CW_FIELD(cw_inputs, n_events), CW_FIELD(cw_inputs, pad_),
+};
+static const cw_field recorder_layout[] = {
+    CW_FIELD(cw_recorder, col_port), CW_FIELD(cw_recorder, col_pos), CW_FIELD(cw_recorder, rows),
+    CW_FIELD(cw_recorder, ticks), CW_FIELD(cw_recorder, last_tick), CW_FIELD(cw_recorder, grid_seen),
+    CW_FIELD(cw_recorder, grid_k), CW_FIELD(cw_recorder, n_cols), CW_FIELD(cw_recorder, capacity),
+    CW_FIELD(cw_recorder, n_rows), CW_FIELD(cw_recorder, tick_capacity), CW_FIELD(cw_recorder, n_ticks),
+    CW_FIELD(cw_recorder, stride), CW_FIELD(cw_recorder, tick_port), CW_FIELD(cw_recorder, tick_pos),
+    CW_FIELD(cw_recorder, has_interval), CW_FIELD(cw_recorder, pad_),
+};
+static const cw_field ticks_layout[] = {
+    CW_FIELD(cw_ticks, watch_port), CW_FIELD(cw_ticks, watch_pos), CW_FIELD(cw_ticks, seen),
+    CW_FIELD(cw_ticks, rows), CW_FIELD(cw_ticks, mark), CW_FIELD(cw_ticks, margin),
+    CW_FIELD(cw_ticks, period), CW_FIELD(cw_ticks, last_tick), CW_FIELD(cw_ticks, prev_tick),
+    CW_FIELD(cw_ticks, n_watch), CW_FIELD(cw_ticks, capacity), CW_FIELD(cw_ticks, n_rows),
+    CW_FIELD(cw_ticks, has_prev),
+};
+static const cw_field fmi3_layout[] = {
+    CW_FIELD(cw_fmi3, instance), CW_FIELD(cw_fmi3, doStep), CW_FIELD(cw_fmi3, getFloat64),
+    CW_FIELD(cw_fmi3, setFloat64), CW_FIELD(cw_fmi3, getOutputDerivatives), CW_FIELD(cw_fmi3, getState),
+    CW_FIELD(cw_fmi3, setState), CW_FIELD(cw_fmi3, enterEventMode), CW_FIELD(cw_fmi3, updateDiscreteStates),
+    CW_FIELD(cw_fmi3, enterStepMode), CW_FIELD(cw_fmi3, next_event_time),
+    CW_FIELD(cw_fmi3, saved_next_event_time), CW_FIELD(cw_fmi3, end_time),
+    CW_FIELD(cw_fmi3, early_returns), CW_FIELD(cw_fmi3, events), CW_FIELD(cw_fmi3, event_mode_used),
+    CW_FIELD(cw_fmi3, terminated), CW_FIELD(cw_fmi3, failed_call), CW_FIELD(cw_fmi3, pad_),
+    CW_FIELD(cw_fmi3, n_iu), CW_FIELD(cw_fmi3, iu_poly), CW_FIELD(cw_fmi3, iu_vr), CW_FIELD(cw_fmi3, iu_u0),
+    CW_FIELD(cw_fmi3, iu_d1), CW_FIELD(cw_fmi3, iu_d2), CW_FIELD(cw_fmi3, iu_tref), CW_FIELD(cw_fmi3, iu_fed),
+    CW_FIELD(cw_fmi3, iu_set_vr), CW_FIELD(cw_fmi3, iu_val), CW_FIELD(cw_fmi3, iu_time),
+    CW_FIELD(cw_fmi3, iu_saved_time), CW_FIELD(cw_fmi3, iu_calls), CW_FIELD(cw_fmi3, iu_saved),
+    CW_FIELD(cw_fmi3, iu_saved_fed), CW_FIELD(cw_fmi3, code_base), CW_FIELD(cw_fmi3, n_codes),
+    CW_FIELD(cw_fmi3, code_vr), CW_FIELD(cw_fmi3, code_off), CW_FIELD(cw_fmi3, code_size),
+    CW_FIELD(cw_fmi3, scratch_vr), CW_FIELD(cw_fmi3, scratch_order), CW_FIELD(cw_fmi3, scratch_val),
+    CW_FIELD(cw_fmi3, scratch_cap), CW_FIELD(cw_fmi3, scratch_val_cap),
+};
+static const cw_field fmi1_layout[] = {
+    CW_FIELD(cw_fmi1, instance), CW_FIELD(cw_fmi1, doStep), CW_FIELD(cw_fmi1, getReal),
+    CW_FIELD(cw_fmi1, setReal), CW_FIELD(cw_fmi1, setInputDerivatives),
+    CW_FIELD(cw_fmi1, getOutputDerivatives), CW_FIELD(cw_fmi1, negated_vr), CW_FIELD(cw_fmi1, base_vr),
+    CW_FIELD(cw_fmi1, time), CW_FIELD(cw_fmi1, zero_steps), CW_FIELD(cw_fmi1, n_negated),
+    CW_FIELD(cw_fmi1, stale), CW_FIELD(cw_fmi1, failed_zero), CW_FIELD(cw_fmi1, pad_),
+};
+
+CW_EXPORT const cw_field *cw_layout(const char *name, size_t *n_fields, size_t *struct_size)
+{
+    if (!strcmp(name, "port")) { *n_fields = CW_COUNT(port_layout); *struct_size = sizeof(cw_port); return port_layout; }
+    if (!strcmp(name, "loop")) { *n_fields = CW_COUNT(loop_layout); *struct_size = sizeof(cw_loop); return loop_layout; }
+    if (!strcmp(name, "loops")) { *n_fields = CW_COUNT(loops_layout); *struct_size = sizeof(cw_loops); return loops_layout; }
+    if (!strcmp(name, "master")) { *n_fields = CW_COUNT(master_layout); *struct_size = sizeof(cw_master); return master_layout; }
+    if (!strcmp(name, "inputs")) { *n_fields = CW_COUNT(inputs_layout); *struct_size = sizeof(cw_inputs); return inputs_layout; }
+    if (!strcmp(name, "recorder")) { *n_fields = CW_COUNT(recorder_layout); *struct_size = sizeof(cw_recorder); return recorder_layout; }
+    if (!strcmp(name, "ticks")) { *n_fields = CW_COUNT(ticks_layout); *struct_size = sizeof(cw_ticks); return ticks_layout; }
+    if (!strcmp(name, "fmi3")) { *n_fields = CW_COUNT(fmi3_layout); *struct_size = sizeof(cw_fmi3); return fmi3_layout; }
+    if (!strcmp(name, "fmi1")) { *n_fields = CW_COUNT(fmi1_layout); *struct_size = sizeof(cw_fmi1); return fmi1_layout; }
+    *n_fields = 0;
+    *struct_size = 0;
+    return NULL;
 }

@@ -26,6 +26,8 @@
 
 #define CW_EXPORT __attribute__((visibility("default")))
 
+#include "cw_layout.h"
+
 enum { FMI_OK = 0, FMI_WARNING = 1, FMI_DISCARD = 2, FMI_ERROR = 3 };
 enum { AUTO = 0, DP54 = 1, DOP853 = 2, CVODE = 3 };         /* solver, method */
 enum { CONTINUOUS = 2, EVENT = 3 };                          /* mode */
@@ -96,7 +98,6 @@ typedef struct {
         saved_method, saved_stiff_count, saved_nonstiff_count, saved_terminated, saved_poly, saved_mode;
 } cw_me;
 
-CW_EXPORT size_t cw_sizeof_me(void) { return sizeof(cw_me); }
 CW_EXPORT size_t cwme_sizeof_rk(void) { return sizeof(cw_rk); }
 CW_EXPORT int cwme_max_states(void) { return CW_RK_MAXN; }
 
@@ -942,4 +943,57 @@ CW_EXPORT int cwme_setState(void *comp, void *state)
     me->restart = 1;
     me->inputs_dirty = 0;
     return st;
+}
+
+/* The layouts Python checks its ctypes mirrors against (cw_layout.h). */
+static const cw_field sundials_layout[] = {
+    CW_FIELD(cw_sundials, SUNContext_Create), CW_FIELD(cw_sundials, SUNContext_Free),
+    CW_FIELD(cw_sundials, SUNContext_ClearErrHandlers), CW_FIELD(cw_sundials, N_VGetArrayPointer),
+    CW_FIELD(cw_sundials, N_VDestroy), CW_FIELD(cw_sundials, SUNMatDestroy),
+    CW_FIELD(cw_sundials, SUNLinSolFree), CW_FIELD(cw_sundials, N_VNew_Serial),
+    CW_FIELD(cw_sundials, SUNDenseMatrix), CW_FIELD(cw_sundials, SUNLinSol_Dense),
+    CW_FIELD(cw_sundials, CVodeCreate), CW_FIELD(cw_sundials, CVodeInit), CW_FIELD(cw_sundials, CVodeReInit),
+    CW_FIELD(cw_sundials, CVodeSVtolerances), CW_FIELD(cw_sundials, CVodeSetLinearSolver),
+    CW_FIELD(cw_sundials, CVodeSetUserData), CW_FIELD(cw_sundials, CVodeSetStopTime),
+    CW_FIELD(cw_sundials, CVode), CW_FIELD(cw_sundials, CVodeGetDky),
+    CW_FIELD(cw_sundials, CVodeGetNumRhsEvals), CW_FIELD(cw_sundials, CVodeGetNumLinRhsEvals),
+    CW_FIELD(cw_sundials, CVodeGetNumErrTestFails), CW_FIELD(cw_sundials, CVodeGetNumNonlinSolvConvFails),
+    CW_FIELD(cw_sundials, CVodeFree),
+};
+static const cw_field me_layout[] = {
+    CW_FIELD(cw_me, instance), CW_FIELD(cw_me, setTime), CW_FIELD(cw_me, setStates),
+    CW_FIELD(cw_me, getDerivatives), CW_FIELD(cw_me, getIndicators), CW_FIELD(cw_me, getStates),
+    CW_FIELD(cw_me, getNominals), CW_FIELD(cw_me, completedStep), CW_FIELD(cw_me, enterEventMode),
+    CW_FIELD(cw_me, update), CW_FIELD(cw_me, enterContinuousMode), CW_FIELD(cw_me, getReal),
+    CW_FIELD(cw_me, setReal), CW_FIELD(cw_me, getState), CW_FIELD(cw_me, setState), CW_FIELD(cw_me, sundials),
+    CW_FIELD(cw_me, rk), CW_FIELD(cw_me, x), CW_FIELD(cw_me, xbuf), CW_FIELD(cw_me, xw), CW_FIELD(cw_me, xd),
+    CW_FIELD(cw_me, dx), CW_FIELD(cw_me, nominal), CW_FIELD(cw_me, atolv), CW_FIELD(cw_me, z_prev),
+    CW_FIELD(cw_me, z), CW_FIELD(cw_me, z_end), CW_FIELD(cw_me, z_lo), CW_FIELD(cw_me, z0),
+    CW_FIELD(cw_me, in_vr), CW_FIELD(cw_me, u0), CW_FIELD(cw_me, d1), CW_FIELD(cw_me, d2),
+    CW_FIELD(cw_me, tref), CW_FIELD(cw_me, in_val), CW_FIELD(cw_me, state_vr), CW_FIELD(cw_me, der_state),
+    CW_FIELD(cw_me, saved), CW_FIELD(cw_me, cv_mem), CW_FIELD(cw_me, cv_ctx), CW_FIELD(cw_me, cv_y),
+    CW_FIELD(cw_me, cv_abstol), CW_FIELD(cw_me, cv_dky), CW_FIELD(cw_me, cv_A), CW_FIELD(cw_me, cv_LS),
+    CW_FIELD(cw_me, time), CW_FIELD(cw_me, next_event_time), CW_FIELD(cw_me, end_time), CW_FIELD(cw_me, rtol),
+    CW_FIELD(cw_me, event_time_tolerance), CW_FIELD(cw_me, h_next), CW_FIELD(cw_me, err_t),
+    CW_FIELD(cw_me, saved_time), CW_FIELD(cw_me, saved_next_event_time), CW_FIELD(cw_me, saved_end_time),
+    CW_FIELD(cw_me, saved_h_next), CW_FIELD(cw_me, steps), CW_FIELD(cw_me, rejected),
+    CW_FIELD(cw_me, rhs), CW_FIELD(cw_me, state_events), CW_FIELD(cw_me, time_events),
+    CW_FIELD(cw_me, step_events), CW_FIELD(cw_me, input_events), CW_FIELD(cw_me, event_iterations),
+    CW_FIELD(cw_me, switches), CW_FIELD(cw_me, version), CW_FIELD(cw_me, n), CW_FIELD(cw_me, nz),
+    CW_FIELD(cw_me, n_in), CW_FIELD(cw_me, solver), CW_FIELD(cw_me, method), CW_FIELD(cw_me, stiff_count),
+    CW_FIELD(cw_me, nonstiff_count), CW_FIELD(cw_me, terminated), CW_FIELD(cw_me, mode),
+    CW_FIELD(cw_me, poly), CW_FIELD(cw_me, inputs_dirty), CW_FIELD(cw_me, restart), CW_FIELD(cw_me, cv_owner),
+    CW_FIELD(cw_me, failed_call), CW_FIELD(cw_me, failed_status), CW_FIELD(cw_me, failed_detail),
+    CW_FIELD(cw_me, needs_completed), CW_FIELD(cw_me, saved_method), CW_FIELD(cw_me, saved_stiff_count),
+    CW_FIELD(cw_me, saved_nonstiff_count), CW_FIELD(cw_me, saved_terminated), CW_FIELD(cw_me, saved_poly),
+    CW_FIELD(cw_me, saved_mode),
+};
+
+CW_EXPORT const cw_field *cwme_layout(const char *name, size_t *n_fields, size_t *struct_size)
+{
+    if (!strcmp(name, "sundials")) { *n_fields = CW_COUNT(sundials_layout); *struct_size = sizeof(cw_sundials); return sundials_layout; }
+    if (!strcmp(name, "me")) { *n_fields = CW_COUNT(me_layout); *struct_size = sizeof(cw_me); return me_layout; }
+    *n_fields = 0;
+    *struct_size = 0;
+    return NULL;
 }

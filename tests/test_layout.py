@@ -1,0 +1,74 @@
+"""The ctypes mirrors of the compiled core's structs are checked field by
+field against the layouts the core exports (engine/layout.py,
+src_c/master/cw_layout.h), so a mirror that differs in any one field is
+refused at load, not only one of another size."""
+
+import ctypes
+
+import pytest
+
+from clockwork.engine import compiled, cvode, layout
+from clockwork.engine.fmu1 import _Fmi1
+from clockwork.engine.fmu3 import _Events
+from clockwork.engine.model_exchange import _ME
+
+MIRRORS = [("cw_layout", "port", compiled._Port), ("cw_layout", "master", compiled._Master),
+           ("cw_layout", "recorder", compiled._Recorder), ("cw_layout", "ticks", compiled._Ticks),
+           ("cw_layout", "loop", compiled._Loop), ("cw_layout", "loops", compiled._Loops),
+           ("cw_layout", "inputs", compiled._Inputs), ("cw_layout", "fmi3", _Events),
+           ("cw_layout", "fmi1", _Fmi1), ("cwme_layout", "me", _ME), ("cwme_layout", "sundials", cvode.Table)]
+IDS = [name for _, name, _ in MIRRORS]
+
+
+@pytest.fixture(scope="module")
+def lib():
+    core = compiled.load_core()
+    assert core is not None, compiled.core_problem()
+    return core
+
+
+def _mirror(fields):
+    return type("Mirror", (ctypes.Structure,), {"_fields_": fields})
+
+
+@pytest.mark.parametrize("lookup, name, mirror", MIRRORS, ids=IDS)
+def test_every_mirror_matches_the_core_field_by_field(lib, lookup, name, mirror):
+    assert layout.problem(lib, lookup, name, mirror) is None
+
+
+@pytest.mark.parametrize("lookup, name, mirror", MIRRORS, ids=IDS)
+def test_any_two_fields_swapped_are_refused(lib, lookup, name, mirror):
+    # Neighbours of one type keep every size: the check a size alone made passed them.
+    fields = list(mirror._fields_)
+    swaps = [k for k in range(len(fields) - 1) if fields[k][1] is fields[k + 1][1]]
+    assert swaps
+    for k in swaps:
+        swapped = fields[:k] + [fields[k + 1], fields[k]] + fields[k + 2:]
+        assert ctypes.sizeof(_mirror(swapped)) == ctypes.sizeof(mirror)
+        said = layout.problem(lib, lookup, name, _mirror(swapped)) or ""
+        assert fields[k][0] in said or fields[k + 1][0] in said
+
+
+@pytest.mark.parametrize("lookup, name, mirror", MIRRORS, ids=IDS)
+def test_a_field_renamed_added_or_dropped_is_refused(lib, lookup, name, mirror):
+    fields = list(mirror._fields_)
+    renamed = [(fields[0][0] + "_x", fields[0][1])] + fields[1:]
+    assert "only in Python" in layout.problem(lib, lookup, name, _mirror(renamed))
+    assert layout.problem(lib, lookup, name, _mirror(fields + [("extra", ctypes.c_int)])) is not None
+    assert layout.problem(lib, lookup, name, _mirror(fields[:-1])) is not None
+
+
+@pytest.mark.parametrize("lookup, name, mirror", MIRRORS, ids=IDS)
+def test_a_field_the_c_table_leaves_out_is_found(lib, lookup, name, mirror, monkeypatch):
+    # A field added to a C struct but to neither its table nor the mirror
+    # leaves a gap in the table, wherever it is: mirrored structs have no
+    # implicit padding (cw_layout.h).
+    fields, size = layout._c_layout(lib, lookup, name)
+    for left_out in fields:
+        fewer = {n: f for n, f in fields.items() if n != left_out}
+        assert layout._uncovered(fewer, size) is not None, left_out
+    assert layout._uncovered(fields, size) is None
+
+
+def test_an_unknown_struct_is_named(lib):
+    assert "no layout for nothing" in layout.problem(lib, "cw_layout", "nothing", compiled._Port)
