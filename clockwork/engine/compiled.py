@@ -24,7 +24,7 @@ import itertools
 import threading
 import weakref
 from array import array
-from ctypes import POINTER, Structure, byref, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
+from ctypes import POINTER, Structure, byref, c_double, c_int, c_longlong, c_uint, c_void_p
 
 from ..errors import SceneError, SimulationError
 from ..paths import core_library

@@ -19,6 +19,7 @@ from ctypes import c_double, c_int, c_uint
 from dataclasses import dataclass, field
 
 from ..errors import say
+from .events import input_polynomial
 from .fmu import WARNING
 from .ports import Port
 
@@ -166,7 +167,7 @@ class InputCoupling:
                         d2 = 2.0 * (d1 - d0) / (t2 - t0)
                         d1 += 0.5 * d2 * (t2 - t1)
             dt = t - ta
-            p.inp[k] = ua + dt * (d1 + 0.5 * dt * d2)
+            p.inp[k] = input_polynomial(ua, d1, d2, dt)
             p.der[k] = d1 + d2 * dt
             p.der[n + k] = d2
         for k, f, o in p.scale:

@@ -10,6 +10,31 @@ convergence superlinear without losing the bracket.
 from __future__ import annotations
 
 
+def crossed(z0: float, z1: float) -> bool:
+    """An indicator crossed zero: from a non-zero value to zero or the other
+    sign (src_c/master/cw_numerics.h has the twin)."""
+    return (z0 > 0.0 and z1 <= 0.0) or (z0 < 0.0 and z1 >= 0.0)
+
+
+def earliest(crossing: list[bool], z0, z1) -> int:
+    """The crossing indicator whose linear interpolant crosses first (the
+    first of equals), or -1 when none crossed."""
+    lead, best = -1, 0.0
+    for k, c in enumerate(crossing):
+        if c:
+            x = z0[k] / (z0[k] - z1[k])
+            if lead < 0 or x < best:
+                lead, best = k, x
+    return lead
+
+
+def input_polynomial(u0: float, d1: float, d2: float, dt: float) -> float:
+    """An input's value dt s after it was set with value u0 and time
+    derivatives d1, d2 (src_c/master/cw_polynomial.h has the twin, in this
+    order of operations)."""
+    return u0 + dt * (d1 + 0.5 * dt * d2)
+
+
 class Illinois:
     def __init__(self, lo: float, z_lo: float, hi: float, z_hi: float):
         self.lo, self.z_lo = lo, z_lo

@@ -29,7 +29,8 @@ import math
 from ctypes import c_double, c_int, c_uint
 
 from ..errors import SimulationError
-from .events import PREDICTION_HORIZON, Illinois, extrapolants, first_root, hermite_extremum, hermite_root, slope_at
+from .events import (PREDICTION_HORIZON, Illinois, crossed, earliest, extrapolants, first_root, hermite_extremum,
+                     hermite_root, slope_at)
 from .fmu import WARNING, Instance
 from .ports import Port, feeds
 
@@ -41,10 +42,6 @@ _ORDERS_ONE_TWO = (c_int * 2)(1, 2)
 # What a predicted step is (EventLocator.plan): free of crossings, short of
 # the predicted crossing, or just past it.
 CLEAR, APPROACH, LAND = 1, 2, 3
-
-
-def crossed(z0: float, z1: float) -> bool:
-    return (z0 > 0.0 and z1 <= 0.0) or (z0 < 0.0 and z1 >= 0.0)
 
 
 def scan(z0: list[float], z1: list[float], h: float) -> float:
@@ -332,11 +329,6 @@ class EventLocator:
 
     # -- locating ------------------------------------------------------------
 
-    @staticmethod
-    def lead(crossings: list[bool], z0: list[float], z1: list[float]) -> int:
-        """The crossing indicator whose linear interpolant crosses first."""
-        return min((k for k, c in enumerate(crossings) if c), key=lambda k: z0[k] / (z0[k] - z1[k]))
-
     def time_tolerance(self, t: float, h: float) -> float:
         """How close locate brackets a crossing in the step from t of h s:
         far from t = 0 a double cannot resolve the tolerance, so a few ulps."""
@@ -349,7 +341,7 @@ class EventLocator:
         s = m.settings
         checkpoints = m.checkpoints
         # The indicator whose linear interpolant crosses first leads.
-        lead = self.lead(crossings, z0, z1)
+        lead = earliest(crossings, z0, z1)
         slope_end = self.slope_source(lead)
         checkpoints.rollback()
         first = None

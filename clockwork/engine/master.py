@@ -38,7 +38,8 @@ from .checkpoints import Checkpoints
 from .description import no_state_reason
 from .coupling import InputCoupling, iterate_step
 from .fmu import DISCARD, NO_MESSAGE, WARNING, Instance, free_all
-from .location import APPROACH, LAND, EventLocator, crossed, scan
+from .events import crossed, earliest
+from .location import APPROACH, LAND, EventLocator, scan
 from .parallel import updates_after
 from .ports import Port, Ports
 from .richardson import StepDoubling
@@ -486,7 +487,7 @@ class Master:
         crossings = [crossed(a, b) for a, b in zip(z0, z1)]
         z0, z1 = list(z0), list(z1)
         s = self.settings
-        lead = loc.lead(crossings, z0, z1)
+        lead = earliest(crossings, z0, z1)
         if abs(z1[lead]) <= s.event_indicator_tolerance or h <= loc.time_tolerance(t, h):
             # Already just past the crossing, where locate would stop at once.
             if predicted == LAND:

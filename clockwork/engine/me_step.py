@@ -38,7 +38,7 @@ from __future__ import annotations
 import math
 
 from . import cvode, rk as rkmod
-from .events import Illinois
+from .events import Illinois, crossed, earliest, input_polynomial
 from .fmu import DISCARD, ERROR, OK, WARNING
 
 # Solvers (MEOptions.solver, the struct's `solver`) and the method in use (`method`).
@@ -81,21 +81,6 @@ STATS = ("steps", "rejected", "rhs", "state_events", "time_events", "step_events
          "event_iterations", "switches")
 
 
-def crossed(z0: float, z1: float) -> bool:
-    return (z0 > 0.0 and z1 <= 0.0) or (z0 < 0.0 and z1 >= 0.0)
-
-
-def earliest(crossing: list[bool], z0, z1) -> int:
-    """The crossing indicator whose linear interpolant crosses first (the first of equals)."""
-    lead, best = -1, 0.0
-    for k, c in enumerate(crossing):
-        if c:
-            x = z0[k] / (z0[k] - z1[k])
-            if lead < 0 or x < best:
-                lead, best = k, x
-    return lead
-
-
 class ModelExchangeSteps:
     """The wrapper's algorithm (a mixin of ``model_exchange.MEInstance``,
     which binds the FMU calls ``_set_time`` ... ``_update`` and owns the
@@ -128,7 +113,7 @@ class ModelExchangeSteps:
             vals = self._in_val
             for k in range(me.n_in):
                 dt = t - self._tref[k]
-                vals[k] = self._u0[k] + dt * (self._d1[k] + 0.5 * dt * self._d2[k])
+                vals[k] = input_polynomial(self._u0[k], self._d1[k], self._d2[k], dt)
             if self._check(self._set_inputs(self._in_vr, me.n_in, vals), 11):
                 return ERROR
         if me.n:

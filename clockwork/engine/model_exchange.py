@@ -49,6 +49,7 @@ from fmpy.fmi3 import FMU3Model, fmi3LogMessageCallback
 from ..errors import SceneError, SimulationError
 from . import cvode, rk
 from .description import fmi_version, read_fmu
+from .events import input_polynomial
 from .fmu import ERROR, OK, WARNING, Instance, extract, read_string
 from .fmu3 import LOG_MESSAGE, Instance3, make_instance as make_cs_instance
 from .me_step import (AUTO, CALLS, CONTINUOUS, CVODE, DEFAULT_RTOL, EVENT, FAIL_CVODE, FAIL_LOCATE, FAIL_RK,
@@ -338,7 +339,7 @@ class MEInstance(ModelExchangeSteps, Instance):
             if k < 0:
                 continue
             dt = me.time - self._tref[k]
-            now = self._u0[k] + dt * (self._d1[k] + 0.5 * dt * self._d2[k])
+            now = input_polynomial(self._u0[k], self._d1[k], self._d2[k], dt)
             if values[j] != now or self._d1[k] != 0.0 or self._d2[k] != 0.0:
                 me.inputs_dirty = me.restart = 1
             self._u0[k] = values[j]
@@ -363,7 +364,7 @@ class MEInstance(ModelExchangeSteps, Instance):
             k = index[vr[j]]
             if self._tref[k] != me.time:
                 dt = me.time - self._tref[k]
-                self._u0[k] = self._u0[k] + dt * (self._d1[k] + 0.5 * dt * self._d2[k])
+                self._u0[k] = input_polynomial(self._u0[k], self._d1[k], self._d2[k], dt)
                 self._d1[k] = self._d2[k] = 0.0
                 self._tref[k] = me.time
             if order[j] == 1:

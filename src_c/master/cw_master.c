@@ -34,7 +34,8 @@
 #include <time.h>
 
 #include "cw_pool.h"
-#include "cw_illinois.h"
+#include "cw_numerics.h"
+#include "cw_polynomial.h"
 
 #define CW_EXPORT __attribute__((visibility("default")))
 
@@ -237,11 +238,6 @@ static double py_max(double a, double b) { return b > a ? b : a; }
 static double ulp(double x)  /* math.ulp for finite x >= 0 */
 {
     return nextafter(x, INFINITY) - x;
-}
-
-static int crossed(double z0, double z1)
-{
-    return (z0 > 0.0 && z1 <= 0.0) || (z0 < 0.0 && z1 >= 0.0);
 }
 
 static int fail(cw_master *m, int port, int call, int status, double t, double h)
@@ -718,7 +714,7 @@ static void extrapolate(cw_master *m, cw_port *p, double t)
             }
         }
         double dt = t - ta;
-        p->inp[k] = ua + dt * (d1 + 0.5 * dt * d2);
+        p->inp[k] = input_polynomial(ua, d1, d2, dt);
         p->der[k] = d1 + d2 * dt;
         p->der[n + k] = d2;
     }
@@ -2296,7 +2292,7 @@ CW_EXPORT void cw3_intermediateUpdate(void *env, double t, bool set_requested, b
         if (a->iu_fed[k]) {
             const double dt = t - a->iu_tref[k];
             a->iu_set_vr[m] = a->iu_vr[k];
-            a->iu_val[m++] = a->iu_u0[k] + dt * (a->iu_d1[k] + 0.5 * dt * a->iu_d2[k]);
+            a->iu_val[m++] = input_polynomial(a->iu_u0[k], a->iu_d1[k], a->iu_d2[k], dt);
         }
     a->iu_calls += 1;
     a->setFloat64(a->instance, a->iu_set_vr, m, a->iu_val, m);  /* a refusal fails fmi3DoStep */
@@ -2482,7 +2478,7 @@ CW_EXPORT int cw3_setInputDerivatives(void *comp, const unsigned *vr, size_t n, 
         if (a->iu_tref[j] != a->iu_time) {
             /* Re-based at the FMU's time, as the FMI 2.0 runtime does. */
             const double dt = a->iu_time - a->iu_tref[j];
-            a->iu_u0[j] = a->iu_u0[j] + dt * (a->iu_d1[j] + 0.5 * dt * a->iu_d2[j]);
+            a->iu_u0[j] = input_polynomial(a->iu_u0[j], a->iu_d1[j], a->iu_d2[j], dt);
             a->iu_d1[j] = a->iu_d2[j] = 0.0;
             a->iu_tref[j] = a->iu_time;
         }

@@ -21,7 +21,8 @@
 #include <stddef.h>
 #include <string.h>
 
-#include "cw_illinois.h"
+#include "cw_numerics.h"
+#include "cw_polynomial.h"
 #include "cw_rk.h"
 
 #define CW_EXPORT __attribute__((visibility("default")))
@@ -110,11 +111,6 @@ CW_EXPORT void cwme_prepare(cw_me *me)
 static double py_max(double a, double b) { return b > a ? b : a; }
 
 static double ulp(double x) { return nextafter(x, INFINITY) - x; }
-
-static int crossed(double z0, double z1)
-{
-    return (z0 > 0.0 && z1 <= 0.0) || (z0 < 0.0 && z1 >= 0.0);
-}
 
 /* ---- the FMU's calls, FMI 2.0 or 3.0 ---- */
 
@@ -211,7 +207,7 @@ static int set_point(cw_me *me, double t, const double *x)
     if (me->poly) {
         for (int k = 0; k < me->n_in; k++) {
             double dt = t - me->tref[k];
-            me->in_val[k] = me->u0[k] + dt * (me->d1[k] + 0.5 * dt * me->d2[k]);
+            me->in_val[k] = input_polynomial(me->u0[k], me->d1[k], me->d2[k], dt);
         }
         if (check(me, fmu_set_real(me, me->in_vr, (size_t)me->n_in, me->in_val), 11))
             return FMI_ERROR;
@@ -815,7 +811,7 @@ CW_EXPORT int cwme_setReal(void *comp, const unsigned *vr, size_t n, const doubl
         if (k < 0)
             continue;
         double dt = me->time - me->tref[k];
-        double now = me->u0[k] + dt * (me->d1[k] + 0.5 * dt * me->d2[k]);
+        double now = input_polynomial(me->u0[k], me->d1[k], me->d2[k], dt);
         if (values[j] != now || me->d1[k] != 0.0 || me->d2[k] != 0.0)
             me->inputs_dirty = me->restart = 1;
         me->u0[k] = values[j];
@@ -839,7 +835,7 @@ CW_EXPORT int cwme_setInputDerivatives(void *comp, const unsigned *vr, size_t n,
         int k = input_index(me, vr[j]);
         if (me->tref[k] != me->time) {
             double dt = me->time - me->tref[k];
-            me->u0[k] = me->u0[k] + dt * (me->d1[k] + 0.5 * dt * me->d2[k]);
+            me->u0[k] = input_polynomial(me->u0[k], me->d1[k], me->d2[k], dt);
             me->d1[k] = me->d2[k] = 0.0;
             me->tref[k] = me->time;
         }

@@ -1,11 +1,21 @@
-/* The Illinois variant of regula falsi on a bracket [lo, hi] whose ends'
+/* The numerics the master's event location (cw_master.c) and the Model
+ * Exchange wrapper's (cw_me.c) share: what counts as a zero crossing, and
+ * the root finder on a bracket.
+ *
+ * A crossing (clockwork/engine/events.py's crossed): from a non-zero value
+ * to zero or the other sign. A value that starts at zero has not crossed.
+ *
+ * The Illinois variant of regula falsi on a bracket [lo, hi] whose ends'
  * values z_lo, z_hi have opposite signs (clockwork/engine/events.py's
  * Illinois, the same arithmetic): the trial is where the secant crosses
- * zero; an end kept twice in a row has its value halved. Shared by the
- * master's event location (cw_master.c) and the Model Exchange wrapper's
- * (cw_me.c). */
-#ifndef CW_ILLINOIS_H
-#define CW_ILLINOIS_H
+ * zero; an end kept twice in a row has its value halved. */
+#ifndef CW_NUMERICS_H
+#define CW_NUMERICS_H
+
+static inline int crossed(double z0, double z1)
+{
+    return (z0 > 0.0 && z1 <= 0.0) || (z0 < 0.0 && z1 >= 0.0);
+}
 
 typedef struct {
     double lo, z_lo, hi, z_hi;
