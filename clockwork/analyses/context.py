@@ -19,8 +19,7 @@ from ..engine.description import var_unit, variables
 from ..engine.settings import MasterSettings
 from ..engine.system import System
 from ..errors import SimulationError
-
-ESCAPEMENTS = ("GrasshopperEscapement", "ChronometerEscapement")
+from .escapements import MODELS as ESCAPEMENTS  # the registered escapements' models (re-exported)
 
 
 class Parameters(dict):

@@ -18,7 +18,7 @@ from ..engine.shooting import Shooter, shoot
 from ..errors import SimulationError
 from ..physics import analytic
 from ..scene.kinds import Invalid
-from . import keys
+from . import escapements, keys
 from .context import ESCAPEMENTS, build_system, find_component, parameters
 from .registry import register
 
@@ -72,12 +72,10 @@ def energy_balance_amplitude(pendulum: dict, escapement_model: str | None, escap
     L, m, g, Q = pendulum["L"], pendulum["m"], pendulum["g"], pendulum["Q"]
     if Q <= 0 or escapement_model is None:
         return None
-    if escapement_model == "GrasshopperEscapement":
-        work = 4.0 * escapement["torque"] * escapement["phi_r"]  # App. B, Eq. (B3)
-    elif escapement_model == "ChronometerEscapement":
-        work = escapement["torque"] * (escapement["alpha_m2"] - escapement["alpha_m1"])
-    else:
+    kind = escapements.escapement(escapement_model)
+    if kind is None:
         return None
+    work = kind.balance_work(escapement)
     if work <= 0:
         return 0.0
     return math.sqrt(work * Q / (math.pi * m * L * L * (g / L)))
@@ -173,11 +171,8 @@ def clock_at(scene, point: dict, analysis: str) -> Clock:
     pp = params[pendulum]
     esc_model = scene.components[escapement].model_description.modelName if escapement else None
     esc = params.get(escapement, {})
-    a_min = None
-    if esc_model == "GrasshopperEscapement":
-        a_min = esc["phi_r"]
-    elif esc_model == "ChronometerEscapement":
-        a_min = max(esc["alpha_m2"], 0.0)
+    kind = escapements.escapement(esc_model)
+    a_min = kind.min_amplitude(esc) if kind else None
     guess = cfg.get("amplitude_guess") or energy_balance_amplitude(pp, esc_model, esc)
     if guess is None:
         raise SimulationError(f"{analysis}: give analysis.amplitude_guess (no energy balance for this escapement)")
@@ -213,6 +208,6 @@ def steady_state(scene, point: dict, progress: bool = False) -> dict:
     torque = esc.get("torque") if escapement else None
     out["torque_Nm"] = torque
     out["energy_balance_amplitude_deg"] = math.degrees(guess) if guess else None
-    if esc_model == "GrasshopperEscapement" and not result.stalled and pp["Q"] > 0:
+    if esc_model == escapements.GRASSHOPPER and not result.stalled and pp["Q"] > 0:
         out["E_E_B7_s_per_day"] = analytic.escapement_error_B7(result.amplitude, esc["phi_r"], pp["Q"]) * analytic.SECONDS_PER_DAY
     return {"kind": "steady_state", "result": out, "statistics": stats}

@@ -160,6 +160,7 @@ def load_case_scene(c: Case, extra: tuple = ()):
 def clock_params(scene) -> tuple[ClockParams, float, float]:
     """The scene's clock as physics.reference parameters, and (phi0, w0)."""
     from ..analyses.context import parameters
+    from ..analyses.escapements import GRASSHOPPER, escapement
 
     p = parameters(scene)
 
@@ -171,16 +172,16 @@ def clock_params(scene) -> tuple[ClockParams, float, float]:
     if "escapement" in p:
         model = scene.components["escapement"].model_name
         cp.torque = val("escapement", "torque")
-        if model == "GrasshopperEscapement":
-            cp.escapement = "grasshopper"
+        kind = escapement(model)
+        if kind is None:
+            raise ValueError(f"kit cases know no escapement {model}")
+        cp.escapement = kind.reference
+        if model == GRASSHOPPER:
             cp.phi_r = val("escapement", "phi_r")
             if int(val("escapement", "profile")) != 0 or val("escapement", "noise_rms") != 0.0:
                 raise ValueError("kit cases use the constant profile without noise")
-        elif model == "ChronometerEscapement":
-            cp.escapement = "chronometer"
-            cp.alpha_m1, cp.alpha_m2 = val("escapement", "alpha_m1"), val("escapement", "alpha_m2")
         else:
-            raise ValueError(f"no reference for escapement {model}")
+            cp.alpha_m1, cp.alpha_m2 = val("escapement", "alpha_m1"), val("escapement", "alpha_m2")
     if "drag" in p:
         cp.c1, cp.c2 = val("drag", "c1"), val("drag", "c2")
     if "vibration" in p:

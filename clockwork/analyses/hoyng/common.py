@@ -18,6 +18,7 @@ import numpy as np
 from ...physics import analytic
 from ...errors import SimulationError
 from ...scene.kinds import Invalid
+from .. import escapements
 from ..context import ESCAPEMENTS, find_component, parameters
 
 DAY = analytic.SECONDS_PER_DAY
@@ -30,11 +31,9 @@ def normalized(pp: dict, esc_model: str | None = None, ep: dict | None = None) -
     w0 = math.sqrt(pp["g"] / pp["L"])
     mgl = pp["m"] * pp["g"] * pp["L"]
     d = {"w0": w0, "mgl": mgl, "T0": TWO_PI / w0, "eps": 0.5 / pp["Q"] if pp["Q"] > 0 else 0.0}
-    if esc_model == "GrasshopperEscapement":
-        d.update(mu=ep["torque"] / mgl, phi0=ep["phi_r"])
-    elif esc_model == "ChronometerEscapement":
-        width = ep["alpha_m2"] - ep["alpha_m1"]
-        d.update(e=ep["torque"] * width / mgl, phi1=0.5 * (ep["alpha_m1"] + ep["alpha_m2"]), width=width)
+    kind = escapements.escapement(esc_model)
+    if kind is not None:
+        d.update(kind.normalized(ep, mgl))
     return d
 
 
@@ -87,12 +86,9 @@ def subscene(scene, keep):
 def twin_values(avg: str, pp: dict, esc_model: str | None, ep: dict | None) -> dict:
     """Point entries that make AveragedPendulum `avg` the pendulum's twin."""
     out = {(avg, k): pp[k] for k in ("L", "g", "m", "Q")}
-    if esc_model == "GrasshopperEscapement":
-        out[(avg, "escapement")] = 0
-        out[(avg, "phi_r")] = ep["phi_r"]
-    elif esc_model == "ChronometerEscapement":
-        out[(avg, "escapement")] = 1
-        out[(avg, "phi_1")] = 0.5 * (ep["alpha_m1"] + ep["alpha_m2"])
+    kind = escapements.escapement(esc_model)
+    if kind is not None:
+        out.update({(avg, k): v for k, v in kind.twin(ep).items()})
     return out
 
 

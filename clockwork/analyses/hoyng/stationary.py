@@ -17,7 +17,7 @@ import math
 from ...errors import SimulationError
 from ...physics import analytic
 from ...scene.kinds import Invalid
-from .. import keys
+from .. import escapements, keys
 from ..context import build_system, parameters
 from ..registry import register
 from ..steady_state import COLUMNS as STEADY_COLUMNS, MAX_PERIODS, TOLERANCE, clock_check, steady_state
@@ -116,7 +116,7 @@ def _averaged_stationary(scene, point, avg, pp, esc_model, ep, n, lam):
     sub = subscene(scene, {avg})
     pt = {k: v for k, v in point.items() if k[0] == avg}
     pt.update(twin_values(avg, pp, esc_model, ep))
-    drive = ep["torque"] if esc_model == "GrasshopperEscapement" else ep["torque"] * n["width"]
+    drive = escapements.ESCAPEMENTS[esc_model].drive(ep, n)
     pt[(avg, "drive")] = drive
     pt[(avg, "amplitude_start")] = 1.1 * lam
     pt[(avg, "phase_start")] = 0.0

@@ -16,7 +16,7 @@ from ...engine.shooting import Shooter
 from ...errors import SimulationError
 from ...physics import analytic
 from ...scene.kinds import Invalid
-from .. import keys
+from .. import escapements, keys
 from ..context import ESCAPEMENTS, build_system, experiment, find_component, parameters
 from ..steady_state import AMPLITUDE_GUESS, MAX_PERIODS, TOLERANCE, SteadyState, find_steady_state
 
@@ -79,35 +79,9 @@ def check_clock(scene, point: dict) -> None:
         keys.within_fmu(scene, "g_factor", pendulum, "g_factor", (g_factor, 1.0), "the kick's g_factor")
 
 
-def _profile_factor(esc: dict, phi: float, recoil: bool) -> float:
-    """GrasshopperEscapement's angle profile (see its model description)."""
-    p = int(esc.get("profile", 0))
-    pa = esc.get("profile_angle", 12.0 * DEG)
-    if p == 1:
-        return 0.5 + abs(phi) / pa
-    if p == 2:
-        return max(0.0, 1.5 - abs(phi) / pa)
-    if p == 3:
-        return esc.get("harrison_ratio", 2.0 / 3.0) if recoil else 1.0
-    return 1.0
-
-
 def escapement_work(esc_model: str, esc: dict, A: float) -> float:
     """Work (J) per period of the escapement on a swing of amplitude A (rad)."""
-    from scipy.integrate import quad
-
-    M = esc["torque"]
-    if esc_model == "ChronometerEscapement":
-        lo, hi = max(esc["alpha_m1"], -A), min(esc["alpha_m2"], A)
-        return M * max(0.0, hi - lo)
-    phi_r = esc["phi_r"]
-    if A <= phi_r:
-        return 0.0
-    # Moving right: drive from -A up to phi_r, recoil from phi_r to A; the
-    # left half swing mirrors it.
-    drive = quad(lambda x: _profile_factor(esc, x, False), -A, phi_r, points=[0.0], limit=200)[0]
-    recoil = quad(lambda x: _profile_factor(esc, x, True), phi_r, A, limit=200)[0]
-    return 2.0 * M * (drive - recoil)
+    return escapements.ESCAPEMENTS[esc_model].work(esc, A)
 
 
 def loss_per_period(pp: dict, drag: dict | None, A: float) -> float:
@@ -182,11 +156,8 @@ class Clock:
 
     @property
     def a_min(self) -> float | None:
-        if self.esc_model == "GrasshopperEscapement":
-            return self.esc["phi_r"]
-        if self.esc_model == "ChronometerEscapement":
-            return max(self.esc["alpha_m2"], 0.0)
-        return None
+        kind = escapements.escapement(self.esc_model)
+        return kind.min_amplitude(self.esc) if kind else None
 
     @property
     def torque(self) -> float:
@@ -240,7 +211,8 @@ class Clock:
 
     def torque_for_amplitude(self, target: float, rel_tol: float = 1e-9) -> SteadyState:
         """Solve for the torque whose steady mean amplitude is `target` (rad)."""
-        if self.esc_model != "GrasshopperEscapement":
+        kind = escapements.escapement(self.esc_model)
+        if kind is None or not kind.amplitude_target:
             raise SimulationError("an amplitude target needs a GrasshopperEscapement")
         if target <= self.a_min:
             raise SimulationError(f"amplitude {math.degrees(target):g} deg is not above phi_r")
