@@ -23,4 +23,13 @@ typedef struct {
 
 #define CW_COUNT(table) (sizeof(table) / sizeof((table)[0]))
 
+/* In a lookup function of (name, n_fields, struct_size): the table
+ * tag_layout of struct cw_tag when name is "tag". */
+#define CW_LAYOUT_CASE(tag)                            \
+    if (!strcmp(name, #tag)) {                         \
+        *n_fields = CW_COUNT(tag##_layout);            \
+        *struct_size = sizeof(cw_##tag);               \
+        return tag##_layout;                           \
+    }
+
 #endif

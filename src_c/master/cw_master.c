@@ -2821,15 +2821,15 @@ static const cw_field fmi1_layout[] = {
 
 CW_EXPORT const cw_field *cw_layout(const char *name, size_t *n_fields, size_t *struct_size)
 {
-    if (!strcmp(name, "port")) { *n_fields = CW_COUNT(port_layout); *struct_size = sizeof(cw_port); return port_layout; }
-    if (!strcmp(name, "loop")) { *n_fields = CW_COUNT(loop_layout); *struct_size = sizeof(cw_loop); return loop_layout; }
-    if (!strcmp(name, "loops")) { *n_fields = CW_COUNT(loops_layout); *struct_size = sizeof(cw_loops); return loops_layout; }
-    if (!strcmp(name, "master")) { *n_fields = CW_COUNT(master_layout); *struct_size = sizeof(cw_master); return master_layout; }
-    if (!strcmp(name, "inputs")) { *n_fields = CW_COUNT(inputs_layout); *struct_size = sizeof(cw_inputs); return inputs_layout; }
-    if (!strcmp(name, "recorder")) { *n_fields = CW_COUNT(recorder_layout); *struct_size = sizeof(cw_recorder); return recorder_layout; }
-    if (!strcmp(name, "ticks")) { *n_fields = CW_COUNT(ticks_layout); *struct_size = sizeof(cw_ticks); return ticks_layout; }
-    if (!strcmp(name, "fmi3")) { *n_fields = CW_COUNT(fmi3_layout); *struct_size = sizeof(cw_fmi3); return fmi3_layout; }
-    if (!strcmp(name, "fmi1")) { *n_fields = CW_COUNT(fmi1_layout); *struct_size = sizeof(cw_fmi1); return fmi1_layout; }
+    CW_LAYOUT_CASE(port)
+    CW_LAYOUT_CASE(loop)
+    CW_LAYOUT_CASE(loops)
+    CW_LAYOUT_CASE(master)
+    CW_LAYOUT_CASE(inputs)
+    CW_LAYOUT_CASE(recorder)
+    CW_LAYOUT_CASE(ticks)
+    CW_LAYOUT_CASE(fmi3)
+    CW_LAYOUT_CASE(fmi1)
     *n_fields = 0;
     *struct_size = 0;
     return NULL;

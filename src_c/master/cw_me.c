@@ -987,8 +987,8 @@ static const cw_field me_layout[] = {
 
 CW_EXPORT const cw_field *cwme_layout(const char *name, size_t *n_fields, size_t *struct_size)
 {
-    if (!strcmp(name, "sundials")) { *n_fields = CW_COUNT(sundials_layout); *struct_size = sizeof(cw_sundials); return sundials_layout; }
-    if (!strcmp(name, "me")) { *n_fields = CW_COUNT(me_layout); *struct_size = sizeof(cw_me); return me_layout; }
+    CW_LAYOUT_CASE(sundials)
+    CW_LAYOUT_CASE(me)
     *n_fields = 0;
     *struct_size = 0;
     return NULL;
