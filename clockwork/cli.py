@@ -183,10 +183,17 @@ def cmd_fit(args) -> int:
     if args.out is None:
         Path("out").mkdir(exist_ok=True)  # the default's parent
         args.out = f"out/{scene.path.stem}_fit"
+    made = not Path(args.out).exists()
     out = check_output_dir(args.out)
     command = "clockwork fit " + " ".join([args.scene, "--data", args.data] + [f"--free {f}" for f in args.free]
                                           + [f"--set {o}" for o in args.overrides] + ["--out", str(args.out)])
-    summary = run_fit(scene, data, free, out, workers=args.workers, scheduler=args.scheduler, command=command)
+    try:
+        summary = run_fit(scene, data, free, out, workers=args.workers, scheduler=args.scheduler, command=command)
+    except BaseException:
+        if made:  # a fit that failed leaves no empty folder behind either
+            with contextlib.suppress(OSError):
+                out.rmdir()
+        raise
     for line in report_lines(summary, out):
         _say_out(line)
     for note in summary.get("notes", []):

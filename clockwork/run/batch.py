@@ -10,6 +10,12 @@ last point inside the caller's ``analyses.context.reusing_systems()``), in
 the local process pool (clockwork.run.pool) or on a Dask cluster
 (clockwork.run.dask). Finished points go into the cache; failed ones are
 returned as ``points.failed_point`` dicts (with "error"), never cached.
+
+A cached result found under a point's key but written for another label
+(the key hashes the effective parameters: a fit's row that sets
+escapement.torque to the scene's own value is the point of a sweep that
+leaves it alone) is the same computation: it is taken, under this point's
+label, without the warning a damaged file gets.
 """
 
 from __future__ import annotations
@@ -20,11 +26,11 @@ from .points import analysis_kind, point_key, point_label, run_point
 def run_points(scene, points: list[dict], workers: int | None = None, scheduler: str | None = None,
                cache: bool = True) -> list[dict]:
     """The results of `points` ({(instance, variable): value} each), in their order."""
-    from ..results.cache import cache_load, cache_store
+    from ..results.cache import cache_store
 
     kind = analysis_kind(scene)
     keys = [point_key(scene, p) for p in points]
-    results: list[dict | None] = [cache_load(k, point_label(p), kind) if cache else None
+    results: list[dict | None] = [_cached(k, point_label(p), kind) if cache else None
                                   for k, p in zip(keys, points)]
     todo = [i for i, r in enumerate(results) if r is None]
     if todo:
@@ -49,3 +55,22 @@ def run_points(scene, points: list[dict], workers: int | None = None, scheduler:
             if hasattr(done, "close"):
                 done.close()  # a pool stops its workers now
     return results
+
+
+def _cached(key: str, label: dict, kind: str) -> dict | None:
+    """The cache's result for `key`, labelled `label` (see the module's docstring), or None."""
+    from ..files import read_regular
+    from ..numbers import parse_json
+    from ..results.cache import cache_dir, cache_load, check_point
+
+    d = cache_dir()
+    if d is None:
+        return None
+    try:
+        data = parse_json(read_regular(d / f"{key}.json", "a JSON file"))
+    except (OSError, ValueError):
+        data = None
+    if isinstance(data, dict) and isinstance(data.get("point"), dict) and data["point"] != label \
+            and check_point(data, data["point"], kind) is None:
+        return {**data, "point": label}
+    return cache_load(key, label, kind)  # the usual reading: a damaged file is said so and run again

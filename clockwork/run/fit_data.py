@@ -50,6 +50,7 @@ from ..scene.units import ANGLE_UNITS, UnitError, apply_conversion, fmt, parse_q
 
 MAX_DATA_BYTES = 1 << 24  # 16 MiB: a timer's log of years, far more rows than a fit can use
 MAX_ROWS = 100_000
+NOT_MEASURABLE = frozenset({"stalled", "reason", "engine", "engine_reason", "notes", "ended"})  # no numbers
 TIME_WORDS = ("time", "date", "timestamp", "datetime", "elapsed", "elapsed time")
 _HEADER = re.compile(r"^(.*?)\s*\[([^\[\]]*)\]\s*$")
 # A result column's unit (the tail of its name) and the other spellings a bracket may give it in.
@@ -133,7 +134,8 @@ def result_columns(scene) -> frozenset[str] | None:
     """Every column the scene's analysis declares for its results, or None."""
     from ..analyses import registry
 
-    return registry._declared(registry.RESULT_COLUMNS, scene)
+    declared = registry._declared(registry.RESULT_COLUMNS, scene)
+    return None if declared is None else declared - NOT_MEASURABLE
 
 
 def _why_not_settable(scene, ref: str) -> str:
