@@ -241,6 +241,7 @@ def _summary(scene, data: Data, free: list[Free], model: _Model, sol, fitted: np
                      "analysis": scene.analysis, "overrides": list(scene.overrides)},
         "data": {"file": str(data.path), "sha256": data.sha256, "rows": data.rows,
                  "measured": {c: data.headers[c] for c in model.columns},
+                 "negated": [c for c in model.columns if data.signs.get(c, 1.0) < 0],  # a timer's rate: -E_T
                  "set": data.set_columns, "uncertainties": "given" if data.sigma else "from the residuals"},
         "fit": {
             "parameters": parameters,

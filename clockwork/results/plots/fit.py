@@ -4,9 +4,11 @@ uncertainties and the fitted model, and below it the residuals."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
-from .registry import display, legend, plain, subplots, title_of, unit_of
+from .registry import display, legend, plain, subplots, unit_of
 
 
 def draw_fit(scene, summary: dict, columns: list[str]):
@@ -32,7 +34,10 @@ def draw_fit(scene, summary: dict, columns: list[str]):
         measured = top.errorbar(x, y, yerr=err, fmt="o", ms=4, color="C0", capsize=2, lw=0.8)
         fitted, = top.plot(x[order], f[order], "-", color="C3", lw=1.0, marker=".", ms=3)
         unit = unit_of(c)
-        top.set_ylabel(plain(f"{c} ({unit})" if unit else c))
+        header = summary["data"]["measured"].get(c, c)
+        source = "" if header == c else (f"= -({header})" if c in summary["data"].get("negated", []) else
+                                         f"from {header}")
+        top.set_ylabel(plain(f"{c} ({unit})" if unit else c) + (f"\n{plain(source)}" if source else ""))
         legend(top, [measured, fitted], ["measured" + (" +- sigma" if err is not None else ""), "fitted"],
                fontsize=8, loc="best")
         bottom.axhline(0.0, color="0.5", lw=0.6)
@@ -43,8 +48,9 @@ def draw_fit(scene, summary: dict, columns: list[str]):
     shown = ", ".join(f"{plain(k)} = {p['value']:.5g}" + (f" +- {p['sigma']:.2g}" if p["identifiable"] else
                                                           " (not identifiable)") + (f" {p['unit']}" if p["unit"] else "")
                       for k, p in params.items())
-    fig.suptitle(f"{title_of(scene, {})}\nfit: {shown}; chi2/dof = "
+    where = f"{Path(summary['scene']).stem}: fit to {Path(summary['data']['file']).name}"
+    fig.suptitle(f"{plain(where)}\n{shown}; chi2/dof = "
                  + (f"{summary['fit']['reduced_chi2']:.3g}" if summary["fit"]["reduced_chi2"] is not None else "-"),
                  fontsize=9)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.95))  # room for the two lines of the title
     return fig
