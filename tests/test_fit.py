@@ -254,3 +254,28 @@ def test_a_fit_that_does_not_converge_fails_with_one_line(tmp_path, capsys, monk
                                   "--out", out])
     assert_one_line_error(rc, err, "the fit did not converge", "pendulum.Q = ", code=1)
     assert os.listdir(out) == []  # nothing half-written, no staging folder left
+
+
+def test_a_data_file_that_is_no_regular_file_is_refused_unread(tmp_path, capsys):
+    fifo = tmp_path / "log.csv"
+    os.mkfifo(fifo)  # no writer: an open() without O_NONBLOCK would wait for ever
+    rc, _, err = run_cli(capsys, ["fit", "ziemkiewicz_fig4a", "--data", fifo, "--free", "pendulum.Q",
+                                  "--out", tmp_path / "fit"])
+    assert_one_line_error(rc, err, str(fifo), "is a FIFO (named pipe), expected a CSV data file")
+
+
+def test_a_cached_point_of_the_same_parameters_under_another_label_is_reused(tmp_path, capsys, monkeypatch):
+    """The cache's key hashes the effective parameters: a row that sets escapement.torque to the scene's own
+    value is the point a run that leaves it alone stored. It is reused, without a warning about its label."""
+    from clockwork.run import batch
+    from clockwork.run.catalog import load_scene
+
+    monkeypatch.setenv("CLOCKWORK_CACHE", str(tmp_path / "cache"))
+    scene = load_scene("ziemkiewicz_fig4a")
+    first = batch.run_points(scene, [{("pendulum", "Q"): 1000.0}])[0]
+    calls = []
+    monkeypatch.setattr(batch, "run_point", lambda *a, **k: calls.append(a) or {})
+    again = batch.run_points(scene, [{("escapement", "torque"): 0.004}])[0]
+    assert calls == [] and capsys.readouterr().err == ""
+    assert again["point"] == {"escapement.torque": 0.004}
+    assert again["result"] == first["result"]

@@ -20,14 +20,15 @@ label, without the warning a damaged file gets.
 
 from __future__ import annotations
 
+from ..files import read_regular
+from ..numbers import parse_json
+from ..results.cache import cache_dir, cache_load, cache_store, check_point
 from .points import analysis_kind, point_key, point_label, run_point
 
 
 def run_points(scene, points: list[dict], workers: int | None = None, scheduler: str | None = None,
                cache: bool = True) -> list[dict]:
     """The results of `points` ({(instance, variable): value} each), in their order."""
-    from ..results.cache import cache_store
-
     kind = analysis_kind(scene)
     keys = [point_key(scene, p) for p in points]
     results: list[dict | None] = [_cached(k, point_label(p), kind) if cache else None
@@ -59,10 +60,6 @@ def run_points(scene, points: list[dict], workers: int | None = None, scheduler:
 
 def _cached(key: str, label: dict, kind: str) -> dict | None:
     """The cache's result for `key`, labelled `label` (see the module's docstring), or None."""
-    from ..files import read_regular
-    from ..numbers import parse_json
-    from ..results.cache import cache_dir, cache_load, check_point
-
     d = cache_dir()
     if d is None:
         return None

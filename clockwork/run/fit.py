@@ -38,7 +38,6 @@ from ..analyses.context import reusing_systems
 from ..errors import SimulationError, UsageError
 from ..results.files import write_csv_atomic, write_json_atomic
 from ..results.outdir import OutputDir
-from ..scene.units import fmt
 from ..version import __version__
 from .batch import run_points
 from .fit_data import Data, Free
@@ -320,5 +319,3 @@ def report_lines(summary: dict, out: Path) -> list[str]:
     lines.append("  files: " + ", ".join(summary["files"]))
     return lines
 
-
-__all__ = ["run_fit", "identify", "report_lines", "fmt"]

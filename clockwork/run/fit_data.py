@@ -40,13 +40,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ..analyses import registry
+from ..analyses.context import parameters
 from ..engine.description import REAL_TYPES, var_limit, var_unit, variables as variables_of
 from ..engine.names import split_ref
 from ..errors import SceneError, UsageError
 from ..files import NotRegularFile, read_regular
 from ..numbers import parse_real, shorten
+from ..results.plots.registry import unit_of
 from ..scene.model import ComponentVariables
-from ..scene.units import ANGLE_UNITS, UnitError, apply_conversion, fmt, parse_quantity, unit_conversions
+from ..scene.units import UnitError, apply_conversion, fmt, parse_quantity, unit_conversions
 
 MAX_DATA_BYTES = 1 << 24  # 16 MiB: a timer's log of years, far more rows than a fit can use
 MAX_ROWS = 100_000
@@ -132,8 +135,6 @@ def settable(scene, ref: str) -> Target | None:
 
 def result_columns(scene) -> frozenset[str] | None:
     """Every column the scene's analysis declares for its results, or None."""
-    from ..analyses import registry
-
     declared = registry._declared(registry.RESULT_COLUMNS, scene)
     return None if declared is None else declared - NOT_MEASURABLE
 
@@ -372,8 +373,6 @@ def _measured_name(name: str, word: str, declared: frozenset[str]) -> str | None
 
 def _result_factor(fail, j: int, line: int, column: str, unit: str | None) -> float:
     """The factor from a bracket's `unit` to the unit `column`'s name ends with."""
-    from ..results.plots.registry import unit_of
-
     own = unit_of(column)
     if unit is None or unit == own:
         return 1.0
@@ -413,8 +412,6 @@ def parse_free(scene, specs: list[str], data: Data) -> list[Free]:
     """``--free NAME[=GUESS]`` arguments, checked; UsageError naming the argument."""
     if not specs:
         raise UsageError("fit: expected at least one --free NAME[=GUESS]")
-    from ..analyses.context import parameters
-
     current = parameters(scene)
     out: list[Free] = []
     for spec in specs:
@@ -457,5 +454,3 @@ def parse_free(scene, specs: list[str], data: Data) -> list[Free]:
         out.append(Free(target, guess, target.lo, target.hi))
     return out
 
-
-__all__ = ["Data", "Free", "Target", "read_data", "parse_free", "settable", "ANGLE_UNITS"]
