@@ -49,6 +49,14 @@ PENALTY = 1e6  # the residual of a row whose clock stalls or fails at a trial po
 MAX_EVALUATIONS_PER_PARAMETER = 40
 
 
+def _scale(f: Free) -> float:
+    """What the optimizer's unit step is for `f`: its guess, else the width of its range (else 1)."""
+    if f.guess != 0:
+        return abs(f.guess)
+    width = f.hi - f.lo
+    return width if math.isfinite(width) and width > 0 else 1.0
+
+
 class _Model:
     """The residuals as a function of the scaled free parameters."""
 
@@ -64,7 +72,7 @@ class _Model:
             self.s = s[self.mask]
         else:
             self.s = np.ones_like(self.y)
-        self.scale = np.array([abs(f.guess) if f.guess != 0 else (f.hi - f.lo) for f in free])
+        self.scale = np.array([_scale(f) for f in free])
         self.evaluations = 0
         self.points = 0
         self.last_failures: list[tuple[int, str]] = []

@@ -154,6 +154,12 @@ def _why_not_settable(scene, ref: str) -> str:
     return f" ({ref} is of type {v.type}: only Real parameters are fitted and set)"
 
 
+def _settable_names(scene) -> list[str]:
+    """"instance.variable" of every Real parameter of the scene (for a hint)."""
+    return [f"{i}.{v}" for i, c in scene.components.items() for v, var in variables_of(c.model_description).items()
+            if var.causality == "parameter" and var.type in REAL_TYPES]
+
+
 def _component(scene, model: str) -> str | None:
     return next((n for n, c in scene.components.items() if c.model_description.modelName == model), None)
 
@@ -278,7 +284,8 @@ def _parse(scene, path: Path, digest: str, header_line: int, header: list[str], 
             params[j] = (targets, unit if unit is not None else ("hPa" if word == "pressure" else "degC"))
             continue
         why = _why_not_settable(scene, name) if "." in name else ""
-        close = difflib.get_close_matches(name, sorted(declared), n=1) if len(name) <= 200 else []
+        known = sorted(declared) + _settable_names(scene)
+        close = difflib.get_close_matches(name, known, n=1) if len(name) <= 200 else []
         hint = f" (did you mean {close[0]}?)" if close else ""
         raise fail(j, f"names no settable parameter of the scene and no result column of its analysis{why}{hint}: "
                       f"expected instance.variable, one of {', '.join(sorted(declared))}, sigma_<column>, or a "
@@ -421,10 +428,7 @@ def parse_free(scene, specs: list[str], data: Data) -> list[Free]:
         target = settable(scene, name)
         if target is None:
             why = _why_not_settable(scene, name)
-            known = [f"{i}.{v}" for i, c in scene.components.items()
-                     for v, var in variables_of(c.model_description).items()
-                     if var.causality == "parameter" and var.type in REAL_TYPES]
-            close = difflib.get_close_matches(name, known, n=1) if len(name) <= 200 else []
+            close = difflib.get_close_matches(name, _settable_names(scene), n=1) if len(name) <= 200 else []
             hint = f" (did you mean {close[0]}?)" if close else ""
             raise UsageError(f"--free {shown}: names no Real parameter of the scene{why}{hint}: expected "
                              "instance.variable of a parameter with a declared range")
