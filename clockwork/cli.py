@@ -185,8 +185,11 @@ def cmd_fit(args) -> int:
         args.out = f"out/{scene.path.stem}_fit"
     made = not Path(args.out).exists()
     out = check_output_dir(args.out)
-    command = "clockwork fit " + " ".join([args.scene, "--data", args.data] + [f"--free {f}" for f in args.free]
-                                          + [f"--set {o}" for o in args.overrides] + ["--out", str(args.out)])
+    import shlex
+
+    command = shlex.join(["clockwork", "fit", args.scene, "--data", args.data]
+                         + [a for f in args.free for a in ("--free", f)]
+                         + [a for o in args.overrides for a in ("--set", o)] + ["--out", str(args.out)])
     try:
         summary = run_fit(scene, data, free, out, workers=args.workers, scheduler=args.scheduler, command=command)
     except BaseException:

@@ -309,6 +309,18 @@ def _split(name: str, data: Data) -> tuple[str, str]:
     return tuple(name.rsplit(".", 1))
 
 
+_DISPLAY = {"rad": ("deg", 180.0 / math.pi), "N.m": ("N.cm", 100.0)}  # as the plots show them
+
+
+def _in_display_unit(p: dict) -> str:
+    """" (= 2.302 +- 0.004 deg)" for a parameter in rad or N.m, else ""."""
+    if p["unit"] not in _DISPLAY:
+        return ""
+    unit, factor = _DISPLAY[p["unit"]]
+    sig = f" +- {p['sigma'] * factor:.3g}" if p["identifiable"] else ""
+    return f" (= {p['value'] * factor:.6g}{sig} {unit})"
+
+
 def report_lines(summary: dict, out: Path) -> list[str]:
     """What `clockwork fit` prints: the parameters with their sigmas, chi2, where the files are."""
     fit = summary["fit"]
@@ -319,7 +331,8 @@ def report_lines(summary: dict, out: Path) -> list[str]:
         unit = f" {p['unit']}" if p["unit"] else ""
         sig = f"{p['sigma']:.3g}" if p["identifiable"] else "inf (not identifiable)"
         bound = " (at a bound of its range)" if p["at_bound"] else ""
-        lines.append(f"  {name} = {p['value']:.6g} +- {sig}{unit}{bound}")
+        shown = _in_display_unit(p)
+        lines.append(f"  {name} = {p['value']:.6g} +- {sig}{unit}{shown}{bound}")
     red = fit["reduced_chi2"]
     lines.append(f"  chi2 = {fit['chi2']:.4g}, dof = {fit['dof']}"
                  + (f", chi2/dof = {red:.4g}" if red is not None else "")
