@@ -279,3 +279,19 @@ def test_a_cached_point_of_the_same_parameters_under_another_label_is_reused(tmp
     assert calls == [] and capsys.readouterr().err == ""
     assert again["point"] == {"escapement.torque": 0.004}
     assert again["result"] == first["result"]
+
+
+def test_units_in_brackets_are_converted(tmp_path):
+    from clockwork.run.catalog import load_scene
+    from clockwork.run.fit_data import read_data
+
+    scene = load_scene("ziemkiewicz_fig4a")
+    data = read_data(scene, _write(tmp_path / "u.csv", ["\ufeffescapement.torque [N.mm]", "escapement.phi_r [deg]",
+                                                        "amplitude_deg [rad]", "sigma_amplitude_deg [mrad]",
+                                                        "E_T_s_per_day", "sigma_E_T_s_per_day"],
+                                   [(4.0, 2.5, 0.1, 1.0, -3.0, 0.5)]))
+    assert data.settings[0] == {("escapement", "torque"): pytest.approx(0.004),
+                                ("escapement", "phi_r"): pytest.approx(math.radians(2.5))}
+    assert data.measured["amplitude_deg"][0] == pytest.approx(math.degrees(0.1))
+    assert data.sigma["amplitude_deg"][0] == pytest.approx(math.degrees(1e-3))
+    assert data.measured["E_T_s_per_day"][0] == -3.0 and data.sigma["E_T_s_per_day"][0] == 0.5
