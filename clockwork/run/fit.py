@@ -75,7 +75,6 @@ class _Model:
         self.scale = np.array([_scale(f) for f in free])
         self.evaluations = 0
         self.points = 0
-        self.last_failures: list[tuple[int, str]] = []
 
     def values(self, x: np.ndarray) -> dict:
         return {f.target.key: float(v) for f, v in zip(self.free, x * self.scale)}
@@ -106,8 +105,7 @@ class _Model:
         return out, failures
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
-        model, failures = self.predict(x)
-        self.last_failures = failures
+        model, _ = self.predict(x)
         r = (model[self.mask] - self.y) / self.s
         return np.where(np.isnan(r), PENALTY, r)
 
