@@ -1,5 +1,5 @@
 """The `clockwork` command: run, validate, list, info, plot, export-ssp,
-export-scene, gallery, bench, export-suite, compare.
+export-scene, gallery, bench, export-suite, compare, fit.
 
 Bad input of any kind ends with one line `clockwork: error: <message>` on
 stderr and exit code 2; a failed simulation with one line and exit code 1.
@@ -148,7 +148,63 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("case", metavar="CASE", help="a case directory of `export-suite`, or a case name")
     c.add_argument("--json", default=None, metavar="FILE", help="also write the grade as JSON")
     c.set_defaults(func=cmd_compare)
+
+    ft = sub.add_parser("fit", help="fit a steady-state scene's parameters to measurements (a CSV file) by "
+                                    "weighted least squares (see docs/horology.md)")
+    ft.add_argument("scene", metavar="SCENE.toml")
+    ft.add_argument("--data", required=True, metavar="FILE.csv",
+                    help="one row per measured condition: columns named after scene parameters set them, columns "
+                         "named after result columns are measurements, sigma_<column> their uncertainties")
+    ft.add_argument("--free", action="append", default=[], metavar="NAME[=GUESS]",
+                    help="a parameter to fit within its declared range, e.g. pendulum.Q or "
+                         'escapement.torque="0.3 N.cm" (repeatable)')
+    ft.add_argument("--out", default=None, metavar="DIR", help="output directory [out/<scene>_fit]")
+    add_set(ft)
+    ft.add_argument("--workers", type=_positive_int, default=None, metavar="N",
+                    help="parallel processes for the rows (default: the runner's choice)")
+    ft.add_argument("--scheduler", default=None, metavar="ADDRESS", help="address of a distributed scheduler")
+    ft.set_defaults(func=cmd_fit)
     return p
+
+
+def cmd_fit(args) -> int:
+    from .results.files import check_output_dir
+    from .run.catalog import load_scene
+    from .run.fit import report_lines, run_fit
+    from .run.fit_data import parse_free, read_data
+
+    scene = load_scene(args.scene, args.overrides)
+    if args.scheduler:
+        from .run.dask import require_dask
+
+        require_dask()
+    data = read_data(scene, args.data)
+    free = parse_free(scene, args.free, data)
+    if args.out is None:
+        Path("out").mkdir(exist_ok=True)  # the default's parent
+        args.out = f"out/{scene.path.stem}_fit"
+    made = not Path(args.out).exists()
+    out = check_output_dir(args.out)
+    import shlex
+
+    command = shlex.join(["clockwork", "fit", args.scene, "--data", args.data]
+                         + [a for f in args.free for a in ("--free", f)]
+                         + [a for o in args.overrides for a in ("--set", o)] + ["--out", str(args.out)])
+    try:
+        summary = run_fit(scene, data, free, out, workers=args.workers, scheduler=args.scheduler, command=command)
+    except BaseException:
+        if made:  # a fit that failed leaves no empty folder behind either
+            with contextlib.suppress(OSError):
+                out.rmdir()
+        raise
+    for line in report_lines(summary, out):
+        _say_out(line)
+    for note in summary.get("notes", []):
+        say("note", note)
+    if summary.get("plots_failed"):
+        p = summary["plots_failed"][0]
+        raise SimulationError(f"plot {p['file']} failed: {p['error']} (the fit's numbers are in {out})")
+    return 0
 
 
 def cmd_export_suite(args) -> int:

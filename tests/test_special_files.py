@@ -80,9 +80,10 @@ PLACES = {
     "X.ssd": lambda tmp, p: ["validate", p],
     "compare RESULT.csv": lambda tmp, p: ["compare", p, "GrasshopperClock"],
     "run --input": lambda tmp, p: ["run", fmu_file("Pendulum"), "--input", p, "--out", tmp / "out", "--no-progress"],
+    "fit --data": lambda tmp, p: ["fit", "ziemkiewicz_fig4a", "--data", p, "--free", "pendulum.Q", "--out", tmp / "out"],
 }
 SUFFIX = {"scene.toml": ".toml", "X.fmu": ".fmu", "info X.fmu": ".fmu", "X.ssp": ".ssp", "X.ssd": ".ssd",
-          "compare RESULT.csv": ".csv"}
+          "compare RESULT.csv": ".csv", "fit --data": ".csv"}
 
 
 @pytest.mark.parametrize("kind", KINDS + ["sparse"])
