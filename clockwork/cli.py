@@ -438,7 +438,7 @@ def _info_ssp(path: str) -> int:
 
     scene = load_scene(path)
     n, m = len(scene.components), len(scene.connections)
-    kind = "OSP" if Path(path).suffix.lower() == ".xml" else "SSP"
+    kind = "OSP" if Path(scene.path).suffix.lower() == ".xml" else "SSP"
     _say_out(f"{scene.title} ({kind}: {n} component{'s' * (n != 1)}, {m} connection{'s' * (m != 1)})")
     _say_out(f"  file         {scene.path}")
     _say_out(f"  sha256       {scene.sha256}")
@@ -462,7 +462,8 @@ def _info_ssp(path: str) -> int:
 def cmd_info(args) -> int:
     from .engine.description import FmuError, fmi1_details, read_fmu, resolve_fmu, shape_text, type_name, var_unit
 
-    if Path(args.fmu).suffix.lower() in (".ssp", ".ssd", ".xml"):
+    osp_folder = (Path(args.fmu) / "OspSystemStructure.xml").is_file()  # libcosim's form: the file's folder
+    if Path(args.fmu).suffix.lower() in (".ssp", ".ssd", ".xml") or osp_folder:
         return _info_ssp(args.fmu)
     try:
         path = resolve_fmu(args.fmu)

@@ -175,6 +175,10 @@ def test_validate_info_and_simulate(tmp_path, capsys):
     assert rc == 0, err
     assert out.startswith("clock (OSP: 2 components, 3 connections)")
     assert "escapement.tau -> pendulum.tau_escapement (x 2)" in out
+    # the folder, as libcosim takes it
+    rc, out2, err = run_cli(capsys, ["info", d])
+    assert rc == 0 and out2 == out, err
+    assert load_scene(d).path == f
     r = clockwork.simulate(f, stop_time=1.0, output=["pendulum.phi"])
     run_ok(capsys, f, "--out", tmp_path / "cli", "--set", "experiment.stop=1", "--set", 'record.outputs=["pendulum.phi"]')
     assert np.array_equal(r["pendulum.phi"], series(tmp_path / "cli")["pendulum.phi"])

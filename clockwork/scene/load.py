@@ -42,7 +42,7 @@ from .inputs import Inputs, read_inputs
 from .kinds import NO_KINDS, Invalid, Kinds
 from .model import (Component, ComponentVariables, Connection, Experiment, MasterConfig, Record, Scene, consistency,
                     show)
-from .osp.read import OtherXml, read_osp
+from .osp.read import OSP_FILE, OtherXml, read_osp
 from .ssp.read import read_ssp
 from .sweep import parse_sweep
 from .units import UnitError, fmt, link_conversion, to_seconds
@@ -168,6 +168,8 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
     .fmu alone); `input_file` (relative to the current directory) drives
     unconnected inputs, in place of the scene's [inputs]. Raises SceneError."""
     path = Path(path)
+    if path.is_dir() and (path / OSP_FILE).is_file():
+        path = path / OSP_FILE  # a folder of an OSP system, as libcosim takes it
     if path.suffix.lower() in (".ssp", ".ssd"):
         return _load_system(path, read_ssp(path), overrides, kinds, input_file)
     if path.suffix.lower() == ".fmu":

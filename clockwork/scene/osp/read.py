@@ -48,6 +48,7 @@ from ..ssp.documents import MAX_XML_BYTES, Doc
 
 OSP_NS = "http://opensimulationplatform.com/MSMI/OSPSystemStructure"
 ROOT = "OspSystemStructure"
+OSP_FILE = "OspSystemStructure.xml"  # what libcosim reads in a folder it is given
 VERSION = "0.1"
 DEFAULT_BASE_STEP = 0.1  # s: libcosim's when BaseStepSize is not given
 MAX_SIMULATORS = 10_000  # as an SSP's components: each is an FMU instance
@@ -88,7 +89,7 @@ class OspScene:
     labels: dict[str, tuple[str, str]] = field(default_factory=dict)
     # what the file's stop time and per-component steps are called, for load.py's notes and errors
     stop_term: str = "EndTime"
-    stop_like: str = "as an SSP without a stopTime (libcosim runs until it is stopped)"
+    stop_like: str = "as for an SSP without a stopTime (libcosim runs until it is stopped)"
     step_term: str = "Simulator stepSize"
 
 
