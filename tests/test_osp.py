@@ -230,6 +230,13 @@ def test_other_xml_files_name_the_format_expected(tmp_path, capsys):
         (tmp_path / name).write_text(text)
         rc, _, err = run_cli(capsys, ["validate", tmp_path / name])
         assert_one_line_error(rc, err, name, needle, "not a scene: expected", "OspSystemStructure.xml")
+    # not a regular file, or no file: named, nothing read
+    import os
+    os.mkfifo(tmp_path / "fifo.xml")
+    rc, _, err = run_cli(capsys, ["validate", tmp_path / "fifo.xml"])
+    assert_one_line_error(rc, err, "fifo.xml", "is a FIFO (named pipe), expected an OspSystemStructure.xml file")
+    rc, _, err = run_cli(capsys, ["validate", tmp_path / "gone.xml"])
+    assert_one_line_error(rc, err, "gone.xml", "no such OSP system structure")
     # an OSP system structure named otherwise: named, not a TOML error
     (tmp_path / "osp.toml").write_text(f'<OspSystemStructure xmlns="{NS}" version="0.1"/>')
     rc, _, err = run_cli(capsys, ["validate", tmp_path / "osp.toml"])
@@ -411,3 +418,47 @@ class TestHostileFiles:
         _edit('variable="Q"', 'variable="Qx"')(d)
         with pytest.raises(SceneError, match="has no variable Qx"):
             load_scene(d / "OspSystemStructure.xml")
+
+
+def test_random_edits_give_a_scene_or_one_line(tmp_path, capsys):
+    """150 seeded edits of the fixtures' files (an attribute dropped, emptied
+    or set to a bad value, an element's text changed, an element dropped,
+    doubled or renamed): each loads, or fails with one SceneError line
+    naming a file of the fixture; nothing else escapes."""
+    import random
+
+    from lxml import etree
+
+    rng = random.Random(39)
+    outcomes = {"loaded": 0, "refused": 0}
+    bad = ["", "x", "-1", "0", "1e999", "nan", "..", "a.b", "true", "pendulum", "in", "out", "proxyfmu://h?file=x"]
+    for i in range(150):
+        d = fixture_dir(tmp_path / str(i), rng.choice(["clock", "bond"]))
+        f = rng.choice(sorted(d.rglob("*.xml")))
+        tree = etree.parse(str(f))
+        el = rng.choice([e for e in tree.getroot().iter() if isinstance(e.tag, str)])
+        op = rng.choice(["drop_attr", "set_attr", "text", "drop_el", "dup_el", "rename"])
+        parent = el.getparent()
+        if op in ("drop_attr", "set_attr") and el.attrib:
+            key = rng.choice(sorted(el.attrib))
+            if op == "drop_attr":
+                del el.attrib[key]
+            else:
+                el.set(key, rng.choice(bad))
+        elif op == "text" and not len(el):
+            el.text = rng.choice(bad)
+        elif op == "drop_el" and parent is not None:
+            parent.remove(el)
+        elif op == "dup_el" and parent is not None:
+            parent.append(etree.fromstring(etree.tostring(el)))
+        elif op == "rename":
+            el.tag += "X"
+        tree.write(str(f))
+        try:
+            load_scene(d / "OspSystemStructure.xml")
+            outcomes["loaded"] += 1
+        except SceneError as e:
+            assert "\n" not in str(e) and str(d) in str(e), str(e)
+            outcomes["refused"] += 1
+    capsys.readouterr()  # the warnings of edits that load
+    assert outcomes["refused"] > 50 and outcomes["loaded"] > 10, outcomes
