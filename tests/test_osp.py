@@ -166,6 +166,19 @@ def test_every_type_of_initial_value_and_link(tmp_path, capsys):
         assert last["b.y_enum"] == 3.0
 
 
+def test_export_ssp_keeps_the_links_as_the_osp_file_gives_them(tmp_path):
+    """An OSP link passes m into mm unconverted: the SSP written of it says
+    so (suppressUnitConversion), and reads back to the same links."""
+    from clockwork.scene.ssp import export_ssp
+
+    osp = load_scene(_types_osp(tmp_path / "types"))
+    export_ssp(osp, tmp_path / "types.ssp")
+    back = load_scene(tmp_path / "types.ssp")
+    assert {str(c): (c.factor, c.offset) for c in back.connections} == \
+           {str(c): (c.factor, c.offset) for c in osp.connections}
+    assert next(c for c in back.connections if c.dst_var == "u_mm")[4:] == (1.0, 0.0)
+
+
 def test_validate_info_and_simulate(tmp_path, capsys):
     d = fixture_dir(tmp_path, "clock")
     f = d / "OspSystemStructure.xml"
