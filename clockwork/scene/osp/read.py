@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import parse_qsl, unquote, urlsplit
 
-from ...engine.description import FmuError, read_fmu, types_connect, var_unit
+from ...engine.description import INTEGER_TYPES, REAL_TYPES, FmuError, read_fmu, types_connect, var_unit
 from ...engine.description import variables as variables_of
 from ...engine.model_exchange import interface_of, model_exchange_problem
 from ...errors import SceneError
@@ -210,7 +210,7 @@ class _Reader:
         connections = tuple(Connection(src, out, inst, var, factor, offset)
                             for (inst, var), (src, out, factor, offset, _) in self.links.items())
         record = [f"{inst}.{v.name}" for inst, s in self.sims.items() for v in s.md.modelVariables
-                  if v.causality == "output" and v.type in ("Real", "Integer", "Boolean", "Enumeration")
+                  if v.causality == "output" and v.type in REAL_TYPES + INTEGER_TYPES + ("Boolean",)
                   and not getattr(v, "shape", None)]
         sections = {"experiment": experiment, "master": {"step": base}, "record": {"outputs": record}}
         no_stop = None if "stop" in experiment else (doc.label, doc.key(root))
@@ -376,9 +376,7 @@ class _Reader:
             text = t.get("value")
             if text is None:
                 raise doc.fail(t, "missing required attribute", "value")
-            want = {"Integer": ("Integer", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64",
-                                "Enumeration"),
-                    "Real": ("Real", "Float64", "Float32")}.get(kind, (kind,))
+            want = {"Integer": INTEGER_TYPES, "Real": REAL_TYPES}.get(kind, (kind,))
             if v.type not in want:
                 raise doc.fail(t, f"type mismatch: the value is {kind}, {sim.md.modelName}.{_s(name)} is {v.type}")
             if kind == "Real":
@@ -478,7 +476,7 @@ class _Reader:
                 if v.causality != role:
                     raise doc.fail(cel, f"expected an {role} at {_s(fname)}:{'in' if role == 'output' else 'out'}: "
                                         f"{_s(inst + '.' + var)} is {_article(v.causality)} {v.causality}")
-                if v.type not in ("Real", "Float64", "Float32"):
+                if v.type not in REAL_TYPES:
                     raise doc.fail(cel, f"a LinearTransformation takes and gives Real values; {_s(inst + '.' + var)} "
                                         f"is {v.type}")
             factor, offset = _number(doc, fel, "factor", 1.0), _number(doc, fel, "offset", 0.0)
