@@ -2,6 +2,6 @@
 OspSystemStructure.xml, with the variable groups of *_OspModelDescription.xml
 files), read into the scene model (``read``); docs/osp.md."""
 
-from .read import OSP_NS, OspScene, OtherXml, read_osp
+from .read import SYSTEM_NS, OspScene, OtherXml, read_osp
 
-__all__ = ["OSP_NS", "OspScene", "OtherXml", "read_osp"]
+__all__ = ["SYSTEM_NS", "OspScene", "OtherXml", "read_osp"]

@@ -46,7 +46,8 @@ from ..model import Component, Connection
 from ..ssp.common import XmlError, parse_xml
 from ..ssp.documents import MAX_XML_BYTES, Doc
 
-OSP_NS = "http://opensimulationplatform.com/MSMI/OSPSystemStructure"
+# the namespace of libcosim's OspSystemStructure.xsd (not the OSP annotation's of an SSP, ssp.common.OSP_NS)
+SYSTEM_NS = "http://opensimulationplatform.com/MSMI/OSPSystemStructure"
 ROOT = "OspSystemStructure"
 OSP_FILE = "OspSystemStructure.xml"  # what libcosim reads in a folder it is given
 VERSION = "0.1"
@@ -167,8 +168,8 @@ class _Reader:
         ns, _, local = root.tag[1:].partition("}") if root.tag.startswith("{") else ("", "", root.tag)
         if local != ROOT:
             raise OtherXml(local, self.path)
-        if ns != OSP_NS:
-            raise doc.fail(root, f"expected the namespace {OSP_NS} (libcosim's schema), got {_s(ns) or 'none'}")
+        if ns != SYSTEM_NS:
+            raise doc.fail(root, f"expected the namespace {SYSTEM_NS} (libcosim's schema), got {_s(ns) or 'none'}")
         if root.get("version") != VERSION:
             raise doc.fail(root, f"expected version=\"{VERSION}\" (the OSP system structure libcosim reads)",
                            "version")
@@ -223,8 +224,8 @@ class _Reader:
         """An element's local name; an element of another namespace (or a
         comment's stand-in) is refused."""
         ns, _, local = el.tag[1:].partition("}") if el.tag.startswith("{") else ("", "", el.tag)
-        if ns != OSP_NS:
-            raise self.doc.fail(el, f"expected an element of the namespace {OSP_NS}, got {_s(ns) or 'none'}")
+        if ns != SYSTEM_NS:
+            raise self.doc.fail(el, f"expected an element of the namespace {SYSTEM_NS}, got {_s(ns) or 'none'}")
         return local
 
     def _time(self, el) -> float:
