@@ -178,7 +178,7 @@ class _Number(Real):
 _TIME = "a finite time in s"
 _POSITIVE = "a number > 0 (s)"
 _ARGUMENTS = dict(
-    filename=PathSpec("the path of an .fmu, .ssp, .ssd or .toml file"),
+    filename=PathSpec("the path of an .fmu, .ssp, .ssd, OspSystemStructure.xml or .toml file"),
     start_time=Optional(_Number(_TIME)), stop_time=Optional(_Number(_TIME)),
     step_size=Optional(_Number(_POSITIVE, positive=True)),
     relative_tolerance=Optional(_Number("a relative tolerance > 0", positive=True)),

@@ -66,7 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "column per input (instance.variable; the variable alone for one FMU)")
 
     r = sub.add_parser("run", help="run a scene, an SSP or an FMU and write its results")
-    r.add_argument("scene", metavar="SCENE.toml|X.ssp|X.ssd|X.fmu")
+    r.add_argument("scene", metavar="SCENE.toml|X.ssp|X.ssd|OspSystemStructure.xml|X.fmu")
     r.add_argument("--out", required=True, metavar="DIR", help="output directory (created if its parent exists)")
     add_set(r)
     add_input(r)
@@ -79,8 +79,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "draws the scene's plots later")
     r.set_defaults(func=cmd_run)
 
-    v = sub.add_parser("validate", help="check a scene file (or an .ssp/.ssd, an .fmu) without running it")
-    v.add_argument("scene", metavar="SCENE.toml|X.ssp|X.ssd|X.fmu")
+    v = sub.add_parser("validate", help="check a scene file (or an .ssp/.ssd, an OSP system structure, an .fmu) "
+                                        "without running it")
+    v.add_argument("scene", metavar="SCENE.toml|X.ssp|X.ssd|OspSystemStructure.xml|X.fmu")
     add_set(v)
     add_input(v)
     v.set_defaults(func=cmd_validate)
@@ -91,7 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     i = sub.add_parser("info", help="describe an FMU (capabilities, variables, event indicators) or an SSP "
                                     "(the flattened system)")
-    i.add_argument("fmu", metavar="X.fmu|MODEL|X.ssp|X.ssd")
+    i.add_argument("fmu", metavar="X.fmu|MODEL|X.ssp|X.ssd|OspSystemStructure.xml")
     i.set_defaults(func=cmd_info)
 
     pl = sub.add_parser("plot", help="draw a finished run's outputs again, grouped by unit")
@@ -102,9 +103,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="the file to write [RESULT_DIR/outputs.png]; more pages go to FILE_2.png...")
     pl.set_defaults(func=cmd_plot)
 
-    xs = sub.add_parser("export-scene", help="write the scene `clockwork run X.fmu` uses, as a scene file "
-                                             "to start from")
-    xs.add_argument("fmu", metavar="X.fmu")
+    xs = sub.add_parser("export-scene", help="write the scene `clockwork run X.fmu` (or an OSP system structure) "
+                                             "uses, as a scene file to start from")
+    xs.add_argument("fmu", metavar="X.fmu|OspSystemStructure.xml")
     xs.add_argument("--out", required=True, metavar="SCENE.toml", help="scene file to write")
     add_set(xs)
     add_input(xs)
@@ -381,10 +382,11 @@ def cmd_plot(args) -> int:
 def cmd_export_scene(args) -> int:
     from .atomic import write_text_atomic
     from .run.catalog import load_scene
-    from .scene.save import scene_toml
+    from .scene.save import scene_toml, toml_problem
 
-    if Path(args.fmu).suffix.lower() != ".fmu":
-        raise UsageError(f"export-scene {args.fmu}: expected an FMU file (X.fmu); a scene file is its own scene")
+    if Path(args.fmu).suffix.lower() not in (".fmu", ".xml"):
+        raise UsageError(f"export-scene {args.fmu}: expected an FMU file (X.fmu) or an OSP system structure "
+                         "(OspSystemStructure.xml); a scene file is its own scene")
     out = Path(args.out)
     if out.suffix.lower() != ".toml":
         raise UsageError(f"--out {out}: expected a file name ending .toml")
@@ -393,9 +395,16 @@ def cmd_export_scene(args) -> int:
     if out.is_dir():
         raise UsageError(f"--out {out}: is a directory, expected a scene file name")
     scene = load_scene(args.fmu, args.overrides, args.input)
+    problem = toml_problem(scene)
+    if problem:
+        raise SceneError(problem[1], scene.path, problem[0])
     write_text_atomic(out, scene_toml(scene, out, Path(args.fmu).name))
-    (name, c), = scene.components.items()
-    _say_out(f"wrote {out}: {name} ({c.fmu_path.name}), stop {scene.experiment.stop:g} s, step {scene.master.step:g} s, "
+    if len(scene.components) == 1:
+        (name, c), = scene.components.items()
+        what = f"{name} ({c.fmu_path.name})"
+    else:
+        what = f"{len(scene.components)} components, {len(scene.connections)} connections"
+    _say_out(f"wrote {out}: {what}, stop {scene.experiment.stop:g} s, step {scene.master.step:g} s, "
              f"{len(scene.record.outputs)} recorded output(s)")
     return 0
 
@@ -480,12 +489,13 @@ def _link(c) -> str:
 
 
 def _info_ssp(path: str) -> int:
-    """`info` on an .ssp/.ssd: the flattened system as clockwork runs it."""
+    """`info` on an .ssp/.ssd or an OSP system structure: the flattened system as clockwork runs it."""
     from .run.catalog import load_scene
 
     scene = load_scene(path)
     n, m = len(scene.components), len(scene.connections)
-    _say_out(f"{scene.title} (SSP: {n} component{'s' * (n != 1)}, {m} connection{'s' * (m != 1)})")
+    kind = "OSP" if Path(scene.path).suffix.lower() == ".xml" else "SSP"
+    _say_out(f"{scene.title} ({kind}: {n} component{'s' * (n != 1)}, {m} connection{'s' * (m != 1)})")
     _say_out(f"  file         {scene.path}")
     _say_out(f"  sha256       {scene.sha256}")
     _say_out("components:")
@@ -508,7 +518,8 @@ def _info_ssp(path: str) -> int:
 def cmd_info(args) -> int:
     from .engine.description import FmuError, fmi1_details, read_fmu, resolve_fmu, shape_text, type_name, var_unit
 
-    if Path(args.fmu).suffix.lower() in (".ssp", ".ssd"):
+    osp_folder = (Path(args.fmu) / "OspSystemStructure.xml").is_file()  # libcosim's form: the file's folder
+    if Path(args.fmu).suffix.lower() in (".ssp", ".ssd", ".xml") or osp_folder:
         return _info_ssp(args.fmu)
     try:
         path = resolve_fmu(args.fmu)

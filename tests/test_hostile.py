@@ -227,11 +227,12 @@ CASES = [
          "zip archive, not a scene"),
     Case("scene malformed TOML", validate("[scene\ntitle = 1"), 2, "scene.toml", "TOML"),
     # another format given for a scene: named, with what was expected (not a TOML parse error)
+    # an OSP system structure is read (tests/test_osp.py): this one's namespace is not libcosim's
     Case("an OSP system structure", validate('<?xml version="1.0"?>\n<OspSystemStructure xmlns="x"/>',
                                              name="OspSystemStructure.xml"), 2, "OspSystemStructure.xml",
-         "Open Simulation Platform system structure", "not a scene: expected", "an .ssd file"),
+         "line 2: OspSystemStructure", "expected the namespace http://opensimulationplatform.com/MSMI/"),
     Case("an SSD named .xml", validate('<ssd:SystemStructureDescription xmlns:ssd="x"/>', name="s.xml"), 2,
-         "s.xml", "SSP system structure description (name it .ssd)"),
+         "s.xml", "SSP system structure description named .xml (name it .ssd)"),
     Case("a modelDescription.xml", validate("<fmiModelDescription/>", name="modelDescription.xml"), 2,
          "FMU's modelDescription.xml"),
     Case("XML named .toml", validate("<a><b/></a>"), 2, "scene.toml", "XML file (root element a)"),

@@ -96,7 +96,8 @@ def _set_values(scene, name: str, c, inst) -> None:
             return
         if Path(scene.path).suffix.lower() == ".toml":
             raise SceneError(e.message, scene.path, f"components.{name}.parameters") from None
-        given = "--set" if Path(scene.path).suffix.lower() == ".fmu" else "--set or the SSP's parameter values"
+        given = {".fmu": "--set", ".xml": "--set or the OSP file's initial values"}.get(
+            Path(scene.path).suffix.lower(), "--set or the SSP's parameter values")
         raise SceneError(e.message, scene.path, f"the values {given} gave {name}") from None
     except (SimulationError, SceneError):
         return

@@ -89,7 +89,8 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
             if Path(scene.path).suffix.lower() == ".toml":
                 raise SceneError(e.message, scene.path, f"components.{e.instance}.parameters") from None
             # an FMU alone or an SSP: the values came from --set or the SSP's parameter values, not a table
-            given = "--set" if Path(scene.path).suffix.lower() == ".fmu" else "--set or the SSP's parameter values"
+            given = {".fmu": "--set", ".xml": "--set or the OSP file's initial values"}.get(
+                Path(scene.path).suffix.lower(), "--set or the SSP's parameter values")
             raise SceneError(e.message, scene.path, f"the values {given} gave {e.instance}") from None
         except SimulationError as e:
             # A failed run keeps its history: written and committed like a

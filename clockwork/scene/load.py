@@ -5,8 +5,9 @@ overrides, checks every key and value against the FMUs' model descriptions
 and returns a frozen ``Scene`` with all quantities converted to the
 variables' own (SI) units. Every problem raises ``SceneError`` with a
 one-line message naming the file, the dotted key and what was expected.
-An SSP (``ssp/read.py``) and an FMU alone (``fmu.py``) are read into the
-components and sections a scene file gives, and checked the same way; an
+An SSP (``ssp/read.py``), an OSP system structure (``osp/read.py``) and
+an FMU alone (``fmu.py``) are read into the components and sections a
+scene file gives, and checked the same way; an
 input file (``inputs.py``) drives unconnected inputs of any of them.
 The ``[analysis]`` and ``[[plot]]`` tables are checked against ``kinds``,
 which the layers above fill (clockwork.run.load_scene passes them all).
@@ -41,6 +42,7 @@ from .inputs import Inputs, read_inputs
 from .kinds import NO_KINDS, Invalid, Kinds
 from .model import (Component, ComponentVariables, Connection, Experiment, MasterConfig, Record, Scene, consistency,
                     show)
+from .osp.read import OSP_FILE, OtherXml, read_osp
 from .ssp.read import read_ssp
 from .sweep import parse_sweep
 from .units import UnitError, fmt, link_conversion, to_seconds
@@ -129,12 +131,12 @@ def _number_limit(e: ValueError) -> str:
     return f"expected a number that can be read ({shorten(str(e), 100)})"
 
 
-_SCENE_FORMATS = "a .toml scene file, an .ssp archive, an .ssd file or an FMU named X.fmu"
+_SCENE_FORMATS = ("a .toml scene file, an .ssp archive, an .ssd file, an OSP system structure "
+                  "(OspSystemStructure.xml) or an FMU named X.fmu")
 
 # Root elements of XML files a user may hand over for a scene, and what each is.
 _XML_ROOTS = {
-    "OspSystemStructure": "an Open Simulation Platform system structure (libcosim's OspSystemStructure.xml), "
-                          "which clockwork does not read",
+    "OspSystemStructure": "an Open Simulation Platform system structure (name it .xml)",
     "SystemStructureDescription": "an SSP system structure description (name it .ssd)",
     "fmiModelDescription": "an FMU's modelDescription.xml (give the .fmu that holds it)",
     "ParameterSet": "an SSP parameter set (.ssv): an .ssd or a scene names it",
@@ -166,10 +168,14 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
     .fmu alone); `input_file` (relative to the current directory) drives
     unconnected inputs, in place of the scene's [inputs]. Raises SceneError."""
     path = Path(path)
+    if path.is_dir() and (path / OSP_FILE).is_file():
+        path = path / OSP_FILE  # a folder of an OSP system, as libcosim takes it
     if path.suffix.lower() in (".ssp", ".ssd"):
         return _load_system(path, read_ssp(path), overrides, kinds, input_file)
     if path.suffix.lower() == ".fmu":
         return _load_system(path, read_fmu_scene(path), overrides, kinds, input_file)
+    if path.suffix.lower() == ".xml":
+        return _load_system(path, _read_xml(path), overrides, kinds, input_file)
     data = read_bounded(path, MAX_SCENE_BYTES, "scene file", "a .toml scene file")
     try:
         text = data.decode("utf-8")
@@ -228,6 +234,16 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
 
     ctx = Ctx(path, labels)
     return _build(ctx, raw, tuple(applied), hashlib.sha256(data).hexdigest(), kinds, input_file=input_file)
+
+
+def _read_xml(path: Path):
+    """An OSP system structure; any other XML file is named with what was expected."""
+    try:
+        return read_osp(path)
+    except OtherXml as e:
+        what = _XML_ROOTS.get(e.root, f"an XML file of root element {shorten(e.root, 60)}")
+        what = what.replace(" (name it .ssd)", " named .xml (name it .ssd)")
+        raise SceneError(f"{what}, not a scene: expected {_SCENE_FORMATS}", path) from None
 
 
 def _override(text: str | Given, instances, path: Path, variables=None) -> tuple[str, str, object, str, bool]:
@@ -329,8 +345,10 @@ def _ssp_stop(ssp, raw: dict, labels: dict) -> None:
     experiment["stop"] = start + 1.0
     label, key = ssp.no_stop
     labels.setdefault("experiment.stop", (label, f"{key} (no stopTime: the start + 1 s)"))
-    say("note", f"{label}: {key}: no ssd:DefaultExperiment stopTime: the run stops 1 s after the start, at "
-                f"{fmt(start + 1.0)} s, as fmpy does (--set experiment.stop=<time> for another)")
+    term = getattr(ssp, "stop_term", "ssd:DefaultExperiment stopTime")
+    like = getattr(ssp, "stop_like", "as fmpy does")
+    say("note", f"{label}: {key}: no {term}: the run stops 1 s after the start, at "
+                f"{fmt(start + 1.0)} s, {like} (--set experiment.stop=<time> for another)")
 
 
 def _ssp_step_hints(ssp, raw: dict, components: dict, labels: dict) -> None:
@@ -344,10 +362,11 @@ def _ssp_step_hints(ssp, raw: dict, components: dict, labels: dict) -> None:
     hints = ssp.step_hints
     if not hints:
         return
+    term = getattr(ssp, "step_term", "osp:StepSizeHint")
     if isinstance(labels.get("master.step"), str):  # a --set (the SSD's own steps are (file, key) pairs)
         label, key = next(iter(hints.values()))[1:]
         say("note", f"{label}: {key}: --set master.step steps every component alike; the "
-                    f"components' osp:StepSizeHint ({len(hints)}) are not applied")
+                    f"components' {term} ({len(hints)}) are not applied")
         return
     master = raw.setdefault("master", {})
     base = master.get("step", _MASTER_DEFAULTS["step"])
@@ -364,7 +383,7 @@ def _ssp_step_hints(ssp, raw: dict, components: dict, labels: dict) -> None:
     other = first if inst == odd else odd
     raise SceneError(f"{inst} would step every {fmt(steps[inst])} s and {other} every {fmt(steps[other])} s: "
                      "clockwork's master steps every FMU at every communication point (no per-component "
-                     "decimation); expected the same osp:StepSizeHint on every component, or --set "
+                     f"decimation); expected the same {term} on every component, or --set "
                      "master.step=<s> to step all alike", label, key)
 
 

@@ -13,7 +13,9 @@ import math
 import os
 from pathlib import Path
 
+from ..engine.description import var_unit
 from .model import MasterConfig, Scene
+from .units import link_conversion
 
 _DEFAULTS = {f.name: f.default for f in dataclasses.fields(MasterConfig)}
 
@@ -52,6 +54,26 @@ def _path_for(target: Path, scene_file: Path) -> str:
         return target.relative_to(base).as_posix()
     except ValueError:
         return str(target)
+
+
+def toml_problem(scene: Scene) -> tuple[str, str] | None:
+    """(key, detail) where the scene file `scene_toml` writes would not run
+    as `scene`, else None: a TOML link gives the unit conversion between
+    its variables and nothing else, so a link of another factor or offset
+    (an OSP or SSP linear transformation, an OSP link passed unconverted
+    between different units) has no form in it."""
+    for c in scene.connections:
+        sc, dc = scene.components[c.src_instance], scene.components[c.dst_instance]
+        su, du = var_unit(sc.variable(c.src_var)), var_unit(dc.variable(c.dst_var))
+        toml = (1.0, 0.0)
+        if su != du and su is not None and du is not None:
+            toml = link_conversion(sc.model_description, su, dc.model_description, du)
+        if toml != (c.factor, c.offset):
+            said = "it would be refused" if toml is None else f"x {toml[0]:g} + {toml[1]:g}"
+            return (f"connection {c}", f"the link gives x {c.factor:g} + {c.offset:g}, which a scene file cannot "
+                                       f"say (its links convert units only: {said}); expected links without a "
+                                       "linear transformation, or run this file itself")
+    return None
 
 
 def scene_toml(scene: Scene, scene_file: Path, source: str) -> str:

@@ -47,8 +47,9 @@ _PARSER = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=Fals
                           remove_comments=True, remove_pis=True)
 
 
-def parse_xml(data: bytes):
-    """The root element of an XML document; raises XmlError."""
+def parse_xml(data: bytes, kind: str = "SSP"):
+    """The root element of an XML document (`kind`: whose files, for the
+    message); raises XmlError."""
     try:
         root = etree.fromstring(data, _PARSER)
     except etree.XMLSyntaxError as e:
@@ -59,5 +60,5 @@ def parse_xml(data: bytes):
         raise XmlError("malformed XML: empty document")
     tree = root.getroottree()
     if tree.docinfo.doctype or tree.docinfo.internalDTD is not None:
-        raise XmlError("a DOCTYPE declaration: DTDs and entities are not allowed in SSP files")
+        raise XmlError(f"a DOCTYPE declaration: DTDs and entities are not allowed in {kind} files")
     return root

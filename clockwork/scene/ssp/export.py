@@ -196,12 +196,15 @@ def build_ssp(scene, point: dict | None = None) -> dict[str, bytes]:
         conns = _sub(system, "ssd", "Connections")
         for c in scene.connections:
             transformed = (c.factor, c.offset) != (1.0, 0.0)
+            # an identity between different units: an OSP link, which passes the number unconverted
+            units_differ = (var_unit(scene.components[c.src_instance].variable(c.src_var))
+                            != var_unit(scene.components[c.dst_instance].variable(c.dst_var)))
             # The link's whole factor and offset (a unit conversion folded in):
             # written as they are, with the tools' own unit conversion off, so
             # that every reader applies the very doubles the scene does.
             el = _sub(conns, "ssd", "Connection", startElement=c.src_instance, startConnector=c.src_var,
                       endElement=c.dst_instance, endConnector=c.dst_var,
-                      suppressUnitConversion="true" if transformed else None)
+                      suppressUnitConversion="true" if transformed or units_differ else None)
             if transformed:
                 _sub(el, "ssc", "LinearTransformation", factor=_real(c.factor), offset=_real(c.offset))
 

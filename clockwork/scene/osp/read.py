@@ -1,0 +1,676 @@
+"""Read an Open Simulation Platform system structure (libcosim's
+``OspSystemStructure.xml``, schema version 0.1) into the scene model: the
+same components and connections a TOML scene or an SSP gives.
+
+What is read, as libcosim reads it (docs/osp.md):
+
+- ``Simulator``: an FMU (``source``, a path or ``file:`` URI relative to the
+  file), its ``InitialValues`` (Real, Integer, Boolean, String) and its
+  ``stepSize`` (libcosim steps it every k-th base step, k the whole number
+  of base steps in it, at least 1);
+- ``StartTime``, ``EndTime``, ``BaseStepSize`` (0.1 s where not given, as
+  libcosim takes), ``Algorithm`` fixedStep;
+- ``VariableConnection`` (the output end found from the FMUs' causalities),
+  ``SignalConnection`` through a ``LinearTransformation`` function (one
+  link with its factor and offset, as an SSP's linear transformation),
+  ``VariableGroupConnection`` (the variables of two groups of the FMUs'
+  ``<modelName>_OspModelDescription.xml``, pair by pair, nested groups
+  first); ``powerBond`` and ``causality`` attributes (ecco's) change
+  nothing in a fixed-step run.
+
+No unit conversion on links (libcosim converts none: a note where the units
+differ). What clockwork does not do is refused in one line naming the file,
+the element and what was expected: the ecco algorithm, ``Sum`` and
+``VectorSum`` functions (a scene's input has one source), per-simulator
+steps that differ (no multi-rate master), FMUs on another machine
+(``proxyfmu://host``; ``proxyfmu://localhost`` runs the FMU in this process).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from urllib.parse import parse_qsl, unquote, urlsplit
+
+from ...engine.description import INTEGER_TYPES, REAL_TYPES, FmuError, read_fmu, types_connect, var_unit
+from ...engine.description import variables as variables_of
+from ...engine.model_exchange import interface_of, model_exchange_problem
+from ...errors import SceneError
+from ...files import absent
+from ...numbers import XSD_SPECIAL, parse_int, parse_real, shorten
+from ..checks import SETTABLE, STRUCTURAL, Ctx, convert_value, instance_problem, read_bounded, settable_problem
+from ..model import Component, Connection
+from ..ssp.common import XmlError, parse_xml
+from ..ssp.documents import MAX_XML_BYTES, Doc
+
+# the namespace of libcosim's OspSystemStructure.xsd (not the OSP annotation's of an SSP, ssp.common.OSP_NS)
+SYSTEM_NS = "http://opensimulationplatform.com/MSMI/OSPSystemStructure"
+ROOT = "OspSystemStructure"
+OSP_FILE = "OspSystemStructure.xml"  # what libcosim reads in a folder it is given
+VERSION = "0.1"
+DEFAULT_BASE_STEP = 0.1  # s: libcosim's when BaseStepSize is not given
+MAX_SIMULATORS = 10_000  # as an SSP's components: each is an FMU instance
+# libcosim's durations are whole nanoseconds (std::chrono::nanoseconds)
+_NS_PER_S = 1_000_000_000
+_TOP = ("StartTime", "EndTime", "BaseStepSize", "Algorithm", "Simulators", "Functions", "Connections",
+        "EccoConfiguration")
+_VALUE_TYPES = ("Real", "Integer", "Boolean", "String")
+# Warnings of one kind beyond this many are counted, not printed.
+WARNINGS_SHOWN = 3
+
+
+class OtherXml(SceneError):
+    """An XML file whose root is not OspSystemStructure: `root` is its local
+    name, for the caller to say what the file is instead."""
+
+    def __init__(self, root: str, path: Path):
+        super().__init__(f"root element {shorten(root, 60)}", path)
+        self.root = root
+
+
+@dataclass
+class OspScene:
+    """What an OSP system structure says; load.py makes the Scene of it (the
+    fields load._load_system reads of an SspScene)."""
+
+    name: str
+    description: str
+    components: dict[str, Component]
+    connections: tuple[Connection, ...]
+    sections: dict  # "experiment", "master", "record" tables, as a TOML scene would hold them
+    sha256: str  # of the file and of the *_OspModelDescription.xml files it reads
+    warnings: list[str] = field(default_factory=list)
+    aliases: dict = field(default_factory=dict)  # (no system connectors in OSP)
+    # simulator -> (step in s libcosim gives it, file, key), where a stepSize is given
+    step_hints: dict[str, tuple[float, str, str]] = field(default_factory=dict)
+    no_stop: tuple[str, str] | None = None  # (file, key) for the note that the run stops 1 s after the start
+    labels: dict[str, tuple[str, str]] = field(default_factory=dict)
+    # what the file's stop time and per-component steps are called, for load.py's notes and errors
+    stop_term: str = "EndTime"
+    stop_like: str = "as for an SSP without a stopTime (libcosim runs until it is stopped)"
+    step_term: str = "Simulator stepSize"
+
+
+class _Doc(Doc):
+    """An OSP XML file: elements named by their local names (one namespace per file)."""
+
+    def key(self, el, attr: str | None = None) -> str:
+        local = _local(el)
+        name = el.get("name")
+        what = f"{local} {shorten(name, 100)!r}" if name is not None and attr != "name" else local
+        if attr is not None:
+            value = el.get(attr)
+            attr = shorten(attr, 100)
+            what += f" {attr}" if value is None else f" {attr}={shorten(value, 100)!r}"
+        return f"line {el.sourceline}: {what}"
+
+
+def _local(el) -> str:
+    tag = el.tag if isinstance(el.tag, str) else "?"
+    return shorten(tag.rpartition("}")[2], 100)
+
+
+def _s(text: object) -> str:
+    return shorten(text, 100)
+
+
+@dataclass
+class _Sim:
+    name: str
+    el: object
+    fmu: Path
+    md: object
+    digest: str
+    indicators: tuple
+    interface: str | None
+    groups: dict | None = None  # variable groups of its OspModelDescription, read when a connection needs them
+
+
+class _Reader:
+    def __init__(self, path: Path):
+        self.path = path
+        self.digest = hashlib.sha256()
+        self.sims: dict[str, _Sim] = {}
+        self.functions: dict[str, object] = {}  # name -> its element (LinearTransformation)
+        self.links: dict[tuple[str, str], tuple] = {}  # (inst, input) -> (src inst, output, factor, offset, el)
+        self.values: dict[tuple[str, str], tuple] = {}  # (inst, var) -> (value, InitialValue element)
+        self.labels: dict[str, tuple[str, str]] = {}
+        self._warned: dict[str, list[str]] = {}
+
+    def warn(self, key: str, text: str, kind: str | None = None) -> None:
+        self._warned.setdefault(kind or text, []).append(f"{self.doc.label}: {key}: {text}")
+
+    def _warnings(self) -> list[str]:
+        out = []
+        for kind, lines in self._warned.items():
+            out += lines[:WARNINGS_SHOWN]
+            if len(lines) > WARNINGS_SHOWN:
+                out.append(f"... and {len(lines) - WARNINGS_SHOWN:,} more like the last: {kind}")
+        return out
+
+    # -- the file
+
+    def _parse(self, path: Path, noun: str, expected: str) -> _Doc:
+        data = read_bounded(path, MAX_XML_BYTES, noun, expected)
+        self.digest.update(f"{path}\0{len(data)}\0".encode() + data)
+        try:
+            root = parse_xml(data, "OSP")
+        except XmlError as e:
+            raise SceneError(str(e), path) from None
+        return _Doc(str(path), path.parent, root)
+
+    def read(self) -> OspScene:
+        self.doc = doc = self._parse(self.path, "OSP system structure", "an OspSystemStructure.xml file")
+        root = doc.root
+        ns, _, local = root.tag[1:].partition("}") if root.tag.startswith("{") else ("", "", root.tag)
+        if local != ROOT:
+            raise OtherXml(local, self.path)
+        if ns != SYSTEM_NS:
+            raise doc.fail(root, f"expected the namespace {SYSTEM_NS} (libcosim's schema), got {_s(ns) or 'none'}")
+        if root.get("version") != VERSION:
+            raise doc.fail(root, f"expected version=\"{VERSION}\" (the OSP system structure libcosim reads)",
+                           "version")
+        top: dict[str, object] = {}
+        for el in root:
+            name = self._own(el)
+            if name not in _TOP:
+                raise doc.fail(el, f"not part of an OSP system structure; expected {', '.join(_TOP)}")
+            if name in top:
+                raise doc.fail(el, f"expected one {name}: line {top[name].sourceline} gives it too")
+            top[name] = el
+        if "Simulators" not in top:
+            raise doc.fail(root, "expected a Simulators element")
+        experiment = {}
+        for key, tag in (("start", "StartTime"), ("stop", "EndTime")):
+            if tag in top:
+                experiment[key] = self._time(top[tag])
+                self.labels[f"experiment.{key}"] = (doc.label, doc.key(top[tag]))
+        base_el = top.get("BaseStepSize")
+        if base_el is not None:
+            base = self._time(base_el)
+            if not base > 0:
+                raise doc.fail(base_el, "expected a step > 0 s")
+            self.labels["master.step"] = (doc.label, doc.key(base_el))
+        else:
+            base = DEFAULT_BASE_STEP
+            self.labels["master.step"] = (doc.label, f"{doc.key(root)} (no BaseStepSize: libcosim's 0.1 s)")
+            self.warn(doc.key(root), f"no BaseStepSize: the base step is {DEFAULT_BASE_STEP:g} s, as libcosim "
+                                     "takes (--set master.step=<s> for another)")
+        self._algorithm(top.get("Algorithm"), top.get("EccoConfiguration"))
+        hints = self._simulators(top["Simulators"], base)
+        if not self.sims:
+            raise doc.fail(top["Simulators"], "expected at least one Simulator (an FMU)")
+        if "Functions" in top:
+            self._functions(top["Functions"])
+        if "Connections" in top:
+            self._connections(top["Connections"])
+        components = self._components()
+        connections = tuple(Connection(src, out, inst, var, factor, offset)
+                            for (inst, var), (src, out, factor, offset, _) in self.links.items())
+        record = [f"{inst}.{v.name}" for inst, s in self.sims.items() for v in s.md.modelVariables
+                  if v.causality == "output" and v.type in REAL_TYPES + INTEGER_TYPES + ("Boolean",)
+                  and not getattr(v, "shape", None)]
+        sections = {"experiment": experiment, "master": {"step": base}, "record": {"outputs": record}}
+        no_stop = None if "stop" in experiment else (doc.label, doc.key(root))
+        # libcosim's files are all named OspSystemStructure.xml: the folder names the system
+        title = self.path.stem if self.path.stem != ROOT else (self.path.resolve().parent.name or ROOT)
+        return OspScene(title, "", components, connections, sections, self.digest.hexdigest(),
+                        self._warnings(), {}, hints, no_stop, self.labels)
+
+    def _own(self, el) -> str:
+        """An element's local name; an element of another namespace (or a
+        comment's stand-in) is refused."""
+        ns, _, local = el.tag[1:].partition("}") if el.tag.startswith("{") else ("", "", el.tag)
+        if ns != SYSTEM_NS:
+            raise self.doc.fail(el, f"expected an element of the namespace {SYSTEM_NS}, got {_s(ns) or 'none'}")
+        return local
+
+    def _time(self, el) -> float:
+        if len(el):
+            raise self.doc.fail(el, "expected a number, not elements")
+        try:
+            x = parse_real((el.text or "").strip(), XSD_SPECIAL)
+        except ValueError:
+            raise self.doc.fail(el, f"expected a number (xs:double), got {_s((el.text or '').strip())!r}") from None
+        if not math.isfinite(x):
+            raise self.doc.fail(el, "expected a finite number")
+        return x
+
+    def _algorithm(self, el, ecco) -> None:
+        doc = self.doc
+        text = (el.text or "").strip() if el is not None else "fixedStep"
+        if el is not None and len(el):
+            raise doc.fail(el, "expected fixedStep, not elements")
+        if text.lower() == "ecco":  # libcosim reads the name in any case
+            raise doc.fail(el, "not supported: the ecco algorithm (libcosim's adaptive step from power bonds); "
+                               "expected fixedStep")
+        if text.lower() != "fixedstep":
+            raise doc.fail(el, f"expected fixedStep (or ecco, which clockwork does not run), got {_s(text)!r}")
+        if ecco is not None:
+            self.warn(doc.key(ecco), "the ecco algorithm's settings are not used by fixedStep (nor by libcosim)")
+
+    # -- simulators
+
+    def _simulators(self, holder, base: float) -> dict[str, tuple[float, str, str]]:
+        doc = self.doc
+        hints = {}
+        for el in holder:
+            if self._own(el) != "Simulator":
+                raise doc.fail(el, "expected Simulator elements only")
+            name = el.get("name")
+            if not name:
+                raise doc.fail(el, "expected a simulator name", "name")
+            problem = instance_problem(name)
+            if problem:
+                raise doc.fail(el, problem.replace("instance name", "simulator name"), "name")
+            if name in self.sims:
+                raise doc.fail(el, f"expected a unique simulator name: line {self.sims[name].el.sourceline} "
+                                   "names one so too", "name")
+            if len(self.sims) >= MAX_SIMULATORS:
+                raise doc.fail(el, f"more than {MAX_SIMULATORS} simulators (FMU instances): not read")
+            if el.get("source") is None:
+                raise doc.fail(el, "missing required attribute; expected the FMU's path", "source")
+            fmu = self._resolve(el, "source")
+            try:
+                md, digest, indicators = read_fmu(fmu)
+            except FmuError as e:
+                raise doc.fail(el, str(e), "source") from None
+            interface = None
+            if md.coSimulation is None:  # libcosim runs Co-Simulation only; clockwork wraps Model Exchange
+                try:
+                    if interface_of(md, None) == "model-exchange":
+                        indicators = ()  # located inside the wrapper
+                        problem = model_exchange_problem(md)
+                        if problem:
+                            raise SceneError(problem)
+                except SceneError as e:
+                    raise doc.fail(el, e.detail, "source") from None
+            sim = _Sim(name, el, fmu, md, digest, indicators, interface)
+            self.sims[name] = sim
+            if el.get("stepSize") is not None:
+                hints[name] = self._step(el, base)
+            for child in el:
+                if self._own(child) != "InitialValues":
+                    raise doc.fail(child, "expected InitialValues only inside a Simulator")
+                self._initial_values(sim, child)
+        return hints
+
+    def _step(self, el, base: float) -> tuple[float, str, str]:
+        """The step libcosim gives a simulator of this stepSize: the whole
+        number of base steps in it (nanoseconds, truncated), at least one."""
+        doc = self.doc
+        step = _number(doc, el, "stepSize")
+        if not step > 0:
+            raise doc.fail(el, "expected a step > 0 s", "stepSize")
+        k = max(1, int(step * _NS_PER_S) // max(1, int(base * _NS_PER_S)))
+        effective = k * base
+        if effective != step:
+            self.warn(doc.key(el, "stepSize"), f"libcosim steps {_s(el.get('name'))} every {k} base step"
+                      f"{'s' * (k != 1)} ({effective:g} s), not every {step:g} s; so does clockwork",
+                      "a stepSize that is no whole number of base steps (libcosim rounds it down)")
+        return effective, doc.label, doc.key(el, "stepSize")
+
+    def _resolve(self, el, attr: str) -> Path:
+        """The file a source names: a path relative to the file, or a file: URI."""
+        doc = self.doc
+        uri = el.get(attr)
+        try:
+            parts = urlsplit(uri)
+        except ValueError:
+            raise doc.fail(el, "expected a path relative to the file, or a file: URI", attr) from None
+        if parts.scheme.lower() == "proxyfmu":
+            # libcosim runs such an FMU in a process of its own (proxyfmu://host[:port]?file=<path or file: URI>);
+            # on this machine it is the same FMU, run here in clockwork's process
+            host = (parts.hostname or "").lower()
+            given = [v for k, v in parse_qsl(parts.query, keep_blank_values=True) if k == "file"]
+            if host not in ("localhost", "127.0.0.1", "::1"):
+                raise doc.fail(el, f"expected proxyfmu://localhost: {_s(parts.netloc) or 'no host'} names another "
+                                   "machine (libcosim's remote FMUs), which clockwork does not reach", attr)
+            if len(given) != 1 or not given[0]:
+                raise doc.fail(el, "expected one file=<path> in the proxyfmu URI", attr)
+            self.warn(self.doc.key(el, attr), "a proxyfmu FMU runs in clockwork's process (libcosim's runs in a "
+                                              "process of its own): the same numbers",
+                      "proxyfmu FMUs run in this process")
+            parts = urlsplit(given[0])
+        if len(parts.scheme) == 1 or re.match(r"/?[A-Za-z]:[/\\]", parts.path):
+            raise doc.fail(el, "expected a path relative to the file: this is a Windows drive path", attr)
+        if parts.scheme not in ("", "file"):
+            raise doc.fail(el, f"the URI scheme {_s(parts.scheme)}: is not supported; expected a path relative to "
+                               "the file, a file: URI or proxyfmu://localhost?file=<path>", attr)
+        if parts.query or parts.fragment or not parts.path:
+            raise doc.fail(el, "expected a path (without query or fragment)", attr)
+        if parts.netloc and not (parts.scheme == "file" and parts.netloc.lower() == "localhost"):
+            raise doc.fail(el, f"expected a file on this machine: {_s(parts.netloc)} names another host", attr)
+        rel = unquote(parts.path)
+        if "\0" in rel:
+            raise doc.fail(el, "expected a path without a NUL character", attr)
+        p = Path(rel)
+        p = p if p.is_absolute() else self.path.parent / p
+        try:
+            found = p.is_file()
+        except OSError as e:
+            raise doc.fail(el, f"cannot read {shorten(p, 300)}: {e.strerror}", attr) from None
+        if not found:
+            raise doc.fail(el, f"{shorten(p, 300)}: {absent(p, 'an FMU file')}", attr)
+        return p
+
+    def _initial_values(self, sim: _Sim, holder) -> None:
+        doc = self.doc
+        variables = variables_of(sim.md)
+        for el in holder:
+            if self._own(el) != "InitialValue":
+                raise doc.fail(el, "expected InitialValue elements only")
+            name = el.get("variable")
+            if not name:
+                raise doc.fail(el, "expected the name of a variable", "variable")
+            v = variables.get(name)
+            if v is None:
+                raise doc.fail(el, f"{sim.name} ({sim.md.modelName}) has no variable {_s(name)}", "variable")
+            typed = list(el)
+            if len(typed) != 1 or self._own(typed[0]) not in _VALUE_TYPES:
+                raise doc.fail(el, "expected one value element: Real, Integer, Boolean or String")
+            t = typed[0]
+            kind = self._own(t)
+            text = t.get("value")
+            if text is None:
+                raise doc.fail(t, "missing required attribute", "value")
+            want = {"Integer": INTEGER_TYPES, "Real": REAL_TYPES}.get(kind, (kind,))
+            if v.type not in want:
+                raise doc.fail(t, f"type mismatch: the value is {kind}, {sim.md.modelName}.{_s(name)} is {v.type}")
+            if kind == "Real":
+                value: object = _number(doc, t, "value")
+            elif kind == "Integer":
+                try:
+                    value = parse_int(text.strip())
+                except ValueError:
+                    raise doc.fail(t, "expected an integer", "value") from None
+            elif kind == "Boolean":
+                if text.strip() not in ("true", "false", "1", "0"):
+                    raise doc.fail(t, "expected true, false, 1 or 0", "value")
+                value = text.strip() in ("true", "1")
+            else:
+                value = text
+            if v.causality == "structuralParameter":
+                raise doc.fail(el, f"{sim.md.modelName}.{_s(name)} {STRUCTURAL}", "variable")
+            problem = settable_problem(v)
+            if problem:
+                raise doc.fail(el, f"expected {SETTABLE}: {sim.md.modelName}.{_s(name)} is "
+                                   f"{'an' if v.causality[0] in 'aeiou' else 'a'} {v.causality} ({problem})",
+                               "variable")
+            key = doc.key(el, "variable")
+            value = convert_value(Ctx(self.path, {}), f"{key} ({sim.name}.{_s(name)})", value, v, sim.md)
+            old = self.values.get((sim.name, name))
+            if old is not None and old[0] != value:
+                raise doc.fail(el, f"expected each variable once: line {old[1].sourceline} gives it another value "
+                                   "(which one is meant is not said)", "variable")
+            self.values[(sim.name, name)] = (value, el)
+
+    # -- functions
+
+    def _functions(self, holder) -> None:
+        doc = self.doc
+        for el in holder:
+            kind = self._own(el)
+            name = el.get("name")
+            if not name:
+                raise doc.fail(el, "expected a function name", "name")
+            if name in self.functions or name in self.sims:
+                raise doc.fail(el, "expected a unique name: a simulator or another function has this name", "name")
+            if kind == "LinearTransformation":
+                _number(doc, el, "factor", 1.0)
+                _number(doc, el, "offset", 0.0)
+                self.functions[name] = el
+            elif kind in ("Sum", "VectorSum"):
+                raise doc.fail(el, f"not supported: {kind} functions (outputs added into one input): a clockwork "
+                                   "link feeds an input from one output; expected LinearTransformation")
+            else:
+                raise doc.fail(el, "not an OSP function; expected LinearTransformation (or Sum, VectorSum, which "
+                                   "clockwork does not run)")
+
+    # -- connections
+
+    def _connections(self, holder) -> None:
+        doc = self.doc
+        signals: dict[tuple[str, str], tuple] = {}  # (function, "in"|"out") -> (sim, var, element)
+        for el in holder:
+            kind = self._own(el)
+            if kind == "VariableConnection":
+                a, b = self._pair(el, "Variable")
+                self._connect(el, a, b)
+            elif kind == "VariableGroupConnection":
+                a, b = self._pair(el, "VariableGroup")
+                for x, y in self._group_pairs(el, a, b):
+                    self._connect(el, x, y)
+            elif kind == "SignalConnection":
+                ends = {self._own(c): c for c in el}
+                if len(el) != 2 or set(ends) != {"Variable", "Signal"}:
+                    raise doc.fail(el, "expected one Variable and one Signal")
+                sim, var = self._endpoint(ends["Variable"])
+                sig = ends["Signal"]
+                fname, port = sig.get("function"), sig.get("name")
+                if fname is None or port is None:
+                    raise doc.fail(sig, "expected the attributes function and name")
+                if fname not in self.functions:
+                    raise doc.fail(sig, f"no function named {_s(fname)}; functions: "
+                                        f"{_s(', '.join(self.functions) or 'none')}", "function")
+                if port not in ("in", "out"):
+                    raise doc.fail(sig, "expected in or out (a LinearTransformation's signals)", "name")
+                if (fname, port) in signals:
+                    raise doc.fail(el, f"expected one connection to {_s(fname)}:{port}: line "
+                                       f"{signals[(fname, port)][2].sourceline} connects it too")
+                signals[(fname, port)] = (sim, var, el)
+            elif kind == "SignalGroupConnection":
+                raise doc.fail(el, "not supported: signal group connections (of VectorSum functions)")
+            else:
+                raise doc.fail(el, "expected VariableConnection, VariableGroupConnection or SignalConnection")
+        for fname, fel in self.functions.items():
+            ends = [signals.get((fname, p)) for p in ("in", "out")]
+            if None in ends:
+                port = "in" if ends[0] is None else "out"
+                raise doc.fail(fel, f"expected a SignalConnection to {_s(fname)}:{port} (libcosim needs both)")
+            (si, sv, sel), (di, dv, del_) = ends
+            for inst, var, cel, role in ((si, sv, sel, "output"), (di, dv, del_, "input")):
+                v = variables_of(self.sims[inst].md)[var]
+                if v.causality != role:
+                    raise doc.fail(cel, f"expected an {role} at {_s(fname)}:{'in' if role == 'output' else 'out'}: "
+                                        f"{_s(inst + '.' + var)} is {_article(v.causality)} {v.causality}")
+                if v.type not in REAL_TYPES:
+                    raise doc.fail(cel, f"a LinearTransformation takes and gives Real values; {_s(inst + '.' + var)} "
+                                        f"is {v.type}")
+            factor, offset = _number(doc, fel, "factor", 1.0), _number(doc, fel, "offset", 0.0)
+            self._link(del_, (si, sv), (di, dv), factor, offset)
+
+    def _pair(self, el, tag: str) -> tuple[tuple[str, str], tuple[str, str]]:
+        ends = list(el)
+        if len(ends) != 2 or any(self._own(c) != tag for c in ends):
+            raise self.doc.fail(el, f"expected two {tag} elements")
+        for c in ends:
+            causality = c.get("causality")
+            if causality is not None and causality not in ("input", "output"):
+                raise self.doc.fail(c, "expected input or output", "causality")
+        if tag == "Variable":
+            return self._endpoint(ends[0]), self._endpoint(ends[1])
+        return self._group_end(ends[0]), self._group_end(ends[1])
+
+    def _simulator(self, el) -> _Sim:
+        name = el.get("simulator")
+        if name is None:
+            raise self.doc.fail(el, "missing required attribute; expected a simulator's name", "simulator")
+        sim = self.sims.get(name)
+        if sim is None:
+            raise self.doc.fail(el, f"no simulator named {_s(name)}; simulators: "
+                                    f"{_s(', '.join(self.sims))}", "simulator")
+        return sim
+
+    def _endpoint(self, el) -> tuple[str, str]:
+        sim = self._simulator(el)
+        var = el.get("name")
+        if var is None:
+            raise self.doc.fail(el, "missing required attribute; expected a variable's name", "name")
+        if var not in variables_of(sim.md):
+            raise self.doc.fail(el, f"{sim.name} ({sim.md.modelName}) has no variable {_s(var)}", "name")
+        return sim.name, var
+
+    def _connect(self, el, a: tuple[str, str], b: tuple[str, str]) -> None:
+        """A link between two variables, the output end found from their
+        causalities (libcosim: a's if a is an output, else b's)."""
+        va, vb = (variables_of(self.sims[i].md)[v] for i, v in (a, b))
+        if va.causality == "output" and vb.causality == "output":
+            raise self.doc.fail(el, f"expected an output connected to an input: {_s(a[0] + '.' + a[1])} and "
+                                    f"{_s(b[0] + '.' + b[1])} are both outputs")
+        src, dst = (a, b) if va.causality == "output" else (b, a)
+        vs, vd = (va, vb) if src is a else (vb, va)
+        if vs.causality != "output":
+            raise self.doc.fail(el, f"expected an output at one end: {_s(a[0] + '.' + a[1])} is "
+                                    f"{_article(va.causality)} {va.causality}, {_s(b[0] + '.' + b[1])} "
+                                    f"{_article(vb.causality)} {vb.causality}")
+        if vd.causality != "input":
+            raise self.doc.fail(el, f"expected an input at the other end: {_s(dst[0] + '.' + dst[1])} is "
+                                    f"{_article(vd.causality)} {vd.causality}")
+        if not types_connect(vs.type, vd.type):
+            raise self.doc.fail(el, f"type mismatch: {_s(src[0] + '.' + src[1])} is {vs.type}, "
+                                    f"{_s(dst[0] + '.' + dst[1])} is {vd.type}")
+        if getattr(vs, "shape", None) or getattr(vd, "shape", None):
+            raise self.doc.fail(el, "not supported: links of FMI 3.0 arrays in an OSP system structure")
+        su, du = var_unit(vs), var_unit(vd)
+        if su != du:
+            self.warn(self.doc.key(el), f"{_s(src[0] + '.' + src[1])} is in {_s(su or 'no unit')}, "
+                      f"{_s(dst[0] + '.' + dst[1])} in {_s(du or 'no unit')}: the value passes unconverted, as "
+                      "libcosim passes it", "links between variables of different units (passed unconverted)")
+        self._link(el, src, dst, 1.0, 0.0)
+
+    def _link(self, el, src, dst, factor: float, offset: float) -> None:
+        old = self.links.get(dst)
+        if old is not None:
+            raise self.doc.fail(el, f"input {_s(dst[0] + '.' + dst[1])} is fed twice: line {old[4].sourceline} "
+                                    f"feeds it {_s(old[0] + '.' + old[1])}")
+        self.links[dst] = (src[0], src[1], factor, offset, el)
+
+    # -- variable groups
+
+    def _group_end(self, el) -> tuple[_Sim, str, object]:
+        sim = self._simulator(el)
+        name = el.get("name")
+        if name is None:
+            raise self.doc.fail(el, "missing required attribute; expected a variable group's name", "name")
+        return sim, name, el
+
+    def _groups(self, sim: _Sim, el) -> dict:
+        """The simulator's variable groups: name -> (element, its doc), the
+        top-level ones and, by name where unique, the nested ones."""
+        if sim.groups is not None:
+            return sim.groups
+        file = f"{sim.md.modelName}_OspModelDescription.xml"
+        where = next((p for p in (sim.fmu.parent / file, self.path.parent / file) if p.exists()), None)
+        if where is None:
+            raise self.doc.fail(el, f"no {_s(file)} beside {_s(sim.fmu.name)} or this file: expected one to define "
+                                    f"the variable groups of {_s(sim.name)}")
+        mdoc = self._parse(where, "OSP model description", "an *_OspModelDescription.xml file")
+        if _local(mdoc.root) != "OspModelDescription":
+            raise mdoc.fail(mdoc.root, "expected the root element OspModelDescription")
+        holders = [c for c in mdoc.root if isinstance(c.tag, str) and _local(c) == "VariableGroups"]
+        if len(holders) > 1:
+            raise mdoc.fail(holders[1], "expected one VariableGroups element")
+        top: dict[str, tuple] = {}
+        nested: dict[str, list] = {}
+        variables = variables_of(sim.md)
+        stack = [(g, 0) for g in reversed(list(holders[0]))] if holders else []
+        while stack:
+            g, depth = stack.pop()
+            name = g.get("name")
+            if not name:
+                raise mdoc.fail(g, "expected a variable group name", "name")
+            if depth == 0:
+                if name in top:
+                    raise mdoc.fail(g, f"expected a unique group name: line {top[name][0].sourceline} has it too",
+                                    "name")
+                top[name] = (g, mdoc)
+            else:
+                nested.setdefault(name, []).append((g, mdoc))
+            for c in g:
+                if _local(c) == "Variable":
+                    ref = c.get("ref")
+                    if ref is None:
+                        raise mdoc.fail(c, "missing required attribute; expected a variable's name", "ref")
+                    if ref not in variables:
+                        raise mdoc.fail(c, f"{sim.md.modelName} has no variable {_s(ref)}", "ref")
+            stack += [(c, depth + 1) for c in reversed(list(g)) if _local(c) != "Variable"]
+        sim.groups = {"top": top, "nested": nested}
+        return sim.groups
+
+    def _group(self, end: tuple) -> tuple:
+        sim, name, el = end
+        groups = self._groups(sim, el)
+        found = groups["top"].get(name)
+        if found is None:
+            found = groups["nested"].get(name, [])
+            if len(found) > 1:
+                raise self.doc.fail(el, f"{_s(sim.name)} has {len(found)} nested variable groups named {_s(name)}: "
+                                        "which one is meant is not said", "name")
+            if not found:
+                names = ", ".join(list(groups["top"])[:20])
+                raise self.doc.fail(el, f"{_s(sim.md.modelName)}_OspModelDescription.xml has no variable group "
+                                        f"{_s(name)}; groups: {_s(names or 'none')}", "name")
+            found = found[0]
+        return found
+
+    def _group_pairs(self, el, a: tuple, b: tuple) -> list[tuple[tuple[str, str], tuple[str, str]]]:
+        """The variable pairs of two groups: their nested groups pair by pair
+        (in order, depth first), then their own variables pair by pair."""
+        out = []
+        stack = [(self._group(a), self._group(b))]
+        while stack:
+            (ga, da), (gb, db) = stack.pop()
+            subs = [[c for c in g if _local(c) != "Variable"] for g in (ga, gb)]
+            refs = [[c.get("ref") for c in g if _local(c) == "Variable"] for g in (ga, gb)]
+            for what, (x, y) in (("nested groups", subs), ("variables", refs)):
+                if len(x) != len(y):
+                    raise self.doc.fail(el, f"the variable groups differ in size: {_s(a[0].name)}'s "
+                                            f"{_s(ga.get('name'))} has {len(x)} {what}, {_s(b[0].name)}'s "
+                                            f"{_s(gb.get('name'))} {len(y)}")
+            pairs = [((a[0].name, x), (b[0].name, y)) for x, y in zip(*refs)]
+            stack += [((x, da), (y, db)) for x, y in reversed(list(zip(*subs)))]
+            out.append(pairs)
+        return [p for pairs in out for p in pairs]
+
+    # -- components
+
+    def _components(self) -> dict[str, Component]:
+        params: dict[str, dict] = {name: {} for name in self.sims}
+        for (inst, var), (value, el) in self.values.items():
+            if (inst, var) in self.links:
+                self.warn(self.doc.key(el, "variable"), f"{_s(inst + '.' + var)} is a connected input; its "
+                          "connection wins over this value", "initial values of connected inputs (the connection "
+                                                             "wins)")
+                continue
+            params[inst][var] = value
+        return {name: Component(name, s.fmu, s.digest, s.md, params[name], s.indicators, interface=s.interface)
+                for name, s in self.sims.items()}
+
+
+def _article(word: str) -> str:
+    return "an" if word[:1] in "aeiou" else "a"
+
+
+def _number(doc: Doc, el, attr: str, default: float | None = None) -> float:
+    text = el.get(attr)
+    if text is None:
+        if default is None:
+            raise doc.fail(el, "missing required attribute; expected a number", attr)
+        return default
+    try:
+        x = parse_real(text.strip(), XSD_SPECIAL)
+    except ValueError:
+        raise doc.fail(el, "expected a number (xs:double)", attr) from None
+    if not math.isfinite(x):
+        raise doc.fail(el, "expected a finite number", attr)
+    return x
+
+
+def read_osp(path: str | Path) -> OspScene:
+    """An OspSystemStructure.xml, read; raises SceneError (OtherXml where the
+    file is XML of another root)."""
+    return _Reader(Path(path)).read()

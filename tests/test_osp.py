@@ -1,0 +1,477 @@
+"""OSP import: `clockwork run | validate | info | export-scene` on libcosim's
+OspSystemStructure.xml, and clockwork.simulate on it.
+
+The fixtures (tests/data/osp/) are the core grasshopper clock written as OSP
+system structures: `clock` (a LinearTransformation function doubling the
+escapement's torque, a VariableConnection given input end first) and `bond`
+(one VariableGroupConnection of nested groups from two
+*_OspModelDescription.xml files, one beside the FMU and one beside the
+file; stepSizes of two base steps). Each must give the bits of the same
+system as an SSP (tests/data/ssp/flat10) or a TOML scene.
+"""
+
+import shutil
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cwtest import BUILD_DIR, ROOT, assert_one_line_error, fmu_file, run_cli
+
+import clockwork
+from clockwork.errors import SceneError
+from clockwork.run.catalog import load_scene
+
+DATA = ROOT / "tests" / "data" / "osp"
+FMUS = ("Pendulum", "GrasshopperEscapement")
+SHORT = ["--set", "experiment.stop=5", "--set", "record.interval=0.01"]
+NS = "http://opensimulationplatform.com/MSMI/OSPSystemStructure"
+
+
+def fixture_dir(tmp_path: Path, name: str) -> Path:
+    """A fixture's folder with the clock's FMUs copied into resources/."""
+    d = tmp_path / name
+    shutil.copytree(DATA / name, d)
+    (d / "resources").mkdir(exist_ok=True)
+    for f in FMUS:
+        shutil.copy(fmu_file(f), d / "resources" / f"{f}.fmu")
+    return d
+
+
+def series(d: Path) -> dict[str, np.ndarray]:
+    lines = (d / "timeseries.csv").read_text().splitlines()
+    names = lines[0].split(",")
+    data = np.array([[float(x) for x in line.split(",")] for line in lines[1:]])
+    return {n: data[:, i] for i, n in enumerate(names)}
+
+
+def run_ok(capsys, *argv) -> str:
+    rc, out, err = run_cli(capsys, ["run", *argv, "--no-progress"])
+    assert rc == 0, err
+    return err
+
+
+# ---------------------------------------------------------------- the fixtures
+
+
+def test_clock_reads_as_the_ssp_does(tmp_path):
+    d = fixture_dir(tmp_path, "clock")
+    s = load_scene(d / "OspSystemStructure.xml")
+    assert s.title == "clock"
+    assert list(s.components) == ["pendulum", "escapement"]
+    assert s.components["escapement"].parameters == {"torque": 0.004, "phi_r": 0.03490658503988659}
+    assert s.components["pendulum"].parameters["Q"] == 1000.0
+    links = {str(c): (c.factor, c.offset) for c in s.connections}
+    # the VariableConnection names escapement.w first: the output end is the pendulum's
+    assert links == {"pendulum.phi -> escapement.phi": (1.0, 0.0), "pendulum.w -> escapement.w": (1.0, 0.0),
+                     "escapement.tau -> pendulum.tau_escapement": (2.0, 0.0)}
+    assert (s.experiment.start, s.experiment.stop, s.master.step) == (0.0, 20.0, 0.01)
+
+
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_clock_gives_the_bits_of_the_ssp_and_the_scene(tmp_path, capsys, engine):
+    """The LinearTransformation function is the SSP's linear transformation:
+    the same bits as flat10 (an SSP) and core_grasshopper at 0.8 N.cm."""
+    d = fixture_dir(tmp_path, "clock")
+    ssp = tmp_path / "flat10"
+    shutil.copytree(ROOT / "tests" / "data" / "ssp" / "flat10", ssp)
+    for f in FMUS:
+        shutil.copy(fmu_file(f), ssp / "resources" / f"{f}.fmu")
+    eng = ["--set", f'master.engine="{engine}"']
+    run_ok(capsys, d / "OspSystemStructure.xml", "--out", tmp_path / "osp", *SHORT, *eng)
+    run_ok(capsys, ssp / "SystemStructure.ssd", "--out", tmp_path / "ssp", *SHORT, *eng)
+    run_ok(capsys, "core_grasshopper", "--out", tmp_path / "toml", *SHORT, *eng, "--set",
+           'escapement.torque="0.8 N.cm"', "--set", 'record.outputs=["pendulum.phi", "pendulum.w"]')
+    a, b, c = (series(tmp_path / x) for x in ("osp", "ssp", "toml"))
+    assert len(a["time"]) == 501
+    for var in ("pendulum.phi", "pendulum.w"):
+        assert np.array_equal(a[var], b[var])
+        assert np.array_equal(a[var], c[var])
+    assert a["pendulum.phi"].std() > 0.05  # it swings
+
+
+def test_bond_connects_the_groups_pair_by_pair(tmp_path, capsys):
+    """Nested groups pair up in order; each pair's output end comes from the
+    FMUs; stepSizes of 2 (and 2.5, rounded down as libcosim does) base
+    steps are the master's step: the bits of core_grasshopper."""
+    d = fixture_dir(tmp_path, "bond")
+    s = load_scene(d / "OspSystemStructure.xml")
+    assert {str(c) for c in s.connections} == {
+        "pendulum.phi -> escapement.phi", "pendulum.w -> escapement.w", "escapement.tau -> pendulum.tau_escapement"}
+    assert s.master.step == 0.01 and s.experiment.stop == 1.0
+    err = run_ok(capsys, d / "OspSystemStructure.xml", "--out", tmp_path / "osp", *SHORT)
+    assert "every 2 base steps (0.01 s), not every 0.0125 s" in err
+    run_ok(capsys, "core_grasshopper", "--out", tmp_path / "toml", *SHORT,
+           "--set", 'record.outputs=["pendulum.phi", "pendulum.w"]')
+    a, b = series(tmp_path / "osp"), series(tmp_path / "toml")
+    assert len(a["time"]) == 501
+    for var in ("pendulum.phi", "pendulum.w"):
+        assert np.array_equal(a[var], b[var])
+
+
+def _types_osp(d: Path) -> Path:
+    fmu = BUILD_DIR / "test-fmus" / "TestTypes.fmu"
+    if not fmu.is_file():
+        pytest.fail(f"{fmu} is missing: build the test FMUs first (cmake --build build)")
+    d.mkdir(exist_ok=True)
+    shutil.copy(fmu, d / "TestTypes.fmu")
+    f = d / "OspSystemStructure.xml"
+    f.write_text(textwrap.dedent(f"""\
+        <OspSystemStructure xmlns="{NS}" version="0.1">
+          <StartTime>0</StartTime><EndTime>0.1</EndTime><BaseStepSize>0.01</BaseStepSize>
+          <Algorithm>FIXEDSTEP</Algorithm>
+          <Simulators>
+            <Simulator name="a" source="TestTypes.fmu">
+              <InitialValues>
+                <InitialValue variable="p_real"><Real value="1.5"/></InitialValue>
+                <InitialValue variable="p_int"><Integer value="5"/></InitialValue>
+                <InitialValue variable="p_bool"><Boolean value="1"/></InitialValue>
+                <InitialValue variable="p_enum"><Integer value="3"/></InitialValue>
+                <InitialValue variable="p_str"><String value="tock"/></InitialValue>
+              </InitialValues>
+            </Simulator>
+            <Simulator name="b" source="file:TestTypes.fmu"/>
+          </Simulators>
+          <Functions><LinearTransformation name="lt" factor="2" offset="0.5"/></Functions>
+          <Connections>
+            <SignalConnection><Variable simulator="a" name="y_real"/><Signal function="lt" name="in"/></SignalConnection>
+            <SignalConnection><Signal function="lt" name="out"/><Variable simulator="b" name="u_real"/></SignalConnection>
+            <VariableConnection><Variable simulator="a" name="y_int"/><Variable simulator="b" name="u_int"/></VariableConnection>
+            <VariableConnection><Variable simulator="b" name="u_bool"/><Variable simulator="a" name="y_bool"/></VariableConnection>
+            <VariableConnection><Variable simulator="a" name="y_enum"/><Variable simulator="b" name="u_enum"/></VariableConnection>
+            <VariableConnection><Variable simulator="a" name="y_real"/><Variable simulator="b" name="u_mm"/></VariableConnection>
+          </Connections>
+        </OspSystemStructure>
+        """))
+    return f
+
+
+def test_every_type_of_initial_value_and_link(tmp_path, capsys):
+    """Initial values of every OSP type, Integer, Boolean and Enumeration
+    links, a linear transformation with an offset, and m into mm passed
+    unconverted as libcosim passes it (with a warning)."""
+    f = _types_osp(tmp_path / "types")
+    s = load_scene(f)
+    assert s.components["a"].parameters == {"p_real": 1.5, "p_int": 5, "p_bool": True, "p_enum": 3, "p_str": "tock"}
+    record = 'record.outputs=["a.y_real", "b.y_mm", "b.y_real", "b.y_int", "b.y_bool", "b.y_enum"]'
+    for engine in ("python", "auto"):
+        err = run_ok(capsys, f, "--out", tmp_path / engine, "--set", record, "--set", f'master.engine="{engine}"')
+        assert "a.y_real is in m, b.u_mm in mm: the value passes unconverted" in err
+        last = {k: v[-1] for k, v in series(tmp_path / engine).items()}
+        assert last["b.y_mm"] == 1.5  # unconverted
+        assert last["b.y_real"] == 1 + 2 * 1.5 + 0.5
+        assert last["b.y_int"] == 2 + 5
+        assert last["b.y_bool"] == 1.0  # false xor true
+        assert last["b.y_enum"] == 3.0
+
+
+def test_export_ssp_keeps_the_links_as_the_osp_file_gives_them(tmp_path):
+    """An OSP link passes m into mm unconverted: the SSP written of it says
+    so (suppressUnitConversion), and reads back to the same links."""
+    from clockwork.scene.ssp import export_ssp
+
+    osp = load_scene(_types_osp(tmp_path / "types"))
+    export_ssp(osp, tmp_path / "types.ssp")
+    back = load_scene(tmp_path / "types.ssp")
+    assert {str(c): (c.factor, c.offset) for c in back.connections} == \
+           {str(c): (c.factor, c.offset) for c in osp.connections}
+    assert next(c for c in back.connections if c.dst_var == "u_mm")[4:] == (1.0, 0.0)
+
+
+def test_validate_info_and_simulate(tmp_path, capsys):
+    d = fixture_dir(tmp_path, "clock")
+    f = d / "OspSystemStructure.xml"
+    rc, out, err = run_cli(capsys, ["validate", f])
+    assert rc == 0 and out.startswith("ok: clock (2 components, 3 connections)"), (out, err)
+    rc, out, err = run_cli(capsys, ["info", f])
+    assert rc == 0, err
+    assert out.startswith("clock (OSP: 2 components, 3 connections)")
+    assert "escapement.tau -> pendulum.tau_escapement (x 2)" in out
+    # the folder, as libcosim takes it
+    rc, out2, err = run_cli(capsys, ["info", d])
+    assert rc == 0 and out2 == out, err
+    assert load_scene(d).path == f
+    r = clockwork.simulate(f, stop_time=1.0, output=["pendulum.phi"])
+    run_ok(capsys, f, "--out", tmp_path / "cli", "--set", "experiment.stop=1", "--set", 'record.outputs=["pendulum.phi"]')
+    assert np.array_equal(r["pendulum.phi"], series(tmp_path / "cli")["pendulum.phi"])
+
+
+def test_export_scene_writes_a_scene_that_runs_the_same(tmp_path, capsys):
+    d = fixture_dir(tmp_path, "bond")
+    out = tmp_path / "bond.toml"
+    rc, text, err = run_cli(capsys, ["export-scene", d / "OspSystemStructure.xml", "--out", out])
+    assert rc == 0, err
+    assert "2 components, 3 connections" in text
+    a, b = load_scene(d / "OspSystemStructure.xml"), load_scene(out)
+    assert a.connections == b.connections and a.master == b.master and a.experiment == b.experiment
+    assert {n: c.parameters for n, c in a.components.items()} == {n: c.parameters for n, c in b.components.items()}
+    capsys.readouterr()
+    # a linear transformation has no form in a scene file: one line, nothing written
+    d2 = fixture_dir(tmp_path, "clock")
+    rc, _, err = run_cli(capsys, ["export-scene", d2 / "OspSystemStructure.xml", "--out", tmp_path / "c.toml"])
+    assert_one_line_error(rc, err, "OspSystemStructure.xml", "escapement.tau -> pendulum.tau_escapement",
+                          "x 2 + 0", "a scene file cannot say")
+    assert not (tmp_path / "c.toml").exists()
+
+
+def test_a_local_proxyfmu_runs_here(tmp_path, capsys):
+    """proxyfmu://localhost?file=<path> (libcosim's FMU in a process of its
+    own) is the same FMU, run in clockwork's process, with a note."""
+    d = fixture_dir(tmp_path, "clock")
+    f = d / "OspSystemStructure.xml"
+    f.write_text(f.read_text().replace("resources/Pendulum.fmu", "proxyfmu://localhost?file=resources/Pendulum.fmu"))
+    s = load_scene(f)
+    assert s.components["pendulum"].fmu_path == d / "resources" / "Pendulum.fmu"
+    assert "runs in clockwork's process" in capsys.readouterr().err
+
+
+def test_set_overrides_initial_values_and_the_step(tmp_path, capsys):
+    d = fixture_dir(tmp_path, "bond")
+    s = load_scene(d / "OspSystemStructure.xml", ["pendulum.Q=321", "master.step=0.02"])
+    assert s.components["pendulum"].parameters["Q"] == 321.0
+    assert s.master.step == 0.02
+    assert "--set master.step steps every component alike" in capsys.readouterr().err
+
+
+def test_other_xml_files_name_the_format_expected(tmp_path, capsys):
+    for name, text, needle in [
+            ("s.xml", '<ssd:SystemStructureDescription xmlns:ssd="x"/>', "SSP system structure description"),
+            ("modelDescription.xml", "<fmiModelDescription/>", "FMU's modelDescription.xml"),
+            ("x.xml", "<a><b/></a>", "an XML file of root element a"),
+            ("m_OspModelDescription.xml", "<OspModelDescription/>", "OSP model description")]:
+        (tmp_path / name).write_text(text)
+        rc, _, err = run_cli(capsys, ["validate", tmp_path / name])
+        assert_one_line_error(rc, err, name, needle, "not a scene: expected", "OspSystemStructure.xml")
+    # not a regular file, or no file: named, nothing read
+    import os
+    os.mkfifo(tmp_path / "fifo.xml")
+    rc, _, err = run_cli(capsys, ["validate", tmp_path / "fifo.xml"])
+    assert_one_line_error(rc, err, "fifo.xml", "is a FIFO (named pipe), expected an OspSystemStructure.xml file")
+    rc, _, err = run_cli(capsys, ["validate", tmp_path / "gone.xml"])
+    assert_one_line_error(rc, err, "gone.xml", "no such OSP system structure")
+    # an OSP system structure named otherwise: named, not a TOML error
+    (tmp_path / "osp.toml").write_text(f'<OspSystemStructure xmlns="{NS}" version="0.1"/>')
+    rc, _, err = run_cli(capsys, ["validate", tmp_path / "osp.toml"])
+    assert_one_line_error(rc, err, "osp.toml", "Open Simulation Platform system structure (name it .xml)")
+
+
+# ---------------------------------------------------------------- hostile files
+
+
+def _clock_text() -> str:
+    return (DATA / "clock" / "OspSystemStructure.xml").read_text()
+
+
+def _edit(old: str, new: str):
+    def make(d: Path) -> Path:
+        text = _clock_text()
+        assert old in text, old
+        (d / "OspSystemStructure.xml").write_text(text.replace(old, new, 1))
+        return d / "OspSystemStructure.xml"
+    return make
+
+
+def _write(text: str):
+    def make(d: Path) -> Path:
+        (d / "OspSystemStructure.xml").write_text(text)
+        return d / "OspSystemStructure.xml"
+    return make
+
+
+def _huge(d: Path) -> Path:
+    f = d / "OspSystemStructure.xml"
+    text = _clock_text()
+    f.write_text(text.replace("<Simulators>", "<!--" + "x" * (17 << 20) + "--><Simulators>"))
+    return f
+
+
+LAUGHS = ('<?xml version="1.0"?><!DOCTYPE lolz [<!ENTITY lol "lol"><!ENTITY lol2 "&lol;&lol;&lol;&lol;">]>'
+          f'<OspSystemStructure xmlns="{NS}" version="0.1"><Simulators/>&lol2;</OspSystemStructure>')
+XXE = ('<?xml version="1.0"?><!DOCTYPE x [<!ENTITY e SYSTEM "file:///etc/passwd">]>'
+       f'<OspSystemStructure xmlns="{NS}" version="0.1"><StartTime>&e;</StartTime><Simulators/></OspSystemStructure>')
+SIM = '<Simulator name="escapement" source="resources/GrasshopperEscapement.fmu">'
+
+HOSTILE = {
+    "malformed XML": (_edit("</Simulators>", "</Simulator>"), "malformed XML at line"),
+    "entity expansion": (_write(LAUGHS), "DOCTYPE", "not allowed in OSP files"),
+    "external entity": (_write(XXE), "DOCTYPE"),
+    "empty file": (_write(""), "malformed XML"),
+    "too big": (_huge, "bytes"),
+    "wrong namespace": (_edit(NS, "urn:x"), "line 7: OspSystemStructure", "expected the namespace"),
+    "no namespace": (_edit(f' xmlns="{NS}"', ""), "expected the namespace"),
+    "wrong version": (_edit('version="0.1"', 'version="2.0"'), "version='2.0'", 'expected version="0.1"'),
+    "unknown top element": (_edit("<Simulators>", "<Extra/><Simulators>"), "Extra", "not part of"),
+    "two StartTimes": (_edit("<EndTime>", "<StartTime>1</StartTime><EndTime>"), "expected one StartTime"),
+    "no simulators": (_write(f'<OspSystemStructure xmlns="{NS}" version="0.1"/>'), "expected a Simulators"),
+    "empty simulators": (_write(f'<OspSystemStructure xmlns="{NS}" version="0.1"><Simulators/>'
+                                '</OspSystemStructure>'), "Simulators", "at least one Simulator"),
+    "bad time": (_edit("<EndTime>20<", "<EndTime>twenty<"), "EndTime", "expected a number"),
+    "infinite time": (_edit("<EndTime>20<", "<EndTime>INF<"), "EndTime", "finite"),
+    "end before start": (_edit("<EndTime>20<", "<EndTime>-1<"), "EndTime", "> experiment.start"),
+    "zero base step": (_edit("<BaseStepSize>0.01<", "<BaseStepSize>0<"), "BaseStepSize", "step > 0"),
+    "ecco": (_edit("<Algorithm>fixedStep<", "<Algorithm>ecco<"), "Algorithm", "ecco algorithm", "fixedStep"),
+    "unknown algorithm": (_edit("<Algorithm>fixedStep<", "<Algorithm>rk4<"), "Algorithm", "'rk4'"),
+    "missing FMU": (_edit("resources/Pendulum.fmu", "resources/Gone.fmu"), "Simulator 'pendulum'",
+                    "Gone.fmu: no such file"),
+    "FMU is a directory": (_edit("resources/Pendulum.fmu", "resources"), "Simulator 'pendulum'", "is a directory"),
+    "remote FMU": (_edit("resources/Pendulum.fmu", "proxyfmu://server:9090?file=Pendulum.fmu"),
+                   "proxyfmu:", "another machine"),
+    "proxyfmu without a file": (_edit("resources/Pendulum.fmu", "proxyfmu://localhost?fil=Pendulum.fmu"),
+                                "one file=<path>"),
+    "unknown URI scheme": (_edit("resources/Pendulum.fmu", "http://x/Pendulum.fmu"), "http:", "not supported"),
+    "other host": (_edit("resources/Pendulum.fmu", "file://server/Pendulum.fmu"), "another host"),
+    "no source": (_edit(' source="resources/Pendulum.fmu"', ""), "Simulator 'pendulum' source",
+                  "missing required attribute"),
+    "duplicate simulator": (_edit(SIM, SIM.replace("escapement", "pendulum", 1)), "Simulator name='pendulum'",
+                            "unique simulator name"),
+    "bad simulator name": (_edit(SIM, SIM.replace('"escapement"', '"a b"', 1)), "simulator name"),
+    "function named as a simulator": (_edit('name="double"', 'name="pendulum"'), "LinearTransformation",
+                                      "unique name"),
+    "unknown variable in a value": (_edit('variable="Q"', 'variable="Qx"'), "InitialValue variable='Qx'",
+                                    "has no variable Qx"),
+    "value of the wrong type": (_edit('<Real value="1000"/>', '<Integer value="1000"/>'), "type mismatch"),
+    "bad real": (_edit('<Real value="1000"/>', '<Real value="lots"/>'), "Real value='lots'", "expected a number"),
+    "bad boolean value": (_edit('<Real value="1000"/>', '<Real value="1000"/><Boolean value="yes"/>'),
+                          "expected one value element"),
+    "value out of range": (_edit('variable="Q"><Real value="1000"', 'variable="Q"><Real value="-5"'), "Q"),
+    "value of an output": (_edit('variable="Q"', 'variable="energy"'), "energy", "is an output"),
+    "two values": (_edit('<InitialValue variable="Q"><Real value="1000"/></InitialValue>',
+                         '<InitialValue variable="Q"><Real value="1000"/></InitialValue>'
+                         '<InitialValue variable="Q"><Real value="1"/></InitialValue>'), "each variable once"),
+    "unknown simulator in a connection": (_edit('<Variable simulator="escapement" name="phi"/>',
+                                                '<Variable simulator="escapment" name="phi"/>'),
+                                          "simulator='escapment'", "no simulator named escapment"),
+    "unknown variable in a connection": (_edit('<Variable simulator="escapement" name="phi"/>',
+                                               '<Variable simulator="escapement" name="psi"/>'),
+                                         "Variable", "has no variable psi"),
+    "two outputs": (_edit('<Variable simulator="escapement" name="phi"/>',
+                          '<Variable simulator="escapement" name="tau"/>'), "both outputs"),
+    "two inputs": (_edit('<Variable simulator="pendulum" name="phi"/>',
+                         '<Variable simulator="pendulum" name="g_factor"/>'), "expected an output at one end"),
+    "input fed twice": (_edit('<Variable simulator="escapement" name="w"/>',
+                              '<Variable simulator="escapement" name="phi"/>'), "line 39: VariableConnection",
+                        "input escapement.phi is fed twice: line 35 feeds it pendulum.phi"),
+    "one variable": (_edit('<Variable simulator="pendulum" name="w"/>', ""), "expected two Variable"),
+    "unknown connection": (_edit("</Connections>", "<Link/></Connections>"), "Link", "expected VariableConnection"),
+    "signal of no function": (_edit('<Signal function="double" name="in"/>', '<Signal function="half" name="in"/>'),
+                              "no function named half"),
+    "unconnected function": (_edit('<Signal function="double" name="out"/>', '<Signal function="double" name="in"/>'),
+                             "expected one connection to double:in"),
+    "function without its out": (_edit('<Functions>', '<Functions><LinearTransformation name="t2"/>'),
+                                 "LinearTransformation 't2'", "t2:in"),
+    "bad signal name": (_edit('<Signal function="double" name="out"/>', '<Signal function="double" name="y"/>'),
+                        "expected in or out"),
+    "bad factor": (_edit('factor="2"', 'factor="two"'), "factor='two'", "expected a number"),
+    "sum": (_edit('<Functions>', '<Functions><Sum name="s" inputCount="2"/>'), "Sum 's'", "not supported",
+            "one output"),
+    "vector sum": (_edit('<Functions>', '<Functions><VectorSum name="s" inputCount="2" dimension="3"/>'),
+                   "VectorSum", "not supported"),
+    "unknown function": (_edit('<Functions>', '<Functions><Switch name="s"/>'), "Switch", "not an OSP function"),
+    "signal group connection": (_edit("</Connections>", '<SignalGroupConnection/></Connections>'),
+                                "SignalGroupConnection", "not supported"),
+    "different steps": (_edit(SIM, SIM.replace(">", ' stepSize="0.02">')), "stepSize='0.02'",
+                        "escapement would step every 0.02 s", "pendulum every 0.01 s", "Simulator stepSize"),
+    "zero stepSize": (_edit(SIM, SIM.replace(">", ' stepSize="0">')), "stepSize", "step > 0"),
+    "group without a model description": (_edit("</Connections>", '<VariableGroupConnection>'
+                                                '<VariableGroup simulator="pendulum" name="g"/>'
+                                                '<VariableGroup simulator="escapement" name="g"/>'
+                                                '</VariableGroupConnection></Connections>'),
+                                          "VariableGroup", "Pendulum_OspModelDescription.xml"),
+    "string in a link": (_edit('<Variable simulator="escapement" name="tau"/>',
+                               '<Variable simulator="escapement" name="mode"/>'), "LinearTransformation takes"),
+}
+
+
+class TestHostileFiles:
+    """Each bad file: one line naming the file and the element, exit 2, nothing written."""
+
+    @pytest.mark.parametrize("case", list(HOSTILE))
+    def test_one_line(self, tmp_path, capsys, case):
+        make, *needles = HOSTILE[case]
+        d = fixture_dir(tmp_path, "clock")
+        f = make(d)
+        rc, _, err = run_cli(capsys, ["run", f, "--out", tmp_path / "out", "--no-progress"])
+        assert_one_line_error(rc, err, "OspSystemStructure.xml", *needles)
+        assert not (tmp_path / "out").exists()
+
+    @pytest.mark.parametrize("edit, needles", [
+        (("<Generic name=\"swing\">", "<Generic name=\"swing\"><Variable ref=\"nope\"/>"),
+         ("GrasshopperEscapement_OspModelDescription.xml: line 4: Variable ref='nope'", "has no variable nope")),
+        (("<Variable ref=\"tau\"/>", ""), ("OspSystemStructure.xml", "VariableGroupConnection", "differ in size",
+                                        "escapement's drive has 0 variables, pendulum's drive 1")),
+        (("<Generic name=\"swing\">", "<Generic name=\"swing\"/><Generic name=\"swing\">"), ("unique group name",)),
+        (("<VariableGroups>", "<!DOCTYPE x><VariableGroups>"), ("malformed XML",)),
+    ])
+    def test_bad_model_description(self, tmp_path, capsys, edit, needles):
+        d = fixture_dir(tmp_path, "bond")
+        md = d / "GrasshopperEscapement_OspModelDescription.xml"
+        md.write_text(md.read_text().replace(*edit, 1))
+        rc, _, err = run_cli(capsys, ["validate", d / "OspSystemStructure.xml"])
+        assert_one_line_error(rc, err, *needles)
+
+    def test_unknown_group(self, tmp_path, capsys):
+        d = fixture_dir(tmp_path, "bond")
+        f = d / "OspSystemStructure.xml"
+        f.write_text(f.read_text().replace('simulator="pendulum" name="swing"', 'simulator="pendulum" name="sway"'))
+        rc, _, err = run_cli(capsys, ["validate", f])
+        assert_one_line_error(rc, err, "OspSystemStructure.xml", "VariableGroup", "no variable group sway",
+                              "groups: swing")
+
+    def test_nested_group_by_name(self, tmp_path):
+        """A nested group may be named alone (libcosim searches below the top)."""
+        d = fixture_dir(tmp_path, "bond")
+        f = d / "OspSystemStructure.xml"
+        f.write_text(f.read_text().replace('name="swing"', 'name="angle"'))
+        s = load_scene(f)
+        assert {str(c) for c in s.connections} == {"pendulum.phi -> escapement.phi", "pendulum.w -> escapement.w"}
+
+    def test_scene_error_is_raised_by_the_api(self, tmp_path):
+        d = fixture_dir(tmp_path, "clock")
+        _edit('variable="Q"', 'variable="Qx"')(d)
+        with pytest.raises(SceneError, match="has no variable Qx"):
+            load_scene(d / "OspSystemStructure.xml")
+
+
+def test_random_edits_give_a_scene_or_one_line(tmp_path, capsys):
+    """150 seeded edits of the fixtures' files (an attribute dropped, emptied
+    or set to a bad value, an element's text changed, an element dropped,
+    doubled or renamed): each loads, or fails with one SceneError line
+    naming a file of the fixture; nothing else escapes."""
+    import random
+
+    from lxml import etree
+
+    rng = random.Random(39)
+    outcomes = {"loaded": 0, "refused": 0}
+    bad = ["", "x", "-1", "0", "1e999", "nan", "..", "a.b", "true", "pendulum", "in", "out", "proxyfmu://h?file=x"]
+    for i in range(150):
+        d = fixture_dir(tmp_path / str(i), rng.choice(["clock", "bond"]))
+        f = rng.choice(sorted(d.rglob("*.xml")))
+        tree = etree.parse(str(f))
+        el = rng.choice([e for e in tree.getroot().iter() if isinstance(e.tag, str)])
+        op = rng.choice(["drop_attr", "set_attr", "text", "drop_el", "dup_el", "rename"])
+        parent = el.getparent()
+        if op in ("drop_attr", "set_attr") and el.attrib:
+            key = rng.choice(sorted(el.attrib))
+            if op == "drop_attr":
+                del el.attrib[key]
+            else:
+                el.set(key, rng.choice(bad))
+        elif op == "text" and not len(el):
+            el.text = rng.choice(bad)
+        elif op == "drop_el" and parent is not None:
+            parent.remove(el)
+        elif op == "dup_el" and parent is not None:
+            parent.append(etree.fromstring(etree.tostring(el)))
+        elif op == "rename":
+            el.tag += "X"
+        tree.write(str(f))
+        try:
+            load_scene(d / "OspSystemStructure.xml")
+            outcomes["loaded"] += 1
+        except SceneError as e:
+            assert "\n" not in str(e) and str(d) in str(e), str(e)
+            outcomes["refused"] += 1
+    capsys.readouterr()  # the warnings of edits that load
+    assert outcomes["refused"] > 50 and outcomes["loaded"] > 10, outcomes
