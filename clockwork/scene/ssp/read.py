@@ -30,19 +30,19 @@ connectors, mapping transformations other than linear ones.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ...engine.description import FmuError, read_fmu, types_connect, var_unit
 from ...engine.description import variables as variables_of
 from ...engine.model_exchange import interface_of, model_exchange_problem
+from ...engine.settings import SETTINGS as _MASTER_SETTINGS
 from ...errors import SceneError
 from ...files import absent
 from ...hashing import sha256_file
 from ...numbers import parse_int, parse_real, shorten
 from ..checks import SETTABLE, STRUCTURAL, Ctx, convert_value, instance_problem, settable_problem
-from ..model import Component, Connection, MasterConfig
+from ..model import Component, Connection
 from .common import CW_ANNOTATION, CW_NS, NS, OMS_NS, OSP_ANNOTATION, OSP_NS, VERSIONS, q
 from .documents import SSD_NAME, Doc, Store, boolean, conversion, fmu_units, number, tag_name, unit_table
 
@@ -54,13 +54,13 @@ _INTEGERS = ("Integer", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "
 _TYPES = _REALS + _INTEGERS + ("Boolean", "String", "Enumeration")
 _FMI_TYPE = {**{t: "Real" for t in _REALS}, **{t: "Integer" for t in _INTEGERS},
              "Boolean": "Boolean", "String": "String", "Enumeration": "Enumeration"}
-# What clockwork's annotation may set: MasterConfig fields and record keys.
+# What clockwork's annotation may set: MasterSettings' fields and record keys.
 _RECORD_KEYS = ("interval", "ticks")
 # Bounds before the work: each component is an FMU instance (a clock has 2 to 6),
 # and each input's sources are found by walking the connections.
 MAX_COMPONENTS = 10_000  # validate and run grow linearly: docs/benchmarks.md, "Systems of many FMUs"
 MAX_PATH_STEPS = 100_000
-_MASTER_FIELDS = tuple(f.name for f in dataclasses.fields(MasterConfig))
+_MASTER_FIELDS = tuple(_MASTER_SETTINGS)
 # Warnings of one kind beyond this many are counted, not printed.
 WARNINGS_SHOWN = 3
 # What the SSP may hold around a connection's or mapping entry's transformation
