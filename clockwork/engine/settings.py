@@ -45,6 +45,8 @@ class Setting:
             tolerance; the signal's own unit for an indicator or output).
         low, high: The range of a count.
         choices: The values of a choice, as the field holds them.
+        meanings: What each choice does, in the order of `choices`, for
+            the refusal (none: the choices alone).
         noun: What a time or number is called in a refusal ("a time").
         note: Why the range is what it is, after the expected values.
         optional: None is a value too (the field's default: see the field).
@@ -58,6 +60,7 @@ class Setting:
     low: int = 0
     high: int = INT_MAX
     choices: tuple = ()
+    meanings: tuple = ()
     noun: str = ""
     note: str = ""
     optional: bool = False
@@ -74,6 +77,7 @@ class Setting:
             text = "true or false"
         else:
             shown = [f'"{c}"' if isinstance(c, str) else str(c) for c in self.choices]
+            shown = [f"{c} ({m})" for c, m in zip(shown, self.meanings)] or shown
             text = f"{', '.join(shown[:-1])} or {shown[-1]}"
         return f"{text} ({self.note})" if self.note else text
 
@@ -260,8 +264,8 @@ class MasterSettings:
     # are brought up to date, to iteration_tolerance; "delay" breaks it by a
     # one-step delay (the loop's members are read once, after their step).
     algebraic_loops: str = setting("solve", Setting("choice", choices=LOOP_MODES,
-                                                    note="solve: iterate each loop to a fixed point; "
-                                                         "delay: break it by one step"))
+                                                    meanings=("iterate each loop to a fixed point",
+                                                              "break it by one step")))
     # Threads the compiled core steps instances on (instances that do not
     # depend on each other within a step, each on one thread at a time;
     # engine/parallel.py), the same bits as 1. The Python engine steps on
