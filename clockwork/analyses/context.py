@@ -12,6 +12,7 @@ loading and instantiating every FMU again.
 
 from __future__ import annotations
 
+import dataclasses
 from contextlib import contextmanager
 from contextvars import ContextVar
 
@@ -77,11 +78,10 @@ def find_component(scene, model: str | tuple[str, ...]) -> str | None:
 
 
 def master_settings(scene, point: dict | None = None) -> MasterSettings:
-    values = scene.master.as_dict()
-    for (group, key), value in (point or {}).items():
-        if group == "master":
-            values[key] = value
-    return MasterSettings(**values)
+    """The scene's master settings with a point's master values: a copy,
+    which the run may change without changing the scene."""
+    changes = {key: value for (group, key), value in (point or {}).items() if group == "master"}
+    return dataclasses.replace(scene.master, **changes)
 
 
 def experiment(scene, point: dict | None = None) -> tuple[float, float]:

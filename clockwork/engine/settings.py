@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 
 from ..errors import ClosedError, SceneError, UsageError
 from ..numbers import shorten
@@ -19,7 +19,105 @@ LOOP_MODES = ("solve", "delay")
 MAX_THREADS = 256  # master.threads: more would be threads waiting for cores, and memory for their stacks
 
 
-_INT_MAX = 2**31 - 1  # the compiled core's counts are C ints
+INT_MAX = 2**31 - 1  # the compiled core's counts are C ints
+
+
+class BadSetting(ValueError):
+    """A value outside its setting's kind or range (Setting.accept): the
+    caller names where it came from (a scene key, --set, an argument)."""
+
+
+@dataclass(frozen=True)
+class Setting:
+    """What one field of MasterSettings may hold, declared once beside the
+    field (``setting(default, Setting(...))``) and read by every path that
+    gives it a value: MasterSettings.check, a scene's ``[master]`` table,
+    ``--set master.<key>``, a sweep axis, an SSP's clockwork annotation and
+    ``clockwork.simulate(master=...)`` (scene/checks.py::master_value reads
+    a scene's time units first and hands the number here).
+
+    Attributes:
+        kind: ``"time"`` (finite > 0, in `unit` s; a scene may add a unit,
+            ``"5 ms"``), ``"number"`` (finite > 0), ``"count"`` (an integer
+            from `low` to `high`), ``"choice"`` (one of `choices`) or
+            ``"flag"`` (true or false).
+        unit: The unit of a time or number ("s"; "1" for a relative
+            tolerance; the signal's own unit for an indicator or output).
+        low, high: The range of a count.
+        choices: The values of a choice, as the field holds them.
+        meanings: What each choice does, in the order of `choices`, for
+            the refusal (none: the choices alone).
+        noun: What a time or number is called in a refusal ("a time").
+        note: Why the range is what it is, after the expected values.
+        optional: None is a value too (the field's default: see the field).
+        follows: In a scene, the field that gives this one its value when
+            the scene does not (``max_step`` follows ``step``); the type's
+            own default applies elsewhere.
+    """
+
+    kind: str
+    unit: str = ""
+    low: int = 0
+    high: int = INT_MAX
+    choices: tuple = ()
+    meanings: tuple = ()
+    noun: str = ""
+    note: str = ""
+    optional: bool = False
+    follows: str = ""
+
+    @property
+    def expected(self) -> str:
+        """What a refusal says was expected (the words after "expected")."""
+        if self.kind in ("time", "number"):
+            text = f"{self.noun or ('a time' if self.kind == 'time' else 'a number')} > 0"
+        elif self.kind == "count":
+            text = f"an integer in [{self.low}, {self.high}]"
+        elif self.kind == "flag":
+            text = "true or false"
+        else:
+            shown = [f'"{c}"' if isinstance(c, str) else str(c) for c in self.choices]
+            shown = [f"{c} ({m})" for c, m in zip(shown, self.meanings)] or shown
+            text = f"{', '.join(shown[:-1])} or {shown[-1]}"
+        return f"{text} ({self.note})" if self.note else text
+
+    def accept(self, value):
+        """`value` as the field holds it (a float for a time or number, an
+        int for a count); BadSetting when it is not of the kind or out of
+        the range."""
+        if value is None and self.optional:
+            return None
+        if self.kind == "flag":
+            if isinstance(value, bool):
+                return value
+        elif isinstance(value, bool):
+            pass  # true is no number, count or choice
+        elif self.kind in ("time", "number"):
+            if isinstance(value, numbers.Real):
+                try:
+                    x = float(value)
+                except (OverflowError, TypeError, ValueError):  # an integer beyond a double
+                    x = math.nan
+                if math.isfinite(x) and x > 0:
+                    return x
+        elif self.kind == "count":
+            if isinstance(value, numbers.Integral) and self.low <= value <= self.high:
+                return int(value)
+        elif isinstance(value, (str, numbers.Integral)):  # a choice: a text with texts, a number with numbers
+            for c in self.choices:
+                if isinstance(c, str) == isinstance(value, str) and c == value:
+                    return c
+        raise BadSetting(self.expected)
+
+
+def setting(default, spec: Setting):
+    """A MasterSettings field: its default and what it may hold."""
+    return field(default=default, metadata={"setting": spec})
+
+
+_TIME = Setting("time", "s")
+_POSITIVE = Setting("number")
+_FLAG = Setting("flag")
 
 
 @dataclass
@@ -27,10 +125,15 @@ class MasterSettings:
     """What a master is asked to do: the communication step, the coupling,
     event location and the engine.
 
-    Every field is also a key of a scene's ``[master]`` table (scenes.md),
-    where times may carry a unit (``step = "5 ms"``); here times are plain
-    numbers in seconds. The values are checked when the settings are made,
-    so that a bad one fails here and not in a long ``run_until``.
+    The one type of the master's settings: a scene holds its ``[master]``
+    table as one (scene.model.Scene.master), and every field is a key of
+    that table (scenes.md), where times may carry a unit (``step = "5
+    ms"``); here times are plain numbers in seconds. What each field may
+    hold is declared once, beside it (`Setting`), and checked once, when
+    the settings are made (``check``), so that a bad one fails here and not
+    in a long ``run_until``; the scene's reading of a key, ``--set``, an SSP
+    annotation and ``clockwork.simulate(master=...)`` check through the same
+    declaration and name where the value came from.
 
     Attributes:
         step: Nominal communication step, s (finite, > 0). ``run_until``
@@ -73,11 +176,9 @@ class MasterSettings:
         min_step: Smallest step the step-size control of ``richardson``
             takes, s (> 0).
         max_step: Largest step the step-size control of ``richardson``
-            proposes, s (> 0); None: no cap (a scene's default is its
-            ``step``).
-        divergence_limit: An output whose magnitude exceeds this (in the
-            output's unit) fails the run as diverged (``SimulationError``
-            naming the instance and variable; > 0).
+            proposes, s (> 0); None: no cap. A scene that does not give it
+            caps at its ``step`` (and a sweep of the step moves the cap
+            with it): the field follows ``step`` there.
         engine: ``"compiled"`` (the C stepping core), ``"python"`` (the
             reference loop) or ``"auto"`` (the core wherever it covers the
             settings and the links' types, else the Python loop with the
@@ -105,12 +206,15 @@ class MasterSettings:
             that do not depend on each other within a step (1 to 256; 1:
             one at a time). The same bits on any number; the Python engine
             uses one and says so. See docs/design.md, "Instances on threads".
+        divergence_limit: An output whose magnitude exceeds this (in the
+            output's unit) fails the run as diverged (``SimulationError``
+            naming the instance and variable; > 0).
 
     Raises:
         SceneError: A value out of its range or of the wrong type, or a
             combination the master cannot run (``richardson`` with
             ``iterations``), in one line naming the key, e.g.
-            ``master.step = 0: expected a finite number > 0``.
+            ``master.step = 0: expected a time > 0``.
 
     Example:
         ```python
@@ -118,54 +222,66 @@ class MasterSettings:
         ```
     """
 
-    step: float = 0.01  # nominal communication step, s
-    order: str = "gauss-seidel"  # or "jacobi"
-    extrapolation: int = 0  # order of the input polynomials: 0, 1, 2
-    event_location: bool = True
+    step: float = setting(0.01, _TIME)  # nominal communication step, s
+    order: str = setting("gauss-seidel", Setting("choice", choices=("gauss-seidel", "jacobi")))
+    extrapolation: int = setting(0, Setting("choice", choices=(0, 1, 2),
+                                            note="order of the input extrapolation polynomial"))
+    event_location: bool = setting(True, _FLAG)
     # Predict an indicator's crossing before the step from its source's
     # output derivatives and land on it without a rollback (location.plan).
-    event_prediction: bool = True
-    event_time_tolerance: float = 1e-10  # s
-    event_indicator_tolerance: float = 1e-12  # in the indicator's unit (rad)
-    iterations: int = 0  # strong coupling: fixed-point iterations per step (0 = off)
-    iteration_tolerance: float = 1e-10
-    richardson: bool = False
-    richardson_tolerance: float = 1e-8
-    min_step: float = 1e-9  # s
-    max_step: float | None = None  # s; None = step
-    divergence_limit: float = 1e8  # |output| beyond this counts as divergence
+    event_prediction: bool = setting(True, _FLAG)
+    event_time_tolerance: float = setting(1e-10, _TIME)  # s
+    # in the indicator's unit (rad for the escapements)
+    event_indicator_tolerance: float = setting(1e-12, Setting("number", "the indicator's"))
+    # strong coupling: fixed-point iterations per step (0 = off)
+    iterations: int = setting(0, Setting("count", low=0, high=INT_MAX, note="0 = no fixed-point iteration"))
+    iteration_tolerance: float = setting(1e-10, Setting("number", "the signals'"))
+    richardson: bool = setting(False, _FLAG)
+    richardson_tolerance: float = setting(1e-8, Setting("number", "1"))
+    min_step: float = setting(1e-9, _TIME)  # s
+    max_step: float | None = setting(None, Setting("time", "s", optional=True, follows="step"))  # s; None: no cap
     # "compiled": the C stepping core (engine/compiled.py); "python": the
     # reference loop in master.py; "auto": compiled where it covers the settings.
-    engine: str = "auto"
+    engine: str = setting("auto", Setting("choice", choices=ENGINES))
     # Relative tolerance passed to every FMU (fmi2SetupExperiment,
     # fmi3EnterInitializationMode); None:
     # each FMU's DefaultExperiment tolerance, where it declares one.
-    tolerance: float | None = None
+    tolerance: float | None = setting(None, Setting("number", "1", noun="a relative tolerance", optional=True,
+                                                    note="given to every FMU's fmi2SetupExperiment"))
     # Which build of the bundled FMUs a model name loads: 2 (fmus/) or 3
     # (fmus/fmi3/); a path to an .fmu file is whatever it is.
-    fmi_version: int = 2
+    fmi_version: int = setting(2, Setting("choice", choices=(2, 3),
+                                          note="which build of the bundled FMUs model names load"))
     # FMI 3.0 instances that declare mightReturnEarlyFromDoStep are allowed
     # to return early at their own events (handled there in event mode);
     # false: they handle them inside fmi3DoStep, as an FMI 2.0 FMU does.
-    early_return: bool = True
+    early_return: bool = setting(True, _FLAG)
     # The integrator of Model Exchange FMUs (ME_SOLVERS).
-    me_solver: str = "auto"
+    me_solver: str = setting("auto", Setting("choice", choices=ME_SOLVERS,
+                                             note="the integrator of Model Exchange FMUs"))
     # Algebraic loops (outputs with direct feedthrough that feed each other):
     # "solve" iterates each loop's inputs to a fixed point wherever outputs
     # are brought up to date, to iteration_tolerance; "delay" breaks it by a
     # one-step delay (the loop's members are read once, after their step).
-    algebraic_loops: str = "solve"
+    algebraic_loops: str = setting("solve", Setting("choice", choices=LOOP_MODES,
+                                                    meanings=("iterate each loop to a fixed point",
+                                                              "break it by one step")))
     # Threads the compiled core steps instances on (instances that do not
     # depend on each other within a step, each on one thread at a time;
     # engine/parallel.py), the same bits as 1. The Python engine steps on
     # one. The FMUs must allow instances on different threads: docs/design.md.
-    threads: int = 1
+    threads: int = setting(1, Setting("count", low=1, high=MAX_THREADS,
+                                      note="threads the compiled core steps independent instances on"))
+    # |output| beyond this (in the output's unit) fails the run as diverged
+    divergence_limit: float = setting(1e8, Setting("number", "the output's"))
 
     def __post_init__(self) -> None:
         self.check()  # a bad setting is refused where it is made, not in an endless run_until
 
     def check(self) -> None:
-        """Refuse values and combinations the master cannot run.
+        """Refuse values and combinations the master cannot run, and hold
+        each value as its field's kind (a float for a time, an int for a
+        count: numpy's numbers become Python's).
 
         Called when the settings are made and again by every master, so a
         field changed afterwards is checked too.
@@ -173,50 +289,34 @@ class MasterSettings:
         Raises:
             SceneError: The first bad value or combination, naming its key.
         """
-        for key in ("step", "event_time_tolerance", "event_indicator_tolerance", "iteration_tolerance",
-                    "richardson_tolerance", "min_step", "divergence_limit"):
-            _positive(key, getattr(self, key))
-        if self.max_step is not None:
-            _positive("max_step", self.max_step)
-        for key in ("extrapolation", "iterations"):
-            v = getattr(self, key)
-            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or not 0 <= v <= _INT_MAX:
-                shown = f"<an integer of {int(v).bit_length()} bits>" if isinstance(v, numbers.Integral) \
-                    and not isinstance(v, bool) and v > _INT_MAX else repr(v)
-                raise SceneError(f"master.{key} = {shown}: expected a whole number from 0 to {_INT_MAX}")
-        for key in ("event_location", "event_prediction", "richardson"):
-            if not isinstance(getattr(self, key), bool):
-                raise SceneError(f"master.{key} = {getattr(self, key)!r}: expected true or false")
-        if self.order not in ("gauss-seidel", "jacobi"):
-            raise SceneError(f"master.order = {self.order!r}: expected 'gauss-seidel' or 'jacobi'")
+        for name, spec in SETTINGS.items():
+            value = getattr(self, name)
+            try:
+                accepted = spec.accept(value)
+            except BadSetting as e:
+                raise SceneError(f"expected {e}", key=f"master.{name} = {_shown(value)}") from None
+            if accepted is not value:
+                setattr(self, name, accepted)
         if self.richardson and self.iterations > 0:
             raise SceneError(f"expected 0 with master.richardson = true, got {self.iterations!r}: "
                              "step doubling does not iterate the coupling", key="master.iterations")
-        if self.engine not in ENGINES:
-            raise SceneError(f"master.engine = {self.engine!r}: expected one of {', '.join(map(repr, ENGINES))}")
-        if self.tolerance is not None and not (isinstance(self.tolerance, (int, float)) and self.tolerance > 0):
-            raise SceneError(f"master.tolerance = {self.tolerance!r}: expected a number > 0")
-        if self.fmi_version not in (2, 3):
-            raise SceneError(f"master.fmi_version = {self.fmi_version!r}: expected 2 or 3")
-        if self.me_solver not in ME_SOLVERS:
-            raise SceneError(f"master.me_solver = {self.me_solver!r}: expected one of "
-                             f"{', '.join(map(repr, ME_SOLVERS))}")
-        if self.algebraic_loops not in LOOP_MODES:
-            raise SceneError(f"master.algebraic_loops = {self.algebraic_loops!r}: expected 'solve' or 'delay'")
-        if (isinstance(self.threads, bool) or not isinstance(self.threads, numbers.Integral)
-                or not 1 <= self.threads <= MAX_THREADS):
-            raise SceneError(f"master.threads = {self.threads!r}: expected a whole number from 1 to {MAX_THREADS}")
-        if self.extrapolation not in (0, 1, 2):
-            raise SceneError(f"master.extrapolation = {self.extrapolation}: expected 0, 1 or 2")
+
+    def as_dict(self) -> dict:
+        """{field: value}, in the order of the fields (a scene's [master] keys)."""
+        return {name: getattr(self, name) for name in SETTINGS}
 
 
-def _positive(key: str, v) -> None:
-    try:
-        ok = not isinstance(v, bool) and isinstance(v, numbers.Real) and math.isfinite(v) and v > 0
-    except OverflowError:  # an integer beyond a double
-        ok = False
-    if not ok:
-        raise SceneError(f"master.{key} = {shorten(repr(v), 60)}: expected a finite number > 0")
+# {field: what it may hold}, in the order of the fields: the keys of a
+# scene's [master] table, of --set master.<key>, of an SSP's annotation.
+SETTINGS: dict[str, Setting] = {f.name: f.metadata["setting"] for f in fields(MasterSettings)}
+DEFAULTS: dict[str, object] = {f.name: f.default for f in fields(MasterSettings)}
+
+
+def _shown(value) -> str:
+    """A refused value, for the line that refuses it."""
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool) and abs(value) > INT_MAX:
+        return f"<an integer of {int(value).bit_length()} bits>"
+    return shorten(repr(value), 60)
 
 
 def check_run(instances: dict, t_now: float, t_stop, look: bool = True) -> float:

@@ -10,12 +10,12 @@ other FMI tools. The format is documented in docs/scenes.md.
 from typing import TYPE_CHECKING
 
 __all__ = ["NO_KINDS", "Invalid", "Kinds", "load_scene", "parse_override", "Component", "Connection",
-           "Experiment", "MasterConfig", "Record", "Scene", "Sweep", "SweepAxis"]
+           "Experiment", "Record", "Scene", "Sweep", "SweepAxis"]
 
 if TYPE_CHECKING:  # what __getattr__ gives, for readers, type checkers and the API docs
     from .kinds import NO_KINDS, Invalid, Kinds
     from .load import load_scene, parse_override
-    from .model import Component, Connection, Experiment, MasterConfig, Record, Scene, Sweep, SweepAxis
+    from .model import Component, Connection, Experiment, Record, Scene, Sweep, SweepAxis
 
 
 def __getattr__(name: str):

@@ -9,7 +9,6 @@ type, unit and range.
 from __future__ import annotations
 
 import difflib
-import math
 import os
 from pathlib import Path
 
@@ -17,7 +16,7 @@ from ..engine.description import (FLOAT32_MAX, INTEGER_TYPES, ArrayElement, int_
                                   var_limit, var_unit)
 from ..engine.description import variables as variables_of
 from ..engine.names import instance_name_problem, split_ref
-from ..engine.settings import ENGINES, LOOP_MODES, MAX_THREADS, ME_SOLVERS
+from ..engine.settings import SETTINGS, BadSetting
 from ..errors import SceneError
 from ..files import NotRegularFile, open_regular
 from ..numbers import shorten
@@ -247,75 +246,17 @@ def _convert_scalar(ctx: Ctx, key: str, value: object, v, md):
 
 
 def master_value(ctx: Ctx, key: str, value: object):
+    """A scene's master.<key> (from the file, --set, a sweep, an SSP
+    annotation, clockwork.simulate) as MasterSettings holds it, checked by
+    the field's declaration (engine.settings.Setting); a time may carry a
+    unit. Refused in one line naming where the value came from."""
     full = f"master.{key}"
-    if key in ("step", "min_step", "max_step", "event_time_tolerance"):
-        x = ctx.time(full, value)
-        if not x > 0:
-            raise ctx.bad(full, value, "a time > 0")
-        return x
-    if key == "order":
-        if value not in ("gauss-seidel", "jacobi"):
-            raise ctx.bad(full, value, '"gauss-seidel" or "jacobi"')
-        return value
-    if key == "algebraic_loops":
-        if value not in LOOP_MODES:
-            raise ctx.bad(full, value, '"solve" (iterate each loop to a fixed point) or "delay" (break it by one step)')
-        return value
-    if key == "engine":
-        if value not in ENGINES:
-            raise ctx.bad(full, value, '"auto", "python" or "compiled"')
-        return value
-    if key == "me_solver":
-        if value not in ME_SOLVERS:
-            raise ctx.bad(full, value, " or ".join(f'"{s}"' for s in ME_SOLVERS)
-                          + " (the integrator of Model Exchange FMUs)")
-        return value
-    if key == "fmi_version":
-        if isinstance(value, bool) or value not in (2, 3) or not isinstance(value, int):
-            raise ctx.bad(full, value, "2 or 3 (which build of the bundled FMUs model names load)")
-        return value
-    if key == "extrapolation":
-        if isinstance(value, bool) or value not in (0, 1, 2) or not isinstance(value, int):
-            raise ctx.bad(full, value, "0, 1 or 2 (order of the input extrapolation polynomial)")
-        return value
-    if key in ("event_location", "event_prediction", "richardson", "early_return"):
-        if not isinstance(value, bool):
-            raise ctx.bad(full, value, "true or false")
-        return value
-    if key == "tolerance":
-        x = _finite_number(value)
-        if x is None or x <= 0:
-            raise ctx.bad(full, value, "a relative tolerance > 0 (given to every FMU's fmi2SetupExperiment)")
-        return x
-    if key == "iterations":
-        if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= INT_MAX:
-            raise ctx.bad(full, value, f"an integer in [0, {INT_MAX}] (0 = no fixed-point iteration)")
-        return value
-    if key == "threads":
-        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_THREADS:
-            raise ctx.bad(full, value, f"a whole number from 1 to {MAX_THREADS} (threads the compiled core steps "
-                                       "independent instances on)")
-        return value
-    # the remaining tolerances are bare positive numbers
-    x = _finite_number(value)
-    if x is None or x <= 0:
-        raise ctx.bad(full, value, "a number > 0")
-    return x
-
-
-INT_MAX = 2**31 - 1  # a C int: what the compiled core holds a count in
-
-
-def _finite_number(value: object) -> float | None:
-    """A TOML number as a finite float, else None (an integer beyond a
-    double, 10**400, is no number a setting can hold: float() overflows)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return None
+    spec = SETTINGS[key]
+    x = ctx.time(full, value) if spec.kind == "time" else value
     try:
-        x = float(value)
-    except OverflowError:
-        return None
-    return x if math.isfinite(x) else None
+        return spec.accept(x)
+    except BadSetting as e:
+        raise ctx.bad(full, value, str(e)) from None
 
 
 def parse_ref(ctx: Ctx, key: str, ref: object, components: dict[str, Component], what: str):

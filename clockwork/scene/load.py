@@ -31,6 +31,9 @@ from ..engine.description import variables as variables_of
 from ..engine.me_step import MAX_RK_STATES
 from ..engine.model_exchange import INTERFACES, interface_of, make_instance, model_exchange_problem
 from ..engine.names import split_link, split_ref
+from ..engine.settings import DEFAULTS as MASTER_DEFAULTS
+from ..engine.settings import SETTINGS as MASTER_SETTINGS
+from ..engine.settings import MasterSettings
 from ..engine.wiring import Link, loop_name
 from ..engine.wiring import build as build_wiring
 from ..errors import SceneError, say
@@ -40,7 +43,7 @@ from .checks import (SETTABLE, STRUCTURAL, TOP_KEYS, Ctx, article, component, co
 from .fmu import read_fmu_scene
 from .inputs import Inputs, read_inputs
 from .kinds import NO_KINDS, Invalid, Kinds
-from .model import (Component, ComponentVariables, Connection, Experiment, MasterConfig, Record, Scene, consistency,
+from .model import (Component, ComponentVariables, Connection, Experiment, Record, Scene, consistency, follow,
                     show)
 from .osp.read import OSP_FILE, OtherXml, read_osp
 from .ssp.read import read_ssp
@@ -49,7 +52,6 @@ from .units import UnitError, fmt, link_conversion, to_seconds
 
 MAX_SCENE_BYTES = 1 << 20  # scene files are a few kB; a larger one is not a scene
 _OVERRIDABLE = ("scene", "experiment", "master", "record", "analysis")
-_MASTER_DEFAULTS = {f.name: f.default for f in dataclasses.fields(MasterConfig)}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -369,7 +371,7 @@ def _ssp_step_hints(ssp, raw: dict, components: dict, labels: dict) -> None:
                     f"components' {term} ({len(hints)}) are not applied")
         return
     master = raw.setdefault("master", {})
-    base = master.get("step", _MASTER_DEFAULTS["step"])
+    base = master.get("step", MASTER_DEFAULTS["step"])
     steps = {inst: hints[inst][0] if inst in hints else base for inst in components}
     first = next(iter(steps))
     odd = next((inst for inst, h in steps.items() if h != steps[first]), None)
@@ -402,7 +404,8 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
 
     # The FMI version picks the build that model names load: known first.
     master_t = ctx.table(raw, "master", "") or {}
-    fmi_version = master_value(ctx, "fmi_version", master_t["fmi_version"]) if "fmi_version" in master_t else 2
+    fmi_version = (master_value(ctx, "fmi_version", master_t["fmi_version"]) if "fmi_version" in master_t
+                   else MASTER_DEFAULTS["fmi_version"])
     if prebuilt is None:
         components, input_params = _components(ctx, ctx.table(raw, "components", "", required=True), fmi_version)
         connections, notes = _connections(ctx, raw.get("connections", []), components, input_params)
@@ -411,7 +414,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
         notes = ()
     loops = _check_wiring(ctx, components, connections)
     experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
-    master, max_step_given = _master(ctx, master_t)
+    master, master_given = _master(ctx, master_t)
     notes = tuple(notes) + tuple(_loop_note(name, links, master.algebraic_loops) for name, links in loops)
     problem = consistency(master, experiment, components) or _fmi3_inputs(master, components, connections)
     if problem:
@@ -456,7 +459,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
         plots=plots,
         overrides=overrides,
         sha256=digest,
-        max_step_given=max_step_given,
+        master_given=master_given,
         notes=notes,
         inputs=inputs,
         origins=dict(ctx.labels),
@@ -559,7 +562,7 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
     return out, input_params
 
 
-def _me_solver_problem(master: MasterConfig, components: dict[str, Component]) -> str | None:
+def _me_solver_problem(master: MasterSettings, components: dict[str, Component]) -> str | None:
     """What the Model Exchange wrapper refuses when it chooses its
     integrator at the start of the run (model_exchange._choose_method),
     said by validate too: more states than the Runge-Kutta pairs take, or
@@ -726,7 +729,7 @@ def _takes_intermediate_update(md, name: str) -> bool:
     return any(v.name == name and v.intermediateUpdate and not v.shape for v in md.modelVariables)  # arrays: no
 
 
-def _fmi3_inputs(m: MasterConfig, components: dict[str, Component], connections) -> tuple[str, str] | None:
+def _fmi3_inputs(m: MasterSettings, components: dict[str, Component], connections) -> tuple[str, str] | None:
     """FMI 3.0 Co-Simulation takes no input derivatives: inputs given as
     polynomials (extrapolation, strong coupling) reach an FMI 3.0 FMU with
     dynamics (an output that does not depend on inputs) only through
@@ -749,14 +752,18 @@ def _fmi3_inputs(m: MasterConfig, components: dict[str, Component], connections)
     return None
 
 
-def _master(ctx: Ctx, t: dict) -> tuple[MasterConfig, bool]:
-    ctx.check_keys(t, _MASTER_DEFAULTS, "master")
-    values = dict(_MASTER_DEFAULTS)
+def _master(ctx: Ctx, t: dict) -> tuple[MasterSettings, frozenset]:
+    """The [master] table as the master's settings (its keys are
+    MasterSettings' fields, each checked by its declaration), and the keys
+    it gave."""
+    ctx.check_keys(t, MASTER_SETTINGS, "master")
+    values = dict(MASTER_DEFAULTS)
     for k, v in t.items():
         values[k] = master_value(ctx, k, v)
-    if "max_step" not in t:
-        values["max_step"] = values["step"]
-    return MasterConfig(**values), "max_step" in t
+    try:
+        return MasterSettings(**follow(values, t)), frozenset(t)
+    except SceneError as e:  # a combination (each value is checked above)
+        raise ctx.fail(e.key or "master", e.detail) from None
 
 
 def _record(ctx: Ctx, t: dict | None, components: dict[str, Component]) -> Record:

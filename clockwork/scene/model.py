@@ -19,7 +19,7 @@ from ..errors import SceneError
 from ..engine import compiled
 from ..engine.description import no_state_reason, variables as variables_of
 from ..engine.model_exchange import interface_of
-from ..engine.settings import MasterSettings, rollback_need
+from ..engine.settings import SETTINGS, MasterSettings, rollback_need
 from .units import fmt
 
 @dataclass(frozen=True)
@@ -100,36 +100,6 @@ class Experiment:
 
 
 @dataclass(frozen=True)
-class MasterConfig:
-    """Field names match clockwork.master.MasterSettings."""
-
-    step: float = 0.01  # s
-    order: str = "gauss-seidel"
-    extrapolation: int = 0
-    event_location: bool = True
-    event_prediction: bool = True  # land on predicted crossings without a rollback
-    event_time_tolerance: float = 1e-10  # s
-    event_indicator_tolerance: float = 1e-12
-    iterations: int = 0
-    iteration_tolerance: float = 1e-10
-    richardson: bool = False
-    richardson_tolerance: float = 1e-8
-    min_step: float = 1e-9  # s
-    max_step: float = 0.01  # s
-    engine: str = "auto"  # "auto", "python" or "compiled"
-    tolerance: float | None = None  # relative, passed to every FMU; None: each FMU's DefaultExperiment's
-    fmi_version: int = 2  # which build of the bundled FMUs model names load: 2 or 3
-    early_return: bool = True  # FMI 3.0 FMUs may return early from fmi3DoStep at their own events
-    me_solver: str = "auto"  # integrator of Model Exchange FMUs: "auto", "dp54", "dop853" or "cvode"
-    algebraic_loops: str = "solve"  # "solve" (fixed point at every communication point) or "delay"
-    threads: int = 1  # the compiled core steps independent instances on this many threads
-    divergence_limit: float = 1e8  # |output| beyond this fails the run as diverged
-
-    def as_dict(self) -> dict:
-        return dataclasses.asdict(self)
-
-
-@dataclass(frozen=True)
 class Record:
     outputs: tuple[tuple[str, str], ...]  # (instance, variable)
     interval: float | None  # s; None = every communication point
@@ -172,19 +142,25 @@ class Scene:
     components: dict[str, Component]  # in file order
     connections: tuple[Connection, ...]
     experiment: Experiment
-    master: MasterConfig
+    master: MasterSettings  # the one type of the master's settings (engine/settings.py)
     record: Record
     analysis: dict | None  # {"kind": ..., converted keys}
     sweep: Sweep | None
     plots: tuple[dict, ...]
     overrides: tuple[str, ...] = ()  # the --set arguments applied
     sha256: str = ""  # of the scene file's bytes
-    max_step_given: bool = field(default=False, repr=False, compare=False)
+    # master fields the scene gave (else they follow another: Setting.follows, max_step the step)
+    master_given: frozenset = field(default=frozenset(), repr=False, compare=False)
     notes: tuple[str, ...] = field(default=(), repr=False, compare=False)  # what `validate` says beside "ok"
     inputs: Any = None  # scene.inputs.Inputs: samples that drive unconnected inputs, or None
     # where a value came from, for refusals after loading: dotted key -> "--set <key>", or (file, key) of
     # another file (an FMU's DefaultExperiment, an SSD's attribute); a key absent here is the scene file's
     origins: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def max_step_given(self) -> bool:
+        """Whether the scene gave master.max_step (else it is the step)."""
+        return "max_step" in self.master_given
 
     def refused_at(self, e: SceneError) -> SceneError:
         """`e` (raised against this scene's file and a dotted key) named by
@@ -213,21 +189,24 @@ class Scene:
         Raises SceneError when the result is inconsistent (stop <= start...).
         """
         comps = dict(self.components)
-        master = dataclasses.asdict(self.master)
+        master = self.master.as_dict()
         exp = dataclasses.asdict(self.experiment)
         for (owner, name), value in values.items():
             if owner == "master":
                 master[name] = value
-                if name == "step" and not self.max_step_given and ("master", "max_step") not in values:
-                    master["max_step"] = value
             elif owner == "experiment":
                 exp[name] = value
             else:
                 c = comps[owner]
                 comps[owner] = dataclasses.replace(c, parameters={**c.parameters, name: value})
-        m = MasterConfig(**master)
+        follow(master, self.master_given | {name for owner, name in values if owner == "master"})
         e = Experiment(**exp)
-        problem = consistency(m, e, comps)
+        try:
+            m = MasterSettings(**master)
+        except SceneError as err:  # a combination of the point's values (each was checked as it was read)
+            m, problem = None, (err.key or "master", err.detail)
+        else:
+            problem = consistency(m, e, comps)
         if problem:
             key, detail = problem
             raise SceneError(detail, self.path, f"{key} (with {_show_point(values)})")
@@ -241,7 +220,17 @@ def _show_point(values: dict) -> str:
 SPAN_RESOLUTION = 1e-12  # a run's end, relative to max(1 s, |stop|): closer to the stop is the stop
 
 
-def consistency(m: MasterConfig, e: Experiment, components: dict[str, Component]) -> tuple[str, str] | None:
+def follow(master: dict, given) -> dict:
+    """`master` ({field: value}) with each field the scene did not give
+    (`given`: names) and that follows another (Setting.follows: max_step the
+    step) set to that one's value; returned."""
+    for name, spec in SETTINGS.items():
+        if spec.follows and name not in given:
+            master[name] = master[spec.follows]
+    return master
+
+
+def consistency(m: MasterSettings, e: Experiment, components: dict[str, Component]) -> tuple[str, str] | None:
     """The first problem of these settings with each other and with the
     components, as (key, what was expected), or None."""
     if not e.stop > e.start:
@@ -251,16 +240,12 @@ def consistency(m: MasterConfig, e: Experiment, components: dict[str, Component]
         return "experiment.stop", (f"expected stop more than {fmt(SPAN_RESOLUTION * max(1.0, abs(e.stop)))} s "
                                    f"after start ({fmt(e.start)} s), got {fmt(e.stop)} s")
     if m.min_step > m.step:
-        if m.min_step == MasterConfig.min_step:  # the default: the step is what was given too small
+        if m.min_step == MasterSettings.min_step:  # the default: the step is what was given too small
             return "master.step", (f"expected a step >= master.min_step ({fmt(m.min_step)} s, its default), got "
                                    f"{fmt(m.step)} s")
         return "master.min_step", f"expected min_step <= step ({fmt(m.step)} s), got {fmt(m.min_step)} s"
-    if m.max_step < m.step:
+    if m.max_step is not None and m.max_step < m.step:
         return "master.max_step", f"expected max_step >= step ({fmt(m.step)} s), got {fmt(m.max_step)} s"
-    try:  # every value and combination the master itself refuses, now rather than at the run
-        MasterSettings(**m.as_dict())
-    except SceneError as e:
-        return e.key or "master", e.detail
     if m.engine == "compiled":
         # Asked for by name: where the core cannot serve, say so before the run.
         reason = compiled.unsupported(m) or compiled.core_problem()
@@ -278,7 +263,7 @@ def consistency(m: MasterConfig, e: Experiment, components: dict[str, Component]
 
 
 
-def rollback_problem(m: MasterConfig, components: dict[str, Component]) -> tuple[str, str] | None:
+def rollback_problem(m: MasterSettings, components: dict[str, Component]) -> tuple[str, str] | None:
     """An FMU that does not declare canGetAndSetFMUstate, where the settings
     roll every FMU back: it would fail at its first rollback."""
     need = rollback_need(m, any(c.event_indicators for c in components.values()))

@@ -7,17 +7,16 @@ reads back to the same double).
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import os
 from pathlib import Path
 
 from ..engine.description import var_unit
-from .model import MasterConfig, Scene
+from ..engine.settings import DEFAULTS as _DEFAULTS
+from .model import Scene
 from .units import link_conversion
 
-_DEFAULTS = {f.name: f.default for f in dataclasses.fields(MasterConfig)}
 
 
 def toml_value(value) -> str:

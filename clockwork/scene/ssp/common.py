@@ -62,3 +62,28 @@ def parse_xml(data: bytes, kind: str = "SSP"):
     if tree.docinfo.doctype or tree.docinfo.internalDTD is not None:
         raise XmlError(f"a DOCTYPE declaration: DTDs and entities are not allowed in {kind} files")
     return root
+
+
+WARNINGS_SHOWN = 3  # warnings of one kind beyond this many are counted, not printed
+
+
+class Warnings:
+    """The warnings of reading one SSP: of each kind (what the lines are
+    about, for the count), the first WARNINGS_SHOWN are kept and the rest
+    counted."""
+
+    def __init__(self):
+        self._warned: dict[str, list[str]] = {}  # kind -> its warnings, in order
+
+    def warn(self, label: str, key: str, text: str, kind: str | None = None) -> None:
+        """A warning line about `key` of the file `label`."""
+        self._warned.setdefault(kind or text, []).append(f"{label}: {key}: {text}")
+
+    def lines(self) -> list[str]:
+        """The warnings as printed: the first of each kind, then a count."""
+        out = []
+        for kind, lines in self._warned.items():
+            out += lines[:WARNINGS_SHOWN]
+            if len(lines) > WARNINGS_SHOWN:
+                out.append(f"... and {len(lines) - WARNINGS_SHOWN:,} more like the last: {kind}")
+        return out
