@@ -1,5 +1,5 @@
 """The `clockwork` command: run, validate, list, info, plot, export-ssp,
-export-scene, gallery, bench, export-suite, compare.
+export-scene, gallery, bench, export-suite, compare, stability.
 
 Bad input of any kind ends with one line `clockwork: error: <message>` on
 stderr and exit code 2; a failed simulation with one line and exit code 1.
@@ -135,6 +135,15 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--out", default="out/bench", metavar="DIR", help="output directory [out/bench]")
     b.add_argument("--no-progress", action="store_true", help="no line per row")
     b.set_defaults(func=cmd_bench)
+    st = sub.add_parser("stability", help="overlapping Allan deviation and time deviation of a clock's ticks "
+                                           "(a scene's run, a run directory, or --data FILE.csv)")
+    st.add_argument("source", nargs="?", default=None, metavar="SCENE|RUN_DIR",
+                    help="a scene to run (its ticks), or the --out directory of a run with ticks.csv")
+    st.add_argument("--data", default=None, metavar="FILE.csv", help="a tick log: one tick time per row")
+    st.add_argument("--out", required=True, metavar="DIR", help="output directory (created if its parent exists)")
+    add_set(st)
+    st.set_defaults(func=cmd_stability)
+
     k = sub.add_parser("export-suite", help="write the regression kit: cases with references for other FMI tools")
     k.add_argument("dir", metavar="DIR", help="output directory (created with its parents)")
     k.add_argument("--only", nargs="+", default=None, metavar="CASE", help="only these cases")
@@ -149,6 +158,18 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--json", default=None, metavar="FILE", help="also write the grade as JSON")
     c.set_defaults(func=cmd_compare)
     return p
+
+
+def cmd_stability(args) -> int:
+    from .run.stability import stability
+
+    summary = stability(args.source, args.data, args.out, args.overrides)
+    s = summary["stability"]
+    c = s["columns"]
+    _say_out(f"stability: {s['ticks']} ticks, mean period {s['mean_period_s']:.9g} s -> {args.out}")
+    for tau, a, t in list(zip(c["tau_s"], c["oadev"], c["tdev_s"]))[:: -(-len(c["tau_s"]) // 6)]:  # <= 6 lines
+        _say_out(f"  tau {tau:10.4g} s  ADEV {a:.3e}  TDEV {t:.3e} s")
+    return 0
 
 
 def cmd_export_suite(args) -> int:
