@@ -138,3 +138,26 @@ def test_hoyng_noisy_clock_gives_a_curve(tmp_path, capsys, monkeypatch):
     c = s["columns"]
     assert len(c["tau_s"]) >= 5 and all(x > 0 for x in c["oadev"])
     assert all(lo < a < hi for lo, a, hi in zip(c["oadev_lo"], c["oadev"], c["oadev_hi"]))
+
+
+@pytest.mark.parametrize("stop, drawn", [(40, True), (10, False)], ids=["enough-ticks", "too-few"])
+def test_a_run_that_asks_for_the_stability_plot(tmp_path, capsys, monkeypatch, stop, drawn):
+    """A scene's run that records ticks and lists [[plot]] kind = "stability"
+    writes stability.csv, summary.json's stability and the plot; with too
+    few ticks, a note instead, and the plot is not drawn."""
+    from cwtest import CLOCK_SCENE
+
+    monkeypatch.setenv("CLOCKWORK_FMU_DIR", str(FMU_DIR))
+    scene = tmp_path / "s.toml"
+    scene.write_text(CLOCK_SCENE.format(stop=stop, sweep='[[plot]]\nkind = "stability"\nfile = "allan.png"\n'))
+    rc, _, err = run_cli(capsys, ["run", scene, "--out", tmp_path / "o", "--no-progress"])
+    assert rc == 0, err
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == sorted(s["files"])
+    if drawn:
+        assert {"stability.csv", "allan.png", "ticks.csv"} <= set(s["files"])
+        assert s["stability"]["ticks"] == s["result"]["ticks"] >= st.MIN_TICKS
+        assert len(s["stability"]["columns"]["oadev"]) >= 2
+    else:
+        assert "stability.csv" not in s["files"] and "allan.png" not in s["files"]
+        assert "fewer than" in s["stability"]["note"]

@@ -254,7 +254,10 @@ class Evaluator:
 
     def steady(self, values: dict) -> dict:
         """The steady_state result at these {(instance, variable): value}."""
-        point = {k: float(v) for k, v in values.items()}
+        # Only what differs from the scene: one set of values is one point
+        # (one label) whichever way it was reached, so the cache's check
+        # that an entry belongs to its point holds across designs.
+        point = {k: float(v) for k, v in values.items() if float(v) != self.base[k[0]][k[1]]}
         key = point_key(self.scene, point)
         if key in self.memory:
             return self.memory[key]
@@ -355,11 +358,17 @@ def _optimise(ev: Evaluator) -> tuple[dict, dict]:
         for v in varies:
             x0 = ev.value(v.parameter, {})
             u0.append(min(max((x0 - v.low) / (v.high - v.low), 0.0), 1.0))
+        # converged when the simplex is 1e-4 of each range across, or its goals agree to 1e-10 of the
+        # scene's goal (a valley of equally good designs: any point on its floor is one)
+        g0 = ev.evaluations[0]["goal"] if ev.evaluations and math.isfinite(ev.evaluations[0]["goal"]) else 1.0
         res = optimize.minimize(f, u0, method="Nelder-Mead", bounds=[(0.0, 1.0)] * len(varies),
-                                options={"xatol": 1e-4, "fatol": 0.0, "maxfev": 400})
+                                options={"xatol": 1e-4, "fatol": 1e-10 * g0, "maxfev": 200 * len(varies)})
         u = [float(x) for x in res.x]
         method = "scipy.optimize.minimize (Nelder-Mead within the bounds)"
-    if not res.success or not math.isfinite(float(res.fun)) or float(res.fun) >= 1e300:
+    if not math.isfinite(float(res.fun)) or float(res.fun) >= 1e300:
+        raise SimulationError(f"the optimiser failed: no design it tried within the bounds has the steady "
+                              f"states the goal needs (the clock stalls) ({res.nfev} evaluations)")
+    if not res.success:
         raise SimulationError(f"the optimiser failed: {shorten(str(getattr(res, 'message', res)), 160)} "
                               f"({res.nfev} evaluations)")
     return x_of(u), {"method": method, "success": bool(res.success), "message": str(getattr(res, "message", "")),
@@ -421,9 +430,10 @@ def _scan(ev: Evaluator, best: dict) -> list[dict]:
         width = 0.1 * (v.high - v.low)
         lo, hi = max(v.low, best[key] - width), min(v.high, best[key] + width)
         xs = [lo + (hi - lo) * i / (SCAN_POINTS - 1) for i in range(SCAN_POINTS)]
-        goals = [ev.evaluate({**best, key: x})["goal"] for x in xs]
-        out.append({"parameter": v.parameter.name, "unit": v.parameter.unit, "values": xs, "goal": goals,
-                    "optimum": best[key]})
+        evals = [ev.evaluate({**best, key: x}) for x in xs]
+        out.append({"parameter": v.parameter.name, "unit": v.parameter.unit, "values": xs,
+                    "goal": [e["goal"] for e in evals], "optimum": best[key],
+                    "sensitivities": {t.label: [e["sensitivities"][k] for e in evals] for k, t in enumerate(ev.terms)}})
     return out
 
 
@@ -463,7 +473,7 @@ def _write(out_dir, scene, ev: Evaluator, varies, terms, goal_text, before, afte
             "steady_state_tolerance_s_per_day": tolerance,
             "optimiser": report,
             "forward_check": forward,
-            "scan": scan,
+            "scan": [{k: v for k, v in s.items()} for s in scan],
             "points": {"run": ev.points_run, "from_cache": ev.points_cached},
         },
     }
@@ -481,7 +491,7 @@ def _write(out_dir, scene, ev: Evaluator, varies, terms, goal_text, before, afte
         write_csv_atomic(out.staging / "design.csv", header, [list(c) for c in zip(*rows)])
         files = ["design.csv"]
         try:
-            _draw(scan, terms, out.staging / "design_goal.png", goal_text)
+            _draw(scene, scan, terms, out.staging / "design_goal.png", goal_text)
             files.append("design_goal.png")
         except Exception as e:  # a plot must not take the numbers with it
             summary["design"]["plot_error"] = f"{type(e).__name__}: {e}"
@@ -491,19 +501,35 @@ def _write(out_dir, scene, ev: Evaluator, varies, terms, goal_text, before, afte
     return summary
 
 
-def _draw(scan: list[dict], terms, path: Path, goal_text: str) -> None:
-    from ..results.plots.registry import quiet_matplotlib, save, subplots
+def _draw(scene, scan: list[dict], terms, path: Path, goal_text: str) -> None:
+    """Top: the goal along each varied parameter through the optimum (log);
+    below: each weighted sensitivity there (signed, linear), whose zeros the
+    optimum balances."""
+    import numpy as np
+
+    from ..results.plots.registry import display, quiet_matplotlib, save, subplots
+
+    def clean(values):
+        return [x if x is not None and math.isfinite(x) else float("nan") for x in values]
 
     with quiet_matplotlib():
-        fig, axes = subplots(1, len(scan), figsize=(5 * len(scan), 3.8), squeeze=False)
-        for ax, s in zip(axes[0], scan):
-            g = [x if x is not None and math.isfinite(x) and x > 0 else float("nan") for x in s["goal"]]
-            ax.plot(s["values"], g, "o-", ms=3)
-            ax.axvline(s["optimum"], color="C3", lw=0.8, label="optimum")
-            ax.set_yscale("log")
-            ax.set_xlabel(f"{s['parameter']} ({s['unit'] or '1'})")
-            ax.set_ylabel("goal")
-            ax.grid(True, which="both", alpha=0.3)
-            ax.legend(fontsize=8)
-        fig.suptitle(shorten(f"goal = sum (w S)^2, {goal_text}", 110), fontsize=9)
+        fig, axes = subplots(2, len(scan), figsize=(max(7, 5 * len(scan)), 6.5), squeeze=False, sharex="col")
+        for k, s in enumerate(scan):
+            xs, label = display(scene, s["parameter"], s["values"])
+            opt = display(scene, s["parameter"], [s["optimum"]])[0][0]
+            top, bottom = axes[0][k], axes[1][k]
+            top.plot(xs, [g if g > 0 else float("nan") for g in clean(s["goal"])], "o-", ms=3)
+            top.set_yscale("log")
+            top.set_ylabel("goal = sum (w S)^2")
+            for t in terms:
+                bottom.plot(xs, t.weight * np.asarray(clean(s["sensitivities"][t.label])), "o-", ms=3,
+                            label=f"{t.weight:g} x {t.label} ({t.unit_label})")
+            bottom.axhline(0.0, color="0.5", lw=0.6)
+            bottom.set_ylabel("weighted sensitivity")
+            bottom.set_xlabel(label)
+            bottom.legend(fontsize=7)
+            for ax in (top, bottom):
+                ax.axvline(opt, color="C3", lw=0.8)
+                ax.grid(True, which="both", alpha=0.3)
+        fig.suptitle(f"{Path(str(scene.path)).name}: the goal near the optimum (red line), the others held", fontsize=9)
         save(fig, path)

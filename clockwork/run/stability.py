@@ -182,22 +182,8 @@ def stability(source: str | None, data: str | None, out_dir, overrides=()) -> di
 
 
 def draw(result: dict, path: Path, origin: str) -> None:
-    from ..results.plots.registry import quiet_matplotlib, save, subplots
+    from ..results.plots.registry import quiet_matplotlib, save
+    from ..results.plots.stability import figure
 
-    c = result["columns"]
     with quiet_matplotlib():
-        fig, (ax1, ax2) = subplots(1, 2, figsize=(10, 4))
-        for ax, key, lo, hi, label in ((ax1, "oadev", "oadev_lo", "oadev_hi", "overlapping Allan deviation"),
-                                       (ax2, "tdev_s", "tdev_lo_s", "tdev_hi_s", "time deviation (s)")):
-            y = [float(v) for v in c[key]]
-            err = [[a - b for a, b in zip(y, c[lo])], [b - a for a, b in zip(y, c[hi])]]
-            ax.errorbar(c["tau_s"], y, yerr=err, fmt="o-", ms=3, capsize=2)
-            ax.set_xscale("log")
-            ax.set_yscale("log")
-            ax.set_xlabel("tau (s)")
-            ax.set_ylabel(label)
-            ax.grid(True, which="both", alpha=0.3)
-        conf = f"{100 * result['confidence']:.3g} %"
-        fig.suptitle(f"{Path(origin).name}: {result['ticks']} ticks, mean period {result['mean_period_s']:.6g} s "
-                     f"(intervals {conf})", fontsize=10)
-        save(fig, path)
+        save(figure(result, origin), path)
