@@ -187,6 +187,9 @@ def cmd_stability(args) -> int:
     _say_out(f"stability: {s['ticks']} ticks, mean period {s['mean_period_s']:.9g} s -> {args.out}")
     for tau, a, t in list(zip(c["tau_s"], c["oadev"], c["tdev_s"]))[:: -(-len(c["tau_s"]) // 6)]:  # <= 6 lines
         _say_out(f"  tau {tau:10.4g} s  ADEV {a:.3e}  TDEV {t:.3e} s")
+    for key in ("plot_note", "plot_error"):
+        if s.get(key):
+            say("note", s[key])
     return 0
 
 

@@ -60,7 +60,7 @@ def _noise_alphas(x: np.ndarray, factors: list[int]) -> list[int]:
         if len(x) // m >= NOISE_ID_SAMPLES:
             try:
                 alpha_int = allantools.autocorr_noise_id(x, af=m, data_type="phase")[0]
-                alpha = int(max(-2, min(2, round(alpha_int))))
+                alpha = int(max(-2, min(2, round(alpha_int)))) if math.isfinite(alpha_int) else None
             except Exception:  # allantools refuses too short a series: the neighbour's type below
                 alpha = None
         found.append(alpha)
@@ -77,6 +77,16 @@ def allan(ticks, confidence: float = CONFIDENCE) -> dict:
     """The stability of a tick log: ``{"columns": {name: [values]}, "units",
     "ticks", "mean_period_s", "confidence", "estimators"}``. `ticks`:
     increasing times, s, at least MIN_TICKS of them (the caller checks)."""
+    import warnings
+
+    with warnings.catch_warnings(), np.errstate(divide="ignore", invalid="ignore"):
+        # a perfect clock (every deviation 0) makes the noise identification
+        # divide 0 by 0: its type is then unknown, not a warning on stderr
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return _allan(ticks, confidence)
+
+
+def _allan(ticks, confidence: float) -> dict:
     import allantools
 
     x, tau0 = time_error(ticks)

@@ -180,7 +180,7 @@ def parse_goal(scene, text: str) -> list[Term]:
             raise SceneError(f"{m.group(0).strip()}: expected one weight per term", None, label)
         weight = float(m.group("w1") or m.group("w2") or 1.0)
         if not (math.isfinite(weight) and weight > 0):
-            raise SceneError(f"{m.group(0).strip()}: expected a weight > 0", None, label)
+            raise SceneError(f"{m.group(0).strip()}: expected a finite weight > 0", None, label)
         param, var, md = _parameter(scene, m.group("par"), f"{label} {m.group(0).strip()}")
         unit = m.group("unit")
         per_unit = 1.0
@@ -396,6 +396,7 @@ def design(scene_spec: str, vary_args: list[str], goal_text: str, out_dir, overr
         raise SceneError(f"{twice} is varied twice", None, "--vary")
     terms = parse_goal(scene, goal_text)
     ev = Evaluator(scene, varies, terms, step, amplitude_deg)
+    _check_steps(ev)
     check_output_dir(out_dir)  # made here, after the input is known good, and before the points run
     with reusing_systems():
         before = ev.evaluate({})
@@ -407,8 +408,29 @@ def design(scene_spec: str, vary_args: list[str], goal_text: str, out_dir, overr
                   tolerance_s_per_day)
 
 
+def _check_steps(ev: Evaluator) -> None:
+    """A relative step needs a parameter that is never 0: its scene value,
+    or, varied, a range on one side of 0 (the solved drive is > 0)."""
+    for t in ev.terms:
+        if t.parameter == ev.drive:
+            continue
+        varied = next((v for v in ev.varies if v.parameter == t.parameter), None)
+        if varied is not None:
+            if varied.low <= 0.0 <= varied.high:
+                raise SceneError(f"{t.parameter.name} is varied over a range that holds 0: a relative step needs "
+                                 "values other than 0", None, f"--goal {t.label}")
+        elif ev.value(t.parameter, {}) == 0.0:
+            raise SceneError(f"{t.parameter.name} is 0 in the scene: a relative step needs a value other than 0 "
+                             f"(--set {t.parameter.name}=...)", None, f"--goal {t.label}")
+
+
 def _forward(ev: Evaluator, values: dict) -> dict:
-    """The steady rate at the drive's torque x 0.9, 1, 1.1 (the escapement's torque)."""
+    """The rate at the drive's torque x 0.9, 1, 1.1 (the escapement's
+    torque), two ways: the steady state by shooting, and a plain forward
+    co-simulation (the ``ticks`` analysis, no shooting) started at the
+    steady orbit's turning point and run for FORWARD_DAMPING_TIMES damping
+    times (Q/pi periods each), the rate from the mean period of its last
+    fifth."""
     esc = find_component(ev.scene, ESCAPEMENTS)
     if esc is None:
         return {}
@@ -416,10 +438,43 @@ def _forward(ev: Evaluator, values: dict) -> dict:
     tau = float(values.get(key, ev.base[esc]["torque"]))
     rows = [ev.steady({**values, key: f * tau}) for f in FORWARD_FACTORS]
     rates = [r.get("E_T_s_per_day") for r in rows]
-    ok = all(x is not None for x in rates)
-    return {"torque_factors": list(FORWARD_FACTORS), "torque_Nm": [f * tau for f in FORWARD_FACTORS],
-            "amplitude_deg": [r.get("amplitude_deg") for r in rows], "E_T_s_per_day": rates,
-            "rate_change_s_per_day_over_pm10_percent": (rates[2] - rates[0]) if ok else None}
+    out = {"torque_factors": list(FORWARD_FACTORS), "torque_Nm": [f * tau for f in FORWARD_FACTORS],
+           "amplitude_deg": [r.get("amplitude_deg") for r in rows], "E_T_s_per_day": rates,
+           "rate_change_s_per_day_over_pm10_percent": _change(rates)}
+    if all(r.get("amplitude_right_deg") is not None for r in rows):
+        timed = [_time_domain(ev, {**values, key: f * tau}, r) for f, r in zip(FORWARD_FACTORS, rows)]
+        out["time_domain"] = {"E_T_s_per_day": [t[0] for t in timed], "periods": timed[0][1],
+                              "rate_change_s_per_day_over_pm10_percent": _change([t[0] for t in timed])}
+    return out
+
+
+FORWARD_DAMPING_TIMES = 8  # the start's offset from the orbit decays by e^-8 before the rate is read
+
+
+def _change(rates: list) -> float | None:
+    return rates[2] - rates[0] if all(x is not None for x in rates) else None
+
+
+def _time_domain(ev: Evaluator, values: dict, steady: dict) -> tuple[float | None, int]:
+    """(E_T in s/day, periods run) of a forward run from the turning point of `steady`."""
+    from ..analyses.context import find_component as component
+    from ..physics import analytic
+
+    pendulum = component(ev.scene, "Pendulum")
+    pp = parameters(ev.scene, {k: v for k, v in values.items()})[pendulum]
+    T0 = 2.0 * math.pi * math.sqrt(pp["L"] / pp["g"])
+    periods = int(min(20000, max(500, math.ceil(FORWARD_DAMPING_TIMES * pp["Q"] / math.pi))))
+    start = ev.scene.experiment.start
+    scene = dataclasses.replace(ev.scene, analysis={"kind": "ticks"},
+                                experiment=dataclasses.replace(ev.scene.experiment, stop=start + periods * T0))
+    point = {**values, (pendulum, "phi_start"): math.radians(steady["amplitude_right_deg"]),
+             (pendulum, "w_start"): 0.0}
+    ticks = run_point(scene, point).get("ticks") or []
+    tail = ticks[-max(2, len(ticks) // 5):]
+    if len(ticks) < 10 or len(tail) < 2:
+        return None, periods
+    mean_period = (tail[-1] - tail[0]) / (len(tail) - 1)
+    return (mean_period / T0 - 1.0) * analytic.SECONDS_PER_DAY, periods
 
 
 def _scan(ev: Evaluator, best: dict) -> list[dict]:

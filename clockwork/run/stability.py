@@ -169,8 +169,10 @@ def stability(source: str | None, data: str | None, out_dir, overrides=()) -> di
         write_csv_atomic(out.staging / "stability.csv", list(cols), [cols[k] for k in cols])
         files = ["stability.csv"]
         try:
-            draw(result, out.staging / "stability.png", origin)
-            files.append("stability.png")
+            if draw(result, out.staging / "stability.png", origin):
+                files.append("stability.png")
+            else:
+                result["plot_note"] = "no plot: every deviation is 0 (nothing to draw on log axes)"
         except Exception as e:  # a plot must not take the numbers with it
             result["plot_error"] = f"{type(e).__name__}: {e}"
         summary = {"tool": {"name": "clockwork", "version": __version__}, "source": origin,
@@ -181,9 +183,14 @@ def stability(source: str | None, data: str | None, out_dir, overrides=()) -> di
     return summary
 
 
-def draw(result: dict, path: Path, origin: str) -> None:
+def draw(result: dict, path: Path, origin: str) -> bool:
+    """The plot into `path`; False when there is nothing to draw."""
     from ..results.plots.registry import quiet_matplotlib, save
     from ..results.plots.stability import figure
 
     with quiet_matplotlib():
-        save(figure(result, origin), path)
+        fig = figure(result, origin)
+        if fig is None:
+            return False
+        save(fig, path)
+    return True

@@ -12,8 +12,11 @@ from .registry import check_keys, register, subplots
 
 
 def figure(result: dict, origin: str):
-    """The figure of an ``analyses.stability.allan`` result."""
+    """The figure of an ``analyses.stability.allan`` result; None when no
+    deviation is above 0 (a perfect clock: nothing to draw on log axes)."""
     c = result["columns"]
+    if not any(v > 0 for v in c["oadev"]) or not any(v > 0 for v in c["tdev_s"]):
+        return None
     fig, (ax1, ax2) = subplots(1, 2, figsize=(10, 4))
     for ax, key, lo, hi, label in ((ax1, "oadev", "oadev_lo", "oadev_hi", "overlapping Allan deviation"),
                                    (ax2, "tdev_s", "tdev_lo_s", "tdev_hi_s", "time deviation (s)")):
@@ -38,6 +41,6 @@ def stability(scene, r, spec):
     if len(ticks) < st.MIN_TICKS:
         return None
     fig = figure(st.allan(ticks), str(scene.path))
-    if spec.get("title"):
+    if fig is not None and spec.get("title"):
         fig.suptitle(spec["title"], fontsize=10)
     return fig
