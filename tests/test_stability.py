@@ -158,6 +158,11 @@ def test_a_run_that_asks_for_the_stability_plot(tmp_path, capsys, monkeypatch, s
         assert {"stability.csv", "allan.png", "ticks.csv"} <= set(s["files"])
         assert s["stability"]["ticks"] == s["result"]["ticks"] >= st.MIN_TICKS
         assert len(s["stability"]["columns"]["oadev"]) >= 2
+        # the run's directory as a source gives the same numbers from its ticks.csv
+        rc, _, err = run_cli(capsys, ["stability", tmp_path / "o", "--out", tmp_path / "o2"])
+        assert rc == 0, err
+        again = json.loads((tmp_path / "o2" / "summary.json").read_text())["stability"]
+        np.testing.assert_allclose(again["columns"]["oadev"], s["stability"]["columns"]["oadev"], rtol=1e-9)
     else:
         assert "stability.csv" not in s["files"] and "allan.png" not in s["files"]
         assert "fewer than" in s["stability"]["note"]

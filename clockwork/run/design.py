@@ -244,6 +244,7 @@ class Evaluator:
                     raise SceneError("the drive is solved for the amplitude: expected --vary of other parameters "
                                      "with --amplitude", None, f"--vary {v.text}")
         self.base = base
+        self.sweep_set_aside = False  # the scene's sweep, if any, is not the operating point
         self.memory: dict[str, dict] = {}
         self.points_run = 0
         self.points_cached = 0
@@ -377,7 +378,7 @@ def _optimise(ev: Evaluator) -> tuple[dict, dict]:
 
 def design(scene_spec: str, vary_args: list[str], goal_text: str, out_dir, overrides=(), amplitude_deg=None,
            step: float = DEFAULT_STEP, tolerance_s_per_day: float = DEFAULT_TOLERANCE_S_PER_DAY) -> dict:
-    from ..results.files import check_output_dir
+    from ..results.outdir import OutputDir
     from .catalog import load_scene
 
     if not vary_args:
@@ -388,7 +389,9 @@ def design(scene_spec: str, vary_args: list[str], goal_text: str, out_dir, overr
         raise UsageError(f"design: --tolerance {tolerance_s_per_day!r}: expected 1e-9 to 1 s/day")
     if amplitude_deg is not None and not (math.isfinite(amplitude_deg) and 0 < amplitude_deg < 150):
         raise UsageError(f"design: --amplitude {amplitude_deg!r}: expected an amplitude in (0, 150) deg")
-    scene = design_scene(load_scene(scene_spec, overrides), tolerance_s_per_day)
+    loaded = load_scene(scene_spec, overrides)
+    scene_sweep_set_aside = loaded.sweep is not None
+    scene = design_scene(loaded, tolerance_s_per_day)
     varies = [parse_vary(scene, v) for v in vary_args]
     names = [v.parameter.name for v in varies]
     twice = next((n for n in names if names.count(n) > 1), None)
@@ -397,15 +400,17 @@ def design(scene_spec: str, vary_args: list[str], goal_text: str, out_dir, overr
     terms = parse_goal(scene, goal_text)
     ev = Evaluator(scene, varies, terms, step, amplitude_deg)
     _check_steps(ev)
-    check_output_dir(out_dir)  # made here, after the input is known good, and before the points run
-    with reusing_systems():
+    ev.sweep_set_aside = scene_sweep_set_aside  # said in summary.json: the operating point is not a sweep's
+    # Opened (made, locked, checked for foreign files) after the input is known
+    # good and before the points run; the result is swapped in whole at the end.
+    with OutputDir(out_dir) as out, reusing_systems():
         before = ev.evaluate({})
         best_x, report = _optimise(ev)
         after = ev.evaluate(best_x)
         forward = {"before": _forward(ev, before["values"]), "after": _forward(ev, after["values"])}
         scan = _scan(ev, best_x)
-    return _write(out_dir, scene, ev, varies, terms, goal_text, before, after, report, forward, scan, step,
-                  tolerance_s_per_day)
+        return _write(out, scene, ev, varies, terms, goal_text, before, after, report, forward, scan, step,
+                      tolerance_s_per_day)
 
 
 def _check_steps(ev: Evaluator) -> None:
@@ -492,10 +497,9 @@ def _scan(ev: Evaluator, best: dict) -> list[dict]:
     return out
 
 
-def _write(out_dir, scene, ev: Evaluator, varies, terms, goal_text, before, after, report, forward, scan, step,
+def _write(out, scene, ev: Evaluator, varies, terms, goal_text, before, after, report, forward, scan, step,
            tolerance) -> dict:
     from ..results.files import write_csv_atomic, write_json_atomic
-    from ..results.outdir import OutputDir
 
     def finite(x):
         return x if isinstance(x, (int, float)) and math.isfinite(x) else None
@@ -522,6 +526,7 @@ def _write(out_dir, scene, ev: Evaluator, varies, terms, goal_text, before, afte
             "operating_point": {
                 "amplitude_deg": ev.amplitude_deg,
                 "held": "the amplitude, by the escapement's torque" if ev.drive else "the scene's values",
+                "scene_sweep_set_aside": ev.sweep_set_aside,
                 "before": {k: before["result"].get(k) for k in ("amplitude_deg", "E_T_s_per_day", "torque_Nm")},
                 "after": {k: after["result"].get(k) for k in ("amplitude_deg", "E_T_s_per_day", "torque_Nm")}},
             "step": {"relative": step, "method": "central differences of steady states (shooting)"},
@@ -542,17 +547,16 @@ def _write(out_dir, scene, ev: Evaluator, varies, terms, goal_text, before, afte
         row += [e["result"].get("amplitude_deg"), e["result"].get("E_T_s_per_day")]
         row += [finite(s) for s in e["sensitivities"]] + [finite(e["goal"])]
         rows.append(row)
-    with OutputDir(out_dir) as out:
-        write_csv_atomic(out.staging / "design.csv", header, [list(c) for c in zip(*rows)])
-        files = ["design.csv"]
-        try:
-            _draw(scene, scan, terms, out.staging / "design_goal.png", goal_text)
-            files.append("design_goal.png")
-        except Exception as e:  # a plot must not take the numbers with it
-            summary["design"]["plot_error"] = f"{type(e).__name__}: {e}"
-        summary["files"] = files + ["summary.json"]
-        write_json_atomic(out.staging / "summary.json", summary)
-        out.commit()
+    write_csv_atomic(out.staging / "design.csv", header, [list(c) for c in zip(*rows)])
+    files = ["design.csv"]
+    try:
+        _draw(scene, scan, terms, out.staging / "design_goal.png", goal_text)
+        files.append("design_goal.png")
+    except Exception as e:  # a plot must not take the numbers with it
+        summary["design"]["plot_error"] = f"{type(e).__name__}: {e}"
+    summary["files"] = files + ["summary.json"]
+    write_json_atomic(out.staging / "summary.json", summary)
+    out.commit()
     return summary
 
 

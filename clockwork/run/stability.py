@@ -32,13 +32,15 @@ from ..scene.units import TIME_UNITS
 
 MAX_LOG_BYTES = 1 << 30  # a billion bytes: tens of millions of ticks
 # Header names of the tick-time column (case-insensitive), with an optional unit: "time [s]", "time_s".
-_TIME_NAMES = ("time", "time_s", "t", "tick_time", "tick_time_s", "tick", "ticks", "timestamp")
+# (Not "tick": clockwork's ticks.csv numbers its ticks in a column of that name.)
+_TIME_NAMES = ("time_s", "time", "tick_time_s", "tick_time", "t", "timestamp")
 _HEADER = re.compile(r"^\s*([^\[\]]*?)\s*(?:\[\s*([^\[\]]*?)\s*\])?\s*$")
 
 
 def read_tick_log(path: str | Path) -> list[float]:
     """Tick times (s) from a CSV file: one row per tick. With a header, the
-    column named time, time_s, t, tick_time(_s) or timestamp (a unit in
+    column named time_s, time, tick_time_s, tick_time, t or timestamp, the
+    first of these there is (a unit in
     brackets: s, ms, us, min, h, d); else the first column. Comma,
     semicolon or tab separated; blank lines and lines starting with # are
     skipped. Every time a finite number, strictly increasing; at least
@@ -62,12 +64,13 @@ def read_tick_log(path: str | Path) -> list[float]:
     column, scale, what = 0, 1.0, "column 1"
     if not _numeric(first[0]):
         names = [_HEADER.match(f) for f in first]
-        found = [(i, m.group(1).lower(), m.group(2)) for i, m in enumerate(names) if m and m.group(1).lower() in _TIME_NAMES]
+        found = sorted(((_TIME_NAMES.index(m.group(1).lower()), i, m.group(2)) for i, m in enumerate(names)
+                        if m and m.group(1).lower() in _TIME_NAMES))  # the first name of the list there is
         if not found:
-            raise SceneError(f"no tick-time column: expected one named {', '.join(_TIME_NAMES[:5])} or timestamp "
+            raise SceneError(f"no tick-time column: expected one named {', '.join(_TIME_NAMES[:-1])} or timestamp "
                              f"(a unit in brackets allowed), or no header; the header has "
                              f"{shorten(', '.join(first), 120)}", path, f"line {rows[0][0]}")
-        column, name, unit = found[0]
+        _, column, unit = found[0]
         what = f"column {first[column]}"
         if unit is not None:
             if unit not in TIME_UNITS:
@@ -119,28 +122,29 @@ def ticks_of_run(directory: Path) -> tuple[list[float], str]:
     return read_tick_log(path), str(path)
 
 
-def ticks_of_scene(spec: str, overrides) -> tuple[list[float], object]:
-    """The ticks of a scene's run with the ``ticks`` analysis (its own analysis
-    set aside; a sweep refused: one run gives one tick log)."""
-    from ..errors import SimulationError
+def scene_for_ticks(spec: str, overrides):
+    """The scene to run for its ticks: the ``ticks`` analysis in place of its
+    own, its plots and its sweep set aside (one run at the scene's values,
+    --set for others, gives one tick log); and whether it had a sweep."""
     from ..analyses.context import find_component
     from .catalog import load_scene
-    from .points import run_point
 
     scene = load_scene(spec, overrides)
-    if scene.sweep is not None:
-        raise SceneError("a scene with a sweep: expected a single run (one tick log); set the swept value with "
-                         "--set and drop the [sweep] table", scene.path, "sweep")
     if scene.record.ticks is None and find_component(scene, "Pendulum") is None:
         raise SceneError("no ticks to record: expected a Pendulum component or record.ticks", scene.path,
                          "record.ticks")
-    scene = dataclasses.replace(scene, analysis={"kind": "ticks"}, plots=())
-    r = run_point(scene, {})
-    ticks = r.get("ticks") or []
+    return dataclasses.replace(scene, analysis={"kind": "ticks"}, plots=(), sweep=None), scene.sweep is not None
+
+
+def ticks_of_scene(scene) -> list[float]:
+    from ..errors import SimulationError
+    from .points import run_point
+
+    ticks = run_point(scene, {}).get("ticks") or []
     if len(ticks) < st.MIN_TICKS:
         raise SimulationError(f"{scene.path}: the run gave {len(ticks)} ticks, fewer than the {st.MIN_TICKS} the "
                               "deviations need: a longer experiment.stop")
-    return [float(t) for t in ticks], scene
+    return [float(t) for t in ticks]
 
 
 def stability(source: str | None, data: str | None, out_dir, overrides=()) -> dict:
@@ -152,7 +156,8 @@ def stability(source: str | None, data: str | None, out_dir, overrides=()) -> di
         raise UsageError("stability: give a run directory or a scene, or --data FILE.csv (one of them)")
     if data is not None and overrides:
         raise UsageError("stability: --set is for a scene; --data reads a tick log")
-    scene = None
+    scene = ticks = None
+    sweep_set_aside = False
     if data is not None:
         ticks, origin = read_tick_log(data), str(data)
     elif Path(source).is_dir():
@@ -160,10 +165,12 @@ def stability(source: str | None, data: str | None, out_dir, overrides=()) -> di
             raise UsageError("stability: --set is for a scene; a run directory holds finished ticks")
         ticks, origin = ticks_of_run(Path(source))
     else:
-        ticks, scene = ticks_of_scene(source, overrides)
+        scene, sweep_set_aside = scene_for_ticks(source, overrides)
         origin = str(scene.path)
-    # bad output directories before the estimators run
+    # opened before a scene runs (a bad output directory is refused first); swapped in whole at the end
     with OutputDir(out_dir) as out:
+        if ticks is None:
+            ticks = ticks_of_scene(scene)
         result = st.allan(ticks)
         cols = result["columns"]
         write_csv_atomic(out.staging / "stability.csv", list(cols), [cols[k] for k in cols])
@@ -177,6 +184,7 @@ def stability(source: str | None, data: str | None, out_dir, overrides=()) -> di
             result["plot_error"] = f"{type(e).__name__}: {e}"
         summary = {"tool": {"name": "clockwork", "version": __version__}, "source": origin,
                    **({"overrides": list(scene.overrides)} if scene is not None and scene.overrides else {}),
+                   **({"scene_sweep_set_aside": True} if sweep_set_aside else {}),
                    "stability": result, "files": files + ["summary.json"]}
         write_json_atomic(out.staging / "summary.json", summary)
         out.commit()
