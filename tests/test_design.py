@@ -125,3 +125,19 @@ def test_an_optimiser_that_fails_is_exit_1_and_writes_nothing(tmp_path, capsys):
                                   "--goal", "d(E_T_s_per_day)/d(escapement.phi_r)", "--out", out])
     assert_one_line_error(rc, err, "optimiser", code=1)
     assert not out.exists() or not any(p for p in out.iterdir() if not p.name.startswith("."))
+
+
+@pytest.mark.slow
+def test_drive_pressure_and_temperature_in_one_goal(tmp_path, capsys):
+    """The three sensitivities the horologist asks about, weighted in one
+    goal, each reported before and after in its unit."""
+    goal = f"{DRIVE} + 100*d(E_T_s_per_day)/d(air.temperature [K]) + 1e3*{PRESSURE}"
+    rc, _, err = run_cli(capsys, ["design", "air_thermal", "--vary", "escapement.phi_r=1deg..5deg", "--amplitude", "7",
+                                  "--goal", goal, "--out", tmp_path / "d"])
+    assert rc == 0, err
+    d = json.loads((tmp_path / "d" / "summary.json").read_text())["design"]
+    assert [s["unit"] for s in d["sensitivities"]] == ["s/day per N.cm", "s/day per K", "s/day per hPa"]
+    assert [s["weight"] for s in d["sensitivities"]] == [1.0, 100.0, 1e3]
+    assert all(isinstance(s[k], float) for s in d["sensitivities"] for k in ("before", "after"))
+    assert d["goal"]["after"] < d["goal"]["before"]
+    assert d["goal"]["after"] == pytest.approx(sum((s["weight"] * s["after"]) ** 2 for s in d["sensitivities"]))
