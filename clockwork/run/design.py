@@ -54,7 +54,9 @@ from .points import point_key, point_label, run_point
 
 # Analyses built on steady states: a design runs their scenes as steady_state points.
 STEADY_KINDS = ("steady_state", "barometric_coefficient", "thermal_coefficient")
-NUMERIC_COLUMNS = sorted(STEADY_COLUMNS - {"stalled", "reason", "shooting_iterations"})
+# The clock's own numbers (not the search's diagnostics: iterations, residual, tolerance, last change).
+NUMERIC_COLUMNS = sorted(STEADY_COLUMNS - {"stalled", "reason", "shooting_iterations", "shooting_residual_rad_per_s",
+                                           "rate_tolerance_s_per_day", "rate_change_s_per_day"})
 DEFAULT_STEP = 1e-2
 DEFAULT_TOLERANCE_S_PER_DAY = 1e-6  # on the steady rate: far below the differences a 1 % step makes
 AMPLITUDE_RTOL = 1e-7
