@@ -1,5 +1,5 @@
 """The `clockwork` command: run, validate, list, info, plot, export-ssp,
-export-scene, gallery, bench, export-suite, compare, fit.
+export-scene, gallery, bench, export-suite, compare, fit, stability, design.
 
 Bad input of any kind ends with one line `clockwork: error: <message>` on
 stderr and exit code 2; a failed simulation with one line and exit code 1.
@@ -136,6 +136,33 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--out", default="out/bench", metavar="DIR", help="output directory [out/bench]")
     b.add_argument("--no-progress", action="store_true", help="no line per row")
     b.set_defaults(func=cmd_bench)
+    st = sub.add_parser("stability", help="overlapping Allan deviation and time deviation of a clock's ticks "
+                                           "(a scene's run, a run directory, or --data FILE.csv)")
+    st.add_argument("source", nargs="?", default=None, metavar="SCENE|RUN_DIR",
+                    help="a scene to run (its ticks), or the --out directory of a run with ticks.csv")
+    st.add_argument("--data", default=None, metavar="FILE.csv", help="a tick log: one tick time per row")
+    st.add_argument("--out", required=True, metavar="DIR", help="output directory (created if its parent exists)")
+    add_set(st)
+    st.set_defaults(func=cmd_stability)
+
+    d = sub.add_parser("design", help="find the parameters within bounds that minimise a goal built from "
+                                      "sensitivities of the steady rate (see docs/horology.md)")
+    d.add_argument("scene", metavar="SCENE.toml")
+    d.add_argument("--vary", action="append", default=[], metavar="NAME=LOW..HIGH",
+                   help="a parameter to vary within its bounds, e.g. escapement.phi_r=1deg..5deg (repeatable)")
+    d.add_argument("--goal", required=True, metavar="GOAL",
+                   help="weighted sensitivities, e.g. 'd(E_T_s_per_day)/d(escapement.torque [N.cm]) + "
+                        "0.5*d(E_T_s_per_day)/d(air.pressure [hPa])'; minimised: sum (weight x sensitivity)^2")
+    d.add_argument("--amplitude", type=float, default=None, metavar="DEG",
+                   help="hold this amplitude: the escapement's torque is solved for it at every design")
+    d.add_argument("--step", type=float, default=None, metavar="REL",
+                   help="relative step of the central differences [1e-2]")
+    d.add_argument("--tolerance", type=float, default=None, metavar="S_PER_DAY",
+                   help="the steady states' rate tolerance [1e-6 s/day]")
+    d.add_argument("--out", required=True, metavar="DIR", help="output directory (created if its parent exists)")
+    add_set(d)
+    d.set_defaults(func=cmd_design)
+
     k = sub.add_parser("export-suite", help="write the regression kit: cases with references for other FMI tools")
     k.add_argument("dir", metavar="DIR", help="output directory (created with its parents)")
     k.add_argument("--only", nargs="+", default=None, metavar="CASE", help="only these cases")
@@ -205,6 +232,37 @@ def cmd_fit(args) -> int:
     if summary.get("plots_failed"):
         p = summary["plots_failed"][0]
         raise SimulationError(f"plot {p['file']} failed: {p['error']} (the fit's numbers are in {out})")
+    return 0
+
+
+def cmd_stability(args) -> int:
+    from .run.stability import stability
+
+    summary = stability(args.source, args.data, args.out, args.overrides)
+    s = summary["stability"]
+    c = s["columns"]
+    _say_out(f"stability: {s['ticks']} ticks, mean period {s['mean_period_s']:.9g} s -> {args.out}")
+    for tau, a, t in list(zip(c["tau_s"], c["oadev"], c["tdev_s"]))[:: -(-len(c["tau_s"]) // 6)]:  # <= 6 lines
+        _say_out(f"  tau {tau:10.4g} s  ADEV {a:.3e}  TDEV {t:.3e} s")
+    for key in ("plot_note", "plot_error"):
+        if s.get(key):
+            say("note", s[key])
+    return 0
+
+
+def cmd_design(args) -> int:
+    from .run import design as dz
+
+    summary = dz.design(args.scene, args.vary, args.goal, args.out, args.overrides, amplitude_deg=args.amplitude,
+                        step=dz.DEFAULT_STEP if args.step is None else args.step,
+                        tolerance_s_per_day=dz.DEFAULT_TOLERANCE_S_PER_DAY if args.tolerance is None
+                        else args.tolerance)
+    d = summary["design"]
+    _say_out(f"design: goal {_short(d['goal']['before'])} -> {_short(d['goal']['after'])} -> {args.out}")
+    for name, p in d["parameters"].items():
+        _say_out(f"  {name} = {p['value']:.6g} {p['unit'] or ''} (was {p['before']:.6g})")
+    for s in d["sensitivities"]:
+        _say_out(f"  {s['term']}: {_short(s['before'])} -> {_short(s['after'])} {s['unit']}")
     return 0
 
 

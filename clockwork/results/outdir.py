@@ -46,7 +46,7 @@ from .files import check_output_dir
 
 SUMMARY = "summary.json"
 # Files a result may hold besides its plots; the plots are named in summary.json.
-RESULT_FILES = ("timeseries.csv", "ticks.csv", "sweep.csv", SUMMARY)
+RESULT_FILES = ("timeseries.csv", "ticks.csv", "sweep.csv", "stability.csv", SUMMARY)
 STAGING = ".staging."
 _JOURNAL = ".journal"
 _OLD = ".old"

@@ -52,6 +52,8 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
             write_csv_atomic(out / "ticks.csv", ["tick", "time_s", "period_s"],
                              [np.arange(1, len(t) + 1, dtype=float), t, periods])
             files.append("ticks.csv")
+            if any(p["kind"] == "stability" for p in scene.plots):
+                files += _stability(t, out, summary)
     else:
         summary["points"] = [{"point": r.get("point"), **({"error": r["error"]} if "error" in r else {}),
                               **({"failed": r["failed"]} if "failed" in r else {}), **r.get("result", {})}
@@ -76,6 +78,22 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
     summary["files"] = files + ["summary.json"]
     summary["wall_time_s"] = time.perf_counter() - t_start
     write_json_atomic(out / "summary.json", clean_json(summary))
+
+
+def _stability(ticks: np.ndarray, out: Path, summary: dict) -> list[str]:
+    """A run whose scene asks for the stability plot: the Allan and time
+    deviations of its ticks as stability.csv and summary.json's
+    ``stability`` (clockwork.analyses.stability), where it has enough ticks."""
+    from ..analyses import stability as st  # allantools: only for the runs that ask
+
+    if len(ticks) < st.MIN_TICKS:
+        summary["stability"] = {"ticks": len(ticks), "note": f"fewer than {st.MIN_TICKS} ticks: no deviations"}
+        return []
+    result = st.allan(ticks)
+    cols = result["columns"]
+    write_csv_atomic(out / "stability.csv", list(cols), [cols[k] for k in cols])
+    summary["stability"] = result
+    return ["stability.csv"]
 
 
 class _Numbers:
