@@ -389,3 +389,26 @@ def test_load_refuses_every_other_kind_of_path():
         with pytest.raises(UsageError) as e:
             clockwork.load(bad)
         assert str(e.value).startswith("load(): path = ") and "\n" not in str(e.value)
+
+
+def test_parquet_columns_of_other_widths_come_back_in_the_variables_types(capsys, tmp_path):
+    """A Parquet writer may keep an Integer as int64 or a Boolean as a number:
+    the series gives each in its FMI type, as from the CSV."""
+    pa = pytest.importorskip("pyarrow")
+    import pyarrow.parquet as pq
+
+    out = _run(capsys, tmp_path, test_fmu("TestTypes"))
+    r = clockwork.load(out)
+    want = r.series
+    info = r.summary["columns"]
+    strip = next(iter(r.summary["fmus"]))
+    table = {}
+    for n in want.dtype.names:
+        full = n if n == "time" else f"{strip}.{n}"
+        col = want[n]
+        kind = info.get(full, {}).get("type")
+        table[full] = col.astype(np.int64) if col.dtype.kind in "iu" else (
+            col.astype(np.float64) if kind == "Boolean" else col)
+    (out / "timeseries.csv").unlink()
+    pq.write_table(pa.table(table), out / "timeseries.parquet")
+    _same(clockwork.load(out).series, want)

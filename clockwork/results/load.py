@@ -594,11 +594,13 @@ def _structured(columns: dict, info: dict, strip: str | None, source: Path) -> n
             continue
         values = np.asarray(values)
         dtype = _DTYPES.get(kind)
-        if dtype is not None and values.dtype.kind == "f":
-            finite = np.isfinite(values).all()
-            cast = values.astype(dtype) if finite else None
-            # integers and booleans come back as they were (CSV and MAT keep them as doubles)
-            if cast is not None and np.array_equal(cast.astype(np.float64), values):
+        if dtype is not None and values.dtype != dtype:
+            # integers and booleans come back as they were (CSV and MAT keep them as doubles,
+            # Parquet as its own width), where every value is exact in the variable's type
+            finite = values.dtype.kind != "f" or bool(np.isfinite(values).all())
+            with np.errstate(all="ignore"):
+                cast = values.astype(dtype) if finite else None
+            if cast is not None and np.array_equal(cast.astype(values.dtype), values):
                 values = cast
         elif dtype is None and values.dtype.kind in "iub":
             values = values.astype(np.float64)
