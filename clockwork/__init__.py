@@ -2,7 +2,7 @@
 
 from .version import __version__
 
-__all__ = ["__version__", "simulate"]
+__all__ = ["__version__", "load", "simulate"]
 
 
 def __getattr__(name: str):
@@ -11,4 +11,8 @@ def __getattr__(name: str):
         from .api import simulate
 
         return simulate
+    if name == "load":
+        from .results.load import load
+
+        return load
     raise AttributeError(f"module 'clockwork' has no attribute {name!r}")

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .analyses.time_series import time_series
-from .arguments import Either, Flag, Instance, Mapping, Optional, Real, Spec, Text, checked, fspath, show
+from .arguments import Choice, Either, Flag, Instance, Mapping, Optional, Real, Spec, Text, checked, fspath, show
 from .arguments import Path as PathSpec
 from .engine.description import element_name
 from .engine.description import variables as variables_of
@@ -189,13 +189,14 @@ _ARGUMENTS = dict(
                            Mapping(Text("a setting's name"), _Value(), "a dict of MasterSettings' fields"),
                            what="a MasterSettings or a dict of its fields")),
     progress=Flag(),
+    output_format=Choice("structured", "pandas"),
 )
 
 
 @checked(**_ARGUMENTS)
 def simulate(filename, start_time=None, stop_time=None, step_size=None, relative_tolerance=None,
              output_interval=None, start_values={}, input=None, output=None, *, master=None,  # noqa: B006 (fmpy's)
-             progress: bool = False, **fmpy_only):
+             progress: bool = False, output_format: str = "structured", **fmpy_only):
     """Simulate an FMU, an SSP/SSD or a scene file; a structured array with
     `time` first and a field per recorded output.
 
@@ -211,8 +212,11 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
     `output` (the variables to record, any iterable of names; None: every
     output; empty: time alone). clockwork's own: `master` (MasterSettings,
     or a dict of its fields: those given apply, a MasterSettings' fields
-    that differ from the defaults) and `progress` (a progress bar). fmpy's
-    other arguments are accepted at their defaults only.
+    that differ from the defaults), `progress` (a progress bar) and
+    `output_format` ("structured": fmpy's structured array, the default;
+    "pandas": a pandas DataFrame with `time` a column, an FMI 3.0 array a
+    column per element). fmpy's other arguments are accepted at their
+    defaults only.
 
     Numbers may be of any real type (int, float, numpy's, fractions); a
     value is checked against its FMU variable's type and range. Raises
@@ -232,6 +236,11 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
         why = _INSTEAD.get(name, "fmpy's option has no counterpart in clockwork")
         raise UsageError(f"simulate({name}={show(value)}): not supported ({why}); leave it out, or give "
                          f"fmpy's default {default!r}")
+    output_format = str.__str__(output_format)  # checked: one of the choices
+    if output_format == "pandas":
+        from .results.load import pandas_module
+
+        pandas_module("simulate(output_format='pandas')")  # missing: said before the run
     filename = fspath(filename)  # checked: a plain str now, __fspath__ asked once
     if isinstance(input, (str, os.PathLike)):
         input = fspath(input)
@@ -307,7 +316,12 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
         result = time_series(scene, {}, progress=progress, times=True)
     except ParametersRefused as e:  # the values given, not the run, are at fault
         raise SceneError(e.message, scene.path, f"start_values ({e.instance})") from None
-    return _structured(scene, result.get("series") or {"time": []}, only, None if output is None else names)
+    out = _structured(scene, result.get("series") or {"time": []}, only, None if output is None else names)
+    if output_format == "pandas":
+        from .results.load import as_pandas
+
+        return as_pandas(out, "simulate(output_format='pandas')")
+    return out
 
 
 def _master_values(master) -> dict:

@@ -94,6 +94,17 @@ class Text(Spec):
         return isinstance(value, str) and (self.empty or bool(value))
 
 
+class Choice(Spec):
+    """One of a few strings (a str subclass by its characters: its own __eq__ is not asked)."""
+
+    def __init__(self, *choices: str):
+        self.choices = choices
+        self.what = " or ".join(map(repr, choices))
+
+    def accepts(self, value) -> bool:
+        return isinstance(value, str) and str.__str__(value) in self.choices
+
+
 class Real(Spec):
     """A real number (int, float or a numpy number; not a bool, not NaN)."""
 

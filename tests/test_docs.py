@@ -43,8 +43,11 @@ def test_site_builds_without_warnings(tmp_path):
     site = tmp_path / "site"
     r = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(site)],
                        cwd=ROOT, capture_output=True, text=True, timeout=600)
-    problems = "\n".join(line for line in r.stderr.splitlines() if not line.startswith("INFO"))
-    assert r.returncode == 0 and "WARNING" not in r.stderr, problems[-4000:]
+    # The notebook's kernel (mkdocs-jupyter executes docs/notebooks/) logs that its
+    # zmq sockets on localhost are not encrypted: a line of ipykernel's, not of the docs.
+    lines = [ln for ln in r.stderr.splitlines() if not ln.startswith("[IPKernelApp] WARNING | Kernel is running over TCP")]
+    problems = "\n".join(line for line in lines if not line.startswith("INFO"))
+    assert r.returncode == 0 and "WARNING" not in "\n".join(lines), problems[-4000:]
     for page in PAGES:
         built = site / ("index.html" if page.stem == "index" else f"{page.stem}/index.html")
         assert built.is_file(), f"{page.name} was not built"

@@ -267,7 +267,7 @@ EARLY_DRIVER = textwrap.dedent("""\
             lines = sys.modules.get("matplotlib.lines")
             lean = lines is not None and lines.Line2D.set.__doc__ is None
             with open(os.environ["WATCH"], "w") as f:
-                json.dump({"asked": asked, "lean": lean}, f)
+                json.dump({"asked": asked, "lean": lean, "fmpy": "fmpy" in sys.modules}, f)
 
     cli._plot_process_body = watched
 
@@ -351,11 +351,34 @@ def test_the_early_plot_process_draws_result_columns_without_the_whole_scene(tmp
     assert code == 0 and err == "", err
     assert forked[0][1:] == [False, "reaped"], forked
     assert (tmp_path / "out" / "a.png").stat().st_size > 1000
-    assert json.loads(asked.read_text()) == {"asked": [], "lean": True}  # matplotlib imported lean there
+    watched = json.loads(asked.read_text())
+    assert watched["asked"] == [] and watched["lean"] is True  # matplotlib imported lean there
     (tmp_path / "axis").mkdir()
     code, _, _, err = _early(tmp_path / "axis", "--workers", "1", watch=asked)
     assert code == 0 and err == "", err
     assert "components" in json.loads(asked.read_text())["asked"]  # the axis's unit: the whole scene, unpickled there
+
+
+def test_the_early_plot_process_draws_a_runs_default_plot_without_fmpy_or_the_scene(tmp_path, capsys):
+    """A single run's default plot (kind outputs: units and types of the
+    recorded columns, the one component's name) gets what it reads of the
+    scene computed by the run (_SceneOnDemand.recorded_view): the plot
+    process draws it without unpickling the scene (fmpy and the engine not needed), its
+    time on the first run's path (benchmarks/bench_first_run.py), and the
+    PNG is the one this process draws to the byte."""
+    asked = tmp_path / "asked.json"
+    code, forked, _, err = _early(tmp_path, scene="", watch=asked)
+    assert code == 0 and err == "", err
+    assert forked[0][1:] == [False, "reaped"], forked
+    # nothing asked of the scene it was sent (fmpy may still come in while it waits: _import_while_waiting)
+    watched = json.loads(asked.read_text())
+    assert watched["asked"] == [] and watched["lean"] is True
+    from cwtest import run_cli
+
+    here = tmp_path / "here"
+    rc, _, err = run_cli(capsys, ["run", tmp_path / "scene.toml", "--out", here, "--no-progress"])
+    assert rc == 0, err
+    assert (tmp_path / "out" / "outputs.png").read_bytes() == (here / "outputs.png").read_bytes()
 
 
 @pytest.mark.parametrize("case", ["no plots", "--no-plot", "bad input", "missing scene", "--help"])

@@ -117,3 +117,35 @@ def test_scheduler_without_dask_is_one_line(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert rc == 2 and err.count("\n") == 1 and "pip install 'clockwork-fmi[dask]'" in err
     assert not (tmp_path / "d").exists()
+
+
+@pytest.mark.slow
+def test_load_and_the_notebook_from_the_wheel(installed):
+    """clockwork.load on a run made by the installed command, from another
+    directory, and the docs' notebook (its code cells as one script: no
+    kernel in that venv) on the installed package."""
+    _, venv, work, env, clockwork = installed
+    clockwork("run", "core_grasshopper", "--out", "grasshopper", "--no-progress")
+    other = work / "other"
+    other.mkdir(exist_ok=True)
+    code = ("import clockwork, sys\n"
+            "r = clockwork.load(sys.argv[1])\n"
+            "assert clockwork.__file__.startswith(sys.prefix), clockwork.__file__\n"
+            "assert r.series.dtype.names[0] == 'time' and len(r.series) > 100\n"
+            "assert [p.name for p in r.plots] == ['phi.png']\n"
+            "assert 'data:image/png;base64,' in r._repr_html_()\n"
+            "r.plot().savefig('quick.png')\n"
+            "print('loaded', len(r.series))\n")
+    p = subprocess.run([str(venv / "bin" / "python"), "-c", code, "../grasshopper"], cwd=other, env=env,
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0 and "loaded" in p.stdout, p.stderr[-3000:]
+    assert (other / "quick.png").is_file()
+    # The notebook needs pandas (simulate's DataFrame): installed into the venv as a user would.
+    r = subprocess.run([str(venv / "bin" / "python"), "-m", "pip", "install", "-q", "pandas"],
+                       capture_output=True, text=True, timeout=1200)
+    assert r.returncode == 0, r.stderr[-3000:]
+    notebook = json.loads((ROOT / "docs" / "notebooks" / "tour.ipynb").read_text())
+    script = "\n\n".join("".join(c["source"]) for c in notebook["cells"] if c["cell_type"] == "code")
+    p = subprocess.run([str(venv / "bin" / "python"), "-c", script], cwd=other, env=env,
+                       capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, (p.stdout[-2000:], p.stderr[-3000:])

@@ -51,6 +51,7 @@ from ..hashing import sha256_file
 from ..numbers import XSD_SPECIAL, parse_real, shorten
 from ..paths import REPO, fmu_dir, in_checkout
 from .description_check import FLOAT32_MAX, INT_RANGES, DescriptionProblem, check_description
+from .fmi_types import INTEGER_TYPES, REAL_TYPES, TEXT_TYPES  # noqa: F401 (named here by every layer)
 
 NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
@@ -759,13 +760,9 @@ def _check_arrays(path: Path | str, md, xml: bytes) -> None:
                            "name of another variable")
 
 
-# The integer types and their ranges (description_check.INT_RANGES).
+# The integer types and their ranges (engine/fmi_types.py, which the plot
+# process imports without this module and fmpy).
 _INT_RANGES = INT_RANGES
-INTEGER_TYPES = (*_INT_RANGES, "Enumeration")
-# Float32 is a Real exchanged through fmi3Get/SetFloat32.
-REAL_TYPES = ("Real", "Float32")
-# Recorded as text: Binary as hexadecimal digits (FMI 3.0).
-TEXT_TYPES = ("String", "Binary")
 
 
 def int_range(var_type: str) -> tuple[int, int] | None:

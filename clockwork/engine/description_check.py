@@ -37,12 +37,10 @@ import math
 from lxml import etree
 
 from ..numbers import XSD_SPECIAL, parse_int, parse_real, shorten
+from .fmi_types import INT_RANGES
 
 # The integer types and their ranges: FMI 1.0/2.0's Integer is a C int, FMI
 # 3.0's sized types keep their own names (and fmi3Get/Set* functions).
-INT_RANGES = {"Integer": (-2**31, 2**31 - 1), "Int32": (-2**31, 2**31 - 1),
-              **{f"Int{b}": (-2**(b - 1), 2**(b - 1) - 1) for b in (8, 16, 64)},
-              **{f"UInt{b}": (0, 2**b - 1) for b in (8, 16, 32, 64)}}
 FLOAT32_MAX = 3.4028234663852886e38
 
 _SCALAR_TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration")  # FMI 1.0 and 2.0

@@ -45,6 +45,7 @@ from pathlib import Path
 from ...atomic import remove_stale_parts
 from ...errors import say
 from ...processes import Child, die_with_parent, fork_child, fork_is_safe
+from .outputs import recorded_view
 from .registry import draw_plot, gather, load_matplotlib, make_plots
 
 
@@ -106,7 +107,7 @@ class _PlotProcess(Plotter):
         super().submit(results, out)
         fd = self._child.take_job_fd()
         try:
-            data = pickle.dumps((_SceneOnDemand(self.scene) if self._early else None, results, str(out)),
+            data = pickle.dumps((_SceneOnDemand(self.scene, results) if self._early else None, results, str(out)),
                                 protocol=pickle.HIGHEST_PROTOCOL)
         except Exception:  # noqa: BLE001 (a scene that does not pickle: drawn here)
             os.close(fd)
@@ -190,8 +191,17 @@ class _SceneOnDemand:
     clockwork's scene classes: unpickling it imports fmpy and the engine,
     which a sweep's plots of result columns do without."""
 
-    def __init__(self, scene):
+    def __init__(self, scene, results: list[dict] | None = None):
         self.plots, self.title, self.overrides = scene.plots, scene.title, scene.overrides
+        # A run's recorded columns as the outputs plot reads them (outputs.recorded_view),
+        # computed here, where the engine is loaded: the plot process then draws
+        # a run's default plot without fmpy, the engine and the whole scene.
+        r = results[0] if results and len(results) == 1 and isinstance(results[0], dict) else None
+        names = [n for n in r["series"] if n != "time"] if r and isinstance(r.get("series"), dict) else None
+        self.recorded_view = None
+        if names is not None and any(p.get("kind") == "outputs" for p in scene.plots):
+            info, strip = recorded_view(scene, names)
+            self.recorded_view = (info, strip, frozenset(names))
         self._pickled: bytes | None = pickle.dumps(scene, protocol=pickle.HIGHEST_PROTOCOL)
         self._scene = None
 

@@ -71,9 +71,21 @@ def column_info(scene, names) -> dict[str, dict]:
     return out
 
 
+def recorded_view(scene, names) -> tuple[dict[str, dict], str | None]:
+    """(column_info of the recorded `names`, the one component's name or
+    None): what the plot of a run's outputs reads of the scene. An early plot
+    process gets it computed by the run (background._SceneOnDemand's
+    ``recorded_view``), which spares it fmpy, the engine and the scene."""
+    given = getattr(scene, "recorded_view", None)
+    if given is not None and all(n in given[2] for n in names):
+        info, strip, _ = given
+        return {n: info[n] for n in names if n in info}, strip
+    strip = next(iter(scene.components)) if len(scene.components) == 1 else None
+    return column_info(scene, names), strip
+
+
 def _kind(info: dict) -> str:
-    # Imported on use: the plot process starts without the engine and fmpy (background).
-    from ...engine.description import INTEGER_TYPES
+    from ...engine.fmi_types import INTEGER_TYPES
 
     if info.get("type") == "Boolean":
         return "boolean"
@@ -87,8 +99,7 @@ def columns(series: dict, info: dict, only=None, strip: str | None = None, patte
     `only`: the names to keep (with `patterns`, shell patterns too, matched
     against the full name and the label); `strip`: an instance prefix left
     out of the labels (a scene of one component)."""
-    # Imported on use: the plot process starts without the engine and fmpy (background).
-    from ...engine.description import TEXT_TYPES
+    from ...engine.fmi_types import TEXT_TYPES
 
     out = []
     for name, values in series.items():
@@ -208,6 +219,6 @@ def outputs(scene, r, spec):
     """Every recorded number (or the recorded columns `y` names), grouped
     by unit: a list of pages."""
     series = r["series"]
-    strip = next(iter(scene.components)) if len(scene.components) == 1 else None
-    cols = columns(series, column_info(scene, [n for n in series if n != "time"]), spec.get("y"), strip)
+    info, strip = recorded_view(scene, [n for n in series if n != "time"])
+    cols = columns(series, info, spec.get("y"), strip)
     return output_pages(series["time"], cols, spec.get("title", scene.title)) if cols else None
