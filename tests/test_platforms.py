@@ -25,6 +25,7 @@ import subprocess
 import sys
 import zipfile
 
+import numpy as np
 import pytest
 
 from cwtest import BUILD_DIR, FMU_DIR, ROOT
@@ -128,9 +129,18 @@ def test_the_dlls_give_the_linux_numbers_but_for_the_c_librarys_last_bits(report
         assert d.max_scaled <= f.rtol, (d.label, d.first, d.max_scaled, d.worst)
 
 
+def test_the_x87_precision_of_the_host_changes_no_bit(report):
+    """mingw-w64's math runs partly on the x87 unit; an MSVC-built importer
+    has it at 53 bits, mingw-w64's start-up code at 64."""
+    for f, a, b in zip(report.fmus, report.wine64.runs, report.wine53.runs):
+        assert np.array_equal(a.points.view(np.uint64), b.points.view(np.uint64)), f.label
+
+
 def test_the_c_library_probe_draws_the_same_arguments_on_both_platforms(report):
     libm = platcheck.libm_differences(report.libm_native, report.libm_wine)
     assert set(libm) == set(platcheck.LIBM_FUNCTIONS)
     assert all(n == platcheck.LIBM_ARGUMENTS for n, _, _ in libm.values())
-    # Both correctly rounded or faithful: a last-bit difference at most.
-    assert all(most <= 1 for _, _, most in libm.values()), libm
+    # mingw-w64's own functions, linked into the DLLs, and glibc's differ in
+    # the last bit at most. j1 is the one the DLLs import (from msvcrt.dll:
+    # wine's here, Microsoft's on Windows), so it is reported, not bounded.
+    assert all(most <= 1 for fn, (_, _, most) in libm.items() if fn != "j1"), libm

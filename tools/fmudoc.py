@@ -122,11 +122,14 @@ def platforms_section(name: str, platforms: list[str], fmi_version: int) -> list
           f"{_e(PLATFORMS.get(p, p))}.</li>" for p in platforms]
     b.append("</ul>")
     if any(p in ext for p in platforms):
-        b.append("<p>Every binary is built from the C sources in <code>sources/</code> with the same "
-                 "compiler options. The Windows binary's numbers are the Linux binary's but for "
-                 "the last bits of the C library's sin, cos, exp, log and pow, which Windows' "
-                 "msvcrt.dll computes with its own rounding; clockwork's tests measure the "
-                 "difference on every communication point of the default experiment.</p>")
+        b.append("<p>Every binary is built from the C sources in <code>sources/</code> by GCC with the "
+                 "same options. The Windows binary carries mingw-w64's sin, cos, exp, log and pow "
+                 "(it takes any other, such as j1, from Windows' msvcrt.dll), the Linux binary "
+                 "calls glibc's; the two round differently in the last bit for "
+                 "about one argument in a thousand, so where a model calls them the binaries can "
+                 "differ by rounding, far below the integrator's tolerance. Otherwise they give the "
+                 "same bits: clockwork's tests compare them at every communication point of the "
+                 "default experiment.</p>")
     build = ("sources/buildDescription.xml lists them" if fmi_version == 3
              else "the modelDescription.xml lists them under SourceFiles")
     b.append(f"<p>Elsewhere, compile the C99 sources in <code>sources/</code> ({build}) into a "

@@ -21,7 +21,7 @@
  *
  * --libm N prints "<function> <x> <f(x)>" (hex bits) for N arguments of
  * each C library function the models and the runtime call (sin, cos, exp,
- * log, pow), drawn by a fixed generator from the ranges they are
+ * log, pow, j1), drawn by a fixed generator from the ranges they are
  * called on: where two platforms' FMUs differ, this shows whether their C
  * libraries do.
  *
@@ -31,6 +31,7 @@
  * program built with MSVC (most FMI tools). --x87-53 sets 53 bits before
  * the runs, as such a host has it; the first line says which is in force. */
 
+#define _DEFAULT_SOURCE /* j1() from <math.h>, as AveragedPendulum */
 #include <math.h>
 #include <stdarg.h>
 #include <stdint.h>
@@ -287,6 +288,8 @@ static int libm_probe(long n) {
         probe("pow0.125", x, pow(x, 0.125));
         x = uniform(&s, 0.5, 2.0); /* temperature ratios */
         probe("pow1.5", x, pow(x, 1.5));
+        x = uniform(&s, 2.0, 40.0); /* the averaged pendulum's Bessel form */
+        probe("j1", x, j1(x));
     }
     return 0;
 }

@@ -29,7 +29,7 @@ import numpy as np
 FOLDERS = {"linux": {2: "linux64", 3: "x86_64-linux"}, "windows": {2: "win64", 3: "x86_64-windows"}}
 SUFFIX = {"linux": ".so", "windows": ".dll"}
 LIBM_ARGUMENTS = 20000  # per function
-LIBM_FUNCTIONS = ("sin", "cos", "exp", "log", "pow0.2", "pow0.125", "pow1.5")  # harness.c's probe
+LIBM_FUNCTIONS = ("sin", "cos", "exp", "log", "pow0.2", "pow0.125", "pow1.5", "j1")  # harness.c's probe
 
 
 @dataclass
