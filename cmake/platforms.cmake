@@ -8,6 +8,9 @@
 #   CW_WINDOWS  ON: Windows DLLs (FMI 2.0 win64, FMI 3.0 x86_64-windows)
 #               with Debian's mingw-w64, an error without it; OFF: none;
 #               AUTO (default): ON where x86_64-w64-mingw32-gcc is found.
+#   CW_AARCH64  the same for Linux on 64-bit Arm (FMI 3.0 aarch64-linux
+#               only: FMI 2.0 names no such platform) with Debian's
+#               gcc-aarch64-linux-gnu.
 #
 # Sets CW_FMI2_PLATFORMS / CW_FMI3_PLATFORMS (the bundled FMUs' binaries
 # folders, the native one first) and, per cross platform P,
@@ -17,6 +20,8 @@ include(ExternalProject)
 
 set(CW_WINDOWS AUTO CACHE STRING "Windows DLLs in the bundled FMUs: ON, OFF or AUTO (ON where mingw-w64 is found)")
 set_property(CACHE CW_WINDOWS PROPERTY STRINGS AUTO ON OFF)
+set(CW_AARCH64 AUTO CACHE STRING "aarch64-linux binaries in the bundled FMI 3.0 FMUs: ON, OFF or AUTO")
+set_property(CACHE CW_AARCH64 PROPERTY STRINGS AUTO ON OFF)
 
 set(CW_FMI2_PLATFORMS linux64)
 set(CW_FMI3_PLATFORMS x86_64-linux)
@@ -58,24 +63,35 @@ function(cw_cross_platform P T F2 EXT)
   endif()
 endfunction()
 
-set(cw_windows OFF)
-if(NOT CW_SANITIZE)  # the sanitizer build checks the Linux binaries only
-  find_program(CW_MINGW_GCC x86_64-w64-mingw32-gcc)
-  if(CW_WINDOWS STREQUAL "AUTO")
-    if(CW_MINGW_GCC)
-      set(cw_windows ON)
-    else()
-      message(STATUS "No x86_64-w64-mingw32-gcc (Debian: mingw-w64): the FMUs get no Windows binaries")
+# Whether to build for a platform: option OPT (AUTO, ON, OFF) and its
+# compiler GCC, Debian's package DEB; the answer in OUT.
+function(cw_want_platform OPT GCC DEB OUT)
+  set(want OFF)
+  if(NOT CW_SANITIZE)  # the sanitizer build checks the Linux binaries only
+    find_program(CW_GCC_${OPT} ${GCC})
+    if(${OPT} STREQUAL "AUTO")
+      if(CW_GCC_${OPT})
+        set(want ON)
+      else()
+        message(STATUS "No ${GCC} (Debian: ${DEB}): ${OPT} is off")
+      endif()
+    elseif(${OPT})
+      if(NOT CW_GCC_${OPT})
+        message(FATAL_ERROR "${OPT}=ON needs ${GCC} (Debian: apt-get install ${DEB})")
+      endif()
+      set(want ON)
     endif()
-  elseif(CW_WINDOWS)
-    if(NOT CW_MINGW_GCC)
-      message(FATAL_ERROR "CW_WINDOWS=ON needs x86_64-w64-mingw32-gcc (Debian: apt-get install mingw-w64)")
-    endif()
-    set(cw_windows ON)
   endif()
-endif()
+  set(${OUT} ${want} PARENT_SCOPE)
+endfunction()
+
+cw_want_platform(CW_WINDOWS x86_64-w64-mingw32-gcc mingw-w64 cw_windows)
 if(cw_windows)
   cw_cross_platform(x86_64-windows mingw-w64-x86_64.cmake win64 .dll)
+endif()
+cw_want_platform(CW_AARCH64 aarch64-linux-gnu-gcc gcc-aarch64-linux-gnu cw_aarch64)
+if(cw_aarch64)
+  cw_cross_platform(aarch64-linux aarch64-linux-gnu.cmake "" .so)
 endif()
 
 # The packaging commands of model M's FMI version V (2 or 3) build in the

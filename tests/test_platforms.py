@@ -1,5 +1,6 @@
-"""The bundled FMUs carry Windows binaries (cmake/platforms.cmake), and
-they compute the Linux binaries' numbers.
+"""The bundled FMUs carry Windows binaries, and the FMI 3.0 ones Linux on
+64-bit Arm binaries (cmake/platforms.cmake), and they compute the Linux
+x86-64 binaries' numbers.
 
 The DLLs are cross-compiled with mingw-w64 from the same sources and run
 under wine by the harness (tools/platcheck/harness.c) built for Windows;
@@ -13,8 +14,13 @@ below the integrator's own error: the test bounds it by the model's rtol
 (the accuracy the model promises), and requires bit-identity of models
 without an integrator tolerance.
 
-Skipped outside CI where mingw-w64 or wine is missing (tools/setup.sh
-installs both as root); in CI a missing one fails.
+The aarch64-linux .so files (FMI 3.0 only: FMI 2.0 names no such platform)
+are cross-compiled with Debian's gcc-aarch64-linux-gnu and run with the
+harness under qemu-user against Debian's arm64 glibc.
+
+Skipped outside CI where mingw-w64, wine, the Arm cross compiler or
+qemu-user is missing (tools/setup.sh installs them as root); in CI a
+missing one fails.
 """
 
 from __future__ import annotations
@@ -66,15 +72,23 @@ def _so_exports(so) -> list[str]:
     return [ln.split()[-1] for ln in out.splitlines() if ln.strip()]
 
 
+@pytest.fixture(scope="module")
+def aarch64_build():
+    _needs("the aarch64-linux build (gcc-aarch64-linux-gnu)", (BUILD_DIR / "aarch64-linux" / "platcheck").exists())
+    return BUILD_DIR / "aarch64-linux"
+
+
 @pytest.mark.parametrize("version", [2, 3])
 def test_every_bundled_fmu_carries_the_windows_dll_beside_the_linux_so(windows_build, version, tmp_path):
     folder = FMU_DIR / "fmi3" if version == 3 else FMU_DIR
+    platforms = ["linux", "windows"]
+    if version == 3 and (BUILD_DIR / "aarch64-linux" / "platcheck").exists():
+        platforms.append("aarch64")
     for model in MODELS:
         names = zipfile.ZipFile(folder / f"{model}.fmu").namelist()
-        linux, windows = (f"binaries/{platcheck.FOLDERS[p][version]}/{model}{platcheck.SUFFIX[p]}"
-                          for p in ("linux", "windows"))
-        assert linux in names and windows in names, (model, version)
-        assert sorted(n for n in names if n.startswith("binaries/") and not n.endswith("/")) == sorted([linux, windows])
+        expected = [f"binaries/{platcheck.FOLDERS[p][version]}/{model}{platcheck.SUFFIX[p]}" for p in platforms]
+        linux, windows = expected[:2]
+        assert sorted(n for n in names if n.startswith("binaries/") and not n.endswith("/")) == sorted(expected)
         z = zipfile.ZipFile(folder / f"{model}.fmu")
         (tmp_path / "m.dll").write_bytes(z.read(windows))
         (tmp_path / "m.so").write_bytes(z.read(linux))
@@ -144,3 +158,28 @@ def test_the_c_library_probe_draws_the_same_arguments_on_both_platforms(report):
     # the last bit at most. j1 is the one the DLLs import (from msvcrt.dll:
     # wine's here, Microsoft's on Windows), so it is reported, not bounded.
     assert all(most <= 1 for fn, (_, _, most) in libm.items() if fn != "j1"), libm
+
+
+@pytest.fixture(scope="module")
+def aarch64_report(aarch64_build, tmp_path_factory):
+    _needs("qemu-user", shutil.which("qemu-aarch64") is not None)
+    return platcheck.check_aarch64(FMU_DIR, BUILD_DIR, tmp_path_factory.mktemp("platcheck-arm"))
+
+
+def test_the_fmi3_fmus_carry_an_aarch64_linux_so(aarch64_build):
+    for model in MODELS:
+        names = zipfile.ZipFile(FMU_DIR / "fmi3" / f"{model}.fmu").namelist()
+        assert f"binaries/aarch64-linux/{model}.so" in names, model
+
+
+def test_the_aarch64_so_gives_the_x86_64_numbers(aarch64_report):
+    """No fused multiply-add on Arm (-ffp-contract=off, cmake/cross.cmake):
+    the same glibc on both, so the same bits but where glibc's functions
+    themselves differ between the two (the probe: j1)."""
+    assert [f.label for f in aarch64_report.fmus] == [f"fmi3/{m}" for m in MODELS]
+    assert [r.end for r in aarch64_report.qemu.runs] == ["ok"] * len(MODELS)
+    libm = platcheck.libm_differences(aarch64_report.libm_native, aarch64_report.libm_qemu)
+    for f, d in zip(aarch64_report.fmus, aarch64_report.differences()):
+        if not d.identical:
+            assert any(differ for _, differ, _ in libm.values()), f"{d.label} differs ({d.first}) though glibc agrees"
+            assert f.rtol is not None and d.max_scaled <= f.rtol, (d.label, d.first, d.max_scaled)

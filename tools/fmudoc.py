@@ -122,14 +122,18 @@ def platforms_section(name: str, platforms: list[str], fmi_version: int) -> list
           f"{_e(PLATFORMS.get(p, p))}.</li>" for p in platforms]
     b.append("</ul>")
     if any(p in ext for p in platforms):
-        b.append("<p>Every binary is built from the C sources in <code>sources/</code> by GCC with the "
-                 "same options. The Windows binary carries mingw-w64's sin, cos, exp, log and pow "
+        b.append("<p>Every binary is built from the C sources in <code>sources/</code> by GCC at the "
+                 "same optimisation level. The Windows binary carries mingw-w64's sin, cos, exp, log and pow "
                  "(it takes any other, such as j1, from Windows' msvcrt.dll), the Linux binary "
                  "calls glibc's; the two round differently in the last bit for "
                  "about one argument in a thousand, so where a model calls them the binaries can "
                  "differ by rounding, far below the integrator's tolerance. Otherwise they give the "
                  "same bits: clockwork's tests compare them at every communication point of the "
                  "default experiment.</p>")
+    if "aarch64-linux" in platforms:
+        b.append("<p>The aarch64-linux binary is compiled without fused multiply-add (x86-64's "
+                 "baseline has none), so that it rounds as the x86-64 binary does; both call "
+                 "glibc.</p>")
     build = ("sources/buildDescription.xml lists them" if fmi_version == 3
              else "the modelDescription.xml lists them under SourceFiles")
     b.append(f"<p>Elsewhere, compile the C99 sources in <code>sources/</code> ({build}) into a "

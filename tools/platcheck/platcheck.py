@@ -1,6 +1,7 @@
 """The bundled FMUs' binaries of two platforms, run by the same harness
 (harness.c, built for each) over each FMU's default experiment, compared
-point by point: the Linux .so natively, the Windows DLL under wine.
+point by point: the Linux .so natively, the Windows DLL under wine, and
+the FMI 3.0 FMUs' aarch64-linux .so under qemu-user where built.
 
     python tools/platcheck/platcheck.py [--fmus DIR] [--build DIR]
 
@@ -26,8 +27,10 @@ from pathlib import Path
 import numpy as np
 
 # binaries/ folder names of each FMI version (FMI 2.0 Sec. 2.3, FMI 3.0 Sec. 2.5.1)
-FOLDERS = {"linux": {2: "linux64", 3: "x86_64-linux"}, "windows": {2: "win64", 3: "x86_64-windows"}}
-SUFFIX = {"linux": ".so", "windows": ".dll"}
+FOLDERS = {"linux": {2: "linux64", 3: "x86_64-linux"}, "windows": {2: "win64", 3: "x86_64-windows"},
+           "aarch64": {3: "aarch64-linux"}}
+SUFFIX = {"linux": ".so", "windows": ".dll", "aarch64": ".so"}
+AARCH64_ROOT = "/usr/aarch64-linux-gnu"  # Debian's libc6-arm64-cross, for qemu-aarch64 -L
 LIBM_ARGUMENTS = 20000  # per function
 LIBM_FUNCTIONS = ("sin", "cos", "exp", "log", "pow0.2", "pow0.125", "pow1.5", "j1")  # harness.c's probe
 
@@ -247,6 +250,38 @@ def check(fmu_dir: Path, build_dir: Path, work: Path) -> Report:
         stop_wineserver(prefix)
 
 
+@dataclass
+class Aarch64Report:
+    fmus: list[Fmu]  # the FMI 3.0 ones
+    native: Output
+    qemu: Output
+    libm_native: Output
+    libm_qemu: Output
+
+    def differences(self) -> list[Difference]:
+        return [compare(f, a, b) for f, a, b in zip(self.fmus, self.native.runs, self.qemu.runs)]
+
+
+def run_qemu(harness: Path, args: list[str], cwd: Path) -> Output:
+    p = subprocess.run(["qemu-aarch64", "-L", AARCH64_ROOT, str(harness), *args], cwd=cwd, capture_output=True,
+                       text=True, timeout=900)
+    if p.returncode not in (0, 1):
+        raise RuntimeError(f"qemu-aarch64 {harness.name} {' '.join(args)}: exit {p.returncode}: {p.stderr[-2000:]}")
+    return parse(p.stdout)
+
+
+def check_aarch64(fmu_dir: Path, build_dir: Path, work: Path) -> Aarch64Report:
+    fmus = [f for f in (describe(p) for p in bundled_fmus(fmu_dir)) if f.version == 3]
+    native_dir, arm_dir = work / "linux3", work / "aarch64"
+    for platform, folder in (("linux", native_dir), ("aarch64", arm_dir)):
+        libs = unpack_binaries(fmus, platform, folder)
+        write_jobs(fmus, [str(folder / lib) for lib in libs], folder / "jobs.txt", "")
+    harness, harness_arm = build_dir / "platcheck", build_dir / "aarch64-linux" / "platcheck"
+    n = str(LIBM_ARGUMENTS)
+    return Aarch64Report(fmus, run_native(harness, ["jobs.txt"], native_dir), run_qemu(harness_arm, ["jobs.txt"], arm_dir),
+                         run_native(harness, ["--libm", n], native_dir), run_qemu(harness_arm, ["--libm", n], arm_dir))
+
+
 def main(argv: list[str] | None = None) -> int:
     root = Path(__file__).resolve().parents[2]
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -255,6 +290,7 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="platcheck-") as tmp:
         r = check(a.fmus, a.build, Path(tmp))
+        arm = check_aarch64(a.fmus, a.build, Path(tmp)) if (a.build / "aarch64-linux" / "platcheck").exists() else None
     for name, wine in (("x87 precision 64", r.wine64), ("x87 precision 53", r.wine53)):
         print(f"Windows DLLs under wine ({name}) against the Linux .so:")
         for d in r.differences(wine):
@@ -266,6 +302,14 @@ def main(argv: list[str] | None = None) -> int:
     print(f"C library, {LIBM_ARGUMENTS} arguments per function (mingw-w64's, in the DLLs, against glibc's):")
     for fn, (n, differ, most) in libm_differences(r.libm_native, r.libm_wine).items():
         print(f"  {fn}: {differ} results differ" + (f", by at most {most} ulps" if differ else ""))
+    if arm:
+        print("aarch64-linux .so under qemu-user against the x86_64-linux .so (FMI 3.0):")
+        for d in arm.differences():
+            print(f"  {d.label}: {d.points} points, " + ("bit-identical" if d.identical else
+                  f"first difference at {d.first}; largest {d.max_scaled:.3g} ({d.worst}), {d.max_ulps} ulps"))
+        print(f"C library, {LIBM_ARGUMENTS} arguments per function (glibc on aarch64 against glibc on x86-64):")
+        for fn, (n, differ, most) in libm_differences(arm.libm_native, arm.libm_qemu).items():
+            print(f"  {fn}: {differ} results differ" + (f", by at most {most} ulps" if differ else ""))
     return 0
 
 
