@@ -13,8 +13,10 @@
 #               gcc-aarch64-linux-gnu.
 #
 # Sets CW_FMI2_PLATFORMS / CW_FMI3_PLATFORMS (the bundled FMUs' binaries
-# folders, the native one first) and, per cross platform P,
-# CW_CROSS_DIR_<P> (its build folder) and CW_CROSS_TARGET_<P>.
+# folders, the native one first, for their documentation), and per cross
+# platform P the target cross_<P>, CW_CROSS_DIR_<P> (its build folder),
+# CW_CROSS_EXT_<P> (.dll, .so) and CW_CROSS_FMI2_<P> (its FMI 2.0 folder,
+# empty for none); cw_cross_packaging() turns them into packaging steps.
 
 include(ExternalProject)
 
