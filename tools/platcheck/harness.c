@@ -10,8 +10,8 @@
  *   platcheck [--x87-53] --libm N
  *
  * JOBS has one line per run, tab-separated:
- *   fmiVersion(2|3)  library  instanceToken  resourceLocation
- *   start  stop  step  tolerance(0: none)  vr,vr,...
+ *   fmiVersion(2|3)  library  instanceToken  resourceLocation(may be empty)
+ *   start  stop  step  tolerance(0: none)  vr,vr,... (at most 256)
  * with the four times and the tolerance as the 16 hex digits of their IEEE
  * 754 bits (no decimal conversion by either platform's C library). For each
  * run it prints "run <n> <library>", one line "<t> <v...>" per communication
@@ -317,14 +317,16 @@ static int parse(char *line, job *j) {
     j->version = atoi(f[0]);
     j->library = f[1];
     j->token = f[2];
-    j->resources = f[3];
+    j->resources = *f[3] ? f[3] : NULL; /* empty: no resources */
     j->start = from_bits(f[4], &ok);
     j->stop = from_bits(f[5], &ok);
     j->step = from_bits(f[6], &ok);
     j->tolerance = from_bits(f[7], &ok);
     j->nvr = 0;
-    for (char *p = f[8]; *p && j->nvr < MAX_VRS;) {
+    for (char *p = f[8]; *p;) {
         char *end;
+        if (j->nvr == MAX_VRS)
+            return 0;
         unsigned long vr = strtoul(p, &end, 10);
         if (end == p)
             return 0;
