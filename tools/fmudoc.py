@@ -101,9 +101,50 @@ def variable_table(variables: list[dict]) -> list[str]:
     return out
 
 
-def generate_html(t: dict, references: dict, fmi_version: int = 2) -> str:
+# What each binaries/ folder name of the standards holds, for the
+# Platforms section (FMI 2.0 Sec. 2.3 and FMI 3.0 Sec. 2.5.1 name them).
+PLATFORMS = {
+    "linux64": "Linux on x86-64 (glibc), built with GCC",
+    "x86_64-linux": "Linux on x86-64 (glibc), built with GCC",
+    "win64": "Windows on x86-64, cross-compiled with mingw-w64; it needs only "
+             "Windows' own KERNEL32.dll and msvcrt.dll",
+    "x86_64-windows": "Windows on x86-64, cross-compiled with mingw-w64; it needs "
+                      "only Windows' own KERNEL32.dll and msvcrt.dll",
+    "aarch64-linux": "Linux on 64-bit Arm (glibc), cross-compiled with GCC",
+}
+
+
+def platforms_section(name: str, platforms: list[str], fmi_version: int) -> list[str]:
+    """Which binaries the archive carries, and what to do elsewhere."""
+    ext = {"win64": "dll", "x86_64-windows": "dll"}
+    b = ["<h2>Platforms</h2>", "<p>Binaries in this archive:</p>", "<ul>"]
+    b += [f"<li><code>binaries/{_e(p)}/{_e(name)}.{ext.get(p, 'so')}</code>: "
+          f"{_e(PLATFORMS.get(p, p))}.</li>" for p in platforms]
+    b.append("</ul>")
+    if any(p in ext for p in platforms):
+        b.append("<p>Every binary is built from the C sources in <code>sources/</code> by GCC at the "
+                 "same optimisation level. The Windows binary carries mingw-w64's sin, cos, exp, log and pow "
+                 "(it takes any other, such as j1, from Windows' msvcrt.dll), the Linux binary "
+                 "calls glibc's; the two round differently in the last bit for "
+                 "about one argument in a thousand, so where a model calls them the binaries can "
+                 "differ by rounding, far below the integrator's tolerance. Otherwise they give the "
+                 "same bits: clockwork's tests compare them at every communication point of the "
+                 "default experiment.</p>")
+    if "aarch64-linux" in platforms:
+        b.append("<p>The aarch64-linux binary is compiled without fused multiply-add (x86-64's "
+                 "baseline has none), so that it rounds as the x86-64 binary does; both call "
+                 "glibc.</p>")
+    build = ("sources/buildDescription.xml lists them" if fmi_version == 3
+             else "the modelDescription.xml lists them under SourceFiles")
+    b.append(f"<p>Elsewhere, compile the C99 sources in <code>sources/</code> ({build}) into a "
+             f"shared library named <code>{_e(name)}</code> with the FMI headers on the include path.</p>")
+    return b
+
+
+def generate_html(t: dict, references: dict, fmi_version: int = 2, platforms: list[str] | None = None) -> str:
     """The page of the FMI 2.0 build, or of the FMI 3.0 build (its API names,
-    Event Mode and the events fmi3DoStep returns early at)."""
+    Event Mode and the events fmi3DoStep returns early at), with the
+    platforms whose binaries the archive carries (default: Linux x86-64)."""
     v3 = fmi_version == 3
     api = "fmi3" if v3 else "fmi2"
     m = t["model"]
@@ -180,6 +221,10 @@ def generate_html(t: dict, references: dict, fmi_version: int = 2) -> str:
         f"{number_text(exp.get('stop', 10.0))} s, step {number_text(exp.get('step', 0.01))} s.</li>",
         "</ul>",
     ]
+
+    if platforms is None:
+        platforms = ["x86_64-linux" if v3 else "linux64"]
+    b += platforms_section(name, platforms, fmi_version)
 
     refs = doc.get("references", [])
     if refs:

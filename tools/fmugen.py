@@ -830,6 +830,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="write no FMI 3.0 files (e.g. a test model whose C code calls FMI 2.0's logger)")
     ap.add_argument("--fmi1", action="store_true",
                     help="also write the FMI 1.0 Co-Simulation build's fmi1/modelDescription.xml (test FMUs)")
+    ap.add_argument("--platforms2", nargs="+", default=["linux64"],
+                    help="the binaries folders of the FMI 2.0 build, for its documentation")
+    ap.add_argument("--platforms3", nargs="+", default=["x86_64-linux"],
+                    help="the binaries folders of the FMI 3.0 build, for its documentation")
     a = ap.parse_args(argv)
     sources3 = a.sources3 if a.sources3 is not None else [
         "cw_fmi3.c" if s == "cw_fmi2.c" else s for s in a.sources]
@@ -838,7 +842,7 @@ def main(argv: list[str] | None = None) -> int:
         files = [
             ("cw_vars.h", generate_header(t)),
             ("modelDescription.xml", generate_xml(t, a.sources)),
-            ("documentation/index.html", fmudoc.generate_html(t, t["_references"])),
+            ("documentation/index.html", fmudoc.generate_html(t, t["_references"], platforms=a.platforms2)),
             ("model.png", fmudoc.generate_png(t.get("documentation", {}).get("icon", "pendulum"))),
         ]
         if not a.fmi2_only:
@@ -846,7 +850,8 @@ def main(argv: list[str] | None = None) -> int:
             files += [
                 ("fmi3/modelDescription.xml", generate_xml3(t3)),
                 ("fmi3/buildDescription.xml", generate_build_description(t3, sources3)),
-                ("fmi3/documentation/index.html", fmudoc.generate_html(t3, t["_references"], fmi_version=3)),
+                ("fmi3/documentation/index.html", fmudoc.generate_html(t3, t["_references"], fmi_version=3,
+                                                                          platforms=a.platforms3)),
             ]
         if a.fmi1:
             files.append(("fmi1/modelDescription.xml", generate_xml1(t)))

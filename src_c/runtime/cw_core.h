@@ -20,7 +20,7 @@ void cw_core_plain_text(char *buf, size_t size, const char *message);
 /* Log through the face and put the instance into Error. */
 fmi2Status cw_core_fail(cw_instance *inst, const char *fmt, ...)
 #if defined(__GNUC__)
-    __attribute__((format(printf, 2, 3)))
+    __attribute__((format(CW_PRINTF_FORMAT, 2, 3)))
 #endif
     ;
 

@@ -15,6 +15,15 @@
 #include <stddef.h>
 #include <stdint.h>
 
+/* The printf dialect the messages are checked against: mingw-w64's own C99
+ * printf in the Windows build (__USE_MINGW_ANSI_STDIO, cmake/cross.cmake),
+ * where plain `printf` would mean msvcrt's, which lacks %zu. */
+#if defined(__MINGW32__) && defined(__USE_MINGW_ANSI_STDIO) && __USE_MINGW_ANSI_STDIO
+#define CW_PRINTF_FORMAT gnu_printf
+#else
+#define CW_PRINTF_FORMAT printf
+#endif
+
 /* The statuses, by FMI 2.0's names: from its header where the fmi2 face
  * includes it first, else declared here with the same values, so that the
  * FMI 3.0 build (its sources too) needs FMI 3.0's headers only. */
@@ -265,7 +274,7 @@ int cw_set_string(cw_instance *inst, unsigned vr, const char *head,
 void cw_log(cw_instance *inst, fmi2Status status, const char *category,
             const char *fmt, ...)
 #if defined(__GNUC__)
-    __attribute__((format(printf, 4, 5)))
+    __attribute__((format(CW_PRINTF_FORMAT, 4, 5)))
 #endif
     ;
 
