@@ -460,6 +460,14 @@ def _unknown_xml(index: dict, v: dict, kinds) -> str:
     )
 
 
+# The runtime (src_c/runtime) computes outputs on every get from the inputs
+# last set, so every FMU it builds declares, in clockwork's annotation, that
+# its outputs may be read after its inputs are set without a step between:
+# what FMI 2.0 (4.2.4) and FMI 3.0's Step Mode do not allow an importer by
+# default (docs/master.md, "The call sequence").
+OUTPUTS_AFTER_INPUTS = '      <Capabilities outputsAfterInputs="true"/>'
+
+
 def generate_xml(t: dict, sources: list[str]) -> str:
     m = t["model"]
     variables = sorted(t["variable"], key=lambda v: v["vr"])
@@ -509,10 +517,12 @@ def generate_xml(t: dict, sources: list[str]) -> str:
         _default_experiment(exp),
     ]
     indicators = [v["name"] for v in variables if v.get("event_indicator")]
+    x += ["  <VendorAnnotations>", '    <Tool name="clockwork">', OUTPUTS_AFTER_INPUTS]
     if indicators:
-        x += ["  <VendorAnnotations>", '    <Tool name="clockwork">', "      <EventIndicators>"]
+        x.append("      <EventIndicators>")
         x += [f"        <Indicator name={quoteattr(n)}/>" for n in indicators]
-        x += ["      </EventIndicators>", "    </Tool>", "  </VendorAnnotations>"]
+        x.append("      </EventIndicators>")
+    x += ["    </Tool>", "  </VendorAnnotations>"]
     x.append("  <ModelVariables>")
     for k, v in enumerate(variables):
         x.append(f"    <!-- index {k + 1} -->")
@@ -672,10 +682,12 @@ def generate_xml3(t: dict) -> str:
             x.append(f'    <InitialUnknown valueReference="{v["vr"]}"/>')
     x.append("  </ModelStructure>")
     indicators = [v["name"] for v in variables if v.get("event_indicator")]
+    x += ["  <Annotations>", '    <Annotation type="clockwork">', OUTPUTS_AFTER_INPUTS]
     if indicators:
-        x += ["  <Annotations>", '    <Annotation type="clockwork">', "      <EventIndicators>"]
+        x.append("      <EventIndicators>")
         x += [f"        <Indicator name={quoteattr(n)}/>" for n in indicators]
-        x += ["      </EventIndicators>", "    </Annotation>", "  </Annotations>"]
+        x.append("      </EventIndicators>")
+    x += ["    </Annotation>", "  </Annotations>"]
     x.append("</fmiModelDescription>")
     return "\n".join(x) + "\n"
 
@@ -747,10 +759,10 @@ def generate_xml1(t: dict) -> str:
              f'stopTime="{_num(exp.get("stop", 10.0))}"'
              + (f' tolerance="{_num(exp["tolerance"])}"' if "tolerance" in exp else "") + "/>")
     indicators = [v["name"] for v in variables if v.get("event_indicator")]
-    if indicators:
-        x += ["  <VendorAnnotations>", '    <Tool name="clockwork">']
-        x += [f'      <Annotation name="eventIndicator" value={quoteattr(n)}/>' for n in indicators]
-        x += ["    </Tool>", "  </VendorAnnotations>"]
+    x += ["  <VendorAnnotations>", '    <Tool name="clockwork">',
+          '      <Annotation name="outputsAfterInputs" value="true"/>']
+    x += [f'      <Annotation name="eventIndicator" value={quoteattr(n)}/>' for n in indicators]
+    x += ["    </Tool>", "  </VendorAnnotations>"]
     x.append("  <ModelVariables>")
     for v in variables:
         attrs = [f"name={quoteattr(v['name'])}", f'valueReference="{v["vr"]}"',
