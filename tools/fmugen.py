@@ -460,12 +460,19 @@ def _unknown_xml(index: dict, v: dict, kinds) -> str:
     )
 
 
-# The runtime (src_c/runtime) computes outputs on every get from the inputs
-# last set, so every FMU it builds declares, in clockwork's annotation, that
-# its outputs may be read after its inputs are set without a step between:
-# what FMI 2.0 (4.2.4) and FMI 3.0's Step Mode do not allow an importer by
-# default (docs/master.md, "The call sequence").
-OUTPUTS_AFTER_INPUTS = '      <Capabilities outputsAfterInputs="true"/>'
+def _capabilities(indicators: list[str]) -> list[str]:
+    """The one element of clockwork's FMI 2.0 Tool (FMI 3.0 Annotation):
+    the schemas allow one. The runtime (src_c/runtime) computes outputs on
+    every get from the inputs last set, so every FMU it builds declares
+    that its outputs may be read after its inputs are set without a step
+    between, what FMI 2.0 (4.2.4) and FMI 3.0's Step Mode do not allow an
+    importer by default (docs/master.md, "The call sequence"); the event
+    indicators, where there are any, are listed inside it."""
+    if not indicators:
+        return ['      <Capabilities outputsAfterInputs="true"/>']
+    return ['      <Capabilities outputsAfterInputs="true">', "        <EventIndicators>",
+            *[f"          <Indicator name={quoteattr(n)}/>" for n in indicators],
+            "        </EventIndicators>", "      </Capabilities>"]
 
 
 def generate_xml(t: dict, sources: list[str]) -> str:
@@ -517,12 +524,8 @@ def generate_xml(t: dict, sources: list[str]) -> str:
         _default_experiment(exp),
     ]
     indicators = [v["name"] for v in variables if v.get("event_indicator")]
-    x += ["  <VendorAnnotations>", '    <Tool name="clockwork">', OUTPUTS_AFTER_INPUTS]
-    if indicators:
-        x.append("      <EventIndicators>")
-        x += [f"        <Indicator name={quoteattr(n)}/>" for n in indicators]
-        x.append("      </EventIndicators>")
-    x += ["    </Tool>", "  </VendorAnnotations>"]
+    x += ["  <VendorAnnotations>", '    <Tool name="clockwork">', *_capabilities(indicators), "    </Tool>",
+          "  </VendorAnnotations>"]
     x.append("  <ModelVariables>")
     for k, v in enumerate(variables):
         x.append(f"    <!-- index {k + 1} -->")
@@ -682,12 +685,8 @@ def generate_xml3(t: dict) -> str:
             x.append(f'    <InitialUnknown valueReference="{v["vr"]}"/>')
     x.append("  </ModelStructure>")
     indicators = [v["name"] for v in variables if v.get("event_indicator")]
-    x += ["  <Annotations>", '    <Annotation type="clockwork">', OUTPUTS_AFTER_INPUTS]
-    if indicators:
-        x.append("      <EventIndicators>")
-        x += [f"        <Indicator name={quoteattr(n)}/>" for n in indicators]
-        x.append("      </EventIndicators>")
-    x += ["    </Annotation>", "  </Annotations>"]
+    x += ["  <Annotations>", '    <Annotation type="clockwork">', *_capabilities(indicators), "    </Annotation>",
+          "  </Annotations>"]
     x.append("</fmiModelDescription>")
     return "\n".join(x) + "\n"
 

@@ -147,7 +147,8 @@ def event_indicator_names(xml: bytes) -> tuple[str, ...]:
     tools = [t for t in root.iterfind("VendorAnnotations/Tool") if t.get("name") == "clockwork"]
     tools += [t for t in root.iterfind("Annotations/Annotation") if t.get("type") == "clockwork"]
     for tool in tools:
-        names += [i.get("name") for i in tool.iterfind("EventIndicators/Indicator") if i.get("name")]
+        # Directly in the Tool, or inside its one element (clockwork's Capabilities: the schemas allow one).
+        names += [i.get("name") for i in tool.iterfind(".//EventIndicators/Indicator") if i.get("name")]
         # FMI 1.0's Tool holds name-value pairs only.
         names += [a.get("value") for a in tool.iterfind("Annotation")
                   if a.get("name") == "eventIndicator" and a.get("value")]
@@ -156,7 +157,8 @@ def event_indicator_names(xml: bytes) -> tuple[str, ...]:
 
 def declares_outputs_after_inputs(xml: bytes) -> bool:
     """Whether a modelDescription.xml says, in the annotation clockwork
-    (``<Capabilities outputsAfterInputs="true"/>``, or FMI 1.0's
+    (``<Capabilities outputsAfterInputs="true"/>``, the Tool's or the
+    Annotation's one element, or FMI 1.0's
     ``<Annotation name="outputsAfterInputs" value="true"/>``), that its
     outputs may be read after its inputs are set without a step between:
     what FMI 2.0 (4.2.4) and FMI 3.0's Step Mode do not allow by default.
@@ -171,7 +173,7 @@ def declares_outputs_after_inputs(xml: bytes) -> bool:
     tools = [t for t in root.iterfind("VendorAnnotations/Tool") if t.get("name") == "clockwork"]
     tools += [t for t in root.iterfind("Annotations/Annotation") if t.get("type") == "clockwork"]
     for tool in tools:
-        if any(c.get("outputsAfterInputs") == "true" for c in tool.iterfind("Capabilities")):
+        if any(c.get("outputsAfterInputs") == "true" for c in tool):
             return True
         if any(a.get("name") == "outputsAfterInputs" and a.get("value") == "true"
                for a in tool.iterfind("Annotation")):
