@@ -200,3 +200,25 @@ outputs = ["osc.x", "ft.y"]
     r = clockwork.simulate(str(scene))
     assert len(r) == 101
     assert list(r["ft.y"]) == [2.0 * x for x in r["osc.x"]]
+
+
+def test_validate_says_how_a_loop_with_the_strict_fmu_is_handled(strict, tmp_path, capsys):
+    scene = tmp_path / "loop.toml"
+    scene.write_text(f'''connections = ["a.y -> b.u", "b.y -> a.u"]
+[scene]
+title = "a loop of two strict FMUs"
+[components.a]
+fmu = "{strict[2]}"
+parameters = {{ gain = 0.5, offset = 1.0 }}
+[components.b]
+fmu = "{strict[3]}"
+parameters = {{ gain = 0.5 }}
+[experiment]
+stop = 1.0
+[master]
+step = 0.125
+''')
+    code, out, _ = run_cli(capsys, ["validate", scene])
+    assert code == 0
+    (note,) = [line for line in out.splitlines() if "algebraic loop" in line]
+    assert "solved in Initialization Mode, then broken by a one-step delay: a, b do not allow" in note
