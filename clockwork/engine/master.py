@@ -10,7 +10,11 @@ A communication step from t to t + h (``advance``):
    in Jacobi order (all see the values at t), their inputs given by the
    coupling (zero-order hold, or polynomials of order 1 or 2);
 3. outputs are updated at t + h in the dependency order of the
-   ModelStructure, which also gives the event indicators z at t + h.
+   ModelStructure, which also gives the event indicators z at t + h;
+   only those of instances that allow a read after a set without a step
+   (``Instance.outputs_after_inputs``; FMI 2.0 4.2.4, FMI 3.0 Step Mode):
+   the others are stepped as dynamic ones and keep what their step gave
+   (engine/wiring.py).
 
 Around it, ``step`` adds what makes the result accurate:
 
