@@ -300,6 +300,21 @@ class Ports(dict):
                 loop.mode = "solve" if on else "delay"
                 loop.starting = False
 
+    def refresh(self, t: float) -> None:
+        """The outputs again after inputs or parameters changed between
+        steps (set and read, in dependency order), where the instance allows
+        a read after a set; the others show the change after their next step."""
+        for x in self.order:
+            if isinstance(x, Loop):
+                if x.mode == "solve":
+                    x.pull(t)
+                else:
+                    for p in x.members:
+                        if getattr(p.inst, "outputs_after_inputs", True):
+                            p.read(t)
+            elif getattr(x.inst, "outputs_after_inputs", True):
+                x.pull(t)
+
     def after_init(self, t: float) -> None:
         """The outputs after Initialization Mode, in dependency order: set
         and read again where the instance allows a read after a set, else
