@@ -137,8 +137,9 @@ def _edited(src, dst, old, new: str, experiment: str | None = None):
         files = {i.filename: z.read(i.filename) for i in z.infolist()}
     xml = files["modelDescription.xml"].decode()
     xml = old.sub(new, xml) if hasattr(old, "sub") else xml.replace(old, new, 1)
-    if experiment is not None:
-        xml = xml.replace("<ModelVariables>", experiment + "<ModelVariables>", 1)
+    if experiment is not None:  # where FMI 2.0 wants it: before the (clockwork) VendorAnnotations
+        anchor = "<VendorAnnotations>" if "<VendorAnnotations>" in xml else "<ModelVariables>"
+        xml = xml.replace(anchor, experiment + anchor, 1)
     files["modelDescription.xml"] = xml.encode()
     with zipfile.ZipFile(dst, "w") as z:
         for name, data in files.items():

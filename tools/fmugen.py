@@ -463,6 +463,21 @@ def _unknown_xml(index: dict, v: dict, kinds) -> str:
     )
 
 
+def _capabilities(indicators: list[str]) -> list[str]:
+    """The one element of clockwork's FMI 2.0 Tool (FMI 3.0 Annotation):
+    the schemas allow one. The runtime (src_c/runtime) computes outputs on
+    every get from the inputs last set, so every FMU it builds declares
+    that its outputs may be read after its inputs are set without a step
+    between, what FMI 2.0 (4.2.4) and FMI 3.0's Step Mode do not allow an
+    importer by default (docs/master.md, "The call sequence"); the event
+    indicators, where there are any, are listed inside it."""
+    if not indicators:
+        return ['      <Capabilities outputsAfterInputs="true"/>']
+    return ['      <Capabilities outputsAfterInputs="true">', "        <EventIndicators>",
+            *[f"          <Indicator name={quoteattr(n)}/>" for n in indicators],
+            "        </EventIndicators>", "      </Capabilities>"]
+
+
 def generate_xml(t: dict, sources: list[str]) -> str:
     m = t["model"]
     variables = sorted(t["variable"], key=lambda v: v["vr"])
@@ -512,10 +527,8 @@ def generate_xml(t: dict, sources: list[str]) -> str:
         _default_experiment(exp),
     ]
     indicators = [v["name"] for v in variables if v.get("event_indicator")]
-    if indicators:
-        x += ["  <VendorAnnotations>", '    <Tool name="clockwork">', "      <EventIndicators>"]
-        x += [f"        <Indicator name={quoteattr(n)}/>" for n in indicators]
-        x += ["      </EventIndicators>", "    </Tool>", "  </VendorAnnotations>"]
+    x += ["  <VendorAnnotations>", '    <Tool name="clockwork">', *_capabilities(indicators), "    </Tool>",
+          "  </VendorAnnotations>"]
     x.append("  <ModelVariables>")
     for k, v in enumerate(variables):
         x.append(f"    <!-- index {k + 1} -->")
@@ -675,10 +688,8 @@ def generate_xml3(t: dict) -> str:
             x.append(f'    <InitialUnknown valueReference="{v["vr"]}"/>')
     x.append("  </ModelStructure>")
     indicators = [v["name"] for v in variables if v.get("event_indicator")]
-    if indicators:
-        x += ["  <Annotations>", '    <Annotation type="clockwork">', "      <EventIndicators>"]
-        x += [f"        <Indicator name={quoteattr(n)}/>" for n in indicators]
-        x += ["      </EventIndicators>", "    </Annotation>", "  </Annotations>"]
+    x += ["  <Annotations>", '    <Annotation type="clockwork">', *_capabilities(indicators), "    </Annotation>",
+          "  </Annotations>"]
     x.append("</fmiModelDescription>")
     return "\n".join(x) + "\n"
 
@@ -750,10 +761,10 @@ def generate_xml1(t: dict) -> str:
              f'stopTime="{_num(exp.get("stop", 10.0))}"'
              + (f' tolerance="{_num(exp["tolerance"])}"' if "tolerance" in exp else "") + "/>")
     indicators = [v["name"] for v in variables if v.get("event_indicator")]
-    if indicators:
-        x += ["  <VendorAnnotations>", '    <Tool name="clockwork">']
-        x += [f'      <Annotation name="eventIndicator" value={quoteattr(n)}/>' for n in indicators]
-        x += ["    </Tool>", "  </VendorAnnotations>"]
+    x += ["  <VendorAnnotations>", '    <Tool name="clockwork">',
+          '      <Annotation name="outputsAfterInputs" value="true"/>']
+    x += [f'      <Annotation name="eventIndicator" value={quoteattr(n)}/>' for n in indicators]
+    x += ["    </Tool>", "  </VendorAnnotations>"]
     x.append("  <ModelVariables>")
     for v in variables:
         attrs = [f"name={quoteattr(v['name'])}", f'valueReference="{v["vr"]}"',

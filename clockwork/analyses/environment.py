@@ -405,7 +405,7 @@ def _cosimulate(clock: Clock, rates: _Rates, air: str, weather: dict, hours: int
         if k > 0:
             system.instances[air].set_values({"pressure": float(p[k]), "temperature": float(T[k])})
             system.instances[pend].set_values({"temperature": float(T[k])})
-            m.ports.propagate(m.ports.order, m.t)
+            m.ports.refresh(m.t)
             m.discontinuity()
         m.run_until(t0 + (k + 1) * 3600.0)
     ticks = system.instances[pend].get_integer(["tick_count"])[0]

@@ -123,7 +123,8 @@ class _Loops(_Strict):
 class _Inputs(_Strict):
     """The sample table and the Real inputs it drives (engine/samples.py)."""
 
-    _fields_ = _fields(["times", "values", "continuous", "events", "port_start", "vr", "signal", "value"],
+    _fields_ = _fields(["times", "values", "continuous", "events", "port_start", "vr", "signal", "value",
+                        "after_step"],
                        [], [], ["n_times", "n_signals", "n_events", "pad_"])
 
 
@@ -491,6 +492,8 @@ class CompiledMaster(Master):
                     events=ref(_array(c_double, samples.events)), port_start=ref(_array(c_int, starts)),
                     vr=ref(_array(c_uint, vrs)), signal=ref(_array(c_int, signals)),
                     value=ref(_array(c_double, [], len(vrs))),
+                    after_step=ref(_array(c_int, (int(getattr(p.inst, "outputs_after_inputs", True))
+                                                  for p in self.ports.all))),
                     n_times=n, n_signals=len(samples.signals), n_events=len(samples.events))
         return ref(c)
 

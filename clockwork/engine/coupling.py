@@ -48,10 +48,10 @@ class InputCoupling:
                 self.note(f"{p.inst.name} cannot interpolate its inputs (canInterpolateInputs is false): "
                           f"zero-order hold for it instead of master.extrapolation = {extrapolation}")
 
-    def note(self, text: str) -> None:
+    def note(self, text: str, kind: str = "warning") -> None:
         if text not in self.notes:
             self.notes.append(text)
-            say("warning", text)
+            say(kind, text)
 
     def find_derivative_sources(self) -> None:
         """For each dynamic input: a source offering output derivatives, if any

@@ -148,11 +148,49 @@ def event_indicator_names(xml: bytes) -> tuple[str, ...]:
     tools = [t for t in root.iterfind("VendorAnnotations/Tool") if t.get("name") == "clockwork"]
     tools += [t for t in root.iterfind("Annotations/Annotation") if t.get("type") == "clockwork"]
     for tool in tools:
-        names += [i.get("name") for i in tool.iterfind("EventIndicators/Indicator") if i.get("name")]
+        # Directly in the Tool, or inside its one element (clockwork's Capabilities: the schemas allow one).
+        names += [i.get("name") for i in tool.iterfind(".//EventIndicators/Indicator") if i.get("name")]
         # FMI 1.0's Tool holds name-value pairs only.
         names += [a.get("value") for a in tool.iterfind("Annotation")
                   if a.get("name") == "eventIndicator" and a.get("value")]
     return tuple(names)
+
+
+def declares_outputs_after_inputs(xml: bytes) -> bool:
+    """Whether a modelDescription.xml says, in the annotation clockwork
+    (``<Capabilities outputsAfterInputs="true"/>``, the Tool's or the
+    Annotation's one element, or FMI 1.0's
+    ``<Annotation name="outputsAfterInputs" value="true"/>``), that its
+    outputs may be read after its inputs are set without a step between:
+    what FMI 2.0 (4.2.4) and FMI 3.0's Step Mode do not allow by default.
+    The project's own FMUs declare it (their runtime computes outputs on
+    every get); an FMU without it never sees such a get (docs/master.md)."""
+    if b"outputsAfterInputs" not in xml:
+        return False
+    try:
+        root = ET.fromstring(xml)
+    except ET.ParseError:
+        return False
+    tools = [t for t in root.iterfind("VendorAnnotations/Tool") if t.get("name") == "clockwork"]
+    tools += [t for t in root.iterfind("Annotations/Annotation") if t.get("type") == "clockwork"]
+    for tool in tools:
+        if any(c.get("outputsAfterInputs") == "true" for c in tool):
+            return True
+        if any(a.get("name") == "outputsAfterInputs" and a.get("value") == "true"
+               for a in tool.iterfind("Annotation")):
+            return True
+    return False
+
+
+def outputs_after_inputs(path: Path) -> bool:
+    """Whether the FMU at `path` declares outputs after inputs
+    (declares_outputs_after_inputs; read once with its description: fmpy's
+    ModelDescription has no place for it)."""
+    read_fmu(path, need_binary=False)
+    path = resolved(path)
+    st = path.stat()
+    hit = _MD_CACHE.get((str(path), st.st_mtime_ns, st.st_size))
+    return bool(hit and hit[5])
 
 
 _MD_CACHE: dict[tuple, tuple] = {}
@@ -286,10 +324,10 @@ def read_fmu(path: Path, need_binary: bool = True,
         folder = fmpy.platform_tuple if md.fmiVersion == "3.0" else fmpy.platform
         binary = f"binaries/{folder}/{ident}{fmpy.sharedLibraryExtension}"
         problem = binary_problem(heads[binary]) if binary in heads else _missing_binary(binary, ident, names)
-        hit = (md, digest, indicators, problem, binary)
+        hit = (md, digest, indicators, problem, binary, declares_outputs_after_inputs(xml))
         _MD_CACHE.clear() if len(_MD_CACHE) > 256 else None
         _MD_CACHE[key] = hit
-    md, digest, indicators, problem, binary = hit
+    md, digest, indicators, problem, binary, _ = hit
     if md.fmiVersion not in versions:
         raise FmuError(f"{shown}: expected an FMI {' or '.join(versions)} FMU, found FMI {md.fmiVersion}")
     if need_binary and problem is not None and problem.startswith("missing"):

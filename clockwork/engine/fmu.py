@@ -34,8 +34,8 @@ from ..files import open_regular, read_regular
 from ..hashing import sha256_file
 from ..numbers import parse_json
 from ..paths import cache_root, core_library, scratch_dir
-from .description import (check_archive, default_tolerance, default_tolerance_problem, read_fmu, resolved,
-                          var_unit)
+from .description import (check_archive, default_tolerance, default_tolerance_problem, outputs_after_inputs,
+                          read_fmu, resolved, var_unit)
 
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
 STATUS_NAMES = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
@@ -439,11 +439,19 @@ class Instance:
         self.model_name = self.md.modelName
         self.variables = instance_variables(self.md)
         self._read_capabilities()
+        self.outputs_after_inputs = self._outputs_after_inputs()
         self.default_tolerance = default_tolerance(self.md)
         self.event_indicators = list(described[2])
         self.messages: list[tuple[int, str]] = []
         self._slave = None
         self._state = c_void_p()
+
+    def _outputs_after_inputs(self) -> bool:
+        """Whether the master may read outputs after setting inputs with no
+        step between (engine/wiring.py): FMI 2.0 (4.2.4) and FMI 3.0's Step
+        Mode forbid it unless the description says so in clockwork's
+        annotation (description.declares_outputs_after_inputs)."""
+        return outputs_after_inputs(self.path)
 
     def _read_capabilities(self) -> None:
         """What the FMU's <CoSimulation> element declares (a Model Exchange wrapper says its own)."""

@@ -119,6 +119,12 @@ class Instance1(Instance):
         self._start = 0.0
         self._initialized = self._failed = self._pending = False
 
+    def _outputs_after_inputs(self) -> bool:
+        """FMI 1.0 computes outputs in fmiDoStep: a get after a set is served
+        by a step of size 0 first (cw1_fresh, FMI 1.0's iteration), never by
+        a get on stale outputs; so the master may read after it sets."""
+        return True
+
     # -- loading -------------------------------------------------------
 
     def instantiate(self) -> None:

@@ -5,11 +5,14 @@ feedthrough graph); a ``Loop`` stands in the ports' update orders where its
 members would, and ``pull`` brings them up to date at a communication point.
 
 ``master.algebraic_loops = "solve"``: the loop's inputs are iterated to a
-fixed point, by setting inputs and getting outputs with no step (FMI 2.0
-and 3.0 allow both, any number of times, in Initialization Mode and
-between steps; FMI 1.0 Co-Simulation between steps too, and it has no
-Initialization Mode: what stands for it is the FMI 1.0 instance's own
-face, the loop only calls the port's set and get). First plain fixed-point iteration: Gauss-Seidel sweeps over
+fixed point, by setting inputs and getting outputs with no step. FMI 2.0
+and 3.0 allow that in Initialization Mode; between steps only where the
+FMU declares it (``Instance.outputs_after_inputs``, docs/master.md "The
+call sequence"): a loop with a member that does not is solved in
+Initialization Mode only and delayed in the steps (``solve_in_init``).
+FMI 1.0 Co-Simulation has no Initialization Mode: what stands for it is
+the FMI 1.0 instance's own face (a step of size 0 before a get after a
+set); the loop only calls the port's set and get. First plain fixed-point iteration: Gauss-Seidel sweeps over
 the members (each takes its inputs from the newest outputs), until every
 loop input differs from what its source now gives by at most
 ``iteration_tolerance * max(1, |input|)``; a loop whose residual stops
@@ -69,6 +72,10 @@ class Loop:
         self.mode = mode
         self.start_sweeps = start_sweeps
         self.starting = False  # "delay": the next pull is the peers' start in Initialization Mode
+        # "solve" asked for, with a member whose outputs may not be read after
+        # its inputs are set without a step: solved in Initialization Mode,
+        # delayed in the steps (Ports.initializing switches the mode).
+        self.solve_in_init = False
 
     def pull(self, t: float) -> None:
         """Bring the members' outputs up to date at t."""

@@ -10,7 +10,11 @@ A communication step from t to t + h (``advance``):
    in Jacobi order (all see the values at t), their inputs given by the
    coupling (zero-order hold, or polynomials of order 1 or 2);
 3. outputs are updated at t + h in the dependency order of the
-   ModelStructure, which also gives the event indicators z at t + h.
+   ModelStructure, which also gives the event indicators z at t + h;
+   only those of instances that allow a read after a set without a step
+   (``Instance.outputs_after_inputs``; FMI 2.0 4.2.4, FMI 3.0 Step Mode):
+   the others are stepped as dynamic ones and keep what their step gave
+   (engine/wiring.py).
 
 Around it, ``step`` adds what makes the result accurate:
 
@@ -98,6 +102,14 @@ class Master:
         for inst in instances.values():  # what an instance changed of its own setup (fmu3: Event Mode refused)
             if getattr(inst, "instantiation_note", None):
                 self.coupling.note(inst.instantiation_note)
+        for loop in self.ports.loops:
+            if loop.solve_in_init:
+                held = [p.inst for p in loop.members if not p.inst.outputs_after_inputs]
+                self.coupling.note(
+                    f"algebraic loop {loop.name}: {', '.join(i.name for i in held)} do"
+                    f"{'es' * (len(held) == 1)} not allow outputs to be read after inputs are set without a step "
+                    "(FMI 2.0 4.2.4, FMI 3.0 Step Mode): solved in Initialization Mode, then broken by a one-step "
+                    "delay in the steps", kind="note")
         self._updates_after = updates_after(self.ports)  # per dynamic instance (engine/parallel.py)
         self.locator = EventLocator(self, self.ports.all)
         self.checkpoints = Checkpoints(self)
@@ -195,13 +207,17 @@ class Master:
         # broken by a delay starts in the second sweep, once every output
         # feeding it has been read.
         ports.forget_outputs()
+        ports.initializing(True)
         for sweep in range(2):
             if sweep == 1:
                 ports.start_loops()
             ports.propagate(ports.order, self.t)
+        ports.initializing(False)
         for inst in self.instances.values():
             inst.exit_init()
-        ports.propagate(ports.order, self.t)
+        # Outputs after Initialization Mode: an instance that does not allow a
+        # read after a set (FMI 2.0 4.2.4, FMI 3.0 Step Mode) is only read.
+        ports.after_init(self.t)
         self.coupling.find_derivative_sources()
         self.t = self.start_time
         # The start is a communication point like any other: its outputs are
@@ -284,7 +300,7 @@ class Master:
                 # A commit may have switched the mode: read z at t+.
                 p.getReal(p.comp, p.out_vr, p.n_out, p.out)
         if inputs is not None:  # their outputs are next read at t + h: sampled inputs there, before an event
-            inputs.set(ports.first, t_new, False)
+            inputs.set(ports.first, t_new, False, True)
         if self._locating:
             # Without a commit of a new mode, z at t+ is z at t.
             loc.z_start = loc.indicators() if self.after_event else loc.z_end
@@ -305,7 +321,7 @@ class Master:
             if st > WARNING:
                 raise self._step_failure(p, st, t, h)
             if inputs is not None:
-                inputs.set((p,), t_new, False)
+                inputs.set((p,), t_new, False, True)
             p.read(t_new)
             if not jacobi and p is not last:
                 # Newest values flow on to the instances stepped later

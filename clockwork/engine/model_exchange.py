@@ -170,6 +170,10 @@ class MEInstance(ModelExchangeSteps, Instance):
     def _read_capabilities(self) -> None:
         """Model Exchange has no Co-Simulation capabilities: set in __init__."""
 
+    def _outputs_after_inputs(self) -> bool:
+        """The wrapper's outputs follow its inputs (Model Exchange computes them on the get)."""
+        return True
+
     # -- loading -------------------------------------------------------------
 
     def _bind(self, dll) -> None:

@@ -230,8 +230,11 @@ class Ports(dict):
             i = in_loop.get(link.src)
             if i is not None and in_loop.get(link.dst) == i and wiring.feedthrough_outputs[(link.src, link.output)]:
                 loop_discrete[i].append(link)
-        self.loops = [self._loop(owner, i, wiring, loop_discrete[i], mode, len(instances))
+        held = set(wiring.held_loops)
+        self.loops = [self._loop(owner, i, wiring, loop_discrete[i], "delay" if i in held else mode, len(instances))
                       for i in range(len(wiring.loops))]
+        for i in held:  # solved where the standard allows it: in Initialization Mode
+            self.loops[i].solve_in_init = True
         # Output updates, in dependency order; a loop stands where its members would.
         loop_of = {p: loop for loop in self.loops for p in loop.members}
         self.order: list = []
@@ -247,11 +250,13 @@ class Ports(dict):
         # After a step, only feedthrough outputs need an update at t + h;
         # a dynamic instance's own inputs are set when its next step starts.
         # A loop broken by a delay keeps what its members gave after their step.
-        self.final_order = [
-            x for x in self.order
-            if (x.mode == "solve" if isinstance(x, Loop) else x in first or any(
-                wiring.feedthrough_outputs.get((x.inst.name, n), feeds(x.inst, n)) for n in x.out_names))
-        ]
+        # An instance whose outputs may not be read after its inputs are set
+        # (outputs_after_inputs false) keeps what it gave after its step.
+        def updated(p: Port) -> bool:
+            return p in first or (getattr(p.inst, "outputs_after_inputs", True) and any(
+                wiring.feedthrough_outputs.get((p.inst.name, n), feeds(p.inst, n)) for n in p.out_names))
+
+        self.final_order = [x for x in self.order if (x.mode == "solve" if isinstance(x, Loop) else updated(x))]
 
     def _loop(self, owner, index: int, wiring: Wiring, discrete_links: list[Link], mode: str,
               n_instances: int) -> Loop:
@@ -286,6 +291,45 @@ class Ports(dict):
         """The loops broken by a delay start as the peers do at their next update."""
         for loop in self.loops:
             loop.starting = True
+
+    def initializing(self, on: bool) -> None:
+        """Initialization Mode begins (on) or ends: a loop solved only there
+        (Loop.solve_in_init) solves while it lasts, and is read after it."""
+        for loop in self.loops:
+            if loop.solve_in_init:
+                loop.mode = "solve" if on else "delay"
+                loop.starting = False
+
+    def refresh(self, t: float) -> None:
+        """The outputs again after inputs or parameters changed between
+        steps (set and read, in dependency order), where the instance allows
+        a read after a set; the others show the change after their next step."""
+        for x in self.order:
+            if isinstance(x, Loop):
+                if x.mode == "solve":
+                    x.pull(t)
+                else:
+                    for p in x.members:
+                        if getattr(p.inst, "outputs_after_inputs", True):
+                            p.read(t)
+            elif getattr(x.inst, "outputs_after_inputs", True):
+                x.pull(t)
+
+    def after_init(self, t: float) -> None:
+        """The outputs after Initialization Mode, in dependency order: set
+        and read again where the instance allows a read after a set, else
+        only read (its inputs are those Initialization Mode ended with)."""
+        for x in self.order:
+            if isinstance(x, Loop):
+                if x.mode == "solve":
+                    x.pull(t)
+                else:
+                    for p in x.members:
+                        p.read(t)
+            elif getattr(x.inst, "outputs_after_inputs", True):
+                x.pull(t)
+            else:
+                x.read(t)
 
     def propagate(self, ports: list[Port], t: float) -> None:
         """Set inputs from their sources and read outputs, in order, at t."""

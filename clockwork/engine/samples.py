@@ -194,6 +194,9 @@ class FileInputs:
         for name, (cols, vrs, _) in self.real.items():
             self.real[name] = (cols, (c_uint * len(vrs))(*vrs), (c_double * len(vrs))())
         self._last: tuple | None = None  # (time, after_event, values): the three calls of a step share two
+        # Instances whose outputs may not be read after their inputs are set
+        # without a step: their inputs are not set again after their step.
+        self.held = {n for n, inst in instances.items() if not getattr(inst, "outputs_after_inputs", True)}
 
     def non_real(self) -> list[str]:
         """The inputs driven here that are not Real ("instance.variable")."""
@@ -207,14 +210,17 @@ class FileInputs:
         self._last = (t, after_event, values)
         return values
 
-    def set(self, ports, t: float, after_event: bool) -> None:
-        """Set the driven inputs of these ports' instances to their values at t."""
+    def set(self, ports, t: float, after_event: bool, after_step: bool = False) -> None:
+        """Set the driven inputs of these ports' instances to their values at
+        t. `after_step`: t is the end of the step they just took, and their
+        outputs are read next (left out where that read is not allowed: the
+        next step starts from the inputs at its start)."""
         values = None
         for p in ports:
             name = p.inst.name
             real = self.real.get(name)
             typed = self.typed.get(name)
-            if real is None and typed is None:
+            if real is None and typed is None or after_step and name in self.held:
                 continue
             if values is None:
                 values = self._values(t, after_event)

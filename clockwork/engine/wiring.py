@@ -67,6 +67,11 @@ class Wiring:
     # instance order; consecutive in evaluation_order.
     loops: list[list[str]] = field(default_factory=list)
     loop_links: list[list[Link]] = field(default_factory=list)  # per loop, the feedthrough links inside it
+    # Loops to be solved (algebraic_loops = "solve") with a member whose
+    # outputs may not be read after its inputs are set without a step:
+    # solved in Initialization Mode only, broken by a one-step delay in the
+    # steps (their indices in `loops`).
+    held_loops: list[int] = field(default_factory=list)
 
 
 def expand_arrays(instances: dict[str, Instance], links: list[Link]) -> list[Link]:
@@ -147,13 +152,49 @@ def build(instances: dict[str, Instance], links: list[Link], step_order: list[st
         if n in connected_outputs and all(feeds[(n, o)] for o in connected_outputs[n])
     ]
     feedthrough_only += [n for n in names if n not in connected_outputs and not _has_free_outputs(instances[n])]
-    if algebraic_loops == "delay":
-        # Stepped with the inputs of the step's start, read after the step:
-        # what a loop member gives is one step old when it arrives.
-        feedthrough_only = [n for n in feedthrough_only if n not in in_loop]
+    # The call sequence (FMI 2.0 4.2.4, FMI 3.0 Step Mode): an instance whose
+    # outputs may not be read after its inputs are set without a step
+    # (Instance.outputs_after_inputs false) is stepped as a dynamic one:
+    # inputs set, step, outputs read; never updated at t + h.
+    strict = {n for n, inst in instances.items() if not getattr(inst, "outputs_after_inputs", True)}
+    held_loops = [i for i, loop in enumerate(loops) if algebraic_loops == "solve" and not strict.isdisjoint(loop)]
+    delayed = set(in_loop) if algebraic_loops == "delay" else {n for i in held_loops for n in loops[i]}
+    # Stepped with the inputs of the step's start, read after the step:
+    # what a delayed loop member gives is one step old when it arrives.
+    demoted = [n for n in feedthrough_only if n in strict and n not in delayed]
+    feedthrough_only = [n for n in feedthrough_only if n not in delayed and n not in strict]
     first = set(feedthrough_only)
     dynamic = [n for n in (step_order or names) if n not in first]
-    return Wiring(links, feedthrough_only, dynamic, order, feeds, loops, loop_links)
+    if demoted and step_order is None:
+        _after_sources(dynamic, [n for n in order if n in set(demoted)], links, first)
+    return Wiring(links, feedthrough_only, dynamic, order, feeds, loops, loop_links, held_loops)
+
+
+def _after_sources(dynamic: list[str], moved: list[str], links: list[Link], first: set[str]) -> None:
+    """Move each of `moved` (feedthrough instances stepped as dynamic ones,
+    in dependency order) right after the last instance of `dynamic` it
+    reads, directly or through feedthrough-only instances, where that one
+    steps later: in Gauss-Seidel order it then steps with its sources' new
+    values, as the peers' conforming sequence gives them."""
+    feeders: dict[str, set[str]] = {}
+    for link in links:
+        feeders.setdefault(link.dst, set()).add(link.src)
+    for n in moved:
+        sources, seen, stack = set(), set(), list(feeders.get(n, ()))
+        while stack:
+            s = stack.pop()
+            if s in seen:
+                continue
+            seen.add(s)
+            if s in first:
+                stack.extend(feeders.get(s, ()))
+            elif s != n:
+                sources.add(s)
+        at = dynamic.index(n)
+        last = max((dynamic.index(s) for s in sources if s in dynamic), default=-1)
+        if last > at:
+            dynamic.pop(at)
+            dynamic.insert(last, n)
 
 
 def strongly_connected(nodes: list[str], successors: dict[str, list[str]]) -> list[list[str]]:

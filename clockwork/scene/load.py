@@ -415,7 +415,8 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     loops = _check_wiring(ctx, components, connections)
     experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
     master, master_given = _master(ctx, master_t)
-    notes = tuple(notes) + tuple(_loop_note(name, links, master.algebraic_loops) for name, links in loops)
+    notes = tuple(notes) + tuple(_loop_note(name, links, master.algebraic_loops, held)
+                                 for name, links, held in loops)
     problem = consistency(master, experiment, components) or _fmi3_inputs(master, components, connections)
     if problem:
         raise ctx.fail(*problem)
@@ -610,10 +611,11 @@ def _check_default_tolerances(components: dict[str, Component]) -> None:
                              f"modelDescription.xml: DefaultExperiment tolerance = {md.defaultExperiment.tolerance}")
 
 
-def _check_wiring(ctx: Ctx, components: dict[str, Component], connections) -> list[tuple[str, list[Link]]]:
+def _check_wiring(ctx: Ctx, components: dict[str, Component],
+                  connections) -> list[tuple[str, list[Link], list[str]]]:
     """The wiring as the master will build it, by the engine's own code:
     what it refuses is refused now. Returns the algebraic loops (name,
-    links inside)."""
+    links inside, the members that do not allow outputs after inputs)."""
     instances = {}
     for n, c in components.items():
         try:
@@ -628,13 +630,23 @@ def _check_wiring(ctx: Ctx, components: dict[str, Component], connections) -> li
         wiring = build_wiring(instances, [Link(*c) for c in connections])
     except SceneError as e:
         raise ctx.fail("connections", e.detail) from None
-    return [(loop_name(m, links), links) for m, links in zip(wiring.loops, wiring.loop_links)]
+    held = set(wiring.held_loops)
+    return [(loop_name(m, links), links,
+             [n for n in m if not instances[n].outputs_after_inputs] if i in held else [])
+            for i, (m, links) in enumerate(zip(wiring.loops, wiring.loop_links))]
 
 
-def _loop_note(name: str, links: list[Link], mode: str) -> str:
+def _loop_note(name: str, links: list[Link], mode: str, held: list[str]) -> str:
+    """How the master handles a loop; `held`: its members whose outputs may
+    not be read after their inputs are set without a step (docs/master.md,
+    "The call sequence")."""
     through = ", ".join(f"{k.src}.{k.output} -> {k.dst}.{k.input}" for k in links)
     how = ("solved to a fixed point at every communication point" if mode == "solve"
            else "broken by a one-step delay")
+    if mode == "solve" and held:
+        how = (f"solved in Initialization Mode, then broken by a one-step delay: {', '.join(held)} "
+               f"do{'es' * (len(held) == 1)} not allow outputs to be read after inputs are set without a step "
+               "(FMI 2.0 4.2.4, FMI 3.0 Step Mode)")
     return f'algebraic loop {name} (through {through}): {how} (master.algebraic_loops = "{mode}")'
 
 

@@ -216,6 +216,8 @@ typedef struct cw_inputs {
     const unsigned *vr;       /* per target: the input's value reference */
     const int *signal;        /* per target: its signal */
     double *value;            /* per target: the value set */
+    const int *after_step;    /* per port: 1 where its inputs are set again after its step (at t + h,
+                                 before its outputs are read): only where outputs may follow inputs */
     int n_times, n_signals, n_events, pad_;
 } cw_inputs;
 
@@ -924,7 +926,7 @@ static int advance_coupled(cw_master *m, double t, double h, int coupled)
         int st = p->doStep(p->comp, t, h, no_set_prior);
         if (st > FMI_WARNING)
             return fail(m, i, CALL_DO_STEP, st, t, h);
-        if (m->inputs)
+        if (m->inputs && m->inputs->after_step[i])
             TRY(inputs_set(m, i, t_new, 0));
         TRY(port_read(m, i, t_new));
         if (!m->jacobi && a != m->n_dynamic - 1)  /* newest values flow on, where they reach */

@@ -1,0 +1,104 @@
+"""Builds tests/data/strict/strict.c into an FMI 2.0 or FMI 3.0
+Co-Simulation FMU that enforces the call sequence (a get after a set
+without a step in Step Mode returns an error and logs why): y = gain * u +
+offset + slope * time, y with direct feedthrough from u, FMU state. The
+headers come from the installed fmpy. `declares`: the description says, in
+clockwork's annotation, that outputs may be read after inputs are set (a
+false claim for this FMU: the tests use it to show that the annotation is
+what the master follows)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import fmi2_hostile
+from fmi3_bouncer import pack
+
+SOURCE = Path(__file__).parent / "data" / "strict" / "strict.c"
+
+VARIABLES2 = """
+    <ScalarVariable name="u" valueReference="1" causality="input" variability="continuous"><Real start="0"/></ScalarVariable>
+    <ScalarVariable name="y" valueReference="2" causality="output" variability="continuous"><Real/></ScalarVariable>
+    <ScalarVariable name="gain" valueReference="3" causality="parameter" variability="fixed"><Real start="1"/></ScalarVariable>
+    <ScalarVariable name="offset" valueReference="4" causality="parameter" variability="fixed"><Real start="0"/></ScalarVariable>
+    <ScalarVariable name="slope" valueReference="5" causality="parameter" variability="fixed"><Real start="0"/></ScalarVariable>
+"""
+
+DESCRIPTION2 = """<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="2.0" modelName="Strict" guid="{{cw-strict}}"
+    description="clockwork's test FMU that enforces FMI 2.0's call sequence">
+  <CoSimulation modelIdentifier="Strict" canHandleVariableCommunicationStepSize="true"
+      canGetAndSetFMUstate="true"/>
+  <DefaultExperiment startTime="0" stopTime="1" stepSize="0.01"/>
+  {annotation}
+  <ModelVariables>{variables}  </ModelVariables>
+  <ModelStructure>
+    <Outputs><Unknown index="2" dependencies="1" dependenciesKind="dependent"/></Outputs>
+    <InitialUnknowns><Unknown index="2" dependencies="1 3 4 5"/></InitialUnknowns>
+  </ModelStructure>
+</fmiModelDescription>
+"""
+
+DESCRIPTION3 = """<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="3.0" modelName="Strict" instantiationToken="{{cw-strict}}"
+    description="clockwork's test FMU that enforces FMI 3.0's Step Mode call sequence">
+  <CoSimulation modelIdentifier="Strict" canHandleVariableCommunicationStepSize="true"
+      canGetAndSetFMUState="true"/>
+  <DefaultExperiment startTime="0" stopTime="1" stepSize="0.01"/>
+  <ModelVariables>
+    <Float64 name="time" valueReference="0" causality="independent" variability="continuous"/>
+    <Float64 name="u" valueReference="1" causality="input" variability="continuous" start="0"/>
+    <Float64 name="y" valueReference="2" causality="output" variability="continuous"/>
+    <Float64 name="gain" valueReference="3" causality="parameter" variability="fixed" start="1"/>
+    <Float64 name="offset" valueReference="4" causality="parameter" variability="fixed" start="0"/>
+    <Float64 name="slope" valueReference="5" causality="parameter" variability="fixed" start="0"/>
+  </ModelVariables>
+  <ModelStructure>
+    <Output valueReference="2" dependencies="1" dependenciesKind="dependent"/>
+    <InitialUnknown valueReference="2" dependencies="1 3 4 5"/>
+  </ModelStructure>
+  {annotation}
+</fmiModelDescription>
+"""
+
+CLAIM2 = ('<VendorAnnotations><Tool name="clockwork"><Capabilities outputsAfterInputs="true"/></Tool>'
+          '</VendorAnnotations>')
+CLAIM3 = '<Annotations><Annotation type="clockwork"><Capabilities outputsAfterInputs="true"/></Annotation></Annotations>'
+
+
+def build(folder: Path, version: int = 2, name: str = "Strict", declares: bool = False) -> Path:
+    """Compile and zip the FMU into folder/<name>.fmu; returns its path."""
+    source = SOURCE.read_text()
+    flags = ("-Wall", "-DCW_FMI3") if version == 3 else ("-Wall",)
+    if version == 3:
+        xml = DESCRIPTION3.format(annotation=CLAIM3 if declares else "")
+        return pack(folder, name, "Strict", source, source, xml, flags)
+    xml = DESCRIPTION2.format(annotation=CLAIM2 if declares else "", variables=VARIABLES2)
+    return _pack2(Path(folder), name, source, xml, flags)
+
+
+def _pack2(folder: Path, name: str, source: str, xml: str, flags: tuple[str, ...]) -> Path:
+    import os
+    import shutil
+    import subprocess
+    import zipfile
+
+    import fmpy
+
+    cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
+    if cc is None:
+        raise RuntimeError("no C compiler")
+    work = folder / f"{name}.build"
+    binary = work / "Strict.so"
+    work.mkdir(parents=True, exist_ok=True)
+    full = work / "Strict_all.c"
+    full.write_text(source + "\n/* generated: the functions left out */\n" + fmi2_hostile.stubs(source))
+    headers = Path(fmpy.__file__).parent / "c-code"
+    subprocess.run([cc, "-shared", "-fPIC", "-O1", "-std=gnu99", *flags, f"-I{headers}", str(full),
+                    "-o", str(binary)], check=True)
+    fmu = folder / f"{name}.fmu"
+    with zipfile.ZipFile(fmu, "w") as z:
+        z.writestr("modelDescription.xml", xml)
+        z.write(binary, f"binaries/{fmpy.platform}/Strict.so")
+    shutil.rmtree(work)
+    return fmu
