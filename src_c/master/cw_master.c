@@ -2778,7 +2778,7 @@ static const cw_field master_layout[] = {
 static const cw_field inputs_layout[] = {
     CW_FIELD(cw_inputs, times), CW_FIELD(cw_inputs, values), CW_FIELD(cw_inputs, continuous),
     CW_FIELD(cw_inputs, events), CW_FIELD(cw_inputs, port_start), CW_FIELD(cw_inputs, vr),
-    CW_FIELD(cw_inputs, signal), CW_FIELD(cw_inputs, value), CW_FIELD(cw_inputs, n_times),
+    CW_FIELD(cw_inputs, signal), CW_FIELD(cw_inputs, value), CW_FIELD(cw_inputs, after_step), CW_FIELD(cw_inputs, n_times),
     CW_FIELD(cw_inputs, n_signals), CW_FIELD(cw_inputs, n_events), CW_FIELD(cw_inputs, pad_),
 };
 static const cw_field recorder_layout[] = {
