@@ -77,6 +77,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-plot", action="store_true",
                    help="draw no plots, the default one included (no matplotlib process); `clockwork plot DIR` "
                         "draws the scene's plots later")
+    r.add_argument("--format", action="append", default=None, metavar="csv|parquet|mat",
+                   help="the files of a recorded series: timeseries.csv (the default), .parquet (needs "
+                        "pyarrow: pip install 'clockwork[parquet]'), .mat (Modelica tools' result layout); "
+                        "several as csv,mat or repeated; replaces the scene's record.format")
     r.set_defaults(func=cmd_run)
 
     v = sub.add_parser("validate", help="check a scene file (or an .ssp/.ssd, an .fmu) without running it")
@@ -229,7 +233,13 @@ def cmd_run(args) -> int:
     from .results.files import check_output_dir
     from .run.catalog import load_scene
 
-    scene = load_scene(args.scene, args.overrides, args.input)
+    formats = _formats(args.format)
+    scene = load_scene(args.scene, args.overrides, args.input, streamed=True)
+    if formats:
+        scene = dataclasses.replace(scene, record=dataclasses.replace(scene.record, format=formats))
+    from .results.series import require_formats
+
+    require_formats(scene.record.format)  # pyarrow for parquet: before the output directory is made
     if args.no_plot:
         scene = dataclasses.replace(scene, plots=())
     if args.scheduler:
@@ -260,6 +270,22 @@ def cmd_run(args) -> int:
         raise SimulationError(f"plot {p['file']} ({p['kind']}) failed: {p['error']} "
                               f"({len(summary['plots_failed'])} plot(s) failed; the data are in {out})")
     return 0
+
+
+def _formats(given: list[str] | None) -> tuple[str, ...]:
+    """--format's values ("csv,mat", repeated): the formats in the order first given."""
+    from .scene.model import RESULT_FORMATS
+
+    out: list[str] = []
+    for text in given or ():
+        for name in text.split(","):
+            name = name.strip().lower()
+            if name not in RESULT_FORMATS:
+                raise UsageError(f"--format {text}: expected {', '.join(RESULT_FORMATS)} "
+                                 "(several as --format csv,mat or --format repeated)")
+            if name not in out:
+                out.append(name)
+    return tuple(out)
 
 
 def _run_report(scene, out: Path, summary: dict, most: int = 4) -> list[str]:
@@ -300,7 +326,7 @@ def _short(x) -> str:
 def cmd_validate(args) -> int:
     from .run.catalog import check_loadable, load_scene
 
-    scene = load_scene(args.scene, args.overrides, args.input)
+    scene = load_scene(args.scene, args.overrides, args.input, streamed=True)  # as `run` will
     check_loadable(scene)
     n, m = len(scene.components), len(scene.connections)
     points = len(scene.points())

@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 source tools/python.sh
 PY=$PYTHON
-"$PY" -m pip install --quiet --disable-pip-version-check -e ".[test,interop,docs]"
+"$PY" -m pip install --quiet --disable-pip-version-check -e ".[test,interop,docs,parquet]"
 # Bytecode, as pip writes it for an installed wheel: an editable install
 # leaves it to the first import, which never writes it where
 # PYTHONDONTWRITEBYTECODE is set, and every start-up then compiles the package.
