@@ -258,6 +258,41 @@ def test_a_file_size_limit_in_a_child_is_one_line_and_leaves_nothing(tmp_path):
     assert sorted(p.name for p in o.iterdir()) == []  # no result, no staging folder, no .part
 
 
+def test_a_run_killed_while_it_records_leaves_no_series_file(tmp_path):
+    """SIGKILL mid-run: the series files are unnamed until complete (O_TMPFILE),
+    so nothing of them is left; the next run into the directory is clean."""
+    import time
+
+    f = _scene(tmp_path, stop=5000.0, edit=lambda s: s.replace('ticks = "pendulum"', ""))
+    o = tmp_path / "out"
+    p = subprocess.Popen([sys.executable, "-m", "clockwork", "run", str(f), "--out", str(o), "--no-progress",
+                          "--no-plot", "--format", "csv,parquet,mat"], stdout=subprocess.DEVNULL,
+                         stderr=subprocess.DEVNULL, env={**os.environ, "CLOCKWORK_CACHE": "off"})
+    try:
+        deadline = time.monotonic() + 60
+        # rows are being written once the process has open files in the staging folder
+        while time.monotonic() < deadline:
+            fds = Path(f"/proc/{p.pid}/fd")
+            try:
+                if any(".staging" in os.readlink(x) for x in fds.iterdir()):
+                    break
+            except OSError:
+                pass
+            time.sleep(0.05)
+        time.sleep(0.5)
+        assert p.poll() is None
+    finally:
+        p.kill()
+        p.wait()
+    left = [q for q in o.rglob("*") if not q.is_dir()]
+    assert left == []
+    f.write_text(CLOCK_SCENE.format(stop=1.0, sweep=""))
+    r = subprocess.run([sys.executable, "-m", "clockwork", "run", str(f), "--out", str(o), "--no-progress",
+                        "--no-plot"], capture_output=True, text=True, env={**os.environ, "CLOCKWORK_CACHE": "off"})
+    assert r.returncode == 0, r.stderr
+    assert sorted(q.name for q in o.iterdir()) == ["summary.json", "timeseries.csv"]  # no staging folder
+
+
 def test_a_series_the_disk_cannot_hold_is_refused_before_the_run(capsys, tmp_path, monkeypatch):
     real = os.statvfs
 

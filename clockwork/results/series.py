@@ -21,13 +21,18 @@ The CSV is always written (the plots and a failed run's history read it):
 as a hidden file of the staging folder, never committed, when csv is not
 among the formats. A file of the staging folder is seen by nobody until
 the commit; a run that fails keeps what it wrote up to its last good point
-and commits it with its summary; a killed run's staging folder goes
-(outdir.OutputDir). ``close`` fsyncs every file: the commit renames only
-complete files.
+and commits it with its summary; an interrupted run's files are removed
+(``abort``). Each file is written unnamed (Linux O_TMPFILE, as
+atomic.write_bytes_unnamed) and given its name in ``close``, after its
+fsync: a run killed by SIGKILL leaves no series file at all, and the
+commit renames only complete files. Where the file system has no
+O_TMPFILE, the files are named from the start (and removed with the
+staging folder by the next run after a kill).
 """
 
 from __future__ import annotations
 
+import errno
 import os
 import struct
 from collections.abc import Mapping
@@ -98,6 +103,7 @@ class SeriesWriter:
         self._t0 = self._t_end = 0.0
         self.files: list[Path] = []
         self.csv = self.folder / ("timeseries.csv" if "csv" in self.formats else ".timeseries.csv")
+        self._unnamed: dict[int, Path] = {}  # id of an unnamed file object -> the name it gets in close
         self._csv = self._open(self.csv)
         self._put(self._csv, self.csv, (",".join(_field(h) for h in self.header) + "\n").encode("utf-8"))
         self._parquet = None
@@ -107,26 +113,55 @@ class SeriesWriter:
             fields = [pa.field(n, pa.string() if t else pa.float64()) for n, t in zip(self.header, self.text)]
             self._schema = pa.schema(fields)
             self._parquet_path = self.folder / FILE_NAMES["parquet"]
-            self.files.append(self._parquet_path)
             import pyarrow.parquet as pq
 
+            self._parquet_file = self._open(self._parquet_path)
             try:
-                self._parquet = pq.ParquetWriter(str(self._parquet_path), self._schema)
+                self._parquet = pq.ParquetWriter(self._parquet_file, self._schema)
             except OSError as e:
                 raise OSError(e.errno, e.strerror or str(e), str(self._parquet_path)) from None
         self._mat = None
         if "mat" in self.formats:
             self._mat_rows = self.folder / ".timeseries.mat.rows"
-            self._mat = self._open(self._mat_rows)
+            self._mat = self._open(self._mat_rows, readable=True)
             self._numeric = [i for i, t in enumerate(self.text) if not t]
 
-    def _open(self, path: Path):
+    def _open(self, path: Path, readable: bool = False):
+        """A file to be called `path` once complete (``_name``): unnamed until
+        then where the system can; `readable`, read back too."""
+        flag = getattr(os, "O_TMPFILE", None)
         try:
-            f = open(path, "xb")
+            if flag is not None and os.path.isdir("/proc/self/fd"):
+                try:
+                    f = open(os.open(path.parent, flag | (os.O_RDWR if readable else os.O_WRONLY), 0o644),
+                             "w+b" if readable else "wb")
+                    self._unnamed[id(f)] = path
+                    return f
+                except OSError as e:
+                    if e.errno not in (errno.EOPNOTSUPP, errno.EISDIR, errno.EINVAL):
+                        raise
+            f = open(path, "x+b" if readable else "xb")
         except OSError as e:
             raise OSError(e.errno, e.strerror, str(path)) from None
         self.files.append(path)
         return f
+
+    def _name(self, f, path: Path) -> None:
+        """Flush, fsync and (an unnamed file) link `f` in as `path`; then close it."""
+        try:
+            f.flush()
+            os.fsync(f.fileno())
+            if self._unnamed.pop(id(f), None) is not None:
+                folder = os.open(path.parent, os.O_RDONLY | os.O_DIRECTORY)
+                try:
+                    # with a dir_fd, linkat(AT_SYMLINK_FOLLOW): the open file, not /proc's link
+                    os.link(f"/proc/self/fd/{f.fileno()}", path.name, dst_dir_fd=folder)
+                finally:
+                    os.close(folder)
+                self.files.append(path)
+            f.close()
+        except OSError as e:
+            raise OSError(e.errno, e.strerror, str(path)) from None
 
     @staticmethod
     def _put(f, path: Path, data: bytes) -> None:
@@ -161,50 +196,69 @@ class SeriesWriter:
             self._put(self._mat, self._mat_rows, block.tobytes(order="C"))
 
     def close(self) -> "StreamedSeries":
-        """Finish every file (fsynced) and give the series they hold."""
-        for f, path in ((self._csv, self.csv), (self._mat, getattr(self, "_mat_rows", None))):
-            if f is not None:
-                try:
-                    f.flush()
-                    os.fsync(f.fileno())
-                    f.close()
-                except OSError as e:
-                    raise OSError(e.errno, e.strerror, str(path)) from None
+        """Finish every file (fsynced, then named) and give the series they hold."""
+        self._name(self._csv, self.csv)
+        self._csv = None
         if self._parquet is not None:
             try:
                 self._parquet.close()
             except OSError as e:
                 raise OSError(e.errno, e.strerror or str(e), str(self._parquet_path)) from None
             self._parquet = None
+            self._name(self._parquet_file, self._parquet_path)
         if self._mat is not None:
-            self._mat = None
-            mat = self.folder / FILE_NAMES["mat"]
-            self.files.append(mat)
-            write_mat(mat, self._mat_rows, [self.header[i] for i in self._numeric], self.rows,
-                      (self._t0, self._t_end), self.descriptions)
-            self._mat_rows.unlink()
-            self.files.remove(self._mat_rows)
-        return StreamedSeries(self.csv, self.header, self.text, [p.name for p in self.files
-                                                                  if not p.name.startswith(".")])
+            rows, self._mat = self._mat, None
+            try:
+                rows.flush()
+                rows.seek(0)
+                mat = self.folder / FILE_NAMES["mat"]
+                out = self._open(mat)
+                self._mat_out = out
+                write_mat(out, rows, [self.header[i] for i in self._numeric], self.rows,
+                          (self._t0, self._t_end), self.descriptions)
+            except OSError as e:
+                raise OSError(e.errno, e.strerror, str(self.folder / FILE_NAMES["mat"])) from None
+            self._name(out, mat)
+            self._mat_out = None
+            self._drop(rows, self._mat_rows)
+        named = {p.name for p in self.files}
+        return StreamedSeries(self.csv, self.header, self.text,
+                              [FILE_NAMES[f] for f in self.formats if FILE_NAMES[f] in named])
+
+    def _drop(self, f, path: Path) -> None:
+        """Close `f` and remove it (an unnamed file vanishes as it closes)."""
+        named = self._unnamed.pop(id(f), None) is None
+        try:
+            f.close()
+        except OSError:
+            pass
+        if named:
+            try:
+                path.unlink()
+            except OSError:
+                pass
+            if path in self.files:
+                self.files.remove(path)
 
     def abort(self) -> None:
         """Close and remove everything written (a run that was interrupted)."""
-        for f in (self._csv, self._mat):
-            if f is not None:
-                try:
-                    f.close()
-                except OSError:
-                    pass
         if self._parquet is not None:
             try:
                 self._parquet.close()
             except Exception:  # noqa: BLE001 (a writer that failed: its file goes anyway)
                 pass
-        for p in self.files:
+            self._parquet = None
+        for f, path in ((self._csv, self.csv), (getattr(self, "_parquet_file", None), getattr(self, "_parquet_path", None)),
+                        (self._mat, getattr(self, "_mat_rows", None)), (getattr(self, "_mat_out", None),
+                                                                         self.folder / FILE_NAMES["mat"])):
+            if f is not None and not f.closed:
+                self._drop(f, path)
+        for p in list(self.files):
             try:
                 p.unlink()
             except OSError:
                 pass
+        self.files.clear()
 
 
 # MAT level 4: a matrix is a header of five int32 (type MOPT, rows, columns,
@@ -214,10 +268,12 @@ _MAT4_DOUBLE = 0
 _COPY_BYTES = 1 << 22
 
 
-def write_mat(path: Path, rows_file: Path, names: list[str], n_rows: int, span: tuple[float, float],
+def write_mat(f, rows, names: list[str], n_rows: int, span: tuple[float, float],
               descriptions: dict[str, str]) -> None:
-    """The result file of Modelica tools: every column in data_2 (time first),
-    data_1 the start and end time alone (no parameters are recorded)."""
+    """The result file of Modelica tools into the file `f`: every column in
+    data_2 (time first; its data the row-major doubles the file `rows`
+    holds, copied a block at a time), data_1 the start and end time alone
+    (no parameters are recorded)."""
     from scipy.io import savemat  # scipy is imported only by runs that ask for MAT
 
     def chars(texts: list[str]) -> np.ndarray:
@@ -235,21 +291,14 @@ def write_mat(path: Path, rows_file: Path, names: list[str], n_rows: int, span: 
         "dataInfo": info,
         "data_1": np.array([[span[0], span[1]]], dtype=float),
     }
-    try:
-        with open(path, "xb") as f:
-            savemat(f, header, format="4")
-            name = b"data_2\0"
-            f.write(struct.pack("<5i", _MAT4_DOUBLE, len(names), n_rows, 0, len(name)) + name)
-            with open(rows_file, "rb") as src:
-                while True:
-                    block = src.read(_COPY_BYTES)
-                    if not block:
-                        break
-                    f.write(block)
-            f.flush()
-            os.fsync(f.fileno())
-    except OSError as e:
-        raise OSError(e.errno, e.strerror, str(path)) from None
+    savemat(f, header, format="4")
+    name = b"data_2\0"
+    f.write(struct.pack("<5i", _MAT4_DOUBLE, len(names), n_rows, 0, len(name)) + name)
+    while True:
+        block = rows.read(_COPY_BYTES)
+        if not block:
+            break
+        f.write(block)
 
 
 class StreamedSeries(Mapping):
