@@ -246,6 +246,10 @@ def cmd_run(args) -> int:
         from .run.dask import require_dask
 
         require_dask()  # before the output directory is made
+    if scene.sweep is not None and scene.record.format != ("csv",):
+        # Not an error (the scene may be swept as well as run alone), but not silently dropped either.
+        say("warning", f"--format and record.format ({','.join(scene.record.format)}) are for a single run's series; "
+                       "a sweep writes sweep.csv and a JSON file per point in points/")
     if scene.sweep is None and (args.workers or args.scheduler):
         # Not an error, but not silently dropped either.
         given = [o for o, v in (("--workers", args.workers), ("--scheduler", args.scheduler)) if v]
@@ -327,6 +331,9 @@ def cmd_validate(args) -> int:
     from .run.catalog import check_loadable, load_scene
 
     scene = load_scene(args.scene, args.overrides, args.input, streamed=True)  # as `run` will
+    from .results.series import require_formats
+
+    require_formats(scene.record.format)
     check_loadable(scene)
     n, m = len(scene.components), len(scene.connections)
     points = len(scene.points())

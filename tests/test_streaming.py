@@ -195,8 +195,9 @@ def test_parquet_without_pyarrow_says_how_to_install_it_before_the_run(capsys, t
     assert_one_line_error(rc, err, "pip install", "clockwork[parquet]", code=2)
     assert not (tmp_path / "out").exists()
     f2 = _scene(tmp_path, edit=lambda s: s.replace("[record]", '[record]\nformat = "parquet"'))
-    rc, _, err = run_cli(capsys, ["run", f2, "--out", tmp_path / "out", "--no-progress"])
-    assert_one_line_error(rc, err, "pip install", code=2)
+    for argv in (["run", f2, "--out", tmp_path / "out", "--no-progress"], ["validate", f2]):
+        rc, _, err = run_cli(capsys, argv)
+        assert_one_line_error(rc, err, "pip install", code=2)
     assert not (tmp_path / "out").exists()
 
 
@@ -350,3 +351,15 @@ def test_the_recorder_keeps_at_most_a_chunk(tmp_path, engine, monkeypatch):
     assert max(kept) <= 250 + ROWS_PER_CALL
     plain = time_series.time_series(load_scene(_scene(tmp_path, stop=10.0), [f"master.engine={engine}"]), {})
     assert [sum((g[0] for g in got), [])] == [plain["series"]["time"]]
+
+
+def test_a_sweep_asked_for_a_format_says_it_writes_its_points_as_before(capsys, tmp_path):
+    sweep = '\n[sweep]\naxes = [ { parameter = "pendulum.Q", values = [500, 1000] } ]\n'
+    f = tmp_path / "s.toml"
+    f.write_text(CLOCK_SCENE.format(stop=1.0, sweep=sweep))
+    rc, _, err = run_cli(capsys, ["run", f, "--out", tmp_path / "out", "--no-progress", "--no-plot",
+                                  "--format", "mat", "--workers", "1"])
+    assert rc == 0, err
+    assert err.count("\n") == 1 and "clockwork: warning: --format" in err and "points/" in err
+    assert len(list((tmp_path / "out" / "points").glob("*.json"))) == 2
+    assert not list((tmp_path / "out").glob("timeseries.*"))

@@ -22,7 +22,6 @@ from ..engine.recording import Recorder
 from ..errors import SimulationError
 from ..scene.model import SPAN_RESOLUTION
 from .bounds import MAX_KEPT_VALUES
-from ..engine.description import TEXT_TYPES
 from .context import build_system, experiment, find_component, parameters, series_sink
 from .registry import register
 
@@ -59,16 +58,11 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
     system = build_system(scene, point, record=record)
     with system:
         m = system.master
-        make_sink = series_sink() if (outputs or times) else None
-        sink = None
-        if make_sink is not None:  # written as the run goes (run.scene_run): no bound on memory to keep
-            names = [f"{i}.{x}" for i, v in outputs for x in m.instances[i].elements.get(v, [v])]
-            text = {f"{i}.{x}" for i, v in outputs for x in m.instances[i].elements.get(v, [v])
-                    if m.instances[i].variables[x].type in TEXT_TYPES}
-            sink = make_sink(names, text)
         # Rows at events off the grid are kept too: what no check before the run counts is bounded here.
-        recorder = Recorder(m, outputs, scene.record.interval, tick_inst, times=times, limit=MAX_KEPT_VALUES,
-                            sink=sink)
+        recorder = Recorder(m, outputs, scene.record.interval, tick_inst, times=times, limit=MAX_KEPT_VALUES)
+        make_sink = series_sink() if (outputs or times) else None
+        if make_sink is not None:  # written as the run goes (run.scene_run): no bound on memory to keep
+            recorder.stream_to(make_sink(recorder.names, recorder.text_names))
         try:
             recorder.start()
             run_with_progress(m, stop, recorder, progress, label=scene.path.stem)

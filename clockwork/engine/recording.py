@@ -76,6 +76,17 @@ class Recorder:
         self._handed = 0  # rows handed to the sink
         self._last_t: float | None = None  # the last row's time
 
+    def stream_to(self, sink) -> None:
+        """Hand the rows to `sink` from now on (see the module): no `limit` then."""
+        self.sink = sink
+        self.limit = self._max_rows = None
+
+    @property
+    def text_names(self) -> set[str]:
+        """The columns recorded as text (String and Binary variables)."""
+        return {n for n, (src, _) in zip(self.names, self._sources)
+                if isinstance(src, _DiscreteOutput) and src.kind in TEXT_TYPES}
+
     @property
     def rows(self) -> int:
         """Rows recorded so far (handed on or kept)."""
