@@ -34,7 +34,10 @@ class _DiscreteOutput:
         return value if self.kind in TEXT_TYPES else float(value)
 
 
-CHUNK_VALUES = 1 << 16  # values (rows x columns) a streaming recorder holds before it hands them on
+# Values (rows x columns) a streaming recorder holds before it hands them on: 8192 keep the
+# chunk's floats and CSV text near 1 MB (65,536 took 13 MB, a quarter of a short run's whole
+# peak; benchmarks/bench_memory.py), and the compiled core's 4096-row buffer drains in between.
+CHUNK_VALUES = 1 << 13
 
 
 class Recorder:
