@@ -7,7 +7,7 @@ run's memory does not grow with its length:
 
 - ``timeseries.csv``: the same bytes the whole-run writer gave
   (files.write_csv_atomic: floats as repr, text quoted where needed);
-- ``timeseries.parquet``: a row group per chunk (pyarrow, an optional extra);
+- ``timeseries.parquet``: row groups of PARQUET_ROWS rows (pyarrow, an optional extra);
 - ``timeseries.mat``: the result layout of Modelica tools (Dymola's
   "binTrans" as OpenModelica writes it too, MAT level 4): the rows go to a
   temporary binary file while the run goes, and at the end the small
@@ -49,6 +49,7 @@ FILE_NAMES = {f: f"timeseries.{f}" for f in FORMATS}
 # double and its comma (24 + 1), a double (parquet's pages, uncompressed
 # plain encoding; mat's matrix and its temporary copy).
 BYTES_PER_VALUE = {"csv": 25, "parquet": 8, "mat": 16}
+PARQUET_ROWS = 1 << 16  # rows of a Parquet row group (numbers: 0.5 MB per column)
 PARQUET_HINT = "pip install 'clockwork[parquet]' (or pip install pyarrow)"
 
 
@@ -116,6 +117,8 @@ class SeriesWriter:
             import pyarrow.parquet as pq
 
             self._parquet_file = self._open(self._parquet_path)
+            self._pending: list = []  # tables of the row group being gathered
+            self._pending_rows = 0
             try:
                 self._parquet = pq.ParquetWriter(self._parquet_file, self._schema)
             except OSError as e:
@@ -187,19 +190,31 @@ class SeriesWriter:
 
             arrays = [pa.array(c, type=pa.string()) if t else pa.array(c, type=pa.float64())
                       for c, t in zip(cols, self.text)]
-            try:
-                self._parquet.write_table(pa.Table.from_arrays(arrays, schema=self._schema))
-            except OSError as e:
-                raise OSError(e.errno, e.strerror or str(e), str(self._parquet_path)) from None
+            # Row groups of PARQUET_ROWS rows: a group per chunk would be small for readers.
+            self._pending.append(pa.Table.from_arrays(arrays, schema=self._schema))
+            self._pending_rows += n
+            if self._pending_rows >= PARQUET_ROWS:
+                self._write_row_group()
         if self._mat is not None:
             block = np.column_stack([cols[i] for i in self._numeric]).astype("<f8", copy=False)
             self._put(self._mat, self._mat_rows, block.tobytes(order="C"))
+
+    def _write_row_group(self) -> None:
+        import pyarrow as pa
+
+        table, self._pending, self._pending_rows = pa.concat_tables(self._pending), [], 0
+        try:
+            self._parquet.write_table(table, row_group_size=max(1, table.num_rows))
+        except OSError as e:
+            raise OSError(e.errno, e.strerror or str(e), str(self._parquet_path)) from None
 
     def close(self) -> "StreamedSeries":
         """Finish every file (fsynced, then named) and give the series they hold."""
         self._name(self._csv, self.csv)
         self._csv = None
         if self._parquet is not None:
+            if self._pending:
+                self._write_row_group()
             try:
                 self._parquet.close()
             except OSError as e:
