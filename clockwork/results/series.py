@@ -49,7 +49,7 @@ FILE_NAMES = {f: f"timeseries.{f}" for f in FORMATS}
 # double and its comma (24 + 1), a double (parquet's pages, uncompressed
 # plain encoding; mat's matrix and its temporary copy).
 BYTES_PER_VALUE = {"csv": 25, "parquet": 8, "mat": 16}
-PARQUET_ROWS = 1 << 16  # rows of a Parquet row group (numbers: 0.5 MB per column)
+PARQUET_ROWS = 1 << 13  # rows of a Parquet row group (larger ones cost memory: bench_memory.py)
 PARQUET_HINT = "pip install 'clockwork[parquet]' (or pip install pyarrow)"
 
 
@@ -111,6 +111,9 @@ class SeriesWriter:
         if "parquet" in self.formats:
             import pyarrow as pa  # an optional extra: require_formats checked it
 
+            # The system's allocator: Arrow's own pools keep what a row group freed (+20 MB a run).
+            pa.set_memory_pool(pa.system_memory_pool())
+
             fields = [pa.field(n, pa.string() if t else pa.float64()) for n, t in zip(self.header, self.text)]
             self._schema = pa.schema(fields)
             self._parquet_path = self.folder / FILE_NAMES["parquet"]
@@ -120,7 +123,7 @@ class SeriesWriter:
             self._pending: list = []  # tables of the row group being gathered
             self._pending_rows = 0
             try:
-                self._parquet = pq.ParquetWriter(self._parquet_file, self._schema)
+                self._parquet = pq.ParquetWriter(self._parquet_file, self._schema, use_dictionary=False)
             except OSError as e:
                 raise OSError(e.errno, e.strerror or str(e), str(self._parquet_path)) from None
         self._mat = None
@@ -190,7 +193,7 @@ class SeriesWriter:
 
             arrays = [pa.array(c, type=pa.string()) if t else pa.array(c, type=pa.float64())
                       for c, t in zip(cols, self.text)]
-            # Row groups of PARQUET_ROWS rows: a group per chunk would be small for readers.
+            # Row groups of PARQUET_ROWS rows: one per chunk would be small for readers.
             self._pending.append(pa.Table.from_arrays(arrays, schema=self._schema))
             self._pending_rows += n
             if self._pending_rows >= PARQUET_ROWS:
