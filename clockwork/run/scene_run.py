@@ -175,7 +175,9 @@ def _named(e: OSError, out: OutputDir) -> OSError:
     """`e` naming the file of the output directory instead of its staged copy."""
     if e.filename is None or Path(e.filename).parent != out.staging:
         return e
-    return OSError(e.errno, e.strerror, str(out.path / Path(e.filename).name.lstrip(".")))
+    # a hidden working file (.timeseries.csv, .timeseries.mat.rows) by the result it makes
+    name = Path(e.filename).name.lstrip(".").removesuffix(".rows")
+    return OSError(e.errno, e.strerror, str(out.path / name))
 
 
 def check_disk_space(scene, folder: Path) -> None:
