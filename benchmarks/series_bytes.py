@@ -5,7 +5,10 @@ bytes).
 
     python benchmarks/series_bytes.py OUT_DIR [CLOCKWORK_EXECUTABLE]
 
-prints "<case> <sha256 of timeseries.csv>" per case.
+prints "<case> <engine> <sha256 of timeseries.csv>" per case. Give both runs
+the same FMUs (CLOCKWORK_FMU_DIR for the scenes' and Pendulum.fmu,
+CW_TEST_FMU_DIR for the test FMUs): FMUs built from other sources give
+other numbers.
 """
 
 from __future__ import annotations
