@@ -77,6 +77,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-plot", action="store_true",
                    help="draw no plots, the default one included (no matplotlib process); `clockwork plot DIR` "
                         "draws the scene's plots later")
+    r.add_argument("--format", action="append", default=None, metavar="csv|parquet|mat",
+                   help="the files of a recorded series: timeseries.csv (the default), .parquet (needs "
+                        "pyarrow: pip install 'clockwork[parquet]'), .mat (Modelica tools' result layout); "
+                        "several as csv,mat or repeated; replaces the scene's record.format")
     r.set_defaults(func=cmd_run)
 
     v = sub.add_parser("validate", help="check a scene file (or an .ssp/.ssd, an OSP system structure, an .fmu) "
@@ -344,13 +348,23 @@ def cmd_run(args) -> int:
     from .results.files import check_output_dir
     from .run.catalog import load_scene
 
-    scene = load_scene(args.scene, args.overrides, args.input)
+    formats = _formats(args.format)
+    scene = load_scene(args.scene, args.overrides, args.input, streamed=True)
+    if formats:
+        scene = dataclasses.replace(scene, record=dataclasses.replace(scene.record, format=formats))
+    from .results.series import require_formats
+
+    require_formats(scene.record.format)  # pyarrow for parquet: before the output directory is made
     if args.no_plot:
         scene = dataclasses.replace(scene, plots=())
     if args.scheduler:
         from .run.dask import require_dask
 
         require_dask()  # before the output directory is made
+    if scene.sweep is not None and scene.record.format != ("csv",):
+        # Not an error (the scene may be swept as well as run alone), but not silently dropped either.
+        say("warning", f"--format and record.format ({','.join(scene.record.format)}) are for a single run's series; "
+                       "a sweep writes sweep.csv and a JSON file per point in points/")
     if scene.sweep is None and (args.workers or args.scheduler):
         # Not an error, but not silently dropped either.
         given = [o for o, v in (("--workers", args.workers), ("--scheduler", args.scheduler)) if v]
@@ -375,6 +389,22 @@ def cmd_run(args) -> int:
         raise SimulationError(f"plot {p['file']} ({p['kind']}) failed: {p['error']} "
                               f"({len(summary['plots_failed'])} plot(s) failed; the data are in {out})")
     return 0
+
+
+def _formats(given: list[str] | None) -> tuple[str, ...]:
+    """--format's values ("csv,mat", repeated): the formats in the order first given."""
+    from .scene.model import RESULT_FORMATS
+
+    out: list[str] = []
+    for text in given or ():
+        for name in text.split(","):
+            name = name.strip().lower()
+            if name not in RESULT_FORMATS:
+                raise UsageError(f"--format {text}: expected {', '.join(RESULT_FORMATS)} "
+                                 "(several as --format csv,mat or --format repeated)")
+            if name not in out:
+                out.append(name)
+    return tuple(out)
 
 
 def _run_report(scene, out: Path, summary: dict, most: int = 4) -> list[str]:
@@ -415,7 +445,10 @@ def _short(x) -> str:
 def cmd_validate(args) -> int:
     from .run.catalog import check_loadable, load_scene
 
-    scene = load_scene(args.scene, args.overrides, args.input)
+    scene = load_scene(args.scene, args.overrides, args.input, streamed=True)  # as `run` will
+    from .results.series import require_formats
+
+    require_formats(scene.record.format)
     check_loadable(scene)
     n, m = len(scene.components), len(scene.connections)
     points = len(scene.points())

@@ -25,7 +25,10 @@ def _scene(tmp_path, stop=1.0, sweep="", edit=lambda s: s):
 UNBOUNDED = {
     "stop = 1e12 s": dict(stop=1e12),
     "a tiny step": dict(stop=1000, edit=lambda s: s.replace('step = "0.01 s"', 'step = "1e-7 s"')),
-    "a tiny record interval": dict(stop=1e5, edit=lambda s: s.replace("[record]", '[record]\ninterval = "1e-3 s"')),
+    # a single run's series goes to disk as it is recorded (test_streaming.py): a sweep's points are kept
+    "a tiny record interval in a sweep": dict(
+        stop=1e5, edit=lambda s: s.replace("[record]", '[record]\ninterval = "1e-3 s"'),
+        sweep='\n[sweep]\naxes = [ { parameter = "pendulum.Q", values = [500, 1000] } ]\n'),
     "ticks only": dict(stop=1e12, edit=lambda s: s.replace('outputs = ["pendulum.phi"]', "outputs = []")),
     "many outputs": dict(stop=1e6, edit=lambda s: s.replace('outputs = ["pendulum.phi"]', 'outputs = ["pendulum.phi", '
                                                              '"pendulum.w", "escapement.tau", "escapement.mode"]')),
@@ -181,29 +184,36 @@ def test_input_events_count_against_the_recording_bound_at_validate(capsys, tmp_
         t = k * 4.9e-5
         lines += [f"{t!r},{k % 2}", f"{t!r},{(k + 1) % 2}"]  # a time twice: a step, an input event
     (tmp_path / "in.csv").write_text("\n".join(lines) + "\n")
-    args = ["validate", fmu, "--input", tmp_path / "in.csv", "--set", "experiment.stop=1", "--set", "master.step=0.001"]
-    rc, _, err = run_cli(capsys, args)
-    assert_one_line_error(rc, err, "experiment.stop", "2.1e+07 values", code=2)
-    rc, out, err = run_cli(capsys, args + ["--set", "record.interval=0.001"])  # events keep no row then
-    assert rc == 0, err
+    # Kept in memory by clockwork.simulate (a run's series is streamed to disk: its size counts them too).
+    from clockwork.errors import SceneError
+    from clockwork.run.catalog import load_scene, series_size
+
+    sets = ["experiment.stop=1", "master.step=0.001"]
+    with pytest.raises(SceneError, match=r"2\.1e\+07 values"):
+        load_scene(fmu, sets, tmp_path / "in.csv")
+    assert load_scene(fmu, sets + ["record.interval=0.001"], tmp_path / "in.csv")  # events keep no row then
+    assert series_size(load_scene(fmu, sets, tmp_path / "in.csv", streamed=True)) == (1001 + 20_000, 1 + 1001)
 
 
 @pytest.mark.parametrize("engine", ["compiled", "python"])
 def test_rows_at_located_events_count_against_the_bound_at_run_time(capsys, tmp_path, monkeypatch, engine):
-    """Located events keep rows no check before the run can count: the run
-    stops at the bound with one line, exit 1, and keeps what it recorded."""
-    import json
-
+    """Located events keep rows no check before the run can count: a series
+    kept in memory (clockwork.simulate's, a sweep point's) stops at the
+    bound and keeps what it recorded."""
     from clockwork.analyses import time_series
+    from clockwork.errors import SimulationError
+    from clockwork.run.catalog import load_scene
 
     # 2 s at 0.01 s: 201 grid rows of 2 columns (time, phi), 3 more at events; the bound lets 202 rows in.
     monkeypatch.setattr(time_series, "MAX_KEPT_VALUES", 404)
     f = _scene(tmp_path, stop=2.0, edit=lambda s: s.replace('ticks = "pendulum"', ""))
+    with pytest.raises(SimulationError, match="recorded values") as e:
+        time_series.time_series(load_scene(f, [f"master.engine={engine}"]), {})
+    assert "record.interval" in str(e.value)
+    assert 202 <= len(e.value.history["series"]["time"]) <= 210
+    # written to disk as it goes, a run has no such bound
     rc, _, err = run_cli(capsys, ["run", f, "--out", tmp_path / "out", "--no-progress", "--no-plot",
                                   "--set", f"master.engine={engine}"])
-    assert_one_line_error(rc, err, "recorded values", "record.interval", code=1)
-    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
-    assert "recorded values" in summary["result"]["failed"]["message"]
-    rows = (tmp_path / "out" / "timeseries.csv").read_text().splitlines()
-    assert 1 + 202 <= len(rows) <= 1 + 210
+    assert rc == 0, err
+    assert len((tmp_path / "out" / "timeseries.csv").read_text().splitlines()) == 1 + 204
 

@@ -375,7 +375,7 @@ BAD_EXPERIMENTS = {
     "tolerance INF": ('stopTime="1" stepSize="0.1" tolerance="INF"', ["DefaultExperiment tolerance = INF"],
                       "master.tolerance=1e-3"),
     "a stopTime past the recording bound": ('stopTime="1e12" stepSize="0.1"',
-                                           ["DefaultExperiment stopTime: a run of 1e+12 s", "values in memory"],
+                                           ["DefaultExperiment stopTime: time_series over 1e+12 s", "steps"],
                                            "experiment.stop=1"),
     "a startTime with no stopTime past a double's resolution": (
         'startTime="1e17" stepSize="0.1"', ["DefaultExperiment startTime (no stopTime: the run stops 1 s after it)"],

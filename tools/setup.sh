@@ -28,7 +28,7 @@ if [ ${#debs[@]} -gt 0 ]; then
     echo "setup: ${debs[*]} missing and this is not root: install them (apt-get install ${debs[*]}), else ecos cannot run (libtbb12), the FMUs get no Windows or aarch64-linux binaries (mingw-w64, gcc-aarch64-linux-gnu) or these are not tested (wine, qemu-user); tests skip what is missing outside CI"
   fi
 fi
-"$PY" -m pip install --quiet --disable-pip-version-check -e ".[test,interop,docs]"
+"$PY" -m pip install --quiet --disable-pip-version-check -e ".[test,interop,docs,parquet]"
 # Bytecode, as pip writes it for an installed wheel: an editable install
 # leaves it to the first import, which never writes it where
 # PYTHONDONTWRITEBYTECODE is set, and every start-up then compiles the package.

@@ -142,6 +142,29 @@ def reusing_systems():
         idle.close()
 
 
+_series_sink: ContextVar = ContextVar("clockwork_series_sink", default=None)
+
+
+@contextmanager
+def streaming_series(make_sink):
+    """Within this block a time series is written as the run goes:
+    ``make_sink(names, text_names)`` gives the Recorder's sink
+    (results.series.SeriesWriter; made by the run layer, which knows the
+    output directory) and the result's "series" is what its ``close``
+    gives. Outside, the series is kept in memory (clockwork.simulate, a
+    sweep's points)."""
+    token = _series_sink.set(make_sink)
+    try:
+        yield
+    finally:
+        _series_sink.reset(token)
+
+
+def series_sink():
+    """The ``make_sink`` of the enclosing ``streaming_series``, or None."""
+    return _series_sink.get()
+
+
 def build_system(scene, point: dict | None = None, record: dict[str, list[str]] | None = None) -> System:
     params = parameters(scene, point)
     start, _ = experiment(scene, point)

@@ -22,7 +22,7 @@ from ..engine.recording import Recorder
 from ..errors import SimulationError
 from ..scene.model import SPAN_RESOLUTION
 from .bounds import MAX_KEPT_VALUES
-from .context import build_system, experiment, find_component, parameters
+from .context import build_system, experiment, find_component, parameters, series_sink
 from .registry import register
 
 
@@ -60,22 +60,37 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
         m = system.master
         # Rows at events off the grid are kept too: what no check before the run counts is bounded here.
         recorder = Recorder(m, outputs, scene.record.interval, tick_inst, times=times, limit=MAX_KEPT_VALUES)
-        recorder.start()
+        make_sink = series_sink() if (outputs or times) else None
+        if make_sink is not None:  # written as the run goes (run.scene_run): no bound on memory to keep
+            recorder.stream_to(make_sink(recorder.names, recorder.text_names))
         try:
+            recorder.start()
             run_with_progress(m, stop, recorder, progress, label=scene.path.stem)
             if times:  # clockwork.simulate: the last row is the end, as fmpy's (record.interval may skip it)
                 recorder.finish()
         except SimulationError as e:
             # A failed run keeps its history: what was recorded until the
             # last good communication point goes with the error (run.points).
-            keep_history(e, "ticks" if ticks_only else "time_series", recorder, m, outputs, tick_inst)
+            try:
+                keep_history(e, "ticks" if ticks_only else "time_series", recorder, m, outputs, tick_inst)
+            except BaseException:
+                recorder.abort()
+                raise
+            raise
+        except BaseException:  # interrupted, a full disk: nothing of the series is kept
+            recorder.abort()
+            raise
+        try:
+            series = recorder.series() if (outputs or times) else None
+        except BaseException:
+            recorder.abort()
             raise
         stats = vars(m.stats).copy()
         stall = _stall_check(scene, point, system) if m.ended is None else None
         ended, t_end = m.ended, m.t
         engine = {"engine": m.engine, **({"engine_reason": m.engine_reason} if m.engine_reason else {})}
         notes = list(m.notes)
-    columns, ticks = recorder.columns, recorder.ticks
+    ticks = recorder.ticks
     result: dict = {"t_end_s": t_end if ended is not None else stop, **engine}
     if ended is not None:
         # An FMU ended the simulation: a clean end, with the results up to then.
@@ -95,7 +110,7 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
             result["last_period_s"] = float(periods[-1])
     out = {"kind": "ticks" if ticks_only else "time_series", "result": result, "statistics": stats}
     if outputs or times:
-        out["series"] = columns
+        out["series"] = series
     if tick_inst:
         out["ticks"] = ticks
     return out
@@ -111,7 +126,7 @@ def keep_history(e: SimulationError, kind: str, recorder: Recorder, master, outp
     e.last_point = last
     history: dict = {"kind": kind, "statistics": vars(master.stats).copy(), "engine": master.engine}
     if outputs:
-        history["series"] = recorder.columns
+        history["series"] = recorder.series()
     if tick_inst:
         history["ticks"] = recorder.ticks
     e.history = history

@@ -7,6 +7,11 @@ events too in that case) and the tick times of one instance (its
 ``tick_time`` output, which changes at each upward zero crossing).
 Variables of the other types are read from the FMU when sampled (String
 as text); Real ones come from the master's output buffer.
+
+With a `sink` (results.series.SeriesWriter: any object with ``write(columns)``
+and ``close()``), the rows go to it a chunk of CHUNK_VALUES values at a
+time and the recorder keeps at most one chunk: a run's memory does not
+grow with its length. Without one, every row is kept in ``columns``.
 """
 
 from __future__ import annotations
@@ -29,13 +34,20 @@ class _DiscreteOutput:
         return value if self.kind in TEXT_TYPES else float(value)
 
 
+# Values (rows x columns) a streaming recorder holds before it hands them on: 8192 keep the
+# chunk's floats and CSV text near 1 MB (65,536 took 13 MB, a quarter of a short run's whole
+# peak; benchmarks/bench_memory.py), and the compiled core's 4096-row buffer drains in between.
+CHUNK_VALUES = 1 << 13
+
+
 class Recorder:
     def __init__(self, master, outputs: list[tuple[str, str]], interval: float | None = None,
                  ticks_of: str | None = None, times: bool = False,
-                 limit: int | None = None):
+                 limit: int | None = None, sink=None):
         """`limit`: the values (rows x columns, time included) it may keep;
         a run that would keep more (rows at events off the grid, which no
-        check before the run can count) fails with SimulationError."""
+        check before the run can count) fails with SimulationError. `sink`:
+        where the rows go as the run goes (see the module); no limit then."""
         self.master = master
         # An FMI 3.0 array is recorded element by element ("y[0]", "A[1,2]").
         self.outputs = [(i, x) for i, v in outputs for x in master.instances[i].elements.get(v, [v])]
@@ -59,9 +71,60 @@ class Recorder:
         self._interval = interval
         self._stride = max(1, round(interval / master.settings.step)) if interval else 1
         self._k = 0  # grid points seen
-        self.limit = limit
+        self.sink = sink
+        self.limit = None if sink is not None else limit
         # rows x columns (time included) > limit  <=>  rows > limit // columns
-        self._max_rows = limit // (len(self.names) + 1) if limit is not None else None
+        self._max_rows = self.limit // (len(self.names) + 1) if self.limit is not None else None
+        self._chunk_rows = max(1, CHUNK_VALUES // (len(self.names) + 1))
+        self._handed = 0  # rows handed to the sink
+        self._last_t: float | None = None  # the last row's time
+
+    def stream_to(self, sink) -> None:
+        """Hand the rows to `sink` from now on (see the module): no `limit` then."""
+        self.sink = sink
+        self.limit = self._max_rows = None
+
+    @property
+    def text_names(self) -> set[str]:
+        """The columns recorded as text (String and Binary variables)."""
+        return {n for n, (src, _) in zip(self.names, self._sources)
+                if isinstance(src, _DiscreteOutput) and src.kind in TEXT_TYPES}
+
+    @property
+    def rows(self) -> int:
+        """Rows recorded so far (handed on or kept)."""
+        return self._handed + len(self.columns["time"])
+
+    def _flush(self) -> None:
+        """Hand the rows kept to the sink; the lists are emptied in place (the
+        compiled engine appends to these very lists)."""
+        cols = self.columns
+        if not cols["time"]:
+            return
+        self._last_t = cols["time"][-1]
+        self._handed += len(cols["time"])
+        self.sink.write([cols["time"]] + [cols[n] for n in self.names])
+        for c in cols.values():
+            del c[:]
+
+    def series(self):
+        """The recorded series: the sink's (every row handed on, its files
+        closed) or the columns kept."""
+        if self.sink is None:
+            return self.columns
+        self._flush()
+        sink, self.sink = self.sink, None
+        self._series = sink.close()
+        return self._series
+
+    def abort(self) -> None:
+        """A run that ends without a result or a history: the sink's files go."""
+        if self.sink is not None:
+            sink, self.sink = self.sink, None
+            sink.abort()
+
+    def _last_time(self) -> float | None:
+        return self.columns["time"][-1] if self.columns["time"] else self._last_t
 
     def start(self) -> None:
         """Record the first row, at the master's current point."""
@@ -71,7 +134,8 @@ class Recorder:
     def finish(self) -> None:
         """Record the run's end when the interval left it out (a stop off
         the recording grid): fmpy's result always ends at its stop."""
-        if self._rows and (not self.columns["time"] or self.columns["time"][-1] < self.master.t):
+        last = self._last_time()
+        if self._rows and (last is None or last < self.master.t):
             self._row(self.master.t)
 
     def _row(self, t: float) -> None:
@@ -80,6 +144,8 @@ class Recorder:
         self.columns["time"].append(t)
         for name, (arr, j) in zip(self.names, self._sources):
             self.columns[name].append(arr[j])
+        if self.sink is not None and len(self.columns["time"]) >= self._chunk_rows:
+            self._flush()
 
     def over(self, t: float) -> SimulationError:
         """The error of a run that would keep more than `limit` values."""
@@ -92,9 +158,12 @@ class Recorder:
         return e
 
     def check_limit(self, t: float) -> None:
-        """After rows were added in bulk (the compiled core): raise when past `limit`."""
+        """After rows were added in bulk (the compiled core): raise when past
+        `limit`; with a sink, hand a full chunk on."""
         if self._max_rows is not None and len(self.columns["time"]) > self._max_rows:
             raise self.over(t)
+        if self.sink is not None and len(self.columns["time"]) >= self._chunk_rows:
+            self._flush()
 
     def __call__(self, master) -> None:
         if self._tick_port is not None:

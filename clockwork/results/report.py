@@ -20,6 +20,7 @@ from .files import clean_json, write_csv_atomic, write_json_atomic
 from .headlines import headlines_for
 from .plots import Plotter
 from .plots.outputs import column_info
+from .series import StreamedSeries
 
 _SCALARS = (int, float, bool, str, type(None))
 
@@ -40,10 +41,13 @@ def write_outputs(scene, out: Path, results: list[dict], summary: dict, t_start:
         summary["statistics"] = r.get("statistics", {})
         if "series" in r:
             cols = r["series"]
-            write_csv_atomic(out / "timeseries.csv", list(cols),
-                             [list(v) if any(isinstance(x, str) for x in v)  # a String variable: text
-                              else _Numbers(v) for v in cols.values()])
-            files.append("timeseries.csv")
+            if isinstance(cols, StreamedSeries):  # written as the run went, in every format asked for
+                files += cols.files
+            else:
+                write_csv_atomic(out / "timeseries.csv", list(cols),
+                                 [list(v) if any(isinstance(x, str) for x in v)  # a String variable: text
+                                  else _Numbers(v) for v in cols.values()])
+                files.append("timeseries.csv")
             # Units and types of the columns: `clockwork plot` redraws from the files alone.
             summary["columns"] = column_info(scene, [n for n in cols if n != "time"])
         if r.get("ticks"):

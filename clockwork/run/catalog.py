@@ -45,13 +45,17 @@ def find_scene(spec: str | os.PathLike) -> Path:
                      "`clockwork list` shows the bundled scenes", path)
 
 
-def load_scene(path: str | os.PathLike, overrides=(), input_file: str | os.PathLike | None = None):
+def load_scene(path: str | os.PathLike, overrides=(), input_file: str | os.PathLike | None = None,
+               streamed: bool = False):
     """Load, override and validate a scene file (or a bundled scene by name,
-    an SSP, an FMU), with an input file when given; raises SceneError."""
+    an SSP, an FMU), with an input file when given; raises SceneError.
+    `streamed`: a single run's series will be written as the run goes
+    (run_scene), so the bound on recorded values in memory leaves it out
+    (run_scene checks the disk space instead)."""
     scene = _load_scene(find_scene(path), overrides, kinds(), input_file)
     try:
         analyses.check_analysis(scene)
-        check_recording_bound(scene)
+        check_recording_bound(scene, streamed)
         check_plot_axes(scene)
     except SceneError as e:  # named by where the value came from (--set, an FMU's DefaultExperiment...)
         raise scene.refused_at(e) from None
@@ -159,17 +163,18 @@ def _input_events(scene, start: float, stop: float) -> int:
     return bisect.bisect_right(events, stop) - bisect.bisect_left(events, start)
 
 
-def recorded_values(scene) -> tuple[int, float, float]:
+def recorded_values(scene, series: bool = True) -> tuple[int, float, float]:
     """(values a point records at most, its span s, its recording interval s),
     for the analyses that record over the whole experiment: a row of the
     recorded outputs and the time per record.interval (or communication
-    step), and at most one tick per communication step."""
+    step), and at most one tick per communication step. Without `series`,
+    the ticks alone (a series that is streamed to disk keeps no memory)."""
     kind = (scene.analysis or {}).get("kind", "time_series")
     if kind not in _RECORDING_KINDS:
         return 0, 0.0, 0.0
     span = scene.experiment.stop - scene.experiment.start
     every = scene.record.interval or scene.master.step
-    columns = _recorded_columns(scene) if scene.record.outputs and kind == "time_series" else 0
+    columns = _recorded_columns(scene) if scene.record.outputs and kind == "time_series" and series else 0
     ticks = scene.record.ticks is not None or kind == "ticks"
     rows = math.floor(span / every) + 1
     if not scene.record.interval:  # every point is kept: an input event's too
@@ -178,14 +183,30 @@ def recorded_values(scene) -> tuple[int, float, float]:
     return n, span, every
 
 
-def check_recording_bound(scene) -> None:
+def series_size(scene) -> tuple[int, int]:
+    """(rows, columns with time) of a single run's series at most: what its
+    files take on disk (run.scene_run checks the free space)."""
+    kind = (scene.analysis or {}).get("kind", "time_series")
+    if kind != "time_series" or not scene.record.outputs:
+        return 0, 0
+    span = scene.experiment.stop - scene.experiment.start
+    rows = math.floor(span / (scene.record.interval or scene.master.step)) + 1
+    if not scene.record.interval:
+        rows += _input_events(scene, scene.experiment.start, scene.experiment.stop)
+    return rows, _recorded_columns(scene)
+
+
+def check_recording_bound(scene, streamed: bool = False) -> None:
     """Refuse, before the run, a point that would record more than
-    MAX_RECORDED_VALUES (e.g. stop = 1e12 s at a 0.01 s step)."""
+    MAX_RECORDED_VALUES in memory (e.g. stop = 1e12 s at a 0.01 s step);
+    with `streamed` (a single run written as it goes), its series is on
+    disk and its ticks alone count."""
     variants = [scene]
     if scene.sweep is not None and any(a.parameter[0] in ("master", "experiment", "analysis") or a.parameter[1] in ("L", "g")
                                        for a in scene.sweep.axes):
         variants = [scene.variant(p) for p in scene.points()]
-    n, span, every = max(recorded_values(v) for v in variants)
+    series = not streamed or scene.sweep is not None
+    n, span, every = max(recorded_values(v, series) for v in variants)
     if n > MAX_RECORDED_VALUES:
         raise SceneError(f"a run of {span:g} s recording every {every:g} s keeps about {n:.3g} values in memory, "
                          f"more than {MAX_RECORDED_VALUES:.0e} (about {MAX_RECORDED_VALUES * BYTES_PER_VALUE / 1e6:.0f} "

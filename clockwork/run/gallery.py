@@ -71,7 +71,7 @@ def run_gallery(out: Path, scenarios: Path | None = None, quick: bool = False, o
                  "quick": f.stem in reduced}
         t0 = time.perf_counter()
         try:
-            scene = load_scene(f, entry["overrides"])
+            scene = load_scene(f, entry["overrides"], streamed=True)
             entry["title"] = scene.title
             entry["reproduces"] = scene.reproduces
             if progress:

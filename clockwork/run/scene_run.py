@@ -10,12 +10,13 @@ repeating work. Points run in this process, in a pool of processes
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import asdict
 from pathlib import Path
 
 from ..version import __version__
-from ..analyses.context import reusing_systems
+from ..analyses.context import reusing_systems, streaming_series
 from ..errors import ParametersRefused, SceneError, SimulationError, printable
 from ..processes import Child
 from ..results.cache import cache_load, cache_store, read_point
@@ -24,6 +25,8 @@ from ..results.outdir import OutputDir
 from ..results.plots import Plotter
 from ..results.plots.registry import unknown_column
 from ..results.report import write_outputs
+from ..results.series import FILE_NAMES, SeriesWriter, StreamedSeries, descriptions, estimate_bytes, require_formats
+from .catalog import series_size
 from .points import analysis_kind, failed_point, point_key, point_label, run_point
 
 
@@ -34,6 +37,7 @@ def run_scene(scene, out_dir, workers: int | None = None, scheduler: str | None 
     `plot_process`: one the command forked at its start, for the plots
     (clockwork.results.plots.background)."""
     t_start = time.perf_counter()
+    require_formats(scene.record.format)  # before the output directory is touched
     # The plot process starts first: it imports matplotlib while the points run,
     # and it must not inherit the output directory's lock.
     with Plotter.start(scene, plot_process) as plotter, OutputDir(out_dir) as out:
@@ -83,8 +87,16 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
 
     failure = None
     if not sweep:
+        check_disk_space(scene, out.path)
+        formats = scene.record.format
+
+        def make_sink(names: list[str], text: set[str]) -> SeriesWriter:
+            # Into the staging folder: committed with summary.json, or gone with it.
+            return SeriesWriter(out.staging, names, text, formats, descriptions(scene, names))
+
         try:
-            finished(0, run_point(scene, points[0], progress=progress))
+            with streaming_series(make_sink):
+                finished(0, run_point(scene, points[0], progress=progress))
         except ParametersRefused as e:  # the scene's values, not the run, are at fault
             if Path(scene.path).suffix.lower() == ".toml":
                 raise SceneError(e.message, scene.path, f"components.{e.instance}.parameters") from None
@@ -97,6 +109,8 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
             # result (summary.json says failed), then the error is raised.
             failure = e
             finished(0, failed_point(scene, points[0], e, time.perf_counter() - t_start))
+        except OSError as e:  # the series' files (a full disk): named as the user will look for them
+            raise _named(e, out) from None
     elif todo:
         from .pool import default_workers, run_in_pool  # a sweep's: start-up of a single run needs no process pool
 
@@ -148,13 +162,46 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
     try:
         write_outputs(scene, out.staging, results, summary, t_start, plotter)
     except OSError as e:  # name the file the user asked for, not its staged copy
-        if e.filename is None or Path(e.filename).parent != out.staging:
-            raise
-        raise OSError(e.errno, e.strerror, str(out.path / Path(e.filename).name)) from None
+        raise _named(e, out) from None
     out.commit()
+    for r in results[:1]:
+        if r is not None and isinstance(r.get("series"), StreamedSeries):
+            r["series"].committed(out.path)  # the staging folder is gone: read from the result
     if failure is not None:
         raise _failed_run(failure, out.path, summary)
     return summary
+
+
+def _named(e: OSError, out: OutputDir) -> OSError:
+    """`e` naming the file of the output directory instead of its staged copy."""
+    if e.filename is None or Path(e.filename).parent != out.staging:
+        return e
+    # a hidden working file (.timeseries.csv, .timeseries.mat.rows) by the result it makes
+    name = Path(e.filename).name.lstrip(".").removesuffix(".rows")
+    return OSError(e.errno, e.strerror, str(out.path / name))
+
+
+def check_disk_space(scene, folder: Path) -> None:
+    """Refuse a single run whose series would not fit on the output
+    directory's file system (its free space now against the most the
+    series takes in the formats asked for), naming what to change."""
+    rows, columns = series_size(scene)
+    if not rows:
+        return
+    need = estimate_bytes(rows, columns, scene.record.format)
+    try:
+        st = os.statvfs(folder)
+    except OSError:
+        return  # no file system statistics: a full disk is then the run's failure
+    free = st.f_bavail * st.f_frsize
+    if need > free:
+        files = ", ".join(FILE_NAMES[f] for f in scene.record.format)
+        span = scene.experiment.stop - scene.experiment.start
+        every = scene.record.interval or scene.master.step
+        raise SceneError(f"a run of {span:g} s recording {columns} columns every {every:g} s writes up to "
+                         f"{need / 1e6:.4g} MB ({rows:.3g} rows into {files}), more than the {free / 1e6:.4g} MB "
+                         f"free on the file system of {folder}: free some space, or give a longer record.interval, "
+                         "a shorter span (experiment.stop) or fewer record.outputs", scene.path, "experiment.stop")
 
 
 class _NoBar:

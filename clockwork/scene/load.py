@@ -43,8 +43,8 @@ from .checks import (SETTABLE, STRUCTURAL, TOP_KEYS, Ctx, article, component, co
 from .fmu import read_fmu_scene
 from .inputs import Inputs, read_inputs
 from .kinds import NO_KINDS, Invalid, Kinds
-from .model import (Component, ComponentVariables, Connection, Experiment, Record, Scene, consistency, follow,
-                    show)
+from .model import (RESULT_FORMATS, Component, ComponentVariables, Connection, Experiment, Record, Scene,
+                    consistency, follow, show)
 from .osp.read import OSP_FILE, OtherXml, read_osp
 from .ssp.read import read_ssp
 from .sweep import parse_sweep
@@ -780,7 +780,7 @@ def _master(ctx: Ctx, t: dict) -> tuple[MasterSettings, frozenset]:
 
 def _record(ctx: Ctx, t: dict | None, components: dict[str, Component]) -> Record:
     t = t or {}
-    ctx.check_keys(t, ("outputs", "interval", "ticks"), "record")
+    ctx.check_keys(t, ("outputs", "interval", "ticks", "format"), "record")
     if "outputs" in t:
         refs = t["outputs"]
         if not isinstance(refs, list):
@@ -814,7 +814,30 @@ def _record(ctx: Ctx, t: dict | None, components: dict[str, Component]) -> Recor
         for need in ("tick_time", "tick_count"):
             if need not in variables or variables[need].causality != "output":
                 raise ctx.bad("record.ticks", ticks, "a component with tick_time and tick_count outputs (a Pendulum)")
-    return Record(tuple(outputs), interval, ticks)
+    formats = ("csv",)
+    if "format" in t:
+        formats = _formats(ctx, t["format"])
+    return Record(tuple(outputs), interval, ticks, formats)
+
+
+def _formats(ctx: Ctx, value) -> tuple[str, ...]:
+    """record.format: a name or a list of names of RESULT_FORMATS ("csv,mat" too)."""
+    expected = f"one of {', '.join(RESULT_FORMATS)}, or a list of them"
+    names = value if isinstance(value, list) else [value]
+    out: list[str] = []
+    for i, name in enumerate(names):
+        key = f"record.format[{i}]" if isinstance(value, list) else "record.format"
+        if not isinstance(name, str):
+            raise ctx.bad(key, name, expected)
+        for part in name.split(","):
+            part = part.strip().lower()
+            if part not in RESULT_FORMATS:
+                raise ctx.bad(key, name, expected)
+            if part not in out:
+                out.append(part)
+    if not out:
+        raise ctx.bad("record.format", value, expected)
+    return tuple(out)
 
 
 def _kind_table(ctx: Ctx, t: dict, where: str, registry: dict, converters: dict) -> dict:

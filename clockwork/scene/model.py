@@ -104,6 +104,11 @@ class Record:
     outputs: tuple[tuple[str, str], ...]  # (instance, variable)
     interval: float | None  # s; None = every communication point
     ticks: str | None  # instance whose tick_time/tick_count are recorded
+    format: tuple[str, ...] = ("csv",)  # the files of the series: RESULT_FORMATS, in the order given
+
+
+# The formats a recorded series is written in (results.series), as record.format and --format name them.
+RESULT_FORMATS = ("csv", "parquet", "mat")
 
 
 @dataclass(frozen=True)

@@ -108,6 +108,8 @@ def scene_toml(scene: Scene, scene_file: Path, source: str) -> str:
         lines.append(f"interval = {toml_value(float(r.interval))}")
     if r.ticks is not None:
         lines.append(f"ticks = {toml_value(r.ticks)}")
+    if r.format != ("csv",):
+        lines.append(f"format = {toml_value(list(r.format))}")
     if scene.analysis is not None:
         lines += ["", "[analysis]"] + [f"{k} = {toml_value(v)}" for k, v in scene.analysis.items()]
     if scene.inputs is not None and scene.inputs.file is not None:
