@@ -69,7 +69,8 @@ def _count_lookups(monkeypatch) -> dict:
         return real(md)
 
     monkeypatch.setattr("clockwork.engine.description.variables", counted)
-    for module in ("scene.load", "scene.checks", "scene.model", "scene.ssp.read"):
+    for module in ("scene.load", "scene.checks", "scene.model", "scene.ssp.structure", "scene.ssp.flatten",
+                   "scene.ssp.parameters", "scene.ssp.sections"):
         monkeypatch.setattr(f"clockwork.{module}.variables_of", counted)
     return calls
 
