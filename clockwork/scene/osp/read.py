@@ -43,7 +43,7 @@ from ...files import absent
 from ...numbers import XSD_SPECIAL, parse_int, parse_real, shorten
 from ..checks import SETTABLE, STRUCTURAL, Ctx, convert_value, instance_problem, read_bounded, settable_problem
 from ..model import Component, Connection
-from ..ssp.common import XmlError, parse_xml
+from ..ssp.common import Warnings, XmlError, parse_xml
 from ..ssp.documents import MAX_XML_BYTES, Doc
 
 # the namespace of libcosim's OspSystemStructure.xsd (not the OSP annotation's of an SSP, ssp.common.OSP_NS)
@@ -58,8 +58,6 @@ _NS_PER_S = 1_000_000_000
 _TOP = ("StartTime", "EndTime", "BaseStepSize", "Algorithm", "Simulators", "Functions", "Connections",
         "EccoConfiguration")
 _VALUE_TYPES = ("Real", "Integer", "Boolean", "String")
-# Warnings of one kind beyond this many are counted, not printed.
-WARNINGS_SHOWN = 3
 
 
 class OtherXml(SceneError):
@@ -97,15 +95,8 @@ class OspScene:
 class _Doc(Doc):
     """An OSP XML file: elements named by their local names (one namespace per file)."""
 
-    def key(self, el, attr: str | None = None) -> str:
-        local = _local(el)
-        name = el.get("name")
-        what = f"{local} {shorten(name, 100)!r}" if name is not None and attr != "name" else local
-        if attr is not None:
-            value = el.get(attr)
-            attr = shorten(attr, 100)
-            what += f" {attr}" if value is None else f" {attr}={shorten(value, 100)!r}"
-        return f"line {el.sourceline}: {what}"
+    def tag(self, el) -> str:
+        return _local(el)
 
 
 def _local(el) -> str:
@@ -138,18 +129,10 @@ class _Reader:
         self.links: dict[tuple[str, str], tuple] = {}  # (inst, input) -> (src inst, output, factor, offset, el)
         self.values: dict[tuple[str, str], tuple] = {}  # (inst, var) -> (value, InitialValue element)
         self.labels: dict[str, tuple[str, str]] = {}
-        self._warned: dict[str, list[str]] = {}
+        self.warnings = Warnings()
 
     def warn(self, key: str, text: str, kind: str | None = None) -> None:
-        self._warned.setdefault(kind or text, []).append(f"{self.doc.label}: {key}: {text}")
-
-    def _warnings(self) -> list[str]:
-        out = []
-        for kind, lines in self._warned.items():
-            out += lines[:WARNINGS_SHOWN]
-            if len(lines) > WARNINGS_SHOWN:
-                out.append(f"... and {len(lines) - WARNINGS_SHOWN:,} more like the last: {kind}")
-        return out
+        self.warnings.warn(self.doc.label, key, text, kind)
 
     # -- the file
 
@@ -218,7 +201,7 @@ class _Reader:
         # libcosim's files are all named OspSystemStructure.xml: the folder names the system
         title = self.path.stem if self.path.stem != ROOT else (self.path.resolve().parent.name or ROOT)
         return OspScene(title, "", components, connections, sections, self.digest.hexdigest(),
-                        self._warnings(), {}, hints, no_stop, self.labels)
+                        self.warnings.lines(), {}, hints, no_stop, self.labels)
 
     def _own(self, el) -> str:
         """An element's local name; an element of another namespace (or a

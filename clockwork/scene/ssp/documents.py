@@ -46,8 +46,12 @@ class Doc:
         self.base = base  # folder of the file: a posix path in the archive, or a Path
         self.root = root
 
+    def tag(self, el) -> str:
+        """How messages name an element's tag."""
+        return tag_name(el)
+
     def key(self, el, attr: str | None = None) -> str:
-        tag = tag_name(el)
+        tag = self.tag(el)
         name = el.get("name")
         what = f"{tag} {shorten(name, 100)!r}" if name is not None and attr != "name" else tag
         if attr is not None:
