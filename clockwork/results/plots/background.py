@@ -40,6 +40,7 @@ import pickle
 import signal
 import struct
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 
 from ...atomic import remove_stale_parts
@@ -197,7 +198,8 @@ class _SceneOnDemand:
         # computed here, where the engine is loaded: the plot process then draws
         # a run's default plot without fmpy, the engine and the whole scene.
         r = results[0] if results and len(results) == 1 and isinstance(results[0], dict) else None
-        names = [n for n in r["series"] if n != "time"] if r and isinstance(r.get("series"), dict) else None
+        # the series in memory (a dict) or on disk (series.StreamedSeries): only its names are read
+        names = [n for n in r["series"] if n != "time"] if r and isinstance(r.get("series"), Mapping) else None
         self.recorded_view = None
         if names is not None and any(p.get("kind") == "outputs" for p in scene.plots):
             info, strip = recorded_view(scene, names)
