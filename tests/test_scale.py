@@ -16,7 +16,7 @@ from fmpy import read_model_description
 
 from clockwork.engine import MasterSettings, System
 from clockwork.engine import description, parallel
-from clockwork.engine.fmu3 import make_instance
+from clockwork.engine.instances import make_instance
 from clockwork.engine.ports import Port
 from clockwork.engine.recording import Recorder
 from clockwork.errors import SceneError, SimulationError

@@ -60,10 +60,9 @@ from fmpy.fmi3 import FMU3Slave, fmi3IntermediateUpdateCallback, fmi3LogMessageC
 from ..errors import SceneError, SimulationError
 from ..paths import core_library
 from . import layout
-from .description import array_elements, fmi_version, int_range, read_fmu, type_name
+from .description import array_elements, int_range, type_name
 from .fmu import (DISCARD, ERROR, NO_SINK, OK, WARNING, Instance, Variable, declared, extract, formatting_logger,
                   new_slave, read_string)
-from .fmu1 import Instance1
 
 # fmi3LogMessageCallback with the strings as addresses, read by read_string.
 LOG_MESSAGE = CFUNCTYPE(None, c_void_p, c_int, c_void_p, c_void_p)
@@ -761,18 +760,3 @@ def flat_values(value):
             yield from flat_values(x)
     else:
         yield value
-
-
-def make_instance(name, path, model_description=None, early_return: bool = True,
-                  intermediate_update: bool = False) -> Instance:
-    """An ``Instance1``, ``Instance`` or ``Instance3`` (early return
-    allowed where it declares it, unless `early_return` is false;
-    intermediate update where it provides it and `intermediate_update` asks
-    for it), as the FMU's modelDescription says."""
-    md = model_description or read_fmu(path, need_binary=False)[0]
-    version = fmi_version(md)
-    if version == 3:
-        return Instance3(name, path, md, early_return, intermediate_update)
-    if version == 1:
-        return Instance1(name, path, md)
-    return Instance(name, path, md)

@@ -30,7 +30,7 @@ compiled core's twin (src_c/master/cw_me.c, the ``cwme_*`` functions):
 the core steps the same instance with the same bits.
 
 An FMU that declares both interfaces runs as Co-Simulation unless asked
-for Model Exchange (``make_instance(..., model_exchange=MEOptions(...))``,
+for Model Exchange (``instances.make_instance(..., interface="model-exchange")``,
 the scene's ``interface = "model-exchange"``); one that declares only
 Model Exchange always runs so.
 """
@@ -48,10 +48,10 @@ from fmpy.fmi3 import FMU3Model, fmi3LogMessageCallback
 
 from ..errors import SceneError, SimulationError
 from . import cvode, rk
-from .description import fmi_version, read_fmu
+from .description import fmi_version
 from .events import input_polynomial
 from .fmu import ERROR, OK, WARNING, Instance, extract, read_string
-from .fmu3 import LOG_MESSAGE, Instance3, make_instance as make_cs_instance
+from .fmu3 import LOG_MESSAGE, Instance3
 from .me_step import (AUTO, CALLS, CONTINUOUS, CVODE, DEFAULT_RTOL, EVENT, FAIL_CVODE, FAIL_LOCATE, FAIL_RK,
                       FAIL_SETTLE, FAIL_TIME, FAIL_TIME_EVENTS, INITIALIZATION, INSTANTIATED, MAX_CVODE_STEPS,
                       MAX_EVENT_ITERATIONS, MAX_RK_STATES, MAX_TRIALS, METHOD_NAMES, RK_FAILURES, SOLVERS, STATS,
@@ -697,18 +697,3 @@ def model_exchange_problem(md) -> str | None:
         return (f"Model Exchange with FMI 3.0 array variables is not supported ({', '.join(arrays[:8])}"
                 f"{', ...' if len(arrays) > 8 else ''}); run it through its Co-Simulation interface if it has one")
     return None
-
-
-def make_instance(name, path, model_description=None, early_return: bool = True, intermediate_update: bool = False,
-                  interface: str | None = None, options: MEOptions | None = None) -> Instance:
-    """An instance of the FMU at `path` through the interface asked for
-    (``interface_of``): a Model Exchange wrapper (with `options`), else the
-    Co-Simulation instance of ``fmu3.make_instance``."""
-    md = model_description or read_fmu(path, need_binary=False)[0]
-    if interface_of(md, interface) == "model-exchange":
-        problem = model_exchange_problem(md)
-        if problem:
-            raise SceneError(f"{path}: {problem}")
-        cls = MEInstance3 if fmi_version(md) == 3 else MEInstance
-        return cls(name, path, md, options)
-    return make_cs_instance(name, path, md, early_return, intermediate_update)

@@ -23,7 +23,8 @@ from .description import INTEGER_TYPES, REAL_TYPES, int_range, resolve_fmu
 from .description import variables as described
 from .fmu import Instance, free_all
 from .fmu3 import flat_values
-from .model_exchange import MEOptions, make_instance
+from .instances import make_instance
+from .model_exchange import MEOptions
 from .compiled import make_master
 from .samples import Samples
 from .settings import MasterSettings

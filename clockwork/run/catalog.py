@@ -18,7 +18,7 @@ from ..analyses.bounds import MAX_KEPT_VALUES as MAX_RECORDED_VALUES
 from ..analyses.bounds import check_bounds
 from ..engine.description import array_size
 from ..engine.description import variables as variables_of
-from ..engine.model_exchange import make_instance
+from ..engine.instances import make_instance
 from ..errors import ParametersRefused, SceneError, SimulationError
 from ..paths import scenarios_dir
 from ..results.plots import registry as plots

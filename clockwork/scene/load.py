@@ -29,7 +29,8 @@ from ..engine.description import (TEXT_TYPES, FmuError, default_tolerance_proble
                                   read_fmu, resolve_fmu, type_name, types_connect, var_unit)
 from ..engine.description import variables as variables_of
 from ..engine.me_step import MAX_RK_STATES
-from ..engine.model_exchange import INTERFACES, interface_of, make_instance, model_exchange_problem
+from ..engine.instances import make_instance
+from ..engine.model_exchange import INTERFACES, interface_of, model_exchange_problem
 from ..engine.names import split_link, split_ref
 from ..engine.settings import DEFAULTS as MASTER_DEFAULTS
 from ..engine.settings import SETTINGS as MASTER_SETTINGS

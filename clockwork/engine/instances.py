@@ -1,0 +1,41 @@
+"""The one factory: an instance of any FMU the engine runs.
+
+Every command, the scene loader, ``System`` and the API make their
+instances here. It is the one place that reads the FMU's version and
+interface to choose a face (FMI 1.0, 2.0 or 3.0 Co-Simulation; FMI 2.0 or
+3.0 Model Exchange behind the engine's integrator); what it returns answers
+the same calls whichever it is, so the master never asks.
+"""
+
+from __future__ import annotations
+
+from ..errors import SceneError
+from .description import fmi_version, read_fmu
+from .fmu import Instance
+from .fmu1 import Instance1
+from .fmu3 import Instance3
+from .model_exchange import MEInstance, MEInstance3, MEOptions, interface_of, model_exchange_problem
+
+_MODEL_EXCHANGE = {2: MEInstance, 3: MEInstance3}
+
+
+def make_instance(name, path, model_description=None, early_return: bool = True, intermediate_update: bool = False,
+                  interface: str | None = None, options: MEOptions | None = None) -> Instance:
+    """An instance of the FMU at `path` through the interface asked for
+    (``interface_of``: `interface`, else Co-Simulation where the FMU has it):
+    a Model Exchange wrapper with `options`, else its Co-Simulation face
+    (early return allowed where the FMU declares it, unless `early_return`
+    is false; intermediate update where it provides it and
+    `intermediate_update` asks for it)."""
+    md = model_description or read_fmu(path, need_binary=False)[0]
+    version = fmi_version(md)
+    if interface_of(md, interface) == "model-exchange":
+        problem = model_exchange_problem(md)
+        if problem:
+            raise SceneError(f"{path}: {problem}")
+        return _MODEL_EXCHANGE[version](name, path, md, options)
+    if version == 3:
+        return Instance3(name, path, md, early_return, intermediate_update)
+    if version == 1:
+        return Instance1(name, path, md)
+    return Instance(name, path, md)
