@@ -37,7 +37,7 @@ from fmpy.fmi2 import FMU2Slave  # noqa: E402
 
 from clockwork.engine import MasterSettings  # noqa: E402
 from clockwork.engine import System
-from clockwork.engine.description import resolve_fmu as fmu_path  # noqa: E402
+from clockwork.fmi.description import resolve_fmu as fmu_path  # noqa: E402
 
 LINKS = ["pendulum.phi -> escapement.phi", "pendulum.w -> escapement.w",
          "escapement.tau -> pendulum.tau_escapement"]

@@ -25,8 +25,8 @@ import numpy as np
 from .analyses.time_series import time_series
 from .arguments import Choice, Either, Flag, Instance, Mapping, Optional, Real, Spec, Text, checked, fspath, show
 from .arguments import Path as PathSpec
-from .engine.description import element_name
-from .engine.description import variables as variables_of
+from .fmi.description import element_name
+from .fmi.description import variables as variables_of
 from .engine.names import split_ref
 from .engine.settings import MasterSettings
 from .errors import ParametersRefused, SceneError, UsageError

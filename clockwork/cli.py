@@ -607,7 +607,7 @@ def _info_ssp(path: str) -> int:
 
 
 def cmd_info(args) -> int:
-    from .engine.description import FmuError, fmi1_details, read_fmu, resolve_fmu, shape_text, type_name, var_unit
+    from .fmi.description import FmuError, fmi1_details, read_fmu, resolve_fmu, shape_text, type_name, var_unit
 
     osp_folder = (Path(args.fmu) / "OspSystemStructure.xml").is_file()  # libcosim's form: the file's folder
     if Path(args.fmu).suffix.lower() in (".ssp", ".ssd", ".xml") or osp_folder:
@@ -658,7 +658,7 @@ def cmd_info(args) -> int:
     for r in rows:
         _say_out("  " + "  ".join(c.ljust(w) for c, w in zip(r, widths)) + "  " + r[-1])
     _say_out(f"event indicators: {', '.join(indicators) if indicators else 'none'}")
-    from .scene.fmu import experiment_times, instance_name
+    from .scene.fmu_alone import experiment_times, instance_name
 
     times, step = experiment_times(md, path)
     tol = getattr(md.defaultExperiment, "tolerance", None) if md.defaultExperiment is not None else None

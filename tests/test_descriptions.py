@@ -1,5 +1,5 @@
 """modelDescription.xml under hostile edits: one validation pass for FMI 2.0
-and 3.0 (clockwork/engine/description_check.py), before fmpy reads it.
+and 3.0 (clockwork/fmi/description_check.py), before fmpy reads it.
 
 Each edit is one line on stderr naming the FMU file, modelDescription.xml,
 the line, the element and the attribute, exit code 2, for `validate` and
@@ -17,7 +17,7 @@ import pytest
 
 from cwtest import FMU_DIR, assert_one_line_error, fmu_file, run_cli
 
-from clockwork.engine.description_check import check_description
+from clockwork.fmi.description_check import check_description
 
 SCENE = ('[scene]\ntitle = "a pendulum"\n[components.pendulum]\nfmu = "{fmu}"\nparameters = {{ Q = 1000 }}\n'
          "[experiment]\nstop = 0.05\n[master]\nstep = 0.01\n")

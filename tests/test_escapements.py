@@ -9,7 +9,7 @@ import pytest
 
 from clockwork.analyses import escapements
 from clockwork.analyses.context import ESCAPEMENTS
-from clockwork.engine.description import read_fmu, variables
+from clockwork.fmi.description import read_fmu, variables
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = sorted(p.name for p in (ROOT / "src_c" / "models").iterdir() if p.name.endswith("Escapement"))

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from clockwork.engine.fmu import Instance
-from clockwork.engine.fmu3 import Instance3
+from clockwork.fmi.cs2 import Instance
+from clockwork.fmi.cs3 import Instance3
 from clockwork.engine.instances import make_instance
 from clockwork.errors import SceneError
 

@@ -1,4 +1,4 @@
-"""FMI 1.0 Co-Simulation FMUs: engine/fmu1.py's Instance1 and the compiled
+"""FMI 1.0 Co-Simulation FMUs: fmi/cs1.py's Instance1 and the compiled
 core's cw1_* adapter, on the FMI 1.0 builds of the project's models
 (the runtime's fmi1 face, src_c/runtime/cw_fmi1.c, built by CMake into
 build/test-fmus/fmi1/ for the tests only).
@@ -21,9 +21,9 @@ from pathlib import Path
 import pytest
 
 from clockwork.engine import MasterSettings, System
-from clockwork.engine.description import FmuError, read_fmu
-from clockwork.engine.fmu import direct_feedthrough
-from clockwork.engine.fmu1 import PENDING
+from clockwork.fmi.description import FmuError, read_fmu
+from clockwork.fmi.variables import direct_feedthrough
+from clockwork.fmi.cs1 import PENDING
 from clockwork.engine.wiring import Link
 from clockwork.errors import SceneError, SimulationError
 from cwtest import FMU_DIR, ROOT, TEST_FMU_DIR, assert_one_line_error, run_cli, test_fmu

@@ -19,7 +19,7 @@ import fmpy
 import numpy as np
 import pytest
 
-from clockwork.engine.description import read_fmu, variables
+from clockwork.fmi.description import read_fmu, variables
 from clockwork.engine.recording import Recorder
 from clockwork.engine.settings import MasterSettings
 from clockwork.engine.system import System
@@ -340,11 +340,11 @@ SIZE = '<UInt64 name="n" valueReference="2" causality="structuralParameter" vari
 ])
 def test_a_broken_array_declaration_is_one_line(capsys, tmp_path, body, needle):
     """Every way a <Dimension> can fail to give a size (most of them said by
-    engine/description_check.py, a size variable without a start by
+    fmi/description_check.py, a size variable without a start by
     description._dimension_problem), an element name that is taken, too
     many elements and an unsupported element type: one line naming the FMU,
     from read_fmu and from validate."""
-    from clockwork.engine.description import FmuError
+    from clockwork.fmi.description import FmuError
 
     path = _description_only(tmp_path, "Broken", body)
     with pytest.raises(FmuError, match=re.escape(needle)):

@@ -64,7 +64,7 @@ def _one_line(r, code: int, *needles: str) -> str:
 def test_the_logger_looks_environments_up_and_reads_nothing_it_was_not_given(reads):
     # Strings are read through process_vm_readv, or directly under the
     # crash handler once it is installed (as it is when an FMU is loaded).
-    from clockwork.engine import fmu as fmu_module
+    from clockwork.fmi import calls as fmu_module
 
     core = fmu_module.formatting_logger()
     assert core is not None, "the compiled core is not built"
@@ -121,7 +121,7 @@ def test_the_logger_looks_environments_up_and_reads_nothing_it_was_not_given(rea
 
 
 def test_strings_from_fmi1_and_fmi3_callbacks_are_read_without_trusting_them():
-    from clockwork.engine.fmu import read_string
+    from clockwork.fmi.calls import read_string
 
     assert read_string(None) == ""
     assert read_string(8) == "(the FMU passed an unreadable message)"

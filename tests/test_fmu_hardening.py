@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from cwtest import FMU_DIR, assert_one_line_error, fmu_file, run_cli
-from clockwork.engine import description, fmu
+from clockwork.fmi import archive as fmu, description
 
 BINARY = "binaries/linux64/Pendulum.so"
 

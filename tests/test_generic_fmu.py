@@ -14,7 +14,7 @@ import json
 import pytest
 
 from clockwork.engine import MasterSettings, System
-from clockwork.engine.fmu import direct_feedthrough
+from clockwork.fmi.variables import direct_feedthrough
 from clockwork.engine.names import instance_name_problem, split_ref
 from clockwork.engine.wiring import Link, parse_link
 from clockwork.errors import SceneError, SimulationError
@@ -310,7 +310,7 @@ class _TextInstance:
     """An instance whose variables are of every type (as Reference-FMUs' Feedthrough)."""
 
     def __init__(self):
-        from clockwork.engine.fmu import Variable
+        from clockwork.fmi.variables import Variable
 
         self.variables = {n: Variable(n, k, t, "output", "discrete", None, [])
                           for k, (n, t) in enumerate([("s", "String"), ("e", "Enumeration"), ("b", "Boolean")])}
@@ -322,7 +322,7 @@ class _TextInstance:
 
 
 def test_strings_are_recorded_as_text_and_enumerations_as_numbers():
-    from clockwork.engine.fmu import Instance
+    from clockwork.fmi.cs2 import Instance
     from clockwork.engine.recording import _DiscreteOutput
 
     inst = _TextInstance()
@@ -596,7 +596,7 @@ def test_fmu_log_messages_are_formatted(engine):
 
 def test_a_message_without_the_formatting_library_is_the_raw_format(monkeypatch):
     # Without lib/libcw_master.so the Python engine hands on the FMU's format as it is.
-    from clockwork.engine import fmu
+    from clockwork.fmi import calls as fmu
 
     monkeypatch.setattr(fmu, "_formatter", [None])
     with System({"s": (str(test_fmu("TestStair")), {"end_time": 9.0})}, [],

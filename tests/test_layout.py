@@ -1,5 +1,5 @@
 """The ctypes mirrors of the compiled core's structs are checked field by
-field against the layouts the core exports (engine/layout.py,
+field against the layouts the core exports (fmi/layout.py,
 src_c/master/cw_layout.h), so a mirror that differs in any one field is
 refused at load, not only one of another size."""
 
@@ -7,9 +7,10 @@ import ctypes
 
 import pytest
 
-from clockwork.engine import compiled, cvode, layout
-from clockwork.engine.fmu1 import _Fmi1
-from clockwork.engine.fmu3 import _Events
+from clockwork.engine import compiled, cvode
+from clockwork.fmi import layout
+from clockwork.fmi.cs1 import _Fmi1
+from clockwork.fmi.cs3 import _Events
 from clockwork.engine.model_exchange import _ME
 
 MIRRORS = [("cw_layout", "port", compiled._Port), ("cw_layout", "master", compiled._Master),

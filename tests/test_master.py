@@ -367,7 +367,7 @@ def test_output_derivatives_are_asked_for_only_after_initialization(monkeypatch)
     (FMI 2.0 state machine): the master asks then, and the FMUs answer, so
     extrapolation uses their derivatives. Asked earlier, the FMU refused and
     the master fell back to finite differences without a word."""
-    from clockwork.engine import fmu as fmu_module
+    from clockwork.fmi import cs2 as fmu_module
 
     asked_in_init = []
     real = fmu_module.Instance.output_derivatives

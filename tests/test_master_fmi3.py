@@ -21,7 +21,7 @@ import zipfile
 import pytest
 
 from clockwork.engine import MasterSettings, System
-from clockwork.engine.description import FmuError, read_fmu
+from clockwork.fmi.description import FmuError, read_fmu
 from clockwork.engine.recording import Recorder
 from clockwork.errors import SceneError, SimulationEnded
 from cwtest import FMU_DIR

@@ -13,7 +13,7 @@ import pytest
 
 from clockwork.errors import SceneError
 from clockwork.run.catalog import load_scene
-from clockwork.scene.fmu import experiment_times
+from clockwork.scene.fmu_alone import experiment_times
 from cwtest import assert_one_line_error, fmu_file, run_cli, test_fmu
 
 

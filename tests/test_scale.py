@@ -15,7 +15,8 @@ import pytest
 from fmpy import read_model_description
 
 from clockwork.engine import MasterSettings, System
-from clockwork.engine import description, parallel
+from clockwork.engine import parallel
+from clockwork.fmi import description
 from clockwork.engine.instances import make_instance
 from clockwork.engine.ports import Port
 from clockwork.engine.recording import Recorder
@@ -59,7 +60,7 @@ def test_the_variable_index_is_built_once_per_fmu_file(tmp_path, monkeypatch):
 
 
 def _count_lookups(monkeypatch) -> dict:
-    """Count every lookup of an FMU's variables (engine.description.variables,
+    """Count every lookup of an FMU's variables (fmi.description.variables,
     under each name the loaders import it as): {"n": calls so far}."""
     calls = {"n": 0}
     real = description.variables
@@ -68,7 +69,7 @@ def _count_lookups(monkeypatch) -> dict:
         calls["n"] += 1
         return real(md)
 
-    monkeypatch.setattr("clockwork.engine.description.variables", counted)
+    monkeypatch.setattr("clockwork.fmi.description.variables", counted)
     for module in ("scene.load", "scene.checks", "scene.model", "scene.ssp.structure", "scene.ssp.flatten",
                    "scene.ssp.parameters", "scene.ssp.sections"):
         monkeypatch.setattr(f"clockwork.{module}.variables_of", counted)

@@ -16,7 +16,7 @@ import dataclasses
 from contextlib import contextmanager
 from contextvars import ContextVar
 
-from ..engine.description import var_unit, variables
+from ..fmi.description import var_unit, variables
 from ..engine.settings import MasterSettings
 from ..engine.system import System
 from ..errors import SimulationError

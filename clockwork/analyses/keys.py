@@ -19,8 +19,8 @@ from __future__ import annotations
 import math
 from typing import Callable
 
-from ..engine.description import var_limit, var_unit
-from ..engine.description import variables as variables_of
+from ..fmi.description import var_limit, var_unit
+from ..fmi.description import variables as variables_of
 from ..scene.kinds import Invalid
 from ..scene.units import UnitError, parse_quantity, to_radians, to_seconds
 

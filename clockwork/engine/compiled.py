@@ -28,10 +28,11 @@ from ctypes import POINTER, Structure, byref, c_double, c_int, c_longlong, c_uin
 
 from ..errors import SceneError, SimulationError
 from ..paths import core_library
-from . import cvode, layout
-from .fmu import Instance
-from .fmu1 import _Fmi1
-from .fmu3 import _Events
+from ..fmi import layout
+from . import cvode
+from ..fmi.cs2 import Instance
+from ..fmi.cs1 import _Fmi1
+from ..fmi.cs3 import _Events
 from .master import Master
 from .parallel import group_ends
 from .model_exchange import _ME

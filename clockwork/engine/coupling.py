@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 from ..errors import say
 from .events import input_polynomial
-from .fmu import WARNING
+from ..fmi.calls import WARNING
 from .ports import Port
 
 

@@ -10,10 +10,10 @@ the same calls whichever it is, so the master never asks.
 from __future__ import annotations
 
 from ..errors import SceneError
-from .description import fmi_version, read_fmu
-from .fmu import Instance
-from .fmu1 import Instance1
-from .fmu3 import Instance3
+from ..fmi.description import fmi_version, read_fmu
+from ..fmi.cs2 import Instance
+from ..fmi.cs1 import Instance1
+from ..fmi.cs3 import Instance3
 from .model_exchange import MEInstance, MEInstance3, MEOptions, interface_of, model_exchange_problem
 
 _MODEL_EXCHANGE = {2: MEInstance, 3: MEInstance3}

@@ -31,7 +31,8 @@ from ctypes import c_double, c_int, c_uint
 from ..errors import SimulationError
 from .events import (PREDICTION_HORIZON, Illinois, crossed, earliest, extrapolants, first_root, hermite_extremum,
                      hermite_root, slope_at)
-from .fmu import WARNING, Instance
+from ..fmi.calls import WARNING
+from ..fmi.cs2 import Instance
 from .ports import Port, feeds
 
 _ORDER_ONE = (c_int * 1)(1)

@@ -44,7 +44,7 @@ both engines.
 from __future__ import annotations
 
 from ..errors import SimulationError
-from .fmu import WARNING
+from ..fmi.calls import WARNING
 
 PLAIN_SWEEPS = 50  # fixed-point sweeps before the Newton fallback
 NEWTON_ITERATIONS = 20

@@ -39,9 +39,10 @@ import math
 from ctypes import c_double, c_uint
 
 from .checkpoints import Checkpoints
-from .description import no_state_reason
+from ..fmi.description import no_state_reason
 from .coupling import InputCoupling, iterate_step
-from .fmu import DISCARD, NO_MESSAGE, WARNING, Instance, free_all
+from ..fmi.calls import DISCARD, NO_MESSAGE, WARNING, free_all
+from ..fmi.cs2 import Instance
 from .events import crossed, earliest
 from .location import APPROACH, LAND, EventLocator, scan
 from .parallel import updates_after

@@ -39,7 +39,7 @@ import math
 
 from . import cvode, rk as rkmod
 from .events import Illinois, crossed, earliest, input_polynomial
-from .fmu import DISCARD, ERROR, OK, WARNING
+from ..fmi.calls import DISCARD, ERROR, OK, WARNING
 
 # Solvers (MEOptions.solver, the struct's `solver`) and the method in use (`method`).
 AUTO, DP54, DOP853, CVODE = 0, 1, 2, 3

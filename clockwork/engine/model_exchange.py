@@ -48,10 +48,12 @@ from fmpy.fmi3 import FMU3Model, fmi3LogMessageCallback
 
 from ..errors import SceneError, SimulationError
 from . import cvode, rk
-from .description import fmi_version
+from ..fmi.description import fmi_version
 from .events import input_polynomial
-from .fmu import ERROR, OK, WARNING, Instance, extract, read_string
-from .fmu3 import LOG_MESSAGE, Instance3
+from ..fmi.archive import extract
+from ..fmi.calls import ERROR, OK, WARNING, read_string
+from ..fmi.cs2 import Instance
+from ..fmi.cs3 import LOG_MESSAGE, Instance3
 from .me_step import (AUTO, CALLS, CONTINUOUS, CVODE, DEFAULT_RTOL, EVENT, FAIL_CVODE, FAIL_LOCATE, FAIL_RK,
                       FAIL_SETTLE, FAIL_TIME, FAIL_TIME_EVENTS, INITIALIZATION, INSTANTIATED, MAX_CVODE_STEPS,
                       MAX_EVENT_ITERATIONS, MAX_RK_STATES, MAX_TRIALS, METHOD_NAMES, RK_FAILURES, SOLVERS, STATS,

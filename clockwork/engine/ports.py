@@ -15,8 +15,9 @@ import math
 from ctypes import c_double, c_int, c_uint
 
 from ..errors import SceneError, SimulationError
-from .description import int_range, types_connect
-from .fmu import WARNING, Instance
+from ..fmi.description import int_range, types_connect
+from ..fmi.calls import WARNING
+from ..fmi.cs2 import Instance
 from .loops import Loop
 from .wiring import Link, Wiring, loop_name
 

@@ -17,7 +17,7 @@ grow with its length. Without one, every row is kept in ``columns``.
 from __future__ import annotations
 
 from ..errors import SimulationError
-from .description import TEXT_TYPES
+from ..fmi.description import TEXT_TYPES
 
 
 class _DiscreteOutput:

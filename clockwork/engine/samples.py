@@ -41,8 +41,8 @@ from ctypes import c_double, c_uint
 from dataclasses import dataclass
 
 from ..errors import UsageError
-from .description import TEXT_TYPES
-from .fmu import WARNING
+from ..fmi.description import TEXT_TYPES
+from ..fmi.calls import WARNING
 
 
 def isclose(a: float, b: float) -> bool:

@@ -19,10 +19,11 @@ from pathlib import Path
 from ..arguments import Anything, Call, Either, Instance as Of, Integer, Mapping, Optional, Path as PathSpec, Real, Sequence, Text, \
     Tuple, checked, show
 from ..errors import ClosedError, SceneError, UsageError
-from .description import INTEGER_TYPES, REAL_TYPES, int_range, resolve_fmu
-from .description import variables as described
-from .fmu import Instance, free_all
-from .fmu3 import flat_values
+from ..fmi.description import INTEGER_TYPES, REAL_TYPES, int_range, resolve_fmu
+from ..fmi.description import variables as described
+from ..fmi.calls import free_all
+from ..fmi.cs2 import Instance
+from ..fmi.cs3 import flat_values
 from .instances import make_instance
 from .model_exchange import MEOptions
 from .compiled import make_master

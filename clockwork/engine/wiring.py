@@ -17,8 +17,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from ..errors import SceneError
-from .description import link_shape_problem
-from .fmu import Instance
+from ..fmi.description import link_shape_problem
+from ..fmi.cs2 import Instance
 from .names import split_link, split_ref
 
 

@@ -73,7 +73,7 @@ def estimate_bytes(rows: int, columns: int, formats) -> int:
 def descriptions(scene, names: list[str]) -> dict[str, str]:
     """{column: "description [unit]"} of recorded "instance.variable"
     columns, as Modelica tools write a result's descriptions."""
-    from ..engine.description import var_unit, variables
+    from ..fmi.description import var_unit, variables
     from ..engine.names import split_ref
 
     found = {n: variables(c.model_description) for n, c in scene.components.items()}

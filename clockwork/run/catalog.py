@@ -16,8 +16,8 @@ from ..analyses import registry as analyses
 from ..analyses.bounds import BYTES_PER_VALUE
 from ..analyses.bounds import MAX_KEPT_VALUES as MAX_RECORDED_VALUES
 from ..analyses.bounds import check_bounds
-from ..engine.description import array_size
-from ..engine.description import variables as variables_of
+from ..fmi.description import array_size
+from ..fmi.description import variables as variables_of
 from ..engine.instances import make_instance
 from ..errors import ParametersRefused, SceneError, SimulationError
 from ..paths import scenarios_dir

@@ -122,7 +122,7 @@ def _ctx(label: str) -> Ctx:
 def _parameter(scene, ref: str, label: str) -> tuple[Parameter, object, object]:
     """(Parameter, its variable, its model description) for INSTANCE.VARIABLE:
     a Real parameter or unconnected input of the scene, else SceneError."""
-    from ..engine.description import var_unit
+    from ..fmi.description import var_unit
 
     ctx = _ctx(label)
     comp, var = parse_ref(ctx, "x", ref.strip(), scene.components, "a parameter")

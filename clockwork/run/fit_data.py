@@ -42,7 +42,7 @@ import numpy as np
 
 from ..analyses import registry
 from ..analyses.context import parameters
-from ..engine.description import REAL_TYPES, var_limit, var_unit, variables as variables_of
+from ..fmi.description import REAL_TYPES, var_limit, var_unit, variables as variables_of
 from ..engine.names import split_ref
 from ..errors import SceneError, UsageError
 from ..files import NotRegularFile, read_regular

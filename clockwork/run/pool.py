@@ -36,7 +36,7 @@ def _start_worker(parent: int, scratch: str) -> None:
     run that outlives it."""
     die_with_parent(parent)
     scratch_inside(Path(scratch))
-    from ..engine.fmu import quiet_crashes
+    from ..fmi.calls import quiet_crashes
 
     quiet_crashes()  # a crash that ends this process is reported by the parent, in its one line
     for sig in (signal.SIGTERM, signal.SIGHUP):

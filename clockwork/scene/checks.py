@@ -12,9 +12,9 @@ import difflib
 import os
 from pathlib import Path
 
-from ..engine.description import (FLOAT32_MAX, INTEGER_TYPES, ArrayElement, int_range, shape_text, start_problem,
+from ..fmi.description import (FLOAT32_MAX, INTEGER_TYPES, ArrayElement, int_range, shape_text, start_problem,
                                   var_limit, var_unit)
-from ..engine.description import variables as variables_of
+from ..fmi.description import variables as variables_of
 from ..engine.names import instance_name_problem, split_ref
 from ..engine.settings import SETTINGS, BadSetting
 from ..errors import SceneError
@@ -133,7 +133,7 @@ def settable_problem(v) -> str | None:
     """Why a scene, an SSP or --set cannot give `v` a value, or None: the
     parameters and inputs, and the variables the FMI standard lets a master
     set before initialization (an output or local with initial="exact" or
-    "approx", FMI 1.0's start values: engine.description.start_problem).
+    "approx", FMI 1.0's start values: fmi.description.start_problem).
     A structural parameter is refused apart (STRUCTURAL)."""
     if v.causality in ("parameter", "input"):
         return None

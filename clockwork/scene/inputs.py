@@ -28,8 +28,8 @@ from array import array
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..engine.description import FLOAT32_MAX, INTEGER_TYPES, TEXT_TYPES, element_names, int_range, var_limit
-from ..engine.description import variables as variables_of
+from ..fmi.description import FLOAT32_MAX, INTEGER_TYPES, TEXT_TYPES, element_names, int_range, var_limit
+from ..fmi.description import variables as variables_of
 from ..engine.names import split_ref
 from ..engine.samples import Samples, Signal, is_continuous
 from ..errors import SceneError

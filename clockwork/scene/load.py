@@ -25,9 +25,9 @@ import tomllib
 from pathlib import Path
 
 from ..engine import compiled, cvode
-from ..engine.description import (TEXT_TYPES, FmuError, default_tolerance_problem, element_names, link_shape_problem,
+from ..fmi.description import (TEXT_TYPES, FmuError, default_tolerance_problem, element_names, link_shape_problem,
                                   read_fmu, resolve_fmu, type_name, types_connect, var_unit)
-from ..engine.description import variables as variables_of
+from ..fmi.description import variables as variables_of
 from ..engine.me_step import MAX_RK_STATES
 from ..engine.instances import make_instance
 from ..engine.model_exchange import INTERFACES, interface_of, model_exchange_problem
@@ -41,7 +41,7 @@ from ..errors import SceneError, say
 from ..numbers import shorten
 from .checks import (SETTABLE, STRUCTURAL, TOP_KEYS, Ctx, article, component, convert_value, instance_problem,
                      lookup, master_value, names_of, parse_ref, read_bounded, settable_problem)
-from .fmu import read_fmu_scene
+from .fmu_alone import read_fmu_scene
 from .inputs import Inputs, read_inputs
 from .kinds import NO_KINDS, Invalid, Kinds
 from .model import (RESULT_FORMATS, Component, ComponentVariables, Connection, Experiment, Record, Scene,

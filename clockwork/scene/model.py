@@ -17,7 +17,7 @@ from typing import Any, NamedTuple
 
 from ..errors import SceneError
 from ..engine import compiled
-from ..engine.description import no_state_reason, variables as variables_of
+from ..fmi.description import no_state_reason, variables as variables_of
 from ..engine.model_exchange import interface_of
 from ..engine.settings import SETTINGS, MasterSettings, rollback_need
 from .units import fmt

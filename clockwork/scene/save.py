@@ -12,7 +12,7 @@ import math
 import os
 from pathlib import Path
 
-from ..engine.description import var_unit
+from ..fmi.description import var_unit
 from ..engine.settings import DEFAULTS as _DEFAULTS
 from .model import Scene
 from .units import link_conversion

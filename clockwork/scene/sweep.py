@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from ..engine.description import INTEGER_TYPES, REAL_TYPES, element_names
+from ..fmi.description import INTEGER_TYPES, REAL_TYPES, element_names
 from ..errors import SceneError
 from .checks import Ctx, article, convert_value, master_value, parse_ref, settable_problem
 from .model import Component, Sweep, SweepAxis, show

@@ -20,7 +20,7 @@
  *
  * FMI 3.0 and FMI 1.0 instances are called through the adapters at the
  * end of this file (cw3_*, cw1_*): fmi2-shaped functions whose first
- * argument is a cw_fmi3 or a cw_fmi1, the twins of clockwork/engine/fmu3.py
+ * argument is a cw_fmi3 or a cw_fmi1, the twins of clockwork/fmi/cs3.py
  * and fmu1.py, so the stepping code above never asks which version an FMU is.
  */
 
@@ -2155,7 +2155,7 @@ CW_EXPORT int cw_run_schedule(cw_master *m, int n, const double *times, const in
 /* FMU log messages: cw_logger, in cw_guard.c (it trusts nothing an FMU passes). */
 int cw_env_known(const void *key);
 
-/* ---- FMI 3.0: the adapter (the twin of clockwork/engine/fmu3.py) ----------
+/* ---- FMI 3.0: the adapter (the twin of clockwork/fmi/cs3.py) ----------
  *
  * Each function has the fmi2 shape the core calls and takes a cw_fmi3 as
  * its component. cw3_doStep steps through the FMU's own events: at an early
@@ -2539,7 +2539,7 @@ CW_EXPORT int cw3_setState(void *comp, void *state)
     return st;
 }
 
-/* ---- FMI 1.0: the adapter (the twin of clockwork/engine/fmu1.py) ----------
+/* ---- FMI 1.0: the adapter (the twin of clockwork/fmi/cs1.py) ----------
  *
  * Each function has the fmi2 shape the core calls and takes a cw_fmi1 as
  * its component. fmiDoStep's last argument is FMI 1.0's newStep, an

@@ -220,8 +220,8 @@ class _SceneOnDemand:
 # analyses' helpers that some plot kinds call (a long single run leaves
 # time for all of them; Fig. 4(a)'s results come first). Small steps: one
 # under way when the results come delays the drawing.
-_IMPORTS_WHILE_WAITING = ("attr", "lxml.etree", "fmpy.model_description", "clockwork.engine.description",
-                          "clockwork.engine.fmu", "clockwork.engine.master", "clockwork.engine.compiled",
+_IMPORTS_WHILE_WAITING = ("attr", "lxml.etree", "fmpy.model_description", "clockwork.fmi.description",
+                          "clockwork.fmi.cs2", "clockwork.engine.master", "clockwork.engine.compiled",
                           "clockwork.scene.model", "clockwork.analyses")
 
 

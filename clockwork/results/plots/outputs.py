@@ -59,7 +59,7 @@ def column_info(scene, names) -> dict[str, dict]:
     """{column: {"unit", "type", "variability"}} of recorded "instance.variable"
     columns (kept in summary.json for `clockwork plot`)."""
     # Imported on use: the plot process starts without the engine and fmpy (background).
-    from ...engine.description import var_unit, variables
+    from ...fmi.description import var_unit, variables
 
     found = {n: variables(c.model_description) for n, c in scene.components.items()}
     out = {}
@@ -85,7 +85,7 @@ def recorded_view(scene, names) -> tuple[dict[str, dict], str | None]:
 
 
 def _kind(info: dict) -> str:
-    from ...engine.fmi_types import INTEGER_TYPES
+    from ...fmi.types import INTEGER_TYPES
 
     if info.get("type") == "Boolean":
         return "boolean"
@@ -99,7 +99,7 @@ def columns(series: dict, info: dict, only=None, strip: str | None = None, patte
     `only`: the names to keep (with `patterns`, shell patterns too, matched
     against the full name and the label); `strip`: an instance prefix left
     out of the labels (a scene of one component)."""
-    from ...engine.fmi_types import TEXT_TYPES
+    from ...fmi.types import TEXT_TYPES
 
     out = []
     for name, values in series.items():

@@ -253,7 +253,7 @@ def display(scene, name: str, values):
         return np.asarray(values, dtype=float), plain(name)
     # Imported on use: the plot process draws a sweep's result columns
     # without fmpy and the engine (its start-up time; background).
-    from ...engine.description import var_unit, variables
+    from ...fmi.description import var_unit, variables
     from ...scene.model import ComponentVariables
 
     split = split_ref(name, ComponentVariables(scene.components))

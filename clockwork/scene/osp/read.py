@@ -35,8 +35,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import parse_qsl, unquote, urlsplit
 
-from ...engine.description import INTEGER_TYPES, REAL_TYPES, FmuError, read_fmu, types_connect, var_unit
-from ...engine.description import variables as variables_of
+from ...fmi.description import INTEGER_TYPES, REAL_TYPES, FmuError, read_fmu, types_connect, var_unit
+from ...fmi.description import variables as variables_of
 from ...engine.model_exchange import interface_of, model_exchange_problem
 from ...errors import SceneError
 from ...files import absent

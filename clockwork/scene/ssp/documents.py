@@ -20,7 +20,7 @@ from ...errors import SceneError
 from ...files import NotRegularFile, absent, open_regular
 from ...numbers import XSD_SPECIAL, parse_int, parse_real, shorten
 from ...paths import cache_root, scratch_dir
-from ...engine.description import MAX_ENTRIES, entry_problem, max_unzipped_bytes
+from ...fmi.description import MAX_ENTRIES, entry_problem, max_unzipped_bytes
 from .common import CW_NS, NS, OMS_NS, OSP_NS, XmlError, parse_xml, q
 
 SSD_NAME = "SystemStructure.ssd"

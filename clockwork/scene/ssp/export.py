@@ -44,7 +44,7 @@ from lxml import etree
 
 from ...version import __version__
 from ...atomic import write_bytes_atomic, write_text_atomic
-from ...engine.description import INTEGER_TYPES, REAL_TYPES, var_unit
+from ...fmi.description import INTEGER_TYPES, REAL_TYPES, var_unit
 from ...errors import SceneError
 from .common import CW_ANNOTATION, CW_NS, NS, OMS_NS, OSP_NS, q as _q
 

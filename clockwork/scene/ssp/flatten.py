@@ -8,8 +8,8 @@ parameters.py (the connectors may carry a value).
 
 from __future__ import annotations
 
-from ...engine.description import types_connect
-from ...engine.description import variables as variables_of
+from ...fmi.description import types_connect
+from ...fmi.description import variables as variables_of
 from ...errors import SceneError
 from ...numbers import shorten
 from .documents import conversion, fmu_units

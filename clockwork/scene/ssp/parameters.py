@@ -13,8 +13,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ...engine.description import var_unit
-from ...engine.description import variables as variables_of
+from ...fmi.description import var_unit
+from ...fmi.description import variables as variables_of
 from ...errors import SceneError
 from ...numbers import parse_int, shorten
 from ..checks import SETTABLE, STRUCTURAL, Ctx, convert_value, settable_problem

@@ -8,7 +8,7 @@ type) and the record list (clockwork's annotation, else every output).
 
 from __future__ import annotations
 
-from ...engine.description import variables as variables_of
+from ...fmi.description import variables as variables_of
 from ...engine.settings import SETTINGS as _MASTER_SETTINGS
 from ...numbers import parse_int, parse_real, shorten
 from .common import CW_ANNOTATION, CW_NS, OMS_NS, OSP_ANNOTATION, q

@@ -15,8 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ...engine.description import FmuError, read_fmu, var_unit
-from ...engine.description import variables as variables_of
+from ...fmi.description import FmuError, read_fmu, var_unit
+from ...fmi.description import variables as variables_of
 from ...engine.model_exchange import interface_of, model_exchange_problem
 from ...errors import SceneError
 from ...numbers import shorten

@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ..engine.description import FmuError, read_fmu
+from ..fmi.description import FmuError, read_fmu
 from ..errors import SceneError
 from ..files import absent
 from ..numbers import XSD_SPECIAL, parse_real

@@ -51,7 +51,7 @@ from ..hashing import sha256_file
 from ..numbers import XSD_SPECIAL, parse_real, shorten
 from ..paths import REPO, fmu_dir, in_checkout
 from .description_check import FLOAT32_MAX, INT_RANGES, DescriptionProblem, check_description
-from .fmi_types import INTEGER_TYPES, REAL_TYPES, TEXT_TYPES  # noqa: F401 (named here by every layer)
+from .types import INTEGER_TYPES, REAL_TYPES, TEXT_TYPES  # noqa: F401 (named here by every layer)
 
 NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
@@ -798,7 +798,7 @@ def _check_arrays(path: Path | str, md, xml: bytes) -> None:
                            "name of another variable")
 
 
-# The integer types and their ranges (engine/fmi_types.py, which the plot
+# The integer types and their ranges (fmi/types.py, which the plot
 # process imports without this module and fmpy).
 _INT_RANGES = INT_RANGES
 

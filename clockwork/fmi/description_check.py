@@ -37,7 +37,7 @@ import math
 from lxml import etree
 
 from ..numbers import XSD_SPECIAL, parse_int, parse_real, shorten
-from .fmi_types import INT_RANGES
+from .types import INT_RANGES
 
 # The integer types and their ranges: FMI 1.0/2.0's Integer is a C int, FMI
 # 3.0's sized types keep their own names (and fmi3Get/Set* functions).

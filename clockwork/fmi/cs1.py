@@ -52,7 +52,9 @@ from fmpy.fmi1 import (FMU1Slave, fmi1CallbackAllocateMemoryTYPE, fmi1CallbackFr
 
 from ..errors import ParametersRefused, SceneError, SimulationError
 from .description import fmi1_details, read_fmu
-from .fmu import ERROR, OK, WARNING, Instance, extract, read_string
+from .archive import extract
+from .calls import ERROR, OK, WARNING, read_string
+from .cs2 import Instance
 
 # fmi1CallbackLogger with the strings as addresses, read by read_string.
 _LOGGER = CFUNCTYPE(None, c_void_p, c_void_p, c_int, c_void_p, c_void_p)

@@ -61,8 +61,10 @@ from ..errors import SceneError, SimulationError
 from ..paths import core_library
 from . import layout
 from .description import array_elements, int_range, type_name
-from .fmu import (DISCARD, ERROR, NO_SINK, OK, WARNING, Instance, Variable, declared, extract, formatting_logger,
-                  new_slave, read_string)
+from .archive import extract
+from .calls import DISCARD, ERROR, NO_SINK, OK, WARNING, declared, formatting_logger, new_slave, read_string
+from .cs2 import Instance
+from .variables import Variable
 
 # fmi3LogMessageCallback with the strings as addresses, read by read_string.
 LOG_MESSAGE = CFUNCTYPE(None, c_void_p, c_int, c_void_p, c_void_p)
