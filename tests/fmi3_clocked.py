@@ -19,8 +19,8 @@ HEAD = """<?xml version="1.0" encoding="UTF-8"?>
     <Float64 name="time" valueReference="0" causality="independent" variability="continuous"/>
 """
 CS = ('<CoSimulation modelIdentifier="{name}" canHandleVariableCommunicationStepSize="true" hasEventMode="true" '
-      'mightReturnEarlyFromDoStep="{early}"/>')
-SE = '<ScheduledExecution modelIdentifier="{name}"/>'
+      'mightReturnEarlyFromDoStep="{early}" canGetAndSetFMUState="true"/>')
+SE = '<ScheduledExecution modelIdentifier="{name}" canGetAndSetFMUState="true"/>'
 
 VARIABLES = {
     "Ticker": """

@@ -105,10 +105,15 @@ class ClockedMaster(Master):
                 inst.clock_event = self._fmu_event_handler(n)
         # The order of visits in an event: sources of clock connections first.
         self.visit_order = _clock_order(list(instances), self.clock_links)
-        self.ticks: dict[str, list[float]] = {}
-        self.clocked: dict[str, list[tuple[float, object]]] = {}
+        self.clock_ticks: dict[str, list[float]] = {}
+        self.clocked_values: dict[str, list[tuple[float, object]]] = {}
         self._schedules: list[_Schedule] = []
         self._pending: list[tuple[str, str, float]] = []  # output-clock ticks the FMUs signalled: (instance, clock, t)
+        # Co-Simulation FMUs with output clocks: asked in Event Mode at each
+        # state event the master located (an output clock that ticks on a
+        # state of the FMU's inputs, as an escapement's switch).
+        self._asked = [n for n, t in self.tables.items() if not getattr(instances[n], "scheduled", False)
+                       and any(c.causality == "output" for c in t.clocks.values())]
         self._late_said = False
 
     # -- what the scene gives ------------------------------------------------
@@ -176,8 +181,8 @@ class ClockedMaster(Master):
 
     def initialize(self, parameters) -> None:
         super().initialize(parameters)
-        self.ticks = {f"{n}.{c}": [] for n, t in self.tables.items() for c in t.clocks}
-        self.clocked = {f"{n}.{v}": [] for n, t in self.tables.items() for v, c in t.causality.items()
+        self.clock_ticks = {f"{n}.{c}": [] for n, t in self.tables.items() for c in t.clocks}
+        self.clocked_values = {f"{n}.{v}": [] for n, t in self.tables.items() for v, c in t.causality.items()
                         if c == "output"}
         self._latest: dict[tuple[str, str], object] = {}
         self._pending = []
@@ -232,8 +237,9 @@ class ClockedMaster(Master):
         now = self.t
         # Ticks of discarded trials (a rollback beyond where the step ended) are forgotten.
         self._pending = [p for p in self._pending if p[2] <= now or isclose(p[2], now)]
-        if self._pending or any(s.next <= now or isclose(s.next, now) for s in self._schedules):
-            self._event(now)
+        located = self.after_event_step and bool(self._asked)
+        if located or self._pending or any(s.next <= now or isclose(s.next, now) for s in self._schedules):
+            self._event(now, located)
         return taken
 
     # -- events ---------------------------------------------------------------
@@ -256,9 +262,12 @@ class ClockedMaster(Master):
                     s.next = math.inf
         return due
 
-    def _event(self, t: float) -> None:
-        """Every tick at t: the master's own, and the routing of those the FMUs signalled."""
+    def _event(self, t: float, located: bool = False) -> None:
+        """Every tick at t: the master's own, the routing of those the FMUs
+        signalled, and, at a located state event, the output clocks of the
+        FMUs that have them."""
         due = self._due(t)
+        asked = set(self._asked) if located else set()
         for src, clock, when in self._pending:
             if when < t and not isclose(when, t) and not self._late_said:
                 self._late_said = True
@@ -266,16 +275,18 @@ class ClockedMaster(Master):
                                    f"connected clocks ticked at the communication point t = {t!r} s", kind="note")
             self._route(src, clock, due)
         self._pending = []
-        if not due:
+        if not due and not asked:
             return
         touched = []
+        self._ticked = False
         for _ in range(MAX_EVENT_ROUNDS):
-            if not due:
+            if not due and not asked:
                 break
             for n in self.visit_order:
                 clocks = due.pop(n, None)
-                if clocks:
-                    clocks = list(dict.fromkeys(clocks))
+                if clocks or n in asked:
+                    asked.discard(n)
+                    clocks = list(dict.fromkeys(clocks or ()))
                     if getattr(self.instances[n], "scheduled", False):
                         self._activate(n, clocks, t, due)
                     else:
@@ -283,12 +294,15 @@ class ClockedMaster(Master):
                     touched.append(n)
         else:
             raise SimulationError(f"the clock connections tick each other without end at t = {t!r} s", time=t)
+        if not self._ticked:  # asked at a state event, and no clock ticked: nothing changed
+            return
         for n in dict.fromkeys(touched):
             p = self.ports[n]
             if p.n_out or p.dout_names:
                 p.read(t)
         self._set_plain_targets(touched)
-        self.discontinuity()
+        if not self.after_event:  # at a located event the master already starts again from it
+            self.discontinuity()
 
     def _route(self, src: str, clock: str, due: dict[str, list[str]]) -> None:
         for k in self.clock_links:
@@ -398,14 +412,15 @@ class ClockedMaster(Master):
             return
         for v, x in zip(names, self.instances[n].get_values(names)):
             self._latest[(n, v)] = x
-            series = self.clocked[f"{n}.{v}"]
+            series = self.clocked_values[f"{n}.{v}"]
             if series and series[-1][0] == t:  # the same tick again (a step taken again after a rollback)
                 series[-1] = (t, x)
             else:
                 series.append((t, x))
 
     def _tick_record(self, name: str, t: float) -> None:
-        times = self.ticks[name]
+        self._ticked = True
+        times = self.clock_ticks[name]
         if not times or times[-1] != t:
             times.append(t)
 

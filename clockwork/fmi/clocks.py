@@ -116,3 +116,36 @@ def is_scheduled(md) -> bool:
     return isinstance(md.coSimulation, ScheduledFace)
 
 
+
+
+def _seconds(x: float) -> str:
+    return f"{x:g} s"
+
+
+def schedule_text(c: Clock) -> str:
+    """When a clock ticks, in words (``clockwork info`` and ``validate``)."""
+    if c.causality == "output":
+        return "ticked by the FMU (an output clock), read in Event Mode and passed to the connected input clocks"
+    given = f" (the description says every {_seconds(c.interval)})" if c.interval else ""
+    return {
+        "constant": f"every {_seconds(c.interval or 0.0)} from the start + {_seconds(c.shift)}",
+        "fixed": f"periodic, interval and shift asked of the FMU after initialization{given}",
+        "calculated": f"periodic, interval and shift asked of the FMU after initialization{given}",
+        "tunable": f"periodic, interval asked of the FMU after initialization and after each tick{given}",
+        "changing": "periodic from the start + the shift the FMU gives, each interval asked after the tick before",
+        "countdown": "when an interval the FMU sets (fmi3IntervalChanged) has run out",
+        "triggered": "ticked by a connected output clock, or by an input file column named after it",
+    }.get(c.variability, c.variability)
+
+
+def clock_lines(md, prefix: str = "") -> list[str]:
+    """A description's clocks, one line each: name, causality,
+    intervalVariability, priority, when it ticks, its clocked variables."""
+    table = clock_table(md)
+    lines = []
+    for c in table.clocks.values():
+        clocked = [v for v, cs in table.clocked.items() if c.name in cs]
+        priority = f", priority {c.priority}" if c.priority is not None else ""
+        lines.append(f"{prefix}{c.name} ({c.causality}, {c.variability}{priority}): {schedule_text(c)}; "
+                     f"clocked: {', '.join(clocked) or 'none'}")
+    return lines

@@ -553,6 +553,35 @@ fmi3Status fmi3SetInt32(fmi3Instance instance, const fmi3ValueReference vr[], si
     return fmi3OK;
 }
 
+/* FMU state: the whole instance (its callbacks are the same). */
+fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *state)
+{
+    M *copy = *state ? (M *)*state : malloc(sizeof(M));
+    if (!copy)
+        return fail(instance, "fmi3GetFMUState: out of memory");
+    *copy = *(M *)instance;
+    *state = copy;
+    return fmi3OK;
+}
+
+fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState state)
+{
+    if (!state)
+        return fail(instance, "fmi3SetFMUState: no state");
+    *(M *)instance = *(M *)state;
+    return fmi3OK;
+}
+
+fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *state)
+{
+    (void)instance;
+    if (state) {
+        free(*state);
+        *state = NULL;
+    }
+    return fmi3OK;
+}
+
 fmi3Status fmi3Terminate(fmi3Instance instance)
 {
     M *m = instance;
