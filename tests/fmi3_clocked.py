@@ -33,6 +33,8 @@ VARIABLES = {
     <Output valueReference="1"/>
     <Output valueReference="11" dependencies=""/>
     <Output valueReference="20" dependencies="1"/>
+    <InitialUnknown valueReference="1"/>
+    <InitialUnknown valueReference="11" dependencies=""/>
   </ModelStructure>""",
     "Counter": """
     <Clock name="tooth" valueReference="1" causality="input" intervalVariability="triggered"/>
@@ -45,6 +47,7 @@ VARIABLES = {
     <Output valueReference="12" dependencies="1"/>
     <Output valueReference="13" dependencies=""/>
     <Output valueReference="20" dependencies="1 21"/>
+    <InitialUnknown valueReference="13" dependencies=""/>
   </ModelStructure>""",
     "Sampler": """
     <Clock name="sample" valueReference="1" causality="input" intervalVariability="constant"
@@ -81,6 +84,7 @@ VARIABLES = {
     <Output valueReference="21" dependencies="1"/>
     <Output valueReference="22" dependencies="2"/>
     <Output valueReference="23" dependencies="3"/>
+    <InitialUnknown valueReference="20" dependencies=""/>
   </ModelStructure>""",
 }
 

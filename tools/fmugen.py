@@ -745,6 +745,8 @@ def generate_xml3(t: dict) -> str:
             x.append(f'    <InitialUnknown valueReference="{v["vr"]}" {deps}/>')
         else:  # undeclared: depends on every Known
             x.append(f'    <InitialUnknown valueReference="{v["vr"]}"/>')
+    if clock is not None:  # an output, initial="calculated" by default: an initial unknown (fmpy validate)
+        x.append(f'    <InitialUnknown valueReference="{clock["vr"]}" {deps}'.rstrip() + "/>")
     x.append("  </ModelStructure>")
     indicators = [v["name"] for v in variables if v.get("event_indicator")]
     x += ["  <Annotations>", '    <Annotation type="clockwork">', *_capabilities(indicators), "    </Annotation>",
