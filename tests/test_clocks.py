@@ -290,3 +290,16 @@ def test_an_ssp_connects_clock_connectors(fmus, tmp_path):
     r = json.loads((out / "summary.json").read_text())["result"]
     assert close(r["clock_ticks"]["ct.tooth"], [0.1, 0.2, 0.3, 0.4, 0.5])
     assert r["clocked"]["ct.count"]["value"] == [1, 2, 3, 4, 5]
+
+
+def test_a_restart_starts_the_clocks_again(fmus):
+    """System.restart (a sweep's next point on the same instances): the
+    schedule and the records start again, from the new parameters."""
+    with System({"tk": (fmus["Ticker"], {}), "ct": (fmus["Counter"], {}), "se": (fmus["Partitions"], {})},
+                ["tk.tick -> ct.tooth", "tk.n -> ct.step_by"], MasterSettings(step=0.1)) as s:
+        s.master.run_until(0.5)
+        s.restart({"tk": {"period": 0.25}})
+        s.master.run_until(1.0)
+        assert close(s.master.clock_ticks["ct.tooth"], [0.25, 0.5, 0.75, 1.0])
+        assert [x for _, x in s.master.clocked_values["ct.count"]] == [1, 3, 6, 10]
+        assert close(s.master.clock_ticks["se.slow"], [0.0, 0.3, 0.6, 0.9])

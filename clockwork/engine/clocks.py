@@ -61,6 +61,10 @@ def clock_tables(instances) -> dict[str, ClockTable]:
     for name, inst in instances.items():
         if getattr(inst, "fmi_version", 0) == 3:
             table = clock_table(inst.md)
+            if table and getattr(inst, "model_exchange", False):
+                raise SceneError(f"{name} ({inst.path.name}): its clocks are served in Co-Simulation and "
+                                 "Scheduled Execution only, not through Model Exchange (interface = "
+                                 "'co-simulation')")
             if table:
                 tables[name] = table
     return tables
@@ -343,6 +347,7 @@ class ClockedMaster(Master):
                 self._route(n, c.name, due)
         self._read_clocked_outputs(n, active, t)
         inst.events.next_event_time = calls.update_until_settled(t)
+        inst.events.events += 1  # as an event the face handles itself
         self._ask_intervals(n, [c.name for c in inputs], t)
         calls.enter_step_mode(t)
 
