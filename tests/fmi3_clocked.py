@@ -27,6 +27,7 @@ VARIABLES = {
     <Clock name="tick" valueReference="1" causality="output" intervalVariability="triggered"/>
     <Float64 name="period" valueReference="10" causality="parameter" variability="fixed" start="0.1"/>
     <Float64 name="x" valueReference="11" causality="output" variability="continuous"/>
+    <Float64 name="announce" valueReference="12" causality="parameter" variability="fixed" start="1"/>
     <Int32 name="n" valueReference="20" causality="output" variability="discrete" clocks="1"/>
   </ModelVariables>
   <ModelStructure>
@@ -89,9 +90,9 @@ VARIABLES = {
 }
 
 
-def build(folder: Path, name: str, early_return: bool = False) -> Path:
+def build(folder: Path, name: str, early_return: bool = False, file_name: str | None = None) -> Path:
     """Compile and zip the clocked test FMU `name` into folder/<name>.fmu; returns its path."""
     interface = (SE if name == "Partitions" else CS).format(name=name, early=str(early_return).lower())
     xml = HEAD.format(name=name, interface=interface) + VARIABLES[name] + "\n</fmiModelDescription>\n"
     source = SOURCE.read_text()
-    return pack(folder, name, name, source, source, xml, (f"-DMODEL_{name}", f'-DMODEL_NAME="{name}"'))
+    return pack(folder, file_name or name, name, source, source, xml, (f"-DMODEL_{name}", f'-DMODEL_NAME="{name}"'))

@@ -26,7 +26,9 @@ import fmi3_clocked
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory):
     d = tmp_path_factory.mktemp("clocked")
-    return {n: str(fmi3_clocked.build(d, n)) for n in ("Ticker", "Counter", "Sampler", "Partitions")}
+    built = {n: str(fmi3_clocked.build(d, n)) for n in ("Ticker", "Counter", "Sampler", "Partitions")}
+    built["EarlyTicker"] = str(fmi3_clocked.build(d, "Ticker", early_return=True, file_name="EarlyTicker"))
+    return built
 
 
 def close(a, b):
@@ -49,6 +51,22 @@ def test_output_clock_drives_a_counter(fmus, step):
         assert close([x for _, x in m.clocked_values["ct.last"]], times)
         # The unclocked total follows the count after each event.
         assert s.instances["ct"].get_values(["total"])[0] == 55
+
+
+def test_a_tick_inside_a_step_reaches_the_clocks_at_its_end(fmus):
+    """An output clock the FMU does not announce (EarlyTicker: announce = 0)
+    ticks inside a step, where the FMU returns early: its own record has the
+    tick's time; the connected clock ticks at the communication point that
+    ends the step, said once in a note."""
+    with System({"tk": (fmus["EarlyTicker"], {"announce": 0}), "ct": (fmus["Counter"], {})},
+                ["tk.tick -> ct.tooth"], MasterSettings(step=0.25)) as s:
+        m = s.master
+        m.run_until(1.0)
+        assert close(m.clock_ticks["tk.tick"], [0.1 * k for k in range(1, 11)])
+        assert close(m.clock_ticks["ct.tooth"], [0.25, 0.5, 0.75, 1.0])
+        assert [x for _, x in m.clocked_values["ct.count"]] == [1, 2, 3, 4]
+        # Two ticks inside the first step reach the counter as one, at its end.
+        assert [n for n in m.notes if "tk.tick ticked inside a step at t = 0.1 s" in n and "t = 0.25 s" in n]
 
 
 def test_periodic_countdown_and_changing_clocks(fmus):

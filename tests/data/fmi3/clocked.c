@@ -2,7 +2,8 @@
  * builds each with -DMODEL_<name>):
  *
  * Ticker (Co-Simulation, Event Mode): an output clock `tick` that ticks every
- *   `period` s (announced as time events); its clocked output `n` counts the ticks.
+ *   `period` s (announced as time events, unless `announce` is false: then it
+ *   returns early at each tick); its clocked output `n` counts the ticks.
  * Counter (Co-Simulation, Event Mode): a triggered input clock `tooth`; at each
  *   tick the clocked input `step_by` is added to the clocked output `count`, and
  *   `last` is the tick's time; `total` (not clocked) follows `count`.
@@ -40,7 +41,7 @@ typedef struct {
     fmi3ClockUpdateCallback clock_update;
     /* Ticker */
     double period, next_tick;
-    int n, tick_active;
+    int n, tick_active, announce;
     /* Counter */
     int tooth_active, applied, count, step_by;
     double last;
@@ -65,6 +66,7 @@ static void defaults(M *m)
 {
     memset(&m->period, 0, sizeof(M) - offsetof(M, period));
     m->period = 0.1;
+    m->announce = 1;
     m->step_by = 1;
     m->alarm_due = m->later_due = -1.0;
     m->beat_interval = 0.2;
@@ -223,8 +225,8 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
     if (m->tick_active || m->time >= m->next_tick)
         m->next_tick = (m->n + 1) * m->period;
     m->tick_active = 0;
-    *nextEventTimeDefined = fmi3True;
-    *nextEventTime = m->next_tick;
+    *nextEventTimeDefined = m->announce ? fmi3True : fmi3False;
+    *nextEventTime = m->announce ? m->next_tick : 0.0;
 #endif
     m->tooth_active = m->sample_active = m->alarm_active = m->beat_active = 0;
     m->applied = 0;
@@ -442,6 +444,7 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
 #ifdef MODEL_Ticker
         case 10: values[k] = m->period; break;
         case 11: values[k] = m->time; break;
+        case 12: values[k] = m->announce; break;
 #endif
 #ifdef MODEL_Counter
         case 12:
@@ -471,6 +474,10 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
     M *m = instance;
     for (size_t k = 0; k < nvr; k++) {
 #ifdef MODEL_Ticker
+        if (vr[k] == 12 && (m->mode == INSTANTIATED || m->mode == INITIALIZATION)) {
+            m->announce = values[k] != 0.0;
+            continue;
+        }
         if (vr[k] == 10 && (m->mode == INSTANTIATED || m->mode == INITIALIZATION) && values[k] > 0.0) {
             m->period = values[k];
             continue;
