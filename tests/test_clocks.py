@@ -321,3 +321,47 @@ def test_a_restart_starts_the_clocks_again(fmus):
         assert close(s.master.clock_ticks["ct.tooth"], [0.25, 0.5, 0.75, 1.0])
         assert [x for _, x in s.master.clocked_values["ct.count"]] == [1, 3, 6, 10]
         assert close(s.master.clock_ticks["se.slow"], [0.0, 0.3, 0.6, 0.9])
+
+
+def _description_only(tmp_path, name, clocks, cs='<CoSimulation modelIdentifier="M" hasEventMode="true"/>'):
+    import zipfile
+
+    xml = f"""<?xml version="1.0"?>
+<fmiModelDescription fmiVersion="3.0" modelName="{name}" instantiationToken="x">
+  {cs}
+  <ModelVariables>{clocks}</ModelVariables>
+  <ModelStructure/>
+</fmiModelDescription>"""
+    path = tmp_path / f"{name}.fmu"
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("modelDescription.xml", xml)
+    return path
+
+
+@pytest.mark.parametrize("clock, needle", [
+    ('<Clock name="c" valueReference="1" causality="input" intervalVariability="constant" intervalDecimal="fast"/>',
+     "Clock c: intervalDecimal='fast': expected a number"),
+    ('<Clock name="c" valueReference="1" causality="input" intervalVariability="constant" intervalDecimal="0"/>',
+     "clock c: a constant clock needs intervalDecimal > 0"),
+    ('<Clock name="c" valueReference="1" causality="input" intervalVariability="constant" intervalDecimal="1" '
+     'shiftDecimal="1_0"/>', "Clock c: shiftDecimal='1_0': expected a number"),
+    ('<Clock name="c" valueReference="1" causality="input" intervalVariability="triggered" priority="-1"/>',
+     "Clock c: priority='-1': expected a whole number >= 0"),
+    ('<Clock name="c" valueReference="1" causality="local" intervalVariability="triggered"/>',
+     "clock c: expected causality input or output, found local"),
+])
+def test_a_bad_clock_is_refused_in_one_line(tmp_path, clock, needle):
+    from clockwork.fmi.description import FmuError, read_fmu
+
+    path = _description_only(tmp_path, "Bad", clock)
+    with pytest.raises(FmuError, match="Bad"):
+        read_fmu(path, need_binary=False)
+    p = cli("info", str(path))
+    assert p.returncode == 2 and len(p.stderr.splitlines()) == 1 and needle in p.stderr, p.stderr
+
+
+def test_validate_says_a_triggered_clock_never_ticks(fmus, tmp_path):
+    scene = tmp_path / "s.toml"
+    scene.write_text(f'[scene]\ntitle = "t"\n[components.ct]\nfmu = "{fmus["Counter"]}"\n[experiment]\nstop = 1\n')
+    p = cli("validate", str(scene))
+    assert p.returncode == 0 and "ct.tooth" in p.stdout and "ticked here by nothing: it never ticks" in p.stdout
