@@ -46,7 +46,7 @@ from __future__ import annotations
 import math
 
 from ..errors import SceneError, SimulationError, UsageError
-from ..fmi.clocks import RETUNED, INTERVAL_CHANGED, Clock, ClockTable, clock_table
+from ..fmi.clocks import INTERVAL_CHANGED, INTERVAL_NOT_YET_KNOWN, RETUNED, Clock, ClockTable, clock_table
 from ..fmi.scheduled import ClockCalls
 from .master import Master
 from .samples import Samples, isclose
@@ -202,7 +202,12 @@ class ClockedMaster(Master):
                     s.periodic(t0 + c.shift, c.interval)
                 elif c.variability in ("fixed", "calculated", "tunable"):
                     q, interval = calls.interval(c, t0)
-                    s.periodic(t0 + calls.shift(c, t0), interval if interval > 0 else c.interval)
+                    interval = interval if q != INTERVAL_NOT_YET_KNOWN and interval > 0 else c.interval
+                    if interval is None:
+                        raise SimulationError(f"{n}.{c.name}: a {c.variability} clock whose interval the FMU "
+                                              "does not give after initialization (and the description neither)",
+                                              time=t0, instance=n)
+                    s.periodic(t0 + calls.shift(c, t0), interval)
                 elif c.variability == "changing":
                     s.periodic(t0 + calls.shift(c, t0), None)
                 elif c.variability == "countdown":
