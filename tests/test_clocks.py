@@ -365,3 +365,16 @@ def test_validate_says_a_triggered_clock_never_ticks(fmus, tmp_path):
     scene.write_text(f'[scene]\ntitle = "t"\n[components.ct]\nfmu = "{fmus["Counter"]}"\n[experiment]\nstop = 1\n')
     p = cli("validate", str(scene))
     assert p.returncode == 0 and "ct.tooth" in p.stdout and "ticked here by nothing: it never ticks" in p.stdout
+
+
+def test_export_ssp_keeps_the_clock_connections(fmus, tmp_path):
+    import json
+
+    ssp = tmp_path / "s.ssp"
+    p = cli("export-ssp", str(scene_file(tmp_path, fmus)), "--out", str(ssp))
+    assert p.returncode == 0, p.stderr
+    out = tmp_path / "out"
+    p = cli("run", str(ssp), "--out", str(out), "--no-progress")
+    assert p.returncode == 0, p.stderr
+    r = json.loads((out / "summary.json").read_text())["result"]
+    assert r["clocked"]["ct.count"]["value"] == [k * (k + 1) // 2 for k in range(1, 11)]
