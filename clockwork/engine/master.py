@@ -645,14 +645,15 @@ class Master:
         reference) pairs of unconnected inputs: a piecewise-constant drive),
         else append the `outputs` ((port, position) pairs) to `samples`."""
         value = (c_double * 1)()
-        refs = [(inst, inst.c_setReal, inst.component, (c_uint * 1)(vr)) for inst, vr in inputs]
+        refs = [(inst, inst.c_setReal, inst.component, (c_uint * 1)(vr), f"{inst.named('setReal')} of inputs")
+                for inst, vr in inputs]
         for t, is_set, v in zip(times, sets, values):
             if t > self.t:
                 self.step(t - self.t)
             if is_set:
                 value[0] = v
-                for inst, c_set, comp, vr in refs:
-                    inst.check(c_set(comp, vr, 1, value), f"{inst.named('setReal')} of inputs", self.t)
+                for inst, c_set, comp, vr, what in refs:
+                    inst.check(c_set(comp, vr, 1, value), what, self.t)
             else:
                 samples.extend(p.out[j] for p, j in outputs)
 

@@ -380,7 +380,7 @@ class MEInstance(ModelExchangeSteps, Instance):
                    error: type[SimulationError] = SimulationError) -> None:
         """Values of any type; in continuous-time mode all but continuous
         inputs go in together in one pass through event mode."""
-        what = what or self.named("setValues")
+        what = what or self.CALL_NAMES["setValues"]
         me = self.me
         if me.mode != CONTINUOUS or all(self.variables[n].vr in self.continuous_inputs for n in values):
             self._set_values_now(values, what, error)

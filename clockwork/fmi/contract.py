@@ -332,7 +332,7 @@ class Instance:
     def set_values(self, values: dict[str, object], what: str | None = None,
                    error: type[SimulationError] = SimulationError) -> None:
         """Set variables of any type, each through the call of its type."""
-        what = what or self.named("setValues")
+        what = what or self.CALL_NAMES["setValues"]
         for name, value in values.items():
             v = self.variables[name]
             vr = (c_uint * 1)(v.vr)
@@ -397,7 +397,8 @@ class Instance:
 
     def save_state(self, t: float | None = None) -> None:
         """Overwrite this instance's one saved state (no allocation growth); t (s) names the point in errors."""
-        self.check(self.c_getState(self.component, byref(self._state)), self.named("getState"), t)
+        # The name by subscript, not named(): a checkpoint saves at every event.
+        self.check(self.c_getState(self.component, byref(self._state)), self.CALL_NAMES["getState"], t)
 
     def restore_state(self, t: float | None = None) -> None:
-        self.check(self.c_setState(self.component, self._state), self.named("setState"), t)
+        self.check(self.c_setState(self.component, self._state), self.CALL_NAMES["setState"], t)
