@@ -1,8 +1,9 @@
-"""An FMI 1.0 Co-Simulation instance as the master sees it.
+"""The FMI 1.0 Co-Simulation face: an instance of an FMI 1.0 FMU for
+Co-Simulation behind the instance contract (``contract.py``).
 
-``Instance1`` gives the master the same fmi2-shaped calls as an FMI 2.0
-``Instance`` (``c_doStep(comp, t, h, flag)``, ``c_getReal(comp, vr, n,
-out)``...), so that the stepping loop need not know the version. Behind
+``Instance1`` answers the contract's calls (``c_doStep(comp, t, h,
+flag)``, ``c_getReal(comp, vr, n, out)``...), so that the stepping loop
+need not know the version. Behind
 them it speaks FMI 1.0 for Co-Simulation, through the FMU's own
 ``<modelIdentifier>_fmi*`` symbols (fmpy's ``FMU1Slave`` loads the
 library):
@@ -54,7 +55,7 @@ from ..errors import ParametersRefused, SceneError, SimulationError
 from .description import fmi1_details, read_fmu
 from .archive import extract
 from .calls import ERROR, OK, WARNING, read_string
-from .cs2 import Instance
+from .contract import CORE_CALLS, Instance
 
 # fmi1CallbackLogger with the strings as addresses, read by read_string.
 _LOGGER = CFUNCTYPE(None, c_void_p, c_void_p, c_int, c_void_p, c_void_p)
@@ -97,10 +98,16 @@ def _no_state(comp, state) -> int:
 
 
 class Instance1(Instance):
-    """An instantiated FMI 1.0 Co-Simulation FMU behind fmi2-shaped calls."""
+    """An instantiated FMI 1.0 Co-Simulation FMU behind the contract's calls."""
 
-    fmi_version = 1
-    do_step_name = "fmiDoStep"
+    CALL_NAMES = {"doStep": "fmiDoStep", "getReal": "fmiGetReal", "setReal": "fmiSetReal",
+                  "getInteger": "fmiGetInteger", "getBoolean": "fmiGetBoolean", "getString": "fmiGetString",
+                  "setValues": "fmiSet*", "setInputDerivatives": "fmiSetRealInputDerivatives",
+                  "getOutputDerivatives": "fmiGetRealOutputDerivatives",
+                  "getState": "saving the FMU state (FMI 1.0 has none)",
+                  "setState": "restoring the FMU state (FMI 1.0 has none)", "reset": "fmiResetSlave",
+                  "setup": "fmiInitializeSlave", "enterInit": "fmiInitializeSlave",
+                  "exitInit": "fmiInitializeSlave", "instantiate": "fmiInstantiateSlave"}
 
     def __init__(self, name, path, model_description=None):
         super().__init__(name, path, model_description)
@@ -343,10 +350,15 @@ class Instance1(Instance):
     def terminated(self) -> bool:
         return False  # FMI 1.0 has no fmiTerminated status: a discarded step fails the run
 
+    def core_calls(self, lib) -> tuple[int, tuple[int, ...]]:
+        """The core's FMI 1.0 adapter (cw1_*: fmiDoStep's char newStep,
+        negated aliases) on this instance's shared ``_Fmi1``."""
+        return ctypes.addressof(self.adapter), tuple(
+            ctypes.cast(getattr(lib, "cw1_" + name), c_void_p).value for name in CORE_CALLS)
+
     def fail(self, what, status, time=None, error=None):
-        """The error for a failed call, named by its FMI 1.0 name."""
+        """The error for a failed call (named by its FMI 1.0 name)."""
         self._failed = True
-        what = what.replace("fmi2", "fmi")
         error = error or SimulationError
         if self.adapter.failed_zero:  # the step of size 0 before the get failed, not the get
             self.adapter.failed_zero = 0
