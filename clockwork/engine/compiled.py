@@ -1,7 +1,7 @@
 """The compiled stepping core: the master's loop in C, the same bits.
 
 ``CompiledMaster`` is a ``Master`` whose ``step`` and ``run_until`` run in
-src_c/master/cw_master.c, a line-for-line twin of master.py with
+src_c/master/ (cw_step.c and its files by job), a line-for-line twin of master.py with
 coupling.py, location.py, checkpoints.py and recording.py. It calls each
 FMU's fmi2 functions through the pointers of the library fmpy loaded, so
 it steps any FMI 2.0 Co-Simulation FMU, and FMI 1.0 and 3.0 ones through
@@ -43,7 +43,7 @@ from .samples import Samples
 from .settings import MasterSettings, Statistics, with_model_exchange
 from .wiring import Link
 
-HISTORY = 3  # input history for divided differences (HISTORY in cw_master.c)
+HISTORY = 3  # input history for divided differences (HISTORY in cw_structs.h)
 ROWS_PER_CALL = 4096  # recording buffer, rows
 MAX_SINCE = 256  # steps kept since a checkpoint (the master forces one after 64)
 

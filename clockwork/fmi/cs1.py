@@ -15,7 +15,7 @@ library):
   noSetFMUStatePriorToCurrentPoint (an int): it is always true, since the
   master never repeats a step of an FMU that has no state to go back to;
   the compiled core calls it through its own correctly typed adapter
-  (``cw1_*`` in src_c/master/cw_master.c, on this instance's ``_Fmi1``);
+  (``cw1_*`` in src_c/master/cw_cs1.c, on this instance's ``_Fmi1``);
 - steps run synchronously (no stepFinished callback); an FMU that answers
   fmiPending anyway fails the run in one line, its step cancelled;
 - FMI 1.0 computes outputs in fmiDoStep: outputs read after inputs were
@@ -66,7 +66,7 @@ MAX_VALUE_REFERENCE = 2**32 - 1
 
 
 class _Fmi1(Structure):
-    """The FMI 1.0 adapter's state, shared with cw_master.c's cw_fmi1 (same layout)."""
+    """The FMI 1.0 adapter's state, shared with cw_cs1.c's cw_fmi1 (same layout)."""
 
     _fields_ = [(n, c_void_p) for n in (
         "instance", "doStep", "getReal", "setReal", "setInputDerivatives", "getOutputDerivatives",
@@ -241,7 +241,7 @@ class Instance1(Instance):
     def _zero_step(self, comp) -> int:
         """Where inputs were set since the last step, a step of size 0 at the
         communication point (FMI 1.0's iteration), which computes the outputs
-        of those inputs, as FMI 2.0 does on the get (cw_master.c: cw1_fresh)."""
+        of those inputs, as FMI 2.0 does on the get (cw_cs1.c: cw1_fresh)."""
         a = self.adapter
         if not a.stale:
             return OK

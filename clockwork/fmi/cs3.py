@@ -27,7 +27,7 @@ Behind them it speaks FMI 3.0 and does what FMI 3.0 adds:
   as for an FMI 2.0 FMU's fmi2Terminated).
 
 The adapter's state lives in a ctypes struct (``_Events``) that the
-compiled core's own adapter (the fmi3 section of src_c/master/cw_master.c)
+compiled core's own adapter (src_c/master/cw_cs3.c)
 reads and writes too, so that the two engines hand it over at any point.
 Saving and restoring the FMU state saves and restores the announced next
 event time with it.
@@ -78,7 +78,7 @@ MAX_STALLED_RETURNS = 100  # early returns in a row that do not move the FMU's t
 
 
 class _Events(Structure):
-    """The FMI 3.0 adapter's state, shared with cw_master.c's cw_fmi3 (same layout)."""
+    """The FMI 3.0 adapter's state, shared with cw_cs3.c's cw_fmi3 (same layout)."""
 
     _fields_ = [(n, c_void_p) for n in (
         "instance", "doStep", "getFloat64", "setFloat64", "getOutputDerivatives", "getState", "setState",
@@ -92,7 +92,7 @@ class _Events(Structure):
         ("terminated", c_int),
         ("failed_call", c_int),               # 0 none, else which fmi3 call failed (FAILED_CALLS)
         ("pad_", c_int),
-        # Intermediate update: the input polynomials (see cw_master.c)
+        # Intermediate update: the input polynomials (see cw_cs3.c)
         ("n_iu", c_int),
         ("iu_poly", c_int),
         ("iu_vr", c_void_p),
@@ -152,7 +152,7 @@ def _core_adapter():
     return _core or None
 
 
-# What _Events.failed_call names (the same numbers in cw_master.c).
+# What _Events.failed_call names (the same numbers in cw_cs3.c).
 FAILED_CALLS = {1: "fmi3DoStep", 2: "fmi3EnterEventMode", 3: "fmi3UpdateDiscreteStates",
                 4: "fmi3EnterStepMode", 5: "fmi3DoStep (early returns that do not move time)",
                 6: "fmi3UpdateDiscreteStates (discrete states did not settle)"}
@@ -214,7 +214,7 @@ class Instance3(Instance):
         """Give each element of an array variable a Variable of its own
         (``y[0]``, ``A[1,2]``) whose vr is a code of its own, above every value
         reference of the FMU: the master's ports name elements as it names
-        scalars, and the contract's calls (here and in cw_master.c's cw3_*)
+        scalars, and the contract's calls (here and in cw_cs3.c's cw3_*)
         turn a run of codes that covers a whole array, in order, into the
         array's value reference with nValues > nValueReferences; any other
         request is served element by element. Dependencies on an array
