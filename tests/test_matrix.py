@@ -385,3 +385,20 @@ def test_simulate(lab, kind, mode, engine):
     for j, column in enumerate(header):
         assert [float(r[j]) for r in rows] == flat[column].astype(float).tolist(), column
 
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("kind, mode", CELLS, ids=IDS)
+def test_simulate_takes_fmpys_fmi_type_of_the_interface_it_runs(lab, kind, mode, engine):
+    """fmpy's fmi_type naming the interface the FMU runs through (Model Exchange for a Model-Exchange-only
+    FMU, as an fmpy user writes it) gives the same result; the other interface is one line naming fmi_type
+    (before: 'ModelExchange' was refused for every FMU, 'CoSimulation' ran a Model-Exchange-only FMU)."""
+    import clockwork
+    from clockwork.errors import UsageError
+
+    runs, other = ("ModelExchange", "CoSimulation") if kind.startswith("me") else ("CoSimulation", "ModelExchange")
+    got = clockwork.simulate(str(lab.source(kind, mode)), master={"engine": engine}, fmi_type=runs)
+    assert got.dtype == lab.simulate(kind, mode, engine).dtype
+    assert got.tobytes() == lab.simulate(kind, mode, engine).tobytes()
+    with pytest.raises(UsageError) as e:
+        clockwork.simulate(str(lab.source(kind, mode)), master={"engine": engine}, fmi_type=other)
+    assert str(e.value).startswith(f"simulate(fmi_type={other!r}): ") and "\n" not in str(e.value)
