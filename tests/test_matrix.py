@@ -29,6 +29,8 @@ import contextlib
 import csv
 import io
 import math
+import re
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -402,3 +404,73 @@ def test_simulate_takes_fmpys_fmi_type_of_the_interface_it_runs(lab, kind, mode,
     with pytest.raises(UsageError) as e:
         clockwork.simulate(str(lab.source(kind, mode)), master={"engine": engine}, fmi_type=other)
     assert str(e.value).startswith(f"simulate(fmi_type={other!r}): ") and "\n" not in str(e.value)
+
+
+# Kinds clockwork refuses: FMI 1.0 Model Exchange (TestDecay's FMI 1.0 description without <Implementation>)
+# and FMI 3.0 Model Exchange with arrays (Linear's description declaring <ModelExchange>); copies of the
+# built archives with the description edited.
+REFUSED = {
+    "fmi1-me": ("fmi1/TestDecay", lambda xml: re.sub(r"<Implementation>.*?</Implementation>", "", xml, flags=re.S),
+                "FMI 1.0 Model Exchange is not supported"),
+    "fmi3-me-arrays": ("fmi3/Linear",
+                       lambda xml: re.sub(r"<CoSimulation [^>]*/>", '<ModelExchange modelIdentifier="Linear"/>', xml),
+                       "Model Exchange with FMI 3.0 array variables is not supported"),
+}
+
+
+@pytest.fixture(scope="module")
+def refused(tmp_path_factory):
+    """{kind: (the FMU, a scene with it beside TestSum)}."""
+    folder = tmp_path_factory.mktemp("refused")
+    out = {}
+    for kind, (name, edit, _) in REFUSED.items():
+        fmu = folder / f"{kind}.fmu"
+        with zipfile.ZipFile(test_fmu(name)) as zin, zipfile.ZipFile(fmu, "w") as zout:
+            for item in zin.infolist():
+                data = zin.read(item)
+                if item.filename == "modelDescription.xml":
+                    data = edit(data.decode()).encode()
+                    assert data != zin.read(item)
+                zout.writestr(item, data)
+        scene = folder / f"{kind}.toml"
+        scene.write_text(f'[scene]\ntitle = "{kind}"\n[components.a]\nfmu = "{fmu}"\n'
+                         f'[components.sum]\nfmu = "{test_fmu("TestSum")}"\n[experiment]\nstop = "1 s"\n')
+        out[kind] = (fmu, scene)
+    return out
+
+
+# info and export-scene take an FMU, not a scene file
+REFUSED_CELLS = [(k, m, c) for k in REFUSED for m in MODES
+                 for c in ("validate", "run python", "run compiled", "export-scene", "info", "simulate")
+                 if m == "alone" or c not in ("info", "export-scene")]
+
+
+@pytest.mark.parametrize("kind, mode, command", REFUSED_CELLS, ids=["-".join(c) for c in REFUSED_CELLS])
+def test_a_kind_clockwork_cannot_run_is_one_line_from_every_command(refused, tmp_path, kind, mode, command):
+    """Exit 2 and one line saying what is not supported, nothing written; `info` describes what it can."""
+    import clockwork
+    from clockwork.errors import SceneError
+
+    fmu, scene = refused[kind]
+    src, why = (fmu if mode == "alone" else scene), REFUSED[kind][2]
+    out = tmp_path / "out"
+    if command == "simulate":
+        with pytest.raises(SceneError) as e:
+            clockwork.simulate(str(src))
+        assert why in str(e.value) and "\n" not in str(e.value)
+        return
+    if command == "info":
+        rc, got, err = cli("info", src)
+        if kind == "fmi3-me-arrays":  # described, though not run
+            assert rc == 0 and got.startswith("Linear (FMI 3.0 Model Exchange)"), err
+        else:
+            assert_one_line_error(rc, err, why)
+        return
+    if command == "export-scene":
+        out = tmp_path / "out.toml"
+    argv = {"validate": ["validate", src], "export-scene": ["export-scene", src, "--out", out],
+            "run python": ["run", src, "--out", out, "--no-progress", "--set", "master.engine=python"],
+            "run compiled": ["run", src, "--out", out, "--no-progress", "--set", "master.engine=compiled"]}[command]
+    rc, _, err = cli(*argv)
+    assert_one_line_error(rc, err, why)
+    assert not out.exists()
