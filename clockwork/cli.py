@@ -607,11 +607,17 @@ def _info_ssp(path: str) -> int:
 
 
 def cmd_info(args) -> int:
-    from .fmi.description import FmuError, fmi1_details, read_fmu, resolve_fmu, shape_text, type_name, var_unit
+    from .fmi.description import (NAME_RE, FmuError, fmi1_details, read_fmu, resolve_fmu, shape_text, type_name,
+                                   var_unit)
 
     osp_folder = (Path(args.fmu) / "OspSystemStructure.xml").is_file()  # libcosim's form: the file's folder
     if Path(args.fmu).suffix.lower() in (".ssp", ".ssd", ".xml") or osp_folder:
         return _info_ssp(args.fmu)
+    if not args.fmu.endswith(".fmu") and not NAME_RE.match(args.fmu):  # neither an FMU nor a model name
+        scene = "; a scene file is checked by `clockwork validate`" if args.fmu.endswith(".toml") else ""
+        raise UsageError(f"{args.fmu or repr(args.fmu)}: expected an FMU (X.fmu, or a model name such as "
+                         f"Pendulum), an SSP (X.ssp, X.ssd) or an OSP system structure (OspSystemStructure.xml)"
+                         f"{scene}")
     try:
         path = resolve_fmu(args.fmu)
         md, digest, indicators = read_fmu(path, need_binary=False)

@@ -310,14 +310,18 @@ def test_validate(lab, kind, mode, engine):
 @pytest.mark.parametrize("kind, mode", CELLS, ids=IDS)
 def test_info(lab, kind, mode):
     """`clockwork info`: the FMU (its version, interface and outputs), or the SSP the scene exports to
-    (both instances)."""
+    (both instances); the scene file itself is one line naming it (before: "expected a model name (e.g.
+    "Pendulum") or a path ending .fmu", no file named)."""
     if mode == "alone":
         rc, out, err = cli("info", lab.source(kind, mode))
         assert rc == 0, err
         assert f"(FMI {KINDS[kind].fmi} {KINDS[kind].interface})" in out.splitlines()[0], out
         for column in ALONE_COLUMNS[kind]:
             assert column.split("[")[0] in out, (column, out)
-    elif kind in NO_SSP:  # each component's FMU
+        return
+    rc, _, err = cli("info", lab.source(kind, mode))
+    assert_one_line_error(rc, err, f"{lab.source(kind, mode)}: expected an FMU", "clockwork validate")
+    if kind in NO_SSP:  # each component's FMU
         for fmu in {KINDS[kind].fmu, KINDS[kind].partner}:
             rc, out, err = cli("info", test_fmu(fmu))
             assert rc == 0, err
