@@ -102,7 +102,8 @@ def build_parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("plot", help="draw a finished run's outputs again, grouped by unit")
     pl.add_argument("result", metavar="RESULT_DIR", help="the --out directory of a run (a time series)")
     pl.add_argument("--only", nargs="+", default=None, metavar="NAME",
-                    help="only these columns (names or shell patterns, e.g. 'pendulum.*')")
+                    help="only these columns (names or shell patterns, e.g. 'pendulum.*'; an array's name: its "
+                         "elements)")
     pl.add_argument("--out", default=None, metavar="FILE.png",
                     help="the file to write [RESULT_DIR/outputs.png]; more pages go to FILE_2.png...")
     pl.set_defaults(func=cmd_plot)

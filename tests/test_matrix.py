@@ -365,6 +365,12 @@ def test_plot(lab, kind, mode):
     rc, _, err = cli("plot", run, "--out", png)
     assert rc == 0, err
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # --only an output by the name [record] and simulate take (an array's: every element; before, no
+    # column matched it)
+    name = ALONE_COLUMNS[kind][0].split("[")[0] if mode == "alone" else SCENE_RECORD[kind][-1]
+    rc, _, err = cli("plot", run, "--only", name, "--out", png.with_name(f"only_{png.name}"))
+    assert rc == 0, err
+    assert png.with_name(f"only_{png.name}").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.mark.parametrize("engine", ENGINES)
