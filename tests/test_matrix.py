@@ -20,7 +20,11 @@ The commands: `clockwork run` (the FMU alone, the scene file), `validate`,
 `clockwork.simulate`. Each run is made once per module (module fixtures)
 and every cell checks its own claim on it: exit code 0, the result's
 columns, the end value against the closed form, the two engines' bits
-equal, an exported scene's bits equal to the original's.
+equal, an exported scene's bits equal to the original's, `plot --only` by
+an output's recorded name, simulate with fmpy's `fmi_type` of the
+interface the FMU runs through. The kinds clockwork refuses (FMI 1.0
+Model Exchange, FMI 3.0 Model Exchange with arrays) are one line from
+every command.
 """
 
 from __future__ import annotations
