@@ -102,7 +102,8 @@ def build_parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("plot", help="draw a finished run's outputs again, grouped by unit")
     pl.add_argument("result", metavar="RESULT_DIR", help="the --out directory of a run (a time series)")
     pl.add_argument("--only", nargs="+", default=None, metavar="NAME",
-                    help="only these columns (names or shell patterns, e.g. 'pendulum.*')")
+                    help="only these columns (names or shell patterns, e.g. 'pendulum.*'; an array's name: its "
+                         "elements)")
     pl.add_argument("--out", default=None, metavar="FILE.png",
                     help="the file to write [RESULT_DIR/outputs.png]; more pages go to FILE_2.png...")
     pl.set_defaults(func=cmd_plot)
@@ -634,11 +635,17 @@ def _say_clocks(md, name: str | None = None, scene=None) -> None:
 
 
 def cmd_info(args) -> int:
-    from .fmi.description import FmuError, fmi1_details, read_fmu, resolve_fmu, shape_text, type_name, var_unit
+    from .fmi.description import (NAME_RE, FmuError, fmi1_details, read_fmu, resolve_fmu, shape_text, type_name,
+                                   var_unit)
 
     osp_folder = (Path(args.fmu) / "OspSystemStructure.xml").is_file()  # libcosim's form: the file's folder
     if Path(args.fmu).suffix.lower() in (".ssp", ".ssd", ".xml") or osp_folder:
         return _info_ssp(args.fmu)
+    if not args.fmu.endswith(".fmu") and not NAME_RE.match(args.fmu):  # neither an FMU nor a model name
+        scene = "; a scene file is checked by `clockwork validate`" if args.fmu.endswith(".toml") else ""
+        raise UsageError(f"{args.fmu or repr(args.fmu)}: expected an FMU (X.fmu, or a model name such as "
+                         f"Pendulum), an SSP (X.ssp, X.ssd) or an OSP system structure (OspSystemStructure.xml)"
+                         f"{scene}")
     try:
         path = resolve_fmu(args.fmu)
         md, digest, indicators = read_fmu(path, need_binary=False)
