@@ -1,0 +1,365 @@
+"""`clockwork export-fmu`: a scene as one FMI 2.0 Co-Simulation FMU that
+carries the scene's FMUs and clockwork's compiled master, with no Python.
+
+The FMU's binary is the system front (src_c/export/cw_system.c with the
+compiled core, built once by CMake as lib/cw_system.so); what makes it this
+scene is its resources: the scene's FMUs unpacked under resources/fmus/,
+and resources/clockwork/system.txt, which describes them and the master's
+structs to the front. That description is taken from the master the scene
+builds here (engine/compiled.py), after initialization, so that the front
+fills the core's structs as Python does: the same orders, value references,
+links, indicators and settings, field by field by name.
+
+Its variables: the scene's parameters (``pendulum.Q``, fixed parameters
+with the FMUs' units and descriptions), the recorded Real outputs (every
+Real output of every FMU when the scene records none), and the Real inputs
+no connection feeds. What the front cannot carry is refused here, in one
+line: a sweep or an analysis that is not a time series, an FMU without a
+binary for the target platform, FMI 1.0 or 3.0 FMUs, Model Exchange, input
+files, algebraic loops, links that are not Real, step doubling.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import io
+import os
+import re
+import zipfile
+from ctypes import c_double, c_int, c_uint
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+from ..errors import SceneError, UsageError
+from ..paths import core_library
+from ..version import __version__
+
+DESCRIPTION = "clockwork/system.txt"  # CW_DESCRIPTION in cw_system.c
+FORMAT = 1                            # CW_FORMAT
+PLATFORM, SUFFIX = "linux64", ".so"   # the binary the front is built for here
+HISTORY = 3                           # HISTORY in cw_master.c
+MAX_SINCE = 256
+
+# The port's and the master's arrays as engine/compiled.py makes them:
+# (field, kind, length). A length is a field name, a product "2*n_in", or
+# a number; "z" after the kind: a work array of zeros.
+_PORT_ARRAYS = [
+    ("out_vr", "u", "n_out"), ("in_vr", "u", "n_in"), ("inp", "dz", "n_in"),
+    ("der_vr", "u", "2*n_in"), ("der_order", "i", "2*n_in"), ("der", "dz", "2*n_in"),
+    ("src_port", "i", "n_in"), ("src_pos", "i", "n_in"), ("sent", "dz", "n_in"),
+    ("dsrc_port", "i", "n_in"), ("dsrc_vr", "u", "2*n_in"), ("dsrc_m", "i", "n_in"),
+    ("hist_t", "dz", HISTORY + 1), ("hist_v", "dz", f"{HISTORY + 1}*n_in"),
+    ("snap_hist_t", "dz", HISTORY + 1), ("snap_hist_v", "dz", f"{HISTORY + 1}*n_in"),
+    ("scaled", "i", "n_scaled"), ("in_factor", "d", "n_scaled"), ("in_offset", "d", "n_scaled"),
+    ("it_start", "dz", "n_in"), ("it_end", "dz", "n_in"),
+]
+_PORT_SCALARS = [("n_out", "i"), ("n_in", "i"), ("n_z", "i"), ("max_output_derivative_order", "i"),
+                 ("n_scaled", "i"), ("ext_order", "i"), ("can_interpolate", "i")]
+_MASTER_ARRAYS = [
+    ("first", "i", "n_first"), ("dynamic", "i", "n_dynamic"), ("first_in_order", "i", "n_first_in_order"),
+    ("final_order", "i", "n_final"), ("after_start", "i", "n_dynamic+1"), ("after_order", "i", "after"),
+    ("z_port", "i", "n_z"), ("z_pos", "i", "n_z"), ("zs_port", "i", "n_z"), ("zs_pos", "i", "n_z"),
+    ("zs_vr", "u", "n_z"),
+] + [(n, "dz", "n_z") for n in ("z_start", "z_end", "prev_u", "prev_du", "amp_u", "amp_du", "z_seen", "end_rate",
+                               "snap_z_end", "last_z")] + [
+    ("prev_kind", "iz", "n_z"), ("end_rate_set", "iz", "n_z"), ("pred_kind", "iz", "2*n_z"),
+    ("pred_u", "dz", "2*n_z"), ("pred_du", "dz", "2*n_z"), ("pred_ddu", "dz", "2*n_z"),
+    ("since", "dz", MAX_SINCE), ("fmi3", "pz", 0),
+]
+_MASTER_SCALARS = [
+    ("start_time", "d"), ("step", "d"), ("event_time_tolerance", "d"), ("event_indicator_tolerance", "d"),
+    ("divergence_limit", "d"), ("iteration_tolerance", "d"),
+    ("n_ports", "i"), ("n_first", "i"), ("n_dynamic", "i"), ("n_first_in_order", "i"), ("n_final", "i"),
+    ("n_z", "i"), ("cap_since", "i"), ("jacobi", "i"), ("extrapolation", "i"), ("locating", "i"),
+    ("has_sources", "i"), ("after_event", "i"), ("max_replay_steps", "i"), ("predicting", "i"),
+    ("iterations", "i"), ("n_fmi3", "i"),
+]
+_CTYPES = {"d": c_double, "i": c_int, "u": c_uint}
+
+
+def system_library() -> Path:
+    """The front's binary, beside the compiled core (lib/, or the package's data)."""
+    return core_library().parent / f"cw_system{SUFFIX}"
+
+
+def _length(spec, struct) -> int:
+    if isinstance(spec, int):
+        return spec
+    if spec == "after":
+        return -1  # filled by the caller
+    total = 0
+    for term in spec.split("+"):
+        factor = 1
+        for part in term.split("*"):
+            factor *= int(part) if part.isdigit() else getattr(struct, part)
+        total += factor
+    return total
+
+
+def _text(s: str) -> str:
+    """A token without whitespace: percent-encoded (cw_system.c's text_token)."""
+    return "".join(c if c.isascii() and (c.isalnum() or c in "-_./:{}") else
+                   "".join(f"%{b:02X}" for b in c.encode("utf-8")) for c in s)
+
+
+def _number(kind: str, x) -> str:
+    return float(x).hex() if kind == "d" else str(int(x))
+
+
+def _struct_lines(struct, arrays, scalars, after_n: int | None = None) -> list[str]:
+    lines = []
+    for name, kind, spec in arrays:
+        n = _length(spec, struct) if spec != "after" else after_n
+        base = kind[0]
+        if kind.endswith("z") or n == 0:
+            lines.append(f"a {name} {base} {n} z")
+            continue
+        address = getattr(struct, name)
+        values = (_CTYPES[base] * n).from_address(address)
+        lines.append(f"a {name} {base} {n} " + " ".join(_number(base, x) for x in values))
+    for name, kind in scalars:
+        lines.append(f"s {name} {kind} {_number(kind, getattr(struct, name))}")
+    return lines
+
+
+def _identifier(stem: str) -> str:
+    ident = re.sub(r"\W", "_", stem, flags=re.ASCII) or "system"
+    return ident if ident[0].isalpha() else f"m_{ident}"
+
+
+def _refuse(scene, key: str, what: str):
+    return SceneError(f"{scene.path}: {key}: {what}")
+
+
+def _check_scene(scene, settings, fmi: int) -> None:
+    kind = (scene.analysis or {}).get("kind", "time_series")
+    if scene.sweep is not None:
+        raise _refuse(scene, "sweep", "a scene with a sweep is many runs; an exported FMU is one time series "
+                      "(export a copy without [sweep], or --set its values)")
+    if kind != "time_series":
+        raise _refuse(scene, "analysis.kind", f"expected time_series (an exported FMU is one time series), "
+                      f"got {kind!r}")
+    if scene.inputs is not None:
+        raise _refuse(scene, "inputs", "an input file cannot be carried: the exported FMU's open inputs take it")
+    if settings.richardson:
+        raise _refuse(scene, "master.richardson", "the compiled master does not do step doubling")
+    for name, c in scene.components.items():
+        md = c.model_description
+        if not md.fmiVersion.startswith("2"):
+            raise _refuse(scene, f"components.{name}.fmu",
+                          f"{c.fmu_path.name} is FMI {md.fmiVersion}: the exported FMU carries FMI 2.0 FMUs only")
+        if c.interface == "model-exchange" or md.coSimulation is None:
+            raise _refuse(scene, f"components.{name}.fmu",
+                          f"{c.fmu_path.name}: the exported FMU carries Co-Simulation FMUs only")
+
+
+def _unit_xml(md_list, units: set[str]) -> str:
+    found = {}
+    for md in md_list:
+        for u in getattr(md, "unitDefinitions", None) or []:
+            found.setdefault(u.name, u)
+    out = []
+    for name in sorted(units):
+        u = found.get(name)
+        base = getattr(u, "baseUnit", None) if u is not None else None
+        attrs = ""
+        if base is not None:
+            for a in ("kg", "m", "s", "A", "K", "mol", "cd", "rad"):
+                v = getattr(base, a, 0)
+                if v:
+                    attrs += f' {a}="{int(v)}"'
+            for a in ("factor", "offset"):
+                v = getattr(base, a, None)
+                if v is not None and float(v) != (1.0 if a == "factor" else 0.0):
+                    attrs += f' {a}="{float(v)!r}"'
+        out.append(f'    <Unit name={quoteattr(name)}>' + (f"<BaseUnit{attrs}/>" if attrs else "") + "</Unit>")
+    return "  <UnitDefinitions>\n" + "\n".join(out) + "\n  </UnitDefinitions>\n" if out else ""
+
+
+def build_export(scene, fmi: int = 2) -> tuple[bytes, dict]:
+    """The exported FMU's bytes and a summary, from a loaded scene."""
+    from ..analyses.context import build_system, master_settings, parameters
+    from ..engine.compiled import CompiledMaster
+    from ..engine.system import System
+    from ..fmi.archive import extract
+    from ..fmi.description import var_unit
+    from ..fmi.description import variables as variables_of
+
+    if fmi != 2:
+        raise UsageError(f"--fmi {fmi}: this version of clockwork exports FMI 2.0 only (--fmi 2)")
+    settings = master_settings(scene)
+    _check_scene(scene, settings, fmi)
+    binary = system_library()
+    if not binary.is_file():
+        raise SceneError(f"{binary}: the exported FMU's binary is missing: build it with tools/setup.sh")
+    comps = scene.components
+    # Every Real output when the scene records none (clockwork run then records nothing to compare).
+    outputs = list(scene.record.outputs) or [
+        (n, v.name) for n, c in comps.items() for v in c.model_description.modelVariables
+        if v.causality == "output" and v.type == "Real" and not getattr(v, "dimensions", None)]
+    record: dict[str, list[str]] = {}
+    for inst, var in outputs:
+        record.setdefault(inst, []).append(var)
+    if scene.record.ticks:  # as analyses.time_series: the same ports as clockwork run's
+        record.setdefault(scene.record.ticks, []).append("tick_time")
+    params = parameters(scene)
+    start = scene.experiment.start
+    components = {n: (str(c.fmu_path), params[n]) for n, c in comps.items()}
+    mds = {n: c.model_description for n, c in comps.items()}
+    settings = dataclasses.replace(settings, engine="compiled", threads=1)
+    system = System(components, [tuple(c) for c in scene.connections], settings, record=record, start_time=start,
+                    model_descriptions=mds, interfaces={n: c.interface for n, c in comps.items()},
+                    labels={n: c.fmu_label for n, c in comps.items() if c.fmu_label})
+    with system:
+        m = system.master
+        if not isinstance(m, CompiledMaster):
+            raise _refuse(scene, "master", f"the compiled master cannot run this scene: {m.engine_reason}")
+        ports = m.ports
+        if ports.loops:
+            raise _refuse(scene, "connections", f"algebraic loop {ports.loops[0].name}: the exported FMU does not "
+                          "solve algebraic loops yet")
+        names = list(system.instances)
+        index = {n: i for i, n in enumerate(names)}
+        port_index = {id(p): i for i, p in enumerate(ports.all)}
+        order = [port_index[id(x)] for x in ports.order]
+        core = m._core
+        lines = [f"clockwork-system {FORMAT}"]
+        # The FMUs, each unpacked once under resources/fmus/<k>.
+        fmu_dirs: dict[str, int] = {}
+        files: list[tuple[str, Path]] = []
+        fmu_lines = []
+        for n in names:
+            c = comps[n]
+            key = str(c.fmu_path.resolve())
+            if key in fmu_dirs:
+                continue
+            md = c.model_description
+            ident = md.coSimulation.modelIdentifier
+            unzip = extract(c.fmu_path)
+            if not (unzip / "binaries" / PLATFORM / f"{ident}{SUFFIX}").is_file():
+                raise _refuse(scene, f"components.{n}.fmu", f"{c.fmu_path.name} has no binary for {PLATFORM} "
+                              f"(binaries/{PLATFORM}/{ident}{SUFFIX}), the exported FMU's platform")
+            k = fmu_dirs[key] = len(fmu_dirs)
+            fmu_lines.append(f"fmu {_text(f'fmus/{k}')} {_text(ident)} {_text(md.guid)}")
+            for f in sorted(unzip.rglob("*")):
+                if f.is_file() and not f.is_symlink() and not f.name.startswith(".clockwork"):  # the cache's own
+                    files.append((f"resources/fmus/{k}/{f.relative_to(unzip).as_posix()}", f))
+        # The exported variables.
+        var_lines, xml_vars, units = [], [], set()
+        outputs_xml: list[int] = []
+
+        def add(kind_role, inst, v, pos, start_value, causality, variability, initial):
+            vr = len(var_lines)
+            t = {"Real": "R", "Integer": "I", "Enumeration": "I", "Boolean": "B"}[v.type]
+            var_lines.append(f"var {t} {kind_role} {vr} {index[inst]} {v.valueReference} {pos} "
+                             f"{float(start_value).hex()}")
+            unit = var_unit(v) if v.type == "Real" else None
+            if unit:
+                units.add(unit)
+            attrs = f' unit={quoteattr(unit)}' if unit else ""
+            if start_value is not None and causality != "output":
+                s = (repr(float(start_value)) if v.type == "Real" else
+                     ("true" if start_value else "false") if v.type == "Boolean" else str(int(start_value)))
+                attrs += f' start="{s}"'
+            xml_type = "Integer" if v.type == "Enumeration" else v.type
+            desc = f" description={quoteattr(v.description)}" if v.description else ""
+            init = f' initial="{initial}"' if initial else ""
+            xml_vars.append(f'    <ScalarVariable name={quoteattr(f"{inst}.{v.name}")} valueReference="{vr}"'
+                            f' causality="{causality}" variability="{variability}"{init}{desc}>\n'
+                            f"      <{xml_type}{attrs}/>\n    </ScalarVariable>")
+            if causality == "output":
+                outputs_xml.append(len(xml_vars))
+
+        for n in names:  # parameters, in the order System sets them
+            table = variables_of(mds[n])
+            for var, value in params[n].items():
+                v = table[var]
+                if v.type not in ("Real", "Integer", "Enumeration", "Boolean") or getattr(v, "dimensions", None):
+                    raise _refuse(scene, f"components.{n}.parameters.{var}",
+                                  f"a {v.type} parameter: the exported FMU carries Real, Integer and Boolean ones")
+                causality = "parameter" if v.causality in ("parameter", "input") else "parameter"
+                add("p", n, v, 0, value, causality, "fixed", "exact")
+        for n, var in outputs:
+            v = variables_of(mds[n])[var]
+            if v.type != "Real":
+                continue  # a discrete output is not on the master's ports
+            add("o", n, v, ports.out_pos[n][var], 0.0, "output", "continuous", None)
+        linked = {(c.dst_instance, c.dst_var) for c in scene.connections}
+        for n in names:
+            for v in mds[n].modelVariables:
+                if (v.causality == "input" and v.type == "Real" and (n, v.name) not in linked
+                        and v.name not in params[n] and not getattr(v, "dimensions", None)):
+                    add("i", n, v, 0, float(v.start) if v.start is not None else 0.0, "input", "continuous", None)
+        inst_lines = []
+        for n in names:
+            inst = system.instances[n]
+            tol = settings.tolerance if settings.tolerance is not None else inst.default_tolerance
+            inst_lines.append(f"instance {_text(n)} {fmu_dirs[str(comps[n].fmu_path.resolve())]} "
+                              f"{int(tol is not None)} {float(tol or 0.0).hex()} "
+                              f"{int(bool(getattr(inst, 'outputs_after_inputs', True)))}")
+        struct_lines = ["master"] + _struct_lines(core, _MASTER_ARRAYS, _MASTER_SCALARS,
+                                                  after_n=sum(len(x) for x in m._updates_after))
+        for i, c in enumerate(m._cports):
+            struct_lines += [f"port {i}"] + _struct_lines(c, _PORT_ARRAYS, _PORT_SCALARS)
+        n_items = sum(1 for x in struct_lines if x.startswith(("a ", "s ")))
+        body = [f"counts {len(fmu_lines)} {len(names)} {len(var_lines)} {n_items}",
+                f"settings {float(start).hex()} {float(settings.step).hex()} {float(settings.divergence_limit).hex()}",
+                *fmu_lines, *inst_lines, f"order {len(order)} " + " ".join(map(str, order)), *var_lines,
+                *struct_lines, "end"]
+        digest = hashlib.sha256("\n".join(lines + body).encode()).hexdigest()
+        guid = f"{{{digest[:8]}-{digest[8:12]}-{digest[12:16]}-{digest[16:20]}-{digest[20:32]}}}"
+        description = "\n".join(lines + [f"guid {guid}"] + body) + "\n"
+    ident = _identifier(scene.path.stem)
+    stop = scene.experiment.stop
+    md_xml = (
+        '<?xml version="1.0" encoding="UTF-8"?>\n'
+        f'<fmiModelDescription fmiVersion="2.0" modelName={quoteattr(ident)} guid="{guid}"\n'
+        f'  description={quoteattr(scene.title or ident)} generationTool="clockwork {__version__} export-fmu"\n'
+        '  variableNamingConvention="flat" numberOfEventIndicators="0">\n'
+        f'  <CoSimulation modelIdentifier="{ident}" canHandleVariableCommunicationStepSize="true"'
+        ' canInterpolateInputs="false" maxOutputDerivativeOrder="0" canBeInstantiatedOnlyOncePerProcess="false"'
+        ' canGetAndSetFMUstate="false" canSerializeFMUstate="false" canNotUseMemoryManagementFunctions="true"/>\n'
+        + _unit_xml(list(mds.values()), units)
+        + f'  <DefaultExperiment startTime="{float(start)!r}" stopTime="{float(stop)!r}"'
+        f' stepSize="{float(settings.step)!r}"/>\n'
+        "  <ModelVariables>\n" + "\n".join(xml_vars) + "\n  </ModelVariables>\n"
+        "  <ModelStructure>\n"
+        + ("    <Outputs>\n" + "".join(f'      <Unknown index="{k}"/>\n' for k in outputs_xml) + "    </Outputs>\n"
+           "    <InitialUnknowns>\n" + "".join(f'      <Unknown index="{k}"/>\n' for k in outputs_xml)
+           + "    </InitialUnknowns>\n" if outputs_xml else "")
+        + "  </ModelStructure>\n</fmiModelDescription>\n")
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("modelDescription.xml", md_xml)
+        z.write(binary, f"binaries/{PLATFORM}/{ident}{SUFFIX}")
+        z.writestr(f"resources/{DESCRIPTION}", description)
+        for arc, f in files:
+            z.write(f, arc)
+    summary = {"instances": len(names), "fmus": len(fmu_lines), "parameters": sum(1 for x in var_lines if " p " in x),
+               "outputs": len(outputs_xml), "inputs": sum(1 for x in var_lines if " i " in x),
+               "model_identifier": ident}
+    return buf.getvalue(), summary
+
+
+def export_fmu(scene_spec, out, fmi: int = 2, overrides=()) -> dict:
+    """Write `out` (an .fmu that must not exist yet) from a scene file, an
+    SSP or an FMU; bad input raises UsageError or SceneError before a byte
+    is written, and the file is written whole or not at all."""
+    from ..atomic import write_bytes_unnamed
+    from ..results.files import check_output_file
+    from .catalog import load_scene
+
+    out = Path(out)
+    if out.suffix != ".fmu":
+        raise UsageError(f"--out {out}: expected a file name ending .fmu")
+    if os.path.lexists(out):
+        raise UsageError(f"--out {out}: exists already: give a new file name (nothing is overwritten)")
+    check_output_file(out, "--out")
+    if fmi not in (2, 3):
+        raise UsageError(f"--fmi {fmi}: expected 2 or 3")
+    scene = load_scene(scene_spec, overrides)
+    data, summary = build_export(scene, fmi)
+    write_bytes_unnamed(out, data)
+    summary["size_bytes"] = len(data)
+    return summary
