@@ -128,6 +128,7 @@ typedef struct {
     unsigned char *master;
     unsigned char *ports;
     unsigned char *loops;
+    double *t;          /* the master's time, s (its field t) */
     double *buffer;
     int n_buffer;
     void **arrays;
@@ -591,6 +592,7 @@ static void free_master(cw_system *s)
     free(s->loops);
     free(s->buffer);
     s->master = s->ports = s->loops = NULL;
+    s->t = NULL;
     s->buffer = NULL;
 }
 
@@ -801,6 +803,7 @@ static int initialize(cw_system *s)
             || !put(s, &s->Lp, port_at(s, i), "sent_valid", &zero, sizeof zero))
             return 0;
     }
+    s->t = get(&s->Lm, s->master, "t");
     if (!put(s, &s->Lm, s->master, "t", &s->start_time, sizeof(double))
         || !put(s, &s->Lm, s->master, "start_time", &s->start_time, sizeof(double)))
         return 0;
@@ -835,7 +838,7 @@ static int apply_inputs(cw_system *s)
 
 static double master_t(cw_system *s)
 {
-    return *(double *)get(&s->Lm, s->master, "t");
+    return *s->t;
 }
 
 static const char *why(int rc)
@@ -946,7 +949,9 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     }
     for (int k = 0; ok && k < s->n_fmus; k++)
         ok = load_fmu(s, &s->fmus[k]);
-    fmi2CallbackFunctions inner = {inner_logger, functions->allocateMemory, functions->freeMemory, NULL, s};
+    /* The C library's calloc and free for the inner FMUs, as clockwork gives them: an importer's own
+     * (fmpy's are Python callbacks) would be called at every FMU state the master saves. */
+    fmi2CallbackFunctions inner = {inner_logger, calloc, free, NULL, s};
     for (int i = 0; ok && i < s->n_inst; i++) {
         cw_instance *in = &s->inst[i];
         cw_inner_fmu *f = &s->fmus[in->fmu];
@@ -1049,9 +1054,8 @@ fmi2Status fmi2Reset(fmi2Component c)
 
 static cw_var *var_of(cw_system *s, fmi2ValueReference vr, char type)
 {
-    for (int k = 0; k < s->n_vars; k++)  /* few variables: a scan */
-        if (s->vars[k].vr == vr && s->vars[k].type == type)
-            return &s->vars[k];
+    if (vr < (unsigned)s->n_vars && s->vars[vr].vr == vr && s->vars[vr].type == type)
+        return &s->vars[vr];  /* the exporter numbers the variables 0, 1, ... in order */
     return NULL;
 }
 
@@ -1243,7 +1247,7 @@ fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind kind, fmi2Status 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind kind, fmi2Real *value)
 {
     cw_system *s = c;
-    if (s && s->master && kind == fmi2LastSuccessfulTime) {
+    if (s && s->master && s->t && kind == fmi2LastSuccessfulTime) {
         *value = master_t(s);
         return fmi2OK;
     }
