@@ -312,6 +312,9 @@ def build_export(scene, fmi: int = 2) -> tuple[bytes, dict]:
         description = "\n".join(lines + [f"guid {guid}"] + body) + "\n"
     ident = _identifier(scene.path.stem)
     stop = scene.experiment.stop
+    # The state is every inner FMU's, serialized: offered where every inner FMU offers both.
+    state = "true" if all(md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
+                          for md in mds.values()) else "false"
     md_xml = (
         '<?xml version="1.0" encoding="UTF-8"?>\n'
         f'<fmiModelDescription fmiVersion="2.0" modelName={quoteattr(ident)} guid="{guid}"\n'
@@ -319,7 +322,7 @@ def build_export(scene, fmi: int = 2) -> tuple[bytes, dict]:
         '  variableNamingConvention="flat" numberOfEventIndicators="0">\n'
         f'  <CoSimulation modelIdentifier="{ident}" canHandleVariableCommunicationStepSize="true"'
         ' canInterpolateInputs="false" maxOutputDerivativeOrder="0" canBeInstantiatedOnlyOncePerProcess="false"'
-        ' canGetAndSetFMUstate="false" canSerializeFMUstate="false" canNotUseMemoryManagementFunctions="true"/>\n'
+        f' canGetAndSetFMUstate="{state}" canSerializeFMUstate="{state}" canNotUseMemoryManagementFunctions="true"/>\n'
         + _unit_xml(list(mds.values()), units)
         + f'  <DefaultExperiment startTime="{float(start)!r}" stopTime="{float(stop)!r}"'
         f' stepSize="{float(settings.step)!r}"/>\n'

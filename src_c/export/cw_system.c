@@ -132,6 +132,7 @@ typedef struct {
     double *buffer;
     int n_buffer;
     void **arrays;
+    size_t *array_bytes;
     int n_arrays;
 } cw_system;
 
@@ -585,7 +586,9 @@ static void free_master(cw_system *s)
     for (int k = 0; k < s->n_arrays; k++)
         free(s->arrays[k]);
     free(s->arrays);
+    free(s->array_bytes);
     s->arrays = NULL;
+    s->array_bytes = NULL;
     s->n_arrays = 0;
     free(s->master);
     free(s->ports);
@@ -611,52 +614,23 @@ static int port_int(cw_system *s, int i, const char *name)
     return *(int *)get(&s->Lp, port_at(s, i), name);
 }
 
-static int build_master(cw_system *s)
+/* Every pointer of the master's structs: the item arrays, the instances'
+ * functions and saved states, the output buffer, the ports and the loops.
+ * Also after an FMU state is restored over the structs' bytes. */
+static int wire(cw_system *s)
 {
-    s->Lm.fields = cw_layout("master", &s->Lm.n, &s->Lm.size);
-    s->Lp.fields = cw_layout("port", &s->Lp.n, &s->Lp.size);
-    s->Ll.fields = cw_layout("loops", &s->Ll.n, &s->Ll.size);
-    if (!s->Lm.fields || !s->Lp.fields || !s->Ll.fields)
-        return 0;
-    s->master = calloc(1, s->Lm.size);
-    s->ports = calloc((size_t)s->n_inst, s->Lp.size);
-    s->loops = calloc(1, s->Ll.size);
-    s->arrays = calloc((size_t)s->n_items + 2, sizeof(void *));
-    if (!s->master || !s->ports || !s->loops || !s->arrays)
-        return 0;
-    for (int k = 0; k < s->n_items; k++) {
+    for (int k = 0, a = 0; k < s->n_items; k++) {
         cw_item *it = &s->items[k];
-        const layout *L = it->port < 0 ? &s->Lm : &s->Lp;
-        unsigned char *base = it->port < 0 ? s->master : port_at(s, it->port);
-        size_t size = kind_size(it->kind);
-        if (it->is_array) {
-            void *copy = calloc((size_t)(it->n > 0 ? it->n : 1), size);
-            if (!copy)
-                return 0;
-            s->arrays[s->n_arrays++] = copy;
-            memcpy(copy, it->values, (size_t)it->n * size);
-            if (!put_ptr(s, L, base, it->name, copy))
-                return 0;
-        } else if (!put(s, L, base, it->name, it->values, size)) {
+        if (it->is_array && !put_ptr(s, it->port < 0 ? &s->Lm : &s->Lp,
+                                     it->port < 0 ? s->master : port_at(s, it->port), it->name, s->arrays[a++]))
             return 0;
-        }
     }
-    /* The output buffer: each port's outputs (at least one slot) in turn. */
-    s->n_buffer = 0;
-    for (int i = 0; i < s->n_inst; i++) {
-        int n = port_int(s, i, "n_out");
-        s->n_buffer += n > 0 ? n : 1;
-    }
-    s->buffer = calloc((size_t)s->n_buffer, sizeof(double));
-    if (!s->buffer)
-        return 0;
     int offset = 0;
     for (int i = 0; i < s->n_inst; i++) {
         cw_instance *in = &s->inst[i];
         cw_inner_fmu *f = &s->fmus[in->fmu];
         unsigned char *p = port_at(s, i);
         int n = port_int(s, i, "n_out");
-        in->state = NULL;
         if (!put_ptr(s, &s->Lp, p, "comp", in->comp) || !put_ptr(s, &s->Lp, p, "doStep", *(void **)&f->doStep)
             || !put_ptr(s, &s->Lp, p, "getReal", *(void **)&f->getReal)
             || !put_ptr(s, &s->Lp, p, "setReal", *(void **)&f->setReal)
@@ -668,16 +642,59 @@ static int build_master(cw_system *s)
             return 0;
         offset += n > 0 ? n : 1;
     }
-    double tol = *(double *)get(&s->Lm, s->master, "iteration_tolerance");
-    void *no_loop = calloc(1, 64);  /* a loop array of none (no loops are exported): never read */
-    if (!no_loop)
-        return 0;
-    s->arrays[s->n_arrays++] = no_loop;
-    if (!put_ptr(s, &s->Ll, s->loops, "loop", no_loop) || !put(s, &s->Ll, s->loops, "tolerance", &tol, sizeof tol))
-        return 0;
-    return put_ptr(s, &s->Lm, s->master, "ports", s->ports) && put_ptr(s, &s->Lm, s->master, "buffer", s->buffer)
-           && put(s, &s->Lm, s->master, "n_buffer", &s->n_buffer, sizeof(int))
+    s->t = get(&s->Lm, s->master, "t");
+    return put_ptr(s, &s->Ll, s->loops, "loop", s->arrays[s->n_arrays - 1])
+           && put_ptr(s, &s->Lm, s->master, "ports", s->ports) && put_ptr(s, &s->Lm, s->master, "buffer", s->buffer)
            && put_ptr(s, &s->Lm, s->master, "loops", s->loops);
+}
+
+static int build_master(cw_system *s)
+{
+    s->Lm.fields = cw_layout("master", &s->Lm.n, &s->Lm.size);
+    s->Lp.fields = cw_layout("port", &s->Lp.n, &s->Lp.size);
+    s->Ll.fields = cw_layout("loops", &s->Ll.n, &s->Ll.size);
+    if (!s->Lm.fields || !s->Lp.fields || !s->Ll.fields)
+        return 0;
+    s->master = calloc(1, s->Lm.size);
+    s->ports = calloc((size_t)s->n_inst, s->Lp.size);
+    s->loops = calloc(1, s->Ll.size);
+    s->arrays = calloc((size_t)s->n_items + 2, sizeof(void *));
+    s->array_bytes = calloc((size_t)s->n_items + 2, sizeof(size_t));
+    if (!s->master || !s->ports || !s->loops || !s->arrays || !s->array_bytes)
+        return 0;
+    for (int k = 0; k < s->n_items; k++) {
+        cw_item *it = &s->items[k];
+        const layout *L = it->port < 0 ? &s->Lm : &s->Lp;
+        unsigned char *base = it->port < 0 ? s->master : port_at(s, it->port);
+        size_t size = kind_size(it->kind);
+        if (it->is_array) {
+            size_t bytes = (size_t)(it->n > 0 ? it->n : 1) * size;
+            void *copy = calloc(1, bytes);
+            if (!copy)
+                return 0;
+            s->array_bytes[s->n_arrays] = bytes;
+            s->arrays[s->n_arrays++] = copy;
+            memcpy(copy, it->values, (size_t)it->n * size);
+        } else if (!put(s, L, base, it->name, it->values, size)) {
+            return 0;
+        }
+    }
+    /* The loops' array (no loops are exported, so never read), last. */
+    if (!(s->arrays[s->n_arrays] = calloc(1, 64)))
+        return 0;
+    s->array_bytes[s->n_arrays++] = 64;
+    /* The output buffer: each port's outputs (at least one slot) in turn. */
+    s->n_buffer = 0;
+    for (int i = 0; i < s->n_inst; i++) {
+        int n = *(int *)get(&s->Lp, port_at(s, i), "n_out");
+        s->n_buffer += n > 0 ? n : 1;
+    }
+    s->buffer = calloc((size_t)s->n_buffer, sizeof(double));
+    if (!s->buffer)
+        return 0;
+    double tol = *(double *)get(&s->Lm, s->master, "iteration_tolerance");
+    return put(s, &s->Ll, s->loops, "tolerance", &tol, sizeof tol)
+           && put(s, &s->Lm, s->master, "n_buffer", &s->n_buffer, sizeof(int)) && wire(s);
 }
 
 /* -- initialization, as Master.initialize ---------------------------------- */
@@ -780,6 +797,8 @@ static int initialize(cw_system *s)
         if (!check(s, i, f->enterInit(in->comp), "fmi2EnterInitializationMode"))
             return 0;
     }
+    for (int i = 0; i < s->n_inst; i++)
+        s->inst[i].state = NULL;  /* freed by fmi2Reset */
     if (!build_master(s))
         return 0;
     /* Two sweeps in Initialization Mode settle feedthrough chains (Master.initialize). */
@@ -803,7 +822,6 @@ static int initialize(cw_system *s)
             || !put(s, &s->Lp, port_at(s, i), "sent_valid", &zero, sizeof zero))
             return 0;
     }
-    s->t = get(&s->Lm, s->master, "t");
     if (!put(s, &s->Lm, s->master, "t", &s->start_time, sizeof(double))
         || !put(s, &s->Lm, s->master, "start_time", &s->start_time, sizeof(double)))
         return 0;
@@ -1174,17 +1192,265 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
     return n ? fmi2Error : fmi2OK;
 }
 
-fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state) { return fmi2Error; }
-fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state) { return fmi2Error; }
-fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state) { return fmi2Error; }
-fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate state, size_t *size) { return fmi2Error; }
+/* -- the FMU state: the master's structs and arrays, the importer's values,
+ * and every inner FMU's state and the master's saved one, serialized ------- */
+
+typedef struct {
+    size_t size;
+    unsigned char bytes[];
+} cw_state;
+
+typedef struct {
+    unsigned char *data;
+    size_t n, cap;
+    int failed;
+} writer;
+
+static void put_bytes(writer *w, const void *p, size_t n)
+{
+    if (w->failed)
+        return;
+    if (w->n + n > w->cap) {
+        size_t cap = w->cap ? w->cap : 4096;
+        while (cap < w->n + n)
+            cap *= 2;
+        unsigned char *bigger = realloc(w->data, cap);
+        if (!bigger) {
+            w->failed = 1;
+            return;
+        }
+        w->data = bigger;
+        w->cap = cap;
+    }
+    memcpy(w->data + w->n, p, n);
+    w->n += n;
+}
+
+static void put_size(writer *w, size_t n)
+{
+    unsigned long long x = n;
+    put_bytes(w, &x, sizeof x);
+}
+
+static const char CW_STATE_MAGIC[8] = "cwsys01";
+
+/* An inner FMU state, serialized (size, then bytes). */
+static int put_inner(cw_system *s, writer *w, int i, fmi2FMUstate st)
+{
+    cw_inner_fmu *f = &s->fmus[s->inst[i].fmu];
+    fmi2SerializedFMUstateSizeTYPE *size_of = (fmi2SerializedFMUstateSizeTYPE *)symbol(f, "fmi2SerializedFMUstateSize");
+    fmi2SerializeFMUstateTYPE *serialize = (fmi2SerializeFMUstateTYPE *)symbol(f, "fmi2SerializeFMUstate");
+    size_t n = 0;
+    if (!size_of || !serialize || !check(s, i, size_of(s->inst[i].comp, st, &n), "fmi2SerializedFMUstateSize"))
+        return 0;
+    unsigned char *bytes = malloc(n ? n : 1);
+    if (!bytes || !check(s, i, serialize(s->inst[i].comp, st, (fmi2Byte *)bytes, n), "fmi2SerializeFMUstate")) {
+        free(bytes);
+        return 0;
+    }
+    put_size(w, n);
+    put_bytes(w, bytes, n);
+    free(bytes);
+    return 1;
+}
+
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state)
+{
+    cw_system *s = c;
+    if (!s || !state)
+        return fmi2Error;
+    if (s->mode != MODE_STEP || !s->master) {
+        say(s, fmi2Error, "fmi2GetFMUstate: the state is kept from the end of initialization on");
+        return fmi2Error;
+    }
+    writer w = {0};
+    put_bytes(&w, CW_STATE_MAGIC, sizeof CW_STATE_MAGIC);
+    size_t counts[] = {(size_t)s->n_inst, s->Lm.size, s->Lp.size, s->Ll.size, (size_t)s->n_arrays,
+                       (size_t)s->n_buffer, (size_t)s->n_vars};
+    for (size_t k = 0; k < sizeof counts / sizeof counts[0]; k++)
+        put_size(&w, counts[k]);
+    put_bytes(&w, s->master, s->Lm.size);
+    put_bytes(&w, s->ports, (size_t)s->n_inst * s->Lp.size);
+    put_bytes(&w, s->loops, s->Ll.size);
+    for (int k = 0; k < s->n_arrays; k++) {
+        put_size(&w, s->array_bytes[k]);
+        put_bytes(&w, s->arrays[k], s->array_bytes[k]);
+    }
+    put_bytes(&w, s->buffer, (size_t)s->n_buffer * sizeof(double));
+    for (int k = 0; k < s->n_vars; k++) {
+        put_bytes(&w, &s->vars[k].value, sizeof(double));
+        put_bytes(&w, &s->vars[k].set, sizeof(int));
+    }
+    int ok = 1;
+    for (int i = 0; ok && i < s->n_inst; i++) {
+        cw_instance *in = &s->inst[i];
+        cw_inner_fmu *f = &s->fmus[in->fmu];
+        fmi2FMUstate now = NULL;
+        ok = check(s, i, f->getState(in->comp, &now), "fmi2GetFMUstate") && put_inner(s, &w, i, now);
+        if (now)
+            f->freeState(in->comp, &now);
+        if (ok) {
+            put_size(&w, in->state != NULL);  /* the master's checkpoint of this FMU, where it holds one */
+            if (in->state)
+                ok = put_inner(s, &w, i, in->state);
+        }
+    }
+    if (!ok || w.failed) {
+        free(w.data);
+        if (w.failed)
+            say(s, fmi2Error, "fmi2GetFMUstate: out of memory");
+        return fmi2Error;
+    }
+    cw_state *st = malloc(sizeof(cw_state) + w.n);
+    if (!st) {
+        free(w.data);
+        return fmi2Error;
+    }
+    st->size = w.n;
+    memcpy(st->bytes, w.data, w.n);
+    free(w.data);
+    if (*state)
+        free(*state);  /* a state given back to be overwritten (FMI 2.0 2.1.8) */
+    *state = st;
+    return fmi2OK;
+}
+
+typedef struct {
+    const unsigned char *at, *end;
+} bytes_reader;
+
+static int take(bytes_reader *r, void *out, size_t n)
+{
+    if ((size_t)(r->end - r->at) < n)
+        return 0;
+    if (out)
+        memcpy(out, r->at, n);
+    r->at += n;
+    return 1;
+}
+
+static int take_size(bytes_reader *r, size_t *n)
+{
+    unsigned long long x;
+    if (!take(r, &x, sizeof x))
+        return 0;
+    *n = (size_t)x;
+    return 1;
+}
+
+static int inner_from(cw_system *s, bytes_reader *r, int i, fmi2FMUstate *out)
+{
+    cw_inner_fmu *f = &s->fmus[s->inst[i].fmu];
+    fmi2DeSerializeFMUstateTYPE *deserialize = (fmi2DeSerializeFMUstateTYPE *)symbol(f, "fmi2DeSerializeFMUstate");
+    size_t n;
+    if (!deserialize || !take_size(r, &n) || (size_t)(r->end - r->at) < n)
+        return 0;
+    *out = NULL;
+    int ok = check(s, i, deserialize(s->inst[i].comp, (const fmi2Byte *)r->at, n, out), "fmi2DeSerializeFMUstate");
+    r->at += n;
+    return ok;
+}
+
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state)
+{
+    cw_system *s = c;
+    cw_state *st = state;
+    if (!s || !st)
+        return fmi2Error;
+    if (s->mode != MODE_STEP || !s->master) {
+        say(s, fmi2Error, "fmi2SetFMUstate: the state is set from the end of initialization on");
+        return fmi2Error;
+    }
+    bytes_reader r = {st->bytes, st->bytes + st->size};
+    char magic[sizeof CW_STATE_MAGIC];
+    size_t counts[7];
+    size_t expect[] = {(size_t)s->n_inst, s->Lm.size, s->Lp.size, s->Ll.size, (size_t)s->n_arrays,
+                       (size_t)s->n_buffer, (size_t)s->n_vars};
+    int ok = take(&r, magic, sizeof magic) && !memcmp(magic, CW_STATE_MAGIC, sizeof magic);
+    for (int k = 0; ok && k < 7; k++)
+        ok = take_size(&r, &counts[k]) && counts[k] == expect[k];
+    ok = ok && take(&r, s->master, s->Lm.size) && take(&r, s->ports, (size_t)s->n_inst * s->Lp.size)
+         && take(&r, s->loops, s->Ll.size);
+    for (int k = 0; ok && k < s->n_arrays; k++) {
+        size_t n;
+        ok = take_size(&r, &n) && n == s->array_bytes[k] && take(&r, s->arrays[k], n);
+    }
+    ok = ok && take(&r, s->buffer, (size_t)s->n_buffer * sizeof(double));
+    for (int k = 0; ok && k < s->n_vars; k++)
+        ok = take(&r, &s->vars[k].value, sizeof(double)) && take(&r, &s->vars[k].set, sizeof(int));
+    if (!ok || !wire(s)) {
+        say(s, fmi2Error, "fmi2SetFMUstate: not a state of this FMU");
+        s->mode = MODE_ERROR;
+        return fmi2Error;
+    }
+    for (int i = 0; ok && i < s->n_inst; i++) {
+        cw_instance *in = &s->inst[i];
+        cw_inner_fmu *f = &s->fmus[in->fmu];
+        fmi2FMUstate now = NULL;
+        ok = inner_from(s, &r, i, &now) && check(s, i, f->setState(in->comp, now), "fmi2SetFMUstate");
+        if (now)
+            f->freeState(in->comp, &now);
+        size_t held = 0;
+        ok = ok && take_size(&r, &held);
+        if (ok && in->state) {
+            f->freeState(in->comp, &in->state);
+            in->state = NULL;
+        }
+        if (ok && held)
+            ok = inner_from(s, &r, i, &in->state);
+    }
+    if (!ok) {
+        s->mode = MODE_ERROR;
+        return fmi2Error;
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state)
+{
+    if (state) {
+        free(*state);
+        *state = NULL;
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate state, size_t *size)
+{
+    if (!state || !size)
+        return fmi2Error;
+    *size = sizeof(unsigned long long) + ((cw_state *)state)->size;
+    return fmi2OK;
+}
+
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size)
 {
-    return fmi2Error;
+    cw_state *st = state;
+    unsigned long long n = st ? st->size : 0;
+    if (!st || !bytes || size < sizeof n + st->size)
+        return fmi2Error;
+    memcpy(bytes, &n, sizeof n);
+    memcpy(bytes + sizeof n, st->bytes, st->size);
+    return fmi2OK;
 }
+
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate *state)
 {
-    return fmi2Error;
+    unsigned long long n;
+    if (!bytes || !state || size < sizeof n)
+        return fmi2Error;
+    memcpy(&n, bytes, sizeof n);
+    if (n != size - sizeof n || n < sizeof CW_STATE_MAGIC || memcmp(bytes + sizeof n, CW_STATE_MAGIC, sizeof CW_STATE_MAGIC)) {
+        say((cw_system *)c, fmi2Error, "fmi2DeSerializeFMUstate: not a state of this FMU");
+        return fmi2Error;
+    }
+    cw_state *st = malloc(sizeof(cw_state) + n);
+    if (!st)
+        return fmi2Error;
+    st->size = (size_t)n;
+    memcpy(st->bytes, bytes + sizeof n, (size_t)n);
+    *state = st;
+    return fmi2OK;
 }
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference u[], size_t nu,
                                         const fmi2ValueReference z[], size_t nz, const fmi2Real du[], fmi2Real dz[])
