@@ -54,7 +54,7 @@ def _compare(spec, fmu: Path, overrides=()) -> int:
     from fmpy import read_model_description, simulate_fmu
 
     scene = load_scene(spec, overrides)
-    outputs = [v.name for v in read_model_description(str(fmu)).modelVariables if v.causality == "output"]
+    outputs = [v.name for v in read_model_description(str(fmu)).modelVariables if v.causality == "output"]  # FMI 2.0, 3.0
     assert outputs
     # clockwork's run recording what the exported FMU outputs (the same list when the scene records any)
     record = dataclasses.replace(scene.record, outputs=tuple(tuple(o.split(".", 1)) for o in outputs))
@@ -77,8 +77,9 @@ def _compare(spec, fmu: Path, overrides=()) -> int:
     return compared
 
 
-def _export(spec, out: Path, overrides=()) -> None:
-    r = _cli("export-fmu", str(spec), "--out", str(out), *[x for o in overrides for x in ("--set", o)])
+def _export(spec, out: Path, overrides=(), fmi: int = 2) -> None:
+    r = _cli("export-fmu", str(spec), "--out", str(out), "--fmi", str(fmi),
+             *[x for o in overrides for x in ("--set", o)])
     assert r.returncode == 0, r.stderr
     from fmpy.validation import validate_fmu
 
@@ -96,11 +97,17 @@ TIME_SERIES = [
 ]
 
 
+@pytest.mark.parametrize("fmi", [2, 3])
 @pytest.mark.parametrize("source,stop", TIME_SERIES, ids=[p.stem for p, _ in TIME_SERIES])
-def test_bundled_time_series_give_clockworks_numbers(tmp_path, source, stop):
+def test_bundled_time_series_give_clockworks_numbers(tmp_path, source, stop, fmi):
     overrides = [f"experiment.stop={stop}"]
     out = tmp_path / "x.fmu"
-    _export(source, out, overrides)
+    _export(source, out, overrides, fmi)
+    if fmi == 3:
+        from fmpy import read_model_description
+
+        md = read_model_description(str(out))
+        assert md.fmiVersion == "3.0" and md.coSimulation.canHandleVariableCommunicationStepSize
     n = _compare(source, out, overrides)
     step = load_scene(source).master.step
     assert n >= int(float(stop.split()[0]) / step / 10)  # at least every record interval's point
@@ -228,26 +235,33 @@ def test_open_inputs(tmp_path):
     assert pushed["pendulum.phi"][-1] != free["pendulum.phi"][-1]
 
 
-def test_fmu_state_rolls_the_system_back(tmp_path):
-    """fmi2GetFMUstate/SetFMUstate and their serialization: a rolled-back
-    exported clock (events located, checkpoints held by its master) steps
-    again to the same bits; the serialized state too, in a second instance."""
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_fmu_state_rolls_the_system_back(tmp_path, fmi):
+    """fmi2GetFMUstate/SetFMUstate (fmi3GetFMUState/SetFMUState) and their
+    serialization: a rolled-back exported clock (events located, checkpoints
+    held by its master) steps again to the same bits; the serialized state
+    too, in a second instance."""
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
+    from fmpy.fmi3 import FMU3Slave
 
     out = tmp_path / "clock.fmu"
-    export_fmu(SCENARIOS / "core_grasshopper.toml", out)
+    export_fmu(SCENARIOS / "core_grasshopper.toml", out, fmi=fmi)
     md = read_model_description(str(out))
     assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
     unzip = extract(str(out))
     vrs = [v.valueReference for v in md.modelVariables if v.causality == "output"]
 
     def started(name):
-        s = FMU2Slave(guid=md.guid, unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier,
-                      instanceName=name)
+        kind = FMU2Slave if fmi == 2 else FMU3Slave
+        key = {"guid": md.guid} if fmi == 2 else {"guid": md.instantiationToken}
+        s = kind(unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name, **key)
         s.instantiate()
-        s.setupExperiment(startTime=0.0)
-        s.enterInitializationMode()
+        if fmi == 2:
+            s.setupExperiment(startTime=0.0)
+            s.enterInitializationMode()
+        else:
+            s.enterInitializationMode(startTime=0.0)
         s.exitInitializationMode()
         return s
 
@@ -255,23 +269,27 @@ def test_fmu_state_rolls_the_system_back(tmp_path):
         rows = []
         for k in range(k0, k1):
             s.doStep(k * 0.01, (k + 1) * 0.01 - k * 0.01)
-            rows.append(tuple(s.getReal(vrs)))
+            rows.append(tuple(s.getReal(vrs) if fmi == 2 else s.getFloat64(vrs)))
         return rows
 
+    get, put, free = (("getFMUstate", "setFMUstate", "freeFMUstate") if fmi == 2 else
+                      ("getFMUState", "setFMUState", "freeFMUState"))
+    pack, unpack = (("serializeFMUstate", "deSerializeFMUstate") if fmi == 2 else
+                    ("serializeFMUState", "deserializeFMUState"))
     a = started("a")
     run(a, 0, 300)
-    state = a.getFMUstate()
+    state = getattr(a, get)()
     first = run(a, 300, 700)
-    a.setFMUstate(state)
+    getattr(a, put)(state)
     assert run(a, 300, 700) == first
-    blob = a.serializeFMUstate(state)
-    a.freeFMUstate(state)
+    blob = getattr(a, pack)(state)
+    getattr(a, free)(state)
     b = started("b")
     run(b, 0, 10)  # elsewhere, then the serialized state of a at 3 s
-    restored = b.deSerializeFMUstate(blob)
-    b.setFMUstate(restored)
+    restored = getattr(b, unpack)(blob)
+    getattr(b, put)(restored)
     assert run(b, 300, 700) == first
-    b.freeFMUstate(restored)
+    getattr(b, free)(restored)
     for s in (a, b):
         s.terminate()
         s.freeInstance()

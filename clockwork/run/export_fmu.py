@@ -38,6 +38,7 @@ from ..version import __version__
 DESCRIPTION = "clockwork/system.txt"  # CW_DESCRIPTION in cw_system.c
 FORMAT = 1                            # CW_FORMAT
 PLATFORM, SUFFIX = "linux64", ".so"   # the binary the front is built for here
+PLATFORM3 = "x86_64-linux"            # its FMI 3.0 name
 HISTORY = 3                           # HISTORY in cw_master.c
 MAX_SINCE = 256
 
@@ -177,6 +178,69 @@ def _unit_xml(md_list, units: set[str]) -> str:
     return "  <UnitDefinitions>\n" + "\n".join(out) + "\n  </UnitDefinitions>\n" if out else ""
 
 
+@dataclasses.dataclass
+class _Variable:
+    name: str
+    vr: int
+    type: str  # Real, Integer, Boolean (FMI 2.0's names)
+    causality: str
+    variability: str
+    initial: str | None
+    description: str | None
+    unit: str | None
+    start: str | None  # as written
+
+
+_FMI3_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
+
+
+def _model_description(fmi: int, ident: str, guid: str, title: str, state: str, units: str, start: float,
+                       stop: float, step: float, variables: list[_Variable]) -> str:
+    """The exported FMU's modelDescription.xml, FMI 2.0 or 3.0."""
+    def attrs(v: _Variable) -> str:
+        out = f' unit={quoteattr(v.unit)}' if v.unit else ""
+        return out + (f' start="{v.start}"' if v.start is not None else "")
+
+    def head(v: _Variable) -> str:
+        return (f'name={quoteattr(v.name)} valueReference="{v.vr}" causality="{v.causality}" '
+                f'variability="{v.variability}"' + (f' initial="{v.initial}"' if v.initial else "")
+                + (f" description={quoteattr(v.description)}" if v.description else ""))
+
+    outputs = [(k + 1, v) for k, v in enumerate(variables) if v.causality == "output"]
+    experiment = (f'  <DefaultExperiment startTime="{float(start)!r}" stopTime="{float(stop)!r}"'
+                  f' stepSize="{float(step)!r}"/>\n')
+    tool = f'generationTool="clockwork {__version__} export-fmu"'
+    if fmi == 2:
+        body = "\n".join(f"    <ScalarVariable {head(v)}>\n      <{v.type}{attrs(v)}/>\n    </ScalarVariable>"
+                         for v in variables)
+        structure = ("    <Outputs>\n" + "".join(f'      <Unknown index="{k}"/>\n' for k, _ in outputs)
+                     + "    </Outputs>\n    <InitialUnknowns>\n"
+                     + "".join(f'      <Unknown index="{k}"/>\n' for k, _ in outputs)
+                     + "    </InitialUnknowns>\n") if outputs else ""
+        return ('<?xml version="1.0" encoding="UTF-8"?>\n'
+                f'<fmiModelDescription fmiVersion="2.0" modelName={quoteattr(ident)} guid="{guid}"\n'
+                f'  description={quoteattr(title)} {tool}\n'
+                '  variableNamingConvention="flat" numberOfEventIndicators="0">\n'
+                f'  <CoSimulation modelIdentifier="{ident}" canHandleVariableCommunicationStepSize="true"'
+                ' canInterpolateInputs="false" maxOutputDerivativeOrder="0" canBeInstantiatedOnlyOncePerProcess="false"'
+                f' canGetAndSetFMUstate="{state}" canSerializeFMUstate="{state}"'
+                ' canNotUseMemoryManagementFunctions="true"/>\n'
+                + units + experiment + "  <ModelVariables>\n" + body + "\n  </ModelVariables>\n"
+                "  <ModelStructure>\n" + structure + "  </ModelStructure>\n</fmiModelDescription>\n")
+    body = "\n".join(f"    <{_FMI3_TYPES[v.type]} {head(v)}{attrs(v)}/>" for v in variables)
+    structure = ("".join(f'    <Output valueReference="{v.vr}"/>\n' for _, v in outputs)
+                 + "".join(f'    <InitialUnknown valueReference="{v.vr}"/>\n' for _, v in outputs))
+    return ('<?xml version="1.0" encoding="UTF-8"?>\n'
+            f'<fmiModelDescription fmiVersion="3.0" modelName={quoteattr(ident)} instantiationToken="{guid}"\n'
+            f'  description={quoteattr(title)} {tool} variableNamingConvention="flat">\n'
+            f'  <CoSimulation modelIdentifier="{ident}" canHandleVariableCommunicationStepSize="true"'
+            ' maxOutputDerivativeOrder="0" canBeInstantiatedOnlyOncePerProcess="false"'
+            f' canGetAndSetFMUState="{state}" canSerializeFMUState="{state}" hasEventMode="false"'
+            ' providesIntermediateUpdate="false" canReturnEarlyAfterIntermediateUpdate="false"/>\n'
+            + units + experiment + "  <ModelVariables>\n" + body + "\n  </ModelVariables>\n"
+            "  <ModelStructure>\n" + structure + "  </ModelStructure>\n</fmiModelDescription>\n")
+
+
 def build_export(scene, fmi: int = 2) -> tuple[bytes, dict]:
     """The exported FMU's bytes and a summary, from a loaded scene."""
     from ..analyses.context import build_system, master_settings, parameters
@@ -186,8 +250,8 @@ def build_export(scene, fmi: int = 2) -> tuple[bytes, dict]:
     from ..fmi.description import var_unit
     from ..fmi.description import variables as variables_of
 
-    if fmi != 2:
-        raise UsageError(f"--fmi {fmi}: this version of clockwork exports FMI 2.0 only (--fmi 2)")
+    if fmi not in (2, 3):
+        raise UsageError(f"--fmi {fmi}: expected 2 or 3")
     settings = master_settings(scene)
     _check_scene(scene, settings, fmi)
     binary = system_library()
@@ -247,7 +311,6 @@ def build_export(scene, fmi: int = 2) -> tuple[bytes, dict]:
                     files.append((f"resources/fmus/{k}/{f.relative_to(unzip).as_posix()}", f))
         # The exported variables.
         var_lines, xml_vars, units = [], [], set()
-        outputs_xml: list[int] = []
 
         def add(kind_role, inst, v, pos, start_value, causality, variability, initial):
             vr = len(var_lines)
@@ -257,19 +320,12 @@ def build_export(scene, fmi: int = 2) -> tuple[bytes, dict]:
             unit = var_unit(v) if v.type == "Real" else None
             if unit:
                 units.add(unit)
-            attrs = f' unit={quoteattr(unit)}' if unit else ""
+            text = None
             if start_value is not None and causality != "output":
-                s = (repr(float(start_value)) if v.type == "Real" else
-                     ("true" if start_value else "false") if v.type == "Boolean" else str(int(start_value)))
-                attrs += f' start="{s}"'
-            xml_type = "Integer" if v.type == "Enumeration" else v.type
-            desc = f" description={quoteattr(v.description)}" if v.description else ""
-            init = f' initial="{initial}"' if initial else ""
-            xml_vars.append(f'    <ScalarVariable name={quoteattr(f"{inst}.{v.name}")} valueReference="{vr}"'
-                            f' causality="{causality}" variability="{variability}"{init}{desc}>\n'
-                            f"      <{xml_type}{attrs}/>\n    </ScalarVariable>")
-            if causality == "output":
-                outputs_xml.append(len(xml_vars))
+                text = (repr(float(start_value)) if v.type == "Real" else
+                        ("true" if start_value else "false") if v.type == "Boolean" else str(int(start_value)))
+            xml_vars.append(_Variable(f"{inst}.{v.name}", vr, "Integer" if v.type == "Enumeration" else v.type,
+                                      causality, variability, initial, v.description, unit, text))
 
         for n in names:  # parameters, in the order System sets them
             table = variables_of(mds[n])
@@ -291,6 +347,11 @@ def build_export(scene, fmi: int = 2) -> tuple[bytes, dict]:
                 if (v.causality == "input" and v.type == "Real" and (n, v.name) not in linked
                         and v.name not in params[n] and not getattr(v, "dimensions", None)):
                     add("i", n, v, 0, float(v.start) if v.start is not None else 0.0, "input", "continuous", None)
+        if fmi == 3:  # FMI 3.0 has an independent variable: the time, read from the master
+            var_lines.append(f"var R t {len(var_lines)} 0 0 0 {float(start).hex()}")
+            xml_vars.append(_Variable("time", len(var_lines) - 1, "Real", "independent", "continuous", None,
+                                      "Simulation time", "s", None))
+            units.add("s")
         inst_lines = []
         for n in names:
             inst = system.instances[n]
@@ -315,32 +376,18 @@ def build_export(scene, fmi: int = 2) -> tuple[bytes, dict]:
     # The state is every inner FMU's, serialized: offered where every inner FMU offers both.
     state = "true" if all(md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
                           for md in mds.values()) else "false"
-    md_xml = (
-        '<?xml version="1.0" encoding="UTF-8"?>\n'
-        f'<fmiModelDescription fmiVersion="2.0" modelName={quoteattr(ident)} guid="{guid}"\n'
-        f'  description={quoteattr(scene.title or ident)} generationTool="clockwork {__version__} export-fmu"\n'
-        '  variableNamingConvention="flat" numberOfEventIndicators="0">\n'
-        f'  <CoSimulation modelIdentifier="{ident}" canHandleVariableCommunicationStepSize="true"'
-        ' canInterpolateInputs="false" maxOutputDerivativeOrder="0" canBeInstantiatedOnlyOncePerProcess="false"'
-        f' canGetAndSetFMUstate="{state}" canSerializeFMUstate="{state}" canNotUseMemoryManagementFunctions="true"/>\n'
-        + _unit_xml(list(mds.values()), units)
-        + f'  <DefaultExperiment startTime="{float(start)!r}" stopTime="{float(stop)!r}"'
-        f' stepSize="{float(settings.step)!r}"/>\n'
-        "  <ModelVariables>\n" + "\n".join(xml_vars) + "\n  </ModelVariables>\n"
-        "  <ModelStructure>\n"
-        + ("    <Outputs>\n" + "".join(f'      <Unknown index="{k}"/>\n' for k in outputs_xml) + "    </Outputs>\n"
-           "    <InitialUnknowns>\n" + "".join(f'      <Unknown index="{k}"/>\n' for k in outputs_xml)
-           + "    </InitialUnknowns>\n" if outputs_xml else "")
-        + "  </ModelStructure>\n</fmiModelDescription>\n")
+    md_xml = _model_description(fmi, ident, guid, scene.title or ident, state, _unit_xml(list(mds.values()), units),
+                                start, stop, settings.step, xml_vars)
+    platform = PLATFORM if fmi == 2 else PLATFORM3
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
         z.writestr("modelDescription.xml", md_xml)
-        z.write(binary, f"binaries/{PLATFORM}/{ident}{SUFFIX}")
+        z.write(binary, f"binaries/{platform}/{ident}{SUFFIX}")
         z.writestr(f"resources/{DESCRIPTION}", description)
         for arc, f in files:
             z.write(f, arc)
     summary = {"instances": len(names), "fmus": len(fmu_lines), "parameters": sum(1 for x in var_lines if " p " in x),
-               "outputs": len(outputs_xml), "inputs": sum(1 for x in var_lines if " i " in x),
+               "outputs": sum(1 for x in xml_vars if x.causality == "output"), "inputs": sum(1 for x in var_lines if " i " in x),
                "model_identifier": ident}
     return buf.getvalue(), summary
 

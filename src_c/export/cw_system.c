@@ -28,6 +28,7 @@
 #endif
 
 #include "fmi2Functions.h"
+#include "fmi3Functions.h"
 #include "cw_layout.h"
 
 /* The compiled core's entry points (src_c/master). */
@@ -97,7 +98,7 @@ typedef struct {
 typedef struct {
     unsigned vr;
     char type;          /* R, I, B */
-    char role;          /* p: parameter, o: output, i: input */
+    char role;          /* p: parameter, o: output, i: input, t: time (FMI 3.0's independent variable) */
     int inst;
     unsigned inner_vr;
     int pos;            /* an output: its position in the port's outputs */
@@ -111,7 +112,9 @@ enum { MODE_INSTANTIATED, MODE_INIT, MODE_STEP, MODE_TERMINATED, MODE_ERROR };
 typedef struct {
     char *name;
     char *resources;    /* the path of this FMU's resources folder, with a trailing separator */
-    fmi2CallbackFunctions cb;
+    fmi2CallbackFunctions cb;       /* FMI 2.0: the importer's callbacks */
+    fmi3LogMessageCallback log3;    /* FMI 3.0: its logger and environment */
+    fmi3InstanceEnvironment env3;
     int logging;
     int mode;
     char *guid;
@@ -140,13 +143,18 @@ typedef struct {
 
 static void say(cw_system *s, fmi2Status status, const char *fmt, ...)
 {
-    if (!s || !s->cb.logger || (status == fmi2OK && !s->logging))
+    if (!s || (!s->cb.logger && !s->log3) || (status == fmi2OK && !s->logging))
         return;
     char text[1024], escaped[2100];
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(text, sizeof text, fmt, ap);
     va_end(ap);
+    const char *category = status == fmi2OK ? "logAll" : "logStatusError";
+    if (s->log3) {  /* FMI 3.0: the text as it is */
+        s->log3(s->env3, (fmi3Status)status, category, text);
+        return;
+    }
     size_t j = 0;
     for (size_t i = 0; text[i] && j + 2 < sizeof escaped; i++) {  /* the importer may format the text again */
         escaped[j++] = text[i];
@@ -154,8 +162,7 @@ static void say(cw_system *s, fmi2Status status, const char *fmt, ...)
             escaped[j++] = '%';
     }
     escaped[j] = 0;
-    s->cb.logger(s->cb.componentEnvironment, s->name, status, status == fmi2OK ? "logAll" : "logStatusError",
-                 escaped);
+    s->cb.logger(s->cb.componentEnvironment, s->name, status, category, escaped);
 }
 
 /* The inner FMUs' messages, passed on under the inner instance's name. */
@@ -349,7 +356,7 @@ static int read_description(cw_system *s, char *text)
                 int vr = 0, inner = 0;
                 ok = type && role && int_token(&r, &vr) && int_token(&r, &v->inst) && int_token(&r, &inner)
                      && int_token(&r, &v->pos) && double_token(&r, &v->start) && v->inst >= 0
-                     && v->inst < s->n_inst && strchr("RIB", type[0]) && strchr("poi", role[0]);
+                     && v->inst < s->n_inst && strchr("RIB", type[0]) && strchr("poit", role[0]);
                 if (ok) {
                     v->type = type[0];
                     v->role = role[0];
@@ -926,25 +933,14 @@ static void free_system(cw_system *s)
     free(s);
 }
 
-fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
-                              const fmi2CallbackFunctions *functions, fmi2Boolean visible, fmi2Boolean logging)
+/* The system, its description read from resources/ (a folder path ending in
+ * a separator) and its FMUs loaded and instantiated; NULL after saying why. */
+static cw_system *instantiate(cw_system *s, const char *name, const char *guid, int logging)
 {
-    if (!functions || !functions->logger)
-        return NULL;
-    cw_system *s = calloc(1, sizeof *s);
-    if (!s)
-        return NULL;
-    s->cb = *functions;
     s->logging = logging != 0;
     s->name = malloc(strlen(name ? name : "") + 1);
     if (s->name)
         strcpy(s->name, name ? name : "");
-    if (type != fmi2CoSimulation) {
-        say(s, fmi2Error, "this FMU has Co-Simulation only");
-        free_system(s);
-        return NULL;
-    }
-    s->resources = resource_path(resources);
     char *text = NULL;
     if (s->resources) {
         size_t n = strlen(s->resources) + sizeof CW_DESCRIPTION;
@@ -957,7 +953,7 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
             free(path);
         }
     } else {
-        say(s, fmi2Error, "no resource location (fmuResourceLocation)");
+        say(s, fmi2Error, "no resource location");
     }
     int ok = text && read_description(s, text);
     free(text);
@@ -988,6 +984,24 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     }
     s->mode = MODE_INSTANTIATED;
     return s;
+}
+
+fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
+                              const fmi2CallbackFunctions *functions, fmi2Boolean visible, fmi2Boolean logging)
+{
+    if (!functions || !functions->logger)
+        return NULL;
+    cw_system *s = calloc(1, sizeof *s);
+    if (!s)
+        return NULL;
+    s->cb = *functions;
+    if (type != fmi2CoSimulation) {
+        say(s, fmi2Error, "this FMU has Co-Simulation only");
+        free_system(s);
+        return NULL;
+    }
+    s->resources = resource_path(resources);
+    return instantiate(s, name, guid, logging);
 }
 
 void fmi2FreeInstance(fmi2Component c)
@@ -1081,6 +1095,8 @@ static double value_of(cw_system *s, cw_var *v)
 {
     if (v->role == 'o')
         return s->master ? port_out(s, v->inst)[v->pos] : 0.0;
+    if (v->role == 't')  /* FMI 3.0's independent variable */
+        return s->t ? *s->t : s->start_time;
     return v->value;
 }
 
@@ -1137,7 +1153,7 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 static fmi2Status set_value(cw_system *s, fmi2ValueReference vr, char type, double x)
 {
     cw_var *v = var_of(s, vr, type);
-    if (!v || v->role == 'o') {
+    if (!v || v->role == 'o' || v->role == 't') {
         say(s, fmi2Error, "no settable variable of this type with value reference %u", vr);
         return fmi2Error;
     }
@@ -1532,3 +1548,312 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind kind, fmi2
 }
 
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind kind, fmi2String *value) { return fmi2Discard; }
+
+/* -- the FMI 3.0 face (export-fmu --fmi 3): the same system behind fmi3
+ * calls; the inner FMUs stay FMI 2.0. Statuses have the same numbers. ---- */
+
+const char *fmi3GetVersion(void) { return fmi3Version; }
+
+fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean on, size_t n, const fmi3String categories[])
+{
+    if (!c)
+        return fmi3Error;
+    ((cw_system *)c)->logging = on;
+    return fmi3OK;
+}
+
+fmi3Instance fmi3InstantiateCoSimulation(fmi3String name, fmi3String token, fmi3String resources, fmi3Boolean visible,
+                                         fmi3Boolean logging, fmi3Boolean event_mode, fmi3Boolean early_return,
+                                         const fmi3ValueReference required[], size_t n_required,
+                                         fmi3InstanceEnvironment env, fmi3LogMessageCallback log,
+                                         fmi3IntermediateUpdateCallback update)
+{
+    cw_system *s = calloc(1, sizeof *s);
+    if (!s)
+        return NULL;
+    s->log3 = log;
+    s->env3 = env;
+    if (resources) {  /* a folder path (FMI 3.0 2.4.7), its separator at the end */
+        size_t n = strlen(resources);
+        s->resources = malloc(n + 2);
+        if (s->resources) {
+            strcpy(s->resources, resources);
+            if (n == 0 || (resources[n - 1] != '/' && resources[n - 1] != '\\'))
+                strcat(s->resources, CW_SEP);
+        }
+    }
+    return instantiate(s, name, token, logging);
+}
+
+fmi3Instance fmi3InstantiateModelExchange(fmi3String name, fmi3String token, fmi3String resources, fmi3Boolean visible,
+                                          fmi3Boolean logging, fmi3InstanceEnvironment env, fmi3LogMessageCallback log)
+{
+    if (log)
+        log(env, fmi3Error, "logStatusError", "this FMU has Co-Simulation only");
+    return NULL;
+}
+
+fmi3Instance fmi3InstantiateScheduledExecution(fmi3String name, fmi3String token, fmi3String resources,
+                                               fmi3Boolean visible, fmi3Boolean logging, fmi3InstanceEnvironment env,
+                                               fmi3LogMessageCallback log, fmi3ClockUpdateCallback clock_update,
+                                               fmi3LockPreemptionCallback lock, fmi3UnlockPreemptionCallback unlock)
+{
+    if (log)
+        log(env, fmi3Error, "logStatusError", "this FMU has Co-Simulation only");
+    return NULL;
+}
+
+void fmi3FreeInstance(fmi3Instance c) { free_system((cw_system *)c); }
+
+fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean tolerance_defined, fmi3Float64 tolerance,
+                                       fmi3Float64 start, fmi3Boolean stop_defined, fmi3Float64 stop)
+{
+    fmi2Status st = fmi2SetupExperiment(c, tolerance_defined, tolerance, start, stop_defined, stop);
+    return st != fmi2OK ? (fmi3Status)st : (fmi3Status)fmi2EnterInitializationMode(c);
+}
+
+fmi3Status fmi3ExitInitializationMode(fmi3Instance c)
+{
+    cw_system *s = c;
+    fmi2Status st = fmi2ExitInitializationMode(c);
+    if (st == fmi2OK && s)
+        s->mode = MODE_STEP;  /* FMI 3.0 Co-Simulation without event mode: Step Mode */
+    return (fmi3Status)st;
+}
+
+fmi3Status fmi3EnterEventMode(fmi3Instance c) { return fmi3Error; }
+fmi3Status fmi3Terminate(fmi3Instance c) { return (fmi3Status)fmi2Terminate(c); }
+fmi3Status fmi3Reset(fmi3Instance c) { return (fmi3Status)fmi2Reset(c); }
+
+fmi3Status fmi3GetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3Float64 v[], size_t nv)
+{
+    return nv != n ? fmi3Error : (fmi3Status)fmi2GetReal(c, vr, n, v);
+}
+
+fmi3Status fmi3SetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3Float64 v[], size_t nv)
+{
+    return nv != n ? fmi3Error : (fmi3Status)fmi2SetReal(c, vr, n, v);
+}
+
+fmi3Status fmi3GetInt32(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3Int32 v[], size_t nv)
+{
+    return nv != n ? fmi3Error : (fmi3Status)fmi2GetInteger(c, vr, n, v);
+}
+
+fmi3Status fmi3SetInt32(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3Int32 v[], size_t nv)
+{
+    return nv != n ? fmi3Error : (fmi3Status)fmi2SetInteger(c, vr, n, v);
+}
+
+fmi3Status fmi3GetBoolean(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3Boolean v[], size_t nv)
+{
+    if (nv != n)
+        return fmi3Error;
+    for (size_t k = 0; k < n; k++) {
+        fmi2Boolean x = 0;
+        fmi2Status st = fmi2GetBoolean(c, &vr[k], 1, &x);
+        if (st != fmi2OK)
+            return (fmi3Status)st;
+        v[k] = x != 0;
+    }
+    return fmi3OK;
+}
+
+fmi3Status fmi3SetBoolean(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3Boolean v[], size_t nv)
+{
+    if (nv != n)
+        return fmi3Error;
+    for (size_t k = 0; k < n; k++) {
+        fmi2Boolean x = v[k] ? fmi2True : fmi2False;
+        fmi2Status st = fmi2SetBoolean(c, &vr[k], 1, &x);
+        if (st != fmi2OK)
+            return (fmi3Status)st;
+    }
+    return fmi3OK;
+}
+
+/* The types this FMU has no variables of. */
+#define CW_NONE_GET(Name, Type)                                                                        \
+    fmi3Status fmi3Get##Name(fmi3Instance c, const fmi3ValueReference vr[], size_t n, Type v[], size_t nv) \
+    {                                                                                                  \
+        return n ? fmi3Error : fmi3OK;                                                                 \
+    }
+#define CW_NONE_SET(Name, Type)                                                                              \
+    fmi3Status fmi3Set##Name(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const Type v[], size_t nv) \
+    {                                                                                                        \
+        return n ? fmi3Error : fmi3OK;                                                                       \
+    }
+#define CW_NONE(Name, Type) CW_NONE_GET(Name, Type) CW_NONE_SET(Name, Type)
+CW_NONE(Float32, fmi3Float32)
+CW_NONE(Int8, fmi3Int8)
+CW_NONE(UInt8, fmi3UInt8)
+CW_NONE(Int16, fmi3Int16)
+CW_NONE(UInt16, fmi3UInt16)
+CW_NONE(UInt32, fmi3UInt32)
+CW_NONE(Int64, fmi3Int64)
+CW_NONE(UInt64, fmi3UInt64)
+CW_NONE(String, fmi3String)
+
+fmi3Status fmi3GetBinary(fmi3Instance c, const fmi3ValueReference vr[], size_t n, size_t sizes[], fmi3Binary v[],
+                         size_t nv)
+{
+    return n ? fmi3Error : fmi3OK;
+}
+
+fmi3Status fmi3SetBinary(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const size_t sizes[],
+                         const fmi3Binary v[], size_t nv)
+{
+    return n ? fmi3Error : fmi3OK;
+}
+
+fmi3Status fmi3GetClock(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3Clock v[])
+{
+    return n ? fmi3Error : fmi3OK;
+}
+
+fmi3Status fmi3SetClock(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3Clock v[])
+{
+    return n ? fmi3Error : fmi3OK;
+}
+
+fmi3Status fmi3GetNumberOfVariableDependencies(fmi3Instance c, fmi3ValueReference vr, size_t *n) { return fmi3Error; }
+
+fmi3Status fmi3GetVariableDependencies(fmi3Instance c, fmi3ValueReference dependent, size_t element[],
+                                       fmi3ValueReference independents[], size_t independent_element[],
+                                       fmi3DependencyKind kinds[], size_t n)
+{
+    return fmi3Error;
+}
+
+fmi3Status fmi3GetFMUState(fmi3Instance c, fmi3FMUState *state) { return (fmi3Status)fmi2GetFMUstate(c, state); }
+fmi3Status fmi3SetFMUState(fmi3Instance c, fmi3FMUState state) { return (fmi3Status)fmi2SetFMUstate(c, state); }
+fmi3Status fmi3FreeFMUState(fmi3Instance c, fmi3FMUState *state) { return (fmi3Status)fmi2FreeFMUstate(c, state); }
+
+fmi3Status fmi3SerializedFMUStateSize(fmi3Instance c, fmi3FMUState state, size_t *size)
+{
+    return (fmi3Status)fmi2SerializedFMUstateSize(c, state, size);
+}
+
+fmi3Status fmi3SerializeFMUState(fmi3Instance c, fmi3FMUState state, fmi3Byte bytes[], size_t size)
+{
+    return (fmi3Status)fmi2SerializeFMUstate(c, state, (fmi2Byte *)bytes, size);
+}
+
+fmi3Status fmi3DeserializeFMUState(fmi3Instance c, const fmi3Byte bytes[], size_t size, fmi3FMUState *state)
+{
+    return (fmi3Status)fmi2DeSerializeFMUstate(c, (const fmi2Byte *)bytes, size, state);
+}
+
+fmi3Status fmi3GetDirectionalDerivative(fmi3Instance c, const fmi3ValueReference unknowns[], size_t n_unknowns,
+                                        const fmi3ValueReference knowns[], size_t n_knowns, const fmi3Float64 seed[],
+                                        size_t n_seed, fmi3Float64 sensitivity[], size_t n_sensitivity)
+{
+    return fmi3Error;
+}
+
+fmi3Status fmi3GetAdjointDerivative(fmi3Instance c, const fmi3ValueReference unknowns[], size_t n_unknowns,
+                                    const fmi3ValueReference knowns[], size_t n_knowns, const fmi3Float64 seed[],
+                                    size_t n_seed, fmi3Float64 sensitivity[], size_t n_sensitivity)
+{
+    return fmi3Error;
+}
+
+fmi3Status fmi3EnterConfigurationMode(fmi3Instance c) { return fmi3Error; }
+fmi3Status fmi3ExitConfigurationMode(fmi3Instance c) { return fmi3Error; }
+
+fmi3Status fmi3GetIntervalDecimal(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3Float64 intervals[],
+                                  fmi3IntervalQualifier qualifiers[])
+{
+    return fmi3Error;
+}
+
+fmi3Status fmi3GetIntervalFraction(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3UInt64 counters[],
+                                   fmi3UInt64 resolutions[], fmi3IntervalQualifier qualifiers[])
+{
+    return fmi3Error;
+}
+
+fmi3Status fmi3GetShiftDecimal(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3Float64 shifts[])
+{
+    return fmi3Error;
+}
+
+fmi3Status fmi3GetShiftFraction(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3UInt64 counters[],
+                                fmi3UInt64 resolutions[])
+{
+    return fmi3Error;
+}
+
+fmi3Status fmi3SetIntervalDecimal(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3Float64 intervals[])
+{
+    return fmi3Error;
+}
+
+fmi3Status fmi3SetIntervalFraction(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3UInt64 counters[],
+                                   const fmi3UInt64 resolutions[])
+{
+    return fmi3Error;
+}
+
+fmi3Status fmi3SetShiftDecimal(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3Float64 shifts[])
+{
+    return fmi3Error;
+}
+
+fmi3Status fmi3SetShiftFraction(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3UInt64 counters[],
+                                const fmi3UInt64 resolutions[])
+{
+    return fmi3Error;
+}
+
+fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance c) { return fmi3Error; }
+
+fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *needed, fmi3Boolean *terminate,
+                                    fmi3Boolean *nominals_changed, fmi3Boolean *values_changed,
+                                    fmi3Boolean *next_defined, fmi3Float64 *next)
+{
+    return fmi3Error;
+}
+
+fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance c) { return fmi3Error; }
+
+fmi3Status fmi3CompletedIntegratorStep(fmi3Instance c, fmi3Boolean no_set_prior, fmi3Boolean *enter_event_mode,
+                                       fmi3Boolean *terminate)
+{
+    return fmi3Error;
+}
+
+fmi3Status fmi3SetTime(fmi3Instance c, fmi3Float64 t) { return fmi3Error; }
+fmi3Status fmi3SetContinuousStates(fmi3Instance c, const fmi3Float64 x[], size_t n) { return fmi3Error; }
+fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance c, fmi3Float64 dx[], size_t n) { return fmi3Error; }
+fmi3Status fmi3GetEventIndicators(fmi3Instance c, fmi3Float64 z[], size_t n) { return fmi3Error; }
+fmi3Status fmi3GetContinuousStates(fmi3Instance c, fmi3Float64 x[], size_t n) { return fmi3Error; }
+fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance c, fmi3Float64 x[], size_t n) { return fmi3Error; }
+fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance c, size_t *n) { return fmi3Error; }
+fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance c, size_t *n) { return fmi3Error; }
+fmi3Status fmi3EnterStepMode(fmi3Instance c) { return fmi3Error; }
+
+fmi3Status fmi3GetOutputDerivatives(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3Int32 order[],
+                                    fmi3Float64 v[], size_t nv)
+{
+    return fmi3Error;  /* maxOutputDerivativeOrder is 0 */
+}
+
+fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean no_set_prior,
+                      fmi3Boolean *event_handling_needed, fmi3Boolean *terminate, fmi3Boolean *early_return,
+                      fmi3Float64 *last_successful_time)
+{
+    cw_system *s = c;
+    fmi2Status st = fmi2DoStep(c, t, h, no_set_prior);
+    if (event_handling_needed)
+        *event_handling_needed = false;
+    if (terminate)
+        *terminate = false;
+    if (early_return)
+        *early_return = false;
+    if (last_successful_time && s && s->t)
+        *last_successful_time = *s->t;
+    return (fmi3Status)st;
+}
+
+fmi3Status fmi3ActivateModelPartition(fmi3Instance c, fmi3ValueReference clock, fmi3Float64 t) { return fmi3Error; }
