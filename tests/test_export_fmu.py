@@ -293,3 +293,37 @@ def test_fmu_state_rolls_the_system_back(tmp_path, fmi):
     for s in (a, b):
         s.terminate()
         s.freeInstance()
+
+
+def test_two_instances_of_one_fmu(tmp_path):
+    """Two pendulums of one FMU (unpacked once, instantiated twice), one
+    driving the other through a scaled link: clockwork's numbers."""
+    scene = tmp_path / "two.toml"
+    scene.write_text('''connections = ["a.energy -> b.tau_external"]
+
+[scene]
+title = "Two pendulums of one FMU"
+
+[components.a]
+fmu = "Pendulum"
+parameters = { Q = 100, phi_start = "5 deg" }
+
+[components.b]
+fmu = "Pendulum"
+parameters = { Q = 50, phi_start = "2 deg", L = "0.5 m" }
+
+[experiment]
+start = 0.0
+stop = "3 s"
+
+[master]
+step = "0.01 s"
+extrapolation = 1
+
+[record]
+outputs = ["a.phi", "b.phi", "b.w"]
+''')
+    out = tmp_path / "two.fmu"
+    _export(scene, out)
+    assert sum(1 for n in zipfile.ZipFile(out).namelist() if n.endswith("Pendulum.so")) == 1
+    assert _compare(scene, out) == 301
