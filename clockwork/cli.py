@@ -580,7 +580,7 @@ def cmd_export_fmu(args) -> int:
     summary = export_fmu(args.scene, args.out, args.fmi, args.overrides)
     print(f"wrote {args.out}: {summary['instances']} instance{'s' * (summary['instances'] != 1)}, "
           f"{summary['parameters']} parameters, {summary['outputs']} outputs, {summary['inputs']} inputs "
-          f"(FMI {args.fmi}.0 Co-Simulation, {summary['model_identifier']})")
+          f"(FMI {args.fmi}.0 Co-Simulation, {summary['model_identifier']}; {', '.join(summary['platforms'])})")
     return 0
 
 

@@ -79,9 +79,10 @@ _MASTER_SCALARS = [
 _CTYPES = {"d": c_double, "i": c_int, "u": c_uint}
 
 
-def system_library() -> Path:
-    """The front's binary, beside the compiled core (lib/, or the package's data)."""
-    return core_library().parent / f"cw_system{SUFFIX}"
+def system_library(suffix: str = SUFFIX) -> Path:
+    """The front's binary, beside the compiled core (lib/, or the package's
+    data); `suffix` ".dll": its Windows build, where it was made."""
+    return core_library().parent / f"cw_system{suffix}"
 
 
 def _length(spec, struct) -> int:
@@ -379,16 +380,25 @@ def build_export(scene, fmi: int = 2) -> tuple[bytes, dict]:
     md_xml = _model_description(fmi, ident, guid, scene.title or ident, state, _unit_xml(list(mds.values()), units),
                                 start, stop, settings.step, xml_vars)
     platform = PLATFORM if fmi == 2 else PLATFORM3
+    # Windows too where the front's Windows build is there (lib/cw_system.dll, from the mingw-w64 cross
+    # build) and every inner FMU carries a win64 DLL: the front loads the inner FMUs of its own platform.
+    windows = system_library(".dll")
+    with_windows = windows.is_file() and all(
+        (extract(comps[n].fmu_path) / "binaries" / "win64" / f"{mds[n].coSimulation.modelIdentifier}.dll").is_file()
+        for n in names)
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
         z.writestr("modelDescription.xml", md_xml)
         z.write(binary, f"binaries/{platform}/{ident}{SUFFIX}")
+        if with_windows:
+            z.write(windows, f"binaries/{'win64' if fmi == 2 else 'x86_64-windows'}/{ident}.dll")
         z.writestr(f"resources/{DESCRIPTION}", description)
         for arc, f in files:
             z.write(f, arc)
     summary = {"instances": len(names), "fmus": len(fmu_lines), "parameters": sum(1 for x in var_lines if " p " in x),
                "outputs": sum(1 for x in xml_vars if x.causality == "output"), "inputs": sum(1 for x in var_lines if " i " in x),
-               "model_identifier": ident}
+               "model_identifier": ident,
+               "platforms": [platform] + ([("win64" if fmi == 2 else "x86_64-windows")] if with_windows else [])}
     return buf.getvalue(), summary
 
 
