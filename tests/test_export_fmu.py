@@ -395,3 +395,22 @@ def test_an_inner_refusal_is_the_importers_error(tmp_path):
         simulate_fmu(str(out), stop_time=1.0, output_interval=0.01, start_values={"pendulum.L": -1.0},
                      logger=lambda *args: said.append(args[-1].decode() if isinstance(args[-1], bytes) else args[-1]))
     assert any("pendulum" in m and "L = -1" in m for m in said), said
+
+
+def test_clockwork_runs_the_exported_fmu_with_its_own_numbers(tmp_path):
+    """clockwork as the importer (`clockwork run X.fmu`: the FMU alone, its
+    DefaultExperiment's step): the scene's numbers again, at every grid point."""
+    out = tmp_path / "clock.fmu"
+    export_fmu(SCENARIOS / "core_grasshopper.toml", out, overrides=["experiment.stop=5"])
+    ours = time_series(load_scene(SCENARIOS / "core_grasshopper.toml", ["experiment.stop=5"]), {})["series"]
+    alone = time_series(load_scene(out), {})["series"]
+    prefix = "core_grasshopper."  # the FMU alone's instance, named after its model
+    rows = {round(t / 0.01): k for k, t in enumerate(alone["time"])}
+    compared = 0
+    for k, t in enumerate(ours["time"]):
+        if abs(t / 0.01 - round(t / 0.01)) < 1e-6:
+            j = rows[round(t / 0.01)]
+            for name in ("pendulum.phi", "pendulum.w", "escapement.tau"):
+                assert ours[name][k] == alone[prefix + name][j], (name, t)
+            compared += 1
+    assert compared == 101
