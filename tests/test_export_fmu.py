@@ -414,3 +414,39 @@ def test_clockwork_runs_the_exported_fmu_with_its_own_numbers(tmp_path):
                 assert ours[name][k] == alone[prefix + name][j], (name, t)
             compared += 1
     assert compared == 101
+
+
+@pytest.mark.parametrize("tool", ["libcosim", "ecos"])
+def test_other_masters_get_clockworks_numbers(tmp_path, tool):
+    """libcosim (libcosimpy, time in ns) and ecos (ecospy) step the exported
+    clock with the scene's step: clockwork's value at the end, to the bit."""
+    out = tmp_path / "clock.fmu"
+    export_fmu(SCENARIOS / "core_grasshopper.toml", out, overrides=["experiment.stop=5"])
+    ours = time_series(load_scene(SCENARIOS / "core_grasshopper.toml", ["experiment.stop=5"]), {})["series"]
+    if tool == "libcosim":
+        pytest.importorskip("libcosimpy")
+        from libcosimpy.CosimExecution import CosimExecution
+        from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+        from libcosimpy.CosimObserver import CosimObserver
+        from libcosimpy.CosimSlave import CosimLocalSlave
+
+        log_output_level(CosimLogLevel.WARNING)
+        ex = CosimExecution.from_step_size(step_size=10**7)  # 0.01 s
+        i = ex.add_local_slave(local_slave=CosimLocalSlave(fmu_path=str(out), instance_name="clock"))
+        observer = CosimObserver.create_last_value()
+        ex.add_observer(observer)
+        vr = {v.name.decode(): v.reference for v in ex.slave_variables(i)}
+        assert ex.simulate_until(5 * 10**9)
+        theirs = observer.last_real_values(i, [vr["pendulum.phi"]])[0]
+    else:
+        pytest.importorskip("ecospy")
+        from ecospy import EcosSimulation, EcosSimulationStructure
+
+        structure = EcosSimulationStructure()
+        structure.add_model("clock", str(out))
+        sim = EcosSimulation(structure=structure, step_size=0.01)
+        sim.init()
+        sim.step_until(5.0)
+        theirs = sim.get_real("clock::pendulum.phi")
+        sim.terminate()
+    assert theirs == ours["pendulum.phi"][-1]
