@@ -450,3 +450,24 @@ def test_other_masters_get_clockworks_numbers(tmp_path, tool):
         theirs = sim.get_real("clock::pendulum.phi")
         sim.terminate()
     assert theirs == ours["pendulum.phi"][-1]
+
+
+def test_fmi3_early_return_at_the_inner_events(tmp_path):
+    """FMI 3.0 with early return allowed: fmi3DoStep returns at each event its
+    master locates inside a step (the escapement's switches), and the grid
+    points keep clockwork's numbers to the bit."""
+    from fmpy import simulate_fmu
+
+    out = tmp_path / "clock3.fmu"
+    export_fmu(SCENARIOS / "core_grasshopper.toml", out, overrides=["experiment.stop=5"], fmi=3)
+    theirs = simulate_fmu(str(out), stop_time=5.0, output_interval=0.01, early_return_allowed=True)
+    k = theirs["time"] / 0.01
+    on_grid = np.abs(k - np.round(k)) < 1e-6
+    assert 3 <= int((~on_grid).sum()) <= 20  # one return per switch
+    ours = time_series(load_scene(SCENARIOS / "core_grasshopper.toml", ["experiment.stop=5"]), {})["series"]
+    rows = {int(round(x)): i for i, x in enumerate(k) if abs(x - round(x)) < 1e-6}
+    for j, t in enumerate(ours["time"]):
+        if abs(t / 0.01 - round(t / 0.01)) < 1e-6:
+            assert ours["pendulum.phi"][j] == theirs["pendulum.phi"][rows[round(t / 0.01)]], t
+    plain = simulate_fmu(str(out), stop_time=5.0, output_interval=0.01)
+    assert len(plain) == 501  # not allowed: no early return

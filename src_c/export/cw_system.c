@@ -36,6 +36,7 @@ const cw_field *cw_layout(const char *name, size_t *n_fields, size_t *struct_siz
 void cw_start(void *m);
 void cw_discontinuity(void *m);
 int cw_run_until(void *m, double t_stop, void *r, double slice_s);
+int cw_step(void *m, double h, double *taken);
 
 #ifdef _WIN32
 /* The core's crash guard (cw_guard.c, POSIX) is not in the Windows build; its
@@ -123,6 +124,7 @@ typedef struct {
     fmi3LogMessageCallback log3;    /* FMI 3.0: its logger and environment */
     fmi3InstanceEnvironment env3;
     int logging;
+    int early_return;   /* FMI 3.0: the importer allows a return at the first located event */
     int mode;
     char *guid;
     int n_fmus, n_inst, n_order, n_vars, n_items;
@@ -1496,15 +1498,53 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReferenc
 /* One communication step: the master from t to t + H on the scene's grid
  * start + k * step (an end within 1e-9 steps of a grid point is that point,
  * so that the importer's t + H lands where clockwork run's steps land). */
-fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_prior)
+/* The master from its time to stop as cw_run_until steps it (the same grid,
+ * the same steps), but returning after the first step that ended at a
+ * located event (FMI 3.0 early return): *early is then set. */
+static int run_to_event(cw_system *s, double stop, int *early)
 {
-    cw_system *s = c;
+    double h_nom = s->step, t0 = s->start_time;
+    double eps = 1e-12 * (fabs(stop) > 1.0 ? fabs(stop) : 1.0);
+    long long k = (long long)floor((*s->t - t0) / h_nom + 1e-9) + 1;
+    long long *events = get(&s->Lm, s->master, "events");
+    while (*s->t < stop - eps) {
+        double grid = t0 + (double)k * h_nom;
+        if (grid > stop)
+            grid = stop;
+        double h = grid - *s->t;
+        if (h <= eps) {
+            k++;
+            continue;
+        }
+        long long before = *events;
+        double taken;
+        int rc = cw_step(s->master, h, &taken);
+        if (rc < 0 || (rc != CW_DONE && rc != CW_CHECK_DIVERGENCE))
+            return rc;
+        if (*s->t >= grid - eps)
+            k++;
+        if (rc == CW_CHECK_DIVERGENCE && diverged(s, *s->t))
+            return rc;
+        if (*events != before && *s->t < stop - eps) {
+            *early = 1;
+            return CW_DONE;
+        }
+    }
+    return CW_DONE;
+}
+
+/* One communication step: the master from t to t + H on the scene's grid
+ * start + k * step (an end within 1e-9 steps of a grid point is that point,
+ * so that the importer's t + H lands where clockwork run's steps land).
+ * `early`: FMI 3.0's early return allowed; *returned_early says it was taken. */
+static fmi2Status do_step(cw_system *s, double t, double h, int early, int *returned_early)
+{
     if (!s || s->mode != MODE_STEP)
         return fmi2Error;
     double now = master_t(s);
     double slack = 1e-9 * s->step;
     if (!(h >= 0.0) || fabs(t - now) > slack + 1e-12 * fabs(now)) {
-        say(s, fmi2Error, "fmi2DoStep(%.17g, %.17g): the system is at t = %.17g s", t, h, now);
+        say(s, fmi2Error, "DoStep(%.17g, %.17g): the system is at t = %.17g s", t, h, now);
         return fmi2Error;
     }
     if (!apply_inputs(s)) {
@@ -1517,7 +1557,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
     if (fabs(grid - stop) <= slack)
         stop = grid;
     for (;;) {
-        int rc = cw_run_until(s->master, stop, NULL, 0.0);
+        int rc = early ? run_to_event(s, stop, returned_early) : cw_run_until(s->master, stop, NULL, 0.0);
         if (rc == CW_DONE)
             return fmi2OK;
         if (rc == CW_CHECK_DIVERGENCE && !diverged(s, master_t(s)))
@@ -1527,6 +1567,11 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
         s->mode = MODE_ERROR;
         return fmi2Error;
     }
+}
+
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_prior)
+{
+    return do_step(c, t, h, 0, NULL);
 }
 
 fmi2Status fmi2CancelStep(fmi2Component c) { return fmi2Error; }
@@ -1580,6 +1625,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String name, fmi3String token, fmi3
         return NULL;
     s->log3 = log;
     s->env3 = env;
+    s->early_return = early_return;  /* at the inner events located inside a step */
     if (resources) {  /* a folder path (FMI 3.0 2.4.7), its separator at the end */
         size_t n = strlen(resources);
         s->resources = malloc(n + 2);
@@ -1851,13 +1897,14 @@ fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean 
                       fmi3Float64 *last_successful_time)
 {
     cw_system *s = c;
-    fmi2Status st = fmi2DoStep(c, t, h, no_set_prior);
+    int returned_early = 0;
+    fmi2Status st = do_step(s, t, h, s && s->early_return, &returned_early);
     if (event_handling_needed)
         *event_handling_needed = false;
     if (terminate)
         *terminate = false;
     if (early_return)
-        *early_return = false;
+        *early_return = returned_early != 0;
     if (last_successful_time && s && s->t)
         *last_successful_time = *s->t;
     return (fmi3Status)st;
