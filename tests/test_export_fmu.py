@@ -145,6 +145,9 @@ def test_variables_and_experiment(tmp_path):
     names = zipfile.ZipFile(out).namelist()
     assert "resources/clockwork/system.txt" in names
     assert not any(n.endswith(".py") for n in names)  # no Python inside
+    again = tmp_path / "again.fmu"
+    export_fmu(SCENARIOS / "core_grasshopper.toml", again)
+    assert again.read_bytes() == out.read_bytes()  # the same scene, the same bytes (and GUID)
 
 
 def test_a_changed_parameter_changes_the_run(tmp_path):

@@ -386,15 +386,19 @@ def build_export(scene, fmi: int = 2) -> tuple[bytes, dict]:
     with_windows = windows.is_file() and all(
         (extract(comps[n].fmu_path) / "binaries" / "win64" / f"{mds[n].coSimulation.modelIdentifier}.dll").is_file()
         for n in names)
+    entries: list[tuple[str, bytes | Path]] = [
+        ("modelDescription.xml", md_xml.encode()), (f"binaries/{platform}/{ident}{SUFFIX}", binary),
+        (f"resources/{DESCRIPTION}", description.encode()), *files]
+    if with_windows:
+        entries.append((f"binaries/{'win64' if fmi == 2 else 'x86_64-windows'}/{ident}.dll", windows))
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
-        z.writestr("modelDescription.xml", md_xml)
-        z.write(binary, f"binaries/{platform}/{ident}{SUFFIX}")
-        if with_windows:
-            z.write(windows, f"binaries/{'win64' if fmi == 2 else 'x86_64-windows'}/{ident}.dll")
-        z.writestr(f"resources/{DESCRIPTION}", description)
-        for arc, f in files:
-            z.write(f, arc)
+        # The same scene gives the same bytes: entries sorted, one date, one mode (as tools/fmuzip.py).
+        for arc, content in sorted(entries, key=lambda e: e[0]):
+            info = zipfile.ZipInfo(arc, date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            info.external_attr = 0o644 << 16
+            z.writestr(info, content if isinstance(content, bytes) else content.read_bytes())
     summary = {"instances": len(names), "fmus": len(fmu_lines), "parameters": sum(1 for x in var_lines if " p " in x),
                "outputs": sum(1 for x in xml_vars if x.causality == "output"), "inputs": sum(1 for x in var_lines if " i " in x),
                "model_identifier": ident,
