@@ -36,7 +36,7 @@ outputs are read again after Initialization Mode. (The master starts them
 in its second sweep over the system, once every output feeding the loop
 has been read.)
 
-``src_c/master/cw_master.c`` solves loops in its steps the same way
+``src_c/master/cw_loops.c`` solves loops in its steps the same way
 (``loop_solve``), operation for operation; initialization is Python's in
 both engines.
 """
@@ -158,7 +158,7 @@ class Loop:
             if p.n_in:
                 st = p.setReal(p.comp, p.in_vr, p.n_in, p.inp)
                 if st > WARNING:
-                    raise p.inst.fail("fmi2SetReal of inputs", st, t)
+                    raise p.inst.fail(p.inst.named("setReal") + " of inputs", st, t)
                 p.sent_valid = False
             p.read(t)
         return self._residual(x, r)

@@ -28,7 +28,7 @@ start: a feedthrough output is one step late there).
 
 ``FileInputs`` binds the signals to the instances' input variables; Real
 inputs are set through the same fmi2SetReal the master uses for links (the
-compiled core has a twin of ``Samples.at`` in cw_master.c), other types
+compiled core has a twin of ``Samples.at`` in cw_inputs.c), other types
 through the instance's typed setters.
 """
 
@@ -230,6 +230,6 @@ class FileInputs:
                     buf[k] = values[j]
                 st = p.setReal(p.comp, vrs, len(cols), buf)
                 if st > WARNING:
-                    raise p.inst.fail("fmi2SetReal of inputs", st, t)
+                    raise p.inst.fail(p.inst.named("setReal") + " of inputs", st, t)
             if typed is not None:
                 p.inst.set_values({var: values[j] for j, var in typed}, "setting sampled inputs")
