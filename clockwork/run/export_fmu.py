@@ -31,9 +31,18 @@ from ctypes import c_double, c_int, c_uint
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
+from ..analyses.context import master_settings, parameters
+from ..atomic import write_bytes_unnamed
+from ..engine.compiled import CompiledMaster
+from ..engine.system import System
 from ..errors import SceneError, UsageError
+from ..fmi.archive import extract
+from ..fmi.description import var_unit
+from ..fmi.description import variables as variables_of
 from ..paths import core_library
+from ..results.files import check_output_file
 from ..version import __version__
+from .catalog import load_scene
 
 DESCRIPTION = "clockwork/system.txt"  # CW_DESCRIPTION in cw_system.c
 FORMAT = 1                            # CW_FORMAT
@@ -244,12 +253,6 @@ def _model_description(fmi: int, ident: str, guid: str, title: str, state: str, 
 
 def build_export(scene, fmi: int = 2) -> tuple[bytes, dict]:
     """The exported FMU's bytes and a summary, from a loaded scene."""
-    from ..analyses.context import build_system, master_settings, parameters
-    from ..engine.compiled import CompiledMaster
-    from ..engine.system import System
-    from ..fmi.archive import extract
-    from ..fmi.description import var_unit
-    from ..fmi.description import variables as variables_of
 
     if fmi not in (2, 3):
         raise UsageError(f"--fmi {fmi}: expected 2 or 3")
@@ -410,9 +413,6 @@ def export_fmu(scene_spec, out, fmi: int = 2, overrides=()) -> dict:
     """Write `out` (an .fmu that must not exist yet) from a scene file, an
     SSP or an FMU; bad input raises UsageError or SceneError before a byte
     is written, and the file is written whole or not at all."""
-    from ..atomic import write_bytes_unnamed
-    from ..results.files import check_output_file
-    from .catalog import load_scene
 
     out = Path(out)
     if out.suffix != ".fmu":
