@@ -474,3 +474,23 @@ def test_fmi3_early_return_at_the_inner_events(tmp_path):
             assert ours["pendulum.phi"][j] == theirs["pendulum.phi"][rows[round(t / 0.01)]], t
     plain = simulate_fmu(str(out), stop_time=5.0, output_interval=0.01)
     assert len(plain) == 501  # not allowed: no early return
+
+
+def test_ssp_with_a_linear_transformation(tmp_path):
+    """An SSP whose link carries ssc:LinearTransformation (factor 2: the
+    escapement's torque doubled into the pendulum): the link's factor is
+    applied by the front in initialization and by the core in the steps,
+    and fmpy gets clockwork's numbers."""
+    import shutil
+
+    ssp = tmp_path / "flat10"
+    shutil.copytree(REPO / "tests/data/ssp/flat10", ssp)
+    for name in ("Pendulum", "GrasshopperEscapement"):
+        shutil.copy(REPO / "fmus" / f"{name}.fmu", ssp / "resources" / f"{name}.fmu")
+    ssd = ssp / "SystemStructure.ssd"
+    sets = ["experiment.stop=5", "master.step=0.01"]
+    out = tmp_path / "flat10.fmu"
+    _export(ssd, out, sets)
+    scene = load_scene(ssd, sets)
+    assert any(c.factor != 1.0 for c in scene.connections)
+    assert _compare(ssd, out, sets) == 501
