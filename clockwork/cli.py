@@ -126,6 +126,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="sweep point to export, counted from 0 (required when the scene has a sweep)")
     e.set_defaults(func=cmd_export_ssp)
 
+    xf = sub.add_parser("export-fmu", help="write a scene as one Co-Simulation FMU with its FMUs and the compiled "
+                                           "master inside (docs/other-tools.md)")
+    xf.add_argument("scene", metavar="SCENE.toml|X.ssp|X.fmu")
+    xf.add_argument("--out", required=True, metavar="X.fmu", help="FMU to write (must not exist)")
+    xf.add_argument("--fmi", type=int, default=2, choices=(2, 3), help="FMI version of the exported FMU (default 2)")
+    add_set(xf)
+    xf.set_defaults(func=cmd_export_fmu)
+
     g = sub.add_parser("gallery", help="run every scene and write the figures with an index page")
     g.add_argument("--out", required=True, metavar="DIR", help="output directory (one folder per scene + index.md)")
     g.add_argument("--quick", action="store_true",
@@ -566,6 +574,16 @@ def cmd_export_ssp(args) -> int:
 
         js = write_container_description(scene, args.container_dir, point)
         print(f"wrote {js}: fmucontainer -container {js.name} -fmu-directory {js.parent}")
+    return 0
+
+
+def cmd_export_fmu(args) -> int:
+    from .run.export_fmu import export_fmu
+
+    summary = export_fmu(args.scene, args.out, args.fmi, args.overrides)
+    print(f"wrote {args.out}: {summary['instances']} instance{'s' * (summary['instances'] != 1)}, "
+          f"{summary['parameters']} parameters, {summary['outputs']} outputs, {summary['inputs']} inputs "
+          f"(FMI {args.fmi}.0 Co-Simulation, {summary['model_identifier']}; {', '.join(summary['platforms'])})")
     return 0
 
 
