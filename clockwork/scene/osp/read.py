@@ -21,9 +21,10 @@ What is read, as libcosim reads it (docs/osp.md):
 No unit conversion on links (libcosim converts none: a note where the units
 differ). What clockwork does not do is refused in one line naming the file,
 the element and what was expected: the ecco algorithm, ``Sum`` and
-``VectorSum`` functions (a scene's input has one source), per-simulator
-steps that differ (no multi-rate master), FMUs on another machine
-(``proxyfmu://host``; ``proxyfmu://localhost`` runs the FMU in this process).
+``VectorSum`` functions (a scene's input has one source), FMUs on another
+machine (``proxyfmu://host``; ``proxyfmu://localhost`` runs the FMU in this
+process). Per-simulator steps that differ become the components' own
+steps (scene/load.py, engine/multirate.py).
 """
 
 from __future__ import annotations
