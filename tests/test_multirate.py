@@ -1,0 +1,201 @@
+"""Components at their own steps (multi-rate, engine/multirate.py): the
+scene key `[components.X] step`, OSP stepSize and SSP osp:StepSizeHint,
+what the master does across rates (libcosim's rule) and what it refuses in
+one line. The numbers against libcosim itself: tests/test_osp.py."""
+
+import shutil
+import textwrap
+
+import numpy as np
+import pytest
+
+from cwtest import ROOT, assert_one_line_error, fmu_file, run_cli
+
+from clockwork.engine import MasterSettings, System
+from clockwork.errors import SceneError
+from clockwork.run.catalog import load_scene
+
+# A pendulum driving Ziemkiewicz's mechanism vibration, which drives it back
+# (no direct feedthrough either way); `{vibration}` adds keys to its table.
+SCENE = textwrap.dedent("""\
+    connections = ["pendulum.phi -> vibration.a1", "vibration.tau -> pendulum.tau_coupling"]
+
+    [scene]
+    title = "two rates"
+
+    [components.pendulum]
+    fmu = "Pendulum"
+    parameters = {{ phi_start = 0.2 }}
+
+    [components.vibration]
+    fmu = "MechanismVibration"
+    parameters = {{ kappa = 0, C1 = 20 }}
+    {vibration}
+
+    [experiment]
+    stop = {stop}
+
+    [master]
+    step = 0.01
+    {master}
+
+    [record]
+    outputs = ["pendulum.phi", "vibration.a2"]
+    """)
+
+
+def scene_file(tmp_path, vibration="step = 0.03", master="", stop="0.6", name="s.toml"):
+    f = tmp_path / name
+    f.write_text(SCENE.format(vibration=vibration, master=master, stop=stop))
+    return f
+
+
+def run(capsys, f, out, *more):
+    rc, _, err = run_cli(capsys, ["run", f, "--out", out, "--no-progress", *more])
+    assert rc == 0, err
+    lines = (out / "timeseries.csv").read_text().splitlines()
+    return lines, err
+
+
+def columns(lines):
+    data = np.array([[float(x) for x in line.split(",")] for line in lines[1:]])
+    return data[:, 0], data[:, 1], data[:, 2]
+
+
+@pytest.mark.parametrize("order", ["jacobi", "gauss-seidel"])
+def test_a_slow_component_steps_every_k_base_steps_with_its_inputs_held(tmp_path, capsys, order):
+    """The vibration (every 3 base steps) changes its outputs at its own
+    points only (what it gave there is held between them); the Python
+    engine runs it, with the reason in the summary."""
+    f = scene_file(tmp_path, master=f'order = "{order}"')
+    lines, _ = run(capsys, f, tmp_path / "out")
+    t, phi, a2 = columns(lines)
+    assert len(t) == 61
+    for n in range(1, 61):  # between its points, what it gave at the last one
+        if n % 3:
+            assert a2[n] == a2[n - n % 3]
+    assert a2[3] != 0.0 and a2[6] != a2[3]
+    summary = (tmp_path / "out" / "summary.json").read_text()
+    assert '"engine": "python"' in summary and "the compiled core steps every component" in summary
+
+
+
+def test_a_step_is_a_whole_multiple_within_rounding():
+    from clockwork.engine.multirate import decimation
+
+    assert decimation(0.03, 0.01) == 3 and decimation(0.05, 0.01) == 5 and decimation(0.01, 0.01) == 1
+    assert decimation(0.025, 0.01) is None and decimation(0.005, 0.01) is None and decimation(0.0, 0.01) is None
+    assert decimation(float("nan"), 0.01) is None and decimation(-0.03, 0.01) is None
+    assert decimation(3 * 0.1, 0.1) == 3  # 0.30000000000000004: within rounding
+
+
+def test_every_component_at_the_base_step_is_the_single_rate_path_and_its_bits(tmp_path, capsys):
+    a, _ = run(capsys, scene_file(tmp_path, vibration="", name="a.toml"), tmp_path / "a")
+    b, _ = run(capsys, scene_file(tmp_path, vibration='step = "10 ms"', name="b.toml"), tmp_path / "b")
+    assert a == b
+    summary = (tmp_path / "b" / "summary.json").read_text()
+    assert "the compiled core steps every component" not in summary
+
+
+def test_slow_component_differs_from_single_rate(tmp_path, capsys):
+    a, _ = run(capsys, scene_file(tmp_path, vibration="", name="a.toml"), tmp_path / "a")
+    b, _ = run(capsys, scene_file(tmp_path, name="b.toml"), tmp_path / "b")
+    ta, phia, _ = columns(a)
+    tb, phib, _ = columns(b)
+    assert np.array_equal(ta, tb)
+    assert np.max(np.abs(phia - phib)) > 1e-6
+
+
+BAD = {
+    "not a multiple": ("step = 0.025", "", ["components.vibration.step", "whole multiple of master.step (0.01 s)",
+                                           "0.025 s"]),
+    "below the base step": ("step = 0.005", "", ["components.vibration.step", "whole multiple"]),
+    "zero": ("step = 0", "", ["components.vibration.step", "> 0"]),
+    "negative": ("step = -0.03", "", ["components.vibration.step"]),
+    "text": ('step = "fast"', "", ["components.vibration.step"]),
+    "a bool": ("step = true", "", ["components.vibration.step"]),
+    "not finite": ("step = inf", "", ["components.vibration.step"]),
+    "strong coupling": ("step = 0.03", "iterations = 3", ["components.vibration.step",
+                                                         "master.iterations = 3", "different rates",
+                                                         "vibration every 3"]),
+    "step doubling": ("step = 0.03", "richardson = true", ["components.vibration.step", "master.richardson",
+                                                                "different rates"]),
+    "extrapolation": ("step = 0.03", "extrapolation = 1", ["components.vibration.step",
+                                                                   "master.extrapolation = 1", "different rates"]),
+    "compiled by name": ("step = 0.03", 'engine = "compiled"', ["master.engine", "compiled core steps every"]),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD))
+def test_what_multirate_does_not_do_is_one_line(tmp_path, capsys, case):
+    vibration, master, needles = BAD[case]
+    f = scene_file(tmp_path, vibration=vibration, master=master)
+    for command in ("validate", "run"):
+        rc, _, err = run_cli(capsys, [command, f, *(["--out", tmp_path / "o", "--no-progress"]
+                                                    if command == "run" else [])])
+        assert_one_line_error(rc, err, str(f), *needles)
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_stop_off_the_base_grid_is_refused(tmp_path, capsys):
+    f = scene_file(tmp_path, stop="0.605")
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, "experiment.stop", "whole number of base steps")
+
+
+def test_event_location_across_rates_is_refused_where_a_component_has_indicators(tmp_path, capsys):
+    f = tmp_path / "clock.toml"
+    f.write_text(textwrap.dedent("""\
+        connections = ["pendulum.phi -> escapement.phi", "pendulum.w -> escapement.w",
+                       "escapement.tau -> pendulum.tau_escapement"]
+        [scene]
+        title = "a slow pendulum"
+        [components.pendulum]
+        fmu = "Pendulum"
+        step = 0.02
+        [components.escapement]
+        fmu = "GrasshopperEscapement"
+        [experiment]
+        stop = 1
+        [master]
+        step = 0.01
+        """))
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, "components.pendulum.step", "master.event_location = true", "escapement",
+                          "pendulum every 2")
+    # without event location it runs: the escapement at the base rate reads the slow pendulum's held angle
+    rc, _, err = run_cli(capsys, ["run", f, "--set", "master.event_location=false", "--out", tmp_path / "o",
+                                  "--no-progress"])
+    assert rc == 0, err
+
+
+def test_validate_and_export_say_and_keep_the_steps(tmp_path, capsys):
+    f = scene_file(tmp_path)
+    rc, out, err = run_cli(capsys, ["validate", f])
+    assert rc == 0, err
+    assert "steps: pendulum 0.01 s (1 base step of 0.01 s), vibration 0.03 s (3 base steps of 0.01 s)" in out
+    s = load_scene(f)
+    assert s.components["vibration"].step == 0.03 and s.components["pendulum"].step is None
+    # export-ssp writes osp:StepSizeHint, which reads back as the same step
+    rc, out, err = run_cli(capsys, ["export-ssp", f, "--out", tmp_path / "x.ssp"])
+    assert rc == 0, err
+    back = load_scene(tmp_path / "x.ssp")
+    assert back.components["vibration"].step == 0.03 and back.master.step == 0.01
+
+
+def test_the_system_api_takes_rates_and_refuses_the_compiled_core_by_name():
+    comps = {"p": ("Pendulum", {"phi_start": 0.2}), "v": ("MechanismVibration", {"kappa": 0})}
+    links = ["p.phi -> v.a1", "v.tau -> p.tau_coupling"]
+    with System(comps, links, MasterSettings(step=0.01), rates={"v": 3}) as s:
+        assert s.master.engine == "python" and "v every 3" in s.master.engine_reason
+        assert s.master.rates == {"p": 1, "v": 3}
+        s.master.run_until(0.09)
+        assert s.master.t == pytest.approx(0.09)
+        with pytest.raises(Exception, match="whole base steps"):
+            s.master.step(0.005)
+    with pytest.raises(SceneError, match="compiled core steps every component"):
+        System(comps, links, MasterSettings(step=0.01, engine="compiled"), rates={"v": 3})
+    with pytest.raises(SceneError, match="whole number of base steps"):
+        System(comps, links, MasterSettings(step=0.01), rates={"v": 0})
+    with pytest.raises(SceneError, match="no instance"):
+        System(comps, links, MasterSettings(step=0.01), rates={"w": 2})
