@@ -199,3 +199,88 @@ def test_the_system_api_takes_rates_and_refuses_the_compiled_core_by_name():
         System(comps, links, MasterSettings(step=0.01), rates={"v": 0})
     with pytest.raises(SceneError, match="no instance"):
         System(comps, links, MasterSettings(step=0.01), rates={"w": 2})
+
+
+# Steps whose multiples are exact in binary: the grids of both runs are the same doubles.
+EXACT = textwrap.dedent("""\
+    [scene]
+    title = "exact steps"
+    [components.slow]
+    fmu = "Pendulum"
+    parameters = {{ phi_start = 0.1 }}
+    {slow}
+    [components.other]
+    fmu = "Pendulum"
+    [experiment]
+    stop = 4
+    [master]
+    step = {base}
+    [record]
+    outputs = ["slow.phi"]
+    """)
+
+
+def test_a_slow_component_takes_its_sampled_inputs_at_its_own_step_start(tmp_path, capsys):
+    """A pendulum every 2 base steps of 0.125 s, driven by an input file,
+    gives at its own points the bits of the same pendulum run at 0.25 s:
+    its inputs are the samples at its step's start, held over its step."""
+    csv = tmp_path / "in.csv"
+    csv.write_text("time,slow.tau_external\n0,0\n1.3,0.01\n2.6,-0.005\n4,0\n")
+    (tmp_path / "a.toml").write_text(EXACT.format(slow="step = 0.25", base=0.125))
+    (tmp_path / "b.toml").write_text(EXACT.format(slow="", base=0.25))
+    a, _ = run(capsys, tmp_path / "a.toml", tmp_path / "a", "--input", csv)
+    b, _ = run(capsys, tmp_path / "b.toml", tmp_path / "b", "--input", csv)
+    ta, phia = (np.array([float(x) for x in col]) for col in zip(*(line.split(",") for line in a[1:])))
+    tb, phib = (np.array([float(x) for x in col]) for col in zip(*(line.split(",") for line in b[1:])))
+    assert len(ta) == 33 and len(tb) == 17
+    assert np.array_equal(ta[::2], tb)
+    assert np.array_equal(phia[::2], phib)  # bit for bit at its own points
+    assert np.array_equal(phia[1::2], phia[:-1:2])  # held in between
+    assert np.ptp(phib) > 0.1
+
+
+def test_an_algebraic_loop_across_rates_is_one_line(tmp_path, capsys):
+    from cwtest import test_fmu
+
+    s = test_fmu("TestSum")
+    f = tmp_path / "loop.toml"
+    f.write_text(textwrap.dedent(f"""\
+        connections = ["add.y -> gain.u1", "gain.y -> add.u2"]
+        [scene]
+        title = "a loop across rates"
+        [components.add]
+        fmu = "{s}"
+        parameters = {{ c = 1.0 }}
+        [components.gain]
+        fmu = "{s}"
+        parameters = {{ k1 = 0.5, k2 = 0.0 }}
+        step = 0.25
+        [experiment]
+        stop = 1.0
+        [master]
+        step = 0.125
+        """))
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, str(f), "algebraic loop", "gain steps every 2 base steps", "master.step")
+    comps = {"add": (str(s), {"c": 1.0}), "gain": (str(s), {"k1": 0.5, "k2": 0.0})}
+    with pytest.raises(SceneError, match="gain steps every 2 base steps"):
+        System(comps, ["add.y -> gain.u1", "gain.y -> add.u2"], MasterSettings(step=0.125), rates={"gain": 2})
+
+
+def test_restart_runs_the_same_numbers_again():
+    comps = {"p": ("Pendulum", {"phi_start": 0.2}), "v": ("MechanismVibration", {"kappa": 0, "C1": 20})}
+    links = ["p.phi -> v.a1", "v.tau -> p.tau_coupling"]
+    with System(comps, links, MasterSettings(step=0.01), rates={"v": 3}, record={"p": ["phi"], "v": ["a2"]}) as s:
+        s.master.run_until(0.3)
+        first = (s.output("p", "phi"), s.output("v", "a2"))
+        s.restart({"p": {"phi_start": 0.2}, "v": {"kappa": 0, "C1": 20}})
+        assert s.master.t == 0.0
+        s.master.run_until(0.3)
+        assert (s.output("p", "phi"), s.output("v", "a2")) == first
+
+
+def test_a_sweep_of_the_base_step_is_checked_at_every_point(tmp_path, capsys):
+    f = scene_file(tmp_path)
+    f.write_text(f.read_text() + '\n[sweep]\naxes = [{ parameter = "master.step", values = [0.01, 0.02] }]\n')
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, "components.vibration.step", "whole multiple of master.step (0.02 s)")
