@@ -284,3 +284,10 @@ def test_a_sweep_of_the_base_step_is_checked_at_every_point(tmp_path, capsys):
     f.write_text(f.read_text() + '\n[sweep]\naxes = [{ parameter = "master.step", values = [0.01, 0.02] }]\n')
     rc, _, err = run_cli(capsys, ["validate", f])
     assert_one_line_error(rc, err, "components.vibration.step", "whole multiple of master.step (0.02 s)")
+
+
+def test_an_analysis_that_chooses_its_own_steps_is_one_line(tmp_path, capsys):
+    f = scene_file(tmp_path)
+    f.write_text(f.read_text() + '\n[analysis]\nkind = "steady_state"\n')
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, str(f), "analysis.kind", "time_series or ticks", "vibration (0.03 s)")

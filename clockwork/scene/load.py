@@ -435,6 +435,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
             raise ctx.fail("master.engine", f'expected "auto" or "python" here: {reason}')
     record = _record(ctx, ctx.table(raw, "record", ""), components)
     analysis = _analysis(ctx, ctx.table(raw, "analysis", ""), kinds)
+    _multirate_analysis(ctx, master, components, analysis)
     connected_inputs = {(c.dst_instance, c.dst_var) for c in connections}
     sweep = parse_sweep(ctx, ctx.table(raw, "sweep", ""), components, connected_inputs)
     plots = _plots(ctx, raw.get("plot", []), kinds)
@@ -564,6 +565,23 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
         step = _component_step(ctx, f"{where}.step", t["step"]) if "step" in t else None
         out[name] = Component(name, fpath, digest, md, params, indicators, interface, step=step)
     return out, input_params
+
+
+# The analyses that step on the grid of master.step only (run_until), as the multi-rate master steps.
+MULTIRATE_KINDS = ("time_series", "ticks")
+
+
+def _multirate_analysis(ctx: Ctx, master: MasterSettings, components: dict, analysis: dict | None) -> None:
+    """Components at different rates step on the base grid only: the
+    analyses that choose their own steps (landing after a tick, a schedule
+    of inputs) are refused in one line."""
+    kind = (analysis or {}).get("kind", "time_series")
+    if kind in MULTIRATE_KINDS or not multirate.is_multirate(rates(master, components)):
+        return
+    slow = ", ".join(f"{n} ({c.step:g} s)" for n, c in components.items() if c.step is not None)
+    raise ctx.fail("analysis.kind", f"expected {' or '.join(MULTIRATE_KINDS)} with components at their own steps "
+                                    f"({slow}): {kind} chooses the master's steps itself, and the multi-rate "
+                                    "master takes whole base steps only")
 
 
 def _component_step(ctx: Ctx, key: str, value) -> float:
