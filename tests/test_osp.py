@@ -572,3 +572,24 @@ def test_an_end_time_off_the_base_grid_with_rates_names_the_file(tmp_path, capsy
     osp.write_text(osp.read_text().replace("<EndTime>3</EndTime>", "<EndTime>3.005</EndTime>"))
     rc, _, err = run_cli(capsys, ["validate", osp])
     assert_one_line_error(rc, err, str(osp), "EndTime", "whole number of base steps")
+
+
+def test_three_rates_export_scene_keeps_the_steps(tmp_path, capsys):
+    """export-scene writes each component's step: the TOML scene runs the
+    OSP file's numbers, bit for bit."""
+    d = _rates_dir(tmp_path)
+    osp = d / "OspSystemStructure.xml"
+    # a scene's links convert units only: the file without its linear transformation
+    text = osp.read_text()
+    text = text[:text.index("<Functions>")] + text[text.index("</Functions>") + len("</Functions>"):]
+    text = text[:text.index("<SignalConnection>")] + text[text.rindex("</SignalConnection>") +
+                                                          len("</SignalConnection>"):]
+    osp.write_text(text)
+    rc, _, err = run_cli(capsys, ["export-scene", osp, "--out", tmp_path / "rates.toml"])
+    assert rc == 0, err
+    text = (tmp_path / "rates.toml").read_text()
+    assert "step = 0.03" in text and "step = 0.02" in text
+    short = ["--set", "experiment.stop=0.6", "--set", f"record.outputs={RATES_OUTPUTS!r}".replace("'", '"')]
+    run_ok(capsys, osp, "--out", tmp_path / "a", *short)
+    run_ok(capsys, tmp_path / "rates.toml", "--out", tmp_path / "b", *short)
+    assert (tmp_path / "a" / "timeseries.csv").read_bytes() == (tmp_path / "b" / "timeseries.csv").read_bytes()
