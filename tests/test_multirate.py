@@ -291,3 +291,23 @@ def test_an_analysis_that_chooses_its_own_steps_is_one_line(tmp_path, capsys):
     f.write_text(f.read_text() + '\n[analysis]\nkind = "steady_state"\n')
     rc, _, err = run_cli(capsys, ["validate", f])
     assert_one_line_error(rc, err, str(f), "analysis.kind", "time_series or ticks", "vibration (0.03 s)")
+
+
+def test_an_osp_step_of_whole_nanosecond_base_steps_is_no_warning(tmp_path, capsys):
+    """3e-4 s is 3 base steps of 1e-4 s in libcosim's whole nanoseconds,
+    though 3 * 1e-4 is not 3e-4 in binary: no warning (there was one)."""
+    shutil.copy(fmu_file("Pendulum"), tmp_path / "Pendulum.fmu")
+    f = tmp_path / "OspSystemStructure.xml"
+    f.write_text(textwrap.dedent("""\
+        <OspSystemStructure xmlns="http://opensimulationplatform.com/MSMI/OSPSystemStructure" version="0.1">
+          <StartTime>0</StartTime><EndTime>0.0012</EndTime><BaseStepSize>1e-4</BaseStepSize>
+          <Simulators>
+            <Simulator name="a" source="Pendulum.fmu"/>
+            <Simulator name="b" source="Pendulum.fmu" stepSize="3e-4"/>
+            <Simulator name="c" source="Pendulum.fmu" stepSize="2.5e-4"/>
+          </Simulators>
+        </OspSystemStructure>"""))
+    rc, out, err = run_cli(capsys, ["validate", f])
+    assert rc == 0, err
+    assert "b 0.0003 s (3 base steps" in out and "c 0.0002 s (2 base steps" in out
+    assert "'b'" not in err and "Simulator 'c' stepSize='2.5e-4': libcosim steps c every 2 base steps" in err
