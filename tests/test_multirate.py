@@ -350,3 +350,24 @@ def test_base_rate_components_keep_their_bits_beside_an_unconnected_slow_one(ord
             return s.output("p", "phi"), s.output("v", "a2")
 
     assert run(comps) == run({**comps, "slow": ("Pendulum", {})}, slow=3)
+
+
+def test_an_integer_passes_across_rates_at_the_shared_points():
+    """An Integer link from a fast component (its step count) into a slow
+    one (every 3 base steps) passes at the slow one's step starts and is
+    held between: the slow one's y_int = p_int + u_int, read after its own
+    steps, shows the count at its last step's start."""
+    from cwtest import test_fmu
+
+    s = str(test_fmu("TestTypes"))
+    comps = {"a": (s, {}), "b": (s, {"p_int": 100})}
+    seen = []
+    with System(comps, ["a.count -> b.u_int"], MasterSettings(step=0.125), rates={"b": 3}) as sys_:
+        for k in range(1, 10):
+            sys_.master.run_until(k * 0.125)
+            seen.append(tuple(sys_.instances[i].get_values([v])[0]
+                              for i, v in (("a", "count"), ("b", "count"), ("b", "y_int"))))
+    assert [a for a, _, _ in seen] == list(range(1, 10))
+    assert [b for _, b, _ in seen] == [0, 0, 1, 1, 1, 2, 2, 2, 3]
+    # b's step ending at base step 3 started at 0 (a.count = 0), the next at 3 (a.count = 3), then at 6
+    assert [y for _, _, y in seen] == [100, 100, 100, 100, 100, 103, 103, 103, 106]
