@@ -115,6 +115,8 @@ BAD = {
     "text": ('step = "fast"', "", ["components.vibration.step"]),
     "a bool": ("step = true", "", ["components.vibration.step"]),
     "not finite": ("step = inf", "", ["components.vibration.step"]),
+    "longer than the run": ("step = 1.2", "", ["components.vibration.step", "at most the run's span (0.6 s)",
+                                               "would never step"]),
     "strong coupling": ("step = 0.03", "iterations = 3", ["components.vibration.step",
                                                          "master.iterations = 3", "different rates",
                                                          "vibration every 3"]),
@@ -371,3 +373,14 @@ def test_an_integer_passes_across_rates_at_the_shared_points():
     assert [b for _, b, _ in seen] == [0, 0, 1, 1, 1, 2, 2, 2, 3]
     # b's step ending at base step 3 started at 0 (a.count = 0), the next at 3 (a.count = 3), then at 6
     assert [y for _, _, y in seen] == [100, 100, 100, 100, 100, 103, 103, 103, 106]
+
+
+def test_large_coprime_factors_step_without_a_table_of_their_period():
+    """Factors 997 and 991 (a period of 988,027 base steps) step as any
+    others: the due components are found at each step, not tabled."""
+    comps = {"p": ("Pendulum", {}), "a": ("Pendulum", {}), "b": ("Pendulum", {})}
+    with System(comps, [], MasterSettings(step=1e-3), rates={"a": 997, "b": 991}, record={"a": ["phi"]}) as s:
+        assert s.master._multirate.due is None
+        s.master.run_until(2.0)
+        assert s.master.t == pytest.approx(2.0)
+        assert s.output("a", "phi") != s.instances["a"].get_real(["phi_start"])[0]

@@ -124,6 +124,8 @@ class MultiRate:
     """The stepping of a master (engine/master.Master) whose components step
     at different rates: ``step`` replaces the master's."""
 
+    MAX_TABLE = 4096  # base steps of a period whose due lists are made once
+
     def __init__(self, master, rates: dict[str, int]):
         self.master = master
         ports = master.ports
@@ -138,12 +140,18 @@ class MultiRate:
         self._attached = False
         self.count = 0  # base steps taken since the start
         self.period = math.lcm(*self.k.values())
-        # Per base step in the period: the dynamic ports whose own step ends there, in stepping order.
-        self.due = [[p for p in ports.dynamic if (n + 1) % self.k[p.inst.name] == 0] for n in range(self.period)]
+        # Per base step in the period: the dynamic ports whose own step ends there, in stepping order
+        # (found at each step where the period is long: factors may be large and coprime).
+        self._rated = [(p, self.k[p.inst.name]) for p in ports.dynamic]
+        self.due = ([self._due(n) for n in range(self.period)] if self.period <= self.MAX_TABLE else None)
         self.fast_dynamic = [p for p in ports.dynamic if self.k[p.inst.name] == 1]
         self.slow = [p for p in ports.dynamic if self.k[p.inst.name] != 1]
         self.starts: dict[int, float] = {}  # id(slow port) -> where its step now under way started, s
         self.updates_after = dict(zip(map(id, ports.dynamic), master._updates_after))
+
+    def _due(self, n: int) -> list:
+        """The dynamic ports whose own step ends with base step n (counted from 0)."""
+        return [p for p, k in self._rated if (n + 1) % k == 0]
 
     def _own_step(self, p, t_new: float) -> tuple[float, float]:
         """(start, step) of the own step of `p` that ends at t_new, s: from
@@ -274,7 +282,7 @@ class MultiRate:
         t_new = t + h
         inputs = m.file_inputs
         k = self.k
-        due = self.due[n % self.period]
+        due = self.due[n % self.period] if self.due is not None else self._due(n)
         if inputs is not None:  # sampled inputs at t for what steps from t, at each slow step's start for it
             inputs.set(ports.first, t, True)
             inputs.set(self.fast_dynamic, t, True)

@@ -327,6 +327,9 @@ def component_steps_problem(m: MasterSettings, e: Experiment,
         if c.step is not None and multirate.decimation(c.step, m.step) is None:
             return f"components.{name}.step", (f"expected a whole multiple of master.step ({fmt(m.step)} s), got "
                                                f"{fmt(c.step)} s")
+        if c.step is not None and c.step > e.stop - e.start:
+            return f"components.{name}.step", (f"expected at most the run's span ({fmt(e.stop - e.start)} s), got "
+                                               f"{fmt(c.step)} s: the component would never step")
     k = rates(m, components)
     if not multirate.is_multirate(k):
         return None
