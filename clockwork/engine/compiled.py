@@ -33,6 +33,7 @@ from . import cvode
 from ..fmi.cs2 import Instance
 from ..fmi.cs1 import _Fmi1
 from ..fmi.cs3 import _Events
+from .clocks import ClockedMaster, clocks_reason
 from .master import Master
 from .parallel import group_ends
 from .model_exchange import _ME
@@ -237,6 +238,13 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
     `rates`: {instance: decimation factor} where components step at their
     own multiples of settings.step (engine/multirate.py): the Python engine's."""
     settings.check()
+    clocks = clocks_reason(instances)
+    if clocks is not None:  # FMI 3.0 clocks: the Python engine (engine/clocks.py)
+        if settings.engine == "compiled":
+            raise SceneError(f"master.engine = 'compiled': {clocks} (use 'auto' or 'python')")
+        master = ClockedMaster(instances, links, settings, start_time, step_order, extra_outputs, inputs)
+        master.engine_reason = clocks if settings.engine == "auto" else None
+        return master
     reason = None
     if rates and any(k != 1 for k in rates.values()):
         reason = unsupported_rates(rates)
