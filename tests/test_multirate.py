@@ -384,3 +384,22 @@ def test_large_coprime_factors_step_without_a_table_of_their_period():
         s.master.run_until(2.0)
         assert s.master.t == pytest.approx(2.0)
         assert s.output("a", "phi") != s.instances["a"].get_real(["phi_start"])[0]
+
+
+def test_fmi3_clocks_and_rates_together_are_one_line(tmp_path, capsys):
+    """A scene with FMI 3.0 clocks lands a communication point of every
+    component on each tick: components at their own steps are refused
+    there, in the scene and in System (the clocked master would not take
+    the rates: before, it ran every component at the base step)."""
+    import fmi3_clocked
+
+    ticker, counter = (str(fmi3_clocked.build(tmp_path, n)) for n in ("Ticker", "Counter"))
+    f = tmp_path / "s.toml"
+    f.write_text('connections = ["tk.tick -> ct.tooth", "tk.n -> ct.step_by"]\n[scene]\ntitle = "t"\n'
+                 f'[components.tk]\nfmu = "{ticker}"\n[components.ct]\nfmu = "{counter}"\nstep = 0.5\n'
+                 '[experiment]\nstop = 1\n[master]\nstep = 0.25\n')
+    rc, _, err = run_cli(capsys, ["validate", f])
+    assert_one_line_error(rc, err, str(f), "components.ct.step", "FMI 3.0 clocks (tk, ct)")
+    with pytest.raises(SceneError, match="a scene with FMI 3.0 clocks"):
+        System({"tk": (ticker, {}), "ct": (counter, {})}, ["tk.tick -> ct.tooth", "tk.n -> ct.step_by"],
+               MasterSettings(step=0.25), rates={"ct": 2})

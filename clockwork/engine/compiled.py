@@ -239,6 +239,10 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
     own multiples of settings.step (engine/multirate.py): the Python engine's."""
     settings.check()
     clocks = clocks_reason(instances)
+    if clocks is not None and rates and any(k != 1 for k in rates.values()):
+        raise SceneError(f"rates: {unsupported_rates(rates).replace('the compiled core steps', 'a clock ticks')}; "
+                         f"a scene with FMI 3.0 clocks ({clocks.split('(', 1)[1]} steps every component at "
+                         "master.step")
     if clocks is not None:  # FMI 3.0 clocks: the Python engine (engine/clocks.py)
         if settings.engine == "compiled":
             raise SceneError(f"master.engine = 'compiled': {clocks} (use 'auto' or 'python')")

@@ -333,6 +333,12 @@ def component_steps_problem(m: MasterSettings, e: Experiment,
     k = rates(m, components)
     if not multirate.is_multirate(k):
         return None
+    clocked = [n for n, c in components.items() if any(v.type == "Clock" for v in c.model_description.modelVariables)]
+    if clocked:  # engine/clocks.py lands a communication point of every component on each tick
+        slow = next(n for n, r in k.items() if r != 1)
+        return f"components.{slow}.step", (f"expected every component at master.step ({fmt(m.step)} s) with FMI 3.0 "
+                                           f"clocks ({', '.join(clocked)}): a tick is a communication point of every "
+                                           "component, and the multi-rate master steps on the base grid only")
     problem = multirate.problem(m, k, {n: c.event_indicators for n, c in components.items()})
     if problem:  # named where the slow component's step comes from (a scene key, an OSP or SSD attribute)
         slow, detail = problem
