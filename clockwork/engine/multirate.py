@@ -252,13 +252,13 @@ class MultiRate:
         if abs(h - base) > 1e-9 * base:
             raise UsageError(f"a step of {h!r} s from t = {t!r} s: components step at different rates, each a "
                              f"multiple of master.step, and the master takes whole base steps ({base!r} s) only")
-        for ev in m.fmi3_events:
+        for ev in m.time_events:
             if ev.terminated:
-                raise m._fmi3_ended()
+                raise m._asked_to_end()
             if t < ev.next_event_time < t + h and not math.isclose(ev.next_event_time, t + h):
-                raise SimulationError(f"an FMI 3.0 time event at t = {ev.next_event_time!r} s falls inside the base "
-                                      f"step from t = {t!r} s: components step at different rates and the master "
-                                      "does not shorten a step (master.step on the events' grid)")
+                raise SimulationError(f"a time event an FMU announced at t = {ev.next_event_time!r} s falls inside "
+                                      f"the base step from t = {t!r} s: components step at different rates and the "
+                                      "master does not shorten a step (master.step on the events' grid)")
         inputs = m.file_inputs
         if inputs is not None:
             samples = inputs.samples

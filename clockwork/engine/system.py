@@ -22,8 +22,8 @@ from ..errors import ClosedError, SceneError, UsageError
 from ..fmi.description import INTEGER_TYPES, REAL_TYPES, int_range, resolve_fmu
 from ..fmi.description import variables as described
 from ..fmi.calls import free_all
-from ..fmi.cs2 import Instance
-from ..fmi.cs3 import flat_values
+from ..fmi.contract import Instance
+from ..fmi.values3 import flat_values
 from .instances import make_instance
 from .model_exchange import MEOptions
 from .compiled import make_master
