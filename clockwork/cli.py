@@ -467,6 +467,9 @@ def cmd_validate(args) -> int:
         _say_out(f"note: {note}")
     if scene.inputs is not None:
         extra += f", inputs from {scene.inputs.file.name}: {', '.join(scene.inputs.columns)}"
+    rates = _rates(scene)
+    if rates is not None:
+        _say_out("steps: " + ", ".join(f"{name} {_component_step(scene, name, rates)}" for name in rates))
     _say_out(f"ok: {scene.title} ({n} component{'s' * (n != 1)}, {m} connection{'s' * (m != 1)}{extra}{with_set})")
     for name, comp in scene.components.items():
         _say_clocks(comp.model_description, name, scene)
@@ -600,6 +603,21 @@ def _link(c) -> str:
     return f"{c} (x {c.factor:g}{f' + {c.offset:g}' if c.offset else ''})"
 
 
+def _rates(scene) -> dict[str, int] | None:
+    """{instance: decimation factor} where the scene's components step at different rates, else None."""
+    from .engine.multirate import is_multirate
+    from .scene.model import rates
+
+    found = rates(scene.master, scene.components)
+    return found if is_multirate(found) else None
+
+
+def _component_step(scene, name: str, rates: dict[str, int]) -> str:
+    """A component's own step, as `info` and `validate` show it (multi-rate)."""
+    k = rates[name]
+    return f"{k * scene.master.step:g} s ({k} base step{'s' * (k != 1)} of {scene.master.step:g} s)"
+
+
 def _info_ssp(path: str) -> int:
     """`info` on an .ssp/.ssd or an OSP system structure: the flattened system as clockwork runs it."""
     from .run.catalog import load_scene
@@ -612,9 +630,12 @@ def _info_ssp(path: str) -> int:
     _say_out(f"  sha256       {scene.sha256}")
     _say_out("components:")
     width = max(len(c) for c in scene.components)
+    rates = _rates(scene)
     for name, c in scene.components.items():
         params = ", ".join(f"{k} = {v!r}" for k, v in c.parameters.items())
         _say_out(f"  {name:<{width}}  {c.model_name}  {c.fmu_shown}")
+        if rates is not None:
+            _say_out(f"  {'':<{width}}  step: {_component_step(scene, name, rates)}")
         if params:
             _say_out(f"  {'':<{width}}  parameters: {params}")
     _say_out("connections:")

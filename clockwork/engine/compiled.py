@@ -206,6 +206,13 @@ def unsupported(settings: MasterSettings) -> str | None:
     return None
 
 
+def unsupported_rates(rates: dict[str, int]) -> str:
+    """Why the core does not run components at their own steps (it steps
+    every one at master.step): the Python engine does (engine/multirate.py)."""
+    slow = ", ".join(f"{n} every {k}" for n, k in rates.items() if k != 1)
+    return f"the compiled core steps every component at master.step, and {slow} base steps here"
+
+
 def unsupported_links(types) -> str | None:
     """Why the core cannot pass these links on, or None. `types`: (link
     text, FMI type) pairs; the core passes Real values only."""
@@ -226,10 +233,17 @@ def unsupported_inputs(types) -> str | None:
 
 def make_master(instances: dict[str, Instance], links: list[Link], settings: MasterSettings,
                 start_time: float = 0.0, step_order: list[str] | None = None,
-                extra_outputs: dict[str, list[str]] | None = None, inputs: Samples | None = None) -> Master:
-    """The master that ``settings.engine`` asks for (see the module's docstring)."""
+                extra_outputs: dict[str, list[str]] | None = None, inputs: Samples | None = None,
+                rates: dict[str, int] | None = None) -> Master:
+    """The master that ``settings.engine`` asks for (see the module's docstring).
+    `rates`: {instance: decimation factor} where components step at their
+    own multiples of settings.step (engine/multirate.py): the Python engine's."""
     settings.check()
     clocks = clocks_reason(instances)
+    if clocks is not None and rates and any(k != 1 for k in rates.values()):
+        raise SceneError(f"rates: {unsupported_rates(rates).replace('the compiled core steps', 'a clock ticks')}; "
+                         f"a scene with FMI 3.0 clocks ({clocks.split('(', 1)[1]} steps every component at "
+                         "master.step")
     if clocks is not None:  # FMI 3.0 clocks: the Python engine (engine/clocks.py)
         if settings.engine == "compiled":
             raise SceneError(f"master.engine = 'compiled': {clocks} (use 'auto' or 'python')")
@@ -237,7 +251,11 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
         master.engine_reason = clocks if settings.engine == "auto" else None
         return master
     reason = None
-    if settings.engine != "python":
+    if rates and any(k != 1 for k in rates.values()):
+        reason = unsupported_rates(rates)
+        if settings.engine == "compiled":
+            raise SceneError(f"master.engine = 'compiled': {reason} (use 'auto' or 'python')")
+    elif settings.engine != "python":
         types = [(f"{k.src}.{k.output} -> {k.dst}.{k.input}", link_type(instances, k)) for k in links]
         sampled = [] if inputs is None else [
             (s.name, instances[s.instance].variables[s.variable].type) for s in inputs.signals
@@ -247,7 +265,7 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
             return CompiledMaster(instances, links, settings, start_time, step_order, extra_outputs, inputs)
         if settings.engine == "compiled":
             raise SceneError(f"master.engine = 'compiled': {reason} (use 'auto' or 'python')")
-    master = Master(instances, links, settings, start_time, step_order, extra_outputs, inputs)
+    master = Master(instances, links, settings, start_time, step_order, extra_outputs, inputs, rates)
     master.engine_reason = reason
     return master
 

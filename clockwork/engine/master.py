@@ -84,9 +84,12 @@ class Master:
                  settings: MasterSettings, start_time: float = 0.0,
                  step_order: list[str] | None = None,
                  extra_outputs: dict[str, list[str]] | None = None,
-                 inputs: Samples | None = None):
+                 inputs: Samples | None = None, rates: dict[str, int] | None = None):
         self.instances = instances
         self.settings = settings
+        self._multirate = None
+        if rates is not None:
+            rates = _slow_read_after_step(rates, instances)
         # Instances with counts of their own (the Model Exchange wrapper's
         # integrator), which join the master's (stats.model_exchange).
         self._own_counts = [inst for inst in instances.values() if inst.statistics() is not None]
@@ -139,6 +142,9 @@ class Master:
         self.engine_reason: str | None = None  # why "auto" chose this engine, when not the core
         self.ended: SimulationEnded | None = None  # an FMU ended the simulation (a clean end)
         self._frees_seen = -1  # Instance.frees when run_until last found every instance alive
+        if rates is not None:  # components at their own steps (engine/multirate.py); else today's path
+            self._multirate = _multirate(self, rates)
+            self.step = self._multirate.step
 
     def __reduce_ex__(self, protocol):
         raise UsageError("a master cannot be pickled or copied: it holds loaded FMU libraries and their "
@@ -197,6 +203,8 @@ class Master:
         """Set up every instance, resolve the initial outputs, leave init mode."""
         ports = self.ports
         self.ended = None
+        if self._multirate is not None:
+            self._multirate.detach()  # in Initialization Mode every value passes at once
         for name, inst in self.instances.items():
             inst.setup(self.start_time, parameters.get(name, {}), self.settings.tolerance)
         if self.file_inputs is not None:
@@ -228,6 +236,8 @@ class Master:
         if ports.diverged(self.settings.divergence_limit):
             ports.name_divergence(self.t, self.settings.divergence_limit, last_point=None)
         self._start()
+        if self._multirate is not None:
+            self._multirate.start()
 
     def _start(self) -> None:
         """The master's own state at the start: the past forgotten, the
@@ -657,8 +667,40 @@ class Master:
             else:
                 samples.extend(p.out[j] for p, j in outputs)
 
+    @property
+    def rates(self) -> dict[str, int]:
+        """{instance: its decimation factor}: how many base steps (master.step) each component's own step is."""
+        k = self._multirate.k if self._multirate is not None else {}
+        return {name: k.get(name, 1) for name in self.instances}
+
     def stop_threads(self) -> None:
         """Stop the threads master.threads started (the compiled core's); here, none."""
 
     def terminate(self) -> None:
         free_all(self.instances)
+
+
+def _slow_read_after_step(rates: dict[str, int], instances: dict) -> dict[str, int] | None:
+    """The checked rates, or None when every component steps at the base
+    step. A slow component's outputs are read after its own steps only:
+    the wiring steps it as a dynamic one (engine/wiring.py, ``strict``)."""
+    from .multirate import check_rates
+    rates = check_rates(rates, instances)
+    for name, k in (rates or {}).items():
+        if k != 1:
+            instances[name].outputs_after_inputs = False
+    return rates
+
+
+def _multirate(master: Master, rates: dict[str, int]):
+    """The multi-rate stepping of `master`, after the one-line refusals of
+    what it does not do across rates (engine/multirate.py)."""
+    from .multirate import MultiRate, loop_problem, problem
+    found = problem(master.settings, rates, {p.inst.name: p.z_pos for p in master.ports.all})
+    if found:
+        raise SceneError(found[1], key="rates")
+    loops = loop_problem(rates, [(loop.name, [p.inst.name for p in loop.members]) for loop in master.ports.loops])
+    if loops:
+        raise SceneError(loops, key="components")
+    return MultiRate(master, rates)
+
