@@ -391,9 +391,9 @@ def test_fmi3_clocks_and_rates_together_are_one_line(tmp_path, capsys):
     component on each tick: components at their own steps are refused
     there, in the scene and in System (the clocked master would not take
     the rates: before, it ran every component at the base step)."""
-    import fmi3_clocked
+    from cwtest import test_fmu
 
-    ticker, counter = (str(fmi3_clocked.build(tmp_path, n)) for n in ("Ticker", "Counter"))
+    ticker, counter = (str(test_fmu(f"fmi3/{n}")) for n in ("Ticker", "Counter"))
     f = tmp_path / "s.toml"
     f.write_text('connections = ["tk.tick -> ct.tooth", "tk.n -> ct.step_by"]\n[scene]\ntitle = "t"\n'
                  f'[components.tk]\nfmu = "{ticker}"\n[components.ct]\nfmu = "{counter}"\nstep = 0.5\n'
