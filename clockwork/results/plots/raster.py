@@ -251,8 +251,8 @@ class RasterPage:
         height = bottom_of_axes + _px(0.5) + (_px(0.2) if self.footnote else 0)
         img = Image.new("RGB", (width, height), "white")
         draw = ImageDraw.Draw(img)
-        draw.text((width / 2, _px(0.12)), shown(self.title, MAX_TITLE) if self.title else "", fill="black", font=f10,
-                  anchor="mt")
+        draw.text((width / 2, _px(0.12)), _fit(shown(self.title, MAX_TITLE), f10, width - _px(0.2)), fill="black",
+                  font=f10, anchor="mt")
 
         t = self.time
         t0, t1 = _limits([t])
@@ -301,13 +301,12 @@ class RasterPage:
             img.paste(layer, (left, y_top), layer)
             draw.rectangle([left, y_top, right, y_bot], outline="black", width=_S)
 
-            # the legend beside the axes, as many lines as fit
-            row = round(f8.size * 1.45)
+            # the legend beside the axes
+            # every line listed: the rows closer together where many lines share the axes
+            row = min(round(f8.size * 1.45), (axes_h + gap) / len(members))
             x_leg = right + _px(0.1)
             for k, c in enumerate(members):
                 y = y_top + row * k + row / 2
-                if y + row / 2 > y_bot + gap and k < len(members) - 1:
-                    break
                 draw.line([(x_leg, y), (x_leg + _px(0.25), y)], fill=_COLORS[k % len(_COLORS)], width=line_w)
                 draw.text((x_leg + _px(0.32), y), _fit(shown(c.name, MAX_LABEL), f8, width - x_leg - _px(0.38)),
                           fill="black", font=f8, anchor="lm")
