@@ -186,11 +186,11 @@ def draw_outputs(time, cols: list[Column], title: str) -> list:
     return list(Pages(time, cols, title, raster=False))
 
 
-def output_pages(time, cols: list[Column], title: str) -> Pages:
+def output_pages(time, cols: list[Column], title: str, raster: bool | None = None) -> Pages:
     """The pages of these columns against time (s), built one at a time:
     drawn by Pillow where it can (plots/raster.py: the first run's time),
-    else matplotlib figures."""
-    return Pages(time, cols, title)
+    else (or with `raster` False) matplotlib figures."""
+    return Pages(time, cols, title, raster=raster)
 
 
 def _raster_pages(time, pages: list, title: str):

@@ -25,7 +25,7 @@ from ...errors import UsageError, say
 from ...files import absent
 from ...numbers import CSV_SPECIAL, parse_json, parse_real, shorten
 from .outputs import columns, output_pages
-from .registry import page_names, quiet_matplotlib, save
+from .registry import load_matplotlib, page_names, quiet_matplotlib, save
 
 MAX_SERIES_BYTES = 1 << 31  # a timeseries.csv of a run that kept at most its values in memory
 # The values a run records at most (analyses.bounds.MAX_KEPT_VALUES, not
@@ -138,7 +138,10 @@ def redraw(result_dir: str | Path, only: list[str] | None = None, out: str | Pat
             raise UsageError(f"--only {' '.join(only)}: no recorded number matches; the columns are "
                              f"{shorten(', '.join(names), 300) or 'none'}")
         raise UsageError(f"{folder / 'timeseries.csv'}: no numbers recorded: nothing to draw")
-    pages = output_pages(series["time"], cols, summary.get("title", folder.name))
+    # matplotlib's figures: a redrawing is not the first run's wait (plots/raster.py), and a
+    # program may edit what it draws
+    load_matplotlib()
+    pages = output_pages(series["time"], cols, summary.get("title", folder.name), raster=False)
     written = []
     with quiet_matplotlib():
         # Each page saved (and its figure let go) before the next is built: memory of one page.
