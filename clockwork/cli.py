@@ -816,7 +816,10 @@ def _plot_process_body(parent: int, job_fd: int, answer_fd: int) -> None:
     # Imported in the child only: the command's own start stays light.
     from .results.plots.background import serve
 
-    serve(None, parent, job_fd, answer_fd)
+    # An FMU's run (console: the command's own arguments) has one plot, its default, which
+    # Pillow draws: no matplotlib to import ahead
+    fmu = any(a.lower().endswith(".fmu") for a in sys.argv[2:] if not a.startswith("-"))
+    serve(None, parent, job_fd, answer_fd, default_plot_only=fmu)
 
 
 def _std_streams_open() -> None:

@@ -47,6 +47,7 @@ from ...atomic import remove_stale_parts
 from ...errors import say
 from ...processes import Child, die_with_parent, fork_child, fork_is_safe
 from .outputs import recorded_view
+from .raster import prepare as prepare_raster
 from .registry import draw_plot, gather, load_matplotlib, make_plots
 
 
@@ -150,11 +151,14 @@ def _exit_reason(status: int | None) -> str:
     return f"exit status {os.WEXITSTATUS(status)}"
 
 
-def serve(scene, parent: int, job_fd: int, answer_fd: int) -> None:
+def serve(scene, parent: int, job_fd: int, answer_fd: int, default_plot_only: bool = False) -> None:
     """The plot process (processes.fork_child's body): import matplotlib,
     wait for the results, draw, answer. `scene` None: a process forked
     before the scene was loaded (clockwork.cli), which gets it with the
-    results."""
+    results. `default_plot_only`: the run's one plot is its default plot
+    (an FMU's run), drawn by Pillow (raster.py): Pillow is imported instead
+    of matplotlib, and nothing else while it waits (matplotlib still comes
+    on first use if Pillow cannot draw)."""
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, signal.SIG_IGN)  # the run's to report; this process dies with it
     die_with_parent(parent)
@@ -163,12 +167,15 @@ def serve(scene, parent: int, job_fd: int, answer_fd: int) -> None:
         # walk the growing heap again and again during the import (a tenth of
         # its time); frozen afterwards, those objects stay out of later walks.
         gc.disable()
-        try:
-            load_matplotlib(lean=True)
-        except Exception:
-            pass  # draw_plot reports it for each plot, as in the parent
-        if scene is None:
-            _import_while_waiting(job_fd)
+        if default_plot_only:
+            prepare_raster()
+        else:
+            try:
+                load_matplotlib(lean=True)
+            except Exception:
+                pass  # draw_plot reports it for each plot, as in the parent
+            if scene is None:
+                _import_while_waiting(job_fd)
         gc.freeze()
         gc.enable()
         job = _read_all(job_fd)

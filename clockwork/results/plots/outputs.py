@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...engine.names import split_ref
-from .registry import MAX_TITLE, check_keys, legend, plain, register, subplots
+from .registry import MAX_TITLE, check_keys, legend, plain, register, shown, subplots
 
 MAX_PAGES = 10  # per drawing: the signals past them are left out, with a note
 MAX_AXES = 6  # per page: with the title and the time axis, about 950 pixels high
@@ -159,8 +159,14 @@ class Pages:
     caller saves it and lets it go before the next is built); `count`:
     how many; `note`: what was left out past MAX_PAGES, or None."""
 
-    def __init__(self, time, cols: list[Column], title: str, max_pages: int | None = None):
+    def __init__(self, time, cols: list[Column], title: str, max_pages: int | None = None,
+                 raster: bool | None = None):
         max_pages = MAX_PAGES if max_pages is None else max_pages
+        if raster is None:
+            from .raster import available
+
+            raster = available()
+        self._raster = raster
         axes_groups = group(cols)
         pages = [axes_groups[k:k + MAX_AXES] for k in range(0, len(axes_groups), MAX_AXES)]
         self.note = None
@@ -173,17 +179,28 @@ class Pages:
         self._args = (time, pages, title)
 
     def __iter__(self):
-        return _draw_pages(*self._args)
+        return _raster_pages(*self._args) if self._raster else _draw_pages(*self._args)
 
 
 def draw_outputs(time, cols: list[Column], title: str) -> list:
-    """The figures (pages) of these columns against time (s), all built (tests)."""
-    return list(Pages(time, cols, title))
+    """The pages of these columns against time (s) as matplotlib figures,
+    all built (for a program that edits them, and the tests)."""
+    return list(Pages(time, cols, title, raster=False))
 
 
-def output_pages(time, cols: list[Column], title: str) -> Pages:
-    """The pages of these columns against time (s), built one at a time."""
-    return Pages(time, cols, title)
+def output_pages(time, cols: list[Column], title: str, raster: bool | None = None) -> Pages:
+    """The pages of these columns against time (s), built one at a time:
+    drawn by Pillow where it can (plots/raster.py: the first run's time),
+    else (or with `raster` False) matplotlib figures."""
+    return Pages(time, cols, title, raster=raster)
+
+
+def _raster_pages(time, pages: list, title: str):
+    from .raster import RasterPage
+
+    for p, page in enumerate(pages):
+        page_note = f"  (page {p + 1} of {len(pages)})" if len(pages) > 1 else ""
+        yield RasterPage(time, page, shown(title, MAX_TITLE) + page_note)
 
 
 def _draw_pages(time, pages: list, title: str):

@@ -138,8 +138,10 @@ def redraw(result_dir: str | Path, only: list[str] | None = None, out: str | Pat
             raise UsageError(f"--only {' '.join(only)}: no recorded number matches; the columns are "
                              f"{shorten(', '.join(names), 300) or 'none'}")
         raise UsageError(f"{folder / 'timeseries.csv'}: no numbers recorded: nothing to draw")
+    # matplotlib's figures: a redrawing is not the first run's wait (plots/raster.py), and a
+    # program may edit what it draws
     load_matplotlib()
-    pages = output_pages(series["time"], cols, summary.get("title", folder.name))
+    pages = output_pages(series["time"], cols, summary.get("title", folder.name), raster=False)
     written = []
     with quiet_matplotlib():
         # Each page saved (and its figure let go) before the next is built: memory of one page.

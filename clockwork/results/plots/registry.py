@@ -108,10 +108,16 @@ def plain(text: object, limit: int = MAX_LABEL) -> str:
     characters are shown as escapes (errors.printable: a newline does not
     break a legend, an escape byte is not drawn as a box); cut to `limit`
     characters with an ellipsis. Ordinary text comes back unchanged."""
+    return shown(text, limit).replace("$", "\\$")
+
+
+def shown(text: object, limit: int = MAX_LABEL) -> str:
+    """`text` as ``plain`` gives it, "$" left as it is: for pages drawn
+    without matplotlib (plots/raster.py), which reads no mathtext."""
     s = printable(text)
     if len(s) > limit:
         s = s[:limit - 1] + "\u2026"
-    return s.replace("$", "\\$")
+    return s
 
 
 def title_of(scene, spec: dict) -> str:
@@ -300,6 +306,9 @@ def save(fig, path: Path) -> None:
     bbox_inches="tight", with one layout of the figure instead of two
     (savefig draws it once, without output, only to find the box; the box
     found here from the artists' extents is the same)."""
+    if hasattr(fig, "write_png"):  # a page drawn without matplotlib (plots/raster.py)
+        fig.write_png(path)
+        return
     import matplotlib
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
@@ -336,6 +345,12 @@ def draw_plot(scene, results: list[dict], out: Path, k: int) -> tuple[str, objec
             count = len(figures) if isinstance(figures, list) else figures.count
             # Pages (plots/outputs.py) builds each page as it is reached: saved, then let go.
             for fig, page in zip(figures, page_names(name, count)):
+                if hasattr(fig, "write_png"):  # drawn without matplotlib (plots/raster.py): titled already
+                    if scene.overrides:
+                        fig.footnote = shown("--set " + "  ".join(scene.overrides), MAX_TITLE)
+                    save(fig, out / page)
+                    names.append(page)
+                    continue
                 if not fig.axes[0].get_title() and not fig._suptitle:
                     fig.axes[0].set_title(title_of(scene, spec), fontsize=10)
                 if scene.overrides:
