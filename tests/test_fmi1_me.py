@@ -106,7 +106,8 @@ def test_the_cli_runs_validates_and_describes_an_fmi1_model_exchange_fmu(tmp_pat
     rc, out, err = run_cli(capsys, ["validate", fmu])
     assert rc == 0, err
     for engine in ENGINES:
-        rc, _, err = run_cli(capsys, ["run", fmu, "--out", tmp_path / engine, "--no-progress", "--engine", engine])
+        rc, _, err = run_cli(capsys, ["run", fmu, "--out", tmp_path / engine, "--no-progress",
+                                      "--set", f"master.engine={engine}"])
         assert rc == 0, err
         summary = json.loads((tmp_path / engine / "summary.json").read_text())
         s = summary["statistics"]["model_exchange"]
