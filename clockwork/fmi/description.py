@@ -610,7 +610,7 @@ def _fmi1_model_exchange(where: str, md) -> None:
     n = md.numberOfContinuousStates
     by_name = {v.name: v for v in md.modelVariables}
     pairs = []
-    for v in md.modelVariables:
+    for v in (md.modelVariables if n else ()):  # no states: a der(...) is any variable
         name = v.name.replace(" ", "")
         if not (name.startswith("der(") and name.endswith(")")) or v.type != "Real":
             continue
