@@ -18,7 +18,7 @@ import pytest
 
 from clockwork.engine import MasterSettings, System
 from clockwork.engine.recording import Recorder
-from cwtest import run_cli, test_fmu
+from cwtest import fmu_file, run_cli, test_fmu
 
 ENGINES = ("python", "compiled")
 
@@ -31,10 +31,10 @@ def me2(name: str) -> str:
     return str(test_fmu(name))
 
 
-def run(components, stop=2.0, step=0.05, record=None, **settings):
+def run(components, stop=2.0, step=0.05, record=None, links=(), **settings):
     """(series, statistics, master.engine, ended) of a run on the grid."""
     settings.setdefault("engine", "python")
-    with System(components, [], MasterSettings(step=step, **settings), record=record) as s:
+    with System(components, list(links), MasterSettings(step=step, **settings), record=record) as s:
         outputs = [(i, v) for i, names in record.items() for v in names]
         rec = Recorder(s.master, outputs)
         rec.start()
@@ -64,6 +64,19 @@ def test_the_fmi1_build_gives_the_fmi2_builds_bits(case, engine):
     assert used1 == used2 == engine  # the compiled core runs FMI 1.0 Model Exchange itself
     assert cols1 == cols2
     assert stats1["model_exchange"] == stats2["model_exchange"]
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_an_fmi1_model_exchange_input_follows_a_co_simulation_fmu_as_the_fmi2_build(engine):
+    """MeLag's continuous input from the clock's Pendulum (input polynomials, extrapolation)."""
+    out = {}
+    for version, path in (("1.0", me1("MeLag")), ("2.0", me2("MeLag"))):
+        comps = {"p": (str(fmu_file("Pendulum")), {"phi_start": 0.2, "Q": 50.0}), "lag": (path, {})}
+        out[version] = run(comps, links=["p.phi -> lag.u"], record={"lag": ["y", "e"]}, engine=engine,
+                           tolerance=1e-9, extrapolation=2)
+    assert out["1.0"][2] == out["2.0"][2] == engine
+    assert out["1.0"][0] == out["2.0"][0]
+    assert out["1.0"][1]["model_exchange"] == out["2.0"][1]["model_exchange"]
 
 
 @pytest.mark.parametrize("engine", ENGINES)
