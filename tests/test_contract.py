@@ -124,7 +124,8 @@ KINDS = {
     "fmi2-me": lambda: test_fmu("MeLag"),
     "fmi3-me": lambda: test_fmu("fmi3/MeLag"),
 }
-OWN_PREFIX = {"fmi1-cs": "fmi", "fmi1-me": "fmi", "fmi2-cs": "fmi2", "fmi3-cs": "fmi3", "fmi2-me": "fmi2", "fmi3-me": "fmi3",
+OWN_PREFIX = {"fmi1-cs": "fmi", "fmi1-me": "fmi",
+              "fmi2-cs": "fmi2", "fmi3-cs": "fmi3", "fmi2-me": "fmi2", "fmi3-me": "fmi3",
               "fmi3-arrays": "fmi3"}
 
 

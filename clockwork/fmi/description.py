@@ -2,7 +2,8 @@
 
 ``resolve_fmu`` finds an FMU by model name or path, ``read_fmu`` reads its
 model description (cached by path, modification time and size) and checks
-that it is an FMI 1.0, 2.0 or 3.0 Co-Simulation or Model Exchange FMU, with a binary for this platform (Co-Simulation's where
+that it is an FMI 1.0, 2.0 or 3.0 Co-Simulation or Model Exchange FMU,
+with a binary for this platform (Co-Simulation's where
 it has both). An FMI 1.0 description is completed where fmpy leaves it bare
 (``_check_fmi1``): its Capabilities go into ``coSimulation`` (Model
 Exchange: its states, from their derivatives' der(<state>) names), each output's

@@ -90,7 +90,8 @@ def fmi1(table: dict) -> str:
     lines = [f'<?xml version="1.0" encoding="UTF-8"?>',
              f'<fmiModelDescription{_attrs(fmiVersion="1.0", modelName=model["name"], modelIdentifier=model["name"])}'
              f'{_attrs(guid=model["guid"], description=model["description"])}'
-             f'{_attrs(numberOfContinuousStates=len(model["states"]), numberOfEventIndicators=len(model["indicators"]))}>',
+             f'{_attrs(numberOfContinuousStates=len(model["states"]))}'
+             f'{_attrs(numberOfEventIndicators=len(model["indicators"]))}>',
              f'  <DefaultExperiment{_attrs(startTime=0.0, stopTime=model["stop"], tolerance=model.get("tolerance"))}/>',
              "  <ModelVariables>"]
     for v in variables:
