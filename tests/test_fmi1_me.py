@@ -203,3 +203,12 @@ def test_rollback_is_refused_for_want_of_an_fmu_state():
     inst = make_instance("b", me1("MeBall"))
     assert not inst.can_get_set_state
     assert inst.named("getState") == "saving the FMU state (FMI 1.0 has none)"
+
+
+@pytest.mark.parametrize("setting, needle", [("master.iterations=2", "iterating the coupling rolls every FMU back"),
+                                             ("master.richardson=true", "step doubling rolls every FMU back")])
+def test_settings_that_roll_back_are_refused_in_one_line(tmp_path, capsys, setting, needle):
+    rc, _, err = run_cli(capsys, ["run", me1("MeBall"), "--out", tmp_path / "out", "--no-progress", "--set", setting])
+    assert rc == 2 and len(err.strip().splitlines()) == 1, err
+    assert "it is an FMI 1.0 FMU, which has no FMU state" in err and needle in err
+    assert not (tmp_path / "out").exists()
