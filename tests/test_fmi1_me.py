@@ -49,6 +49,7 @@ CASES = {
     "ball_cvode": ("MeBall", {}, ["h", "v"], {"me_solver": "cvode"}),
     "timer": ("MeTimer", {}, ["x", "phase", "turns"], {}),  # time and step events
     "pendulum": ("MePendulum", {}, ["phi", "w"], {}),
+    "stiff": ("MeStiff", {"lambda": 1e4}, ["y"], {}),  # "auto" hands it to CVode
 }
 
 
