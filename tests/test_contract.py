@@ -7,7 +7,7 @@ answers the contract's calls alike.
    ``.interface``, no isinstance (or ``type(x) is``) against a face class,
    no face class imported.
 2. The contract's behaviour on every kind of FMU the repository builds:
-   FMI 1.0, 2.0 and 3.0 Co-Simulation, FMI 2.0 and 3.0 Model Exchange, and
+   FMI 1.0, 2.0 and 3.0 Co-Simulation, FMI 1.0, 2.0 and 3.0 Model Exchange, and
    FMI 3.0 with arrays.
 """
 
@@ -29,7 +29,7 @@ from clockwork.paths import core_library
 from cwtest import FMU_DIR, ROOT, test_fmu
 from fmi3_linear import fmu  # noqa: F401 (a fixture: the FMI 3.0 test FMU with arrays)
 
-FACES = {"Instance1", "Instance2", "Instance3", "MEInstance", "ModelExchange2", "ModelExchange3"}
+FACES = {"Instance1", "Instance2", "Instance3", "MEInstance", "ModelExchange1", "ModelExchange2", "ModelExchange3"}
 MASTER_MODULES = sorted(p for p in (ROOT / "clockwork" / "engine").glob("*.py") if p.name != "instances.py")
 
 
@@ -120,10 +120,12 @@ KINDS = {
     "fmi1-cs": lambda: test_fmu("fmi1/Pendulum"),
     "fmi2-cs": lambda: FMU_DIR / "Pendulum.fmu",
     "fmi3-cs": lambda: FMU_DIR / "fmi3" / "Pendulum.fmu",
+    "fmi1-me": lambda: test_fmu("fmi1me/MeLag"),
     "fmi2-me": lambda: test_fmu("MeLag"),
     "fmi3-me": lambda: test_fmu("fmi3/MeLag"),
 }
-OWN_PREFIX = {"fmi1-cs": "fmi", "fmi2-cs": "fmi2", "fmi3-cs": "fmi3", "fmi2-me": "fmi2", "fmi3-me": "fmi3",
+OWN_PREFIX = {"fmi1-cs": "fmi", "fmi1-me": "fmi",
+              "fmi2-cs": "fmi2", "fmi3-cs": "fmi3", "fmi2-me": "fmi2", "fmi3-me": "fmi3",
               "fmi3-arrays": "fmi3"}
 
 
@@ -202,9 +204,9 @@ def test_state_save_restore_repeats_a_step_to_the_bit(kind):
     inst = _started("x", path)
     try:
         if not inst.can_get_set_state:  # FMI 1.0, and the arrays FMU, which does not declare it
-            assert label in ("fmi1-cs", "fmi3-arrays")
-            if label == "fmi1-cs":
-                with pytest.raises(Exception, match="FMI 1.0 has no FMU state"):
+            assert label in ("fmi1-cs", "fmi1-me", "fmi3-arrays")
+            if label.startswith("fmi1"):
+                with pytest.raises(Exception, match="FMI 1.0 has no"):
                     inst.save_state(0.0)
             return
         comp = inst.component
@@ -236,10 +238,10 @@ def test_output_derivatives_up_to_the_declared_order(kind):
         inst.free()
 
 
-@pytest.mark.parametrize("version", ["", "fmi3/"])
+@pytest.mark.parametrize("version", ["", "fmi3/", "fmi1me/"])
 def test_a_model_exchange_fmu_asks_to_end_through_the_contract(version):
     """MeBall with n_stop: its terminateSimulation is a discarded step and
-    ``ended`` (FMI 2.0's and FMI 3.0's Model Exchange alike)."""
+    ``ended`` (FMI 1.0's, 2.0's and 3.0's Model Exchange alike)."""
     inst = make_instance("b", test_fmu(version + "MeBall"))
     inst.instantiate()
     inst.setup(0.0, {"n_stop": 1})

@@ -411,12 +411,16 @@ def test_info_on_an_fmi1_fmu(capsys):
     assert "canInterpolateInputs                     true" in out and "canRunAsynchronuously" in out
 
 
-def test_model_exchange_only_is_refused_in_one_line(tmp_path, capsys):
+def test_a_description_without_implementation_is_model_exchange(tmp_path, capsys):
+    """FMI 1.0 Model Exchange runs (tests/test_fmi1_me.py): a Co-Simulation
+    FMU's description without <Implementation> reads as Model Exchange, and
+    its binary, which has no fmiInstantiateModel, is refused in one line."""
     me = edited(fmi1("TestTypes"), tmp_path / "ME.fmu",
                 lambda x: re.sub(r"\s*<Implementation>.*</Implementation>", "", x, flags=re.S))
-    rc, _, err = run_cli(capsys, ["info", me])
-    assert_one_line_error(rc, err, "ME.fmu", "expected an FMI 1.0 Co-Simulation FMU (no <Implementation> element)",
-                          "FMI 1.0 Model Exchange is not supported")
+    rc, out, err = run_cli(capsys, ["info", me])
+    assert rc == 0 and "(FMI 1.0 Model Exchange)" in out, err
+    rc, _, err = run_cli(capsys, ["run", me, "--out", tmp_path / "out", "--no-progress"])
+    assert_one_line_error(rc, err, "ME.fmu", "cannot load the FMU's binary")
 
 
 def test_a_guid_the_binary_refuses_is_one_line(tmp_path, capsys):

@@ -2,8 +2,8 @@
 
 Every command, the scene loader, ``System`` and the API make their
 instances here. It is the one place that reads the FMU's version and
-interface to choose a face (FMI 1.0, 2.0 or 3.0 Co-Simulation; FMI 2.0 or
-3.0 Model Exchange: the engine's wrapper composing the integrator with the
+interface to choose a face (FMI 1.0, 2.0 or 3.0 Co-Simulation; FMI 1.0, 2.0
+or 3.0 Model Exchange: the engine's wrapper composing the integrator with the
 FMU's Model Exchange face); what it returns implements the instance
 contract (fmi/contract.py) whichever it is, so the master never asks.
 """
@@ -17,12 +17,13 @@ from ..fmi.cs1 import Instance1
 from ..fmi.clocks import is_scheduled
 from ..fmi.cs2 import Instance2
 from ..fmi.cs3 import Instance3
+from ..fmi.me1 import ModelExchange1
 from ..fmi.me2 import ModelExchange2
 from ..fmi.me3 import ModelExchange3
 from ..fmi.scheduled import ScheduledInstance
 from .model_exchange import MEInstance, MEOptions, interface_of, model_exchange_problem
 
-_MODEL_EXCHANGE_FACES = {2: ModelExchange2, 3: ModelExchange3}
+_MODEL_EXCHANGE_FACES = {1: ModelExchange1, 2: ModelExchange2, 3: ModelExchange3}
 
 
 def make_instance(name, path, model_description=None, early_return: bool = True, intermediate_update: bool = False,

@@ -5,7 +5,8 @@
 ``c_getOutputDerivatives``, ``c_getState``...), so that the stepping loop,
 the coupling, the event location and the checkpoints serve it unchanged,
 mixed with Co-Simulation FMUs. It composes two parts: the FMU's Model
-Exchange face (``fmi/me2.py`` for FMI 2.0, ``fmi/me3.py`` for FMI 3.0:
+Exchange face (``fmi/me1.py`` for FMI 1.0, ``fmi/me2.py`` for FMI 2.0,
+``fmi/me3.py`` for FMI 3.0:
 the FMU's functions, which know nothing of integration; the factory,
 ``instances.make_instance``, picks it) and the integration (``me_step.py``:
 the algorithm, its events, and the integrators ``rk.py`` and
@@ -51,6 +52,7 @@ from .events import input_polynomial
 from ..fmi.calls import ERROR, OK, WARNING
 from ..fmi.clocks import clock_table as read_clock_table
 from ..fmi.contract import CORE_CALLS, Instance
+from ..fmi.description import fmi1_details
 from .me_step import (AUTO, FMU_CALLS, CONTINUOUS, CVODE, DEFAULT_RTOL, EVENT, FAIL_CVODE, FAIL_LOCATE, FAIL_RK,
                       FAIL_SETTLE, FAIL_TIME, FAIL_TIME_EVENTS, INITIALIZATION, INSTANTIATED, MAX_CVODE_STEPS,
                       MAX_EVENT_ITERATIONS, MAX_RK_STATES, MAX_TRIALS, METHOD_NAMES, RK_FAILURES, SOLVERS, STATS,
@@ -92,7 +94,8 @@ class _ME(Structure):
 
 class MEInstance(ModelExchangeSteps, Instance):
     """A Model Exchange FMU behind the instance contract: its Model
-    Exchange face `face` (me2.ModelExchange2, me3.ModelExchange3) composed
+    Exchange face `face` (me1.ModelExchange1, me2.ModelExchange2,
+    me3.ModelExchange3) composed
     with the integration (ModelExchangeSteps, rk, cvode)."""
 
     def clock_table(self):
@@ -552,7 +555,12 @@ def interface_of(md, requested: str | None) -> str:
 def model_exchange_problem(md) -> str | None:
     """Why the Model Exchange wrapper cannot run this FMU, or None: FMI 3.0
     array variables (the Co-Simulation adapter serves them, the wrapper's
-    states and inputs are scalars)."""
+    states and inputs are scalars); FMI 1.0 negated aliases (the
+    Co-Simulation face renumbers them, the wrapper does not)."""
+    negated = sorted(fmi1_details(md).negated)
+    if negated:
+        return (f"Model Exchange with FMI 1.0 negatedAlias variables is not supported ({', '.join(negated[:8])}"
+                f"{', ...' if len(negated) > 8 else ''})")
     arrays = [v.name for v in md.modelVariables if getattr(v, "shape", None)]
     if arrays:
         return (f"Model Exchange with FMI 3.0 array variables is not supported ({', '.join(arrays[:8])}"

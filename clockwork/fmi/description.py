@@ -2,10 +2,11 @@
 
 ``resolve_fmu`` finds an FMU by model name or path, ``read_fmu`` reads its
 model description (cached by path, modification time and size) and checks
-that it is an FMI 1.0, 2.0 or 3.0 Co-Simulation FMU, or an FMI 2.0 or 3.0
-Model Exchange FMU, with a binary for this platform (Co-Simulation's where
+that it is an FMI 1.0, 2.0 or 3.0 Co-Simulation or Model Exchange FMU,
+with a binary for this platform (Co-Simulation's where
 it has both). An FMI 1.0 description is completed where fmpy leaves it bare
-(``_check_fmi1``): its Capabilities go into ``coSimulation``, each output's
+(``_check_fmi1``): its Capabilities go into ``coSimulation`` (Model
+Exchange: its states, from their derivatives' der(<state>) names), each output's
 DirectDependency into ``outputs`` (absent: every input), a causality of
 "none" reads as "local", and its negated aliases and MIME type are
 kept for ``fmi1_details``. An FMI 3.0 description is seen through FMI 2.0's type names
@@ -303,9 +304,6 @@ def read_fmu(path: Path, need_binary: bool = True,
             raise FmuError(f"{shown}: expected an FMI 1.0, 2.0 or 3.0 FMU, found FMI {md.fmiVersion}")
         if md.fmiVersion == "3.0":
             _check_fmi3(shown, md, xml)
-        if md.fmiVersion == "1.0" and md.coSimulation is None:
-            raise FmuError(f"{shown}: expected an FMI 1.0 Co-Simulation FMU (no <Implementation> element): "
-                           "FMI 1.0 Model Exchange is not supported")
         faces = [(n, i) for n, i in (("CoSimulation", md.coSimulation), ("ModelExchange", md.modelExchange))
                  if i is not None]
         if not faces:
@@ -512,16 +510,21 @@ _FMI1: "weakref.WeakKeyDictionary[Any, Fmi1Details]" = weakref.WeakKeyDictionary
 
 
 def _check_fmi1(path: Path, md, xml: bytes) -> None:
-    """Complete an FMI 1.0 Co-Simulation description where fmpy leaves it
-    bare, in the terms the layers read for FMI 2.0: the Capabilities, each
-    output's DirectDependency as its ``outputs`` dependencies (no element:
-    every input, FMI 1.0 Sec. 2.10), "none" as "local", and the negated
-    aliases (same value reference, value negated) for ``fmi1_details``."""
+    """Complete an FMI 1.0 description where fmpy leaves it bare, in the
+    terms the layers read for FMI 2.0: the Co-Simulation Capabilities (or,
+    for Model Exchange, ``_fmi1_model_exchange``), each output's
+    DirectDependency as its ``outputs`` dependencies (no element: every
+    input, FMI 1.0 Sec. 2.10), "none" as "local", and the negated aliases
+    (same value reference, value negated) for ``fmi1_details``."""
     from fmpy.model_description import Unknown
 
     where = f"{path}: modelDescription.xml"
     root = ET.fromstring(xml)  # fmpy has parsed it already
     impl = root.find("Implementation")
+    if md.modelExchange is not None:
+        _fmi1_model_exchange(where, md)
+        _fmi1_variables(where, md, root, Unknown, None)
+        return
     caps = impl.find("CoSimulation_StandAlone/Capabilities") if impl is not None else None
     if caps is None and impl is not None:
         caps = impl.find("CoSimulation_Tool/Capabilities")
@@ -542,6 +545,12 @@ def _check_fmi1(path: Path, md, xml: bytes) -> None:
             if not text.isdigit():
                 raise FmuError(f"{where}: Capabilities {name}={text!r}: expected a whole number >= 0")
             setattr(cs, name, int(text))
+    _fmi1_variables(where, md, root, Unknown, model)
+
+
+def _fmi1_variables(where: str, md, root, Unknown, model) -> None:
+    """FMI 1.0's variables in FMI 2.0's terms (see _check_fmi1); `model`:
+    a CoSimulation_Tool's Model element, or None."""
     by_name = {v.name: v for v in md.modelVariables}
     for v in md.modelVariables:
         if v.causality == "none":  # a tool's own variable: read like a local one
@@ -587,6 +596,40 @@ def _check_fmi1(path: Path, md, xml: bytes) -> None:
                             or STAND_ALONE_MIME_TYPE)
 
 
+def _fmi1_model_exchange(where: str, md) -> None:
+    """An FMI 1.0 Model Exchange description in FMI 2.0's terms: no FMU
+    state; fmiCompletedIntegratorStep after every step (FMI 1.0 has no flag
+    to skip it); the continuous states and their derivatives, which FMI
+    1.0 does not list: each state's derivative is named der(<state>) (FMI
+    1.0 Sec. 2.2.7's naming of derivatives, which importers read), and
+    there must be numberOfContinuousStates of them."""
+    from fmpy.model_description import Unknown
+
+    me = md.modelExchange
+    me.canGetAndSetFMUstate = me.canSerializeFMUstate = False  # FMI 1.0 has no FMU state
+    me.needsCompletedIntegratorStep = True
+    n = md.numberOfContinuousStates
+    by_name = {v.name: v for v in md.modelVariables}
+    pairs = []
+    for v in (md.modelVariables if n else ()):  # no states: a der(...) is any variable
+        name = v.name.replace(" ", "")
+        if not (name.startswith("der(") and name.endswith(")")) or v.type != "Real":
+            continue
+        state = by_name.get(name[4:-1]) or by_name.get(v.name[4:-1].strip())
+        if state is None or state.type != "Real" or any(state is s for s, _ in pairs):
+            continue
+        pairs.append((state, v))  # der(x) may be an alias (of v, itself a state): its value reference serves
+    if len(pairs) != n:
+        found = ", ".join(d.name for _, d in pairs[:8]) or "none"
+        raise FmuError(f"{where}: numberOfContinuousStates = {n}: expected as many Real variables named "
+                       f"der(<state>), one per continuous state (FMI 1.0 names derivatives so; found {len(pairs)}: "
+                       f"{found})")
+    md.derivatives[:] = []
+    for state, der in pairs:
+        der.derivative = state
+        md.derivatives.append(Unknown(variable=der))
+
+
 def start_problem(v) -> str | None:
     """Why the standard does not let a master set `v` before initialization,
     or None where it does. A master sets start values in the state after
@@ -617,11 +660,12 @@ def start_problem(v) -> str | None:
 
 def default_tolerance(md) -> float | None:
     """The DefaultExperiment's relative tolerance, or None (none given;
-    FMI 1.0, whose Co-Simulation takes none). check_description has made
+    FMI 1.0 Co-Simulation, which takes none; FMI 1.0 Model Exchange takes it
+    in fmiInitialize). check_description has made
     sure it is a finite number."""
     de = md.defaultExperiment
     tol = getattr(de, "tolerance", None) if de is not None else None
-    if tol in (None, "") or md.fmiVersion == "1.0":
+    if tol in (None, "") or (md.fmiVersion == "1.0" and md.modelExchange is None):
         return None
     return parse_real(str(tol).strip(), XSD_SPECIAL)
 

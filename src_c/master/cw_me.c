@@ -58,7 +58,8 @@ static double py_max(double a, double b) { return b > a ? b : a; }
 
 static double ulp(double x) { return nextafter(x, INFINITY) - x; }
 
-/* ---- the FMU's calls, FMI 2.0 or 3.0 ---- */
+/* ---- the FMU's calls, FMI 1.0, 2.0 or 3.0 (FMI 1.0's face gives functions
+ * that do nothing for the event and continuous-time modes it lacks) ---- */
 
 typedef int (*set_time_t)(void *, double);
 typedef int (*vector_t)(void *, double *, size_t);
@@ -78,6 +79,13 @@ typedef struct {
 } event_info2;
 typedef int (*update2_t)(void *, event_info2 *);
 typedef int (*update3_t)(void *, bool *, bool *, bool *, bool *, bool *, double *);
+/* FMI 1.0: fmiBoolean is a char; fmiEventUpdate(intermediateResults, eventInfo). */
+typedef struct {
+    char converged, references_changed, values_changed, terminate, upcoming;
+    double next_time;
+} event_info1;
+typedef int (*completed1_t)(void *, char *);
+typedef int (*update1_t)(void *, char, event_info1 *);
 
 static int fmu_get_real(cw_me *me, const unsigned *vr, size_t n, double *out)
 {
@@ -102,6 +110,13 @@ static int fmu_completed(cw_me *me, int *enter, int *terminate)
         *terminate = t;
         return st;
     }
+    if (me->version == 1) {
+        char call_update = 0;
+        int st = ((completed1_t)me->completedStep)(me->instance, &call_update);
+        *enter = call_update != 0;
+        *terminate = 0; /* FMI 1.0 ends the simulation in fmiEventUpdate only */
+        return st;
+    }
     return ((completed2_t)me->completedStep)(me->instance, 0, enter, terminate);
 }
 
@@ -116,6 +131,19 @@ static int fmu_update(cw_me *me, event_info2 *info)
         info->nominals = nominals;
         info->values = values;
         info->defined = defined;
+        return st;
+    }
+    if (me->version == 1) {
+        /* Until the discrete states settle (intermediateResults false); new
+         * state references mean new states: read them and their nominals. */
+        event_info1 e = {0};
+        int st = ((update1_t)me->update)(me->instance, 0, &e);
+        info->need = !e.converged;
+        info->terminate = e.terminate != 0;
+        info->nominals = e.references_changed != 0;
+        info->values = e.values_changed != 0 || e.references_changed != 0;
+        info->defined = e.upcoming != 0;
+        info->next_time = e.next_time;
         return st;
     }
     return ((update2_t)me->update)(me->instance, info);

@@ -331,7 +331,7 @@ typedef struct {
 /* The wrapper's state (model_exchange._ME, same layout). */
 typedef struct {
     void *instance;
-    /* the FMU's functions, FMI 2.0's or 3.0's by `version` */
+    /* the FMU's functions, FMI 1.0's, 2.0's or 3.0's by `version` */
     void *setTime, *setStates, *getDerivatives, *getIndicators, *getStates, *getNominals, *completedStep,
         *enterEventMode, *update, *enterContinuousMode, *getReal, *setReal, *getState, *setState;
     const cw_sundials *sundials;

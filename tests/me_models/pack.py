@@ -1,7 +1,11 @@
 """Packs a Model Exchange test FMU: the model's table (<Name>.toml) as an
-FMI 2.0 or 3.0 modelDescription.xml, zipped with the binary CMake built.
+FMI 1.0, 2.0 or 3.0 modelDescription.xml, zipped with the binary CMake built.
 
-    python pack.py <Name>.toml 2|3 <binary> <out.fmu>
+    python pack.py <Name>.toml 1|2|3 <binary> <out.fmu>
+
+FMI 1.0 has no ModelStructure: a state's derivative is named der(<state>)
+there (the convention importers read the states from), and an output's
+inputs are its DirectDependency.
 
 The table: [model] name, guid, description, stop, tolerance (optional),
 needs_completed (fmi2CompletedIntegratorStep asks for events), states and
@@ -72,6 +76,47 @@ def fmi2(table: dict) -> str:
     return "\n".join(lines)
 
 
+FMI1_VARIABILITY = {"fixed": "parameter", "tunable": "parameter"}
+FMI1_CAUSALITY = {"local": "internal", "parameter": "internal", "calculatedParameter": "internal"}
+
+
+def fmi1(table: dict) -> str:
+    model, variables = table["model"], table["variable"]
+    # A derivative is renamed der(<state>); one that is itself a state keeps its
+    # name, and der(<state>) is written as its alias (as Dymola writes them).
+    der_names = {d: f"der({s})" for s, d in zip(model["states"], model["derivatives"]) if d not in model["states"]}
+    aliases = {d: f"der({s})" for s, d in zip(model["states"], model["derivatives"]) if d in model["states"]}
+    named = {v["name"]: der_names.get(v["name"], v["name"]) for v in variables}
+    lines = [f'<?xml version="1.0" encoding="UTF-8"?>',
+             f'<fmiModelDescription{_attrs(fmiVersion="1.0", modelName=model["name"], modelIdentifier=model["name"])}'
+             f'{_attrs(guid=model["guid"], description=model["description"])}'
+             f'{_attrs(numberOfContinuousStates=len(model["states"]))}'
+             f'{_attrs(numberOfEventIndicators=len(model["indicators"]))}>',
+             f'  <DefaultExperiment{_attrs(startTime=0.0, stopTime=model["stop"], tolerance=model.get("tolerance"))}/>',
+             "  <ModelVariables>"]
+    for v in variables:
+        variability = FMI1_VARIABILITY.get(v["variability"], v["variability"])
+        causality = FMI1_CAUSALITY.get(v["causality"], v["causality"])
+        # FMI 1.0 gives a start to what FMI 2.0 calls exact or approx (fixed="false": a guess).
+        start = _start(v) if v.get("initial") in (None, "exact", "approx") else None
+        fixed = "false" if start is not None and v.get("initial") == "approx" else None
+        lines.append(f'    <ScalarVariable{_attrs(name=named[v["name"]], valueReference=v["vr"])}'
+                     f'{_attrs(variability=variability, causality=causality)}>')
+        lines.append(f'      <{v["type"]}{_attrs(start=start, fixed=fixed)}/>')
+        if v["causality"] == "output" and "depends_on" in v:
+            lines.append("      <DirectDependency>")
+            lines += [f"        <Name>{named[d]}</Name>" for d in v["depends_on"]]
+            lines.append("      </DirectDependency>")
+        lines.append("    </ScalarVariable>")
+        if v["name"] in aliases:
+            lines.append(f'    <ScalarVariable{_attrs(name=aliases[v["name"]], valueReference=v["vr"], alias="alias")}'
+                         f'{_attrs(variability=variability, causality="internal")}>')
+            lines.append(f'      <{v["type"]}/>')
+            lines.append("    </ScalarVariable>")
+    lines += ["  </ModelVariables>", "</fmiModelDescription>", ""]
+    return "\n".join(lines)
+
+
 def fmi3(table: dict) -> str:
     model, variables = table["model"], table["variable"]
     vr = {v["name"]: v["vr"] for v in variables}
@@ -108,8 +153,8 @@ def main(argv: list[str]) -> None:
     table_path, version, binary, out = argv
     table = tomllib.loads(Path(table_path).read_text())
     name = table["model"]["name"]
-    xml = fmi2(table) if version == "2" else fmi3(table)
-    folder = "linux64" if version == "2" else "x86_64-linux"
+    xml = {"1": fmi1, "2": fmi2, "3": fmi3}[version](table)
+    folder = "x86_64-linux" if version == "3" else "linux64"
     out = Path(out)
     part = out.with_suffix(".part")
     with zipfile.ZipFile(part, "w") as z:
