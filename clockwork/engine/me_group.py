@@ -548,11 +548,11 @@ class MEGroup(MEInstance):
         raise SimulationError(f"the Model Exchange group {self.name} cannot be pickled or copied")
 
 
-def form_groups(instances: dict[str, Instance], links: list[Link],
-                options: MEOptions | None = None) -> tuple[dict[str, Instance], list[Link], dict[str, str]]:
-    """Each set of Model Exchange instances joined by links, as one group:
-    (the instances, groups in their first member's place; the links that
-    remain, re-addressed to the groups' "member.variable"; {member: group})."""
+def plan_groups(instances: dict[str, Instance], links: list[Link]) -> list[tuple[str, list[str], list[Link]]]:
+    """The groups the Model Exchange instances among `instances` form (each
+    set joined by links): (the group's name, its members in scene order,
+    the links between them in dependency order). SceneError for an
+    algebraic loop inside one. Reads no FMU: the scene's validation asks it too."""
     me = {n for n, inst in instances.items() if isinstance(inst, MEInstance) and not isinstance(inst, MEGroup)}
     parent = {n: n for n in me}
 
@@ -569,14 +569,27 @@ def form_groups(instances: dict[str, Instance], links: list[Link],
     for n in instances:
         if n in me:
             sets.setdefault(root(n), []).append(n)
-    groups = [names for names in sets.values() if len(names) > 1]
-    if not groups:
+    plans = []
+    for names in sets.values():
+        if len(names) < 2:
+            continue
+        name = "+".join(names)
+        inner = [k for k in links if k.src in names and k.dst in names]
+        plans.append((name, names, _ordered(name, inner, {n: instances[n] for n in names})))
+    return plans
+
+
+def form_groups(instances: dict[str, Instance], links: list[Link],
+                options: MEOptions | None = None) -> tuple[dict[str, Instance], list[Link], dict[str, str]]:
+    """Each set of Model Exchange instances joined by links, as one group:
+    (the instances, groups in their first member's place; the links that
+    remain, re-addressed to the groups' "member.variable"; {member: group})."""
+    plans = plan_groups(instances, links)
+    if not plans:
         return instances, links, {}
     group_of = {}
     made = {}
-    for names in groups:
-        gname = "+".join(names)
-        inner = [k for k in links if k.src in names and k.dst in names]
+    for gname, names, inner in plans:
         made[names[0]] = MEGroup(gname, [instances[n] for n in names], inner, options)
         made[names[0]].instantiate()
         for n in names:
