@@ -259,3 +259,14 @@ def test_time_and_step_events_of_a_member_drive_the_group_whatever_the_step():
     for step in (1.0, 0.37):
         assert abs(lag_at_3(step)[0] - reference) < 1e-8
     assert abs(lag_at_3(1.0, me_groups=False)[0] - reference) > 1e-3
+
+
+@pytest.mark.parametrize("solver", ["dp54", "dop853", "cvode"])
+def test_every_integrator_integrates_a_group(solver):
+    cols, stats, _ = run(ball_on_floor(), BALL_ON_FLOOR, 2.0, 1.0, {"ball": ["t_bounce", "bounces"]},
+                         me_solver=solver)
+    expected = bounce_times(2.0)
+    assert cols["ball.bounces"][-1] == len(expected)
+    assert abs(cols["ball.t_bounce"][-1] - expected[-1]) < 1e-7
+    assert stats["model_exchange"]["ball+floor"]["solver"] == {"dp54": "DP5(4)", "dop853": "DOP853",
+                                                               "cvode": "CVode BDF"}[solver]

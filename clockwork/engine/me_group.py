@@ -531,6 +531,12 @@ class MEGroup(MEInstance):
         out["members"] = [m.name for m in self.members]
         return out
 
+    def clock_table(self):
+        """None: the members' clocks are refused as each member's wrapper refuses them."""
+        for m in self.members:
+            m.clock_table()
+        return None
+
     def core_calls(self, lib):
         raise SimulationError(self.compiled_reason)
 

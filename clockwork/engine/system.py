@@ -58,6 +58,10 @@ class System:
     parameters and recorded outputs against the model descriptions, builds
     the master that ``settings.engine`` asks for and initializes the system
     at ``start_time``: it is then ready to step (``system.master.run_until(t)``).
+    Model Exchange FMUs connected to each other become one group in the
+    master (``engine/me_group.py``; ``settings.me_groups``): ``instances``
+    holds the group (named ``member+member``), while links, parameters,
+    ``record``, ``output`` and ``value`` keep the members' names.
     Use it in a ``with`` block, or call `free()`: that frees the FMU
     instances, after which every method of the System and of its master
     raises `ClosedError`.
