@@ -1,6 +1,6 @@
 """Every command on every kind of FMU, alone and in a scene, on both engines.
 
-The kinds: FMI 1.0, 2.0 and 3.0 Co-Simulation, FMI 2.0 and 3.0 Model
+The kinds: FMI 1.0, 2.0 and 3.0 Co-Simulation, FMI 1.0, 2.0 and 3.0 Model
 Exchange, FMI 3.0 with arrays; each with test FMUs built by CMake
 (build/test-fmus) whose results have a closed form:
 
@@ -22,9 +22,8 @@ and every cell checks its own claim on it: exit code 0, the result's
 columns, the end value against the closed form, the two engines' bits
 equal, an exported scene's bits equal to the original's, `plot --only` by
 an output's recorded name, simulate with fmpy's `fmi_type` of the
-interface the FMU runs through. The kinds clockwork refuses (FMI 1.0
-Model Exchange, FMI 3.0 Model Exchange with arrays) are one line from
-every command.
+interface the FMU runs through. The kind clockwork refuses (FMI 3.0 Model Exchange with arrays) is one
+line from every command.
 """
 
 from __future__ import annotations
@@ -102,6 +101,9 @@ KINDS = {
              'connections = ["decay.x -> sum.u1"]\n'
              '[components.decay]\nfmu = "{fmu}"\n'
              '[components.sum]\nfmu = "{partner}"\nparameters = {{ k1 = 2, c = 0.5 }}\n', 1.0, 0.1),
+        Kind("me1", "fmi1me/MeOscillator", "fmi1me/MeLag", "Model Exchange", "1.0",
+             'connections = ["osc.x -> lag.u"]\n'
+             '[components.osc]\nfmu = "{fmu}"\n[components.lag]\nfmu = "{partner}"\n', 2.0, 0.01),
         Kind("me2", "MeOscillator", "MeLag", "Model Exchange", "2.0",
              'connections = ["osc.x -> lag.u"]\n'
              '[components.osc]\nfmu = "{fmu}"\n[components.lag]\nfmu = "{partner}"\n', 2.0, 0.01),
@@ -118,12 +120,12 @@ KINDS = {
 # in a scene, the [record] outputs below.
 ALONE_COLUMNS = {
     "cs1": ["x"], "cs2": ["x"], "cs3": ["x"],
-    "me2": ["x", "v"], "me3": ["x", "v"],
+    "me1": ["x", "v"], "me2": ["x", "v"], "me3": ["x", "v"],
     "arrays": ["y[0]", "y[1]", "x[0]", "x[1]", "x[2]", "s", "kk[0]", "kk[1]", "kk[2]"],
 }
 SCENE_RECORD = {
     "cs1": ["decay.x", "sum.y"], "cs2": ["decay.x", "sum.y"], "cs3": ["decay.x", "sum.y"],
-    "me2": ["osc.x", "lag.y"], "me3": ["osc.x", "lag.y"],
+    "me1": ["osc.x", "lag.y"], "me2": ["osc.x", "lag.y"], "me3": ["osc.x", "lag.y"],
     "arrays": ["a.y", "b.x"],
 }
 SCENE_COLUMNS = {**SCENE_RECORD, "arrays": ["a.y[0]", "a.y[1]", "b.x[0]", "b.x[1]", "b.x[2]"]}
@@ -136,7 +138,7 @@ def expected_alone(kind: str, t: float) -> dict[str, tuple[float, float]]:
         # `clockwork run X.fmu`'s step: the DefaultExperiment's (0.1 s), else fmpy's (stop / 500: FMI 1.0)
         dt, step = (1e-2, 2e-3) if kind == "cs1" else (1e-3, 0.1)
         return {"x": (_euler_decay(t, dt, step), 1e-12)}
-    if kind in ("me2", "me3"):
+    if kind in ("me1", "me2", "me3"):
         # the exact solution; the wrapper's integrator at the master's default tolerance (1e-6 relative)
         return {"x": (_oscillator(t), 1e-4)}
     x = [math.exp(-(i + 1) * t) for i in range(3)]  # A = diag(-1, -2, -3), x0 = 1, u = 0
@@ -150,7 +152,7 @@ def expected_scene(kind: str, t: float) -> dict[str, tuple[float, float]]:
     if kind in ("cs1", "cs2", "cs3"):
         x = _euler_decay(t, 1e-2 if kind == "cs1" else 1e-3, step)
         return {"decay.x": (x, 1e-12), "sum.y": (2 * x + 0.5, 1e-12)}  # y = k1 x + c at the last point
-    if kind in ("me2", "me3"):
+    if kind in ("me1", "me2", "me3"):
         # MeLag: dy/dt = (k u - y) / T; the integrators' error at the default tolerance
         return {"osc.x": (_oscillator(t), 1e-4),
                 "lag.y": (_lag_of(_oscillator, t, step, 1 / LAG_T, LAG_K), 1e-4)}
@@ -201,7 +203,11 @@ class Lab:
                              + f'[scene]\ntitle = "{kind}"\n'
                              f'[experiment]\nstop = "{k.scene_stop} s"\n'
                              f'[master]\nstep = "{k.scene_step} s"\n'
-                             f"[record]\noutputs = [{outputs}]\n")
+                             # each Model Exchange FMU stepped alone (the sampled coupling of the
+                             # closed form, and both engines); connected ones as one group by
+                             # default: tests/test_me_group.py
+                             + ("me_groups = false\n" if k.interface == "Model Exchange" else "")
+                             + f"[record]\noutputs = [{outputs}]\n")
                 self.sources[key] = f
         return self.sources[key]
 
@@ -263,7 +269,7 @@ def _columns(kind: str, mode: str) -> list[str]:
 def _stop(kind: str, mode: str) -> float:
     if mode == "scene":
         return KINDS[kind].scene_stop
-    return {"me2": 10.0, "me3": 10.0, "arrays": 2.0}.get(kind, 1.0)  # the FMUs' DefaultExperiment
+    return {"me1": 10.0, "me2": 10.0, "me3": 10.0, "arrays": 2.0}.get(kind, 1.0)  # the FMUs' DefaultExperiment
 
 
 def _check_end(kind: str, mode: str, header: list[str], last: list[float]) -> None:
@@ -420,12 +426,9 @@ def test_simulate_takes_fmpys_fmi_type_of_the_interface_it_runs(lab, kind, mode,
     assert str(e.value).startswith(f"simulate(fmi_type={other!r}): ") and "\n" not in str(e.value)
 
 
-# Kinds clockwork refuses: FMI 1.0 Model Exchange (TestDecay's FMI 1.0 description without <Implementation>)
-# and FMI 3.0 Model Exchange with arrays (Linear's description declaring <ModelExchange>); copies of the
+# Kinds clockwork refuses: FMI 3.0 Model Exchange with arrays (Linear's description declaring <ModelExchange>); copies of the
 # built archives with the description edited.
 REFUSED = {
-    "fmi1-me": ("fmi1/TestDecay", lambda xml: re.sub(r"<Implementation>.*?</Implementation>", "", xml, flags=re.S),
-                "FMI 1.0 Model Exchange is not supported"),
     "fmi3-me-arrays": ("fmi3/Linear",
                        lambda xml: re.sub(r"<CoSimulation [^>]*/>", '<ModelExchange modelIdentifier="Linear"/>', xml),
                        "Model Exchange with FMI 3.0 array variables is not supported"),

@@ -312,9 +312,10 @@ CASES = {
     "stiff": ({"s": ("MeStiff", {"lambda": 1e4})}, [], {"s": ["y"]}, {}),
     "lag": ({"p": ("Pendulum", PENDULUM), "lag": ("MeLag", {})}, ["p.phi -> lag.u"],
             {"lag": ["y", "e"]}, {"extrapolation": 2}),
-    # a Model Exchange output (with its derivatives, cwme_getOutputDerivatives) into a Model Exchange input
+    # a Model Exchange output (with its derivatives, cwme_getOutputDerivatives) into a Model Exchange input,
+    # each stepped alone (a group, tests/test_me_group.py, runs on the Python engine only)
     "me_to_me": ({"o": ("MeOscillator", {}), "lag": ("MeLag", {})}, ["o.x -> lag.u"], {"lag": ["y"]},
-                 {"extrapolation": 2}),
+                 {"extrapolation": 2, "me_groups": False}),
     "clock": ({"pendulum": ("MePendulum", {}),
                "escapement": ("GrasshopperEscapement", {"torque": 0.004, "phi_r": 0.035})},
               ["pendulum.phi -> escapement.phi", "pendulum.w -> escapement.w",

@@ -32,7 +32,7 @@ GOOD = {
     "event_time_tolerance": 1e-9, "event_indicator_tolerance": 1e-10, "iterations": 2, "iteration_tolerance": 1e-8,
     "richardson": True, "richardson_tolerance": 1e-6, "min_step": 1e-8, "max_step": 0.05, "engine": "python",
     "tolerance": 1e-6, "fmi_version": 3, "early_return": False, "me_solver": "dp54", "algebraic_loops": "delay",
-    "threads": 2, "divergence_limit": 1e6,
+    "threads": 2, "divergence_limit": 1e6, "me_groups": False,
 }
 # richardson does not iterate the coupling: each of the two is tried alone
 ALONE = {"iterations": {"richardson": False}, "richardson": {"iterations": 0}}
@@ -43,7 +43,7 @@ BAD = {
     "event_time_tolerance": -1e-9, "event_indicator_tolerance": 0, "iterations": -1, "iteration_tolerance": 0.0,
     "richardson": 0, "richardson_tolerance": -1.0, "min_step": 0.0, "max_step": -0.5, "engine": "gpu",
     "tolerance": 0, "fmi_version": 1, "early_return": "no", "me_solver": "rk4", "algebraic_loops": "solved",
-    "threads": 257, "divergence_limit": -1e8,
+    "threads": 257, "divergence_limit": -1e8, "me_groups": "no",
 }
 # More refused values: the bounds and the kinds
 MORE_BAD = [("threads", 0), ("iterations", 2**31), ("iterations", 1.5), ("extrapolation", True), ("step", "0.1"),

@@ -260,7 +260,9 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
         sampled = [] if inputs is None else [
             (s.name, instances[s.instance].variables[s.variable].type) for s in inputs.signals
             if s.instance in instances and s.variable in instances[s.instance].variables]
-        reason = unsupported(settings) or unsupported_links(types) or unsupported_inputs(sampled) or core_problem()
+        refused = next((r for r in (getattr(i, "compiled_reason", None) for i in instances.values()) if r), None)
+        reason = (unsupported(settings) or refused or unsupported_links(types) or unsupported_inputs(sampled)
+                  or core_problem())
         if reason is None:
             return CompiledMaster(instances, links, settings, start_time, step_order, extra_outputs, inputs)
         if settings.engine == "compiled":

@@ -98,6 +98,8 @@ class MEInstance(ModelExchangeSteps, Instance):
     me3.ModelExchange3) composed
     with the integration (ModelExchangeSteps, rk, cvode)."""
 
+    joins_me_group = True
+
     def clock_table(self):
         """Clocks are served in Co-Simulation and Scheduled Execution only."""
         if read_clock_table(self.md):

@@ -20,6 +20,17 @@ from ..errors import SimulationError
 from ..fmi.description import TEXT_TYPES
 
 
+def _in_group(instances, instance: str, var: str) -> tuple[str, str]:
+    """(instance, variable) as the master holds it: a member of a Model
+    Exchange group (engine/me_group.py) is its group's "member.variable"."""
+    if instance in instances:
+        return instance, var
+    for name, inst in instances.items():
+        if any(m.name == instance for m in getattr(inst, "members", ())):
+            return name, f"{instance}.{var}"
+    return instance, var
+
+
 class _DiscreteOutput:
     """A variable that is not Real, read from the FMU when sampled through
     the fmi2Get*/fmi3Get* of its type: integers, Enumeration, Float32 and
@@ -50,8 +61,11 @@ class Recorder:
         where the rows go as the run goes (see the module); no limit then."""
         self.master = master
         # An FMI 3.0 array is recorded element by element ("y[0]", "A[1,2]").
+        outputs = [_in_group(master.instances, i, v) for i, v in outputs]
         self.outputs = [(i, x) for i, v in outputs for x in master.instances[i].elements.get(v, [v])]
-        self.names = [f"{i}.{v}" for i, v in self.outputs]
+        # A Model Exchange group's variables are already "member.variable" (engine/me_group.py).
+        self.names = [v if getattr(master.instances[i], "qualified_names", False) else f"{i}.{v}"
+                      for i, v in self.outputs]
         self.times = times  # the time column even with no outputs
         self._rows = bool(self.outputs) or times
         self.columns: dict[str, list[float]] = {"time": [], **{n: [] for n in self.names}}

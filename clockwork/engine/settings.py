@@ -198,6 +198,10 @@ class MasterSettings:
             Runge-Kutta pair the tolerance asks for, DOP853 at rtol <= 1e-6,
             else Dormand-Prince 5(4); CVode's BDF from the step its
             stiffness test fires), ``"dp54"``, ``"dop853"`` or ``"cvode"``.
+        me_groups: Model Exchange FMUs connected to each other run as one
+            group (one integrator, their connections evaluated at every
+            stage, their events located together); False: each steps
+            alone and sees the others at communication points.
         algebraic_loops: How a loop of outputs with direct feedthrough runs:
             ``"solve"`` iterates it to a fixed point wherever outputs are
             brought up to date (to ``iteration_tolerance``), ``"delay"``
@@ -259,6 +263,10 @@ class MasterSettings:
     # The integrator of Model Exchange FMUs (ME_SOLVERS).
     me_solver: str = setting("auto", Setting("choice", choices=ME_SOLVERS,
                                              note="the integrator of Model Exchange FMUs"))
+    # Model Exchange FMUs connected to each other run as one group: one
+    # integrator over their states, their connections at every stage
+    # (engine/me_group.py); false: each steps alone, as a Co-Simulation FMU.
+    me_groups: bool = setting(True, _FLAG)
     # Algebraic loops (outputs with direct feedthrough that feed each other):
     # "solve" iterates each loop's inputs to a fixed point wherever outputs
     # are brought up to date, to iteration_tolerance; "delay" breaks it by a

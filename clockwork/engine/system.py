@@ -58,6 +58,10 @@ class System:
     parameters and recorded outputs against the model descriptions, builds
     the master that ``settings.engine`` asks for and initializes the system
     at ``start_time``: it is then ready to step (``system.master.run_until(t)``).
+    Model Exchange FMUs connected to each other become one group in the
+    master (``engine/me_group.py``; ``settings.me_groups``): ``instances``
+    holds the group (named ``member+member``), while links, parameters,
+    ``record``, ``output`` and ``value`` keep the members' names.
     Use it in a ``with`` block, or call `free()`: that frees the FMU
     instances, after which every method of the System and of its master
     raises `ClosedError`.
@@ -183,17 +187,59 @@ class System:
                     for var in names:
                         self._variable(inst, var, None, what)
             self._check_values(self.parameters, "System(): components")
+            if settings.me_groups:  # connected Model Exchange FMUs: one group each (engine/me_group.py)
+                links, record, inputs = self._form_groups(links, record, inputs, me_options)
             self.master = make_master(self.instances, links, settings,
                                       start_time=float(start_time), extra_outputs=record, inputs=inputs,
                                       rates=rates)
             self._guard = _guard_master(self.master)
-            self.master.initialize(self.parameters)
+            self.master.initialize(self._grouped(self.parameters))
         except BaseException:
             self.free()
             raise
 
     master = None  # until built
     _guard = None
+    _group_of: dict = {}  # member instance -> its Model Exchange group's name
+    _members: dict = {}  # member instance name -> the member (an MEInstance inside a group)
+
+    def _form_groups(self, links, record, inputs, me_options):
+        """Connected Model Exchange instances as groups; the links, the
+        recorded outputs and the input samples re-addressed to them."""
+        from dataclasses import replace
+
+        from .me_group import form_groups
+        instances, links, group_of = form_groups(self.instances, links, me_options)
+        if not group_of:
+            return links, record, inputs
+        self._members = {m.name: m for g in instances.values() for m in getattr(g, "members", ())}
+        self.instances, self._group_of = instances, group_of
+        if record:
+            grouped: dict[str, list[str]] = {}
+            for inst, names in record.items():
+                g = group_of.get(inst)
+                grouped.setdefault(g or inst, []).extend(f"{inst}.{n}" if g else n for n in names)
+            record = grouped
+        if inputs is not None and any(s.instance in group_of for s in inputs.signals):
+            inputs = Samples(inputs.times, [replace(s, instance=group_of[s.instance], variable=f"{s.instance}."
+                                                    f"{s.variable}") if s.instance in group_of else s
+                                            for s in inputs.signals])
+        return links, record, inputs
+
+    def _grouped(self, parameters: dict) -> dict:
+        """{instance: {variable: value}} with the members of groups as "member.variable" of their group."""
+        if not self._group_of:
+            return parameters
+        out: dict[str, dict] = {}
+        for inst, values in parameters.items():
+            g = self._group_of.get(inst)
+            out.setdefault(g or inst, {}).update({f"{inst}.{k}" if g else k: v for k, v in values.items()})
+        return out
+
+    def _where(self, instance: str, name: str) -> tuple[str, str]:
+        """The master's instance and variable name of `instance.name` (a group's member: its group)."""
+        g = self._group_of.get(instance)
+        return (g, f"{instance}.{name}") if g else (instance, name)
 
     @checked(parameters=Mapping(_NAME, _PARAMETERS, "{instance: {parameter: value}}"))
     def restart(self, parameters: dict[str, dict[str, object]]) -> None:
@@ -219,7 +265,7 @@ class System:
         self._check_values(parameters, "System.restart(): parameters")
         with self._guard:
             self.parameters = {name: dict(p) for name, p in parameters.items()}
-            self.master.restart(self.parameters)
+            self.master.restart(self._grouped(self.parameters))
 
     def _check_values(self, parameters: dict, where: str) -> None:
         """Each value of the type and within the range its variable declares:
@@ -227,11 +273,12 @@ class System:
         call (else a float('abc') deep inside, or the FMU's own refusal)."""
         for inst, values in parameters.items():
             for name, value in values.items():
-                v = described(self.instances[inst].md)[name]
+                instance = self.instances.get(inst) or self._members[inst]
+                v = described(instance.md)[name]
                 problem = value_problem(v, value)
                 if problem:
                     raise UsageError(f"{where}[{inst!r}] {inst}.{name} = {show(value)}: expected {problem} "
-                                     f"({self.instances[inst].model_name}'s {name} is {v.type})")
+                                     f"({instance.model_name}'s {name} is {v.type})")
 
     @staticmethod
     def _parse_link(text: str, known: dict) -> Link:
@@ -246,7 +293,7 @@ class System:
         """The variable `instance.name`, or UsageError naming both (with the nearest names)."""
         if self._freed:
             raise ClosedError("this System was freed (used after its `with` block or free()): build a new System")
-        inst = self.instances.get(instance)
+        inst = self.instances.get(instance) or self._members.get(instance)
         if inst is None:
             close = difflib.get_close_matches(str(instance), list(self.instances), n=1)
             raise UsageError(f"{what} {instance}.{name}: no instance {instance!r}"
@@ -276,6 +323,7 @@ class System:
             ClosedError: The System was freed.
         """
         v = self._variable(instance, name, None, "value")
+        instance, name = self._where(instance, name)
         with self._guard:
             if v.shape:
                 return self.instances[instance].get_values([name])[0]
@@ -299,6 +347,7 @@ class System:
             ClosedError: The System was freed.
         """
         self._variable(instance, name, None, "output")
+        instance, name = self._where(instance, name)
         port = self.master.ports[instance]
         elements = self.instances[instance].elements.get(name)
         if elements is not None and all(e in port.out_names for e in elements):  # an FMI 3.0 array: a list

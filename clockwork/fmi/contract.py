@@ -162,6 +162,10 @@ class Instance:
         raise UsageError(f"the FMU instance {self.name} cannot be pickled or copied: it is a loaded library "
                          "and its C state")
 
+    # A Model Exchange FMU the engine integrates: connected ones may share
+    # one integrator (engine/me_group.py). False for every other instance.
+    joins_me_group = False
+
     def clock_table(self):
         """The FMU's clocks as this face serves them (fmi.clocks.ClockTable),
         or None: only FMI 3.0 Co-Simulation and Scheduled Execution have any."""

@@ -410,13 +410,15 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     else:
         components, connections = prebuilt
         notes = ()
-    loops = _check_wiring(ctx, components, connections)
+    loops, wired = _check_wiring(ctx, components, connections)
     experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
     master, master_given = _master(ctx, master_t)
     problem = multirate.loop_problem(rates(master, components), [
         (name, sorted({k.src for k in links} | {k.dst for k in links})) for name, links, _ in loops])
     if problem:
         raise ctx.fail("components", problem)
+    if master.me_groups:
+        notes = tuple(notes) + _me_group_notes(ctx, wired, connections)
     notes = tuple(notes) + tuple(_loop_note(name, links, master.algebraic_loops, held)
                                  for name, links, held in loops)
     problem = consistency(master, experiment, components) or _fmi3_inputs(master, components, connections)
@@ -665,7 +667,20 @@ def _check_wiring(ctx: Ctx, components: dict[str, Component],
     held = set(wiring.held_loops)
     return [(loop_name(m, links), links,
              [n for n in m if not instances[n].outputs_after_inputs] if i in held else [])
-            for i, (m, links) in enumerate(zip(wiring.loops, wiring.loop_links))]
+            for i, (m, links) in enumerate(zip(wiring.loops, wiring.loop_links))], instances
+
+
+def _me_group_notes(ctx: Ctx, instances, connections) -> tuple[str, ...]:
+    """A note per group of connected Model Exchange FMUs (engine/me_group.py);
+    an algebraic loop inside one refused now, as the run would refuse it."""
+    from ..engine.me_group import plan_groups
+    try:
+        plans = plan_groups(instances, [Link(*c) for c in connections])
+    except SceneError as e:
+        raise ctx.fail("connections", e.detail) from None
+    return tuple(f"Model Exchange group {name}: {', '.join(members)} integrated as one system (one integrator, "
+                 f"{len(inner)} connection{'s' * (len(inner) != 1)} evaluated at every stage, events located "
+                 "together; master.me_groups = false steps them apart)" for name, members, inner in plans)
 
 
 def _loop_note(name: str, links: list[Link], mode: str, held: list[str]) -> str:

@@ -1,0 +1,618 @@
+"""Connected Model Exchange FMUs as one system: a group.
+
+Stepped alone, a Model Exchange FMU sees another's output only at
+communication points (sampled, held or extrapolated by the master), so an
+event that one causes in the other waits for the next point. ``MEGroup``
+integrates the members together, as one Model Exchange FMU would be:
+
+- one state vector, the concatenation of the members' (member order);
+  one integrator over it (the project's Runge-Kutta pairs or CVode,
+  ``me_step.ModelExchangeSteps``, the algorithm of a single FMU);
+- the right-hand side sets each member's time and states, then evaluates
+  the connections between members in dependency order (a link after every
+  link whose value its source output depends on, by the members'
+  ModelStructure), then gathers the derivatives; an algebraic loop inside
+  a group is refused in one line;
+- one event-indicator vector over all members, located together; at an
+  event every member enters Event Mode and the event iteration runs
+  across members: the connections (of every type) are propagated, every
+  member updates its discrete states, until no member asks for another
+  iteration and no connected value changed; the members' time events are
+  merged (the earliest);
+- towards the rest of the scene the group is one instance that implements
+  the contract (fmi/contract.py), as ``model_exchange.MEInstance`` does:
+  its variables are the members' as ``member.variable``, its continuous
+  inputs those no member feeds (with the master's polynomials between
+  communication points), its FMU state the members' states together.
+
+``engine/system.py`` forms the groups (``form_groups``): each set of Model
+Exchange instances joined by connections becomes one group, unless
+``master.me_groups = false``. The compiled core does not run a group: a
+scene with one runs on the Python engine (``compiled_reason``).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from ctypes import byref, c_double, c_int, c_uint
+from dataclasses import replace
+from pathlib import Path
+
+from ..errors import SceneError, SimulationError
+from ..fmi.calls import OK, WARNING
+from ..fmi.contract import Instance
+from . import rk
+from .me_step import CONTINUOUS, DEFAULT_RTOL, EVENT, INITIALIZATION, SOLVERS
+from .model_exchange import MEInstance, MEOptions, _ME
+from .wiring import Link
+
+# FMI 2.0 numbers value references per base type: a group's table keys them so.
+_TYPE_CLASS = {"Real": 0, "Integer": 1, "Enumeration": 1, "Boolean": 2, "String": 3}
+
+
+class _GroupNames:
+    """The group's names of its calls in messages (its members' first face's)."""
+
+    def __init__(self, face):
+        self.CALL_NAMES = dict(face.CALL_NAMES, doStep="the Model Exchange group's step")
+        self.NAMES = face.NAMES
+        self.version = 0
+
+
+class _Conn:
+    """A connection inside the group, bound to its members' calls."""
+
+    def __init__(self, link: Link, src: MEInstance, dst: MEInstance):
+        self.link = link
+        self.src, self.dst = src, dst
+        sv, dv = src.variables[link.output], dst.variables[link.input]
+        self.real = sv.type == "Real" and dv.type == "Real"
+        # In continuous-time mode only continuous Real inputs may be set.
+        self.continuous = self.real and dv.variability == "continuous"
+        self.src_vr = (c_uint * 1)(sv.vr)
+        self.dst_vr = (c_uint * 1)(dv.vr)
+        self.buf = (c_double * 1)()
+        self.last = None  # the value last set
+
+
+def _ordered(name: str, links: list[Link], members: dict[str, MEInstance]) -> list[Link]:
+    """The links in dependency order: each after the links into the inputs
+    its source output depends on directly. SceneError for a loop."""
+    into: dict[tuple[str, str], Link] = {(k.dst, k.input): k for k in links}
+
+    def needs(k: Link) -> list[Link]:
+        v = members[k.src].variables[k.output]
+        deps = v.dependencies
+        if deps is None:  # no dependency information: every input
+            deps = [n for n, x in members[k.src].variables.items() if x.causality == "input"]
+        return [into[(k.src, d)] for d in deps if (k.src, d) in into]
+
+    done: list[Link] = []
+    state: dict[int, int] = {}  # 1: on the path, 2: done
+
+    def visit(k: Link, path: list[Link]) -> None:
+        s = state.get(id(k))
+        if s == 2:
+            return
+        if s == 1:
+            loop = path[path.index(k):]
+            through = ", ".join(f"{x.src}.{x.output} -> {x.dst}.{x.input}" for x in loop)
+            raise SceneError(f"the Model Exchange group {name}: an algebraic loop inside it (through {through}) "
+                             "is not supported; expected connections without a loop of direct feedthrough, or "
+                             "master.me_groups = false (the FMUs stepped apart)")
+        state[id(k)] = 1
+        for d in needs(k):
+            visit(d, path + [k])
+        state[id(k)] = 2
+        done.append(k)
+
+    for k in links:
+        visit(k, [])
+    return done
+
+
+class MEGroup(MEInstance):
+    """Connected Model Exchange instances as one (see the module's docstring).
+    `members`: instantiated MEInstances, in order; `links`: the connections
+    between them (member names)."""
+
+    joins_me_group = False  # a group is not a member of another
+
+    qualified_names = True  # its variables are "member.variable": recorded under those names
+
+    def __init__(self, name: str, members: list[MEInstance], links: list[Link], options: MEOptions | None = None):
+        # Not MEInstance.__init__: the group reads no FMU of its own.
+        self.name = name
+        self.members = list(members)
+        by_name = {m.name: m for m in self.members}
+        self.path = Path(name)
+        self.md = None
+        self.model_name = f"Model Exchange group {name}"
+        self.messages = []
+        self._slave = None
+        self._state = ctypes.c_void_p()
+        self.face = _GroupNames(self.members[0].face)
+        self.CALL_NAMES = self.face.CALL_NAMES
+        self.options = options or MEOptions()
+        if self.options.solver not in SOLVERS:
+            raise SceneError(f"master.me_solver = {self.options.solver!r}: expected one of "
+                             f"{', '.join(map(repr, SOLVERS))}")
+        self.default_tolerance = None
+        self.outputs_after_inputs = True
+        self.compiled_reason = (f"the compiled core does not integrate a Model Exchange group ({name}): "
+                                "the Python engine runs it")
+        self.can_get_set_state = all(m.can_get_set_state for m in self.members)
+        self._needs_completed = any(m._needs_completed for m in self.members)
+        self._conns = [_Conn(k, by_name[k.src], by_name[k.dst]) for k in _ordered(name, links, by_name)]
+        fed = {(k.dst, k.input) for k in links}
+        # The group's value references: one per (member, type class, member's vr).
+        self._table: list[tuple[MEInstance, int, str]] = []  # group vr -> (member, its vr, its type)
+        numbers: dict[tuple[int, int, int], int] = {}
+        variables = {}
+        for i, m in enumerate(self.members):
+            for vname, v in m.variables.items():
+                key = (i, _TYPE_CLASS.get(v.type, 4), v.vr)
+                gvr = numbers.get(key)
+                if gvr is None:
+                    gvr = numbers[key] = len(self._table)
+                    self._table.append((m, v.vr, v.type))
+                deps = None if v.dependencies is None else [f"{m.name}.{d}" for d in v.dependencies]
+                variables[f"{m.name}.{vname}"] = replace(v, name=f"{m.name}.{vname}", vr=gvr, dependencies=deps)
+        self.variables = variables
+        self._owners = {f"{m.name}.{x}": (m, x) for m in self.members for x in m.variables}
+        # Slices of the state and indicator vectors, per member.
+        self._offsets = []
+        n = nz = 0
+        for m in self.members:
+            self._offsets.append((n, m.me.n, nz, m.me.nz))
+            n += m.me.n
+            nz += m.me.nz
+        # Continuous inputs facing the scene: those no member feeds.
+        inputs = []
+        for m in self.members:
+            for k in range(m.me.n_in):
+                vr = m._in_vr[k]
+                vname = next(x for x, v in m.variables.items() if v.vr == vr and v.type == "Real"
+                             and v.causality == "input")
+                if (m.name, vname) not in fed:
+                    inputs.append((f"{m.name}.{vname}", m._u0[k]))
+        n_in = len(inputs)
+        self.continuous_inputs = {}
+        for k, (qname, _) in enumerate(inputs):
+            self.continuous_inputs.setdefault(variables[qname].vr, k)
+        # States: their group value references (output derivatives of outputs that are states).
+        state_vr, der_state = [], []
+        for m, (off, mn, _, _) in zip(self.members, self._offsets):
+            names = {v.vr: x for x, v in m.variables.items() if v.type == "Real"}
+            for i in range(mn):
+                state_vr.append(variables[f"{m.name}.{names[m._state_vr[i]]}"].vr)
+                der_state.append(m._der_state[i] + off if m._der_state[i] >= 0 else -1)
+        outputs_states = [der_state[state_vr.index(v.vr)] for v in variables.values()
+                          if v.causality == "output" and v.type == "Real" and v.vr in state_vr]
+        self.max_output_derivative_order = max((2 if d >= 0 else 1 for d in outputs_states), default=0)
+        self.can_interpolate_inputs = n_in > 0
+        self.event_indicators = []
+        self.state_names = [f"{m.name}.{s}" for m in self.members for s in m.state_names]
+
+        def doubles(k):
+            return (c_double * max(1, k))()
+
+        self._x, self._xbuf, self._xw, self._xd, self._dx, self._nominal, self._atolv = (doubles(n) for _ in range(7))
+        self._z_prev, self._z, self._z_end, self._z_lo, self._z0 = (doubles(nz) for _ in range(5))
+        self._in_vr = (c_uint * max(1, n_in))(*[variables[q].vr for q, _ in inputs])
+        self._u0, self._d1, self._d2, self._tref, self._in_val = (doubles(n_in) for _ in range(5))
+        self._state_vr = (c_uint * max(1, n))(*state_vr)
+        self._der_state = (c_int * max(1, n))(*der_state)
+        self._saved = doubles(n + nz + 4 * n_in)
+        self.me = _ME(version=0, n=n, nz=nz, n_in=n_in, solver=SOLVERS[self.options.solver],
+                      event_time_tolerance=float(self.options.event_time_tolerance),
+                      needs_completed=int(self._needs_completed))
+        for k, (_, start) in enumerate(inputs):
+            self._u0[k] = start
+        self._rk = rk.RungeKutta(n, DEFAULT_RTOL, 0.0)
+        self._cv = None
+        self._core = None
+        self._dirty = True
+        self._reset_wrapper()
+        self._bind_group()
+
+    # -- the group's calls --------------------------------------------------------
+
+    def _bind_group(self) -> None:
+        """The calls of the algorithm (me_step) and of the contract, over the members."""
+        self.component = None
+        self._set_time = self._g_set_time
+        self._set_states = self._g_set_states
+        self._get_derivatives = self._g_get_derivatives
+        self._get_indicators = self._g_get_indicators
+        self._get_states = self._g_get_states
+        self._get_nominals = self._g_get_nominals
+        self._enter_event = self._g_enter_event
+        self._enter_continuous = self._g_enter_continuous
+        self._update = self._g_update
+        self._completed_step = self._g_completed
+        self._set_inputs = lambda vr, n, v: self._g_set_real(None, vr, n, v)
+        self._fmu_set_real = self._g_set_real
+        self._fmu_get_state = self._g_get_state
+        self._fmu_set_state = self._g_set_state
+        self._set_values_now = self._g_set_values
+        self.c_getReal = self._g_get_real
+        self.c_setReal = self._set_real
+        self.c_setInputDerivatives = self._set_input_derivatives
+        self.c_getOutputDerivatives = self._output_derivatives
+        self.c_getState = self._get_state
+        self.c_setState = self._set_state
+        self.c_freeState = lambda c, s: OK
+        self.c_doStep = self._do_step
+
+    def instantiate(self) -> None:
+        """The members are instantiated (engine/system.py makes the group of them)."""
+        self._slave = self.members
+
+    def _each(self, call) -> int:
+        st = OK
+        for m in self.members:
+            st = max(st, call(m))
+            if st > WARNING:
+                return st
+        return st
+
+    def _g_set_time(self, t: float) -> int:
+        self._dirty = True
+        return self._each(lambda m: m._set_time(t))
+
+    def _g_set_states(self, x, n: int) -> int:
+        self._dirty = True
+        st = OK
+        for m, (off, mn, _, _) in zip(self.members, self._offsets):
+            if not mn:
+                continue
+            buf = m._xbuf
+            for i in range(mn):
+                buf[i] = x[off + i]
+            st = max(st, m._set_states(buf, mn))
+            if st > WARNING:
+                return st
+        return st
+
+    def _propagate(self, every: bool) -> tuple[int, bool]:
+        """The connections inside the group, in dependency order: (status,
+        whether a value changed). `every`: all of them (Event and
+        Initialization Mode), else those into continuous Real inputs."""
+        changed = False
+        for c in self._conns:
+            if not (every or c.continuous):
+                continue
+            k = c.link
+            if c.real:
+                st = c.src.c_getReal(c.src.component, c.src_vr, 1, c.buf)
+                if st > WARNING:
+                    return st, changed
+                value = c.buf[0] if k.identity else k.factor * c.buf[0] + k.offset
+                if value != c.last:
+                    c.buf[0] = value
+                    st = c.dst.face.set_real(c.dst.component, c.dst_vr, 1, c.buf)
+                    if st > WARNING:
+                        return st, changed
+                    changed = changed or c.last is not None
+                    c.last = value
+            else:  # discrete types: by name, through the members' typed calls (Event Mode only)
+                value = c.src.get_values([k.output])[0]
+                if value != c.last:
+                    c.dst._set_values_now({k.input: value}, f"the group's connection {k.src}.{k.output} -> "
+                                                            f"{k.dst}.{k.input}", SimulationError)
+                    changed = changed or c.last is not None
+                    c.last = value
+        self._dirty = False
+        return OK, changed
+
+    def _fresh(self) -> int:
+        """The connections up to date before a member is read."""
+        if not self._dirty:
+            return OK
+        return self._propagate(self.me.mode != CONTINUOUS)[0]
+
+    def _g_get_derivatives(self, dx, n: int) -> int:
+        st = self._fresh()
+        if st > WARNING:
+            return st
+        for m, (off, mn, _, _) in zip(self.members, self._offsets):
+            if not mn:
+                continue
+            st = max(st, m._get_derivatives(m._dx, mn))
+            if st > WARNING:
+                return st
+            for i in range(mn):
+                dx[off + i] = m._dx[i]
+        return st
+
+    def _g_get_indicators(self, z, nz: int) -> int:
+        st = self._fresh()
+        if st > WARNING:
+            return st
+        for m, (_, _, off, mz) in zip(self.members, self._offsets):
+            if not mz:
+                continue
+            st = max(st, m._get_indicators(m._z, mz))
+            if st > WARNING:
+                return st
+            for i in range(mz):
+                z[off + i] = m._z[i]
+        return st
+
+    def _gather(self, x, fetch, scratch: str) -> int:
+        st = OK
+        for m, (off, mn, _, _) in zip(self.members, self._offsets):
+            if not mn:
+                continue
+            buf = getattr(m, scratch)
+            st = max(st, fetch(m)(buf, mn))
+            if st > WARNING:
+                return st
+            for i in range(mn):
+                x[off + i] = buf[i]
+        return st
+
+    def _g_get_states(self, x, n: int) -> int:
+        return self._gather(x, lambda m: m._get_states, "_xw")
+
+    def _g_get_nominals(self, x, n: int) -> int:
+        return self._gather(x, lambda m: m._get_nominals, "_nominal")
+
+    def _g_enter_event(self) -> int:
+        self._dirty = True
+        return self._each(lambda m: m._enter_event())
+
+    def _g_enter_continuous(self) -> int:
+        self._dirty = True
+        return self._each(lambda m: m._enter_continuous())
+
+    def _g_update(self):
+        """One event iteration across the members: the connections, every
+        member's update, the connections again; another iteration is needed
+        where a member asks for one or a connected value changed."""
+        st, _ = self._propagate(True)
+        if st > WARNING:
+            return st, False, False, False, False, False, 0.0
+        need = term = nominals = values = defined = False
+        next_time = math.inf
+        for m in self.members:
+            s, n_, t_, nom, val, dfd, nxt = m._update()
+            st = max(st, s)
+            if s > WARNING:
+                return st, False, False, False, False, False, 0.0
+            need, term, nominals, values = need or n_, term or t_, nominals or nom, values or val
+            if dfd:
+                defined = True
+                next_time = min(next_time, nxt)
+        s, changed = self._propagate(True)
+        st = max(st, s)
+        return st, need or changed, term, nominals, values, defined, next_time
+
+    def _g_completed(self):
+        enter = term = False
+        st = OK
+        for m in self.members:
+            if not m._needs_completed:
+                continue
+            s, e, t = m._completed_step()
+            st = max(st, s)
+            if s > WARNING:
+                return st, False, False
+            enter, term = enter or e, term or t
+        return st, enter, term
+
+    def _g_get_state(self, comp, state) -> int:
+        return self._each(lambda m: m._fmu_get_state(m.component, byref(m._state)))
+
+    def _g_set_state(self, comp, state) -> int:
+        self._dirty = True
+        for c in self._conns:
+            c.last = None  # the members' inputs are restored with them: set again
+        return self._each(lambda m: m._fmu_set_state(m.component, m._state))
+
+    # -- values by group value reference and by name ----------------------------------
+
+    def _g_get_real(self, comp, vr, n, out) -> int:
+        st = self._fresh()
+        if st > WARNING:
+            return st
+        one_vr, one = (c_uint * 1)(), (c_double * 1)()
+        for j in range(n):
+            m, mvr, _ = self._table[vr[j]]
+            one_vr[0] = mvr
+            st = max(st, m.c_getReal(m.component, one_vr, 1, one))
+            if st > WARNING:
+                return st
+            out[j] = one[0]
+        return st
+
+    def _g_set_real(self, comp, vr, n, values) -> int:
+        self._dirty = True
+        st = OK
+        one_vr, one = (c_uint * 1)(), (c_double * 1)()
+        for j in range(n):
+            m, mvr, _ = self._table[vr[j]]
+            one_vr[0], one[0] = mvr, values[j]
+            st = max(st, m.face.set_real(m.component, one_vr, 1, one))
+            if st > WARNING:
+                return st
+        return st
+
+    def _split(self, names) -> list[tuple[MEInstance, str]]:
+        """(member, its variable) of each "member.variable"."""
+        out = []
+        for q in names:
+            found = self._owners.get(q)
+            if found is None:
+                raise SimulationError(f"{self.name}: no variable {q!r} (expected member.variable)")
+            out.append(found)
+        return out
+
+    def _g_set_values(self, values: dict, what: str, error) -> None:
+        self._dirty = True
+        for (m, var), value in zip(self._split(values), values.values()):
+            m._set_values_now({var: value}, what, error)
+
+    def get_values(self, names):
+        self._fresh()
+        return [m.get_values([var])[0] for m, var in self._split(names)]
+
+    def get_real(self, names):
+        self._fresh()
+        return [m.get_real([var])[0] for m, var in self._split(names)]
+
+    def get_integer(self, names):
+        self._fresh()
+        return [m.get_integer([var])[0] for m, var in self._split(names)]
+
+    def get_boolean(self, names):
+        self._fresh()
+        return [m.get_boolean([var])[0] for m, var in self._split(names)]
+
+    def get_string(self, names):
+        self._fresh()
+        return [m.get_string([var])[0] for m, var in self._split(names)]
+
+    # -- lifecycle ----------------------------------------------------------------
+
+    def setup(self, start: float, parameters: dict, tolerance: float | None = None) -> None:
+        """Each member's setup with its parameters ("member.variable"), then the group's integrator."""
+        per: dict[str, dict] = {m.name: {} for m in self.members}
+        for (m, var), value in zip(self._split(parameters), parameters.values()):
+            per[m.name][var] = value
+        for m in self.members:
+            m.setup(start, per[m.name], tolerance)
+        self._setup_wrapper(1, min(m.me.rtol for m in self.members), start)
+        self.me.mode = INITIALIZATION
+        self._dirty = True
+        for c in self._conns:
+            c.last = None
+
+    def exit_init(self) -> None:
+        st, _ = self._propagate(True)
+        self.check(st, "the group's connections in Initialization Mode")
+        for m in self.members:
+            m.check(m.face.exit_init(m.component), m.named("exitInit"))
+        self.me.mode = EVENT
+        self.check(self._exit_init(OK), self.named("exitInit"))
+
+    def reset(self) -> None:
+        for m in self.members:
+            m.reset()
+        self._reset_wrapper()
+        self._dirty = True
+        for c in self._conns:
+            c.last = None
+        del self.messages[:]
+
+    def set_values(self, values, what=None, error=SimulationError) -> None:
+        if self.me.mode == CONTINUOUS and any(self.variables[q].vr not in self.continuous_inputs for q in values):
+            what = what or self.CALL_NAMES["setValues"]
+            self.check(self._enter_event(), "enterEventMode", self.me.time)
+            self.me.mode = EVENT
+            try:
+                self._g_set_values(values, what, error)
+            finally:
+                st = self._settle("input_events")
+            self.check(st, what, self.me.time, error)
+            return
+        self._g_set_values(values, what or self.CALL_NAMES["setValues"], error)
+
+    def last_message(self) -> str:
+        own = super().last_message() if self.messages else ""
+        return own or next((t for t in (m.last_message() for m in self.members) if t), "")
+
+    def crash(self):
+        return next((c for c in (m.crash() for m in self.members) if c is not None), None)
+
+    def statistics(self) -> dict:
+        out = super().statistics()
+        out["interface"] = "model-exchange (group)"
+        out["members"] = [m.name for m in self.members]
+        return out
+
+    def clock_table(self):
+        """None: the members' clocks are refused as each member's wrapper refuses them."""
+        for m in self.members:
+            m.clock_table()
+        return None
+
+    def core_calls(self, lib):
+        raise SimulationError(self.compiled_reason)
+
+    def core_state(self, lib):
+        raise SimulationError(self.compiled_reason)
+
+    def _free_instance(self) -> None:
+        from . import cvode
+        if self.me.cv_mem or self.me.cv_ctx:
+            cvode.free(self.me)
+        for m in self.members:
+            m.free()
+
+    def __reduce_ex__(self, protocol):
+        raise SimulationError(f"the Model Exchange group {self.name} cannot be pickled or copied")
+
+
+def plan_groups(instances: dict[str, Instance], links: list[Link]) -> list[tuple[str, list[str], list[Link]]]:
+    """The groups the Model Exchange instances among `instances` form (each
+    set joined by links): (the group's name, its members in scene order,
+    the links between them in dependency order). SceneError for an
+    algebraic loop inside one. Reads no FMU: the scene's validation asks it too."""
+    me = {n for n, inst in instances.items() if inst.joins_me_group}
+    parent = {n: n for n in me}
+
+    def root(n):
+        while parent[n] != n:
+            parent[n] = parent[parent[n]]
+            n = parent[n]
+        return n
+
+    for k in links:
+        if k.src in me and k.dst in me and k.src != k.dst:
+            parent[root(k.src)] = root(k.dst)
+    sets: dict[str, list[str]] = {}
+    for n in instances:
+        if n in me:
+            sets.setdefault(root(n), []).append(n)
+    plans = []
+    for names in sets.values():
+        if len(names) < 2:
+            continue
+        name = "+".join(names)
+        inner = [k for k in links if k.src in names and k.dst in names]
+        plans.append((name, names, _ordered(name, inner, {n: instances[n] for n in names})))
+    return plans
+
+
+def form_groups(instances: dict[str, Instance], links: list[Link],
+                options: MEOptions | None = None) -> tuple[dict[str, Instance], list[Link], dict[str, str]]:
+    """Each set of Model Exchange instances joined by links, as one group:
+    (the instances, groups in their first member's place; the links that
+    remain, re-addressed to the groups' "member.variable"; {member: group})."""
+    plans = plan_groups(instances, links)
+    if not plans:
+        return instances, links, {}
+    group_of = {}
+    made = {}
+    for gname, names, inner in plans:
+        made[names[0]] = MEGroup(gname, [instances[n] for n in names], inner, options)
+        made[names[0]].instantiate()
+        for n in names:
+            group_of[n] = gname
+    out = {}
+    for n, inst in instances.items():
+        if n in made:
+            out[made[n].name] = made[n]
+        elif n not in group_of:
+            out[n] = inst
+    rest = []
+    for k in links:
+        gs, gd = group_of.get(k.src), group_of.get(k.dst)
+        if gs is not None and gs == gd:
+            continue
+        rest.append(Link(gs or k.src, f"{k.src}.{k.output}" if gs else k.output,
+                         gd or k.dst, f"{k.dst}.{k.input}" if gd else k.input, k.factor, k.offset))
+    return out, rest, group_of

@@ -1,0 +1,51 @@
+/* A bouncing ball on a floor that is an input (see MeFloorBall.toml). The
+ * bounce is a state event on h - floor; the ball stands at h = floor + lift
+ * after it (v > 0). */
+#include "me_model.h"
+
+#define MODEL_GUID "{cw-me-floorball-1}"
+#define N_STATES 2
+#define N_INDICATORS 1
+#define N_INPUTS 1
+#define N_TUNABLE 1
+enum { VR_h = 1, VR_v, VR_der_h, VR_der_v, VR_g, VR_e, VR_h0, VR_n_stop, VR_bounces, VR_t_bounce, VR_lift, VR_floor };
+static const unsigned STATE_VR[N_STATES] = {VR_h, VR_v};
+static const unsigned DER_VR[N_STATES] = {VR_der_h, VR_der_v};
+static const unsigned INPUT_VR[N_INPUTS] = {VR_floor};
+static const unsigned TUNABLE_VR[N_TUNABLE] = {VR_e};
+
+static void model_start(me_instance *m) {
+    m->r[VR_g] = 9.81;
+    m->r[VR_e] = 0.8;
+    m->r[VR_h0] = 1.0;
+    m->i[VR_n_stop] = 0;
+    m->r[VR_floor] = 0.0;
+}
+
+static void model_init(me_instance *m) {
+    m->r[VR_h] = m->r[VR_h0];
+    m->r[VR_v] = 0.0;
+    m->i[VR_bounces] = 0;
+    m->r[VR_t_bounce] = 0.0;
+}
+
+static void model_update(me_instance *m) {
+    m->r[VR_der_h] = m->r[VR_v];
+    m->r[VR_der_v] = -m->r[VR_g];
+}
+
+static void model_indicators(const me_instance *m, double *z) { z[0] = m->r[VR_h] - m->r[VR_floor]; }
+
+static int model_event(me_instance *m) {
+    if (m->r[VR_h] - m->r[VR_floor] <= 0.0 && m->r[VR_v] < 0.0) {
+        m->r[VR_h] = m->r[VR_floor] + m->r[VR_lift];
+        m->r[VR_v] = -m->r[VR_e] * m->r[VR_v];
+        m->i[VR_bounces] += 1;
+        m->r[VR_t_bounce] = m->time;
+        m->values_changed = 1;
+        if (m->i[VR_n_stop] > 0 && m->i[VR_bounces] >= m->i[VR_n_stop]) m->terminate = 1;
+    }
+    return 0;
+}
+
+static int model_step_event(me_instance *m) { (void)m; return 0; }
