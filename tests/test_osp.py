@@ -259,7 +259,10 @@ def test_other_xml_files_name_the_format_expected(tmp_path, capsys):
 # Files of other kinds given where a scene goes: (name, bytes or None for a directory, what the line says)
 NOT_SCENES = [
     ("other.xml", b"<root/>", "an XML file of root element root, not a scene"),
-    ("binary.xml", bytes(range(256)), "malformed XML at line 1: Start tag expected, '<' not found; expected an OspSystemStructure.xml file"),
+    ("binary.xml", bytes(range(256)), "malformed XML at line 1: Document is empty; expected an "
+                                      "OspSystemStructure.xml file"),
+    ("text.xml", b"a = 1\n", "malformed XML at line 1: Start tag expected, '<' not found; expected an "
+                             "OspSystemStructure.xml file"),
     ("empty.xml", b"", "malformed XML at line 1: Document is empty; expected an OspSystemStructure.xml file"),
     ("notzip.ssp", b"hello", "expected an SSP archive"),
     ("notzip.fmu", b"hello", "is not an FMU: not a zip archive"),
