@@ -256,6 +256,42 @@ def test_other_xml_files_name_the_format_expected(tmp_path, capsys):
     assert_one_line_error(rc, err, "osp.toml", "Open Simulation Platform system structure (name it .xml)")
 
 
+# Files of other kinds given where a scene goes: (name, bytes or None for a directory, what the line says)
+NOT_SCENES = [
+    ("other.xml", b"<root/>", "an XML file of root element root, not a scene"),
+    ("binary.xml", bytes(range(256)), "malformed XML at line 1: Document is empty; expected an "
+                                      "OspSystemStructure.xml file"),
+    ("text.xml", b"a = 1\n", "malformed XML at line 1: Start tag expected, '<' not found; expected an "
+                             "OspSystemStructure.xml file"),
+    ("empty.xml", b"", "malformed XML at line 1: Document is empty; expected an OspSystemStructure.xml file"),
+    ("notzip.ssp", b"hello", "expected an SSP archive"),
+    ("notzip.fmu", b"hello", "is not an FMU: not a zip archive"),
+    ("empty.fmu", b"", "is not an FMU: not a zip archive"),
+    ("adir", None, "is a directory without an OspSystemStructure.xml, not a scene"),
+    ("binary.bin", bytes(range(128, 256)), "not UTF-8 text (byte 0), so not a scene"),
+    ("binary", b"\x1f\x8b\x08\x00\xff", "not UTF-8 text (byte 1), so not a scene"),
+    ("a.json", b'{"scene": {"title": "x"}}', "a JSON file, not a scene"),
+    ("empty.json", b"", "a .json file that is no scene (no [scene] table)"),
+    ("settings.ini", b"a = 1\n", "a .ini file that is no scene (no [scene] table)"),
+    ("data.csv", b"time,x\n0,1\n", "a .csv file that is no TOML, not a scene"),
+]
+
+
+@pytest.mark.parametrize("command", ["validate", "run"])
+@pytest.mark.parametrize("name,data,needle", NOT_SCENES, ids=[c[0] for c in NOT_SCENES])
+def test_files_of_other_kinds_name_the_format_expected(tmp_path, capsys, command, name, data, needle):
+    f = tmp_path / name
+    if data is None:
+        f.mkdir()
+    else:
+        f.write_bytes(data)
+    argv = [command, f] + (["--out", tmp_path / "out"] if command == "run" else [])
+    rc, _, err = run_cli(capsys, argv)
+    assert_one_line_error(rc, err, name, needle)
+    assert "TOML:" not in err and "malformed TOML" not in err
+    assert not (tmp_path / "out").exists()
+
+
 # ---------------------------------------------------------------- hostile files
 
 

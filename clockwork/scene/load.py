@@ -179,13 +179,16 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
         return _load_system(path, read_fmu_scene(path), overrides, kinds, input_file)
     if path.suffix.lower() == ".xml":
         return _load_system(path, _read_xml(path), overrides, kinds, input_file)
+    if path.is_dir():  # a folder stands for the OSP system in it, where there is one (above)
+        raise SceneError(f"is a directory without an {OSP_FILE}, not a scene: expected {_SCENE_FORMATS}", path)
     data = read_bounded(path, MAX_SCENE_BYTES, "scene file", "a .toml scene file")
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as e:
         if data[:4] == b"PK\x03\x04":  # a zip archive: an FMU or an SSP given where a scene goes
             raise SceneError(f"a zip archive, not a scene: expected {_SCENE_FORMATS}", path) from None
-        raise SceneError(f"not UTF-8 text (byte {e.start})", path) from None
+        raise SceneError(f"not UTF-8 text (byte {e.start}), so not a scene: expected {_SCENE_FORMATS}",
+                         path) from None
     try:
         raw = tomllib.loads(text)
     except RecursionError:
@@ -204,6 +207,10 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
         raise SceneError(f"malformed TOML: {msg}", path, where) from None
     except ValueError as e:  # Python's own limit, not TOML's: int() of more than 4300 digits
         raise SceneError(f"malformed TOML: {_number_limit(e)}", path) from None
+    if "scene" not in raw and path.suffix and path.suffix.lower() != ".toml":
+        # another file that happens to parse as TOML (an empty .json, an .ini): named, not read as a scene
+        raise SceneError(f"a {shorten(path.suffix, 20)} file that is no scene (no [scene] table): expected "
+                         f"{_SCENE_FORMATS}", path)
 
     labels: dict[str, str] = {}
     applied = []

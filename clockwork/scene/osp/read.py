@@ -142,8 +142,8 @@ class _Reader:
         self.digest.update(f"{path}\0{len(data)}\0".encode() + data)
         try:
             root = parse_xml(data, "OSP")
-        except XmlError as e:
-            raise SceneError(str(e), path) from None
+        except XmlError as e:  # not XML at all (a binary file, text) says what was expected too
+            raise SceneError(f"{e}; expected {expected}", path) from None
         return _Doc(str(path), path.parent, root)
 
     def read(self) -> OspScene:
