@@ -104,7 +104,7 @@ class _Master(_Strict):
         ("inputs", c_void_p)]  # a _Inputs: inputs driven from samples, or NULL
 
 
-class _Ticks(_Strict):
+class _Ticks(_Strict):  # the core's former tick driver, still in the library until its run to marks lands
     _fields_ = _fields(["watch_port", "watch_pos", "seen", "rows"],
                        ["mark", "margin", "period", "last_tick", "prev_tick"], [],
                        ["n_watch", "capacity", "n_rows", "has_prev"])
@@ -172,14 +172,6 @@ def load_core():
             lib.cw_run_until.restype = c_int
             lib.cw_start.argtypes = [POINTER(_Master)]
             lib.cw_start.restype = None
-            lib.cw_run_watch.argtypes = ([POINTER(_Master)] + [c_double] * 4
-                                         + [c_int, c_void_p, c_void_p] * 2 + [c_void_p, c_double])
-            lib.cw_run_watch.restype = c_int
-            lib.cw_run_ticks.argtypes = [POINTER(_Master), c_double, c_double, POINTER(_Ticks), c_double]
-            lib.cw_run_ticks.restype = c_int
-            lib.cw_run_schedule.argtypes = ([POINTER(_Master), c_int] + [c_void_p] * 3 + [c_int] + [c_void_p] * 2
-                                            + [c_int] + [c_void_p] * 5 + [c_double])
-            lib.cw_run_schedule.restype = c_int
             lib.cw_discontinuity.argtypes = [POINTER(_Master)]
             lib.cw_discontinuity.restype = None
             lib.cw_pool_new.argtypes = [c_int]
@@ -266,7 +258,7 @@ def _array(ctype, values, n: int | None = None):
     if code is None or len(values) != size:
         return (ctype * size)(*values)
     # array converts in one C loop and the bytes are copied: ctypes' own
-    # constructor sets the items one by one (run_schedule: 3 per period).
+    # constructor sets the items one by one (a run to marks: 3 per period).
     try:
         return (ctype * size).from_buffer_copy(array(code, values))
     except (OverflowError, TypeError):  # ctypes' own conversions (it wraps integers)
@@ -442,7 +434,6 @@ class CompiledMaster(Master):
         self._core_ptr = byref(m)
         self._taken = c_double()
         self._taken_ptr = byref(self._taken)
-        self._watch_args = {}
         self._empty_recorder = _Recorder(grid_k=-1, tick_port=-1, capacity=1, tick_capacity=1, stride=1)
 
     def _start_threads(self, m: _Master, ref) -> None:
@@ -601,85 +592,6 @@ class CompiledMaster(Master):
                 self._lib.cw_record_point(self._core_ptr, byref(rec))
             elif rc != _BUFFER_FULL and rc != _SLICE_OVER:
                 self._handle(rc)
-
-    def run_watch(self, t_stop, mark, margin, watched, remember=()):
-        if self.on_step is not None:
-            return super().run_watch(t_stop, mark, margin, watched, remember)
-        # Callers pass the same lists again and again: keyed by identity
-        # (the lists are kept, so that an id cannot be reused), checked by content.
-        key = (id(watched), id(remember))
-        args = self._watch_args.get(key)
-        if args is None or args[-2] != (list(watched), list(remember)):
-            index = {id(p): i for i, p in enumerate(self.ports.all)}
-            arrays = [_array(c_int, (index[id(p)] for p, _ in watched)), _array(c_int, (j for _, j in watched)),
-                      _array(c_int, (index[id(p)] for p, _ in remember)), _array(c_int, (j for _, j in remember)),
-                      _array(c_double, [], len(remember))]
-            self._keep.append(arrays)
-            a = [ctypes.addressof(x) for x in arrays]
-            args = self._watch_args[key] = (len(watched), a[0], a[1], len(remember), a[2], a[3], a[4], arrays[4],
-                                            (list(watched), list(remember)), (watched, remember))
-        n_w, w_port, w_pos, n_r, r_port, r_pos, before_addr, before, _, _ = args
-        while True:
-            rc = self._lib.cw_run_watch(self._core_ptr, t_stop, mark, margin, self.settings.step,
-                                        n_w, w_port, w_pos, n_r, r_port, r_pos, before_addr, self.slice_s)
-            if self._core.orders_lowered:
-                self._orders_lowered()
-            if rc != _SLICE_OVER:
-                break
-        if rc not in (_DONE, _WATCHED):
-            self._handle(rc)
-        return before[:n_r]
-
-    def run_ticks(self, t_stop, mark, margin, watched, period, on_rows, rows_per_call=4096):
-        if self.on_step is not None:
-            return super().run_ticks(t_stop, mark, margin, watched, period, on_rows, rows_per_call)
-        index = {id(p): i for i, p in enumerate(self.ports.all)}
-        width = len(watched) + 1
-        rows = (c_double * (rows_per_call * width))()
-        seen = _array(c_double, (p.out[j] for p, j in watched))
-        arrays = [_array(c_int, (index[id(p)] for p, _ in watched)), _array(c_int, (j for _, j in watched)), seen]
-        k = _Ticks(watch_port=ctypes.addressof(arrays[0]), watch_pos=ctypes.addressof(arrays[1]),
-                   seen=ctypes.addressof(seen), rows=ctypes.addressof(rows), mark=mark, margin=margin,
-                   period=period, last_tick=seen[0], prev_tick=0.0, n_watch=len(watched),
-                   capacity=rows_per_call, n_rows=0, has_prev=0)
-        k_ptr = byref(k)
-        while True:
-            rc = self._lib.cw_run_ticks(self._core_ptr, t_stop, self.settings.step, k_ptr, self.slice_s)
-            if self._core.orders_lowered:
-                self._orders_lowered()
-            if k.n_rows:
-                flat = rows[:k.n_rows * width]
-                k.n_rows = 0
-                on_rows(list(zip(*[iter(flat)] * width)))
-            if rc == _DONE:
-                return
-            if rc not in (_BUFFER_FULL, _SLICE_OVER):
-                self._handle(rc)  # raises, but for a divergence check that finds nothing
-
-    def run_schedule(self, times, sets, values, inputs, outputs, samples):
-        if self.on_step is not None:
-            return super().run_schedule(times, sets, values, inputs, outputs, samples)
-        index = {id(p.inst): i for i, p in enumerate(self.ports.all)}
-        port_of = {id(p): i for i, p in enumerate(self.ports.all)}
-        n = len(times)
-        arrays = [_array(c_double, times), _array(c_int, map(bool, sets)), _array(c_double, values),
-                  _array(c_int, (index[id(inst)] for inst, _ in inputs)), _array(c_uint, (vr for _, vr in inputs)),
-                  _array(c_int, (port_of[id(p)] for p, _ in outputs)), _array(c_int, (j for _, j in outputs))]
-        width = len(outputs)
-        rows = (c_double * max(1, (n - sum(1 for x in sets if x)) * width))()
-        nxt, n_rows = c_int(0), c_int(0)
-        a = [ctypes.addressof(x) for x in arrays]
-        while True:
-            rc = self._lib.cw_run_schedule(self._core_ptr, n, a[0], a[1], a[2], len(inputs), a[3], a[4], width,
-                                           a[5], a[6], ctypes.addressof(rows), byref(nxt), byref(n_rows),
-                                           self.slice_s)
-            if self._core.orders_lowered:
-                self._orders_lowered()
-            if rc == _DONE:
-                break
-            if rc != _SLICE_OVER:
-                self._handle(rc)  # raises, but for a divergence check that finds nothing
-        samples.extend(rows[:n_rows.value * width])
 
     def _native(self, recorder: Recorder):
         # Made once per recorder: a run is called in chunks (analyses.time_series), and systems have
