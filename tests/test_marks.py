@@ -66,6 +66,10 @@ def test_a_plan_of_another_system_is_refused(pair):
     mine = a.master.ports["pendulum"]
     with pytest.raises(UsageError, match="not an output position"):
         a.master.run_marks(1.0, Marks([0.5], outputs=[(mine, mine.n_out)]))
+    pendulum = a.instances["pendulum"]
+    for name in ("phi", "Q"):  # an output, a parameter
+        with pytest.raises(UsageError, match="expected the value reference of a Real input of pendulum"):
+            a.master.run_marks(1.0, Marks([0.5], inputs=[(pendulum, pendulum.variables[name].vr)]))
     assert a.master.t == 0.0 and a.master.stats.steps == 0
 
 
@@ -90,3 +94,17 @@ def test_marks_land_points_and_a_run_goes_on_where_it_stopped(pair):
     assert seen == pytest.approx([0.05, 0.15, 0.2], abs=1e-15) and marks.next == 1
     m.run_marks(0.4, marks)
     assert seen[3:] == pytest.approx([0.25, 0.29, 0.33, 0.37, 0.4], abs=1e-15) and marks.next == 2
+
+
+def test_a_mark_sets_unconnected_inputs_only(monkeypatch):
+    fmu_file("Pendulum")
+    monkeypatch.setenv("CLOCKWORK_FMU_DIR", str(FMU_DIR))
+    with System({"pendulum": ("Pendulum", {"Q": 1000.0, "phi_start": 0.1}), "drag": ("Drag", {})},
+                ["pendulum.w -> drag.w", "drag.tau -> pendulum.tau_drag"], MasterSettings(step=0.1)) as s:
+        pendulum = s.instances["pendulum"]
+        with pytest.raises(UsageError, match="pendulum.tau_drag, which is connected"):
+            s.master.run_marks(1.0, Marks([0.5], sets=[True], values=[1.0],
+                                          inputs=[(pendulum, pendulum.variables["tau_drag"].vr)]))
+        s.master.run_marks(1.0, Marks([0.5], sets=[True], values=[1e-3],
+                                      inputs=[(pendulum, pendulum.variables["tau_escapement"].vr)]))
+        assert s.master.t == pytest.approx(1.0, abs=1e-12)

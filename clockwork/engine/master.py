@@ -39,7 +39,7 @@ import math
 from ctypes import c_double, c_uint
 
 from .checkpoints import Checkpoints
-from ..fmi.description import no_state_reason
+from ..fmi.description import REAL_TYPES, no_state_reason
 from .coupling import InputCoupling, iterate_step
 from ..fmi.calls import DISCARD, NO_MESSAGE, WARNING, free_all
 from ..fmi.cs2 import Instance
@@ -632,11 +632,19 @@ class Master:
                 if id(p) not in ports or not 0 <= j < p.n_out:
                     raise UsageError(f"run_marks: Marks({where}) holds ({p!r}, {j}), which is not an output "
                                      "position of one of this master's ports (master.ports[name])")
-        instances = {id(p.inst) for p in self.ports.all}
+        port_of = {id(p.inst): p for p in self.ports.all}
         for inst, vr in marks.inputs:
-            if id(inst) not in instances:
+            p = port_of.get(id(inst))
+            if p is None:
                 raise UsageError(f"run_marks: Marks(inputs) holds {inst!r}, which is not one of this master's "
                                  "instances")
+            found = [v for v in inst.variables.values() if v.vr == vr and v.causality == "input" and not v.shape]
+            if not found or found[0].type not in REAL_TYPES:
+                raise UsageError(f"run_marks: Marks(inputs) holds ({inst.name}, {vr}): expected the value reference "
+                                 f"of a Real input of {inst.name}")
+            if found[0].name in p.in_names:
+                raise UsageError(f"run_marks: Marks(inputs) holds {inst.name}.{found[0].name}, which is connected "
+                                 "(the coupling sets it at every step): a mark sets unconnected inputs")
         marks._bound = self
 
     def _run_marks(self, t_stop: float, marks: Marks, on_rows) -> bool:
