@@ -459,6 +459,8 @@ def cmd_validate(args) -> int:
     if scene.inputs is not None:
         extra += f", inputs from {scene.inputs.file.name}: {', '.join(scene.inputs.columns)}"
     _say_out(f"ok: {scene.title} ({n} component{'s' * (n != 1)}, {m} connection{'s' * (m != 1)}{extra}{with_set})")
+    for name, comp in scene.components.items():
+        _say_clocks(comp.model_description, name, scene)
     return 0
 
 
@@ -606,6 +608,31 @@ def _info_ssp(path: str) -> int:
     return 0
 
 
+def _say_clocks(md, name: str | None = None, scene=None) -> None:
+    """FMI 3.0 clocks and when each ticks (docs/clocks.md), in a scene with
+    what ticks each triggered input clock; nothing without clocks."""
+    from .fmi.clocks import clock_lines, clock_table, is_scheduled
+
+    lines = clock_lines(md, "  " if name is None else f"  {name}.")
+    if lines and scene is not None:
+        columns = set(scene.inputs.columns) if scene.inputs is not None else set()
+        for k, c in enumerate(clock_table(md).clocks.values()):
+            if c.causality == "input" and c.variability == "triggered":
+                sources = [f"{x.src_instance}.{x.src_var}" for x in scene.connections
+                           if x.dst_instance == name and x.dst_var == c.name]
+                sources += ["the input file"] * (f"{name}.{c.name}" in columns)
+                lines[k] += f"; ticked here by {', '.join(sources) or 'nothing: it never ticks'}"
+            elif c.causality == "output":
+                targets = [f"{x.dst_instance}.{x.dst_var}" for x in scene.connections
+                           if x.src_instance == name and x.src_var == c.name]
+                lines[k] += f"; ticks {', '.join(targets) or 'no connected clock'}"
+    if lines:
+        how = "Scheduled Execution" if is_scheduled(md) else "Co-Simulation, Event Mode"
+        _say_out(f"clocks{'' if name is None else f' of {name}'} ({how}, the Python engine):")
+        for line in lines:
+            _say_out(line)
+
+
 def cmd_info(args) -> int:
     from .fmi.description import FmuError, fmi1_details, read_fmu, resolve_fmu, shape_text, type_name, var_unit
 
@@ -658,6 +685,7 @@ def cmd_info(args) -> int:
     for r in rows:
         _say_out("  " + "  ".join(c.ljust(w) for c, w in zip(r, widths)) + "  " + r[-1])
     _say_out(f"event indicators: {', '.join(indicators) if indicators else 'none'}")
+    _say_clocks(md)
     from .scene.fmu_alone import experiment_times, instance_name
 
     times, step = experiment_times(md, path)

@@ -1,7 +1,7 @@
 """The compiled stepping core against the Python master: the same bits.
 
-master.engine = "compiled" runs the stepping loop in C (src_c/master/
-cw_master.c); "python" is the reference loop. Where the algorithm is the
+master.engine = "compiled" runs the stepping loop in C (src_c/master/,
+cw_step.c and its parts); "python" is the reference loop. Where the algorithm is the
 same, every output, every statistic and every located event agree bit for
 bit: on the core scenes, on located events with replays and hidden
 crossings, on input extrapolation, on Jacobi and Gauss-Seidel, on shooting

@@ -3,7 +3,10 @@ field against the layouts the core exports (fmi/layout.py,
 src_c/master/cw_layout.h), so a mirror that differs in any one field is
 refused at load, not only one of another size."""
 
+import ast
 import ctypes
+import re
+from pathlib import Path
 
 import pytest
 
@@ -73,3 +76,41 @@ def test_a_field_the_c_table_leaves_out_is_found(lib, lookup, name, mirror, monk
 
 def test_an_unknown_struct_is_named(lib):
     assert "no layout for nothing" in layout.problem(lib, "cw_layout", "nothing", compiled._Port)
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _structs_in_header() -> set[str]:
+    # cw_structs.h holds every struct Python mirrors, and only those.
+    text = (ROOT / "src_c" / "master" / "cw_structs.h").read_text()
+    return set(re.findall(r"^\}\s*cw_(\w+);", text, re.M))
+
+
+def _mirrors_in_package() -> set[tuple[str, str]]:
+    # Every ctypes Structure the package defines, by (module, class), found
+    # in the source so that no module needs importing.
+    found = set()
+    for path in (ROOT / "clockwork").rglob("*.py"):
+        tree = ast.parse(path.read_text(), str(path))
+        module = ".".join(path.relative_to(ROOT).with_suffix("").parts)
+        local = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ClassDef):
+                bases = {b.id if isinstance(b, ast.Name) else getattr(b, "attr", "") for b in node.bases}
+                if bases & ({"Structure"} | local):
+                    local.add(node.name)
+                    found.add((module, node.name))
+    return found
+
+
+def test_every_struct_in_the_shared_header_is_mirrored_and_checked():
+    assert _structs_in_header() == {name for _, name, _ in MIRRORS}
+
+
+def test_every_ctypes_structure_in_the_package_is_checked():
+    # Not mirrors: the layout table's own row, and the base that makes
+    # compiled's mirrors refuse unknown attributes.
+    not_mirrors = {("clockwork.fmi.layout", "_Field"), ("clockwork.engine.compiled", "_Strict")}
+    checked = {(mirror.__module__, mirror.__qualname__) for _, _, mirror in MIRRORS}
+    assert _mirrors_in_package() - not_mirrors == checked

@@ -1,6 +1,6 @@
 """noSetFMUStatePriorToCurrentPoint: true wherever the master will set no
 earlier state, false only while it holds one (Checkpoints.held in Python,
-!snap_valid in cw_master.c), on both engines and on FMI 2.0 and 3.0.
+!snap_valid in cw_step.c), on both engines and on FMI 2.0 and 3.0.
 
 The test FMU is tests/models/TestForget: it counts the flags it is given
 and, as libcosim's quarter-truck Wheel does, does not keep a step taken

@@ -49,13 +49,18 @@ DEPENDENCY_KINDS = {"dependent", "constant", "fixed", "tunable", "discrete"}
 UNDECLARED = "undeclared"
 MODEL_KEYS = {
     "name", "description", "author", "version", "callbacks", "real_state",
-    "uint_state", "interpolates_inputs", "max_input_order", "early_return",
+    "uint_state", "interpolates_inputs", "max_input_order", "early_return", "output_clock", "variables_from",
 }
+# [model] output_clock (FMI 3.0 build only): a triggered output clock that
+# ticks in Event Mode when the model's clock_ticks callback says so
+# (docs/clocks.md).
+OUTPUT_CLOCK_KEYS = {"name", "vr", "description", "depends_on"}
 # The FMI 3.0 types of the table's types.
 FMI3_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
 # FMI 3.0 needs one independent variable; it takes the value reference after
 # the table's (CW_NVARS), which the runtime answers with the time.
 TIME_NAME = "time"
+MODELS_DIR = Path(__file__).resolve().parent.parent / "src_c" / "models"
 # The cw_model callbacks (cw_runtime.h): field name -> (return type, parameters).
 CALLBACKS = {
     "validate": ("fmi2Status", "cw_instance *inst"),
@@ -65,6 +70,7 @@ CALLBACKS = {
     "commit": ("void", "cw_instance *inst"),
     "output_derivative": ("int", "cw_instance *inst, unsigned vr, int order, double *value"),
     "settle": ("void", "cw_instance *inst"),
+    "clock_ticks": ("int", "cw_instance *inst"),
 }
 C_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
@@ -127,9 +133,23 @@ def load(model_dir: Path) -> dict:
         table = tomllib.loads(raw.decode())
     except tomllib.TOMLDecodeError as e:
         raise TableError(f"{path}: {e}") from e
+    base = table.get("model", {}).get("variables_from")
+    if base is not None:
+        # A variant of a bundled model (a test model): its variables and experiment.
+        if not isinstance(base, str) or not C_NAME.fullmatch(base):
+            raise TableError(f"{path}: [model] variables_from must name a model of src_c/models")
+        base_path = MODELS_DIR / base / "model.toml"
+        try:
+            base_table = tomllib.loads(base_path.read_text())
+        except (OSError, tomllib.TOMLDecodeError) as e:
+            raise TableError(f"{path}: [model] variables_from = {base!r}: {e}") from e
+        table["variable"] = base_table.get("variable", []) + table.get("variable", [])
+        table.setdefault("experiment", base_table.get("experiment", {}))
     table["variable"] = expand_counts(table.get("variable", []), path)
     shared = model_dir.parent / "units.toml"
     units = tomllib.loads(shared.read_text()) if shared.exists() else {}
+    if base is not None and (MODELS_DIR / "units.toml").exists():  # the bundled model's units
+        units = {**tomllib.loads((MODELS_DIR / "units.toml").read_text()), **units}
     units.update(table.get("units", {}))
     used = {v.get("unit") for v in table.get("variable", [])} - {None}
     table["units"] = {k: u for k, u in units.items() if k in used}
@@ -166,6 +186,7 @@ def check(t: dict) -> None:
     if not isinstance(early, list) or not all(isinstance(e, str) and e for e in early):
         raise TableError(f"{path}: [model] early_return must be a list of event names")
     check_model_c(t)
+    check_output_clock(t)
     doc = t.get("documentation", {})
     unknown = set(doc) - DOC_KEYS
     if unknown:
@@ -257,6 +278,32 @@ def check(t: dict) -> None:
                 )
 
 
+def check_output_clock(t: dict) -> None:
+    """[model] output_clock: a name, a value reference above the table's
+    (and the time's), the inputs it depends on; with the clock_ticks callback."""
+    path, m = t["_path"], t["model"]
+    clock = m.get("output_clock")
+    has_callback = "clock_ticks" in m.get("callbacks", [])
+    if clock is None:
+        if has_callback:
+            raise TableError(f"{path}: [model] callbacks has clock_ticks but there is no output_clock")
+        return
+    if not isinstance(clock, dict) or set(clock) - OUTPUT_CLOCK_KEYS or not {"name", "vr", "description"} <= set(clock):
+        raise TableError(f"{path}: [model] output_clock must be a table with name, vr, description "
+                         "(and depends_on)")
+    if not has_callback:
+        raise TableError(f"{path}: [model] output_clock needs the clock_ticks callback")
+    vrs = [v["vr"] for v in t.get("variable", [])]
+    if not isinstance(clock["vr"], int) or clock["vr"] <= max(vrs, default=-1) + 1:
+        raise TableError(f"{path}: [model] output_clock vr must be above every variable's vr and the time's")
+    names = {v["name"] for v in t.get("variable", [])}
+    if clock["name"] in names:
+        raise TableError(f"{path}: [model] output_clock name {clock['name']!r} is a variable's name")
+    for d in clock.get("depends_on", []):
+        if d not in names:
+            raise TableError(f"{path}: [model] output_clock depends_on {d!r}: no such variable")
+
+
 def check_model_c(t: dict) -> None:
     """model.c must define exactly the callbacks the table names: a missing
     one would be an undefined static function, an extra one dead code."""
@@ -264,6 +311,9 @@ def check_model_c(t: dict) -> None:
     if not source.exists():
         return
     text = source.read_text()
+    base = t["model"].get("variables_from")
+    if base is not None and (MODELS_DIR / base / "model.c").exists():  # a variant includes the model's code
+        text += (MODELS_DIR / base / "model.c").read_text()
     defined = {
         name for name in CALLBACKS
         if re.search(rf"^static\s[^;{{}}=]*\b{name}\s*\([^;]*?\)\s*\{{", text, re.M)
@@ -307,6 +357,8 @@ def generate_model(t: dict) -> list[str]:
     lines += [f"    .{name} = {name if name in callbacks else 'NULL'}," for name in CALLBACKS]
     if "max_input_order" in m:
         lines.append(f"    .max_input_order = {int(m['max_input_order'])},")
+    if "output_clock" in m:
+        lines.append(f"    .output_clock_vr = {int(m['output_clock']['vr'])},")
     lines += ["};", "", "#endif /* CW_VARS_TABLE_ONLY */", ""]
     return lines
 
@@ -668,6 +720,10 @@ def generate_xml3(t: dict) -> str:
                 start = bool(start)
             attrs.append(f'start="{_num(start)}"')
         x.append(f"    <{FMI3_TYPES[v['type']]} {' '.join(attrs)}/>")
+    clock = m.get("output_clock")
+    if clock is not None:
+        x.append(f'    <Clock name={quoteattr(clock["name"])} valueReference="{clock["vr"]}" causality="output" '
+                 f'intervalVariability="triggered" description={quoteattr(clock["description"])}/>')
     x.append("  </ModelVariables>")
     x.append("  <ModelStructure>")
     outputs = [v for v in variables if v["causality"] == "output"]
@@ -680,12 +736,17 @@ def generate_xml3(t: dict) -> str:
         deps = v.get("depends_on", [])
         kinds = deps if isinstance(deps, dict) or deps == UNDECLARED else dict.fromkeys(deps, "dependent")
         x.append(f'    <Output valueReference="{v["vr"]}" {_dependencies3(kinds, vr_of)}'.rstrip() + "/>")
+    if clock is not None:
+        deps = _dependencies3(dict.fromkeys(clock.get("depends_on", []), "dependent"), vr_of)
+        x.append(f'    <Output valueReference="{clock["vr"]}" {deps}'.rstrip() + "/>")
     for v in outputs:
         if "initial_depends_on" in v:
             deps = _dependencies3(dict.fromkeys(v["initial_depends_on"], "dependent"), vr_of)
             x.append(f'    <InitialUnknown valueReference="{v["vr"]}" {deps}/>')
         else:  # undeclared: depends on every Known
             x.append(f'    <InitialUnknown valueReference="{v["vr"]}"/>')
+    if clock is not None:  # an output, initial="calculated" by default: an initial unknown (fmpy validate)
+        x.append(f'    <InitialUnknown valueReference="{clock["vr"]}" {deps}'.rstrip() + "/>")
     x.append("  </ModelStructure>")
     indicators = [v["name"] for v in variables if v.get("event_indicator")]
     x += ["  <Annotations>", '    <Annotation type="clockwork">', *_capabilities(indicators), "    </Annotation>",

@@ -29,7 +29,7 @@ from .registry import register
 # Every key of a time_series result (t_end_s and engine always; the others when
 # ticks are recorded, an FMU ends the run, or from the grasshopper clock's stall check).
 COLUMNS = {"t_end_s", "engine", "engine_reason", "ended", "notes", "ticks", "mean_period_s", "last_period_s",
-           "stalled", "last_amplitude_deg", "reason"}
+           "stalled", "last_amplitude_deg", "reason", "clock_ticks", "clocked"}
 
 
 def series_columns(scene) -> set[str]:
@@ -90,6 +90,7 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
         ended, t_end = m.ended, m.t
         engine = {"engine": m.engine, **({"engine_reason": m.engine_reason} if m.engine_reason else {})}
         notes = list(m.notes)
+        clocks = _clock_records(m)
     ticks = recorder.ticks
     result: dict = {"t_end_s": t_end if ended is not None else stop, **engine}
     if ended is not None:
@@ -100,6 +101,7 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
         result["notes"] = notes
     if stall is not None:
         result.update(stall)
+    result.update(clocks)
     if tick_inst:  # none is a count too: a plot of it is not a plot of a missing column
         result["ticks"] = len(ticks)
     if ticks:
@@ -114,6 +116,19 @@ def time_series(scene, point: dict, progress: bool = False, ticks_only: bool = F
     if tick_inst:
         out["ticks"] = ticks
     return out
+
+
+def _clock_records(master) -> dict:
+    """FMI 3.0 clocks (engine/clocks.py): each clock's tick times
+    (``clock_ticks``) and each clocked output's values after its ticks
+    (``clocked``: times and values), apart from the communication points'
+    series; nothing for a scene without clocks."""
+    ticks = getattr(master, "clock_ticks", None)
+    if ticks is None:
+        return {}
+    return {"clock_ticks": {n: list(t) for n, t in ticks.items()},
+            "clocked": {n: {"time": [t for t, _ in v], "value": [x for _, x in v]}
+                        for n, v in master.clocked_values.items()}}
 
 
 def keep_history(e: SimulationError, kind: str, recorder: Recorder, master, outputs, tick_inst) -> None:

@@ -25,7 +25,7 @@ class Checkpoints:
         """Whether a saved state is held that a rollback or a replay may
         set again. Every fmi2DoStep/fmi3DoStep says so to the FMUs: its
         noSetFMUStatePriorToCurrentPoint is true only while none is held
-        (cw_master.c: !snap_valid), so that an FMU may drop its history
+        (cw_step.c: !snap_valid), so that an FMU may drop its history
         wherever the master will not go back."""
         return self.snapshot is not None
 

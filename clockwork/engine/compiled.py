@@ -33,6 +33,7 @@ from . import cvode
 from ..fmi.cs2 import Instance
 from ..fmi.cs1 import _Fmi1
 from ..fmi.cs3 import _Events
+from .clocks import ClockedMaster, clocks_reason
 from .master import Master
 from .parallel import group_ends
 from .model_exchange import _ME
@@ -219,6 +220,13 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
                 extra_outputs: dict[str, list[str]] | None = None, inputs: Samples | None = None) -> Master:
     """The master that ``settings.engine`` asks for (see the module's docstring)."""
     settings.check()
+    clocks = clocks_reason(instances)
+    if clocks is not None:  # FMI 3.0 clocks: the Python engine (engine/clocks.py)
+        if settings.engine == "compiled":
+            raise SceneError(f"master.engine = 'compiled': {clocks} (use 'auto' or 'python')")
+        master = ClockedMaster(instances, links, settings, start_time, step_order, extra_outputs, inputs)
+        master.engine_reason = clocks if settings.engine == "auto" else None
+        return master
     reason = None
     if settings.engine != "python":
         types = [(f"{k.src}.{k.output} -> {k.dst}.{k.input}", link_type(instances, k)) for k in links]

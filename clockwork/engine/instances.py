@@ -13,7 +13,9 @@ from ..errors import SceneError
 from ..fmi.description import fmi_version, read_fmu
 from ..fmi.cs2 import Instance
 from ..fmi.cs1 import Instance1
+from ..fmi.clocks import is_scheduled
 from ..fmi.cs3 import Instance3
+from ..fmi.scheduled import ScheduledInstance
 from .model_exchange import MEInstance, MEInstance3, MEOptions, interface_of, model_exchange_problem
 
 _MODEL_EXCHANGE = {2: MEInstance, 3: MEInstance3}
@@ -34,6 +36,8 @@ def make_instance(name, path, model_description=None, early_return: bool = True,
         if problem:
             raise SceneError(f"{path}: {problem}")
         return _MODEL_EXCHANGE[version](name, path, md, options)
+    if version == 3 and is_scheduled(md):
+        return ScheduledInstance(name, path, md)
     if version == 3:
         return Instance3(name, path, md, early_return, intermediate_update)
     if version == 1:

@@ -36,7 +36,7 @@ outputs are read again after Initialization Mode. (The master starts them
 in its second sweep over the system, once every output feeding the loop
 has been read.)
 
-``src_c/master/cw_master.c`` solves loops in its steps the same way
+``src_c/master/cw_loops.c`` solves loops in its steps the same way
 (``loop_solve``), operation for operation; initialization is Python's in
 both engines.
 """

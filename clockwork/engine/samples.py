@@ -28,7 +28,7 @@ start: a feedthrough output is one step late there).
 
 ``FileInputs`` binds the signals to the instances' input variables; Real
 inputs are set through the same fmi2SetReal the master uses for links (the
-compiled core has a twin of ``Samples.at`` in cw_master.c), other types
+compiled core has a twin of ``Samples.at`` in cw_inputs.c), other types
 through the instance's typed setters.
 """
 

@@ -165,6 +165,7 @@ class Instance3(Instance):
 
     fmi_version = 3
     do_step_name = "fmi3DoStep"
+    clock_event = None  # with clocks: the engine's handler of an event the FMU signals, (time) -> status
 
     def __init__(self, name, path, model_description=None, early_return: bool = True,
                  intermediate_update: bool = False):
@@ -696,7 +697,8 @@ class Instance3(Instance):
             worst = max(worst, st)
             reached = last.value if early.value else end
             if handling.value and self.event_mode_used:
-                st = self._handle_event(comp)
+                # An FMU with clocks: the clock engine handles the event (engine/clocks.py).
+                st = self._handle_event(comp) if self.clock_event is None else self.clock_event(reached)
                 if st > WARNING:
                     return st
                 worst = max(worst, st)

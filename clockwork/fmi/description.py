@@ -50,6 +50,7 @@ from ..files import NotRegularFile, absent, open_regular
 from ..hashing import sha256_file
 from ..numbers import XSD_SPECIAL, parse_real, shorten
 from ..paths import REPO, fmu_dir, in_checkout
+from .clocks import ScheduledFace, clock_problem
 from .description_check import FLOAT32_MAX, INT_RANGES, DescriptionProblem, check_description
 from .types import INTEGER_TYPES, REAL_TYPES, TEXT_TYPES  # noqa: F401 (named here by every layer)
 
@@ -432,14 +433,59 @@ def _intermediate_update_names(xml: bytes) -> set[str]:
     return {v.get("name") for v in root.iterfind("ModelVariables/*") if v.get("intermediateUpdate") == "true"}
 
 
+def _clock_attributes(path, md, xml: bytes) -> None:
+    """intervalDecimal, shiftDecimal and priority of the Clock variables,
+    which fmpy does not read, onto its variables (strict numbers)."""
+    if b"<Clock" not in xml:
+        return
+    root = ET.fromstring(xml)
+    by_name = {v.name: v for v in md.modelVariables}
+    for el in root.iterfind("ModelVariables/Clock"):
+        v = by_name.get(el.get("name"))
+        if v is None:
+            continue
+        for attr, kind in (("intervalDecimal", "real"), ("shiftDecimal", "real"), ("priority", "int")):
+            text = el.get(attr)
+            if text is None:
+                continue
+            where = f"{path}: modelDescription.xml: Clock {v.name}: {attr}"
+            if kind == "int":
+                if not text.strip().isdigit():
+                    raise FmuError(f"{where}={text!r}: expected a whole number >= 0")
+                setattr(v, attr, int(text))
+            else:
+                try:
+                    setattr(v, attr, parse_real(text))
+                except ValueError:
+                    raise FmuError(f"{where}={text!r}: expected a number") from None
+
+
+def _check_clocks(path: Path | str, md) -> None:
+    """Clocks and Scheduled Execution (fmi/clocks.py): refuse what the
+    engine does not serve; a Scheduled Execution FMU (without Co-Simulation)
+    gets a ``coSimulation`` made from its ``<ScheduledExecution>`` (no Event
+    Mode, no early return), a ``clocks.ScheduledFace``, so that the layers that
+    read the Co-Simulation capabilities read its own."""
+    se = getattr(md, "scheduledExecution", None)
+    if md.coSimulation is None and se is not None:
+        cs = ScheduledFace()
+        for name in ("modelIdentifier", "needsExecutionTool", "canBeInstantiatedOnlyOncePerProcess",
+                     "canGetAndSetFMUstate", "canSerializeFMUstate", "providesDirectionalDerivative",
+                     "providesAdjointDerivatives", "providesPerElementDependencies"):
+            if hasattr(se, name):
+                setattr(cs, name, getattr(se, name))
+        cs.canHandleVariableCommunicationStepSize = True
+        cs.hasEventMode = False
+        md.coSimulation = cs
+    problem = clock_problem(md)
+    if problem:
+        raise FmuError(f"{path}: {md.modelName}: {problem}")
+
+
 def _check_fmi3(path: Path | str, md, xml: bytes) -> None:
     """Refuse what the master does not serve; rename the types it does."""
-    clocks = [v.name for v in md.modelVariables if v.type == "Clock"]
-    if clocks:
-        raise FmuError(f"{path}: {md.modelName} uses clocks ({', '.join(clocks[:3])}"
-                       f"{', ...' if len(clocks) > 3 else ''}), which the master does not support")
-    if md.coSimulation is None and getattr(md, "scheduledExecution", None) is not None:
-        raise FmuError(f"{path}: {md.modelName} is a Scheduled Execution FMU, which the master does not support")
+    _clock_attributes(path, md, xml)
+    _check_clocks(path, md)
     _check_arrays(path, md, xml)
     intermediate = _intermediate_update_names(xml)
     for v in md.modelVariables:

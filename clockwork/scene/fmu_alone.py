@@ -140,7 +140,8 @@ def default_record(md, instance: str) -> list[str]:
         return (v is not None and v.name != "time" and v.type not in _FMPY_UNRECORDED
                 and v.causality not in ("independent", "structuralParameter"))
 
-    chosen = [v for v in md.modelVariables if v.causality == "output" and v.type != "Clock"]
+    chosen = [v for v in md.modelVariables if v.causality == "output" and v.type != "Clock"
+              and not getattr(v, "clocks", None)]  # clocked: recorded at their clocks' ticks (engine/clocks.py)
     if not chosen:
         states = [getattr(d.variable, "derivative", None) for d in (md.derivatives or [])][:_MAX_FALLBACK]
         chosen = [v for v in states if kept(v)]

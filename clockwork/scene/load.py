@@ -790,6 +790,10 @@ def _record(ctx: Ctx, t: dict | None, components: dict[str, Component]) -> Recor
         for i, ref in enumerate(refs):
             key = f"record.outputs[{i}]"
             comp, v = parse_ref(ctx, key, ref, components, "a variable")
+            if v.type == "Clock" or getattr(v, "clocks", None):  # engine/clocks.py records them at their ticks
+                raise ctx.fail(key, f"{ref} is {'a clock' if v.type == 'Clock' else 'clocked'}: its ticks and "
+                                    "values at its ticks are in the result's clock_ticks and clocked; expected a "
+                                    "variable of the communication points")
             if v.causality not in ("output", "input", "parameter", "calculatedParameter", "local"):
                 raise ctx.fail(key, f"{ref} is {article(v.causality)} {v.causality} variable; "
                                     "expected an output, input, parameter or local variable (such as der(x))")
@@ -801,6 +805,7 @@ def _record(ctx: Ctx, t: dict | None, components: dict[str, Component]) -> Recor
     else:
         outputs = [(n, name) for n, c in components.items()
                    for v in c.model_description.modelVariables if v.causality == "output"
+                   and v.type != "Clock" and not getattr(v, "clocks", None)  # at their ticks (engine/clocks.py)
                    for name in element_names(v)]
     interval = None
     if "interval" in t:

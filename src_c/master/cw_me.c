@@ -6,7 +6,7 @@
  *
  * The twin of clockwork/engine/me_step.py (the algorithm: integration,
  * events, inputs) and of the master's calls in model_exchange.py,
- * operation for operation, built with -ffp-contract=off like cw_master.c,
+ * operation for operation, built with -ffp-contract=off like the master's files,
  * so that both engines give the same bits. The Runge-Kutta pairs are the
  * project's own (src_c/runtime/cw_rk.c, built into this library with room
  * for CW_RK_MAXN states); CVode comes from fmpy's SUNDIALS, through the
@@ -27,7 +27,7 @@
 
 #define CW_EXPORT __attribute__((visibility("default")))
 
-#include "cw_layout.h"
+#include "cw_structs.h"
 
 enum { FMI_OK = 0, FMI_WARNING = 1, FMI_DISCARD = 2, FMI_ERROR = 3 };
 enum { AUTO = 0, DP54 = 1, DOP853 = 2, CVODE = 3 };         /* solver, method */
@@ -44,60 +44,6 @@ enum { CV_BDF = 2, CV_ONE_STEP = 2 };
 #define STIFF_STEPS 15
 #define NONSTIFF_RESET 6
 
-typedef int (*cv_rhs_t)(double, void *, void *, void *);
-
-/* fmpy's SUNDIALS functions (cvode.py's _SIGNATURES, in that order). */
-typedef struct {
-    int (*SUNContext_Create)(int, void **);
-    int (*SUNContext_Free)(void **);
-    int (*SUNContext_ClearErrHandlers)(void *);
-    double *(*N_VGetArrayPointer)(void *);
-    void (*N_VDestroy)(void *);
-    void (*SUNMatDestroy)(void *);
-    int (*SUNLinSolFree)(void *);
-    void *(*N_VNew_Serial)(long long, void *);
-    void *(*SUNDenseMatrix)(long long, long long, void *);
-    void *(*SUNLinSol_Dense)(void *, void *, void *);
-    void *(*CVodeCreate)(int, void *);
-    int (*CVodeInit)(void *, cv_rhs_t, double, void *);
-    int (*CVodeReInit)(void *, double, void *);
-    int (*CVodeSVtolerances)(void *, double, void *);
-    int (*CVodeSetLinearSolver)(void *, void *, void *);
-    int (*CVodeSetUserData)(void *, void *);
-    int (*CVodeSetStopTime)(void *, double);
-    int (*CVode)(void *, double, void *, double *, int);
-    int (*CVodeGetDky)(void *, double, int, void *);
-    int (*CVodeGetNumRhsEvals)(void *, long *);
-    int (*CVodeGetNumLinRhsEvals)(void *, long *);
-    int (*CVodeGetNumErrTestFails)(void *, long *);
-    int (*CVodeGetNumNonlinSolvConvFails)(void *, long *);
-    void (*CVodeFree)(void **);
-} cw_sundials;
-
-/* The wrapper's state (model_exchange._ME, same layout). */
-typedef struct {
-    void *instance;
-    /* the FMU's functions, FMI 2.0's or 3.0's by `version` */
-    void *setTime, *setStates, *getDerivatives, *getIndicators, *getStates, *getNominals, *completedStep,
-        *enterEventMode, *update, *enterContinuousMode, *getReal, *setReal, *getState, *setState;
-    const cw_sundials *sundials;
-    cw_rk *rk;
-    double *x, *xbuf, *xw, *xd, *dx, *nominal, *atolv;  /* states, scratch, nominals, tolerances */
-    double *z_prev, *z, *z_end, *z_lo, *z0;            /* indicators: last accepted, scratch */
-    const unsigned *in_vr;
-    double *u0, *d1, *d2, *tref, *in_val;              /* continuous inputs' polynomials */
-    const unsigned *state_vr;
-    const int *der_state;
-    double *saved;                                     /* x, z_prev, (u0, d1, d2, tref) per input */
-    void *cv_mem, *cv_ctx, *cv_y, *cv_abstol, *cv_dky, *cv_A, *cv_LS;
-    double time, next_event_time, end_time, rtol, event_time_tolerance, h_next, err_t;
-    double saved_time, saved_next_event_time, saved_end_time, saved_h_next;
-    long long steps, rejected, rhs, state_events, time_events, step_events, input_events, event_iterations,
-        switches;
-    int version, n, nz, n_in, solver, method, stiff_count, nonstiff_count, terminated, mode, poly,
-        inputs_dirty, restart, cv_owner, failed_call, failed_status, failed_detail, needs_completed,
-        saved_method, saved_stiff_count, saved_nonstiff_count, saved_terminated, saved_poly, saved_mode;
-} cw_me;
 
 CW_EXPORT size_t cwme_sizeof_rk(void) { return sizeof(cw_rk); }
 CW_EXPORT int cwme_max_states(void) { return CW_RK_MAXN; }
@@ -939,57 +885,4 @@ CW_EXPORT int cwme_setState(void *comp, void *state)
     me->restart = 1;
     me->inputs_dirty = 0;
     return st;
-}
-
-/* The layouts Python checks its ctypes mirrors against (cw_layout.h). */
-static const cw_field sundials_layout[] = {
-    CW_FIELD(cw_sundials, SUNContext_Create), CW_FIELD(cw_sundials, SUNContext_Free),
-    CW_FIELD(cw_sundials, SUNContext_ClearErrHandlers), CW_FIELD(cw_sundials, N_VGetArrayPointer),
-    CW_FIELD(cw_sundials, N_VDestroy), CW_FIELD(cw_sundials, SUNMatDestroy),
-    CW_FIELD(cw_sundials, SUNLinSolFree), CW_FIELD(cw_sundials, N_VNew_Serial),
-    CW_FIELD(cw_sundials, SUNDenseMatrix), CW_FIELD(cw_sundials, SUNLinSol_Dense),
-    CW_FIELD(cw_sundials, CVodeCreate), CW_FIELD(cw_sundials, CVodeInit), CW_FIELD(cw_sundials, CVodeReInit),
-    CW_FIELD(cw_sundials, CVodeSVtolerances), CW_FIELD(cw_sundials, CVodeSetLinearSolver),
-    CW_FIELD(cw_sundials, CVodeSetUserData), CW_FIELD(cw_sundials, CVodeSetStopTime),
-    CW_FIELD(cw_sundials, CVode), CW_FIELD(cw_sundials, CVodeGetDky),
-    CW_FIELD(cw_sundials, CVodeGetNumRhsEvals), CW_FIELD(cw_sundials, CVodeGetNumLinRhsEvals),
-    CW_FIELD(cw_sundials, CVodeGetNumErrTestFails), CW_FIELD(cw_sundials, CVodeGetNumNonlinSolvConvFails),
-    CW_FIELD(cw_sundials, CVodeFree),
-};
-static const cw_field me_layout[] = {
-    CW_FIELD(cw_me, instance), CW_FIELD(cw_me, setTime), CW_FIELD(cw_me, setStates),
-    CW_FIELD(cw_me, getDerivatives), CW_FIELD(cw_me, getIndicators), CW_FIELD(cw_me, getStates),
-    CW_FIELD(cw_me, getNominals), CW_FIELD(cw_me, completedStep), CW_FIELD(cw_me, enterEventMode),
-    CW_FIELD(cw_me, update), CW_FIELD(cw_me, enterContinuousMode), CW_FIELD(cw_me, getReal),
-    CW_FIELD(cw_me, setReal), CW_FIELD(cw_me, getState), CW_FIELD(cw_me, setState), CW_FIELD(cw_me, sundials),
-    CW_FIELD(cw_me, rk), CW_FIELD(cw_me, x), CW_FIELD(cw_me, xbuf), CW_FIELD(cw_me, xw), CW_FIELD(cw_me, xd),
-    CW_FIELD(cw_me, dx), CW_FIELD(cw_me, nominal), CW_FIELD(cw_me, atolv), CW_FIELD(cw_me, z_prev),
-    CW_FIELD(cw_me, z), CW_FIELD(cw_me, z_end), CW_FIELD(cw_me, z_lo), CW_FIELD(cw_me, z0),
-    CW_FIELD(cw_me, in_vr), CW_FIELD(cw_me, u0), CW_FIELD(cw_me, d1), CW_FIELD(cw_me, d2),
-    CW_FIELD(cw_me, tref), CW_FIELD(cw_me, in_val), CW_FIELD(cw_me, state_vr), CW_FIELD(cw_me, der_state),
-    CW_FIELD(cw_me, saved), CW_FIELD(cw_me, cv_mem), CW_FIELD(cw_me, cv_ctx), CW_FIELD(cw_me, cv_y),
-    CW_FIELD(cw_me, cv_abstol), CW_FIELD(cw_me, cv_dky), CW_FIELD(cw_me, cv_A), CW_FIELD(cw_me, cv_LS),
-    CW_FIELD(cw_me, time), CW_FIELD(cw_me, next_event_time), CW_FIELD(cw_me, end_time), CW_FIELD(cw_me, rtol),
-    CW_FIELD(cw_me, event_time_tolerance), CW_FIELD(cw_me, h_next), CW_FIELD(cw_me, err_t),
-    CW_FIELD(cw_me, saved_time), CW_FIELD(cw_me, saved_next_event_time), CW_FIELD(cw_me, saved_end_time),
-    CW_FIELD(cw_me, saved_h_next), CW_FIELD(cw_me, steps), CW_FIELD(cw_me, rejected),
-    CW_FIELD(cw_me, rhs), CW_FIELD(cw_me, state_events), CW_FIELD(cw_me, time_events),
-    CW_FIELD(cw_me, step_events), CW_FIELD(cw_me, input_events), CW_FIELD(cw_me, event_iterations),
-    CW_FIELD(cw_me, switches), CW_FIELD(cw_me, version), CW_FIELD(cw_me, n), CW_FIELD(cw_me, nz),
-    CW_FIELD(cw_me, n_in), CW_FIELD(cw_me, solver), CW_FIELD(cw_me, method), CW_FIELD(cw_me, stiff_count),
-    CW_FIELD(cw_me, nonstiff_count), CW_FIELD(cw_me, terminated), CW_FIELD(cw_me, mode),
-    CW_FIELD(cw_me, poly), CW_FIELD(cw_me, inputs_dirty), CW_FIELD(cw_me, restart), CW_FIELD(cw_me, cv_owner),
-    CW_FIELD(cw_me, failed_call), CW_FIELD(cw_me, failed_status), CW_FIELD(cw_me, failed_detail),
-    CW_FIELD(cw_me, needs_completed), CW_FIELD(cw_me, saved_method), CW_FIELD(cw_me, saved_stiff_count),
-    CW_FIELD(cw_me, saved_nonstiff_count), CW_FIELD(cw_me, saved_terminated), CW_FIELD(cw_me, saved_poly),
-    CW_FIELD(cw_me, saved_mode),
-};
-
-CW_EXPORT const cw_field *cwme_layout(const char *name, size_t *n_fields, size_t *struct_size)
-{
-    CW_LAYOUT_CASE(sundials)
-    CW_LAYOUT_CASE(me)
-    *n_fields = 0;
-    *struct_size = 0;
-    return NULL;
 }

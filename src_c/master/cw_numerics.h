@@ -1,4 +1,4 @@
-/* The numerics the master's event location (cw_master.c) and the Model
+/* The numerics the master's event location (cw_events.c) and the Model
  * Exchange wrapper's (cw_me.c) share: what counts as a zero crossing, and
  * the root finder on a bracket.
  *

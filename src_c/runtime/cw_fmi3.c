@@ -398,8 +398,22 @@ fmi3Status fmi3SetBinary(fmi3Instance instance,
 fmi3Status fmi3GetClock(fmi3Instance instance,
                         const fmi3ValueReference valueReferences[],
                         size_t nValueReferences, fmi3Clock values[]) {
-    (void)values;
-    return S(cw_core_no_such_type(INST, "fmi3GetClock", "Clock",
+    cw_instance *inst = INST;
+    /* A model's output clock ([model] output_clock): read in Event Mode,
+     * where it ticks when the model's clock_ticks says so. */
+    if (inst && inst->model->clock_ticks && nValueReferences > 0 && valueReferences &&
+        values) {
+        size_t k;
+        for (k = 0; k < nValueReferences; k++)
+            if (valueReferences[k] != inst->model->output_clock_vr) break;
+        if (k == nValueReferences) {
+            if (!cw_core_allowed(inst, "fmi3GetClock", CW_EVENT_MODE)) return fmi3Error;
+            const fmi3Clock ticks = inst->model->clock_ticks(inst) ? fmi3True : fmi3False;
+            for (k = 0; k < nValueReferences; k++) values[k] = ticks;
+            return fmi3OK;
+        }
+    }
+    return S(cw_core_no_such_type(inst, "fmi3GetClock", "Clock",
                                   valueReferences, nValueReferences, 0));
 }
 

@@ -133,6 +133,13 @@ typedef struct {
      * NULL for models that never leave one pending). */
     void (*settle)(struct cw_instance *inst);
 
+    /* FMI 3.0 builds with an output clock ([model] output_clock): whether
+     * the clock ticks now, in Event Mode, from the committed state and the
+     * current inputs (before fmi3UpdateDiscreteStates commits them); NULL
+     * for models without one. Its value reference is output_clock_vr. */
+    int (*clock_ticks)(struct cw_instance *inst);
+    unsigned output_clock_vr;
+
     /* Highest order of input derivatives fmi2SetRealInputDerivatives takes;
      * 0 (the default) means 2. */
     int max_input_order;

@@ -132,8 +132,8 @@ class Structure:
                 if ns == NS["ssc"] and (local in TYPES or local == "Binary"):  # Binary: FMI 3.0's
                     ctype = FMI_TYPE.get(local, local)
                     unit = (child.get("unit") or None) if ctype == "Real" else None  # unit="" is no unit
-                elif ns == NS["ssc"] and local == "Clock":
-                    raise doc.fail(child, "not supported: Clock connectors")
+                elif ns == NS["ssc"] and local == "Clock":  # SSP 2.0: an FMI 3.0 clock (docs/clocks.md)
+                    ctype = "Clock"
             if c.find(q("ssc", "Dimension")) is not None or c.find(q("ssd", "Dimension")) is not None:
                 raise doc.fail(c, "not supported: array connectors (ssc:Dimension)")
             if variables is not None:
