@@ -150,7 +150,7 @@ def test_a_run_cut_into_slices_gives_the_same_bits(monkeypatch):
     monkeypatch.setattr(CompiledMaster, "slice_s", 0.0)
     lib = compiled.load_core()
     returns = []
-    for name in ("cw_run_until",):
+    for name in ("cw_run_until", "cw_run_marks"):
         def counted(*args, _call=getattr(lib, name)):
             rc = _call(*args)
             returns.append(rc)
@@ -173,6 +173,7 @@ def test_a_run_cut_into_slices_gives_the_same_bits(monkeypatch):
         assert got[0] == got[1] and len(got[0][0]["time"]) == round(2.0 / 0.05) + 1
         _same_state(p, c)
     assert returns.count(compiled._SLICE_OVER) >= 300 // 16, returns  # 300 steps to t = 3 s, then the watch
+    assert returns[-2:] == [compiled._SLICE_OVER, compiled._WATCHED], returns  # the watch was sliced too
 
 
 def _outputs(m, *names):
@@ -214,10 +215,11 @@ def test_run_marks_following_ticks_is_the_same_on_both_engines():
             batches = []
             assert m.run_marks(17.0, marks, batches.append) is False
             m.run_marks(40.0, marks, batches.append)
-            got.append(batches)
+            assert max(len(b) for b in batches) <= 4
+            got.append([r for b in batches for r in b])
         assert got[0] == got[1]
-        rows = [r for b in got[0] for r in b]
-        assert max(len(b) for b in got[0]) <= 4 and len(rows) > 15
+        rows = got[0]
+        assert len(rows) > 15
         assert all(0 < t - tt < 2e-3 + 1e-9 for t, tt, *_ in rows[2:])  # once the period is known
         _same_state(p, c)
 
