@@ -27,6 +27,7 @@ from .arguments import Choice, Either, Flag, Instance, Mapping, Optional, Real, 
 from .arguments import Path as PathSpec
 from .fmi.description import element_name
 from .fmi.description import variables as variables_of
+from .engine.model_exchange import interface_of
 from .engine.names import split_ref
 from .engine.settings import MasterSettings
 from .errors import ParametersRefused, SceneError, UsageError
@@ -47,12 +48,14 @@ FMPY_ONLY = {
 # Why each is refused: what to do instead.
 _INSTEAD = {
     "solver": "it is for Model Exchange FMUs",
-    "fmi_type": "clockwork co-simulates the FMU's Co-Simulation interface",
     "validate": "clockwork always checks the FMU and the values given",
     "timeout": "stop the run with Ctrl-C or a signal",
     "set_input_derivatives": "master={'extrapolation': 1} hands input polynomials to FMUs that take them",
     "early_return_allowed": "master={'early_return': ...} sets it",
 }
+
+# fmpy's fmi_type: the interface an FMU file is run through, as the scene's `interface` names it.
+_FMI_TYPES = {"CoSimulation": "co-simulation", "ModelExchange": "model-exchange"}
 
 # More output names than an FMU has variables: an iterator (not a list)
 # that gives more is taken for an endless one (itertools.count, repeat).
@@ -215,8 +218,9 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
     that differ from the defaults), `progress` (a progress bar) and
     `output_format` ("structured": fmpy's structured array, the default;
     "pandas": a pandas DataFrame with `time` a column, an FMI 3.0 array a
-    column per element). fmpy's other arguments are accepted at their
-    defaults only.
+    column per element). fmpy's `fmi_type` may name the interface the FMU
+    runs through ("ModelExchange" for an FMU without Co-Simulation); fmpy's
+    other arguments are accepted at their defaults only.
 
     Numbers may be of any real type (int, float, numpy's, fractions); a
     value is checked against its FMU variable's type and range. Raises
@@ -224,14 +228,16 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
     SimulationError for a run that fails. An FMU that ends the simulation
     ends the result there.
     """
+    fmi_type = fmpy_only.pop("fmi_type", None)
+    if fmi_type is not None and not (type(fmi_type) is str and fmi_type in _FMI_TYPES):
+        raise UsageError(f"simulate(fmi_type={show(fmi_type)}): expected 'CoSimulation', 'ModelExchange' or None")
     for name, value in fmpy_only.items():
         if name not in FMPY_ONLY:
             raise UsageError(f"simulate() got an unexpected argument {name}= (neither clockwork's nor fmpy's)")
         default = FMPY_ONLY[name]
         # compared without the value's own __eq__ (an array's gives an array, a hostile one anything)
         if value is default or (type(value) is type(default) and value == default) or (
-                type(default) is bool and Flag().accepts(value) and bool(value) is default) or (
-                name == "fmi_type" and type(value) is str and value == "CoSimulation"):
+                type(default) is bool and Flag().accepts(value) and bool(value) is default):
             continue
         why = _INSTEAD.get(name, "fmpy's option has no counterpart in clockwork")
         raise UsageError(f"simulate({name}={show(value)}): not supported ({why}); leave it out, or give "
@@ -307,6 +313,8 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
             raise UsageError(f"simulate(): output_interval = {show(output_interval)}: expected a whole multiple of "
                              f"the step ({scene.master.step!r} s), or leave step_size out (fmpy's Co-Simulation "
                              "steps at its output interval)")
+    if fmi_type is not None:
+        _check_interface(scene, fmi_type)
     if scene.sweep is not None:
         raise UsageError(f"simulate({Path(filename).name}): the scene has a sweep of {len(scene.points())} points; "
                          "simulate() runs one (give a scene without [sweep], or run it with `clockwork run`)")
@@ -322,6 +330,29 @@ def simulate(filename, start_time=None, stop_time=None, step_size=None, relative
 
         return as_pandas(out, "simulate(output_format='pandas')")
     return out
+
+
+def _check_interface(scene, fmi_type: str) -> None:
+    """fmpy's fmi_type names the interface the FMU runs through (Model
+    Exchange for an FMU that has no Co-Simulation; in a system, every
+    component's): UsageError for another."""
+    what = f"simulate(fmi_type={fmi_type!r})"
+    requested = _FMI_TYPES[fmi_type]
+    shown = {"co-simulation": "Co-Simulation", "model-exchange": "Model Exchange"}
+    for name, component in scene.components.items():
+        md = component.model_description
+        used = interface_of(md, component.interface)
+        if used == requested:
+            continue
+        if scene.path.suffix.lower() != ".fmu":
+            raise UsageError(f"{what}: the component {name} runs through its {shown[used]} interface (a scene "
+                             "chooses with `interface`); leave fmi_type out")
+        try:
+            interface_of(md, requested)
+        except SceneError as e:
+            raise UsageError(f"{what}: {e.detail}") from None
+        raise UsageError(f"{what}: {md.modelName} has both interfaces and an FMU file alone runs through its "
+                         f'{shown[used]} interface; leave fmi_type out, or give a scene with interface = "{requested}"')
 
 
 def _master_values(master) -> dict:

@@ -102,7 +102,8 @@ def build_parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("plot", help="draw a finished run's outputs again, grouped by unit")
     pl.add_argument("result", metavar="RESULT_DIR", help="the --out directory of a run (a time series)")
     pl.add_argument("--only", nargs="+", default=None, metavar="NAME",
-                    help="only these columns (names or shell patterns, e.g. 'pendulum.*')")
+                    help="only these columns (names or shell patterns, e.g. 'pendulum.*'; an array's name: its "
+                         "elements)")
     pl.add_argument("--out", default=None, metavar="FILE.png",
                     help="the file to write [RESULT_DIR/outputs.png]; more pages go to FILE_2.png...")
     pl.set_defaults(func=cmd_plot)
@@ -124,6 +125,14 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--point", type=int, default=None, metavar="N",
                    help="sweep point to export, counted from 0 (required when the scene has a sweep)")
     e.set_defaults(func=cmd_export_ssp)
+
+    xf = sub.add_parser("export-fmu", help="write a scene as one Co-Simulation FMU with its FMUs and the compiled "
+                                           "master inside (docs/other-tools.md)")
+    xf.add_argument("scene", metavar="SCENE.toml|X.ssp|X.fmu")
+    xf.add_argument("--out", required=True, metavar="X.fmu", help="FMU to write (must not exist)")
+    xf.add_argument("--fmi", type=int, default=2, choices=(2, 3), help="FMI version of the exported FMU (default 2)")
+    add_set(xf)
+    xf.set_defaults(func=cmd_export_fmu)
 
     g = sub.add_parser("gallery", help="run every scene and write the figures with an index page")
     g.add_argument("--out", required=True, metavar="DIR", help="output directory (one folder per scene + index.md)")
@@ -458,6 +467,9 @@ def cmd_validate(args) -> int:
         _say_out(f"note: {note}")
     if scene.inputs is not None:
         extra += f", inputs from {scene.inputs.file.name}: {', '.join(scene.inputs.columns)}"
+    rates = _rates(scene)
+    if rates is not None:
+        _say_out("steps: " + ", ".join(f"{name} {_component_step(scene, name, rates)}" for name in rates))
     _say_out(f"ok: {scene.title} ({n} component{'s' * (n != 1)}, {m} connection{'s' * (m != 1)}{extra}{with_set})")
     for name, comp in scene.components.items():
         _say_clocks(comp.model_description, name, scene)
@@ -568,6 +580,16 @@ def cmd_export_ssp(args) -> int:
     return 0
 
 
+def cmd_export_fmu(args) -> int:
+    from .run.export_fmu import export_fmu
+
+    summary = export_fmu(args.scene, args.out, args.fmi, args.overrides)
+    print(f"wrote {args.out}: {summary['instances']} instance{'s' * (summary['instances'] != 1)}, "
+          f"{summary['parameters']} parameters, {summary['outputs']} outputs, {summary['inputs']} inputs "
+          f"(FMI {args.fmi}.0 Co-Simulation, {summary['model_identifier']}; {', '.join(summary['platforms'])})")
+    return 0
+
+
 def _flag(x) -> str:
     if isinstance(x, bool):
         return "true" if x else "false"
@@ -579,6 +601,21 @@ def _link(c) -> str:
     if (c.factor, c.offset) == (1.0, 0.0):
         return str(c)
     return f"{c} (x {c.factor:g}{f' + {c.offset:g}' if c.offset else ''})"
+
+
+def _rates(scene) -> dict[str, int] | None:
+    """{instance: decimation factor} where the scene's components step at different rates, else None."""
+    from .engine.multirate import is_multirate
+    from .scene.model import rates
+
+    found = rates(scene.master, scene.components)
+    return found if is_multirate(found) else None
+
+
+def _component_step(scene, name: str, rates: dict[str, int]) -> str:
+    """A component's own step, as `info` and `validate` show it (multi-rate)."""
+    k = rates[name]
+    return f"{k * scene.master.step:g} s ({k} base step{'s' * (k != 1)} of {scene.master.step:g} s)"
 
 
 def _info_ssp(path: str) -> int:
@@ -593,9 +630,12 @@ def _info_ssp(path: str) -> int:
     _say_out(f"  sha256       {scene.sha256}")
     _say_out("components:")
     width = max(len(c) for c in scene.components)
+    rates = _rates(scene)
     for name, c in scene.components.items():
         params = ", ".join(f"{k} = {v!r}" for k, v in c.parameters.items())
         _say_out(f"  {name:<{width}}  {c.model_name}  {c.fmu_shown}")
+        if rates is not None:
+            _say_out(f"  {'':<{width}}  step: {_component_step(scene, name, rates)}")
         if params:
             _say_out(f"  {'':<{width}}  parameters: {params}")
     _say_out("connections:")
@@ -634,11 +674,17 @@ def _say_clocks(md, name: str | None = None, scene=None) -> None:
 
 
 def cmd_info(args) -> int:
-    from .fmi.description import FmuError, fmi1_details, read_fmu, resolve_fmu, shape_text, type_name, var_unit
+    from .fmi.description import (NAME_RE, FmuError, fmi1_details, read_fmu, resolve_fmu, shape_text, type_name,
+                                   var_unit)
 
     osp_folder = (Path(args.fmu) / "OspSystemStructure.xml").is_file()  # libcosim's form: the file's folder
     if Path(args.fmu).suffix.lower() in (".ssp", ".ssd", ".xml") or osp_folder:
         return _info_ssp(args.fmu)
+    if not args.fmu.endswith(".fmu") and not NAME_RE.match(args.fmu):  # neither an FMU nor a model name
+        scene = "; a scene file is checked by `clockwork validate`" if args.fmu.endswith(".toml") else ""
+        raise UsageError(f"{args.fmu or repr(args.fmu)}: expected an FMU (X.fmu, or a model name such as "
+                         f"Pendulum), an SSP (X.ssp, X.ssd) or an OSP system structure (OspSystemStructure.xml)"
+                         f"{scene}")
     try:
         path = resolve_fmu(args.fmu)
         md, digest, indicators = read_fmu(path, need_binary=False)

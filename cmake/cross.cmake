@@ -78,3 +78,21 @@ if(WIN32)
 else()  # run with the target's glibc: qemu-aarch64 -L /usr/aarch64-linux-gnu
   target_link_libraries(platcheck PRIVATE m ${CMAKE_DL_LIBS})
 endif()
+
+# The front of an exported system FMU (clockwork export-fmu), for Windows:
+# src_c/export/cw_system.c with the compiled core, whatever files the core
+# is in, but its crash guard (cw_guard.c: POSIX signals; the front has a
+# stand-in). The native build copies it to lib/ beside the Linux one.
+if(WIN32)
+  file(GLOB cw_core_sources CONFIGURE_DEPENDS "${CMAKE_SOURCE_DIR}/src_c/master/*.c")
+  list(FILTER cw_core_sources EXCLUDE REGEX "/cw_guard\\.c$")
+  add_library(cw_system SHARED "${CMAKE_SOURCE_DIR}/src_c/export/cw_system.c" ${cw_core_sources}
+              "${RUNTIME_DIR}/cw_rk.c")
+  set_target_properties(cw_system PROPERTIES PREFIX "" RUNTIME_OUTPUT_DIRECTORY "${CMAKE_BINARY_DIR}/export"
+                        ARCHIVE_OUTPUT_DIRECTORY "${CMAKE_BINARY_DIR}/implib-export")
+  target_include_directories(cw_system PRIVATE "${RUNTIME_DIR}" "${CMAKE_SOURCE_DIR}/src_c/master" "${FMI_HEADERS}")
+  target_compile_definitions(cw_system PRIVATE ${cross_defs} CW_RK_MAXN=256)
+  target_compile_options(cw_system PRIVATE ${CW_WARNINGS} -ffp-contract=off -fno-fast-math)
+  target_link_options(cw_system PRIVATE ${cross_link})
+  target_link_libraries(cw_system PRIVATE pthread)
+endif()

@@ -1,15 +1,14 @@
-"""Builds tests/data/fmi2/hostile.c into an FMI 2.0 Co-Simulation FMU (the
-FMI 2.0 headers come from the installed fmpy) that logs through bad
+"""The FMI 2.0 Co-Simulation test FMU made of tests/data/fmi2/hostile.c (the
+FMI 2.0 headers come from the installed fmpy): it logs through bad
 componentEnvironments, instance names and formats, and crashes, hangs or
-fails in doStep at t_fault as `fault` says (see hostile.c)."""
+fails in doStep at t_fault as `fault` says (see hostile.c). Its description
+and stubs are here; CMake builds it (tests/CMakeLists.txt, tests/c_fmus.py)
+as test_fmu("Hostile"), and with other flags as "AbortInit"
+(-DCW_ABORT_IN_INSTANTIATE) and "NoUnwind" (no unwind tables)."""
 
 from __future__ import annotations
 
-import os
 import re
-import shutil
-import subprocess
-import zipfile
 from pathlib import Path
 
 import fmpy
@@ -50,29 +49,6 @@ def stubs(defined: str) -> str:
                 "fmi2String": 'return "2.0";'}[ret]
         out.append(f"{ret} {name}({args}) {{ {body} }}")
     return "\n".join(out) + "\n"
-
-
-def build(folder: Path, name: str = "Hostile", cflags: tuple[str, ...] = ()) -> Path:
-    """Compile and zip the FMU into folder/<name>.fmu; returns its path."""
-    cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
-    if cc is None:
-        raise RuntimeError("no C compiler")
-    folder = Path(folder)
-    work = folder / f"{name}.build"
-    binary = work / "binaries" / "linux64" / "Hostile.so"
-    binary.parent.mkdir(parents=True, exist_ok=True)
-    source = SOURCE.read_text()
-    full = work / "Hostile_all.c"
-    full.write_text(source + "\n/* generated: the functions left out */\n" + stubs(source))
-    headers = Path(fmpy.__file__).parent / "c-code"
-    subprocess.run([cc, "-shared", "-fPIC", "-O1", "-std=gnu99", *cflags, f"-I{headers}", str(full),
-                    "-o", str(binary)], check=True)
-    fmu = folder / f"{name}.fmu"
-    with zipfile.ZipFile(fmu, "w") as z:
-        z.writestr("modelDescription.xml", MODEL_DESCRIPTION)
-        z.write(binary, "binaries/linux64/Hostile.so")
-    shutil.rmtree(work)
-    return fmu
 
 
 def sweep_scene(folder: Path, fmu: Path, fault: int, t_faults: list[float], title: str) -> Path:

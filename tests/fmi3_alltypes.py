@@ -1,4 +1,4 @@
-"""Builds tests/data/fmi3/alltypes.c into an FMI 3.0 Co-Simulation FMU (the
+"""The FMI 3.0 Co-Simulation test FMU made of tests/data/fmi3/alltypes.c (the
 FMI 3.0 headers come from the installed fmpy), for the master's tests of
 every FMI 3.0 variable type: per type T a parameter p_T, an input u_T and an
 output y_T that mirrors u_T. See alltypes.c."""
@@ -6,8 +6,6 @@ output y_T that mirrors u_T. See alltypes.c."""
 from __future__ import annotations
 
 from pathlib import Path
-
-from fmi3_bouncer import pack
 
 SOURCE = Path(__file__).parent / "data" / "fmi3" / "alltypes.c"
 
@@ -77,9 +75,9 @@ def model_description(arrays: bool = False) -> str:
 """
 
 
-def build(folder: Path, name: str = "AllTypes", arrays: bool = False) -> Path:
-    """Compile and zip the FMU into folder/<name>.fmu (with the ARRAYS
-    variables when `arrays`); returns its path."""
-    source = SOURCE.read_text()
-    defined = source + "".join(f" fmi3Get{t}( fmi3Set{t}(" for t in _MACRO_TYPES)
-    return pack(folder, name, "AllTypes", source, defined, model_description(arrays), ("-Wall",))
+def defined() -> str:
+    """alltypes.c and the names of the functions its NUMBER_ACCESS macro
+    defines: the text whose FMI 3.0 functions need no stub. CMake builds the
+    FMU (tests/CMakeLists.txt, tests/c_fmus.py) as test_fmu("fmi3/AllTypes"),
+    and with the ARRAYS variables in its description as test_fmu("fmi3/Arrays")."""
+    return SOURCE.read_text() + "".join(f" fmi3Get{t}( fmi3Set{t}(" for t in _MACRO_TYPES)

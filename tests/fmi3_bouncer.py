@@ -1,15 +1,13 @@
-"""Builds tests/data/fmi3/bouncer.c into an FMI 3.0 Co-Simulation FMU (the
+"""The FMI 3.0 Co-Simulation test FMU made of tests/data/fmi3/bouncer.c (the
 FMI 3.0 headers come from the installed fmpy), for the master's FMI 3.0
 tests: event mode, early return, time events, terminateSimulation, FMU
-state, an event indicator. See bouncer.c for the model."""
+state, an event indicator. See bouncer.c for the model; its description
+and the stubs of every FMI 3.0 function a C test FMU leaves out are here,
+and CMake builds it (tests/CMakeLists.txt, tests/c_fmus.py)."""
 
 from __future__ import annotations
 
-import os
 import re
-import shutil
-import subprocess
-import zipfile
 from pathlib import Path
 
 import fmpy
@@ -67,38 +65,13 @@ def stubs(defined: str) -> str:
     return "\n".join(out) + "\n"
 
 
-def pack(folder: Path, name: str, model_identifier: str, source: str, defined: str, model_description: str,
-         cflags: tuple[str, ...] = ()) -> Path:
-    """Compile `source` (with stubs for the fmi3 functions `defined` does not
-    name) into a binary `model_identifier`.so and zip it with
-    `model_description` into folder/<name>.fmu; returns its path."""
-    cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
-    if cc is None:
-        raise RuntimeError("no C compiler")
-    folder = Path(folder)
-    work = folder / f"{name}.build"
-    binary = work / "binaries" / fmpy.platform_tuple / f"{model_identifier}.so"
-    binary.parent.mkdir(parents=True, exist_ok=True)
-    headers = Path(fmpy.__file__).parent / "c-code"
-    full = work / f"{model_identifier}_all.c"
-    full.write_text(source + "\n/* generated: the functions left out */\n" + stubs(defined))
-    subprocess.run([cc, "-shared", "-fPIC", "-O1", "-std=c99", *cflags, f"-I{headers}", str(full),
-                    "-o", str(binary), "-lm"], check=True)
-    fmu = folder / f"{name}.fmu"
-    with zipfile.ZipFile(fmu, "w") as z:
-        z.writestr("modelDescription.xml", model_description)
-        z.write(binary, f"binaries/{fmpy.platform_tuple}/{model_identifier}.so")
-    shutil.rmtree(work)
-    return fmu
-
-
-def build(folder: Path, event_mode: bool = True, early_return: bool = True, indicator: bool = False,
-          name: str = "Bouncer", refuse_event_mode: bool = False) -> Path:
-    """Compile and zip the FMU into folder/<name>.fmu; returns its path.
-    refuse_event_mode: the binary refuses eventModeUsed at instantiation
-    whatever the description declares."""
-    source = SOURCE.read_text()
-    xml = MODEL_DESCRIPTION.format(event_mode=str(event_mode).lower(), early=str(early_return).lower(),
-                                   annotation=INDICATOR if indicator else "")
-    flags = (f"-I{SOURCE.parent}",) + (("-DCW_REFUSE_EVENT_MODE",) if refuse_event_mode else ())
-    return pack(folder, name, "Bouncer", source, source, xml, flags)
+def description(event_mode: bool = True, early_return: bool = True, indicator: bool = False) -> str:
+    """The model description: hasEventMode, mightReturnEarlyFromDoStep and
+    the event indicator annotation as asked. CMake builds the four variants
+    the tests use (tests/c_fmus.py): test_fmu("fmi3/Early") (the defaults),
+    "fmi3/Inside" (neither event mode nor early return), "fmi3/Indicator"
+    (with the indicator z) and "fmi3/Refusing" (no early return, and a binary
+    built with -DCW_REFUSE_EVENT_MODE that refuses eventModeUsed at
+    instantiation whatever the description declares)."""
+    return MODEL_DESCRIPTION.format(event_mode=str(event_mode).lower(), early=str(early_return).lower(),
+                                    annotation=INDICATOR if indicator else "")

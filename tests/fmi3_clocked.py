@@ -1,12 +1,12 @@
-"""Builds tests/data/fmi3/clocked.c into the clocked FMI 3.0 test FMUs
-(Ticker, Counter, Sampler: Co-Simulation with Event Mode; Partitions:
-Scheduled Execution) for tests/test_clocks.py. See clocked.c for the models."""
+"""The model descriptions of the clocked FMI 3.0 test FMUs built from
+tests/data/fmi3/clocked.c (Ticker, EarlyTicker, Counter, Sampler:
+Co-Simulation with Event Mode; Partitions: Scheduled Execution) for
+tests/test_clocks.py; CMake builds them (tests/CMakeLists.txt, through
+tests/c_fmus.py) into build/test-fmus/fmi3. See clocked.c for the models."""
 
 from __future__ import annotations
 
 from pathlib import Path
-
-from fmi3_bouncer import pack
 
 SOURCE = Path(__file__).parent / "data" / "fmi3" / "clocked.c"
 
@@ -90,9 +90,7 @@ VARIABLES = {
 }
 
 
-def build(folder: Path, name: str, early_return: bool = False, file_name: str | None = None) -> Path:
-    """Compile and zip the clocked test FMU `name` into folder/<name>.fmu; returns its path."""
+def description(name: str, early_return: bool = False) -> str:
+    """The modelDescription.xml of the clocked test FMU `name` (its modelIdentifier)."""
     interface = (SE if name == "Partitions" else CS).format(name=name, early=str(early_return).lower())
-    xml = HEAD.format(name=name, interface=interface) + VARIABLES[name] + "\n</fmiModelDescription>\n"
-    source = SOURCE.read_text()
-    return pack(folder, file_name or name, name, source, source, xml, (f"-DMODEL_{name}", f'-DMODEL_NAME="{name}"'))
+    return HEAD.format(name=name, interface=interface) + VARIABLES[name] + "\n</fmiModelDescription>\n"

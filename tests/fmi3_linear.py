@@ -1,19 +1,21 @@
-"""Builds tests/data/fmi3/linear.c into an FMI 3.0 Co-Simulation FMU with
+"""The FMI 3.0 Co-Simulation test FMU made of tests/data/fmi3/linear.c, with
 array variables (the FMI 3.0 headers come from the installed fmpy), for the
 master's array tests: dx/dt = A x + B u, y = C x + D u with n = 3 states (a
 structural parameter), A (3x3), B (3x2), C (2x3), D (2x2) and x0 (3) array
 parameters, an array input u (2) and array outputs y (2) and x (3), a
 scalar input w and output s = sum(x) + w, an Int32 array input k (3)
 mirrored by the output kk, the first and second derivatives of x and y,
-and the faults of failed runs (t_nan, t_fail). See linear.c."""
+and the faults of failed runs (t_nan, t_fail). See linear.c. CMake builds
+it (tests/CMakeLists.txt, tests/c_fmus.py) as test_fmu("fmi3/Linear"), with
+-DCW_CRASH_AFTER_T_FAIL -DCW_HOSTILE_LOG as "fmi3/LinearCrash", and with
+empty_output_description() as "fmi3/Empty"."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
-
-from fmi3_bouncer import pack
 
 SOURCE = Path(__file__).parent / "data" / "fmi3" / "linear.c"
 
@@ -70,13 +72,24 @@ MODEL_DESCRIPTION = """<?xml version="1.0" encoding="UTF-8"?>
 """
 
 
-def build(folder: Path, name: str = "Linear") -> Path:
-    """Compile and zip the FMU into folder/<name>.fmu; returns its path."""
-    source = SOURCE.read_text()
-    return pack(folder, name, "Linear", source, source, MODEL_DESCRIPTION, ("-Wall",))
+def empty_output_description() -> str:
+    """MODEL_DESCRIPTION with y, its only output, of a Dimension of size 0
+    (x, kk and s made local): test_fmu("fmi3/Empty")."""
+    md = MODEL_DESCRIPTION.replace(
+        '<Float64 name="y" valueReference="8" causality="output" variability="continuous" unit="m">\n'
+        '      <Dimension start="2"/>',
+        '<Float64 name="y" valueReference="8" causality="output" variability="continuous" unit="m">\n'
+        '      <Dimension start="0"/>')
+    for vr in ("9", "13", "15"):
+        md = re.sub(rf'(valueReference="{vr}" )causality="output"', r'\1causality="local"', md)
+        md = re.sub(rf'\s*<(Output|InitialUnknown) valueReference="{vr}"[^>]*/>', "", md)
+    assert '<Dimension start="0"/>' in md and md.count('causality="output"') == 1
+    return md
 
 
 @pytest.fixture(scope="module")
-def fmu(tmp_path_factory):
-    """The test FMU, built once per test module."""
-    return build(tmp_path_factory.mktemp("linear"))
+def fmu():
+    """The test FMU (built by CMake: tests/CMakeLists.txt)."""
+    from cwtest import test_fmu
+
+    return test_fmu("fmi3/Linear")

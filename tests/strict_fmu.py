@@ -1,5 +1,5 @@
-"""Builds tests/data/strict/strict.c into an FMI 2.0 or FMI 3.0
-Co-Simulation FMU that enforces the call sequence (a get after a set
+"""The FMI 2.0 and FMI 3.0 Co-Simulation test FMUs made of
+tests/data/strict/strict.c: an FMU that enforces the call sequence (a get after a set
 without a step in Step Mode returns an error and logs why): y = gain * u +
 offset + slope * time, y with direct feedthrough from u, FMU state. The
 headers come from the installed fmpy. `declares`: the description says, in
@@ -10,9 +10,6 @@ what the master follows)."""
 from __future__ import annotations
 
 from pathlib import Path
-
-import fmi2_hostile
-from fmi3_bouncer import pack
 
 SOURCE = Path(__file__).parent / "data" / "strict" / "strict.c"
 
@@ -66,39 +63,11 @@ CLAIM2 = ('<VendorAnnotations><Tool name="clockwork"><Capabilities outputsAfterI
 CLAIM3 = '<Annotations><Annotation type="clockwork"><Capabilities outputsAfterInputs="true"/></Annotation></Annotations>'
 
 
-def build(folder: Path, version: int = 2, name: str = "Strict", declares: bool = False) -> Path:
-    """Compile and zip the FMU into folder/<name>.fmu; returns its path."""
-    source = SOURCE.read_text()
-    flags = ("-Wall", "-DCW_FMI3") if version == 3 else ("-Wall",)
+def description(version: int = 2, declares: bool = False) -> str:
+    """The FMI 2.0 or 3.0 model description, with the false claim when
+    `declares`. CMake builds strict.c with it (tests/CMakeLists.txt,
+    tests/c_fmus.py): test_fmu("Strict2"), test_fmu("Claims") (FMI 2.0,
+    declares) and test_fmu("fmi3/Strict3") (strict.c with -DCW_FMI3)."""
     if version == 3:
-        xml = DESCRIPTION3.format(annotation=CLAIM3 if declares else "")
-        return pack(folder, name, "Strict", source, source, xml, flags)
-    xml = DESCRIPTION2.format(annotation=CLAIM2 if declares else "", variables=VARIABLES2)
-    return _pack2(Path(folder), name, source, xml, flags)
-
-
-def _pack2(folder: Path, name: str, source: str, xml: str, flags: tuple[str, ...]) -> Path:
-    import os
-    import shutil
-    import subprocess
-    import zipfile
-
-    import fmpy
-
-    cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
-    if cc is None:
-        raise RuntimeError("no C compiler")
-    work = folder / f"{name}.build"
-    binary = work / "Strict.so"
-    work.mkdir(parents=True, exist_ok=True)
-    full = work / "Strict_all.c"
-    full.write_text(source + "\n/* generated: the functions left out */\n" + fmi2_hostile.stubs(source))
-    headers = Path(fmpy.__file__).parent / "c-code"
-    subprocess.run([cc, "-shared", "-fPIC", "-O1", "-std=gnu99", *flags, f"-I{headers}", str(full),
-                    "-o", str(binary)], check=True)
-    fmu = folder / f"{name}.fmu"
-    with zipfile.ZipFile(fmu, "w") as z:
-        z.writestr("modelDescription.xml", xml)
-        z.write(binary, f"binaries/{fmpy.platform}/Strict.so")
-    shutil.rmtree(work)
-    return fmu
+        return DESCRIPTION3.format(annotation=CLAIM3 if declares else "")
+    return DESCRIPTION2.format(annotation=CLAIM2 if declares else "", variables=VARIABLES2)

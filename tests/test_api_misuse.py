@@ -19,7 +19,7 @@ import pytest
 from clockwork.engine import MasterSettings, System
 from clockwork.errors import ClockworkError, ClosedError, SceneError, UsageError
 
-from cwtest import FMU_DIR, ROOT, fmu_file
+from cwtest import FMU_DIR, ROOT, fmu_file, test_fmu
 
 ENGINES = ["python", "compiled", "auto"]
 COMPONENTS = {"pendulum": ("Pendulum", {"Q": 1000.0, "phi_start": 0.1}),
@@ -311,9 +311,7 @@ def test_a_parameter_of_the_wrong_type_names_instance_and_variable(engine, name,
 
 
 def test_fmi3_parameters_of_every_type_are_checked(tmp_path):
-    import fmi3_alltypes
-
-    fmu = str(fmi3_alltypes.build(tmp_path))
+    fmu = str(test_fmu("fmi3/AllTypes"))
     bad = {"Float32": "x", "Float64": [1.0], "Int8": 200, "UInt8": -1, "Int16": 1.5, "UInt16": 2**16,
            "Int32": 2**31, "UInt32": -1, "Int64": 2**63, "UInt64": -1, "Boolean": 1, "String": 3,
            "Binary": "xyz", "Enumeration": 1.0}

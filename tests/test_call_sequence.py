@@ -21,7 +21,6 @@ import numpy as np
 import pytest
 
 import clockwork
-import strict_fmu
 from clockwork.engine import MasterSettings, System
 from clockwork.engine.recording import Recorder
 from clockwork.errors import SimulationError
@@ -32,12 +31,10 @@ VERSIONS = [2, 3]
 
 
 @pytest.fixture(scope="module")
-def strict(tmp_path_factory):
+def strict():
     """{2: the FMI 2.0 build, 3: the FMI 3.0 build, "declares": an FMI 2.0
-    build whose description claims outputs after inputs (falsely)}."""
-    d = tmp_path_factory.mktemp("strict")
-    return {2: strict_fmu.build(d, 2, "Strict2"), 3: strict_fmu.build(d, 3, "Strict3"),
-            "declares": strict_fmu.build(d, 2, "Claims", declares=True)}
+    build whose description claims outputs after inputs (falsely)}: strict_fmu.py."""
+    return {2: test_fmu("Strict2"), 3: test_fmu("fmi3/Strict3"), "declares": test_fmu("Claims")}
 
 
 def _run(components, links, stop, h, record, **settings):

@@ -1,7 +1,7 @@
 """FMI 3.0 clocks: Co-Simulation in Event Mode and Scheduled Execution.
 
-The FMUs are tests/data/fmi3/clocked.c (tests/fmi3_clocked.py builds
-them); each refuses a wrong call sequence or a tick at a wrong time, so a
+The FMUs are tests/data/fmi3/clocked.c (CMake builds them, tests/CMakeLists.txt;
+descriptions in tests/fmi3_clocked.py); each refuses a wrong call sequence or a tick at a wrong time, so a
 run that ends at all had its ticks where they belong. Ticker has an output
 clock ticking every `period` s; Counter a triggered input clock that adds
 its clocked input to its clocked count; Sampler a constant clock (0.1 s,
@@ -20,15 +20,12 @@ import pytest
 from clockwork.engine import MasterSettings, System
 from clockwork.engine.samples import Samples, Signal
 from clockwork.errors import SceneError, UsageError
-import fmi3_clocked
+from cwtest import test_fmu
 
 
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory):
-    d = tmp_path_factory.mktemp("clocked")
-    built = {n: str(fmi3_clocked.build(d, n)) for n in ("Ticker", "Counter", "Sampler", "Partitions")}
-    built["EarlyTicker"] = str(fmi3_clocked.build(d, "Ticker", early_return=True, file_name="EarlyTicker"))
-    return built
+def fmus():
+    return {n: str(test_fmu(f"fmi3/{n}")) for n in ("Ticker", "EarlyTicker", "Counter", "Sampler", "Partitions")}
 
 
 def close(a, b):

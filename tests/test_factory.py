@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from clockwork.fmi.cs2 import Instance
+from clockwork.fmi.cs2 import Instance2
 from clockwork.fmi.cs3 import Instance3
 from clockwork.engine.instances import make_instance
 from clockwork.errors import SceneError
@@ -20,7 +20,7 @@ def test_make_instance_is_defined_once():
     assert defined == ["clockwork/engine/instances.py"]
 
 
-@pytest.mark.parametrize("folder, face", [("fmus", Instance), ("fmus/fmi3", Instance3)])
+@pytest.mark.parametrize("folder, face", [("fmus", Instance2), ("fmus/fmi3", Instance3)])
 def test_it_picks_the_face_by_version_and_refuses_an_interface_the_fmu_lacks(folder, face):
     path = ROOT / folder / "Pendulum.fmu"
     inst = make_instance("p", path)

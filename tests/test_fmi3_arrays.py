@@ -1,6 +1,6 @@
 """FMI 3.0 array variables: parameters, recording and connections, on both engines.
 
-The FMU is tests/data/fmi3/linear.c (tests/fmi3_linear.py builds it):
+The FMU is tests/data/fmi3/linear.c (tests/fmi3_linear.py describes it, CMake builds it):
 dx/dt = A x + B u, y = C x + D u with n = 3 states (a structural
 parameter), A 3x3, B 3x2, C 2x3, D 2x2, x0 3, an input u (2), outputs y (2)
 and x (3), a scalar input w and output s = sum(x) + w, an Int32 input k (3)

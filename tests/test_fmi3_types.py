@@ -1,6 +1,6 @@
 """Every FMI 3.0 variable type in parameters, recording and connections.
 
-The FMU is tests/data/fmi3/alltypes.c (tests/fmi3_alltypes.py builds it):
+The FMU is tests/data/fmi3/alltypes.c (tests/fmi3_alltypes.py describes it, CMake builds it):
 per type T a parameter p_T, an input u_T and an output y_T = u_T. Each type
 goes through its own fmi3Get/Set function (the FMU fails a call of another
 type's), an Enumeration through fmi3Get/SetInt64, a Binary is recorded and
@@ -14,7 +14,7 @@ import json
 
 import pytest
 
-from cwtest import assert_one_line_error, run_cli
+from cwtest import assert_one_line_error, run_cli, test_fmu
 import fmi3_alltypes
 
 TYPES = fmi3_alltypes.TYPES
@@ -30,8 +30,8 @@ VALUES = {"Float32": ("0.1", repr(float.fromhex("0x1.99999ap-4"))),  # 0.1 round
 
 
 @pytest.fixture(scope="module")
-def fmu(tmp_path_factory):
-    return fmi3_alltypes.build(tmp_path_factory.mktemp("alltypes"))
+def fmu():
+    return test_fmu("fmi3/AllTypes")
 
 
 def scene(tmp_path, fmu, a_params="", b_params="", connections=(), outputs=(), engine="auto", name="s.toml"):
@@ -202,7 +202,7 @@ def test_array_variables_of_several_types_load_with_their_shapes_and_starts(caps
     load: validate passes, info shows each shape and every start value (a
     String array's from its <Start> elements). tests/test_fmi3_arrays.py
     runs arrays."""
-    fmu = fmi3_alltypes.build(tmp_path, name="Arrays", arrays=True)
+    fmu = test_fmu("fmi3/Arrays")  # fmi3_alltypes.ARRAYS in its description
     rc, _, err = run_cli(capsys, ["validate", scene(tmp_path, fmu)])
     assert rc == 0, err
     rc, out, err = run_cli(capsys, ["info", fmu])

@@ -10,7 +10,7 @@
   point, exit code 1, nothing left in $TMPDIR. On both engines.
 - A sweep worker that dies fails the run with one line, not a traceback.
 
-The FMU is tests/data/fmi2/hostile.c (tests/fmi2_hostile.py builds it).
+The FMU is tests/data/fmi2/hostile.c (tests/fmi2_hostile.py describes it, CMake builds it).
 """
 
 from __future__ import annotations
@@ -27,14 +27,12 @@ from pathlib import Path
 import pytest
 
 import fmi2_hostile
-from cwtest import ROOT
+from cwtest import ROOT, test_fmu
 
 
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("hostile")
-    return {"hostile": fmi2_hostile.build(folder),
-            "abort": fmi2_hostile.build(folder, "AbortInit", ("-DCW_ABORT_IN_INSTANTIATE",))}
+def fmus():
+    return {"hostile": test_fmu("Hostile"), "abort": test_fmu("AbortInit")}
 
 
 def _run(tmp_path: Path, fmu: Path, *sets: str, out: str = "out"):
@@ -183,12 +181,7 @@ def test_a_crash_in_a_sweep_worker_fails_that_point(tmp_path, fmus):
 
 @pytest.mark.parametrize("engine", ["python", "compiled"])
 def test_a_crash_in_an_fmi3_do_step_is_a_failed_run(tmp_path, engine):
-    from fmi3_bouncer import pack
-    from fmi3_linear import MODEL_DESCRIPTION, SOURCE
-
-    source = SOURCE.read_text()
-    fmu = pack(tmp_path, "LinearCrash", "Linear", source, source, MODEL_DESCRIPTION,
-               ("-Wall", "-DCW_CRASH_AFTER_T_FAIL", "-DCW_HOSTILE_LOG"))  # logs unreadable strings first
+    fmu = test_fmu("fmi3/LinearCrash")  # linear.c that logs unreadable strings first, then crashes
     r, tmp = _run(tmp_path, fmu, "Linear.t_fail=0.45", f"master.engine={engine}")
     _one_line(r, 1, "Linear", "fmi3DoStep", "SIGSEGV", "crashed")
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
@@ -198,21 +191,7 @@ def test_a_crash_in_an_fmi3_do_step_is_a_failed_run(tmp_path, engine):
 
 @pytest.mark.parametrize("engine", ["python", "compiled"])
 def test_an_fmi1_fmu_that_logs_bad_strings_and_crashes_is_a_failed_run(tmp_path, engine):
-    import shutil
-    import zipfile
-
-    import fmpy
-
-    data = Path(__file__).parent / "data" / "fmi1"
-    binary = tmp_path / "Hold.so"
-    cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
-    subprocess.run([cc, "-shared", "-fPIC", "-O1", "-std=gnu99", "-DCW_HOSTILE",
-                    f"-I{Path(fmpy.__file__).parent / 'c-code'}", str(data / "hold.c"), "-o", str(binary)],
-                   check=True)
-    fmu = tmp_path / "Hold.fmu"
-    with zipfile.ZipFile(fmu, "w") as z:
-        z.write(data / "modelDescription.xml", "modelDescription.xml")
-        z.write(binary, "binaries/linux64/Hold.so")
+    fmu = test_fmu("fmi1/HoldHostile")  # hold.c built with -DCW_HOSTILE
     r, tmp = _run(tmp_path, fmu, "master.step=0.1", f"master.engine={engine}")
     _one_line(r, 1, "fmiDoStep", "SIGSEGV", "crashed")
     with open(tmp_path / "out" / "timeseries.csv") as f:
@@ -225,7 +204,7 @@ def test_an_fmi1_fmu_that_logs_bad_strings_and_crashes_is_a_failed_run(tmp_path,
 def test_a_crash_the_handler_cannot_return_from_ends_the_run_with_one_line(tmp_path, engine):
     # Without unwind tables the handler cannot find the FMU's caller: it
     # parks the thread and the watchdog ends the run (no history kept).
-    fmu = fmi2_hostile.build(tmp_path, "NoUnwind", ("-fno-asynchronous-unwind-tables", "-fno-unwind-tables"))
+    fmu = test_fmu("NoUnwind")  # hostile.c without unwind tables
     r, tmp = _run(tmp_path, fmu, "Hostile.fault=1", "Hostile.t_fault=0.3", f"master.engine={engine}")
     _one_line(r, 1, "Hostile", "fmi2DoStep", "SIGSEGV", "crashed")
     assert not list(tmp.iterdir())
@@ -233,7 +212,7 @@ def test_a_crash_the_handler_cannot_return_from_ends_the_run_with_one_line(tmp_p
 
 
 def test_a_sweep_worker_ended_by_a_crash_fails_the_run_with_one_line(tmp_path):
-    fmu = fmi2_hostile.build(tmp_path, "NoUnwind", ("-fno-asynchronous-unwind-tables", "-fno-unwind-tables"))
+    fmu = test_fmu("NoUnwind")
     scene = fmi2_hostile.sweep_scene(tmp_path, fmu, 1, [0.2, 5], "a sweep whose worker dies")
     tmp = tmp_path / "tmp"
     tmp.mkdir()

@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 
 import fmi2_hostile
-from cwtest import ROOT, default_stop_signals
+from cwtest import ROOT, default_stop_signals, test_fmu
 
 sys.path.insert(0, str(ROOT / "tools"))
 from kill_sweep import descendants, running  # noqa: E402
@@ -32,8 +32,8 @@ pytestmark = pytest.mark.serial
 
 
 @pytest.fixture(scope="module")
-def hostile(tmp_path_factory):
-    return fmi2_hostile.build(tmp_path_factory.mktemp("hostile"))
+def hostile():
+    return test_fmu("Hostile")
 
 
 def _env(tmp_path: Path) -> tuple[dict, Path]:

@@ -322,7 +322,7 @@ class _TextInstance:
 
 
 def test_strings_are_recorded_as_text_and_enumerations_as_numbers():
-    from clockwork.fmi.cs2 import Instance
+    from clockwork.fmi.contract import Instance
     from clockwork.engine.recording import _DiscreteOutput
 
     inst = _TextInstance()

@@ -161,9 +161,8 @@ def test_compiled_asked_for_with_an_integer_input_is_refused(capsys, tmp_path, c
 
 
 @pytest.fixture(scope="module")
-def linear_fmu(tmp_path_factory):
-    from fmi3_linear import build
-    return build(tmp_path_factory.mktemp("linear"))
+def linear_fmu():
+    return test_fmu("fmi3/Linear")
 
 
 @pytest.mark.parametrize("column, hint", [("u", "u[0], u[1]"), ("k", "k[0], k[1], k[2]")])

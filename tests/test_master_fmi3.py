@@ -1,6 +1,6 @@
 """The master on FMI 3.0 Co-Simulation FMUs, in both engines.
 
-The FMU is tests/data/fmi3/bouncer.c (tests/fmi3_bouncer.py builds it): x
+The FMU is tests/data/fmi3/bouncer.c (tests/fmi3_bouncer.py describes it, CMake builds it): x
 runs between the walls 0 and 1 at speed v0 (+ the input u), so every event
 time is known in closed form: wall hits (the FMU's own state events, early
 return), time events at k * period (nextEventTime), the crossing of z = x -
@@ -24,21 +24,15 @@ from clockwork.engine import MasterSettings, System
 from clockwork.fmi.description import FmuError, read_fmu
 from clockwork.engine.recording import Recorder
 from clockwork.errors import SceneError, SimulationEnded
-from cwtest import FMU_DIR
-import fmi3_bouncer
+from cwtest import FMU_DIR, test_fmu
 
 ENGINES = ("python", "compiled")
 
 
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory):
-    d = tmp_path_factory.mktemp("fmi3")
-    return {
-        "early": fmi3_bouncer.build(d, name="Early"),
-        "inside": fmi3_bouncer.build(d, event_mode=False, early_return=False, name="Inside"),
-        "indicator": fmi3_bouncer.build(d, indicator=True, name="Indicator"),
-        "refusing": fmi3_bouncer.build(d, early_return=False, name="Refusing", refuse_event_mode=True),
-    }
+def fmus():
+    """The bouncer's builds (fmi3_bouncer.description, tests/CMakeLists.txt)."""
+    return {name.lower(): test_fmu(f"fmi3/{name}") for name in ("Early", "Inside", "Indicator", "Refusing")}
 
 
 def triangle(t: float, v0: float) -> float:

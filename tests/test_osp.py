@@ -370,8 +370,10 @@ HOSTILE = {
     "unknown function": (_edit('<Functions>', '<Functions><Switch name="s"/>'), "Switch", "not an OSP function"),
     "signal group connection": (_edit("</Connections>", '<SignalGroupConnection/></Connections>'),
                                 "SignalGroupConnection", "not supported"),
+    # steps that differ are the simulators' own (multi-rate): not with the escapement's event location
     "different steps": (_edit(SIM, SIM.replace(">", ' stepSize="0.02">')), "stepSize='0.02'",
-                        "escapement would step every 0.02 s", "pendulum every 0.01 s", "Simulator stepSize"),
+                        "master.event_location",
+                        "locating the events of escapement", "escapement every 2 base steps"),
     "zero stepSize": (_edit(SIM, SIM.replace(">", ' stepSize="0">')), "stepSize", "step > 0"),
     "group without a model description": (_edit("</Connections>", '<VariableGroupConnection>'
                                                 '<VariableGroup simulator="pendulum" name="g"/>'
@@ -475,3 +477,119 @@ def test_random_edits_give_a_scene_or_one_line(tmp_path, capsys):
             outcomes["refused"] += 1
     capsys.readouterr()  # the warnings of edits that load
     assert outcomes["refused"] > 50 and outcomes["loaded"] > 10, outcomes
+
+
+# ---------------------------------------------------------------- several rates
+
+
+def _rates_dir(tmp_path: Path) -> Path:
+    d = tmp_path / "rates"
+    shutil.copytree(DATA / "rates", d)
+    (d / "resources").mkdir(exist_ok=True)
+    for f in ("Pendulum", "MechanismVibration"):
+        shutil.copy(fmu_file(f), d / "resources" / f"{f}.fmu")
+    return d
+
+
+RATES_OUTPUTS = ["pendulum.phi", "vibration.a2", "follower.phi"]
+
+
+def _libcosim_rows(osp: Path, steps: int) -> np.ndarray:
+    """libcosim's fixed-step algorithm on the file: after each base step,
+    the time and the last values its observer holds of RATES_OUTPUTS (a
+    slow simulator's, those of its last finished step)."""
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    from libcosimpy.CosimObserver import CosimObserver
+
+    log_output_level(CosimLogLevel.ERROR)
+    ex = CosimExecution.from_osp_config_file(str(osp))
+    obs = CosimObserver.create_last_value()
+    ex.add_observer(obs)
+    refs = []
+    for name in RATES_OUTPUTS:
+        inst, var = name.split(".")
+        idx = ex.slave_index_from_instance_name(inst)
+        vrs = {(v.name.decode() if isinstance(v.name, bytes) else v.name): v.reference
+               for v in ex.slave_variables(idx)}
+        refs.append((idx, vrs[var]))
+    rows = []
+    for _ in range(steps):
+        assert ex.step()
+        rows.append([ex.status().current_time * 1e-9] + [obs.last_real_values(i, [r])[0] for i, r in refs])
+    return np.array(rows)
+
+
+def test_three_rates_give_libcosims_numbers(tmp_path, capsys):
+    """stepSizes of 1, 3 and 2 base steps (a link between the factors 3
+    and 2 passes every 6 base steps), libcosim's algorithm (Jacobi, inputs
+    held from each simulator's own step start): libcosim's numbers at every
+    base step, for the fast simulator and the slow ones alike. The times
+    differ in the last bits (libcosim's are whole nanoseconds, clockwork's
+    start + k * step; the single-rate system differs by as much), so the
+    values agree to 1e-12 rad; running every simulator at the base step
+    instead moves them by more than 1e-4 rad."""
+    pytest.importorskip("libcosimpy")
+    d = _rates_dir(tmp_path)
+    osp = d / "OspSystemStructure.xml"
+    err = run_ok(capsys, osp, "--out", tmp_path / "cw", "--set", 'master.order="jacobi"',
+                 "--set", f"record.outputs={RATES_OUTPUTS!r}".replace("'", '"'))
+    assert "error" not in err
+    ours = series(tmp_path / "cw")
+    theirs = _libcosim_rows(osp, 300)
+    assert len(ours["time"]) == 301
+    assert np.allclose(ours["time"][1:], theirs[:, 0], rtol=0, atol=1e-12)
+    for j, name in enumerate(RATES_OUTPUTS, start=1):
+        assert np.max(np.abs(ours[name][1:] - theirs[:, j])) < 1e-12, name
+    # the slow ones hold between their points (vibration every 3, follower every 2)
+    a2 = ours["vibration.a2"]
+    assert all(a2[n] == a2[n - n % 3] for n in range(1, 301))
+    # and the rates matter: all at the base step is another system
+    run_ok(capsys, osp, "--out", tmp_path / "one", "--set", 'master.order="jacobi"', "--set", "master.step=0.01",
+           "--set", f"record.outputs={RATES_OUTPUTS!r}".replace("'", '"'))
+    one = series(tmp_path / "one")
+    assert np.max(np.abs(one["follower.phi"] - ours["follower.phi"])) > 1e-4
+
+
+def test_three_rates_info_and_validate_show_each_step(tmp_path, capsys):
+    d = _rates_dir(tmp_path)
+    osp = d / "OspSystemStructure.xml"
+    rc, out, err = run_cli(capsys, ["info", osp])
+    assert rc == 0, err
+    assert "step: 0.03 s (3 base steps of 0.01 s)" in out and "step: 0.02 s (2 base steps of 0.01 s)" in out
+    rc, out, err = run_cli(capsys, ["validate", osp])
+    assert rc == 0, err
+    assert "steps: pendulum 0.01 s (1 base step of 0.01 s), vibration 0.03 s (3 base steps of 0.01 s), " \
+           "follower 0.02 s (2 base steps of 0.01 s)" in out
+    s = load_scene(osp)
+    assert (s.components["vibration"].step, s.components["follower"].step) == (0.03, 0.02)
+    assert s.components["pendulum"].step is None and s.master.step == 0.01
+
+
+def test_an_end_time_off_the_base_grid_with_rates_names_the_file(tmp_path, capsys):
+    d = _rates_dir(tmp_path)
+    osp = d / "OspSystemStructure.xml"
+    osp.write_text(osp.read_text().replace("<EndTime>3</EndTime>", "<EndTime>3.005</EndTime>"))
+    rc, _, err = run_cli(capsys, ["validate", osp])
+    assert_one_line_error(rc, err, str(osp), "EndTime", "whole number of base steps")
+
+
+def test_three_rates_export_scene_keeps_the_steps(tmp_path, capsys):
+    """export-scene writes each component's step: the TOML scene runs the
+    OSP file's numbers, bit for bit."""
+    d = _rates_dir(tmp_path)
+    osp = d / "OspSystemStructure.xml"
+    # a scene's links convert units only: the file without its linear transformation
+    text = osp.read_text()
+    text = text[:text.index("<Functions>")] + text[text.index("</Functions>") + len("</Functions>"):]
+    text = text[:text.index("<SignalConnection>")] + text[text.rindex("</SignalConnection>") +
+                                                          len("</SignalConnection>"):]
+    osp.write_text(text)
+    rc, _, err = run_cli(capsys, ["export-scene", osp, "--out", tmp_path / "rates.toml"])
+    assert rc == 0, err
+    text = (tmp_path / "rates.toml").read_text()
+    assert "step = 0.03" in text and "step = 0.02" in text
+    short = ["--set", "experiment.stop=0.6", "--set", f"record.outputs={RATES_OUTPUTS!r}".replace("'", '"')]
+    run_ok(capsys, osp, "--out", tmp_path / "a", *short)
+    run_ok(capsys, tmp_path / "rates.toml", "--out", tmp_path / "b", *short)
+    assert (tmp_path / "a" / "timeseries.csv").read_bytes() == (tmp_path / "b" / "timeseries.csv").read_bytes()

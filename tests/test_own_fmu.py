@@ -526,8 +526,8 @@ def test_the_default_columns_of_an_fmu_with_outputs_are_fmpys_in_fmpys_order(fmu
 def test_an_fmu_alones_own_fault_is_named_as_the_fmu_not_connections(capsys, tmp_path):
     """An FMI 3.0 Model Exchange FMU with arrays (which the wrapper does not serve), run alone: the
     line names the FMU, not `connections` (it has none)."""
-    from fmi3_linear import MODEL_DESCRIPTION, build
-    fmu = build(tmp_path)
+    from fmi3_linear import MODEL_DESCRIPTION
+    fmu = test_fmu("fmi3/Linear")
     me = tmp_path / "LinearME.fmu"
     with zipfile.ZipFile(fmu) as zin, zipfile.ZipFile(me, "w") as zout:
         for item in zin.infolist():

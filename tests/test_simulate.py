@@ -414,30 +414,12 @@ def test_a_stop_before_the_start_is_one_line_naming_stop_time():
     _one_error(lambda: clockwork.simulate(f, start_values={"nothing": 1.0}), "start_values['nothing']")
 
 
-def _empty_output_fmu(folder):
-    """FMI 3.0 Linear whose only output, y, has a Dimension of size 0."""
-    import re
-
-    import fmi3_linear
-    from fmi3_bouncer import pack
-
-    md = fmi3_linear.MODEL_DESCRIPTION
-    md = md.replace('<Float64 name="y" valueReference="8" causality="output" variability="continuous" unit="m">\n'
-                    '      <Dimension start="2"/>',
-                    '<Float64 name="y" valueReference="8" causality="output" variability="continuous" unit="m">\n'
-                    '      <Dimension start="0"/>')
-    for vr in ("9", "13", "15"):
-        md = re.sub(rf'(valueReference="{vr}" )causality="output"', r'\1causality="local"', md)
-        md = re.sub(rf'\s*<(Output|InitialUnknown) valueReference="{vr}"[^>]*/>', "", md)
-    assert '<Dimension start="0"/>' in md and md.count('causality="output"') == 1
-    source = fmi3_linear.SOURCE.read_text()
-    return pack(folder, "Empty", "Linear", source, source, md, ("-Wall",))
-
-
 @pytest.mark.parametrize("engine", ENGINES)
-def test_an_fmu_whose_only_output_has_no_elements_gives_its_rows(tmp_path, engine):
-    """fmpy's result: a row per communication point, the output a field of shape (0,)."""
-    f = _empty_output_fmu(tmp_path)
+def test_an_fmu_whose_only_output_has_no_elements_gives_its_rows(engine):
+    """fmpy's result: a row per communication point, the output a field of shape (0,).
+    The FMU: FMI 3.0 Linear whose only output, y, has a Dimension of size 0
+    (fmi3_linear.empty_output_description)."""
+    f = test_fmu("fmi3/Empty")
     for output in (None, ["y"]):
         got = clockwork.simulate(f, output=output, master={"engine": engine})
         assert got.dtype.names == ("time", "y") and got.dtype["y"].shape == (0,)
@@ -468,12 +450,10 @@ def test_an_interval_off_the_step_or_a_span_too_short_to_step_is_one_line(kw, ne
 
 
 @pytest.mark.parametrize("engine", ENGINES)
-def test_fmi3_array_start_values_take_numpy_arrays_lists_and_tuples_as_fmpy(tmp_path, engine):
+def test_fmi3_array_start_values_take_numpy_arrays_lists_and_tuples_as_fmpy(engine):
     """x0 (3) and A (3x3) given as numpy arrays, tuples or nested lists: one
     result, fmpy's; a wrong shape or an object array is one line naming it."""
-    import fmi3_linear
-
-    f = fmi3_linear.build(tmp_path)
+    f = test_fmu("fmi3/Linear")
     A = -np.diag([1.0, 2.0, 0.5])
     results = [clockwork.simulate(f, start_values={"x0": x0, "A": a}, master={"engine": engine})
                for x0, a in ((np.array([1.0, 2.0, 3.0]), A), ((1, 2, 3), A.tolist()),
@@ -512,10 +492,8 @@ def test_a_scene_takes_outputs_its_plots_do_not_draw_and_numpy_start_values(engi
 
 
 @pytest.fixture(scope="module")
-def alltypes(tmp_path_factory):
-    import fmi3_alltypes
-
-    return fmi3_alltypes.build(tmp_path_factory.mktemp("alltypes"))
+def alltypes():
+    return test_fmu("fmi3/AllTypes")
 
 
 FMI3_BAD = {"Float32": [1e39, "x", np.float64(1e39), None], "Float64": [[1.0], 1 + 1j, decimal.Decimal(1)],
@@ -718,10 +696,8 @@ def test_an_output_interval_off_the_stop_still_ends_at_the_stop_as_fmpy(engine, 
 
 
 @pytest.fixture(scope="module")
-def linear(tmp_path_factory):
-    import fmi3_linear
-
-    return fmi3_linear.build(tmp_path_factory.mktemp("linear"))
+def linear():
+    return test_fmu("fmi3/Linear")
 
 
 @pytest.mark.parametrize("engine", ENGINES)

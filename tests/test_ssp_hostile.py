@@ -403,11 +403,13 @@ BAD_OSP = {
     "worker threads no number": (_osp('<osp:FixedStepAlgorithm baseStepSize="0.01" numWorkerThreads="many"/>'),
                                  ["numWorkerThreads='many'", "whole number"]),
     "a step hint of 0": (_hint("pendulum", "0"), ["osp:StepSizeHint", "value='0'", "> 0"]),
+    # steps that differ are the components' own (multi-rate), each a whole multiple of the base step
     "steps that differ": (lambda d: (_hint("pendulum", "0.001")(d), _hint("escapement", "0.01")(d)),
-                          ["osp:StepSizeHint", "per-component", "--set master.step"]),
+                          ["osp:StepSizeHint", "whole multiple of master.step (0.01 s)", "0.001 s"]),
     "a hint beside the base step": (lambda d: (_osp('<osp:FixedStepAlgorithm baseStepSize="0.001"/>')(d),
                                                _hint("escapement", "0.01")(d)),
-                                    ["escapement would step every 0.01 s", "pendulum every 0.001 s"]),
+                                    ["osp:StepSizeHint", "master.event_location",
+                                     "escapement every 10 base steps"]),
     "OMSimulator's step differs": (
         lambda d: (_osp('<osp:FixedStepAlgorithm baseStepSize="0.001"/>')(d),
                    _edit('<ssd:System name="root">', '<ssd:System name="root"><ssd:Annotations><ssc:Annotation '

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cwtest import CLOCK_SCENE, FMU_DIR, assert_one_line_error, fmu_file, run_cli
+from cwtest import CLOCK_SCENE, FMU_DIR, assert_one_line_error, fmu_file, run_cli, test_fmu
 
 
 @pytest.fixture(autouse=True)
@@ -129,14 +129,7 @@ def test_fmi3_fmus_of_every_type_and_arrays_in_every_format(capsys, tmp_path, mo
     """FMI 3.0: an output of every type (Integer and Boolean columns, String
     and Binary as text: in Parquet, left out of MAT), and arrays element by element."""
     pytest.importorskip("pyarrow")
-    if model == "arrays":
-        import fmi3_linear
-
-        fmu = fmi3_linear.build(tmp_path)
-    else:
-        import fmi3_alltypes
-
-        fmu = fmi3_alltypes.build(tmp_path)
+    fmu = test_fmu("fmi3/Linear" if model == "arrays" else "fmi3/AllTypes")
     rc, _, err = run_cli(capsys, ["run", fmu, "--out", tmp_path / "out", "--no-progress", "--no-plot",
                                   "--set", "experiment.stop=1", *FORMATS])
     assert rc == 0, err

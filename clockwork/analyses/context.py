@@ -19,6 +19,7 @@ from contextvars import ContextVar
 from ..fmi.description import var_unit, variables
 from ..engine.settings import MasterSettings
 from ..engine.system import System
+from ..scene.model import rates as component_rates
 from ..errors import SimulationError
 from .escapements import MODELS as ESCAPEMENTS  # the registered escapements' models (re-exported)
 
@@ -169,10 +170,11 @@ def build_system(scene, point: dict | None = None, record: dict[str, list[str]] 
     params = parameters(scene, point)
     start, _ = experiment(scene, point)
     settings = master_settings(scene, point)
+    rates = component_rates(settings, scene.components)
     idle = _idle.get()
     system = None
     if idle is not None:
-        key = (tuple((n, str(c.fmu_path), c.sha256, c.interface) for n, c in scene.components.items()),
+        key = (tuple((n, str(c.fmu_path), c.sha256, c.interface, c.step) for n, c in scene.components.items()),
                tuple(scene.connections), repr(settings), start,
                tuple(sorted((k, tuple(v)) for k, v in (record or {}).items())),
                id(scene.inputs.samples) if scene.inputs is not None else None)
@@ -190,7 +192,8 @@ def build_system(scene, point: dict | None = None, record: dict[str, list[str]] 
                         record=record, start_time=start, model_descriptions=mds,
                         interfaces={n: c.interface for n, c in scene.components.items()},
                         inputs=scene.inputs.samples if scene.inputs is not None else None,
-                        labels={n: c.fmu_label for n, c in scene.components.items() if c.fmu_label})
+                        labels={n: c.fmu_label for n, c in scene.components.items() if c.fmu_label},
+                        **({"rates": rates} if rates else {}))
     if idle is not None:
         system.release = lambda s: idle.keep(key, s)
     return system

@@ -1,9 +1,11 @@
 """The engine: co-simulation of FMUs: FMI 1.0, 2.0 and 3.0 Co-Simulation, FMI 2.0
 and 3.0 Model Exchange (each with an integrator of the engine's own).
 
-It loads FMUs (``description``; ``fmu``, ``fmu1``, ``fmu3``: an instance
-of each version behind the same calls; ``model_exchange``, ``me_step``,
-``rk``, ``cvode``: a Model Exchange FMU stepped as a Co-Simulation one),
+It makes instances of FMUs through one factory (``instances``; the
+faces, one per FMI version and interface, are in ``clockwork.fmi`` behind
+the instance contract ``fmi/contract.py``; ``model_exchange``,
+``me_step``, ``rk``, ``cvode``: a Model Exchange face composed with an
+integrator, stepped as a Co-Simulation instance),
 wires them (``wiring``, ``ports``, ``loops``: algebraic loops), steps them (``master``: the loop; ``coupling``, ``location``,
 ``checkpoints``, ``richardson``: what makes a step accurate; ``recording``:
 what is kept of a run) and shoots for periodic orbits (``shooting``). It

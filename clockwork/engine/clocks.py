@@ -59,14 +59,9 @@ def clock_tables(instances) -> dict[str, ClockTable]:
     """{instance: its clocks} for the instances that have clocks."""
     tables = {}
     for name, inst in instances.items():
-        if getattr(inst, "fmi_version", 0) == 3:
-            table = clock_table(inst.md)
-            if table and getattr(inst, "model_exchange", False):
-                raise SceneError(f"{name} ({inst.path.name}): its clocks are served in Co-Simulation and "
-                                 "Scheduled Execution only, not through Model Exchange (interface = "
-                                 "'co-simulation')")
-            if table:
-                tables[name] = table
+        table = inst.clock_table()
+        if table:
+            tables[name] = table
     return tables
 
 

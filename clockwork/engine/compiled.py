@@ -1,7 +1,7 @@
 """The compiled stepping core: the master's loop in C, the same bits.
 
 ``CompiledMaster`` is a ``Master`` whose ``step`` and ``run_until`` run in
-src_c/master/cw_master.c, a line-for-line twin of master.py with
+src_c/master/ (cw_step.c and its files by job), a line-for-line twin of master.py with
 coupling.py, location.py, checkpoints.py and recording.py. It calls each
 FMU's fmi2 functions through the pointers of the library fmpy loaded, so
 it steps any FMI 2.0 Co-Simulation FMU, and FMI 1.0 and 3.0 ones through
@@ -30,7 +30,7 @@ from ..errors import SceneError, SimulationError
 from ..paths import core_library
 from ..fmi import layout
 from . import cvode
-from ..fmi.cs2 import Instance
+from ..fmi.contract import CORE_CALLS, Instance
 from ..fmi.cs1 import _Fmi1
 from ..fmi.cs3 import _Events
 from .clocks import ClockedMaster, clocks_reason
@@ -43,14 +43,15 @@ from .samples import Samples
 from .settings import MasterSettings, Statistics, with_model_exchange
 from .wiring import Link
 
-HISTORY = 3  # input history for divided differences (HISTORY in cw_master.c)
+HISTORY = 3  # input history for divided differences (HISTORY in cw_structs.h)
 ROWS_PER_CALL = 4096  # recording buffer, rows
 MAX_SINCE = 256  # steps kept since a checkpoint (the master forces one after 64)
 
 _DONE, _BUFFER_FULL, _CHECK_DIVERGENCE, _WATCHED, _ENDED, _SLICE_OVER = 0, 1, 2, 3, 4, 5
 _ERR_FMI, _ERR_NO_CHECKPOINT, _ERR_REPLAY, _ERR_LOCATE, _ERR_CAPACITY, _ERR_LOOP = -1, -2, -3, -4, -5, -6
-_CALLS = ["fmi2DoStep", "fmi2GetReal", "fmi2SetReal of inputs", "fmi2SetRealInputDerivatives",
-          "fmi2GetFMUstate", "fmi2SetFMUstate"]
+# What the core's err_call names: the contract's call (instance.named) and what it was for.
+_CALLS = [("doStep", ""), ("getReal", ""), ("setReal", " of inputs"), ("setInputDerivatives", ""),
+          ("getState", ""), ("setState", "")]
 
 
 def _fields(pointers: list[str], doubles: list[str], longs: list[str], ints: list[str]):
@@ -203,6 +204,13 @@ def unsupported(settings: MasterSettings) -> str | None:
     return None
 
 
+def unsupported_rates(rates: dict[str, int]) -> str:
+    """Why the core does not run components at their own steps (it steps
+    every one at master.step): the Python engine does (engine/multirate.py)."""
+    slow = ", ".join(f"{n} every {k}" for n, k in rates.items() if k != 1)
+    return f"the compiled core steps every component at master.step, and {slow} base steps here"
+
+
 def unsupported_links(types) -> str | None:
     """Why the core cannot pass these links on, or None. `types`: (link
     text, FMI type) pairs; the core passes Real values only."""
@@ -223,10 +231,17 @@ def unsupported_inputs(types) -> str | None:
 
 def make_master(instances: dict[str, Instance], links: list[Link], settings: MasterSettings,
                 start_time: float = 0.0, step_order: list[str] | None = None,
-                extra_outputs: dict[str, list[str]] | None = None, inputs: Samples | None = None) -> Master:
-    """The master that ``settings.engine`` asks for (see the module's docstring)."""
+                extra_outputs: dict[str, list[str]] | None = None, inputs: Samples | None = None,
+                rates: dict[str, int] | None = None) -> Master:
+    """The master that ``settings.engine`` asks for (see the module's docstring).
+    `rates`: {instance: decimation factor} where components step at their
+    own multiples of settings.step (engine/multirate.py): the Python engine's."""
     settings.check()
     clocks = clocks_reason(instances)
+    if clocks is not None and rates and any(k != 1 for k in rates.values()):
+        raise SceneError(f"rates: {unsupported_rates(rates).replace('the compiled core steps', 'a clock ticks')}; "
+                         f"a scene with FMI 3.0 clocks ({clocks.split('(', 1)[1]} steps every component at "
+                         "master.step")
     if clocks is not None:  # FMI 3.0 clocks: the Python engine (engine/clocks.py)
         if settings.engine == "compiled":
             raise SceneError(f"master.engine = 'compiled': {clocks} (use 'auto' or 'python')")
@@ -234,7 +249,11 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
         master.engine_reason = clocks if settings.engine == "auto" else None
         return master
     reason = None
-    if settings.engine != "python":
+    if rates and any(k != 1 for k in rates.values()):
+        reason = unsupported_rates(rates)
+        if settings.engine == "compiled":
+            raise SceneError(f"master.engine = 'compiled': {reason} (use 'auto' or 'python')")
+    elif settings.engine != "python":
         types = [(f"{k.src}.{k.output} -> {k.dst}.{k.input}", link_type(instances, k)) for k in links]
         sampled = [] if inputs is None else [
             (s.name, instances[s.instance].variables[s.variable].type) for s in inputs.signals
@@ -244,7 +263,7 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
             return CompiledMaster(instances, links, settings, start_time, step_order, extra_outputs, inputs)
         if settings.engine == "compiled":
             raise SceneError(f"master.engine = 'compiled': {reason} (use 'auto' or 'python')")
-    master = Master(instances, links, settings, start_time, step_order, extra_outputs, inputs)
+    master = Master(instances, links, settings, start_time, step_order, extra_outputs, inputs, rates)
     master.engine_reason = reason
     return master
 
@@ -254,12 +273,6 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
 _CORE_STATS = ("steps", "events", "event_iterations", "rollbacks", "replays", "states_saved",
                "predicted_landings", "mispredicted", "coupling_iterations")
 
-_CALL_FIELDS = ("doStep", "getReal", "setReal", "setInputDerivatives", "getOutputDerivatives",
-                "getState", "setState")
-_FMI2_NAMES = ("DoStep", "GetReal", "SetReal", "SetRealInputDerivatives", "GetRealOutputDerivatives",
-               "GetFMUstate", "SetFMUstate")
-_ADAPTER_NAMES = ("doStep", "getReal", "setReal", "setInputDerivatives", "getOutputDerivatives",
-                  "getState", "setState")
 
 
 _TYPECODES = {c_double: "d", c_int: "i", c_uint: "I"}  # array's codes of the same C types
@@ -277,10 +290,6 @@ def _array(ctype, values, n: int | None = None):
         return (ctype * size).from_buffer_copy(array(code, values))
     except (OverflowError, TypeError):  # ctypes' own conversions (it wraps integers)
         return (ctype * size)(*values)
-
-
-def _fn(dll, name: str) -> int:
-    return ctypes.cast(getattr(dll, name), c_void_p).value
 
 
 class CompiledMaster(Master):
@@ -327,7 +336,7 @@ class CompiledMaster(Master):
         return with_model_exchange(
             Statistics(**{name: getattr(c, name) for name in _CORE_STATS},
                        loop_iterations=lc.iterations, loop_fallbacks=lc.fallbacks),
-            self._model_exchange)
+            self._own_counts)
 
     @stats.setter
     def stats(self, value: Statistics) -> None:
@@ -354,23 +363,11 @@ class CompiledMaster(Master):
         cports = (_Port * len(ports.all))()
         for i, p in enumerate(ports.all):
             inst, c = p.inst, cports[i]
-            if getattr(inst, "model_exchange", False):
-                # The core's Model Exchange wrapper (cwme_*, cw_me.c) on the instance's shared state.
-                dll, prefix, names = self._lib, "cwme_", _ADAPTER_NAMES
-                c.comp = inst.core_state(self._lib)
-            elif inst.fmi_version == 3:
-                # The core's FMI 3.0 adapter (cw3_*), on the instance's shared adapter state.
-                dll, prefix, names = self._lib, "cw3_", _ADAPTER_NAMES
-                c.comp = ctypes.addressof(inst.events)
-            elif inst.fmi_version == 1:
-                # The core's FMI 1.0 adapter (cw1_*: fmiDoStep's char newStep, negated aliases).
-                dll, prefix, names = self._lib, "cw1_", _ADAPTER_NAMES
-                c.comp = ctypes.addressof(inst.adapter)
-            else:
-                dll, prefix, names = inst._slave.dll, "fmi2", _FMI2_NAMES
-                c.comp = inst.component
-            for field, name in zip(_CALL_FIELDS, names):
-                setattr(c, field, _fn(dll, prefix + name))
+            # The functions the core's port calls and their first argument,
+            # as the instance's face gives them (contract.core_calls).
+            c.comp, calls = inst.core_calls(self._lib)
+            for field, address in zip(CORE_CALLS, calls, strict=True):
+                setattr(c, field, address)
             c.state = ctypes.addressof(inst._state)
             c.out_vr, c.out = ref(p.out_vr), ctypes.addressof(p.out)
             c.in_vr, c.inp = ref(p.in_vr), ref(p.inp)
@@ -431,7 +428,7 @@ class CompiledMaster(Master):
         m.iterations, m.iteration_tolerance = int(self.settings.iterations), self.settings.iteration_tolerance
         m.since, m.cap_since = ref(_array(c_double, [], MAX_SINCE)), MAX_SINCE
         m.n_ports, m.n_z = len(ports.all), nz
-        fmi3 = [ctypes.addressof(ev) for ev in self.fmi3_events]
+        fmi3 = [ctypes.addressof(ev) for ev in self.time_events]
         m.fmi3, m.n_fmi3 = ref(_array(c_void_p, fmi3)), len(fmi3)
         s = self.settings
         m.t = self.__dict__.pop("_t_before_core", self.start_time)
@@ -567,7 +564,8 @@ class CompiledMaster(Master):
         for p, c in zip(self.ports.all, self._cports):
             for k in range(p.ext_order, c.ext_order, -1):
                 self.coupling.note(f"{p.inst.name} refused input derivatives of order {k} "
-                                   f"(fmi2SetRealInputDerivatives): order {k - 1} from t = {c.lowered_at!r} s on")
+                                   f"({p.inst.named('setInputDerivatives')}): order {k - 1} from "
+                                   f"t = {c.lowered_at!r} s on")
             p.ext_order = c.ext_order
 
     def step(self, h: float) -> float:
@@ -746,12 +744,13 @@ class CompiledMaster(Master):
             self.ports.name_divergence(m.t, self.settings.divergence_limit, last_point=m.err_t)
             return
         if rc == _ENDED:
-            raise self._fmi3_ended()
+            raise self._asked_to_end()
         if rc == _ERR_FMI:
             p = self.ports.all[m.err_port]
             if m.err_call == 0:
                 raise self._step_failure(p, m.err_status, m.err_t, m.err_h)
-            raise p.inst.fail(_CALLS[m.err_call], m.err_status, m.err_t)
+            call, purpose = _CALLS[m.err_call]
+            raise p.inst.fail(p.inst.named(call) + purpose, m.err_status, m.err_t)
         t = m.err_t
         if rc == _ERR_LOOP:
             c = ctypes.cast(self._loops.loop, POINTER(_Loop))[m.err_port]

@@ -108,7 +108,7 @@ class InputCoupling:
             return  # held value unchanged: the FMU already has it
         st = p.setReal(p.comp, p.in_vr, p.n_in, inp)
         if st > WARNING:
-            raise p.inst.fail("fmi2SetReal of inputs", st, t)
+            raise p.inst.fail(p.inst.named("setReal") + " of inputs", st, t)
         p.sent = inp[:p.n_in]
         p.sent_valid = not polynomial and coupling_end is None
         if coupling_end is not None:
@@ -123,7 +123,7 @@ class InputCoupling:
             # refused, it gets one order lower, from the same sources, and never this order again.
             p.ext_order -= 1
             self.note(f"{p.inst.name} refused input derivatives of order {p.ext_order + 1} "
-                      f"(fmi2SetRealInputDerivatives): order {p.ext_order} from t = {t!r} s on")
+                      f"({p.inst.named('setInputDerivatives')}): order {p.ext_order} from t = {t!r} s on")
             self.set_inputs(p, t, h, smooth)
 
     @staticmethod
@@ -136,7 +136,7 @@ class InputCoupling:
             if refusable and st < 4:  # not after fmi2Fatal
                 del p.inst.messages[keep:]
                 return False
-            raise p.inst.fail("fmi2SetRealInputDerivatives", st, t)
+            raise p.inst.fail(p.inst.named("setInputDerivatives"), st, t)
         return True
 
     def _extrapolate(self, p: Port, t: float) -> None:

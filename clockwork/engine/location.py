@@ -32,7 +32,7 @@ from ..errors import SimulationError
 from .events import (PREDICTION_HORIZON, Illinois, crossed, earliest, extrapolants, first_root, hermite_extremum,
                      hermite_root, slope_at)
 from ..fmi.calls import WARNING
-from ..fmi.cs2 import Instance
+from ..fmi.contract import Instance
 from .ports import Port, feeds
 
 _ORDER_ONE = (c_int * 1)(1)

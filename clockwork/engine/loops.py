@@ -158,7 +158,7 @@ class Loop:
             if p.n_in:
                 st = p.setReal(p.comp, p.in_vr, p.n_in, p.inp)
                 if st > WARNING:
-                    raise p.inst.fail("fmi2SetReal of inputs", st, t)
+                    raise p.inst.fail(p.inst.named("setReal") + " of inputs", st, t)
                 p.sent_valid = False
             p.read(t)
         return self._residual(x, r)

@@ -42,7 +42,7 @@ from .checkpoints import Checkpoints
 from ..fmi.description import REAL_TYPES, no_state_reason
 from .coupling import InputCoupling, iterate_step
 from ..fmi.calls import DISCARD, NO_MESSAGE, WARNING, free_all
-from ..fmi.cs2 import Instance
+from ..fmi.contract import Instance
 from .events import crossed, earliest
 from .location import APPROACH, LAND, EventLocator, scan
 from .marks import Marks
@@ -85,11 +85,15 @@ class Master:
                  settings: MasterSettings, start_time: float = 0.0,
                  step_order: list[str] | None = None,
                  extra_outputs: dict[str, list[str]] | None = None,
-                 inputs: Samples | None = None):
+                 inputs: Samples | None = None, rates: dict[str, int] | None = None):
         self.instances = instances
         self.settings = settings
-        # Model Exchange instances, whose own counts join the master's (stats.model_exchange).
-        self._model_exchange = [inst for inst in instances.values() if getattr(inst, "model_exchange", False)]
+        self._multirate = None
+        if rates is not None:
+            rates = _slow_read_after_step(rates, instances)
+        # Instances with counts of their own (the Model Exchange wrapper's
+        # integrator), which join the master's (stats.model_exchange).
+        self._own_counts = [inst for inst in instances.values() if inst.statistics() is not None]
         settings.check()
         self.wiring = build(instances, links, step_order, settings.algebraic_loops)
         # Inputs driven from samples (an input file): set at every step.
@@ -101,8 +105,8 @@ class Master:
         self.ports = Ports(instances, self.wiring.links, self.wiring, extra_outputs, settings.event_location, self)
         self.discrete_outputs = self.ports.discrete_outputs
         self.coupling = InputCoupling(self.ports.dynamic, settings.extrapolation)
-        for inst in instances.values():  # what an instance changed of its own setup (fmu3: Event Mode refused)
-            if getattr(inst, "instantiation_note", None):
+        for inst in instances.values():  # what an instance changed of its own setup (cs3: Event Mode refused)
+            if inst.instantiation_note:
                 self.coupling.note(inst.instantiation_note)
         for loop in self.ports.loops:
             if loop.solve_in_init:
@@ -128,17 +132,20 @@ class Master:
         self._extrapolating = bool(settings.extrapolation)
         self._jacobi = settings.order == "jacobi"
         self._check_rollback()
-        self._check_fmi3()
+        self._check_polynomial_inputs()
         if settings.threads > 1 and self.engine == "python":
             self.coupling.note(f"master.threads = {settings.threads}: the Python engine steps one instance at a "
                                "time (its FMI calls hold Python's global lock); the compiled core uses the threads")
-        # FMI 3.0 instances' announced time events (fmu3._Events): a
-        # communication point lands on each.
-        self.fmi3_events = [p.inst.events for p in self.ports.all if p.inst.fmi_version == 3]
+        # The instances' announced time events (the contract's time_events,
+        # e.g. cs3._Events): a communication point lands on each.
+        self.time_events = [p.inst.time_events for p in self.ports.all if p.inst.time_events is not None]
         self._reset_soft_state()
         self.engine_reason: str | None = None  # why "auto" chose this engine, when not the core
         self.ended: SimulationEnded | None = None  # an FMU ended the simulation (a clean end)
         self._frees_seen = -1  # Instance.frees when run_until last found every instance alive
+        if rates is not None:  # components at their own steps (engine/multirate.py); else today's path
+            self._multirate = _multirate(self, rates)
+            self.step = self._multirate.step
 
     def __reduce_ex__(self, protocol):
         raise UsageError("a master cannot be pickled or copied: it holds loaded FMU libraries and their "
@@ -146,7 +153,7 @@ class Master:
 
     @property
     def stats(self) -> Statistics:
-        return with_model_exchange(self._stats, self._model_exchange)
+        return with_model_exchange(self._stats, self._own_counts)
 
     @stats.setter
     def stats(self, value: Statistics) -> None:
@@ -173,11 +180,12 @@ class Master:
                 raise SceneError(f"{key}: {inst.name} ({inst.path.name}) cannot save and restore its state "
                                  f"({no_state_reason(inst.md)}), and {why} rolls every FMU back")
 
-    def _check_fmi3(self) -> None:
-        """FMI 3.0 Co-Simulation takes no input derivatives: refuse inputs
-        given as polynomials (extrapolation, or strong coupling's lines
-        between iterates) into an FMI 3.0 instance that does not take them
-        by intermediate update, before the first step."""
+    def _check_polynomial_inputs(self) -> None:
+        """Refuse inputs given as polynomials (extrapolation, or strong
+        coupling's lines between iterates) into an instance that refuses
+        them (an FMI 3.0 FMU without intermediate update: its
+        Co-Simulation interface takes no input derivatives), before the
+        first step."""
         s = self.settings
         if s.extrapolation:
             key, value, fix = "master.extrapolation", s.extrapolation, "master.extrapolation = 0"
@@ -186,11 +194,9 @@ class Master:
         else:
             return
         for p in self.ports.dynamic:
-            if p.n_in and p.inst.fmi_version == 3 and not p.inst.can_interpolate_inputs:
-                why = getattr(p.inst, "no_intermediate_update", "") or "it provides no intermediate update"
-                raise SceneError(
-                    f"{key} = {value}: {p.inst.name} ({p.inst.path.name}) is an FMI 3.0 FMU, whose Co-Simulation "
-                    f"interface takes no input derivatives, and {why}; use {fix} or an FMI 2.0 build")
+            refusal = p.inst.polynomial_inputs_refusal(fix) if p.n_in else None
+            if refusal:
+                raise SceneError(f"{key} = {value}: {p.inst.name} ({p.inst.path.name}) {refusal}")
 
     # -- initialization --------------------------------------------------
 
@@ -198,6 +204,8 @@ class Master:
         """Set up every instance, resolve the initial outputs, leave init mode."""
         ports = self.ports
         self.ended = None
+        if self._multirate is not None:
+            self._multirate.detach()  # in Initialization Mode every value passes at once
         for name, inst in self.instances.items():
             inst.setup(self.start_time, parameters.get(name, {}), self.settings.tolerance)
         if self.file_inputs is not None:
@@ -229,6 +237,8 @@ class Master:
         if ports.diverged(self.settings.divergence_limit):
             ports.name_divergence(self.t, self.settings.divergence_limit, last_point=None)
         self._start()
+        if self._multirate is not None:
+            self._multirate.start()
 
     def _start(self) -> None:
         """The master's own state at the start: the past forgotten, the
@@ -336,38 +346,28 @@ class Master:
         if self._locating:
             loc.z_end = loc.indicators()
 
-    @staticmethod
-    def _fmi3_end(p: Port, t: float) -> SimulationEnded:
-        """The end an FMI 3.0 instance asked for (terminateSimulation), with
-        the results until t, the last communication point."""
-        end = p.inst.events.end_time
-        return SimulationEnded(f"{p.inst.name} ended the simulation (terminateSimulation) at t = {end!r} s; "
-                               f"results until {t!r} s", time=t, instance=p.inst.name, fmu_time=end)
-
-    def _fmi3_ended(self) -> SimulationEnded | None:
-        """The end an FMI 3.0 instance asked for in a step it finished, else None."""
+    def _asked_to_end(self) -> SimulationEnded | None:
+        """The end an instance asked for in a step it finished (announced in
+        its time_events: FMI 3.0's terminateSimulation), else None."""
         for p in self.ports.all:
-            if p.inst.fmi_version == 3 and p.inst.events.terminated:
-                return self._fmi3_end(p, self.t)
+            end = p.inst.ended(self.t) if p.inst.time_events is not None else None
+            if end is not None:
+                return end
         return None
 
     @staticmethod
     def _step_failure(p: Port, st: int, t: float, h: float) -> SimulationError:
-        """The error for a failed fmi2DoStep/fmi3DoStep; SimulationEnded where
-        the FMU ended the simulation (a clean end, caught by run_until)."""
-        if st == DISCARD and p.inst.fmi_version == 3 and p.inst.events.terminated:
-            return Master._fmi3_end(p, t)
-        if st == DISCARD and p.inst.fmi_version == 2 and p.inst.terminated():
-            end = p.inst.last_successful_time()
-            end = t if end is None else end
-            return SimulationEnded(f"{p.inst.name} ended the simulation at t = {end!r} s, in the step from "
-                                   f"t = {t!r} s; results until {t!r} s", time=t, instance=p.inst.name,
-                                   fmu_time=end)
+        """The error for a failed step; SimulationEnded where the FMU ended
+        the simulation (a clean end, caught by run_until)."""
+        inst = p.inst
         if st == DISCARD:
+            end = inst.ended(t, h)
+            if end is not None:
+                return end
             return SimulationError(
-                f"{p.inst.name}: {p.inst.do_step_name} from t = {t!r} s with h = {h!r} s was discarded: "
-                f"{p.inst.last_message() or NO_MESSAGE}", time=t, instance=p.inst.name)
-        return p.inst.fail(f"fmi2DoStep({t!r}, {h!r})", st, t)
+                f"{inst.name}: {inst.named('doStep')} from t = {t!r} s with h = {h!r} s was discarded: "
+                f"{inst.last_message() or NO_MESSAGE}", time=t, instance=inst.name)
+        return inst.fail(f"{inst.named('doStep')}({t!r}, {h!r})", st, t)
 
     # -- the accurate step ---------------------------------------------
 
@@ -390,11 +390,11 @@ class Master:
         s = self.settings
         t = self.t
         loc = self.locator
-        # 0. An FMI 3.0 instance that asked to end the simulation ends it
-        # here; its announced time event caps the step.
-        for ev in self.fmi3_events:
+        # 0. An instance that asked to end the simulation in a step it
+        # finished ends it here; its announced time event caps the step.
+        for ev in self.time_events:
             if ev.terminated:
-                raise self._fmi3_ended()
+                raise self._asked_to_end()
             if t < ev.next_event_time < t + h:
                 h = ev.next_event_time - t
         # A sampled input's event is a discontinuity at the step's start
@@ -659,13 +659,14 @@ class Master:
         follow, period = marks.follow if marks.follow is not None else (-1, 0.0)
         rows, record, batch = marks.rows, marks.record_at_marks, marks.rows_per_call
         value = (c_double * 1)()
-        setters = [(inst, inst.c_setReal, inst.component, (c_uint * 1)(vr)) for inst, vr in marks.inputs]
+        setters = [(inst, inst.c_setReal, inst.component, (c_uint * 1)(vr), f"{inst.named('setReal')} of inputs")
+                   for inst, vr in marks.inputs]
 
         def act(k: int) -> None:  # at mark k
             if sets[k]:
                 value[0] = values[k]
-                for inst, c_set, comp, vr in setters:
-                    inst.check(c_set(comp, vr, 1, value), "fmi2SetReal of inputs", self.t)
+                for inst, c_set, comp, vr, what in setters:
+                    inst.check(c_set(comp, vr, 1, value), what, self.t)
             elif record:
                 rows.append((self.t, *(p.out[j] for p, j in outputs), *previous))
 
@@ -704,8 +705,40 @@ class Master:
                 on_rows(rows[:])
                 rows.clear()
 
+    @property
+    def rates(self) -> dict[str, int]:
+        """{instance: its decimation factor}: how many base steps (master.step) each component's own step is."""
+        k = self._multirate.k if self._multirate is not None else {}
+        return {name: k.get(name, 1) for name in self.instances}
+
     def stop_threads(self) -> None:
         """Stop the threads master.threads started (the compiled core's); here, none."""
 
     def terminate(self) -> None:
         free_all(self.instances)
+
+
+def _slow_read_after_step(rates: dict[str, int], instances: dict) -> dict[str, int] | None:
+    """The checked rates, or None when every component steps at the base
+    step. A slow component's outputs are read after its own steps only:
+    the wiring steps it as a dynamic one (engine/wiring.py, ``strict``)."""
+    from .multirate import check_rates
+    rates = check_rates(rates, instances)
+    for name, k in (rates or {}).items():
+        if k != 1:
+            instances[name].outputs_after_inputs = False
+    return rates
+
+
+def _multirate(master: Master, rates: dict[str, int]):
+    """The multi-rate stepping of `master`, after the one-line refusals of
+    what it does not do across rates (engine/multirate.py)."""
+    from .multirate import MultiRate, loop_problem, problem
+    found = problem(master.settings, rates, {p.inst.name: p.z_pos for p in master.ports.all})
+    if found:
+        raise SceneError(found[1], key="rates")
+    loops = loop_problem(rates, [(loop.name, [p.inst.name for p in loop.members]) for loop in master.ports.loops])
+    if loops:
+        raise SceneError(loops, key="components")
+    return MultiRate(master, rates)
+

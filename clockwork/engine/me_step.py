@@ -59,20 +59,11 @@ SAFEGUARD_TRIALS = 4  # trials that must halve the bracket, else a bisection
 INSTANTIATED, INITIALIZATION, CONTINUOUS, EVENT = 0, 1, 2, 3
 # How an integration ended.
 REACHED, STATE, STEP, TERMINATE, STIFF, FAILED = range(6)
-# What failed (the struct's failed_call): an FMU function (its FMI 2.0 and 3.0 names) or the wrapper.
-CALLS = {
-    1: ("fmi2SetTime", "fmi3SetTime"),
-    2: ("fmi2SetContinuousStates", "fmi3SetContinuousStates"),
-    3: ("fmi2GetDerivatives", "fmi3GetContinuousStateDerivatives"),
-    4: ("fmi2GetEventIndicators", "fmi3GetEventIndicators"),
-    5: ("fmi2CompletedIntegratorStep", "fmi3CompletedIntegratorStep"),
-    6: ("fmi2EnterEventMode", "fmi3EnterEventMode"),
-    7: ("fmi2NewDiscreteStates", "fmi3UpdateDiscreteStates"),
-    8: ("fmi2EnterContinuousTimeMode", "fmi3EnterContinuousTimeMode"),
-    9: ("fmi2GetContinuousStates", "fmi3GetContinuousStates"),
-    10: ("fmi2GetNominalsOfContinuousStates", "fmi3GetNominalsOfContinuousStates"),
-    11: ("fmi2SetReal", "fmi3SetFloat64"),
-}
+# What failed (the struct's failed_call): an FMU function of the face (its
+# name: the face's NAMES, me2.py and me3.py) or the wrapper.
+FMU_CALLS = {1: "setTime", 2: "setStates", 3: "getDerivatives", 4: "getIndicators", 5: "completedStep",
+             6: "enterEventMode", 7: "update", 8: "enterContinuousMode", 9: "getStates", 10: "getNominals",
+             11: "setReal"}
 FAIL_SETTLE, FAIL_TIME, FAIL_RK, FAIL_CVODE, FAIL_LOCATE, FAIL_TIME_EVENTS = 20, 21, 22, 23, 24, 25
 RK_FAILURES = {rkmod.STEP_TOO_SMALL: "the step size fell below the resolution of time",
                rkmod.TOO_MANY_STEPS: f"more than {rkmod.MAX_STEPS} steps in one communication step",
@@ -82,9 +73,9 @@ STATS = ("steps", "rejected", "rhs", "state_events", "time_events", "step_events
 
 
 class ModelExchangeSteps:
-    """The wrapper's algorithm (a mixin of ``model_exchange.MEInstance``,
-    which binds the FMU calls ``_set_time`` ... ``_update`` and owns the
-    struct ``me`` with its arrays ``_x``, ``_atolv``, ``_z_prev``...)."""
+    """The wrapper's algorithm (a base of ``model_exchange.MEInstance``,
+    which binds its face's FMU calls ``_set_time`` ... ``_update`` once and
+    owns the struct ``me`` with its arrays ``_x``, ``_atolv``, ``_z_prev``...)."""
 
     # -- failures ------------------------------------------------------------
 

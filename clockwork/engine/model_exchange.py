@@ -1,13 +1,16 @@
 """A Model Exchange FMU as an instance that steps like a Co-Simulation one.
 
-``MEInstance`` (FMI 2.0) and ``MEInstance3`` (FMI 3.0) give the master the
-calls of an FMI 2.0 Co-Simulation ``Instance`` (``c_doStep``,
-``c_setReal``, ``c_setInputDerivatives``, ``c_getOutputDerivatives``,
-``c_getState``...), so that the stepping loop, the coupling, the event
-location and the checkpoints serve them unchanged, mixed with
-Co-Simulation FMUs. Behind those calls the wrapper integrates the FMU
-(``me_step.py``: the algorithm, its integrators and events); towards the
-master it behaves as an FMI 2.0 Co-Simulation FMU would:
+``MEInstance`` implements the instance contract (``fmi/contract.py``:
+``c_doStep``, ``c_setReal``, ``c_setInputDerivatives``,
+``c_getOutputDerivatives``, ``c_getState``...), so that the stepping loop,
+the coupling, the event location and the checkpoints serve it unchanged,
+mixed with Co-Simulation FMUs. It composes two parts: the FMU's Model
+Exchange face (``fmi/me2.py`` for FMI 2.0, ``fmi/me3.py`` for FMI 3.0:
+the FMU's functions, which know nothing of integration; the factory,
+``instances.make_instance``, picks it) and the integration (``me_step.py``:
+the algorithm, its events, and the integrators ``rk.py`` and
+``cvode.py``). Towards the master it behaves as a Co-Simulation FMU with
+these capabilities would:
 
 - it takes input derivatives (``canInterpolateInputs``) and sets the
   inputs' polynomials wherever it evaluates the FMU between communication
@@ -20,8 +23,8 @@ master it behaves as an FMI 2.0 Co-Simulation FMU would:
   next event time, indicators, input polynomials, solver), so rollback,
   replay and shooting work;
 - an FMU that ends the simulation (terminateSimulation) makes a step
-  return Discard with fmi2Terminated (``terminated``,
-  ``last_successful_time``), as FMI 2.0 Co-Simulation FMUs do;
+  return Discard and ``terminated`` true (``last_successful_time``: where
+  it stopped), the contract's "the FMU asks to end";
 - values other than continuous inputs (parameters, discrete inputs) set
   during the run go through event mode, as Model Exchange requires.
 
@@ -39,22 +42,16 @@ from __future__ import annotations
 
 import ctypes
 import math
-from ctypes import (POINTER, Structure, byref, c_bool, c_char, c_char_p, c_double, c_int, c_longlong, c_size_t,
-                    c_uint, c_void_p)
+from ctypes import Structure, c_char, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
 from dataclasses import dataclass
-
-from fmpy.fmi2 import FMU2Model, fmi2EventInfo
-from fmpy.fmi3 import FMU3Model, fmi3LogMessageCallback
 
 from ..errors import SceneError, SimulationError
 from . import cvode, rk
-from ..fmi.description import fmi_version
 from .events import input_polynomial
-from ..fmi.archive import extract
-from ..fmi.calls import ERROR, OK, WARNING, read_string
-from ..fmi.cs2 import Instance
-from ..fmi.cs3 import LOG_MESSAGE, Instance3
-from .me_step import (AUTO, CALLS, CONTINUOUS, CVODE, DEFAULT_RTOL, EVENT, FAIL_CVODE, FAIL_LOCATE, FAIL_RK,
+from ..fmi.calls import ERROR, OK, WARNING
+from ..fmi.clocks import clock_table as read_clock_table
+from ..fmi.contract import CORE_CALLS, Instance
+from .me_step import (AUTO, FMU_CALLS, CONTINUOUS, CVODE, DEFAULT_RTOL, EVENT, FAIL_CVODE, FAIL_LOCATE, FAIL_RK,
                       FAIL_SETTLE, FAIL_TIME, FAIL_TIME_EVENTS, INITIALIZATION, INSTANTIATED, MAX_CVODE_STEPS,
                       MAX_EVENT_ITERATIONS, MAX_RK_STATES, MAX_TRIALS, METHOD_NAMES, RK_FAILURES, SOLVERS, STATS,
                       ModelExchangeSteps)
@@ -93,30 +90,24 @@ class _ME(Structure):
             "saved_terminated", "saved_poly", "saved_mode")]
 
 
-def _binder(dll):
-    """fn(name, *argtypes): the FMU's C function `name` with its argument types, returning a status."""
-    def fn(name, *argtypes):
-        f = getattr(dll, name)
-        f.argtypes = list(argtypes)
-        f.restype = c_int
-        return f
-    return fn
-
-
 class MEInstance(ModelExchangeSteps, Instance):
-    """An FMI 2.0 Model Exchange FMU behind the calls of a Co-Simulation instance."""
+    """A Model Exchange FMU behind the instance contract: its Model
+    Exchange face `face` (me2.ModelExchange2, me3.ModelExchange3) composed
+    with the integration (ModelExchangeSteps, rk, cvode)."""
 
-    model_exchange = True
-    fmi_version = 2  # the face the master sees: an FMI 2.0 Co-Simulation instance (see the module's docstring)
-    _fmpy_class = FMU2Model
+    def clock_table(self):
+        """Clocks are served in Co-Simulation and Scheduled Execution only."""
+        if read_clock_table(self.md):
+            raise SceneError(f"{self.name} ({self.path.name}): its clocks are served in Co-Simulation and "
+                             "Scheduled Execution only, not through Model Exchange (interface = "
+                             "'co-simulation')")
+        return None
 
-    def _interface(self):
-        return self.md.modelExchange
-
-    def __init__(self, name, path, model_description=None, options: MEOptions | None = None):
+    def __init__(self, name, path, model_description, face, options: MEOptions | None = None):
         super().__init__(name, path, model_description)
         md = self.md
-        self.fmu_version = fmi_version(md)
+        self.face = face
+        self.CALL_NAMES = face.CALL_NAMES  # named(): the wrapper's calls, in its face's words
         self.options = options or MEOptions()
         if self.options.solver not in SOLVERS:
             raise SceneError(f"master.me_solver = {self.options.solver!r}: expected one of "
@@ -155,7 +146,7 @@ class MEInstance(ModelExchangeSteps, Instance):
         self._state_vr = (c_uint * max(1, n))(*state_vr)
         self._der_state = (c_int * max(1, n))(*der_state)
         self._saved = doubles(n + nz + 4 * n_in)
-        me = self.me = _ME(version=self.fmu_version, n=n, nz=nz, n_in=n_in,
+        me = self.me = _ME(version=face.version, n=n, nz=nz, n_in=n_in,
                            solver=SOLVERS[self.options.solver],
                            event_time_tolerance=float(self.options.event_time_tolerance),
                            needs_completed=int(self._needs_completed))
@@ -178,41 +169,26 @@ class MEInstance(ModelExchangeSteps, Instance):
 
     # -- loading -------------------------------------------------------------
 
+    def instantiate(self) -> None:
+        """The face loads and instantiates the FMU; the wrapper binds its calls."""
+        self._slave = self.face.instantiate(self)
+        self.component = self._slave.component
+        self._bind(self._slave.dll)
+
     def _bind(self, dll) -> None:
-        """The FMU's fmi2 functions (raw, with argtypes) and the wrapper's calls for the master."""
-        fn = _binder(dll)
-        comp = c_void_p
-        vrs, reals, ints = POINTER(c_uint), POINTER(c_double), POINTER(c_int)
-        f = {
-            "setTime": fn("fmi2SetTime", comp, c_double),
-            "setStates": fn("fmi2SetContinuousStates", comp, reals, c_size_t),
-            "getDerivatives": fn("fmi2GetDerivatives", comp, reals, c_size_t),
-            "getIndicators": fn("fmi2GetEventIndicators", comp, reals, c_size_t),
-            "getStates": fn("fmi2GetContinuousStates", comp, reals, c_size_t),
-            "getNominals": fn("fmi2GetNominalsOfContinuousStates", comp, reals, c_size_t),
-            "completedStep": fn("fmi2CompletedIntegratorStep", comp, c_int, ints, ints),
-            "enterEventMode": fn("fmi2EnterEventMode", comp),
-            "update": fn("fmi2NewDiscreteStates", comp, POINTER(fmi2EventInfo)),
-            "enterContinuousMode": fn("fmi2EnterContinuousTimeMode", comp),
-            "getReal": fn("fmi2GetReal", comp, vrs, c_size_t, reals),
-            "setReal": fn("fmi2SetReal", comp, vrs, c_size_t, reals),
-            "getState": fn("fmi2GetFMUstate", comp, POINTER(c_void_p)),
-            "setState": fn("fmi2SetFMUstate", comp, c_void_p),
-        }
-        self._fmu_calls(f)
-        self.c_getInteger = fn("fmi2GetInteger", comp, vrs, c_size_t, ints)
-        self.c_setInteger = fn("fmi2SetInteger", comp, vrs, c_size_t, ints)
-        self.c_getBoolean = fn("fmi2GetBoolean", comp, vrs, c_size_t, ints)
-        self.c_setBoolean = fn("fmi2SetBoolean", comp, vrs, c_size_t, ints)
-        self.c_getString = fn("fmi2GetString", comp, vrs, c_size_t, POINTER(c_char_p))
-        self.c_setString = fn("fmi2SetString", comp, vrs, c_size_t, POINTER(c_char_p))
-        self.c_freeState = fn("fmi2FreeFMUstate", comp, POINTER(c_void_p))
-        fmu_reset = fn("fmi2Reset", comp)
+        """The face's functions, bound once here: the algorithm's calls, the
+        struct's addresses, and the contract's calls the wrapper serves."""
+        face = self.face
+        face.bind(dll, self.component, self)
+        self._fmu_calls(face)
+        self.c_getInteger, self.c_setInteger = face.get_integer, face.set_integer
+        self.c_getBoolean, self.c_setBoolean = face.get_boolean, face.set_boolean
+        self.c_getString, self.c_setString = face.get_string, face.set_string
+        self.c_freeState = face.free_state
+        fmu_reset = face.reset
         self.c_reset = lambda c: self._reset_call(fmu_reset)
-        self.c_terminate = fn("fmi2Terminate", comp)
-        setup = fn("fmi2SetupExperiment", comp, c_int, c_double, c_double, c_int, c_double)
-        enter_init = fn("fmi2EnterInitializationMode", comp)
-        exit_init = fn("fmi2ExitInitializationMode", comp)
+        self.c_terminate = face.terminate
+        setup, enter_init, exit_init = face.setup, face.enter_init, face.exit_init
 
         def c_setup(c, tol_defined, tol, start, stop_defined, stop):
             self._setup_wrapper(tol_defined, tol, start)
@@ -221,29 +197,18 @@ class MEInstance(ModelExchangeSteps, Instance):
         self.c_setup = c_setup
         self.c_enterInit = lambda c: self._enter_init(enter_init(c))
         self.c_exitInit = lambda c: self._exit_init(exit_init(c))
-        info = fmi2EventInfo()
-        update = f["update"]
+        self._update, self._completed_step = face.update, face.completed_step
+        values = face.values  # FMI 3.0: every type through its own fmi3Get*/fmi3Set*
+        self._set_values_now = super().set_values if values is None else values.set_values
+        if values is not None:  # an instance attribute: no Python call of its own
+            self.get_values = values.get_values
 
-        def update_call():
-            st = update(self.component, byref(info))
-            return (st, bool(info.newDiscreteStatesNeeded), bool(info.terminateSimulation),
-                    bool(info.nominalsOfContinuousStatesChanged), bool(info.valuesOfContinuousStatesChanged),
-                    bool(info.nextEventTimeDefined), info.nextEventTime)
-
-        enter, term = c_int(), c_int()
-        completed = f["completedStep"]
-
-        def completed_call():
-            st = completed(self.component, 0, byref(enter), byref(term))
-            return st, bool(enter.value), bool(term.value)
-
-        self._update, self._completed_step = update_call, completed_call
-
-    def _fmu_calls(self, f: dict) -> None:
+    def _fmu_calls(self, face) -> None:
         """Bind the FMU functions the algorithm calls, and hand their addresses to the struct."""
         comp = self.component
         me = self.me
         me.instance = comp
+        f = face.functions
         for name, fn_ in f.items():
             setattr(me, name, ctypes.cast(fn_, c_void_p).value)
         self._set_time = lambda t: f["setTime"](comp, t)
@@ -254,10 +219,10 @@ class MEInstance(ModelExchangeSteps, Instance):
         self._get_nominals = lambda x, n: f["getNominals"](comp, x, n)
         self._enter_event = lambda: f["enterEventMode"](comp)
         self._enter_continuous = lambda: f["enterContinuousMode"](comp)
-        self._set_inputs = lambda vr, n, v: f["setReal"](comp, vr, n, v)
-        self._fmu_set_real = f["setReal"]
+        self._set_inputs = face.set_inputs
+        self._fmu_set_real = face.set_real
         self._fmu_get_state, self._fmu_set_state = f["getState"], f["setState"]
-        self.c_getReal = f["getReal"]
+        self.c_getReal = face.get_real
         self.c_setReal = self._set_real
         self.c_setInputDerivatives = self._set_input_derivatives
         self.c_getOutputDerivatives = self._output_derivatives
@@ -420,17 +385,16 @@ class MEInstance(ModelExchangeSteps, Instance):
             return st
         return max(st, self._settle("input_events"))
 
-    _set_values_now = Instance.set_values  # every type through its fmi2Set*
-
-    def set_values(self, values: dict[str, object], what: str = "fmi2Set*",
+    def set_values(self, values: dict[str, object], what: str | None = None,
                    error: type[SimulationError] = SimulationError) -> None:
         """Values of any type; in continuous-time mode all but continuous
         inputs go in together in one pass through event mode."""
+        what = what or self.CALL_NAMES["setValues"]
         me = self.me
         if me.mode != CONTINUOUS or all(self.variables[n].vr in self.continuous_inputs for n in values):
             self._set_values_now(values, what, error)
             return
-        self.check(self._enter_event(), CALLS[6][0 if self.fmu_version == 2 else 1], me.time)
+        self.check(self._enter_event(), self.face.NAMES[FMU_CALLS[6]], me.time)
         me.mode = EVENT
         try:
             self._set_values_now(values, what, error)
@@ -505,6 +469,11 @@ class MEInstance(ModelExchangeSteps, Instance):
 
     # -- what the master asks -------------------------------------------------------
 
+    def core_calls(self, lib) -> tuple[int, tuple[int, ...]]:
+        """The core's Model Exchange wrapper (cwme_*, cw_me.c) on this instance's shared ``_ME``."""
+        return self.core_state(lib), tuple(ctypes.cast(getattr(lib, "cwme_" + name), c_void_p).value
+                                           for name in CORE_CALLS)
+
     def terminated(self) -> bool:
         return bool(self.me.terminated)
 
@@ -527,9 +496,10 @@ class MEInstance(ModelExchangeSteps, Instance):
         me = self.me
         code, me.failed_call = me.failed_call, 0
         if code:
-            step = what.replace("fmi2DoStep", "the Model Exchange step ")
-            if code in CALLS:
-                what = f"{CALLS[code][0 if self.fmu_version == 2 else 1]} at t = {me.err_t!r} s, in {step}"
+            name = self.named("doStep")
+            step = what.replace(name + "(", name + " (")
+            if code in FMU_CALLS:
+                what = f"{self.face.NAMES[FMU_CALLS[code]]} at t = {me.err_t!r} s, in {step}"
             else:
                 self.messages.append((ERROR, self._failure_text(code)))
                 what = f"{step} at t = {me.err_t!r} s"
@@ -560,118 +530,7 @@ class MEInstance(ModelExchangeSteps, Instance):
     def _free_instance(self) -> None:
         if self.me.cv_mem or self.me.cv_ctx:
             cvode.free(self.me)
-        self._slave.fmi2FreeInstance(self.component)
-
-
-class MEInstance3(MEInstance):
-    """An FMI 3.0 Model Exchange FMU behind the same calls."""
-
-    # Values of every FMI 3.0 type through fmi3Get/Set<Type>, as a Co-Simulation instance has them.
-    _value_functions = Instance3._value_functions
-    get_values = Instance3.get_values
-    _set_values_now = Instance3.set_values
-    _merge_elements = Instance3._merge_elements
-
-    def instantiate(self) -> None:
-        unzip = extract(self.path)
-        try:
-            self._slave = FMU3Model(guid=self.md.guid, unzipDirectory=str(unzip),
-                                    modelIdentifier=self.md.modelExchange.modelIdentifier,
-                                    instanceName=self.name)
-        except Exception as e:
-            raise SceneError(f"{self.path}: cannot load the FMU's binary for this platform: {e}") from None
-        messages = self.messages
-
-        def logger(env, status, category, message):
-            # Addresses, read without trusting them; env is not used.
-            messages.append((status, read_string(message)))
-            del messages[:-50]
-
-        slave = self._slave
-        self._guard(slave.dll, ("fmi3InstantiateModelExchange", "fmi3GetVersion"))
-        try:
-            # As fmpy's instantiate, with a logger that takes the strings as addresses.
-            self._log_callback = LOG_MESSAGE(logger)
-            slave.logMessage = ctypes.cast(self._log_callback, fmi3LogMessageCallback)
-            slave.component = slave.fmi3InstantiateModelExchange(
-                self.name.encode(), self.md.guid.encode(), (str(unzip / "resources") + "/").encode(),
-                False, False, None, slave.logMessage)
-            if not slave.component:
-                raise Exception("Failed to instantiate FMU")
-        except Exception as e:
-            self.check_crash("fmi3InstantiateModelExchange")
-            raise SceneError(
-                f"{self.path}: fmi3InstantiateModelExchange refused the model description's instantiation "
-                f"token {self.md.guid}: {self.last_message() or e}") from None
-        self.component = self._slave.component
-        self._bind(self._slave.dll)
-
-    def _bind(self, dll) -> None:
-        fn = _binder(dll)
-        inst = c_void_p
-        vrs, reals, pb = POINTER(c_uint), POINTER(c_double), POINTER(c_bool)
-        get_f64 = fn("fmi3GetFloat64", inst, vrs, c_size_t, reals, c_size_t)
-        set_f64 = fn("fmi3SetFloat64", inst, vrs, c_size_t, reals, c_size_t)
-        f = {
-            "setTime": fn("fmi3SetTime", inst, c_double),
-            "setStates": fn("fmi3SetContinuousStates", inst, reals, c_size_t),
-            "getDerivatives": fn("fmi3GetContinuousStateDerivatives", inst, reals, c_size_t),
-            "getIndicators": fn("fmi3GetEventIndicators", inst, reals, c_size_t),
-            "getStates": fn("fmi3GetContinuousStates", inst, reals, c_size_t),
-            "getNominals": fn("fmi3GetNominalsOfContinuousStates", inst, reals, c_size_t),
-            "completedStep": fn("fmi3CompletedIntegratorStep", inst, c_bool, pb, pb),
-            "enterEventMode": fn("fmi3EnterEventMode", inst),
-            "update": fn("fmi3UpdateDiscreteStates", inst, pb, pb, pb, pb, pb, reals),
-            "enterContinuousMode": fn("fmi3EnterContinuousTimeMode", inst),
-            "getReal": get_f64,
-            "setReal": set_f64,
-            "getState": fn("fmi3GetFMUState", inst, POINTER(c_void_p)),
-            "setState": fn("fmi3SetFMUState", inst, c_void_p),
-        }
-        self._fmu_calls(f)
-        self.c_getReal = lambda comp, vr, n, out: get_f64(comp, vr, n, out, n)
-        self._fmu_set_real = lambda comp, vr, n, val: set_f64(comp, vr, n, val, n)
-        self._set_inputs = lambda vr, n, v: set_f64(self.component, vr, n, v, n)
-        get_i32 = fn("fmi3GetInt32", inst, vrs, c_size_t, POINTER(c_int), c_size_t)
-        self.c_getInteger = lambda comp, vr, n, out: get_i32(comp, vr, n, out, n)
-        self.c_freeState = fn("fmi3FreeFMUState", inst, POINTER(c_void_p))
-        fmu_reset = fn("fmi3Reset", inst)
-        self.c_reset = lambda c: self._reset_call(fmu_reset)
-        self.c_terminate = fn("fmi3Terminate", inst)
-        enter_init = fn("fmi3EnterInitializationMode", inst, c_bool, c_double, c_double, c_bool, c_double)
-        exit_init = fn("fmi3ExitInitializationMode", inst)
-        args = [(0, 0.0, 0.0, 0, 0.0)]
-
-        def c_setup(c, tol_defined, tol, start, stop_defined, stop):
-            self._setup_wrapper(tol_defined, tol, start)
-            args[0] = (tol_defined, tol, start, stop_defined, stop)
-            return OK  # FMI 3.0 takes these when initialization mode is entered
-
-        self.c_setup = c_setup
-        self.c_enterInit = lambda c: self._enter_init(enter_init(c, *args[0]))
-        self.c_exitInit = lambda c: self._exit_init(exit_init(c))
-        update = f["update"]
-        flags = [c_bool() for _ in range(5)]
-        next_time = c_double()
-
-        def update_call():
-            st = update(self.component, *(byref(b) for b in flags), byref(next_time))
-            need, term, nominals, values, defined = (b.value for b in flags)
-            return st, need, term, nominals, values, defined, next_time.value
-
-        completed = f["completedStep"]
-        enter, term = c_bool(), c_bool()
-
-        def completed_call():
-            st = completed(self.component, False, byref(enter), byref(term))
-            return st, enter.value, term.value
-
-        self._update, self._completed_step = update_call, completed_call
-
-    def _free_instance(self) -> None:
-        if self.me.cv_mem or self.me.cv_ctx:
-            cvode.free(self.me)
-        self._slave.fmi3FreeInstance(self.component)
+        self.face.free(self._slave, self.component)
 
 
 def interface_of(md, requested: str | None) -> str:

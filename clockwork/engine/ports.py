@@ -17,7 +17,7 @@ from ctypes import c_double, c_int, c_uint
 from ..errors import SceneError, SimulationError
 from ..fmi.description import int_range, types_connect
 from ..fmi.calls import WARNING
-from ..fmi.cs2 import Instance
+from ..fmi.contract import Instance
 from .loops import Loop
 from .wiring import Link, Wiring, loop_name
 
@@ -56,6 +56,7 @@ class Port:
         self.din_names: list[str] = []
         self.din_sources: list[tuple["Port", int]] = []
         self.din_sent: dict = {}  # the discrete inputs' values last set
+        self._din_what = inst.named("setValues") + " of inputs"  # in messages, made once
         self.has_inputs = self.n_in > 0  # Real or discrete
         # Order of the input polynomials this FMU gets (master.extrapolation,
         # 0 where it cannot interpolate inputs; lowered where it refuses one).
@@ -66,7 +67,7 @@ class Port:
         if self.n_out:
             st = self.getReal(self.comp, self.out_vr, self.n_out, self.out)
             if st > WARNING:
-                raise self.inst.fail("fmi2GetReal", st, t)
+                raise self.inst.fail(self.inst.named("getReal"), st, t)
         if self.dout_names:
             self.dout = self.inst.get_values(self.dout_names)
         self.out_time = t
@@ -84,7 +85,7 @@ class Port:
                                       f"the value {x} is out of the range of {kind} [{bounds[0]}, {bounds[1]}]",
                                       instance=self.inst.name)
             values[n] = x
-        self.inst.set_values(values, "fmi2Set* of inputs")
+        self.inst.set_values(values, self._din_what)
         self.din_sent = values
 
     def pull(self, t: float, read: bool = True) -> None:
@@ -100,7 +101,7 @@ class Port:
                 inp[k] = f * inp[k] + o
             st = self.setReal(self.comp, self.in_vr, self.n_in, inp)
             if st > WARNING:
-                raise self.inst.fail("fmi2SetReal of inputs", st, t)
+                raise self.inst.fail(self.inst.named("setReal") + " of inputs", st, t)
             self.sent_valid = False
         if read:
             self.read(t)

@@ -230,6 +230,6 @@ class FileInputs:
                     buf[k] = values[j]
                 st = p.setReal(p.comp, vrs, len(cols), buf)
                 if st > WARNING:
-                    raise p.inst.fail("fmi2SetReal of inputs", st, t)
+                    raise p.inst.fail(p.inst.named("setReal") + " of inputs", st, t)
             if typed is not None:
                 p.inst.set_values({var: values[j] for j, var in typed}, "setting sampled inputs")

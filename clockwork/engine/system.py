@@ -22,8 +22,8 @@ from ..errors import ClosedError, SceneError, UsageError
 from ..fmi.description import INTEGER_TYPES, REAL_TYPES, int_range, resolve_fmu
 from ..fmi.description import variables as described
 from ..fmi.calls import free_all
-from ..fmi.cs2 import Instance
-from ..fmi.cs3 import flat_values
+from ..fmi.contract import Instance
+from ..fmi.values3 import flat_values
 from .instances import make_instance
 from .model_exchange import MEOptions
 from .compiled import make_master
@@ -98,6 +98,11 @@ class System:
             unconnected inputs at every communication point: continuous
             Real inputs interpolated linearly, the others held, as fmpy
             does; a communication step ends at each input event.
+        rates: ``{instance name: k}``: that component steps every k base
+            steps, with a step of k * ``settings.step`` (multi-rate, as
+            libcosim's decimation factors; engine/multirate.py); the others
+            every base step. The Python engine runs it (``engine = "auto"``
+            falls back to it, with ``master.engine_reason``).
 
     Attributes:
         master: The master (``Master``, or its compiled twin with the same
@@ -142,12 +147,14 @@ class System:
              interfaces=Optional(Mapping(_NAME, Optional(Text("'co-simulation' or 'model-exchange'")),
                                          "{instance: 'co-simulation' or 'model-exchange'}")),
              labels=Optional(Mapping(_NAME, Text("a label (a non-empty string)"), "{instance: label}")),
-             inputs=Optional(Of(Samples, "input samples (clockwork.engine.samples.Samples)")))
+             inputs=Optional(Of(Samples, "input samples (clockwork.engine.samples.Samples)")),
+             rates=Optional(Mapping(_NAME, Integer("a whole number of base steps >= 1"),
+                                    "{instance: its step in base steps}")))
     def __init__(self, components: dict[str, tuple[str, dict]], connections: list[str],
                  settings: MasterSettings | None = None, record: dict[str, list[str]] | None = None,
                  start_time: float = 0.0, model_descriptions: dict | None = None,
                  interfaces: dict[str, str | None] | None = None, labels: dict[str, str] | None = None,
-                 inputs: Samples | None = None):
+                 inputs: Samples | None = None, rates: dict[str, int] | None = None):
         self.parameters = {name: dict(params) for name, (_, params) in components.items()}
         self.instances: dict[str, Instance] = {}
         self._freed = False
@@ -178,7 +185,8 @@ class System:
                         self._variable(inst, var, None, what)
             self._check_values(self.parameters, "System(): components")
             self.master = make_master(self.instances, links, settings,
-                                      start_time=float(start_time), extra_outputs=record, inputs=inputs)
+                                      start_time=float(start_time), extra_outputs=record, inputs=inputs,
+                                      rates=rates)
             self._guard = _guard_master(self.master)
             self.master.initialize(self.parameters)
         except BaseException:

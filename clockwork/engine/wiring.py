@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 from ..errors import SceneError
 from ..fmi.description import link_shape_problem
-from ..fmi.cs2 import Instance
+from ..fmi.contract import Instance
 from .names import split_link, split_ref
 
 

@@ -1,8 +1,9 @@
-"""An FMI 1.0 Co-Simulation instance as the master sees it.
+"""The FMI 1.0 Co-Simulation face: an instance of an FMI 1.0 FMU for
+Co-Simulation behind the instance contract (``contract.py``).
 
-``Instance1`` gives the master the same fmi2-shaped calls as an FMI 2.0
-``Instance`` (``c_doStep(comp, t, h, flag)``, ``c_getReal(comp, vr, n,
-out)``...), so that the stepping loop need not know the version. Behind
+``Instance1`` answers the contract's calls (``c_doStep(comp, t, h,
+flag)``, ``c_getReal(comp, vr, n, out)``...), so that the stepping loop
+need not know the version. Behind
 them it speaks FMI 1.0 for Co-Simulation, through the FMU's own
 ``<modelIdentifier>_fmi*`` symbols (fmpy's ``FMU1Slave`` loads the
 library):
@@ -14,7 +15,7 @@ library):
   noSetFMUStatePriorToCurrentPoint (an int): it is always true, since the
   master never repeats a step of an FMU that has no state to go back to;
   the compiled core calls it through its own correctly typed adapter
-  (``cw1_*`` in src_c/master/cw_master.c, on this instance's ``_Fmi1``);
+  (``cw1_*`` in src_c/master/cw_cs1.c, on this instance's ``_Fmi1``);
 - steps run synchronously (no stepFinished callback); an FMU that answers
   fmiPending anyway fails the run in one line, its step cancelled;
 - FMI 1.0 computes outputs in fmiDoStep: outputs read after inputs were
@@ -54,7 +55,7 @@ from ..errors import ParametersRefused, SceneError, SimulationError
 from .description import fmi1_details, read_fmu
 from .archive import extract
 from .calls import ERROR, OK, WARNING, read_string
-from .cs2 import Instance
+from .contract import CORE_CALLS, Instance
 
 # fmi1CallbackLogger with the strings as addresses, read by read_string.
 _LOGGER = CFUNCTYPE(None, c_void_p, c_void_p, c_int, c_void_p, c_void_p)
@@ -65,7 +66,7 @@ MAX_VALUE_REFERENCE = 2**32 - 1
 
 
 class _Fmi1(Structure):
-    """The FMI 1.0 adapter's state, shared with cw_master.c's cw_fmi1 (same layout)."""
+    """The FMI 1.0 adapter's state, shared with cw_cs1.c's cw_fmi1 (same layout)."""
 
     _fields_ = [(n, c_void_p) for n in (
         "instance", "doStep", "getReal", "setReal", "setInputDerivatives", "getOutputDerivatives",
@@ -97,10 +98,16 @@ def _no_state(comp, state) -> int:
 
 
 class Instance1(Instance):
-    """An instantiated FMI 1.0 Co-Simulation FMU behind fmi2-shaped calls."""
+    """An instantiated FMI 1.0 Co-Simulation FMU behind the contract's calls."""
 
-    fmi_version = 1
-    do_step_name = "fmiDoStep"
+    CALL_NAMES = {"doStep": "fmiDoStep", "getReal": "fmiGetReal", "setReal": "fmiSetReal",
+                  "getInteger": "fmiGetInteger", "getBoolean": "fmiGetBoolean", "getString": "fmiGetString",
+                  "setValues": "fmiSet*", "setInputDerivatives": "fmiSetRealInputDerivatives",
+                  "getOutputDerivatives": "fmiGetRealOutputDerivatives",
+                  "getState": "saving the FMU state (FMI 1.0 has none)",
+                  "setState": "restoring the FMU state (FMI 1.0 has none)", "reset": "fmiResetSlave",
+                  "setup": "fmiInitializeSlave", "enterInit": "fmiInitializeSlave",
+                  "exitInit": "fmiInitializeSlave", "instantiate": "fmiInstantiateSlave"}
 
     def __init__(self, name, path, model_description=None):
         super().__init__(name, path, model_description)
@@ -234,7 +241,7 @@ class Instance1(Instance):
     def _zero_step(self, comp) -> int:
         """Where inputs were set since the last step, a step of size 0 at the
         communication point (FMI 1.0's iteration), which computes the outputs
-        of those inputs, as FMI 2.0 does on the get (cw_master.c: cw1_fresh)."""
+        of those inputs, as FMI 2.0 does on the get (cw_cs1.c: cw1_fresh)."""
         a = self.adapter
         if not a.stale:
             return OK
@@ -343,10 +350,15 @@ class Instance1(Instance):
     def terminated(self) -> bool:
         return False  # FMI 1.0 has no fmiTerminated status: a discarded step fails the run
 
+    def core_calls(self, lib) -> tuple[int, tuple[int, ...]]:
+        """The core's FMI 1.0 adapter (cw1_*: fmiDoStep's char newStep,
+        negated aliases) on this instance's shared ``_Fmi1``."""
+        return ctypes.addressof(self.adapter), tuple(
+            ctypes.cast(getattr(lib, "cw1_" + name), c_void_p).value for name in CORE_CALLS)
+
     def fail(self, what, status, time=None, error=None):
-        """The error for a failed call, named by its FMI 1.0 name."""
+        """The error for a failed call (named by its FMI 1.0 name)."""
         self._failed = True
-        what = what.replace("fmi2", "fmi")
         error = error or SimulationError
         if self.adapter.failed_zero:  # the step of size 0 before the get failed, not the get
             self.adapter.failed_zero = 0

@@ -1,10 +1,10 @@
-"""An FMI 3.0 Co-Simulation instance as the master sees it.
+"""The FMI 3.0 Co-Simulation face: an instance of an FMI 3.0 FMU's
+Co-Simulation interface behind the instance contract (``contract.py``).
 
-``Instance3`` gives the master the same calls as an FMI 2.0 ``Instance``
-(fmi2-shaped: ``c_doStep(comp, t, h, flag)``, ``c_getReal(comp, vr, n,
-out)``...), so that master.py, coupling.py, location.py and checkpoints.py
-need not know the version. Behind them it speaks FMI 3.0 and does what FMI
-3.0 adds:
+``Instance3`` answers the contract's calls (``c_doStep(comp, t, h,
+flag)``, ``c_getReal(comp, vr, n, out)``...), so that master.py,
+coupling.py, location.py and checkpoints.py need not know the version.
+Behind them it speaks FMI 3.0 and does what FMI 3.0 adds:
 
 - the instance is created with ``eventModeUsed`` when the FMU declares
   ``hasEventMode`` and with ``earlyReturnAllowed`` when it declares
@@ -17,7 +17,8 @@ need not know the version. Behind them it speaks FMI 3.0 and does what FMI
   mode) is handled by fmi3EnterEventMode, fmi3UpdateDiscreteStates until
   ``discreteStatesNeedUpdate`` is false, and fmi3EnterStepMode; the
   ``nextEventTime`` it announces is kept in ``events.next_event_time``,
-  where the master caps its step so that a communication point lands on it;
+  where the master caps its step so that a communication point lands on it
+  (``events`` is the contract's ``time_events``);
 - ``terminateSimulation`` sets ``events.terminated`` and ``events.end_time``
   (the time the FMU reached): when the FMU finished the step, the step
   stands and the master ends the run before the next one; when it stopped
@@ -26,7 +27,7 @@ need not know the version. Behind them it speaks FMI 3.0 and does what FMI
   as for an FMI 2.0 FMU's fmi2Terminated).
 
 The adapter's state lives in a ctypes struct (``_Events``) that the
-compiled core's own adapter (the fmi3 section of src_c/master/cw_master.c)
+compiled core's own adapter (src_c/master/cw_cs3.c)
 reads and writes too, so that the two engines hand it over at any point.
 Saving and restoring the FMU state saves and restores the announced next
 event time with it.
@@ -52,18 +53,21 @@ import copy
 import ctypes
 import math
 import weakref
-from ctypes import (CFUNCTYPE, POINTER, Structure, byref, c_bool, c_char_p, c_double, c_float, c_int, c_int8, c_int16,
-                    c_int32, c_int64, c_longlong, c_size_t, c_uint, c_uint8, c_uint16, c_uint32, c_uint64, c_void_p)
+from ctypes import (CFUNCTYPE, POINTER, Structure, byref, c_bool, c_double, c_int, c_longlong, c_size_t, c_uint,
+                    c_void_p)
 
 from fmpy.fmi3 import FMU3Slave, fmi3IntermediateUpdateCallback, fmi3LogMessageCallback
 
 from ..errors import SceneError, SimulationError
 from ..paths import core_library
 from . import layout
-from .description import array_elements, int_range, type_name
+from .clocks import clock_table as read_clock_table
+from .description import array_elements
 from .archive import extract
 from .calls import DISCARD, ERROR, NO_SINK, OK, WARNING, declared, formatting_logger, new_slave, read_string
-from .cs2 import Instance
+from .contract import CORE_CALLS
+from .contract import Instance
+from .values3 import Values3
 from .variables import Variable
 
 # fmi3LogMessageCallback with the strings as addresses, read by read_string.
@@ -74,7 +78,7 @@ MAX_STALLED_RETURNS = 100  # early returns in a row that do not move the FMU's t
 
 
 class _Events(Structure):
-    """The FMI 3.0 adapter's state, shared with cw_master.c's cw_fmi3 (same layout)."""
+    """The FMI 3.0 adapter's state, shared with cw_cs3.c's cw_fmi3 (same layout)."""
 
     _fields_ = [(n, c_void_p) for n in (
         "instance", "doStep", "getFloat64", "setFloat64", "getOutputDerivatives", "getState", "setState",
@@ -88,7 +92,7 @@ class _Events(Structure):
         ("terminated", c_int),
         ("failed_call", c_int),               # 0 none, else which fmi3 call failed (FAILED_CALLS)
         ("pad_", c_int),
-        # Intermediate update: the input polynomials (see cw_master.c)
+        # Intermediate update: the input polynomials (see cw_cs3.c)
         ("n_iu", c_int),
         ("iu_poly", c_int),
         ("iu_vr", c_void_p),
@@ -148,30 +152,33 @@ def _core_adapter():
     return _core or None
 
 
-# The C type of each FMI 3.0 number type (an Enumeration goes through fmi3Get/SetInt64).
-_CTYPES = {"Float32": c_float, "Float64": c_double, "Int8": c_int8, "UInt8": c_uint8, "Int16": c_int16,
-           "UInt16": c_uint16, "Int32": c_int32, "UInt32": c_uint32, "Int64": c_int64, "UInt64": c_uint64,
-           "Boolean": c_bool, "String": c_char_p, "Enumeration": c_int64}
-
-
-# What _Events.failed_call names (the same numbers in cw_master.c).
+# What _Events.failed_call names (the same numbers in cw_cs3.c).
 FAILED_CALLS = {1: "fmi3DoStep", 2: "fmi3EnterEventMode", 3: "fmi3UpdateDiscreteStates",
                 4: "fmi3EnterStepMode", 5: "fmi3DoStep (early returns that do not move time)",
                 6: "fmi3UpdateDiscreteStates (discrete states did not settle)"}
 
 
 class Instance3(Instance):
-    """An instantiated FMI 3.0 Co-Simulation FMU behind fmi2-shaped calls."""
+    """An instantiated FMI 3.0 Co-Simulation FMU behind the contract's calls."""
 
-    fmi_version = 3
-    do_step_name = "fmi3DoStep"
     clock_event = None  # with clocks: the engine's handler of an event the FMU signals, (time) -> status
+
+    def clock_table(self):
+        return read_clock_table(self.md) or None
+
+    CALL_NAMES = {"doStep": "fmi3DoStep", "getReal": "fmi3GetFloat64", "setReal": "fmi3SetFloat64",
+                  "getInteger": "fmi3GetInt32", "getBoolean": "fmi3GetBoolean", "getString": "fmi3GetString",
+                  "setValues": "fmi3Set*", "setInputDerivatives": "the input polynomials (intermediate update)",
+                  "getOutputDerivatives": "fmi3GetOutputDerivatives", "getState": "fmi3GetFMUState",
+                  "setState": "fmi3SetFMUState", "reset": "fmi3Reset", "setup": "fmi3EnterInitializationMode",
+                  "enterInit": "fmi3EnterInitializationMode", "exitInit": "fmi3ExitInitializationMode",
+                  "instantiate": "fmi3InstantiateCoSimulation"}
 
     def __init__(self, name, path, model_description=None, early_return: bool = True,
                  intermediate_update: bool = False):
         super().__init__(name, path, model_description)
         cs = self.md.coSimulation
-        self.event_mode_used = bool(cs.hasEventMode)
+        self.event_mode_used = self.has_event_mode = bool(cs.hasEventMode)
         self.early_return_allowed = bool(cs.mightReturnEarlyFromDoStep) and early_return
         # Inputs as polynomials through intermediate update, when asked for
         # (the master's inputs are polynomials), declared, and the core's
@@ -189,6 +196,7 @@ class Instance3(Instance):
             "it provides no intermediate update")
         self.events = _Events(next_event_time=math.inf, saved_next_event_time=math.inf, end_time=math.nan,
                               event_mode_used=int(self.event_mode_used))
+        self.time_events = self.events  # the contract's name: the core and the master read it
         self._number_elements()
         self._setup_args = (0, 0.0, 0.0, 0, 0.0)
         if self.intermediate_update:
@@ -206,7 +214,7 @@ class Instance3(Instance):
         """Give each element of an array variable a Variable of its own
         (``y[0]``, ``A[1,2]``) whose vr is a code of its own, above every value
         reference of the FMU: the master's ports name elements as it names
-        scalars, and the fmi2-shaped calls (here and in cw_master.c's cw3_*)
+        scalars, and the contract's calls (here and in cw_cs3.c's cw3_*)
         turn a run of codes that covers a whole array, in order, into the
         array's value reference with nValues > nValueReferences; any other
         request is served element by element. Dependencies on an array
@@ -336,7 +344,7 @@ class Instance3(Instance):
             # An FMU that declares hasEventMode but refuses eventModeUsed (Reference-FMUs' Roberts):
             # instantiated as fmpy does, without Event Mode (the FMU then handles its events inside
             # fmi3DoStep), and said in a note.
-            self.event_mode_used = False
+            self.event_mode_used = self.has_event_mode = False
             self.events.event_mode_used = 0
             try:
                 self._instantiate(logger)
@@ -402,6 +410,10 @@ class Instance3(Instance):
         f_enterStep = fn("fmi3EnterStepMode", inst)
         f_enterInit = fn("fmi3EnterInitializationMode", inst, c_bool, c_double, c_double, c_bool, c_double)
         self._f = (f_doStep, f_enterEvent, f_update, f_enterStep)
+        # Values of every type: bound here, the contract's calls without a
+        # Python call of their own (a discrete link gets and sets every step).
+        self._values = Values3(self, dll)
+        self.get_values, self.set_values = self._values.get_values, self._values.set_values
 
         ev = self.events
         ev.instance = self.component
@@ -467,174 +479,7 @@ class Instance3(Instance):
 
         self.c_setup, self.c_enterInit, self.c_exitInit = setup, enter_init, exit_and_settle
 
-    # -- values of every type (not on the hot path) ------------------------------
-
-    def _value_functions(self, kind: str):
-        """(fmi3Get<kind>, fmi3Set<kind>), bound once per type."""
-        fns = self.__dict__.setdefault("_value_fns", {})
-        if kind not in fns:
-            name = "Int64" if kind == "Enumeration" else kind
-            vrs = POINTER(c_uint)
-            if kind == "Binary":
-                args = [c_void_p, vrs, c_size_t, POINTER(c_size_t), POINTER(POINTER(c_uint8)), c_size_t]
-            else:
-                args = [c_void_p, vrs, c_size_t, POINTER(_CTYPES[kind]), c_size_t]
-            pair = []
-            for prefix in ("fmi3Get", "fmi3Set"):
-                f = getattr(self._slave.dll, prefix + name)
-                f.argtypes, f.restype = args, c_int
-                pair.append(f)
-            fns[kind] = tuple(pair)
-        return fns[kind]
-
-    def _get_array(self, name: str) -> list:
-        """Every value of an array variable (row-major), through the fmi3Get* of its type."""
-        v = self.variables[name]
-        kind = type_name(self.md, v)
-        vr, size = self.arrays[name]
-        out = (_CTYPES[kind] * max(1, size))()
-        self.check(self._value_functions(kind)[0](self.component, (c_uint * 1)(vr), 1, out, size),
-                   f"fmi3Get{kind} ({name})")
-        return [(x or b"").decode("utf-8", "replace") if kind == "String" else x for x in out[:size]]
-
-    def get_values(self, names: list[str]) -> list:
-        """Values of any type, each through the fmi3Get* of its type: numbers
-        as Python numbers, Boolean as bool, String as text, Binary as
-        hexadecimal digits; an array element's value, an array's values as a
-        list (row-major)."""
-        values = []
-        arrays: dict[str, list] = {}  # each array read once per call
-        for n in names:
-            v = self.variables[n]
-            if v.shape or v.array is not None:
-                name = n if v.shape else v.array
-                if name not in arrays:
-                    arrays[name] = self._get_array(name)
-                values.append(list(arrays[name]) if v.shape else arrays[name][v.index])
-                continue
-            kind = type_name(self.md, v)
-            get = self._value_functions(kind)[0]
-            vr = (c_uint * 1)(v.vr)
-            if kind == "Binary":
-                size, data = (c_size_t * 1)(), (POINTER(c_uint8) * 1)()
-                self.check(get(self.component, vr, 1, size, data, 1), f"fmi3GetBinary ({n})")
-                values.append(ctypes.string_at(data[0], size[0]).hex() if size[0] else "")
-                continue
-            out = (_CTYPES[kind] * 1)()
-            self.check(get(self.component, vr, 1, out, 1), f"fmi3Get{kind} ({n})")
-            x = out[0]
-            values.append((x or b"").decode("utf-8", "replace") if kind == "String" else x)
-        return values
-
-    def set_values(self, values: dict[str, object], what: str = "fmi3Set*",
-                   error: type[SimulationError] = SimulationError) -> None:
-        """Set variables of any type through the fmi3Set* of its type (Binary
-        from hexadecimal digits); a value an integer type cannot hold is
-        refused here, never wrapped. An array takes a list of all its values
-        (nested by its shape or flat, row-major) or values of single elements
-        (``A[1,2]``), which the array's other values join: the array's own
-        value given beside them, else its start values."""
-        values = self._merge_elements(values)
-        for n, value in values.items():
-            v = self.variables[n]
-            if v.causality == "structuralParameter":
-                raise error(f"{what}: {self.name}.{n} is a structural parameter (an array size): clockwork does "
-                            "not change structural parameters (FMI 3.0 configuration mode)", instance=self.name)
-            kind = type_name(self.md, v)
-            if v.shape:
-                self._set_array(n, kind, value, what, error)
-                continue
-            vr = (c_uint * 1)(v.vr)
-            if kind == "Float64":  # through c_setReal, which the intermediate update may keep
-                st = self.c_setReal(self.component, vr, 1, (c_double * 1)(float(value)))
-            elif kind == "Binary":
-                data = bytes.fromhex(str(value))
-                buf = (c_uint8 * max(1, len(data)))(*data)
-                st = self._value_functions(kind)[1](self.component, vr, 1, (c_size_t * 1)(len(data)),
-                         (POINTER(c_uint8) * 1)(ctypes.cast(buf, POINTER(c_uint8))), 1)
-            else:
-                if kind == "String":
-                    x = str(value).encode("utf-8")
-                elif kind == "Boolean":
-                    x = bool(value)
-                elif kind in ("Float32", "Float64"):
-                    x = float(value)
-                else:
-                    x = int(value)
-                    bounds = int_range(kind)
-                    if bounds and not bounds[0] <= x <= bounds[1]:
-                        raise error(f"{what}: {self.name}.{n} = {x} is out of the range of {kind} "
-                                    f"[{bounds[0]}, {bounds[1]}]")
-                st = self._value_functions(kind)[1](self.component, vr, 1, (_CTYPES[kind] * 1)(x), 1)
-            self.check(st, f"{what} ({n} = {value!r})", error=error)
-
-    def _merge_elements(self, values: dict[str, object]) -> dict[str, object]:
-        """`values` with the elements of each array gathered into the array's
-        list of values (FMI 3.0 sets an array whole); an element's value wins
-        over the array's own."""
-        if not self.arrays or all(self.variables[n].array is None for n in values):
-            return values
-        out: dict[str, object] = {}
-        elements: dict[str, list] = {}
-        for n, value in values.items():
-            v = self.variables[n]
-            if v.array is None:
-                out[n] = value
-            else:
-                elements.setdefault(v.array, []).append((v.index, value))
-        for name, pairs in elements.items():
-            size = self.arrays[name][1]
-            if name in values:
-                merged = list(flat_values(values[name]))
-            elif len({k for k, _ in pairs}) == size:  # every element given
-                merged = [None] * size
-            else:
-                merged = self._start_values(name)
-            if len(merged) == size:  # else _set_array says what is wrong
-                for k, x in pairs:
-                    merged[k] = x
-            out[name] = merged
-        return out
-
-    def _start_values(self, name: str) -> list:
-        """An array's start values (row-major), from its modelDescription.xml."""
-        v = next(x for x in self.md.modelVariables if x.name == name)
-        starts = [e.start for e in array_elements(v)]
-        if any(x is None for x in starts):
-            raise SceneError(f"{self.name}.{name}: the array has no start value for every element, so one "
-                             f"element cannot be set alone: set the whole array")
-        kind = type_name(self.md, self.variables[name])
-        if kind in ("Float32", "Float64"):
-            return [float(x) for x in starts]
-        if kind == "Boolean":
-            return [str(x).strip().lower() in ("true", "1") for x in starts]
-        if kind == "String":
-            return list(starts)
-        return [int(x) for x in starts]
-
-    def _set_array(self, name: str, kind: str, value, what: str, error: type[SimulationError]) -> None:
-        """Set every value of an array variable through the fmi3Set* of its type."""
-        vr, size = self.arrays[name]
-        flat = list(flat_values(value))
-        if len(flat) != size:
-            raise error(f"{what}: {self.name}.{name} is an array of {size} values, given {len(flat)}",
-                        instance=self.name)
-        if kind == "String":
-            flat = [str(x).encode("utf-8") for x in flat]
-        elif kind == "Boolean":
-            flat = [bool(x) for x in flat]
-        elif kind in ("Float32", "Float64"):
-            flat = [float(x) for x in flat]
-        else:
-            flat = [int(x) for x in flat]
-            bounds = int_range(kind)
-            bad = next((x for x in flat if bounds and not bounds[0] <= x <= bounds[1]), None)
-            if bad is not None:
-                raise error(f"{what}: {self.name}.{name} holds {bad}, out of the range of {kind} "
-                            f"[{bounds[0]}, {bounds[1]}]")
-        st = self._value_functions(kind)[1](self.component, (c_uint * 1)(vr), 1,
-                                            (_CTYPES[kind] * max(1, size))(*flat), size)
-        self.check(st, f"{what} ({name}, {size} values)", error=error)
+    # -- values of every type: values3.Values3, bound in _bind ------------------
 
     def _no_input_derivatives(self, comp, vr, n, orders, der) -> int:
         self.messages.append((ERROR, "FMI 3.0 Co-Simulation has no input derivatives"))
@@ -750,17 +595,25 @@ class Instance3(Instance):
         self._slave.fmi3FreeInstance(self.component)
 
     def fail(self, what, status, time=None, error=None):
+        """The error for a failed call; a failed step names the fmi3 call
+        inside it that failed (an event's fmi3UpdateDiscreteStates...)."""
         call = FAILED_CALLS.get(self.events.failed_call)
-        if call and what.startswith("fmi2DoStep"):
-            what = call + what[len("fmi2DoStep"):]
+        if call and what.startswith("fmi3DoStep"):
+            what = call + what[len("fmi3DoStep"):]
         self.events.failed_call = 0
-        return super().fail(what.replace("fmi2", "fmi3"), status, time, error or SimulationError)
+        return super().fail(what, status, time, error or SimulationError)
 
+    def core_calls(self, lib) -> tuple[int, tuple[int, ...]]:
+        """The core's FMI 3.0 adapter (cw3_*) on this instance's shared ``_Events``."""
+        return ctypes.addressof(self.events), tuple(
+            ctypes.cast(getattr(lib, "cw3_" + name), c_void_p).value for name in CORE_CALLS)
 
-def flat_values(value):
-    """The values of a nested list (or tuple), row-major; a scalar as itself."""
-    if isinstance(value, (list, tuple)):
-        for x in value:
-            yield from flat_values(x)
-    else:
-        yield value
+    def polynomial_inputs_refusal(self, fix: str) -> str | None:
+        """FMI 3.0 Co-Simulation takes no input derivatives: polynomial inputs
+        only through intermediate update."""
+        if self.can_interpolate_inputs:
+            return None
+        why = self.no_intermediate_update or "it provides no intermediate update"
+        return (f"is an FMI 3.0 FMU, whose Co-Simulation interface takes no input derivatives, and {why}; "
+                f"use {fix} or an FMI 2.0 build")
+

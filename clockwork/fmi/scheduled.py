@@ -114,7 +114,8 @@ class ScheduledInstance(Instance3):
     answers by asking for them after the partition returns."""
 
     scheduled = True
-    do_step_name = "fmi3ActivateModelPartition"
+    CALL_NAMES = {**Instance3.CALL_NAMES, "doStep": "fmi3ActivateModelPartition",
+                  "instantiate": "fmi3InstantiateScheduledExecution"}
 
     def __init__(self, name, path, model_description=None, early_return: bool = True,
                  intermediate_update: bool = False):

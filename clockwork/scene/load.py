@@ -24,7 +24,7 @@ import sys
 import tomllib
 from pathlib import Path
 
-from ..engine import compiled, cvode
+from ..engine import compiled, cvode, multirate
 from ..fmi.description import (TEXT_TYPES, FmuError, default_tolerance_problem, element_names, link_shape_problem,
                                   read_fmu, resolve_fmu, type_name, types_connect, var_unit)
 from ..fmi.description import variables as variables_of
@@ -34,7 +34,7 @@ from ..engine.model_exchange import INTERFACES, interface_of, model_exchange_pro
 from ..engine.names import split_link, split_ref
 from ..engine.settings import DEFAULTS as MASTER_DEFAULTS
 from ..engine.settings import SETTINGS as MASTER_SETTINGS
-from ..engine.settings import MasterSettings
+from ..engine.settings import BadSetting, MasterSettings
 from ..engine.wiring import Link, loop_name
 from ..engine.wiring import build as build_wiring
 from ..errors import SceneError, say
@@ -45,7 +45,7 @@ from .fmu_alone import read_fmu_scene
 from .inputs import Inputs, read_inputs
 from .kinds import NO_KINDS, Invalid, Kinds
 from .model import (RESULT_FORMATS, Component, ComponentVariables, Connection, Experiment, Record, Scene,
-                    consistency, follow, show)
+                    consistency, follow, rates, show)
 from .osp.read import OSP_FILE, OtherXml, read_osp
 from .ssp.read import read_ssp
 from .sweep import parse_sweep
@@ -355,13 +355,15 @@ def _ssp_stop(ssp, raw: dict, labels: dict) -> None:
 
 
 def _ssp_step_hints(ssp, raw: dict, components: dict, labels: dict) -> None:
-    """The components' osp:StepSizeHint: libcosim and ecos step a component
-    every k-th base step (k = hint / base step, rounded down in libcosim, up
-    in ecos). clockwork's master steps every FMU at every communication
-    point (a per-component multiple would be a master feature in both
-    engines), so it honours hints that give every component the same step,
-    by taking that step, and refuses the others in one line. A --set
-    master.step chooses the step for all, with a note."""
+    """The components' osp:StepSizeHint (an SSD's OSP annotation; SSP itself
+    has no per-component step) or OSP stepSize: libcosim steps a component
+    every k-th base step with a step of k base steps (ecos too). Hints that
+    give every component the same step make that step master.step (one
+    rate: the single-rate master, as before); hints that differ become the
+    components' own steps (multi-rate, engine/multirate.py), each checked
+    as a whole multiple of master.step with the master (a refusal names the
+    file and key of the hint). A --set master.step chooses the step for
+    all, with a note."""
     hints = ssp.step_hints
     if not hints:
         return
@@ -375,19 +377,14 @@ def _ssp_step_hints(ssp, raw: dict, components: dict, labels: dict) -> None:
     base = master.get("step", MASTER_DEFAULTS["step"])
     steps = {inst: hints[inst][0] if inst in hints else base for inst in components}
     first = next(iter(steps))
-    odd = next((inst for inst, h in steps.items() if h != steps[first]), None)
-    if odd is None:
+    if all(h == steps[first] for h in steps.values()):
         master["step"] = steps[first]
         if first in hints:
             labels["master.step"] = tuple(hints[first][1:])
         return
-    inst = odd if odd in hints else first
-    label, key = hints[inst][1:]
-    other = first if inst == odd else odd
-    raise SceneError(f"{inst} would step every {fmt(steps[inst])} s and {other} every {fmt(steps[other])} s: "
-                     "clockwork's master steps every FMU at every communication point (no per-component "
-                     f"decimation); expected the same {term} on every component, or --set "
-                     "master.step=<s> to step all alike", label, key)
+    for inst, (step, label, key) in hints.items():
+        components[inst] = dataclasses.replace(components[inst], step=step)
+        labels[f"components.{inst}.step"] = (label, key)
 
 
 def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: Kinds,
@@ -416,6 +413,10 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     loops = _check_wiring(ctx, components, connections)
     experiment = _experiment(ctx, ctx.table(raw, "experiment", "", required=True))
     master, master_given = _master(ctx, master_t)
+    problem = multirate.loop_problem(rates(master, components), [
+        (name, sorted({k.src for k in links} | {k.dst for k in links})) for name, links, _ in loops])
+    if problem:
+        raise ctx.fail("components", problem)
     notes = tuple(notes) + tuple(_loop_note(name, links, master.algebraic_loops, held)
                                  for name, links, held in loops)
     problem = consistency(master, experiment, components) or _fmi3_inputs(master, components, connections)
@@ -434,6 +435,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
             raise ctx.fail("master.engine", f'expected "auto" or "python" here: {reason}')
     record = _record(ctx, ctx.table(raw, "record", ""), components)
     analysis = _analysis(ctx, ctx.table(raw, "analysis", ""), kinds)
+    _multirate_analysis(ctx, master, components, analysis)
     connected_inputs = {(c.dst_instance, c.dst_var) for c in connections}
     sweep = parse_sweep(ctx, ctx.table(raw, "sweep", ""), components, connected_inputs)
     plots = _plots(ctx, raw.get("plot", []), kinds)
@@ -523,7 +525,7 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
             raise ctx.fail(where, problem)
         if not isinstance(t, dict):
             raise ctx.bad(where, t, f"a table [components.{name}] with keys fmu, parameters")
-        ctx.check_keys(t, ("fmu", "parameters", "interface"), where, required=("fmu",))
+        ctx.check_keys(t, ("fmu", "parameters", "interface", "step"), where, required=("fmu",))
         spec = t["fmu"]
         if not isinstance(spec, str):
             raise ctx.bad(f"{where}.fmu", spec, "a model name or a path ending .fmu")
@@ -560,8 +562,37 @@ def _components(ctx: Ctx, table: dict, fmi_version: int = 2) -> tuple[dict[str, 
                     key, f"{md.modelName}.{pname} is {article(v.causality)} {v.causality}, not a parameter "
                     f"({settable_problem(v)}); parameters: {', '.join(names_of(variables, 'parameter'))}")
             params[pname] = convert_value(ctx, key, value, v, md)
-        out[name] = Component(name, fpath, digest, md, params, indicators, interface)
+        step = _component_step(ctx, f"{where}.step", t["step"]) if "step" in t else None
+        out[name] = Component(name, fpath, digest, md, params, indicators, interface, step=step)
     return out, input_params
+
+
+# The analyses that step on the grid of master.step only (run_until), as the multi-rate master steps.
+MULTIRATE_KINDS = ("time_series", "ticks")
+
+
+def _multirate_analysis(ctx: Ctx, master: MasterSettings, components: dict, analysis: dict | None) -> None:
+    """Components at different rates step on the base grid only: the
+    analyses that choose their own steps (landing after a tick, a schedule
+    of inputs) are refused in one line."""
+    kind = (analysis or {}).get("kind", "time_series")
+    if kind in MULTIRATE_KINDS or not multirate.is_multirate(rates(master, components)):
+        return
+    slow = ", ".join(f"{n} ({c.step:g} s)" for n, c in components.items() if c.step is not None)
+    raise ctx.fail("analysis.kind", f"expected {' or '.join(MULTIRATE_KINDS)} with components at their own steps "
+                                    f"({slow}): {kind} chooses the master's steps itself, and the multi-rate "
+                                    "master takes whole base steps only")
+
+
+def _component_step(ctx: Ctx, key: str, value) -> float:
+    """[components.X] step: that component's own communication step, a time
+    (a unit allowed, "20 ms") > 0; a whole multiple of master.step is
+    checked with the master (model.component_steps_problem)."""
+    x = ctx.time(key, value)
+    try:
+        return MASTER_SETTINGS["step"].accept(x)
+    except BadSetting as e:
+        raise ctx.bad(key, value, str(e)) from None
 
 
 def _me_solver_problem(master: MasterSettings, components: dict[str, Component]) -> str | None:

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from ..errors import SceneError
-from ..engine import compiled
+from ..engine import compiled, multirate
 from ..fmi.description import no_state_reason, variables as variables_of
 from ..engine.model_exchange import interface_of
 from ..engine.settings import SETTINGS, MasterSettings, rollback_need
@@ -35,6 +35,9 @@ class Component:
     # What messages call the FMU: an SSP archive's member ("x.ssp/resources/m.fmu")
     # rather than its copy in the cache; "" for the file itself.
     fmu_label: str = ""
+    # Its own communication step, s: a whole multiple of master.step (multi-rate,
+    # engine/multirate.py); None: master.step.
+    step: float | None = None
 
     @property
     def model_name(self) -> str:
@@ -259,6 +262,9 @@ def consistency(m: MasterSettings, e: Experiment, components: dict[str, Componen
     problem = rollback_problem(m, components)
     if problem:
         return problem
+    problem = component_steps_problem(m, e, components)
+    if problem:
+        return problem
     # A step below the time resolution at the end would never move the clock.
     resolution = 64 * math.ulp(max(abs(e.start), abs(e.stop)))
     if m.step < resolution:
@@ -301,3 +307,46 @@ def show(value: object, limit: int = 60) -> str:
     else:
         s = str(value)
     return s if len(s) <= limit else s[: limit - 3] + "..."
+
+
+def rates(m: MasterSettings, components: dict[str, Component]) -> dict[str, int] | None:
+    """{instance: decimation factor} where a component has a step of its own
+    (a whole multiple of master.step, engine/multirate.py), else None."""
+    if all(c.step is None for c in components.values()):
+        return None
+    found = {n: (multirate.decimation(c.step, m.step) if c.step is not None else 1) for n, c in components.items()}
+    return None if None in found.values() else found
+
+
+def component_steps_problem(m: MasterSettings, e: Experiment,
+                            components: dict[str, Component]) -> tuple[str, str] | None:
+    """The first component step that is no whole multiple of master.step
+    (within rounding), or what of the settings the multi-rate master does
+    not do, as (key, what was expected), or None."""
+    for name, c in components.items():
+        if c.step is not None and multirate.decimation(c.step, m.step) is None:
+            return f"components.{name}.step", (f"expected a whole multiple of master.step ({fmt(m.step)} s), got "
+                                               f"{fmt(c.step)} s")
+        if c.step is not None and c.step > e.stop - e.start:
+            return f"components.{name}.step", (f"expected at most the run's span ({fmt(e.stop - e.start)} s), got "
+                                               f"{fmt(c.step)} s: the component would never step")
+    k = rates(m, components)
+    if not multirate.is_multirate(k):
+        return None
+    clocked = [n for n, c in components.items() if any(v.type == "Clock" for v in c.model_description.modelVariables)]
+    if clocked:  # engine/clocks.py lands a communication point of every component on each tick
+        slow = next(n for n, r in k.items() if r != 1)
+        return f"components.{slow}.step", (f"expected every component at master.step ({fmt(m.step)} s) with FMI 3.0 "
+                                           f"clocks ({', '.join(clocked)}): a tick is a communication point of every "
+                                           "component, and the multi-rate master steps on the base grid only")
+    problem = multirate.problem(m, k, {n: c.event_indicators for n, c in components.items()})
+    if problem:  # named where the slow component's step comes from (a scene key, an OSP or SSD attribute)
+        slow, detail = problem
+        return f"components.{slow}.step", detail
+    problem = multirate.stop_problem(k, m.step, e.start, e.stop)
+    if problem:
+        return "experiment.stop", problem
+    if m.engine == "compiled":
+        return "master.engine", f'expected "auto" or "python" here: {compiled.unsupported_rates(k)}'
+    return None
+

@@ -90,6 +90,8 @@ def scene_toml(scene: Scene, scene_file: Path, source: str) -> str:
         lines.append(f"description = {toml_value(scene.description)}")
     for name, c in scene.components.items():
         lines += ["", f"[components.{toml_value(name)}]", f"fmu = {toml_value(_path_for(c.fmu_path, scene_file))}"]
+        if c.step is not None:  # its own step (multi-rate)
+            lines.append(f"step = {toml_value(float(c.step))}")
         if c.parameters:
             lines.append("[components." + toml_value(name) + ".parameters]")
             lines += [f"{toml_value(k)} = {toml_value(v)}" for k, v in c.parameters.items()]

@@ -109,8 +109,10 @@ def columns(series: dict, info: dict, only=None, strip: str | None = None, patte
         if meta.get("type") in TEXT_TYPES or any(isinstance(x, str) for x in values):
             continue
         label = name[len(strip) + 1:] if strip and name.startswith(strip + ".") else name
+        # with `patterns` (plot --only), an FMI 3.0 array's name stands for its elements' columns, as in [record]
+        whole = (name.partition("[")[0], label.partition("[")[0]) if patterns and name.endswith("]") else ()
         if only and name not in only and not (patterns and any(
-                fnmatch.fnmatchcase(name, p) or fnmatch.fnmatchcase(label, p) for p in only)):
+                fnmatch.fnmatchcase(name, p) or fnmatch.fnmatchcase(label, p) or p in whole for p in only)):
             continue
         unit = meta.get("unit") or ""
         factor, shown = _DISPLAY.get(unit, (1.0, unit))

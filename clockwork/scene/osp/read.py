@@ -21,9 +21,10 @@ What is read, as libcosim reads it (docs/osp.md):
 No unit conversion on links (libcosim converts none: a note where the units
 differ). What clockwork does not do is refused in one line naming the file,
 the element and what was expected: the ecco algorithm, ``Sum`` and
-``VectorSum`` functions (a scene's input has one source), per-simulator
-steps that differ (no multi-rate master), FMUs on another machine
-(``proxyfmu://host``; ``proxyfmu://localhost`` runs the FMU in this process).
+``VectorSum`` functions (a scene's input has one source), FMUs on another
+machine (``proxyfmu://host``; ``proxyfmu://localhost`` runs the FMU in this
+process). Per-simulator steps that differ become the components' own
+steps (scene/load.py, engine/multirate.py).
 """
 
 from __future__ import annotations
@@ -288,9 +289,10 @@ class _Reader:
         step = _number(doc, el, "stepSize")
         if not step > 0:
             raise doc.fail(el, "expected a step > 0 s", "stepSize")
-        k = max(1, int(step * _NS_PER_S) // max(1, int(base * _NS_PER_S)))
+        step_ns, base_ns = int(step * _NS_PER_S), max(1, int(base * _NS_PER_S))
+        k = max(1, step_ns // base_ns)
         effective = k * base
-        if effective != step:
+        if step_ns != k * base_ns:  # in whole nanoseconds, as libcosim tells (3e-4 s is 3 steps of 1e-4 s)
             self.warn(doc.key(el, "stepSize"), f"libcosim steps {_s(el.get('name'))} every {k} base step"
                       f"{'s' * (k != 1)} ({effective:g} s), not every {step:g} s; so does clockwork",
                       "a stepSize that is no whole number of base steps (libcosim rounds it down)")

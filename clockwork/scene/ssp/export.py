@@ -191,6 +191,9 @@ def build_ssp(scene, point: dict | None = None) -> dict[str, bytes]:
             files[ssv_path] = parameter_set_xml(PARAMETER_SET, params)
             bindings = _sub(el, "ssd", "ParameterBindings")
             _sub(bindings, "ssd", "ParameterBinding", type="application/x-ssp-parameter-set", source=ssv_path)
+        if comp.step is not None:  # its own step (multi-rate): the OSP annotation libcosim and ecos read
+            osp = _sub(_sub(el, "ssd", "Annotations"), "ssc", "Annotation", type="com.opensimulationplatform")
+            _sub(osp, "osp", "StepSizeHint", value=_real(comp.step))
 
     if scene.connections:
         conns = _sub(system, "ssd", "Connections")

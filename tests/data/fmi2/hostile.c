@@ -1,5 +1,5 @@
 /* An FMI 2.0 Co-Simulation FMU that breaks the rules on purpose, for the
- * master's tests (tests/fmi2_hostile.py builds it): x = time, and
+ * master's tests (tests/fmi2_hostile.py describes it, tests/CMakeLists.txt builds it): x = time, and
  *
  * - it logs, in fmi2Instantiate and in every step, through the logger with
  *   componentEnvironment (void *)1, NULL and a pointer of its own, with

@@ -1,4 +1,4 @@
-/* Clocked FMI 3.0 test FMUs for the master's clock engine (tests/fmi3_clocked.py
+/* Clocked FMI 3.0 test FMUs for the master's clock engine (tests/CMakeLists.txt
  * builds each with -DMODEL_<name>):
  *
  * Ticker (Co-Simulation, Event Mode): an output clock `tick` that ticks every

@@ -1,7 +1,7 @@
 /* A Co-Simulation FMU that enforces the call sequence of FMI 2.0 section
  * 4.2.4 and FMI 3.0's Step Mode: a get after a set without a step in
  * between returns an error (and logs why). Built for FMI 2.0 (default) or
- * FMI 3.0 (-DCW_FMI3) by tests/strict_fmu.py.
+ * FMI 3.0 (-DCW_FMI3) by tests/CMakeLists.txt (descriptions: tests/strict_fmu.py).
  *
  * Model: one direct-feedthrough output, as Reference-FMUs' Feedthrough,
  *     y = gain * u + offset + slope * time
