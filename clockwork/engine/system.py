@@ -16,7 +16,7 @@ import numbers
 import threading
 from pathlib import Path
 
-from ..arguments import Anything, Call, Either, Instance as Of, Mapping, Optional, Path as PathSpec, Real, Sequence, Text, \
+from ..arguments import Anything, Call, Either, Instance as Of, Integer, Mapping, Optional, Path as PathSpec, Real, Sequence, Text, \
     Tuple, checked, show
 from ..errors import ClosedError, SceneError, UsageError
 from ..fmi.description import INTEGER_TYPES, REAL_TYPES, int_range, resolve_fmu
