@@ -173,6 +173,7 @@ def test_numpy_numbers_are_numbers():
 # naming the call and the argument, and nothing happened.
 
 from clockwork.arguments import public_calls  # noqa: E402
+from clockwork.engine.marks import Marks  # noqa: E402
 from clockwork.engine.system import MASTER_ARGUMENTS, STEP_PARTS  # noqa: E402
 
 GOOD_SYSTEM = {"components": COMPONENTS, "connections": LINKS, "settings": MasterSettings(step=0.5),
@@ -183,14 +184,10 @@ GOOD_CALLS = {
     "System.output": {"instance": "pendulum", "name": "phi"},
     "step": {"h": 0.5},
     "run_until": {"t_stop": 1.0, "on_point": None},
-    "run_watch": {"t_stop": 1.0, "mark": 0.5, "margin": 0.1, "watched": []},
+    "run_marks": {"t_stop": 1.0, "marks": Marks([0.5]), "on_rows": None},
     "initialize": {"parameters": {"pendulum": {"Q": 1000.0}}},
     "reinitialize": {"parameters": {"pendulum": {"Q": 1000.0}}},
     "restart": {"parameters": {"pendulum": {"Q": 1000.0}}},
-    "run_ticks": {"t_stop": 1.0, "mark": 0.5, "margin": 0.1, "watched": [None], "period": 1.0,
-                  "on_rows": lambda rows: None, "rows_per_call": 16},
-    "run_schedule": {"times": [0.5], "sets": [False], "values": [0.0], "inputs": [], "outputs": [],
-                     "samples": []},
 }
 SYSTEM_CALLS = public_calls(System)
 

@@ -19,6 +19,7 @@ import pytest
 from clockwork.engine import MasterSettings, System
 from clockwork.engine import compiled
 from clockwork.engine.compiled import CompiledMaster
+from clockwork.engine.marks import Marks
 from clockwork.engine.master import Master
 from clockwork.engine.recording import Recorder
 from clockwork.errors import SceneError, SimulationError
@@ -149,7 +150,7 @@ def test_a_run_cut_into_slices_gives_the_same_bits(monkeypatch):
     monkeypatch.setattr(CompiledMaster, "slice_s", 0.0)
     lib = compiled.load_core()
     returns = []
-    for name in ("cw_run_until", "cw_run_watch"):
+    for name in ("cw_run_until", "cw_run_marks"):
         def counted(*args, _call=getattr(lib, name)):
             rc = _call(*args)
             returns.append(rc)
@@ -166,7 +167,8 @@ def test_a_run_cut_into_slices_gives_the_same_bits(monkeypatch):
             m.run_until(3.0)  # nothing recorded
             port = m.ports["pendulum"]
             watched, remember = [(port, port.out_names.index("tick_time"))], [(port, port.out_names.index("phi"))]
-            trace = [m.run_watch(6.0, 5.5, 2e-3, watched, remember), m.t]
+            marks = Marks([5.5], watched=watched, before=remember, margin=2e-3, stop_at_change=True)
+            trace = [m.run_marks(6.0, marks), marks.rows, m.t]
             got.append((r.columns, r.ticks, trace))
         assert got[0] == got[1] and len(got[0][0]["time"]) == round(2.0 / 0.05) + 1
         _same_state(p, c)
@@ -174,23 +176,75 @@ def test_a_run_cut_into_slices_gives_the_same_bits(monkeypatch):
     assert returns[-2:] == [compiled._SLICE_OVER, compiled._WATCHED], returns  # the watch was sliced too
 
 
-def test_run_watch_is_the_same_on_both_engines():
+def _outputs(m, *names):
+    port = m.ports["pendulum"]
+    return [(port, port.out_names.index(n)) for n in names]
+
+
+def test_run_marks_stopping_at_each_change_is_the_same_on_both_engines():
     p, c = _pair(CLOCK, LINKS, step=0.05)
     with p, c:
         got = []
         for s in (p, c):
             m = s.master
-            port = m.ports["pendulum"]
-            watched = [(port, port.out_names.index("tick_time"))]
-            remember = [(port, port.out_names.index("phi"))]
             trace = []
             mark = 0.7
             while m.t < 6.0 - 1e-9:
-                before = m.run_watch(6.0, mark, 2e-3, watched, remember)
-                trace.append((m.t, before, port.out[watched[0][1]]))
+                marks = Marks([mark], watched=_outputs(m, "tick_time"), outputs=_outputs(m, "phi"),
+                              before=_outputs(m, "phi", "w"), margin=2e-3, stop_at_change=True)
+                stopped = m.run_marks(6.0, marks)
+                trace.append((stopped, m.t, marks.rows))
                 mark = m.t + 0.9
             got.append(trace)
-        assert got[0] == got[1] and len(got[0]) > 3
+        assert got[0] == got[1] and len(got[0]) > 3 and got[0][0][0] and len(got[0][0][2]) == 1
+        _same_state(p, c)
+
+
+def test_run_marks_following_ticks_is_the_same_on_both_engines():
+    """Marks moved by the ticks they follow, rows in batches of 4 (batch
+    boundaries inside the run), called in two chunks: the same points, rows
+    and state on both engines, and each tick seen within two margins."""
+    p, c = _pair(CLOCK, LINKS, step=0.05)
+    with p, c:
+        got = []
+        for s in (p, c):
+            m = s.master
+            marks = Marks([0.9], watched=_outputs(m, "tick_time"), outputs=_outputs(m, "tick_time", "phi"),
+                          before=_outputs(m, "w"), follow=(0, 1.0), margin=1e-3)
+            marks.rows_per_call = 4
+            batches = []
+            assert m.run_marks(17.0, marks, batches.append) is False
+            m.run_marks(40.0, marks, batches.append)
+            assert max(len(b) for b in batches) <= 4
+            got.append([r for b in batches for r in b])
+        assert got[0] == got[1]
+        rows = got[0]
+        assert len(rows) > 15
+        assert all(0 < t - tt < 2e-3 + 1e-9 for t, tt, *_ in rows[2:])  # once the period is known
+        _same_state(p, c)
+
+
+def test_run_marks_on_a_schedule_is_the_same_on_both_engines():
+    """Exact marks (tolerance 0, one step each): an unconnected input set at
+    some, the outputs read at the others, two marks at one time, a mark
+    where the master stands; the same bits on both engines."""
+    comps = {"pendulum": ("Pendulum", dict(Q=1000.0, phi_start=math.radians(6)))}
+    p, c = _pair(comps, [], step=0.05)
+    times = [0.0, 0.3, 0.3, 0.71, 1.2, 1.2 + 1e-13, 2.0]
+    sets = [False, True, False, False, True, False, False]
+    values = [0.0, 1e-3, 0.0, 0.0, -2e-3, 0.0, 0.0]
+    with p, c:
+        got = []
+        for s in (p, c):
+            m = s.master
+            inputs = [(s.instances["pendulum"], s.instances["pendulum"].variables["tau_escapement"].vr)]
+            marks = Marks(times, sets=sets, values=values, record_at_marks=True, inputs=inputs,
+                          outputs=_outputs(m, "amplitude", "tick_time"), max_step=math.inf, tolerance=0.0)
+            m.run_marks(1.2, marks)
+            m.run_marks(2.0, marks)
+            got.append((marks.rows, m.stats.steps))
+        assert got[0] == got[1]
+        assert [r[0] for r in got[0][0]] == [0.0, 0.3, 0.71, 1.2 + 1e-13, 2.0] and got[0][1] == 5
         _same_state(p, c)
 
 

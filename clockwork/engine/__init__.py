@@ -14,9 +14,10 @@ knows nothing of scene files, papers, plots or result files.
 
 from typing import TYPE_CHECKING
 
-__all__ = ["Master", "MasterSettings", "Statistics", "System"]
+__all__ = ["Marks", "Master", "MasterSettings", "Statistics", "System"]
 
 if TYPE_CHECKING:  # what __getattr__ gives, for readers, type checkers and the API docs
+    from .marks import Marks
     from .master import Master
     from .settings import MasterSettings, Statistics
     from .system import System
@@ -28,6 +29,8 @@ def __getattr__(name: str):
     # start-up time; clockwork.results.plots.background).
     if name == "Master":
         from . import master as home
+    elif name == "Marks":
+        from . import marks as home
     elif name in ("MasterSettings", "Statistics"):
         from . import settings as home
     elif name == "System":

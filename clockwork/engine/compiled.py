@@ -106,10 +106,14 @@ class _Master(_Strict):
         ("inputs", c_void_p)]  # a _Inputs: inputs driven from samples, or NULL
 
 
-class _Ticks(_Strict):
-    _fields_ = _fields(["watch_port", "watch_pos", "seen", "rows"],
-                       ["mark", "margin", "period", "last_tick", "prev_tick"], [],
-                       ["n_watch", "capacity", "n_rows", "has_prev"])
+class _Marks(_Strict):
+    """A run to marks (engine/marks.py) and its place."""
+
+    _fields_ = _fields(["times", "sets", "values", "in_port", "in_vr", "out_port", "out_pos", "prev_port",
+                        "prev_pos", "previous", "watch_port", "watch_pos", "seen", "rows"],
+                       ["margin", "max_step", "tolerance", "period", "last_event", "prev_event"], [],
+                       ["n_times", "next", "n_in", "n_out", "n_prev", "n_watch", "capacity", "n_rows", "follow",
+                        "has_prev", "record", "stop_at_change", "stopped", "pad_"])
 
 
 class _Loop(_Strict):
@@ -138,7 +142,7 @@ class _Recorder(_Strict):
          "tick_pos", "has_interval", "pad_"])
 
 
-for _struct in (_Port, _Master, _Recorder, _Ticks, _Loop, _Loops, _Inputs):
+for _struct in (_Port, _Master, _Recorder, _Marks, _Loop, _Loops, _Inputs):
     _struct._names = frozenset(n for n, _ in _struct._fields_)
 
 _lib = None
@@ -160,7 +164,7 @@ def load_core():
             for lookup, name, struct in (
                     ("cw_layout", "port", _Port), ("cw_layout", "master", _Master),
                     ("cw_layout", "recorder", _Recorder), ("cw_layout", "fmi3", _Events),
-                    ("cw_layout", "ticks", _Ticks), ("cw_layout", "fmi1", _Fmi1), ("cw_layout", "loop", _Loop),
+                    ("cw_layout", "marks", _Marks), ("cw_layout", "fmi1", _Fmi1), ("cw_layout", "loop", _Loop),
                     ("cw_layout", "loops", _Loops), ("cw_layout", "inputs", _Inputs),
                     ("cwme_layout", "me", _ME), ("cwme_layout", "sundials", cvode.Table)):
                 differs = layout.problem(lib, lookup, name, struct)
@@ -174,14 +178,8 @@ def load_core():
             lib.cw_run_until.restype = c_int
             lib.cw_start.argtypes = [POINTER(_Master)]
             lib.cw_start.restype = None
-            lib.cw_run_watch.argtypes = ([POINTER(_Master)] + [c_double] * 4
-                                         + [c_int, c_void_p, c_void_p] * 2 + [c_void_p, c_double])
-            lib.cw_run_watch.restype = c_int
-            lib.cw_run_ticks.argtypes = [POINTER(_Master), c_double, c_double, POINTER(_Ticks), c_double]
-            lib.cw_run_ticks.restype = c_int
-            lib.cw_run_schedule.argtypes = ([POINTER(_Master), c_int] + [c_void_p] * 3 + [c_int] + [c_void_p] * 2
-                                            + [c_int] + [c_void_p] * 5 + [c_double])
-            lib.cw_run_schedule.restype = c_int
+            lib.cw_run_marks.argtypes = [POINTER(_Master), c_double, POINTER(_Marks), c_double]
+            lib.cw_run_marks.restype = c_int
             lib.cw_discontinuity.argtypes = [POINTER(_Master)]
             lib.cw_discontinuity.restype = None
             lib.cw_pool_new.argtypes = [c_int]
@@ -289,7 +287,7 @@ def _array(ctype, values, n: int | None = None):
     if code is None or len(values) != size:
         return (ctype * size)(*values)
     # array converts in one C loop and the bytes are copied: ctypes' own
-    # constructor sets the items one by one (run_schedule: 3 per period).
+    # constructor sets the items one by one (a run to marks: 3 per period).
     try:
         return (ctype * size).from_buffer_copy(array(code, values))
     except (OverflowError, TypeError):  # ctypes' own conversions (it wraps integers)
@@ -449,7 +447,6 @@ class CompiledMaster(Master):
         self._core_ptr = byref(m)
         self._taken = c_double()
         self._taken_ptr = byref(self._taken)
-        self._watch_args = {}
         self._empty_recorder = _Recorder(grid_k=-1, tick_port=-1, capacity=1, tick_capacity=1, stride=1)
 
     def _start_threads(self, m: _Master, ref) -> None:
@@ -610,84 +607,97 @@ class CompiledMaster(Master):
             elif rc != _BUFFER_FULL and rc != _SLICE_OVER:
                 self._handle(rc)
 
-    def run_watch(self, t_stop, mark, margin, watched, remember=()):
+    def _run_marks(self, t_stop, marks, on_rows):
         if self.on_step is not None:
-            return super().run_watch(t_stop, mark, margin, watched, remember)
-        # Callers pass the same lists again and again: keyed by identity
-        # (the lists are kept, so that an id cannot be reused), checked by content.
-        key = (id(watched), id(remember))
-        args = self._watch_args.get(key)
-        if args is None or args[-2] != (list(watched), list(remember)):
+            return super()._run_marks(t_stop, marks, on_rows)  # the Python loop over compiled steps
+        c, rows, width = self._core_marks(marks)
+        c.tolerance = -1.0 if marks.tolerance is None else marks.tolerance
+        c.max_step = self.settings.step if marks.max_step is None else marks.max_step
+        c.stopped = 0
+        ptr = byref(c)
+        try:
+            while True:
+                rc = self._lib.cw_run_marks(self._core_ptr, t_stop, ptr, self.slice_s)
+                if self._core.orders_lowered:
+                    self._orders_lowered()
+                if rc not in (_DONE, _BUFFER_FULL, _SLICE_OVER, _WATCHED):
+                    self._handle(rc)  # raises, but for a divergence check that finds nothing
+                if c.n_rows:
+                    flat = rows[:c.n_rows * width]
+                    c.n_rows = 0
+                    marks.rows.extend(zip(*[iter(flat)] * width))
+                    if on_rows is not None:
+                        batch, marks.rows = marks.rows, []
+                        on_rows(batch)
+                if rc == _DONE:
+                    return False
+                if rc == _WATCHED or c.stopped:
+                    return True
+        finally:
+            self._marks_out(c, marks)
+
+    def _core_marks(self, marks):
+        """The core's struct of a plan (made at its first run here), with
+        the plan's place copied in; its row buffer and the row's width."""
+        made = marks.__dict__.get("_core")
+        if made is None or made[0] is not self:
+            marks.start()
             index = {id(p): i for i, p in enumerate(self.ports.all)}
-            arrays = [_array(c_int, (index[id(p)] for p, _ in watched)), _array(c_int, (j for _, j in watched)),
-                      _array(c_int, (index[id(p)] for p, _ in remember)), _array(c_int, (j for _, j in remember)),
-                      _array(c_double, [], len(remember))]
-            self._keep.append(arrays)
-            a = [ctypes.addressof(x) for x in arrays]
-            args = self._watch_args[key] = (len(watched), a[0], a[1], len(remember), a[2], a[3], a[4], arrays[4],
-                                            (list(watched), list(remember)), (watched, remember))
-        n_w, w_port, w_pos, n_r, r_port, r_pos, before_addr, before, _, _ = args
-        while True:
-            rc = self._lib.cw_run_watch(self._core_ptr, t_stop, mark, margin, self.settings.step,
-                                        n_w, w_port, w_pos, n_r, r_port, r_pos, before_addr, self.slice_s)
-            if self._core.orders_lowered:
-                self._orders_lowered()
-            if rc != _SLICE_OVER:
-                break
-        if rc not in (_DONE, _WATCHED):
-            self._handle(rc)
-        return before[:n_r]
+            of_inst = {id(p.inst): i for i, p in enumerate(self.ports.all)}
+            width = 1 + len(marks.outputs) + len(marks.before)
+            capacity = max(2, marks.rows_per_call)
+            rows = (c_double * (capacity * width))()
+            keep = [rows]  # the arrays live as long as the plan
 
-    def run_ticks(self, t_stop, mark, margin, watched, period, on_rows, rows_per_call=4096):
-        if self.on_step is not None:
-            return super().run_ticks(t_stop, mark, margin, watched, period, on_rows, rows_per_call)
-        index = {id(p): i for i, p in enumerate(self.ports.all)}
-        width = len(watched) + 1
-        rows = (c_double * (rows_per_call * width))()
-        seen = _array(c_double, (p.out[j] for p, j in watched))
-        arrays = [_array(c_int, (index[id(p)] for p, _ in watched)), _array(c_int, (j for _, j in watched)), seen]
-        k = _Ticks(watch_port=ctypes.addressof(arrays[0]), watch_pos=ctypes.addressof(arrays[1]),
-                   seen=ctypes.addressof(seen), rows=ctypes.addressof(rows), mark=mark, margin=margin,
-                   period=period, last_tick=seen[0], prev_tick=0.0, n_watch=len(watched),
-                   capacity=rows_per_call, n_rows=0, has_prev=0)
-        k_ptr = byref(k)
-        while True:
-            rc = self._lib.cw_run_ticks(self._core_ptr, t_stop, self.settings.step, k_ptr, self.slice_s)
-            if self._core.orders_lowered:
-                self._orders_lowered()
-            if k.n_rows:
-                flat = rows[:k.n_rows * width]
-                k.n_rows = 0
-                on_rows(list(zip(*[iter(flat)] * width)))
-            if rc == _DONE:
-                return
-            if rc not in (_BUFFER_FULL, _SLICE_OVER):
-                self._handle(rc)  # raises, but for a divergence check that finds nothing
+            def ref(obj) -> int:
+                keep.append(obj)
+                return ctypes.addressof(obj)
 
-    def run_schedule(self, times, sets, values, inputs, outputs, samples):
-        if self.on_step is not None:
-            return super().run_schedule(times, sets, values, inputs, outputs, samples)
-        index = {id(p.inst): i for i, p in enumerate(self.ports.all)}
-        port_of = {id(p): i for i, p in enumerate(self.ports.all)}
-        n = len(times)
-        arrays = [_array(c_double, times), _array(c_int, map(bool, sets)), _array(c_double, values),
-                  _array(c_int, (index[id(inst)] for inst, _ in inputs)), _array(c_uint, (vr for _, vr in inputs)),
-                  _array(c_int, (port_of[id(p)] for p, _ in outputs)), _array(c_int, (j for _, j in outputs))]
-        width = len(outputs)
-        rows = (c_double * max(1, (n - sum(1 for x in sets if x)) * width))()
-        nxt, n_rows = c_int(0), c_int(0)
-        a = [ctypes.addressof(x) for x in arrays]
-        while True:
-            rc = self._lib.cw_run_schedule(self._core_ptr, n, a[0], a[1], a[2], len(inputs), a[3], a[4], width,
-                                           a[5], a[6], ctypes.addressof(rows), byref(nxt), byref(n_rows),
-                                           self.slice_s)
-            if self._core.orders_lowered:
-                self._orders_lowered()
-            if rc == _DONE:
-                break
-            if rc != _SLICE_OVER:
-                self._handle(rc)  # raises, but for a divergence check that finds nothing
-        samples.extend(rows[:n_rows.value * width])
+            c = _Marks(times=ref(_array(c_double, marks.times, max(1, len(marks.times)))),
+                       sets=ref(_array(c_int, map(int, marks.sets), max(1, len(marks.sets)))),
+                       values=ref(_array(c_double, marks.values, max(1, len(marks.values)))),
+                       in_port=ref(_array(c_int, (of_inst[id(inst)] for inst, _ in marks.inputs))),
+                       in_vr=ref(_array(c_uint, (vr for _, vr in marks.inputs))),
+                       out_port=ref(_array(c_int, (index[id(p)] for p, _ in marks.outputs))),
+                       out_pos=ref(_array(c_int, (j for _, j in marks.outputs))),
+                       prev_port=ref(_array(c_int, (index[id(p)] for p, _ in marks.before))),
+                       prev_pos=ref(_array(c_int, (j for _, j in marks.before))),
+                       previous=ref(_array(c_double, [], len(marks.before))),
+                       watch_port=ref(_array(c_int, (index[id(p)] for p, _ in marks.watched))),
+                       watch_pos=ref(_array(c_int, (j for _, j in marks.watched))),
+                       seen=ref(_array(c_double, [], len(marks.watched))), rows=ctypes.addressof(rows),
+                       margin=-1.0 if marks.margin is None else marks.margin,
+                       period=0.0 if marks.follow is None else marks.follow[1],
+                       n_in=len(marks.inputs), n_out=len(marks.outputs), n_prev=len(marks.before),
+                       n_watch=len(marks.watched), capacity=capacity,
+                       follow=-1 if marks.follow is None else marks.follow[0], record=int(marks.record_at_marks),
+                       stop_at_change=int(marks.stop_at_change))
+            made = marks._core = (self, c, rows, width, keep)
+        _, c, rows, width, _ = made
+        # The place, as the plan holds it (it may have run on the Python loop since).
+        c.next, c.n_times = marks.next, len(marks.times)
+        if marks.follow is not None and marks.times:
+            ctypes.cast(c.times, POINTER(c_double))[0] = marks.times[0]
+        for name, values in (("seen", marks.seen), ("previous", marks.previous)):
+            arr = ctypes.cast(getattr(c, name), POINTER(c_double))
+            for j, x in enumerate(values):
+                arr[j] = x
+        c.last_event = marks.last_event
+        c.has_prev = int(marks.prev_event is not None)
+        c.prev_event = 0.0 if marks.prev_event is None else marks.prev_event
+        return c, rows, width
+
+    @staticmethod
+    def _marks_out(c: _Marks, marks) -> None:
+        """The core's place back into the plan."""
+        marks.next = c.next
+        if marks.follow is not None and c.n_times:
+            marks.times[:] = [ctypes.cast(c.times, POINTER(c_double))[0]]
+            marks.sets[:], marks.values[:] = [False], [0.0]
+        marks.seen[:] = ctypes.cast(c.seen, POINTER(c_double))[:len(marks.seen)]
+        marks.previous[:] = ctypes.cast(c.previous, POINTER(c_double))[:len(marks.previous)]
+        marks.last_event = c.last_event
+        marks.prev_event = c.prev_event if c.has_prev else None
 
     def _native(self, recorder: Recorder):
         # Made once per recorder: a run is called in chunks (analyses.time_series), and systems have

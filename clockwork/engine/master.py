@@ -39,12 +39,13 @@ import math
 from ctypes import c_double, c_uint
 
 from .checkpoints import Checkpoints
-from ..fmi.description import no_state_reason
+from ..fmi.description import REAL_TYPES, no_state_reason
 from .coupling import InputCoupling, iterate_step
 from ..fmi.calls import DISCARD, NO_MESSAGE, WARNING, free_all
 from ..fmi.contract import Instance
 from .events import crossed, earliest
 from .location import APPROACH, LAND, EventLocator, scan
+from .marks import Marks
 from .parallel import updates_after
 from .ports import Port, Ports
 from .richardson import StepDoubling
@@ -586,86 +587,123 @@ class Master:
             if self.t >= grid - eps:
                 k += 1
 
-    def run_watch(self, t_stop: float, mark: float, margin: float,
-                  watched: list[tuple[Port, int]], remember: list[tuple[Port, int]] = ()) -> list[float]:
-        """Step toward t_stop until one of the `watched` outputs ((port,
-        position in its outputs) pairs) changes.
+    def run_marks(self, t_stop: float, marks: Marks, on_rows=None) -> bool:
+        """Step toward t_stop through the `marks`' communication points,
+        recording their rows (engine/marks.py says what a plan holds).
 
-        Steps are at most settings.step long and land on `mark` while it
-        lies ahead; after it they are `margin` s long (a communication point
-        just after an expected event). Returns the values of the `remember`
-        outputs at the point before the last one. Returning at a point where
-        nothing changed (t_stop, a divergence check) is allowed: callers
-        look at the outputs themselves.
+        Called again with the same plan (a later stop, or after a stop at a
+        change) it goes on where it stopped. An FMU that ends the simulation
+        ends the run cleanly, as in `run_until` (``ended``).
+
+        Args:
+            t_stop: Where to stop, s: finite and not before ``t``.
+            marks: The plan (`Marks`); it keeps its place across calls.
+            on_rows (Callable[[list[tuple]], None] | None): Gets the rows in
+                batches (of about ``marks.rows_per_call``, all of them before
+                the call returns); None keeps them in ``marks.rows``.
+
+        Returns:
+            True where it returned at a watched output's change
+            (``stop_at_change``), False at t_stop.
         """
-        eps = 1e-12 * max(1.0, abs(t_stop))
-        seen = [p.out[j] for p, j in watched]
-        before = [p.out[j] for p, j in remember]
-        max_step = self.settings.step
-        while self.t < t_stop - eps:
-            before = [p.out[j] for p, j in remember]
-            target = mark if self.t < mark - eps else self.t + margin
-            self.step(min(max_step, target - self.t, t_stop - self.t))
-            if any(p.out[j] != x for (p, j), x in zip(watched, seen)):
-                break
-        return before
-
-    def run_ticks(self, t_stop: float, mark: float, margin: float, watched: list[tuple[Port, int]],
-                  period: float, on_rows, rows_per_call: int = 4096) -> None:
-        """Step toward t_stop with a communication point just after each tick.
-
-        The first of the `watched` outputs ((port, position) pairs) is a tick
-        time, which changes at each tick. Steps are at most settings.step
-        long and land on `mark` while it lies ahead, then are `margin` s
-        long until a watched output changes; after a tick at tt, the next
-        mark is tt + the last tick period (`period` until two ticks are
-        known) + margin. ``on_rows(rows)`` gets the rows (t, watched
-        values...) of every point where a watched output changed, in
-        batches. The same points as calling ``run_watch`` after each change
-        with the mark so moved, without returning to the caller there.
-        """
-        eps = 1e-12 * max(1.0, abs(t_stop))
-        seen = [p.out[j] for p, j in watched]
-        last_tick, prev_tick = seen[0], None
-        max_step = self.settings.step
-        rows = []
-        while self.t < t_stop - eps:
-            target = mark if self.t < mark - eps else self.t + margin
-            self.step(min(max_step, target - self.t, t_stop - self.t))
-            if any(p.out[j] != x for (p, j), x in zip(watched, seen)):
-                seen = [p.out[j] for p, j in watched]
-                rows.append((self.t, *seen))
-                tt = seen[0]
-                if tt != last_tick:
-                    if last_tick > 0:
-                        prev_tick = last_tick
-                    last_tick = tt
-                    mark = tt + (tt - prev_tick if prev_tick is not None else period) + margin
-                if len(rows) >= rows_per_call:
-                    on_rows(rows)
-                    rows = []
-        if rows:
+        t_stop = check_run(self.instances, self.t, t_stop, call="run_marks")
+        self._bind_marks(marks)
+        stopped = False
+        if self.ended is None:
+            try:
+                stopped = self._run_marks(t_stop, marks, on_rows)
+            except SimulationEnded as e:
+                self.ended = e
+        if on_rows is not None and marks.rows:
+            rows, marks.rows = marks.rows, []
             on_rows(rows)
+        return stopped
 
-    def run_schedule(self, times, sets, values, inputs: list[tuple[Instance, int]],
-                     outputs: list[tuple[Port, int]], samples: list[float]) -> None:
-        """Step to each of the increasing `times` (s) in turn, one step each
-        (none where the master already stands there); there, where sets[k],
-        give values[k] to every input of `inputs` ((instance, value
-        reference) pairs of unconnected inputs: a piecewise-constant drive),
-        else append the `outputs` ((port, position) pairs) to `samples`."""
+    def _bind_marks(self, marks: Marks) -> None:
+        """Refuse a plan whose ports or instances are not this master's."""
+        if not isinstance(marks, Marks):
+            raise UsageError(f"run_marks(marks = {type(marks).__name__}): expected a Marks plan "
+                             "(clockwork.engine.marks.Marks)")
+        if getattr(marks, "_bound", None) is self:
+            return
+        ports = {id(p) for p in self.ports.all}
+        for where in ("outputs", "before", "watched"):
+            for p, j in getattr(marks, where):
+                if id(p) not in ports or not 0 <= j < p.n_out:
+                    raise UsageError(f"run_marks: Marks({where}) holds ({p!r}, {j}), which is not an output "
+                                     "position of one of this master's ports (master.ports[name])")
+        port_of = {id(p.inst): p for p in self.ports.all}
+        for inst, vr in marks.inputs:
+            p = port_of.get(id(inst))
+            if p is None:
+                raise UsageError(f"run_marks: Marks(inputs) holds {inst!r}, which is not one of this master's "
+                                 "instances")
+            found = [v for v in inst.variables.values() if v.vr == vr and v.causality == "input" and not v.shape]
+            if not found or found[0].type not in REAL_TYPES:
+                raise UsageError(f"run_marks: Marks(inputs) holds ({inst.name}, {vr}): expected the value reference "
+                                 f"of a Real input of {inst.name}")
+            if found[0].name in p.in_names:
+                raise UsageError(f"run_marks: Marks(inputs) holds {inst.name}.{found[0].name}, which is connected "
+                                 "(the coupling sets it at every step): a mark sets unconnected inputs")
+        marks._bound = self
+
+    def _run_marks(self, t_stop: float, marks: Marks, on_rows) -> bool:
+        eps = 1e-12 * max(1.0, abs(t_stop))
+        tol = eps if marks.tolerance is None else marks.tolerance
+        max_step = self.settings.step if marks.max_step is None else marks.max_step
+        margin = marks.margin
+        times, sets, values = marks.times, marks.sets, marks.values
+        outputs, before, watched = marks.outputs, marks.before, marks.watched
+        marks.start()
+        seen, previous = marks.seen, marks.previous
+        follow, period = marks.follow if marks.follow is not None else (-1, 0.0)
+        rows, record, batch = marks.rows, marks.record_at_marks, marks.rows_per_call
         value = (c_double * 1)()
-        refs = [(inst, inst.c_setReal, inst.component, (c_uint * 1)(vr), f"{inst.named('setReal')} of inputs")
-                for inst, vr in inputs]
-        for t, is_set, v in zip(times, sets, values):
-            if t > self.t:
-                self.step(t - self.t)
-            if is_set:
-                value[0] = v
-                for inst, c_set, comp, vr, what in refs:
+        setters = [(inst, inst.c_setReal, inst.component, (c_uint * 1)(vr), f"{inst.named('setReal')} of inputs")
+                   for inst, vr in marks.inputs]
+
+        def act(k: int) -> None:  # at mark k
+            if sets[k]:
+                value[0] = values[k]
+                for inst, c_set, comp, vr, what in setters:
                     inst.check(c_set(comp, vr, 1, value), what, self.t)
-            else:
-                samples.extend(p.out[j] for p, j in outputs)
+            elif record:
+                rows.append((self.t, *(p.out[j] for p, j in outputs), *previous))
+
+        while True:
+            # The marks reached (at the start, or passed by a step that was cut short).
+            while marks.next < len(times) and not self.t < times[marks.next] - tol:
+                act(marks.next)
+                marks.next += 1
+            if self.t >= t_stop - eps and (marks.next >= len(times) or times[marks.next] > t_stop):
+                return False
+            if before:
+                previous[:] = [p.out[j] for p, j in before]
+            k = marks.next
+            target = times[k] if k < len(times) else (self.t + margin if margin is not None else t_stop)
+            aim = target - self.t
+            h = min(max_step, aim, t_stop - self.t)
+            taken = self.step(h)
+            if k < len(times) and h == aim and taken == h:  # a step aimed at the mark, taken whole
+                act(k)
+                marks.next += 1
+            if any(p.out[j] != x for (p, j), x in zip(watched, seen)):
+                seen[:] = [p.out[j] for p, j in watched]
+                rows.append((self.t, *(p.out[j] for p, j in outputs), *previous))
+                if follow >= 0:
+                    tt = seen[follow]
+                    if tt != marks.last_event:
+                        if marks.last_event > 0:
+                            marks.prev_event = marks.last_event
+                        marks.last_event = tt
+                        interval = tt - marks.prev_event if marks.prev_event is not None else period
+                        times[:], sets[:], values[:] = [tt + interval + margin], [False], [0.0]
+                        marks.next = 0
+                if marks.stop_at_change:
+                    return True
+            if on_rows is not None and len(rows) >= batch:
+                on_rows(rows[:])
+                rows.clear()
 
     @property
     def rates(self) -> dict[str, int]:

@@ -327,16 +327,17 @@ def _shown(value) -> str:
     return shorten(repr(value), 60)
 
 
-def check_run(instances: dict, t_now: float, t_stop, look: bool = True) -> float:
-    """The stop time of a run_until, checked: the instances still live
-    (looked at unless `look` is false: none was freed since the last look),
-    and `t_stop` a finite time (s) not before `t_now`. Returns it as a float."""
+def check_run(instances: dict, t_now: float, t_stop, look: bool = True, call: str = "run_until") -> float:
+    """The stop time of a run_until (or another `call`), checked: the
+    instances still live (looked at unless `look` is false: none was freed
+    since the last look), and `t_stop` a finite time (s) not before `t_now`.
+    Returns it as a float."""
     if look and any(getattr(inst, "freed", False) for inst in instances.values()):
         raise ClosedError("this System was freed (used after its `with` block or free()): build a new System")
     if isinstance(t_stop, bool) or not isinstance(t_stop, numbers.Real) or not math.isfinite(t_stop):
-        raise UsageError(f"run_until({t_stop!r}): expected a finite time in s")
+        raise UsageError(f"{call}({t_stop!r}): expected a finite time in s")
     if t_stop < t_now:
-        raise UsageError(f"run_until({t_stop!r}): the system is already at t = {t_now!r} s; "
+        raise UsageError(f"{call}({t_stop!r}): the system is already at t = {t_now!r} s; "
                          "time only runs forward (restart() starts again)")
     return float(t_stop)
 

@@ -27,6 +27,7 @@ from ..fmi.values3 import flat_values
 from .instances import make_instance
 from .model_exchange import MEOptions
 from .compiled import make_master
+from .marks import Marks
 from .samples import Samples
 from .settings import MasterSettings
 from .wiring import Link, parse_link
@@ -477,23 +478,11 @@ _NO_GUARD = _NoGuard()
 MASTER_ARGUMENTS = {
     "step": {"h": Real("a step > 0 in s (a finite number)", positive=True)},
     "run_until": {"on_point": Optional(Call())},
-    "run_watch": {"t_stop": Real("a finite time in s"), "mark": Real("a finite time in s"),
-                  "margin": Real("a step > 0 in s", positive=True)},
+    "run_marks": {"t_stop": Real("a finite time in s"),
+                  "marks": Of(Marks, "a Marks plan (clockwork.engine.marks.Marks)"), "on_rows": Optional(Call())},
     "initialize": {"parameters": Mapping(_NAME, _PARAMETERS, "{instance: {parameter: value}}")},
     "reinitialize": {"parameters": Mapping(_NAME, _PARAMETERS, "{instance: {parameter: value}}")},
     "restart": {"parameters": Mapping(_NAME, _PARAMETERS, "{instance: {parameter: value}}")},
-    # the long runs' loops without a return to Python at each point (analyses/hoyng/long_run.py)
-    "run_ticks": {"t_stop": Real("a finite time in s"), "mark": Real("a finite time in s"),
-                  "margin": Real("a step > 0 in s", positive=True),
-                  "watched": Sequence(Anything(), "a list of (port, output position) pairs", length=(1, 1 << 30)),
-                  "period": Real("a period > 0 in s", positive=True), "on_rows": Call(),
-                  "rows_per_call": Integer("a whole number of rows")},
-    "run_schedule": {"times": Sequence(Anything(), "a list of increasing times in s"),
-                     "sets": Sequence(Anything(), "a list of flags, one per time"),
-                     "values": Sequence(Anything(), "a list of input values, one per time"),
-                     "inputs": Sequence(Anything(), "a list of (instance, value reference) pairs"),
-                     "outputs": Sequence(Anything(), "a list of (port, output position) pairs"),
-                     "samples": Of(list, "a list the sampled outputs are appended to")},
 }
 
 

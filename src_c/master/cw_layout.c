@@ -86,12 +86,18 @@ static const cw_field recorder_layout[] = {
     CW_FIELD(cw_recorder, stride), CW_FIELD(cw_recorder, tick_port), CW_FIELD(cw_recorder, tick_pos),
     CW_FIELD(cw_recorder, has_interval), CW_FIELD(cw_recorder, pad_),
 };
-static const cw_field ticks_layout[] = {
-    CW_FIELD(cw_ticks, watch_port), CW_FIELD(cw_ticks, watch_pos), CW_FIELD(cw_ticks, seen),
-    CW_FIELD(cw_ticks, rows), CW_FIELD(cw_ticks, mark), CW_FIELD(cw_ticks, margin),
-    CW_FIELD(cw_ticks, period), CW_FIELD(cw_ticks, last_tick), CW_FIELD(cw_ticks, prev_tick),
-    CW_FIELD(cw_ticks, n_watch), CW_FIELD(cw_ticks, capacity), CW_FIELD(cw_ticks, n_rows),
-    CW_FIELD(cw_ticks, has_prev),
+static const cw_field marks_layout[] = {
+    CW_FIELD(cw_marks, times), CW_FIELD(cw_marks, sets), CW_FIELD(cw_marks, values), CW_FIELD(cw_marks, in_port),
+    CW_FIELD(cw_marks, in_vr), CW_FIELD(cw_marks, out_port), CW_FIELD(cw_marks, out_pos),
+    CW_FIELD(cw_marks, prev_port), CW_FIELD(cw_marks, prev_pos), CW_FIELD(cw_marks, previous),
+    CW_FIELD(cw_marks, watch_port), CW_FIELD(cw_marks, watch_pos), CW_FIELD(cw_marks, seen),
+    CW_FIELD(cw_marks, rows), CW_FIELD(cw_marks, margin), CW_FIELD(cw_marks, max_step),
+    CW_FIELD(cw_marks, tolerance), CW_FIELD(cw_marks, period), CW_FIELD(cw_marks, last_event),
+    CW_FIELD(cw_marks, prev_event), CW_FIELD(cw_marks, n_times), CW_FIELD(cw_marks, next),
+    CW_FIELD(cw_marks, n_in), CW_FIELD(cw_marks, n_out), CW_FIELD(cw_marks, n_prev), CW_FIELD(cw_marks, n_watch),
+    CW_FIELD(cw_marks, capacity), CW_FIELD(cw_marks, n_rows), CW_FIELD(cw_marks, follow),
+    CW_FIELD(cw_marks, has_prev), CW_FIELD(cw_marks, record), CW_FIELD(cw_marks, stop_at_change),
+    CW_FIELD(cw_marks, stopped), CW_FIELD(cw_marks, pad_),
 };
 static const cw_field fmi3_layout[] = {
     CW_FIELD(cw_fmi3, instance), CW_FIELD(cw_fmi3, doStep), CW_FIELD(cw_fmi3, getFloat64),
@@ -126,7 +132,7 @@ CW_EXPORT const cw_field *cw_layout(const char *name, size_t *n_fields, size_t *
     CW_LAYOUT_CASE(master)
     CW_LAYOUT_CASE(inputs)
     CW_LAYOUT_CASE(recorder)
-    CW_LAYOUT_CASE(ticks)
+    CW_LAYOUT_CASE(marks)
     CW_LAYOUT_CASE(fmi3)
     CW_LAYOUT_CASE(fmi1)
     *n_fields = 0;

@@ -27,7 +27,7 @@ enum {
     CW_DONE = 0,
     CW_BUFFER_FULL = 1,     /* recording buffers full: drain and call again */
     CW_CHECK_DIVERGENCE = 2,/* an output is not finite or too large: Python names it */
-    CW_WATCHED = 3,         /* a watched output changed (cw_run_watch) */
+    CW_WATCHED = 3,         /* a watched output changed (cw_run_marks, stop_at_change) */
     CW_ENDED = 4,           /* an instance asked to end the simulation (FMI 3.0 terminateSimulation) */
     CW_SLICE_OVER = 5,      /* the call's slice of wall time is spent: call again (Python handles signals between calls) */
     CW_ERR_FMI = -1,        /* an fmi2 call failed: err_port, err_call, err_status */

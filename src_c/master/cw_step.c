@@ -555,129 +555,105 @@ CW_EXPORT int cw_run_until(cw_master *m, double t_stop, cw_recorder *r, double s
     return CW_DONE;
 }
 
-/* Step toward t_stop with steps of at most max_step, landing on `mark`
- * while it lies ahead and taking steps of `margin` after it, until one of
- * the watched outputs changes (Master.run_watch). `previous` gets the
- * values of the `n_prev` outputs at the point before the last one. */
-CW_EXPORT int cw_run_watch(cw_master *m, double t_stop, double mark, double margin, double max_step,
-                           int n_watch, const int *watch_port, const int *watch_pos,
-                           int n_prev, const int *prev_port, const int *prev_pos, double *previous,
-                           double slice_s)
+/* A row of a run to marks: (t, outputs, the outputs before the last step). */
+static void marks_row(const cw_master *m, cw_marks *k)
 {
-    double eps = 1e-12 * py_max(1.0, fabs(t_stop));
-    double seen[n_watch > 0 ? n_watch : 1];
-    for (int k = 0; k < n_watch; k++)
-        seen[k] = m->ports[watch_port[k]].out[watch_pos[k]];
-    struct timespec began;
-    clock_gettime(CLOCK_MONOTONIC, &began);
-    unsigned steps = 0;
-    while (m->t < t_stop - eps) {
-        if (slice_over(&began, &steps, slice_s))
-            return CW_SLICE_OVER;  /* nothing changed yet: calling again continues the same watch */
-        for (int k = 0; k < n_prev; k++)
-            previous[k] = m->ports[prev_port[k]].out[prev_pos[k]];
-        double target = m->t < mark - eps ? mark : m->t + margin;
-        double taken;
-        int rc = step(m, py_min(py_min(max_step, target - m->t), t_stop - m->t), &taken);
-        if (rc)
-            return rc;
-        for (int k = 0; k < n_watch; k++) {
-            double now = m->ports[watch_port[k]].out[watch_pos[k]];
-            if (now != seen[k])  /* NaN counts as a change, as in Python */
-                return CW_WATCHED;
+    double *row = &k->rows[(size_t)k->n_rows * (size_t)(1 + k->n_out + k->n_prev)];
+    row[0] = m->t;
+    for (int j = 0; j < k->n_out; j++)
+        row[1 + j] = m->ports[k->out_port[j]].out[k->out_pos[j]];
+    for (int j = 0; j < k->n_prev; j++)
+        row[1 + k->n_out + j] = k->previous[j];
+    k->n_rows++;
+}
+
+/* What mark i does: give the inputs their value, or record a row. */
+static int marks_act(cw_master *m, cw_marks *k, int i)
+{
+    if (k->sets[i]) {
+        for (int a = 0; a < k->n_in; a++) {
+            cw_port *p = &m->ports[k->in_port[a]];
+            int st = p->setReal(p->comp, &k->in_vr[a], 1, &k->values[i]);
+            if (st > FMI_WARNING)
+                return fail(m, k->in_port[a], CALL_SET_INPUTS, st, m->t, 0.0);
         }
+    } else if (k->record) {
+        marks_row(m, k);
     }
     return CW_DONE;
 }
 
-
-/* Step toward t_stop with steps of at most max_step, landing on k->mark
- * while it lies ahead and taking steps of k->margin after it; a row where
- * a watched output changed; after a tick, the next mark one tick period
- * (the last one, else k->period) plus the margin after it. Returns
- * CW_DONE, CW_BUFFER_FULL or CW_SLICE_OVER (call again), or a step's
- * code (CW_CHECK_DIVERGENCE after the step's row: Python names the output). */
-CW_EXPORT int cw_run_ticks(cw_master *m, double t_stop, double max_step, cw_ticks *k, double slice_s)
+/* Step toward t_stop through the marks (Master.run_marks, the same loop
+ * line for line): a point on each mark (reached once less than the
+ * tolerance ahead, or by a step aimed at it and taken whole), steps of at
+ * most max_step, of margin once no mark lies ahead; a row where a watched
+ * output changed, the followed event moving the mark. Returns CW_DONE,
+ * CW_WATCHED (stop_at_change), CW_BUFFER_FULL or CW_SLICE_OVER (call
+ * again), or a step's code (CW_CHECK_DIVERGENCE after the point's rows:
+ * Python names the output, and `stopped` says whether the run stopped there). */
+CW_EXPORT int cw_run_marks(cw_master *m, double t_stop, cw_marks *k, double slice_s)
 {
     double eps = 1e-12 * py_max(1.0, fabs(t_stop));
+    double tol = k->tolerance < 0.0 ? eps : k->tolerance;
     struct timespec began;
     clock_gettime(CLOCK_MONOTONIC, &began);
     unsigned steps = 0;
-    while (m->t < t_stop - eps) {
-        if (k->n_rows >= k->capacity)
+    for (;;) {
+        /* The marks reached (at the start, or passed by a step that was cut short). */
+        while (k->next < k->n_times && !(m->t < k->times[k->next] - tol)) {
+            if (k->n_rows >= k->capacity)
+                return CW_BUFFER_FULL;
+            TRY(marks_act(m, k, k->next));
+            k->next++;
+        }
+        if (m->t >= t_stop - eps && (k->next >= k->n_times || k->times[k->next] > t_stop))
+            return CW_DONE;
+        if (k->n_rows + 2 > k->capacity)  /* room for a mark's row and a change's */
             return CW_BUFFER_FULL;
         if (slice_over(&began, &steps, slice_s))
             return CW_SLICE_OVER;
-        double target = m->t < k->mark - eps ? k->mark : m->t + k->margin;
+        for (int j = 0; j < k->n_prev; j++)
+            k->previous[j] = m->ports[k->prev_port[j]].out[k->prev_pos[j]];
+        int i = k->next;
+        double target = i < k->n_times ? k->times[i] : (k->margin > 0.0 ? m->t + k->margin : t_stop);
+        double aim = target - m->t;
+        double h = py_min(py_min(k->max_step, aim), t_stop - m->t);
         double taken;
-        int rc = step(m, py_min(py_min(max_step, target - m->t), t_stop - m->t), &taken);
+        int rc = step(m, h, &taken);
         if (rc < 0 || rc == CW_ENDED)
             return rc;
+        if (i < k->n_times && h == aim && taken == h) {  /* a step aimed at the mark, taken whole */
+            TRY(marks_act(m, k, i));
+            k->next++;
+        }
         int changed = 0;
         for (int j = 0; j < k->n_watch; j++)
             if (m->ports[k->watch_port[j]].out[k->watch_pos[j]] != k->seen[j])  /* NaN: a change */
                 changed = 1;
         if (changed) {
-            double *row = &k->rows[(size_t)k->n_rows * (size_t)(k->n_watch + 1)];
-            row[0] = m->t;
             for (int j = 0; j < k->n_watch; j++)
-                row[j + 1] = k->seen[j] = m->ports[k->watch_port[j]].out[k->watch_pos[j]];
-            k->n_rows++;
-            double tt = k->seen[0];
-            if (tt != k->last_tick) {
-                if (k->last_tick > 0) {
-                    k->prev_tick = k->last_tick;
-                    k->has_prev = 1;
+                k->seen[j] = m->ports[k->watch_port[j]].out[k->watch_pos[j]];
+            marks_row(m, k);
+            if (k->follow >= 0) {
+                double tt = k->seen[k->follow];
+                if (tt != k->last_event) {
+                    if (k->last_event > 0) {
+                        k->prev_event = k->last_event;
+                        k->has_prev = 1;
+                    }
+                    k->last_event = tt;
+                    double interval = k->has_prev ? tt - k->prev_event : k->period;
+                    k->times[0] = tt + interval + k->margin;
+                    k->next = 0;
+                    k->n_times = 1;
                 }
-                k->last_tick = tt;
-                double period = k->has_prev ? tt - k->prev_tick : k->period;
-                k->mark = tt + period + k->margin;
+            }
+            if (k->stop_at_change) {
+                k->stopped = 1;
+                return rc == CW_CHECK_DIVERGENCE ? rc : CW_WATCHED;
             }
         }
         if (rc == CW_CHECK_DIVERGENCE)
             return rc;
     }
-    return CW_DONE;
-}
-
-/* Step to each of the increasing times in turn, one step each (none where
- * the master stands there already); there, where sets[k], give values[k]
- * to the n_in inputs (in_port, in_vr: unconnected inputs), else append the
- * n_out outputs as a row of `samples` (Master.run_schedule). *next and
- * *n_rows keep the place across calls (CW_SLICE_OVER, a divergence check). */
-CW_EXPORT int cw_run_schedule(cw_master *m, int n, const double *times, const int *sets, const double *values,
-                              int n_in, const int *in_port, const unsigned *in_vr, int n_out, const int *out_port,
-                              const int *out_pos, double *samples, int *next, int *n_rows, double slice_s)
-{
-    struct timespec began;
-    clock_gettime(CLOCK_MONOTONIC, &began);
-    unsigned steps = 0;
-    while (*next < n) {
-        if (slice_over(&began, &steps, slice_s))
-            return CW_SLICE_OVER;
-        int k = *next, rc = CW_DONE;
-        if (times[k] > m->t) {
-            double taken;
-            rc = step(m, times[k] - m->t, &taken);
-            if (rc < 0 || rc == CW_ENDED)
-                return rc;
-        }
-        if (sets[k]) {
-            for (int a = 0; a < n_in; a++) {
-                cw_port *p = &m->ports[in_port[a]];
-                int st = p->setReal(p->comp, &in_vr[a], 1, &values[k]);
-                if (st > FMI_WARNING)
-                    return fail(m, in_port[a], CALL_SET_INPUTS, st, m->t, 0.0);
-            }
-        } else {
-            double *row = &samples[(size_t)*n_rows * (size_t)n_out];
-            for (int j = 0; j < n_out; j++)
-                row[j] = m->ports[out_port[j]].out[out_pos[j]];
-            (*n_rows)++;
-        }
-        (*next)++;
-        if (rc == CW_CHECK_DIVERGENCE)
-            return rc;
-    }
-    return CW_DONE;
 }

@@ -1,6 +1,6 @@
 /* Every struct that Python mirrors with ctypes, in one place: the
  * master's (cw_port, cw_loop, cw_loops, cw_master, cw_inputs, cw_recorder,
- * cw_ticks: clockwork/engine/compiled.py), the adapters' (cw_fmi3:
+ * cw_marks: clockwork/engine/compiled.py), the adapters' (cw_fmi3:
  * clockwork/fmi/cs3.py's _Events; cw_fmi1: cs1.py's _Fmi1) and the Model
  * Exchange wrapper's (cw_sundials: engine/cvode.py's Table; cw_me:
  * engine/model_exchange.py's _ME).
@@ -197,16 +197,30 @@ typedef struct {
     int has_interval, pad_;
 } cw_recorder;
 
-/* Tick points (Master.run_ticks): the watched outputs (the first a tick
- * time) recorded as rows (t, values...) wherever one changed, and the
- * next mark put `margin` after where the next tick is expected. */
+/* A run to marks (Master.run_marks, clockwork/engine/marks.py): the plan
+ * and its place, kept across calls. A row is (t, the n_out outputs, the
+ * n_prev outputs before the last step). */
 typedef struct {
+    double *times;                   /* n_times marks, s (follow rewrites times[0]) */
+    const int *sets;                 /* per mark: give the inputs values[k] */
+    const double *values;
+    const int *in_port;              /* n_in unconnected inputs: port, value reference */
+    const unsigned *in_vr;
+    const int *out_port, *out_pos;   /* n_out: a row's values at its point */
+    const int *prev_port, *prev_pos; /* n_prev: a row's values before the last step */
+    double *previous;                /* their values before the last step */
     const int *watch_port, *watch_pos;
-    double *seen;              /* the watched values at the last row */
-    double *rows;              /* capacity rows of (t, watched values) */
-    double mark, margin, period, last_tick, prev_tick;
-    int n_watch, capacity, n_rows, has_prev;
-} cw_ticks;
+    double *seen;                    /* the n_watch watched values at the last row */
+    double *rows;                    /* capacity rows */
+    double margin;                   /* the step once no mark lies ahead, s; <= 0: none */
+    double max_step, tolerance;      /* s; tolerance < 0: 1e-12 max(1, |t_stop|) */
+    double period, last_event, prev_event;  /* follow: the event times */
+    int n_times, next, n_in, n_out, n_prev, n_watch, capacity, n_rows;
+    int follow;                      /* the watched output whose events move the mark, or -1 */
+    int has_prev, record, stop_at_change;
+    int stopped;                     /* set where the run stopped at a change */
+    int pad_;
+} cw_marks;
 
 /* -- the FMI 3.0 adapter (cw_cs3.c) -------------------------------------- */
 

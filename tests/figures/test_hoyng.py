@@ -7,7 +7,6 @@ assertion. "Second order" means the size of the terms Hoyng's first-order
 computed per point by the analysis (clockwork.analyses.hoyng.common.second_order).
 """
 
-import functools
 import json
 import math
 import os
@@ -281,36 +280,50 @@ def test_fig6_replayed_twins_equal_cosimulated_twins():
     assert runs["replay"]["result"]["torque_changes"] >= 300
 
 
+@pytest.mark.parametrize("twins", ["replay", "cosimulate"])
 @pytest.mark.parametrize("engine", ["python", "compiled"])
-def test_fig6_tick_points_without_returns_are_the_same_bits(engine, monkeypatch):
-    """Master.run_ticks (the master steps from tick point to tick point and
-    hands the changed points over in batches) puts the same communication
-    points as the loop that returns to Python at each of them: the whole
-    result and series, bit for bit, with a batch boundary inside the run."""
+def test_fig6_tick_points_without_returns_are_the_same_bits(engine, twins, monkeypatch):
+    """The tick points as one run to marks that follows the ticks (the
+    master steps from tick point to tick point and hands the changed points
+    over in batches, here of 64 rows: batch boundaries inside the run) put
+    the same communication points as a loop that returns to Python at each
+    change and moves the mark there: the whole result and series, bit for
+    bit, with the twins replayed or co-simulated (their phases and rates in
+    the rows)."""
     from clockwork.analyses.hoyng import long_run as lr
-    from clockwork.engine.master import Master
+    from clockwork.analyses.hoyng import tick_points as tp
+    from clockwork.engine import marks as engine_marks
 
-    def returning(m, stop, watched, T0, on_rows, progress, label, margin=lr.TICK_MARGIN):
-        (P, i_tick), (E, i_amp) = watched
-        lr._run_with_tick_points(m, stop, P.out, i_tick, watched, [], T0,
-                                 lambda master, rates: on_rows([(master.t, P.out[i_tick], E.out[i_amp])]),
-                                 progress, label, margin)
+    def returning(m, stop, watched, T0, on_rows, progress, label, outputs=(), before=(), margin=tp.TICK_MARGIN):
+        port, i_tick = watched[0]
+        last, prev = port.out[i_tick], None
+        mark = m.t + T0 + margin
+        while m.t < stop - 1e-12 * max(1.0, abs(stop)):
+            marks = engine_marks.Marks([mark], watched=watched, outputs=[*watched, *outputs], before=before,
+                                       margin=margin, stop_at_change=True)
+            m.run_marks(stop, marks)
+            on_rows(marks.rows)
+            tt = port.out[i_tick]
+            if tt != last:
+                if last > 0:
+                    prev = last
+                last = tt
+                mark = tt + (tt - prev if prev is not None else T0) + margin
 
     scene = load_scene(SCENES / "hoyng_fig6.toml", [f"experiment.stop={periods(300)}",
                                                    f"escapement.noise_start={periods(100)}",
-                                                   f"master.engine={engine}", "analysis.sample_every=7"])
-    run_ticks = Master.run_ticks
-    # functools.wraps: the System's argument check reads run_ticks' own signature
-    monkeypatch.setattr(Master, "run_ticks",
-                        functools.wraps(run_ticks)(lambda *a, **k: run_ticks(*a, **{**k, "rows_per_call": 64})))
+                                                   f"master.engine={engine}", "analysis.sample_every=7",
+                                                   f'analysis.twins="{twins}"'])
+    monkeypatch.setattr(engine_marks, "ROWS_PER_CALL", 64)
+
     def timeless(x):
         if isinstance(x, dict):
             return {k: timeless(v) for k, v in x.items() if not any(w in k for w in ("wall", "cpu", "per_s"))}
         return x
 
     out = []
-    for loop in (lr._run_ticks, returning):
-        monkeypatch.setattr(lr, "_run_ticks", loop)
+    for loop in (tp.run_tick_points, returning):
+        monkeypatch.setattr(lr, "run_tick_points", loop)
         out.append(json.dumps(timeless(run_point(scene, {})), sort_keys=True, default=str))
     assert out[0] == out[1]
     assert json.loads(out[0])["result"]["torque_changes"] >= 200
@@ -341,10 +354,10 @@ def _replay_twins_step_by_step(twins, avgs, samples, change_t, change_v, progres
 
 
 @pytest.mark.parametrize("engine", ["python", "compiled"])
-def test_fig6_twins_replayed_by_run_schedule_are_the_same_bits(engine, monkeypatch):
-    """The twins' replay through Master.run_schedule (one call per chunk of
-    changes and samples, split here inside the run) gives the step-by-step
-    loop's phases bit for bit."""
+def test_fig6_twins_replayed_on_a_schedule_of_marks_are_the_same_bits(engine, monkeypatch):
+    """The twins' replay as a run to exact marks (tick_points.replay_schedule:
+    one call per chunk of changes and samples, split here inside the run)
+    gives the step-by-step loop's phases bit for bit."""
     from clockwork.analyses.hoyng import long_run as lr
 
     scene = load_scene(SCENES / "hoyng_fig6.toml", [f"experiment.stop={periods(300)}",

@@ -20,6 +20,7 @@ from ..context import build_system, experiment
 from ..registry import register
 from .common import TWO_PI, check_grasshopper_clock, grasshopper_clock, hoyng_components, linfit, subscene, \
     twin_values
+from .tick_points import replay_schedule, run_tick_points
 
 
 _KEYS = {"sample_every": keys.count(1, keys.MAX_COUNT), "stationary_start": keys.flag(),
@@ -105,9 +106,9 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
 
         # A twin's rate output already follows a drive set at this point (direct
         # feedthrough); over the step that ended here it ran at the rate seen
-        # at the previous point: the master remembers those.
+        # at the previous point: a row holds those.
         watched = [(P, i_tick), (E, i_amp)]
-        remember = [] if replay else [(m.ports[a], m.ports[a].out_names.index("rate")) for a in avgs]
+        n_twins = len(A)
 
         def _sample():
             tt, i, *phases = last_tick
@@ -119,15 +120,15 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
 
         last_tick: list = []
 
-        def on_rows(rows, rates=()):
-            """At each communication point of a batch, a row (t, tick time,
-            torque amplitude): the torque changes, the ticks and their noise;
-            `rates` are the co-simulated twins' rates at the point before (their
-            points come one row at a time). Kept in local variables over the
-            batch: run_ticks hands over a row per period."""
+        def on_rows(rows):
+            """At each communication point of a batch where the tick time or the
+            torque amplitude changed, a row (t, tick time, torque amplitude,
+            the co-simulated twins' phases at t..., their rates at the point
+            before...): the torque changes, the ticks and their noise. Kept in
+            local variables over the batch: there is a row per period."""
             tt_last, i, amp_last = state
             count, total, total2, head = noise["n"], noise["sum"], noise["sum2"], noise["head"]
-            for t, tt, amp in rows:
+            for t, tt, amp, *twin in rows:
                 if amp != amp_last:
                     amp_last = amp
                     change_t.append(t)
@@ -143,10 +144,10 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
                     total2 += d * d
                     if len(head) < 8:
                         head.append(d)
-                if A:  # the twins' phases at the tick: back from this point at the step's rate
-                    last_tick[:] = [tt, i] + [out[kp] - w0 * r * (t - tt) for (out, kp, _), r in zip(A, rates)]
+                if twin:  # the twins' phases at the tick: back from this point at the step's rate
+                    last_tick[:] = [tt, i] + [ph - w0 * r * (t - tt) for ph, r in zip(twin[:n_twins], twin[n_twins:])]
                 if i % every == 0 or i == 1:
-                    if not A:
+                    if not twin:
                         last_tick[:] = [tt, i]
                     _sample()
             state[:] = [tt_last, i, amp_last]
@@ -154,12 +155,11 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
             if i and not A:  # the last tick, for the closing sample
                 last_tick[:] = [tt_last, i]
 
-        if A:
-            _run_with_tick_points(m, stop, pout, i_tick, watched, remember, n["T0"],
-                                  lambda master, rates: on_rows([(master.t, pout[i_tick], eout[i_amp])], rates),
-                                  progress, scene.path.stem)
-        else:  # the same points, with no return to Python at each of them
-            _run_ticks(m, stop, watched, n["T0"], on_rows, progress, scene.path.stem)
+        # The same points whether the twins are co-simulated or not; the
+        # master returns to Python only with a batch of rows.
+        run_tick_points(m, stop, watched, n["T0"], on_rows, progress, scene.path.stem,
+                        outputs=[(m.ports[a], kp) for (_, kp, _), a in zip(A, avgs)],
+                        before=[(m.ports[a], kr) for (_, _, kr), a in zip(A, avgs)])
         if state[1] % every and state[1] > 1:
             _sample()
         stats = vars(m.stats).copy()
@@ -220,10 +220,7 @@ def hoyng_long_run(scene, point: dict, progress: bool = False) -> dict:
 def _replay_twins(twins, avgs, samples, change_t, change_v, progress, label, chunk: int = 1 << 16) -> None:
     """Step the AveragedPendulum twins through the recorded torque changes,
     reading their phases at the sampled tick times (a sample before the
-    change seen at the point after it): the master's run_schedule, in
-    chunks between which the progress bar moves."""
-    from tqdm import tqdm
-
+    change seen at the point after it): tick_points.replay_schedule."""
     m = twins.master
     inputs = [(twins.instances[a], twins.instances[a].variables["drive"].vr) for a in avgs]
     outputs = [(m.ports[a], m.ports[a].out_names.index("phase")) for a in avgs]
@@ -235,75 +232,6 @@ def _replay_twins(twins, avgs, samples, change_t, change_v, progress, label, chu
                              else np.zeros(0)])
     order = np.lexsort((sets, times))  # by time; on a tie the sample first
     times, sets, values = times[order].tolist(), sets[order].tolist(), values[order].tolist()
-    phases: list[float] = []
-    with tqdm(total=len(times), disable=not progress, delay=1.0, desc=label, unit="event") as bar:
-        for k in range(0, len(times), chunk):
-            m.run_schedule(times[k:k + chunk], sets[k:k + chunk], values[k:k + chunk], inputs, outputs, phases)
-            bar.update(min(chunk, len(times) - k))
-    for col, a in enumerate(avgs):
-        samples[f"psi_{a}"].extend(phases[col::len(avgs)])
-
-
-TICK_MARGIN = 2e-3  # s: a communication point this long after each expected tick
-
-
-def _run_ticks(m, stop, watched, T0, on_rows, progress, label, margin=TICK_MARGIN) -> None:
-    """_run_with_tick_points for twins that are not co-simulated: the
-    master's run_ticks puts the same communication points (the first
-    watched output is the tick time) and hands over in batches the points
-    where a watched output changed: ``on_rows(rows)``, each row (t, tick
-    time, torque amplitude)."""
-    from tqdm import tqdm
-
-    with tqdm(total=stop - m.t, disable=not progress, delay=1.0, desc=label, unit="s sim",
-              bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]") as bar:
-        t_bar = [m.t]
-
-        def on_batch(rows):
-            on_rows(rows)
-            bar.update(rows[-1][0] - t_bar[0])
-            t_bar[0] = rows[-1][0]
-
-        m.run_ticks(stop, m.t + T0 + margin, margin, watched, T0, on_batch)
-        bar.update(m.t - t_bar[0])
-
-
-def _run_with_tick_points(m, stop, pout, i_tick, watched, remember, T0, on_point, progress, label,
-                          margin=TICK_MARGIN) -> None:
-    """Run to `stop` with a communication point `margin` s after each upward zero crossing.
-
-    The escapement renews its torque noise at the first communication point
-    after a crossing; Hoyng renews it at the crossing. With the master's
-    large steps the renewal would lag by up to a fifth of a period, and the
-    phase at which the torque changes would then feed a systematic phase
-    drift of the pendulum against the averaged model (1e-7 at a 1.26 s
-    lag). So the next crossing is predicted from the last tick period
-    (torque noise moves it by ~6e-4 s) and a point is put just after it;
-    when the crossing comes late, short steps of `margin` follow until it
-    is seen. The lag is then below ~2 margin (Hoyng's grid: dt = 0.03).
-
-    The master steps until a `watched` output changes (the tick, the
-    torque amplitude): ``on_point(master, rates)`` runs there, with the
-    `remember` outputs at the point before.
-    """
-    from tqdm import tqdm
-
-    eps_t = 1e-12 * max(1.0, abs(stop))
-    last_tick = pout[i_tick]
-    prev_tick = None
-    mark = m.t + T0 + margin  # stationary start at phi = 0: first crossing near T0
-    with tqdm(total=stop - m.t, disable=not progress, delay=1.0, desc=label, unit="s sim",
-              bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]") as bar:
-        t_bar = m.t
-        while m.t < stop - eps_t:
-            on_point(m, m.run_watch(stop, mark, margin, watched, remember))
-            tt = pout[i_tick]
-            if tt != last_tick:
-                if last_tick > 0:
-                    prev_tick = last_tick
-                last_tick = tt
-                period = tt - prev_tick if prev_tick is not None else T0
-                mark = tt + period + margin
-            if m.t - t_bar > 1e-3 * (stop - t_bar) or m.t >= stop - eps_t:
-                bar.update(m.t - t_bar)
-                t_bar = m.t
+    rows = replay_schedule(m, times, sets, values, inputs, outputs, progress, label, chunk)
+    for col, a in enumerate(avgs, start=1):
+        samples[f"psi_{a}"].extend(row[col] for row in rows)
