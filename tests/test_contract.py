@@ -72,6 +72,22 @@ def test_the_masters_modules_never_ask_the_version_or_the_interface():
     assert problems == []
 
 
+def test_the_compiled_master_never_asks_the_version():
+    """The C master (src_c/master) calls every FMU through pointers its face
+    hands over (the ports', the adapters' cw1_*/cw3_*, cw_me.c's table of
+    version-shaped calls): no field or variable names a version in its code
+    (comments aside; the FMI functions fmi*GetVersion are the FMU's own
+    names)."""
+    import re
+
+    found = []
+    for path in sorted((ROOT / "src_c" / "master").glob("*.[ch]")):
+        code = re.sub(r"/\*.*?\*/", "", path.read_text(), flags=re.S)
+        code = re.sub(r"//[^\n]*", "", code)
+        found += [f"{path.name}: {m.group(0)}" for m in re.finditer(r"\b[a-z_0-9]*version[a-z_0-9]*\b", code)]
+    assert found == []
+
+
 def test_the_check_finds_what_it_looks_for(tmp_path):
     """The structural check itself: each kind of question it must refuse."""
     bad = tmp_path / "clockwork" / "engine" / "bad.py"

@@ -57,7 +57,6 @@ class _GroupNames:
     def __init__(self, face):
         self.CALL_NAMES = dict(face.CALL_NAMES, doStep="the Model Exchange group's step")
         self.NAMES = face.NAMES
-        self.version = 0
 
 
 class _Conn:
@@ -205,7 +204,7 @@ class MEGroup(MEInstance):
         self._state_vr = (c_uint * max(1, n))(*state_vr)
         self._der_state = (c_int * max(1, n))(*der_state)
         self._saved = doubles(n + nz + 4 * n_in)
-        self.me = _ME(version=0, n=n, nz=nz, n_in=n_in, solver=SOLVERS[self.options.solver],
+        self.me = _ME(n=n, nz=nz, n_in=n_in, solver=SOLVERS[self.options.solver],
                       event_time_tolerance=float(self.options.event_time_tolerance),
                       needs_completed=int(self._needs_completed))
         for k, (_, start) in enumerate(inputs):

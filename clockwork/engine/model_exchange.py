@@ -77,7 +77,7 @@ class _ME(Structure):
     _fields_ = [(n, c_void_p) for n in (
         "instance", "setTime", "setStates", "getDerivatives", "getIndicators", "getStates", "getNominals",
         "completedStep", "enterEventMode", "update", "enterContinuousMode", "getReal", "setReal",
-        "getState", "setState", "sundials", "rk",
+        "getState", "setState", "calls", "sundials", "rk",
         "x", "xbuf", "xw", "xd", "dx", "nominal", "atolv", "z_prev", "z", "z_end", "z_lo", "z0",
         "in_vr", "u0", "d1", "d2", "tref", "in_val", "state_vr", "der_state", "saved",
         "cv_mem", "cv_ctx", "cv_y", "cv_abstol", "cv_dky", "cv_A", "cv_LS")] + [
@@ -86,10 +86,10 @@ class _ME(Structure):
             "saved_time", "saved_next_event_time", "saved_end_time", "saved_h_next")] + [
         (n, c_longlong) for n in STATS] + [
         (n, c_int) for n in (
-            "version", "n", "nz", "n_in", "solver", "method", "stiff_count", "nonstiff_count", "terminated",
+            "n", "nz", "n_in", "solver", "method", "stiff_count", "nonstiff_count", "terminated",
             "mode", "poly", "inputs_dirty", "restart", "cv_owner", "failed_call", "failed_status",
             "failed_detail", "needs_completed", "saved_method", "saved_stiff_count", "saved_nonstiff_count",
-            "saved_terminated", "saved_poly", "saved_mode")]
+            "saved_terminated", "saved_poly", "saved_mode", "pad4_")]
 
 
 class MEInstance(ModelExchangeSteps, Instance):
@@ -151,7 +151,7 @@ class MEInstance(ModelExchangeSteps, Instance):
         self._state_vr = (c_uint * max(1, n))(*state_vr)
         self._der_state = (c_int * max(1, n))(*der_state)
         self._saved = doubles(n + nz + 4 * n_in)
-        me = self.me = _ME(version=face.version, n=n, nz=nz, n_in=n_in,
+        me = self.me = _ME(n=n, nz=nz, n_in=n_in,
                            solver=SOLVERS[self.options.solver],
                            event_time_tolerance=float(self.options.event_time_tolerance),
                            needs_completed=int(self._needs_completed))
@@ -466,6 +466,8 @@ class MEInstance(ModelExchangeSteps, Instance):
                                       f"the Python engine's {MAX_RK_STATES}: rebuild it with tools/setup.sh")
             self._core = (c_char * lib.cwme_sizeof_rk())()
             self.me.rk = ctypes.addressof(self._core)
+            # how the core calls this FMU's version-shaped functions: the table its face names
+            self.me.calls = ctypes.addressof(c_char.in_dll(lib, self.face.CORE_CALLS_TABLE))
             sun = cvode.sundials()
             if sun is not None:
                 self.me.sundials = ctypes.addressof(sun.table)

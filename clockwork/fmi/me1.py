@@ -83,7 +83,7 @@ NO_SET_STATE = _SET_STATE(lambda comp, state: ERROR)
 class ModelExchange1:
     """The FMI 1.0 Model Exchange functions of one instance (see the module's docstring)."""
 
-    version = 1  # the wrapper's struct says it: cw_me.c calls FMI 1.0's shapes of update and completedStep
+    CORE_CALLS_TABLE = "cwme_calls_fmi1"  # cw_me.c's table of this version's calls whose shape differs
     CALL_NAMES = {"doStep": "the Model Exchange step", "getReal": "fmiGetReal", "setReal": "fmiSetReal",
                   "getInteger": "fmiGetInteger", "getBoolean": "fmiGetBoolean", "getString": "fmiGetString",
                   "setValues": "fmiSet*", "setInputDerivatives": "input derivatives of the Model Exchange wrapper",

@@ -25,7 +25,7 @@ from .calls import declared, new_slave
 class ModelExchange2:
     """The fmi2 Model Exchange functions of one instance (see the module's docstring)."""
 
-    version = 2  # the wrapper's struct says it: cw_me.c calls fmi2's shapes of update and completedStep
+    CORE_CALLS_TABLE = "cwme_calls_fmi2"  # cw_me.c's table of this version's calls whose shape differs
     # The contract's calls, named as the wrapper does them (contract.Instance.named).
     CALL_NAMES = {"doStep": "the Model Exchange step", "getReal": "fmi2GetReal", "setReal": "fmi2SetReal",
                   "getInteger": "fmi2GetInteger", "getBoolean": "fmi2GetBoolean", "getString": "fmi2GetString",

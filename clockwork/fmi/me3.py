@@ -27,7 +27,7 @@ from .values3 import Values3
 class ModelExchange3:
     """The fmi3 Model Exchange functions of one instance (see the module's docstring)."""
 
-    version = 3  # the wrapper's struct says it: cw_me.c calls fmi3's shapes of update and completedStep
+    CORE_CALLS_TABLE = "cwme_calls_fmi3"  # cw_me.c's table of this version's calls whose shape differs
     CALL_NAMES = {"doStep": "the Model Exchange step", "getReal": "fmi3GetFloat64", "setReal": "fmi3SetFloat64",
                   "getInteger": "fmi3GetInt32", "getBoolean": "fmi3GetBoolean", "getString": "fmi3GetString",
                   "setValues": "fmi3Set*", "setInputDerivatives": "input derivatives of the Model Exchange wrapper",

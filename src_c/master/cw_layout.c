@@ -159,7 +159,8 @@ static const cw_field me_layout[] = {
     CW_FIELD(cw_me, getDerivatives), CW_FIELD(cw_me, getIndicators), CW_FIELD(cw_me, getStates),
     CW_FIELD(cw_me, getNominals), CW_FIELD(cw_me, completedStep), CW_FIELD(cw_me, enterEventMode),
     CW_FIELD(cw_me, update), CW_FIELD(cw_me, enterContinuousMode), CW_FIELD(cw_me, getReal),
-    CW_FIELD(cw_me, setReal), CW_FIELD(cw_me, getState), CW_FIELD(cw_me, setState), CW_FIELD(cw_me, sundials),
+    CW_FIELD(cw_me, setReal), CW_FIELD(cw_me, getState), CW_FIELD(cw_me, setState), CW_FIELD(cw_me, calls),
+    CW_FIELD(cw_me, sundials),
     CW_FIELD(cw_me, rk), CW_FIELD(cw_me, x), CW_FIELD(cw_me, xbuf), CW_FIELD(cw_me, xw), CW_FIELD(cw_me, xd),
     CW_FIELD(cw_me, dx), CW_FIELD(cw_me, nominal), CW_FIELD(cw_me, atolv), CW_FIELD(cw_me, z_prev),
     CW_FIELD(cw_me, z), CW_FIELD(cw_me, z_end), CW_FIELD(cw_me, z_lo), CW_FIELD(cw_me, z0),
@@ -173,14 +174,14 @@ static const cw_field me_layout[] = {
     CW_FIELD(cw_me, saved_h_next), CW_FIELD(cw_me, steps), CW_FIELD(cw_me, rejected),
     CW_FIELD(cw_me, rhs), CW_FIELD(cw_me, state_events), CW_FIELD(cw_me, time_events),
     CW_FIELD(cw_me, step_events), CW_FIELD(cw_me, input_events), CW_FIELD(cw_me, event_iterations),
-    CW_FIELD(cw_me, switches), CW_FIELD(cw_me, version), CW_FIELD(cw_me, n), CW_FIELD(cw_me, nz),
+    CW_FIELD(cw_me, switches), CW_FIELD(cw_me, n), CW_FIELD(cw_me, nz),
     CW_FIELD(cw_me, n_in), CW_FIELD(cw_me, solver), CW_FIELD(cw_me, method), CW_FIELD(cw_me, stiff_count),
     CW_FIELD(cw_me, nonstiff_count), CW_FIELD(cw_me, terminated), CW_FIELD(cw_me, mode),
     CW_FIELD(cw_me, poly), CW_FIELD(cw_me, inputs_dirty), CW_FIELD(cw_me, restart), CW_FIELD(cw_me, cv_owner),
     CW_FIELD(cw_me, failed_call), CW_FIELD(cw_me, failed_status), CW_FIELD(cw_me, failed_detail),
     CW_FIELD(cw_me, needs_completed), CW_FIELD(cw_me, saved_method), CW_FIELD(cw_me, saved_stiff_count),
     CW_FIELD(cw_me, saved_nonstiff_count), CW_FIELD(cw_me, saved_terminated), CW_FIELD(cw_me, saved_poly),
-    CW_FIELD(cw_me, saved_mode),
+    CW_FIELD(cw_me, saved_mode), CW_FIELD(cw_me, pad4_),
 };
 
 CW_EXPORT const cw_field *cwme_layout(const char *name, size_t *n_fields, size_t *struct_size)

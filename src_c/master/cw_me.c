@@ -87,66 +87,116 @@ typedef struct {
 typedef int (*completed1_t)(void *, char *);
 typedef int (*update1_t)(void *, char, event_info1 *);
 
+/* One function per version for each call whose shape differs, gathered in
+ * a table per version (cwme_calls_fmi1/2/3). The Model Exchange face names
+ * its table and Python puts its address in cw_me.calls, so the wrapper
+ * calls through it and never asks which version an FMU is. */
+typedef struct {
+    int (*get_real)(cw_me *me, const unsigned *vr, size_t n, double *out);
+    int (*set_real)(cw_me *me, const unsigned *vr, size_t n, const double *values);
+    int (*completed)(cw_me *me, int *enter, int *terminate);
+    int (*update)(cw_me *me, event_info2 *info);
+} cw_me_calls;
+
+static int get_real2(cw_me *me, const unsigned *vr, size_t n, double *out)
+{
+    return ((get_real2_t)me->getReal)(me->instance, vr, n, out);
+}
+
+static int get_real3(cw_me *me, const unsigned *vr, size_t n, double *out)
+{
+    return ((get_real3_t)me->getReal)(me->instance, vr, n, out, n);
+}
+
+static int set_real2(cw_me *me, const unsigned *vr, size_t n, const double *values)
+{
+    return ((set_real2_t)me->setReal)(me->instance, vr, n, values);
+}
+
+static int set_real3(cw_me *me, const unsigned *vr, size_t n, const double *values)
+{
+    return ((set_real3_t)me->setReal)(me->instance, vr, n, values, n);
+}
+
+static int completed1(cw_me *me, int *enter, int *terminate)
+{
+    char call_update = 0;
+    int st = ((completed1_t)me->completedStep)(me->instance, &call_update);
+    *enter = call_update != 0;
+    *terminate = 0; /* FMI 1.0 ends the simulation in fmiEventUpdate only */
+    return st;
+}
+
+static int completed2(cw_me *me, int *enter, int *terminate)
+{
+    return ((completed2_t)me->completedStep)(me->instance, 0, enter, terminate);
+}
+
+static int completed3(cw_me *me, int *enter, int *terminate)
+{
+    bool e = false, t = false;
+    int st = ((completed3_t)me->completedStep)(me->instance, false, &e, &t);
+    *enter = e;
+    *terminate = t;
+    return st;
+}
+
+static int update1(cw_me *me, event_info2 *info)
+{
+    /* Until the discrete states settle (intermediateResults false); new
+     * state references mean new states: read them and their nominals. */
+    event_info1 e = {0};
+    int st = ((update1_t)me->update)(me->instance, 0, &e);
+    info->need = !e.converged;
+    info->terminate = e.terminate != 0;
+    info->nominals = e.references_changed != 0;
+    info->values = e.values_changed != 0 || e.references_changed != 0;
+    info->defined = e.upcoming != 0;
+    info->next_time = e.next_time;
+    return st;
+}
+
+static int update2(cw_me *me, event_info2 *info)
+{
+    return ((update2_t)me->update)(me->instance, info);
+}
+
+static int update3(cw_me *me, event_info2 *info)
+{
+    bool need = false, term = false, nominals = false, values = false, defined = false;
+    int st = ((update3_t)me->update)(me->instance, &need, &term, &nominals, &values, &defined, &info->next_time);
+    info->need = need;
+    info->terminate = term;
+    info->nominals = nominals;
+    info->values = values;
+    info->defined = defined;
+    return st;
+}
+
+CW_EXPORT const cw_me_calls cwme_calls_fmi1 = {get_real2, set_real2, completed1, update1};
+CW_EXPORT const cw_me_calls cwme_calls_fmi2 = {get_real2, set_real2, completed2, update2};
+CW_EXPORT const cw_me_calls cwme_calls_fmi3 = {get_real3, set_real3, completed3, update3};
+
+#define CALLS(me) ((const cw_me_calls *)(me)->calls)
+
 static int fmu_get_real(cw_me *me, const unsigned *vr, size_t n, double *out)
 {
-    if (me->version == 3)
-        return ((get_real3_t)me->getReal)(me->instance, vr, n, out, n);
-    return ((get_real2_t)me->getReal)(me->instance, vr, n, out);
+    return CALLS(me)->get_real(me, vr, n, out);
 }
 
 static int fmu_set_real(cw_me *me, const unsigned *vr, size_t n, const double *values)
 {
-    if (me->version == 3)
-        return ((set_real3_t)me->setReal)(me->instance, vr, n, values, n);
-    return ((set_real2_t)me->setReal)(me->instance, vr, n, values);
+    return CALLS(me)->set_real(me, vr, n, values);
 }
 
 static int fmu_completed(cw_me *me, int *enter, int *terminate)
 {
-    if (me->version == 3) {
-        bool e = false, t = false;
-        int st = ((completed3_t)me->completedStep)(me->instance, false, &e, &t);
-        *enter = e;
-        *terminate = t;
-        return st;
-    }
-    if (me->version == 1) {
-        char call_update = 0;
-        int st = ((completed1_t)me->completedStep)(me->instance, &call_update);
-        *enter = call_update != 0;
-        *terminate = 0; /* FMI 1.0 ends the simulation in fmiEventUpdate only */
-        return st;
-    }
-    return ((completed2_t)me->completedStep)(me->instance, 0, enter, terminate);
+    return CALLS(me)->completed(me, enter, terminate);
 }
 
 static int fmu_update(cw_me *me, event_info2 *info)
 {
-    if (me->version == 3) {
-        bool need = false, term = false, nominals = false, values = false, defined = false;
-        int st = ((update3_t)me->update)(me->instance, &need, &term, &nominals, &values, &defined,
-                                         &info->next_time);
-        info->need = need;
-        info->terminate = term;
-        info->nominals = nominals;
-        info->values = values;
-        info->defined = defined;
-        return st;
-    }
-    if (me->version == 1) {
-        /* Until the discrete states settle (intermediateResults false); new
-         * state references mean new states: read them and their nominals. */
-        event_info1 e = {0};
-        int st = ((update1_t)me->update)(me->instance, 0, &e);
-        info->need = !e.converged;
-        info->terminate = e.terminate != 0;
-        info->nominals = e.references_changed != 0;
-        info->values = e.values_changed != 0 || e.references_changed != 0;
-        info->defined = e.upcoming != 0;
-        info->next_time = e.next_time;
-        return st;
-    }
-    return ((update2_t)me->update)(me->instance, info);
+    return CALLS(me)->update(me, info);
 }
 
 #define FMU(me, name, type) ((type)(me)->name)

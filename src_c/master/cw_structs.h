@@ -345,9 +345,11 @@ typedef struct {
 /* The wrapper's state (model_exchange._ME, same layout). */
 typedef struct {
     void *instance;
-    /* the FMU's functions, FMI 1.0's, 2.0's or 3.0's by `version` */
+    /* the FMU's functions, and how to call those whose shape differs by
+     * version (cw_me.c's cw_me_calls: the table its face names) */
     void *setTime, *setStates, *getDerivatives, *getIndicators, *getStates, *getNominals, *completedStep,
         *enterEventMode, *update, *enterContinuousMode, *getReal, *setReal, *getState, *setState;
+    const void *calls;
     const cw_sundials *sundials;
     cw_rk *rk;
     double *x, *xbuf, *xw, *xd, *dx, *nominal, *atolv;  /* states, scratch, nominals, tolerances */
@@ -362,9 +364,10 @@ typedef struct {
     double saved_time, saved_next_event_time, saved_end_time, saved_h_next;
     long long steps, rejected, rhs, state_events, time_events, step_events, input_events, event_iterations,
         switches;
-    int version, n, nz, n_in, solver, method, stiff_count, nonstiff_count, terminated, mode, poly,
+    int n, nz, n_in, solver, method, stiff_count, nonstiff_count, terminated, mode, poly,
         inputs_dirty, restart, cv_owner, failed_call, failed_status, failed_detail, needs_completed,
-        saved_method, saved_stiff_count, saved_nonstiff_count, saved_terminated, saved_poly, saved_mode;
+        saved_method, saved_stiff_count, saved_nonstiff_count, saved_terminated, saved_poly, saved_mode,
+        pad4_;  /* explicit: every byte is a field */
 } cw_me;
 
 #endif
