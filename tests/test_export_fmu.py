@@ -494,3 +494,61 @@ def test_ssp_with_a_linear_transformation(tmp_path):
     scene = load_scene(ssd, sets)
     assert any(c.factor != 1.0 for c in scene.connections)
     assert _compare(ssd, out, sets) == 501
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_outputs_in_initialization_mode_are_the_initial_values(tmp_path, fmi):
+    """FMI 2.0 and 3.0 let an importer read an output in Initialization
+    Mode (its initial value: how a master propagates start values through
+    connections). The exported FMU gives the inner FMUs' initial outputs
+    there (the pendulum released from 10 deg, its acceleration -g/L sin),
+    follows an input set after such a read (a torque: the acceleration
+    moves at once), and steps on to the same bits as an importer that never
+    read in Initialization Mode (before: 0 until its end)."""
+    import math
+
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+    from fmpy.fmi3 import FMU3Slave
+
+    out = tmp_path / "free.fmu"
+    export_fmu(REPO / "clockwork/kit/scenes/free_pendulum.toml", out, overrides=["experiment.stop=1"], fmi=fmi)
+    md = read_model_description(str(out))
+    unzip = extract(str(out))
+    names = {v.name: v.valueReference for v in md.modelVariables}
+    phi, a, torque = names["pendulum.phi"], names["pendulum.a"], names["pendulum.tau_external"]
+
+    def run(read_in_init: bool):
+        kind = FMU2Slave if fmi == 2 else FMU3Slave
+        key = {"guid": md.guid} if fmi == 2 else {"guid": md.instantiationToken}
+        s = kind(unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="f", **key)
+        get = s.getReal if fmi == 2 else s.getFloat64
+        put = s.setReal if fmi == 2 else s.setFloat64
+        s.instantiate()
+        if fmi == 2:
+            s.setupExperiment(startTime=0.0)
+            s.enterInitializationMode()
+        else:
+            s.enterInitializationMode(startTime=0.0)
+        seen = []
+        if read_in_init:
+            seen.append(tuple(get([phi, a])))
+        put([torque], [0.5])
+        if read_in_init:
+            seen.append(tuple(get([phi, a])))
+        s.exitInitializationMode()
+        rows = [tuple(get([phi, a]))]
+        for k in range(50):
+            s.doStep(k * 0.01, 0.01)
+            rows.append(tuple(get([phi, a])))
+        s.terminate()
+        s.freeInstance()
+        return seen, rows
+
+    seen, rows = run(True)
+    phi0 = math.radians(10.0)
+    assert seen[0][0] == pytest.approx(phi0, rel=1e-15)
+    assert seen[0][1] == pytest.approx(-9.81 * math.sin(phi0), rel=1e-12)
+    assert seen[1][0] == seen[0][0] and seen[1][1] > seen[0][1]  # the torque's acceleration at once
+    assert rows[0] == seen[1]
+    assert rows == run(False)[1]

@@ -126,6 +126,8 @@ typedef struct {
     int logging;
     int early_return;   /* FMI 3.0: the importer allows a return at the first located event */
     int mode;
+    int inner_init;  /* the inner FMUs are in Initialization Mode (an output was read in it) */
+    int pending;     /* a variable set since they entered it */
     char *guid;
     int n_fmus, n_inst, n_order, n_vars, n_items;
     cw_inner_fmu *fmus;
@@ -795,7 +797,13 @@ static int diverged(cw_system *s, double t)
     return 0;  /* a sum of large but legal outputs */
 }
 
-static int initialize(cw_system *s)
+/* The inner FMUs into Initialization Mode as Master.initialize takes them
+ * there: setup, the parameters in the scene's order, inputs set so far,
+ * then two sweeps of the evaluation order settle feedthrough chains. Done
+ * at the end of the front's Initialization Mode, or earlier when the
+ * importer reads an output in it (FMI 2.0 allows that: the outputs'
+ * initial values). */
+static int enter_inner(cw_system *s)
 {
     for (int i = 0; i < s->n_inst; i++) {
         cw_instance *in = &s->inst[i];
@@ -805,10 +813,11 @@ static int initialize(cw_system *s)
             return 0;
         for (int k = 0; k < s->n_vars; k++) {
             cw_var *v = &s->vars[k];
-            if (v->inst == i && (v->role == 'p' || (v->role == 'i' && v->set)) && !set_var(s, v))
+            if (v->inst != i)
+                continue;
+            if ((v->role == 'p' || (v->role == 'i' && v->set)) && !set_var(s, v))
                 return 0;
-            if (v->role == 'i')
-                v->set = 0;
+            v->set = 0;
         }
         if (!check(s, i, f->enterInit(in->comp), "fmi2EnterInitializationMode"))
             return 0;
@@ -817,11 +826,43 @@ static int initialize(cw_system *s)
         s->inst[i].state = NULL;  /* freed by fmi2Reset */
     if (!build_master(s))
         return 0;
-    /* Two sweeps in Initialization Mode settle feedthrough chains (Master.initialize). */
     for (int sweep = 0; sweep < 2; sweep++)
         for (int a = 0; a < s->n_order; a++)
             if (!port_pull(s, s->order[a]))
                 return 0;
+    s->inner_init = 1;
+    s->pending = 0;
+    return 1;
+}
+
+/* Variables the importer set after the inner FMUs entered Initialization
+ * Mode: set on them, and the outputs settled again. */
+static int apply_pending(cw_system *s)
+{
+    if (!s->pending)
+        return 1;
+    for (int k = 0; k < s->n_vars; k++) {
+        cw_var *v = &s->vars[k];
+        if ((v->role == 'p' || v->role == 'i') && v->set) {
+            if (!set_var(s, v))
+                return 0;
+            v->set = 0;
+        }
+    }
+    s->pending = 0;
+    for (int sweep = 0; sweep < 2; sweep++)
+        for (int a = 0; a < s->n_order; a++)
+            if (!port_pull(s, s->order[a]))
+                return 0;
+    return 1;
+}
+
+static int initialize(cw_system *s)
+{
+    if (!s->inner_init && !enter_inner(s))
+        return 0;
+    if (!apply_pending(s))
+        return 0;
     for (int i = 0; i < s->n_inst; i++)
         if (!check(s, i, s->fmus[s->inst[i].fmu].exitInit(s->inst[i].comp), "fmi2ExitInitializationMode"))
             return 0;
@@ -1089,6 +1130,7 @@ fmi2Status fmi2Reset(fmi2Component c)
         s->vars[k].value = s->vars[k].start;
         s->vars[k].set = 0;
     }
+    s->inner_init = s->pending = 0;
     s->mode = MODE_INSTANTIATED;
     return fmi2OK;
 }
@@ -1098,6 +1140,17 @@ static cw_var *var_of(cw_system *s, fmi2ValueReference vr, char type)
     if (vr < (unsigned)s->n_vars && s->vars[vr].vr == vr && s->vars[vr].type == type)
         return &s->vars[vr];  /* the exporter numbers the variables 0, 1, ... in order */
     return NULL;
+}
+
+/* In Initialization Mode an output's value is the inner FMUs' initial one:
+ * they enter Initialization Mode on the first such read. 0: failed. */
+static int ready_to_read(cw_system *s, cw_var *v)
+{
+    if (s->mode != MODE_INIT || v->role != 'o')
+        return 1;
+    if (!s->inner_init && !enter_inner(s))
+        return 0;
+    return apply_pending(s);
 }
 
 static double value_of(cw_system *s, cw_var *v)
@@ -1118,6 +1171,10 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
         cw_var *v = var_of(s, vr[k], 'R');
         if (!v) {
             say(s, fmi2Error, "fmi2GetReal: no Real variable with value reference %u", vr[k]);
+            return fmi2Error;
+        }
+        if (!ready_to_read(s, v)) {
+            s->mode = MODE_ERROR;
             return fmi2Error;
         }
         value[k] = value_of(s, v);
@@ -1176,6 +1233,8 @@ static fmi2Status set_value(cw_system *s, fmi2ValueReference vr, char type, doub
         return fmi2OK;  /* the same value again: nothing changed */
     v->value = x;
     v->set = 1;
+    if (s->mode == MODE_INIT && s->inner_init)
+        s->pending = 1;
     return fmi2OK;
 }
 
