@@ -14,6 +14,8 @@ import threading
 from ctypes import CFUNCTYPE, POINTER, byref, c_char_p, c_int, c_size_t, c_void_p
 from pathlib import Path
 
+from fmpy import calloc, free
+from fmpy.fmi1 import fmi1CallbackAllocateMemoryTYPE, fmi1CallbackFreeMemoryTYPE, fmi1CallbackLoggerTYPE
 from fmpy.fmi2 import fmi2CallbackLoggerTYPE
 
 from .. import watchdog
@@ -234,3 +236,28 @@ def declared(dll, name: str, argtypes: tuple):
 
 
 # The variables as the master sees them, one table per model description
+
+
+# FMI 1.0's logger: (component, instance name, status, category, message),
+# the strings as addresses read by read_string.
+FMI1_LOGGER = CFUNCTYPE(None, c_void_p, c_void_p, c_int, c_void_p, c_void_p)
+
+
+def fmi1_callbacks(struct_type, messages: list):
+    """An FMI 1.0 callbacks struct of `struct_type` (Co-Simulation's has
+    stepFinished, Model Exchange's not) whose logger keeps the last 50
+    (status, text) in `messages`, calloc and free; and the logger, which
+    the caller keeps alive as long as the instance."""
+    def keep(component, instance, status, category, message):
+        # Addresses, read without trusting them (the arguments of the
+        # format are out of ctypes' reach: FMI 1.0 gives no environment
+        # through which the core's formatting logger could route them).
+        messages.append((status, read_string(message)))
+        del messages[:-50]
+
+    logger = FMI1_LOGGER(keep)
+    callbacks = struct_type()
+    callbacks.logger = ctypes.cast(logger, fmi1CallbackLoggerTYPE)
+    callbacks.allocateMemory = ctypes.cast(calloc, fmi1CallbackAllocateMemoryTYPE)
+    callbacks.freeMemory = ctypes.cast(free, fmi1CallbackFreeMemoryTYPE)
+    return callbacks, logger

@@ -43,22 +43,17 @@ from __future__ import annotations
 
 import copy
 import ctypes
-from ctypes import (CFUNCTYPE, POINTER, Structure, c_char, c_char_p, c_double, c_int, c_longlong, c_size_t, c_uint,
+from ctypes import (POINTER, Structure, c_char, c_char_p, c_double, c_int, c_longlong, c_size_t, c_uint,
                     c_void_p)
 from pathlib import Path
 
-from fmpy import calloc, free
-from fmpy.fmi1 import (FMU1Slave, fmi1CallbackAllocateMemoryTYPE, fmi1CallbackFreeMemoryTYPE,
-                       fmi1CallbackFunctions, fmi1CallbackLoggerTYPE)
+from fmpy.fmi1 import (FMU1Slave, fmi1CallbackFunctions)
 
 from ..errors import ParametersRefused, SceneError, SimulationError
 from .description import fmi1_details, read_fmu
 from .archive import extract
-from .calls import ERROR, OK, WARNING, read_string
+from .calls import ERROR, OK, WARNING, fmi1_callbacks
 from .contract import CORE_CALLS, Instance
-
-# fmi1CallbackLogger with the strings as addresses, read by read_string.
-_LOGGER = CFUNCTYPE(None, c_void_p, c_void_p, c_int, c_void_p, c_void_p)
 
 PENDING = 5  # fmiPending: an asynchronous step
 TRUE, FALSE = b"\x01", b"\x00"  # fmiBoolean (a char)
@@ -144,20 +139,8 @@ class Instance1(Instance):
                                     instanceName=self.name)
         except Exception as e:  # fmpy raises a bare Exception for a bad library, AttributeError for a missing symbol
             raise SceneError(f"{self.path}: cannot load the FMU's binary for this platform: {e}") from None
-        messages = self.messages
-
-        def keep(component, instance, status, category, message):
-            # Addresses, read without trusting them (the arguments of the
-            # format are out of ctypes' reach: FMI 1.0 gives no environment
-            # through which the core's formatting logger could route them).
-            messages.append((status, read_string(message)))
-            del messages[:-50]
-
-        callbacks = self._callbacks = fmi1CallbackFunctions()
-        self._logger = _LOGGER(keep)  # kept from GC
-        callbacks.logger = ctypes.cast(self._logger, fmi1CallbackLoggerTYPE)
-        callbacks.allocateMemory = ctypes.cast(calloc, fmi1CallbackAllocateMemoryTYPE)
-        callbacks.freeMemory = ctypes.cast(free, fmi1CallbackFreeMemoryTYPE)
+        callbacks, self._logger = fmi1_callbacks(fmi1CallbackFunctions, self.messages)  # the logger kept from GC
+        self._callbacks = callbacks
         callbacks.stepFinished = None  # synchronous steps
         instantiate = self._slave.dll[f"{ident}_fmiInstantiateSlave"]
         instantiate.argtypes = [c_char_p, c_char_p, c_char_p, c_char_p, c_double, c_char, c_char,

@@ -37,16 +37,13 @@ gives the wrapper its FMI 2.0-shaped algorithm anyway:
 
 from __future__ import annotations
 
-import ctypes
 from ctypes import CFUNCTYPE, POINTER, Structure, byref, c_char, c_char_p, c_double, c_int, c_size_t, c_uint, c_void_p
 
-from fmpy import calloc, free
 from fmpy.fmi1 import FMU1Model, fmi1CallbackAllocateMemoryTYPE, fmi1CallbackFreeMemoryTYPE, fmi1CallbackLoggerTYPE
 
 from ..errors import SceneError
 from .archive import extract
-from .calls import ERROR, OK, read_string
-from .cs1 import _LOGGER
+from .calls import ERROR, OK, fmi1_callbacks
 
 TRUE, FALSE = b"\x01", b"\x00"  # fmiBoolean (a char)
 
@@ -112,19 +109,8 @@ class ModelExchange1:
                               instanceName=owner.name)
         except Exception as e:  # fmpy raises a bare Exception for a bad library, AttributeError for a missing symbol
             raise SceneError(f"{owner.shown}: cannot load the FMU's binary for this platform: {e}") from None
-        messages = owner.messages
-
-        def keep(component, instance, status, category, message):
-            # Addresses, read without trusting them; the format's arguments
-            # are out of ctypes' reach (as in the Co-Simulation face).
-            messages.append((status, read_string(message)))
-            del messages[:-50]
-
-        callbacks = self._callbacks = CallbacksME1()
-        self._logger = _LOGGER(keep)  # kept from GC
-        callbacks.logger = ctypes.cast(self._logger, fmi1CallbackLoggerTYPE)
-        callbacks.allocateMemory = ctypes.cast(calloc, fmi1CallbackAllocateMemoryTYPE)
-        callbacks.freeMemory = ctypes.cast(free, fmi1CallbackFreeMemoryTYPE)
+        callbacks, self._logger = fmi1_callbacks(CallbacksME1, owner.messages)  # the logger kept from GC
+        self._callbacks = callbacks
         instantiate = slave.dll[f"{ident}_fmiInstantiateModel"]
         instantiate.argtypes = [c_char_p, c_char_p, CallbacksME1, c_char]
         instantiate.restype = c_void_p
