@@ -188,7 +188,9 @@ class System:
                     for var in names:
                         self._variable(inst, var, None, what)
             self._check_values(self.parameters, "System(): components")
-            if settings.me_groups:  # connected Model Exchange FMUs: one group each (engine/me_group.py)
+            # connected Model Exchange FMUs: one group each (engine/me_group.py);
+            # its module is imported only where two could form one
+            if settings.me_groups and sum(i.joins_me_group for i in self.instances.values()) > 1:
                 links, record, inputs = self._form_groups(links, record, inputs, me_options)
             self.master = make_master(self.instances, links, settings,
                                       start_time=float(start_time), extra_outputs=record, inputs=inputs,

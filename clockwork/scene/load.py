@@ -424,7 +424,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
         (name, sorted({k.src for k in links} | {k.dst for k in links})) for name, links, _ in loops])
     if problem:
         raise ctx.fail("components", problem)
-    if master.me_groups:
+    if master.me_groups and sum(i.joins_me_group for i in wired.values()) > 1:
         notes = tuple(notes) + _me_group_notes(ctx, wired, connections)
     notes = tuple(notes) + tuple(_loop_note(name, links, master.algebraic_loops, held)
                                  for name, links, held in loops)
