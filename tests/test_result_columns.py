@@ -33,7 +33,9 @@ STEMS = sorted(f.stem for f in SCENES.glob("*.toml"))
 UNREACHED = {
     "time_series": {"engine_reason": "only when the compiled engine is refused",
                     "ended": "only when an FMU ends the simulation", "notes": "only with the master's notes",
-                    "reason": "only for a stalled clock"},
+                    "reason": "only for a stalled clock",
+                    "clock_ticks": "only with FMI 3.0 clocks (no bundled FMU has one; tests/test_clocks.py)",
+                    "clocked": "only with FMI 3.0 clocks (no bundled FMU has one; tests/test_clocks.py)"},
     "steady_orbit": {"turns_inside_window": "only for a ChronometerEscapement", "reason": "only when stalled or omitted"},
     "disturbance": {"turns_inside_window": "only for a ChronometerEscapement", "reason": "only when stalled or omitted"},
     "hoyng_stationary": {"reason": "only for a stalled clock"},

@@ -30,6 +30,8 @@ mean belongs to the analysis that asked for them
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import math
 import numbers
 
@@ -114,9 +116,11 @@ class Marks:
             marks are exact, reached by a step aimed at them).
     """
 
-    def __init__(self, times=(), *, sets=None, values=None, record_at_marks: bool = False, inputs=(), outputs=(),
-                 before=(), watched=(), stop_at_change: bool = False, follow=None, margin=None, max_step=None,
-                 tolerance=None):
+    def __init__(self, times: Sequence[float] = (), *, sets: Sequence[bool] | None = None,
+                 values: Sequence[float] | None = None, record_at_marks: bool = False,
+                 inputs: Sequence[tuple] = (), outputs: Sequence[tuple] = (), before: Sequence[tuple] = (),
+                 watched: Sequence[tuple] = (), stop_at_change: bool = False, follow: tuple | None = None,
+                 margin: float | None = None, max_step: float | None = None, tolerance: float | None = None):
         times = _reals("times", times, "a list of times in s")
         if any(not math.isfinite(x) for x in times) or any(b < a for a, b in zip(times, times[1:])):
             raise UsageError("Marks(times): expected finite times in s, in increasing order")
