@@ -81,11 +81,11 @@ endif()
 
 # The front of an exported system FMU (clockwork export-fmu), for Windows:
 # src_c/export/cw_system.c with the compiled core, whatever files the core
-# is in, but its crash guard (cw_guard.c: POSIX signals; the front has a
-# stand-in). The native build copies it to lib/ beside the Linux one.
+# is in, but its crash guard and logger (cw_guard.c, cw_log.c: POSIX; the
+# front has a stand-in). The native build copies it to lib/ beside the Linux one.
 if(WIN32)
   file(GLOB cw_core_sources CONFIGURE_DEPENDS "${CMAKE_SOURCE_DIR}/src_c/master/*.c")
-  list(FILTER cw_core_sources EXCLUDE REGEX "/cw_guard\\.c$")
+  list(FILTER cw_core_sources EXCLUDE REGEX "/cw_(guard|log)\\.c$")
   add_library(cw_system SHARED "${CMAKE_SOURCE_DIR}/src_c/export/cw_system.c" ${cw_core_sources}
               "${RUNTIME_DIR}/cw_rk.c")
   set_target_properties(cw_system PROPERTIES PREFIX "" RUNTIME_OUTPUT_DIRECTORY "${CMAKE_BINARY_DIR}/export"

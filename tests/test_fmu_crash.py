@@ -1,6 +1,6 @@
 """FMUs that break the rules in their callbacks, crash, or never return.
 
-- The logger (cw_guard.c) looks an FMU's componentEnvironment up in a
+- The logger (cw_log.c) looks an FMU's componentEnvironment up in a
   registry of live instances and reads every string through the kernel:
   environments (void *)1, NULL, another instance's, unreadable instance
   names and messages, formats that ask for arguments that were not passed.

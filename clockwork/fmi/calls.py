@@ -36,7 +36,7 @@ _formatter: list = []  # [(cw_logger as an fmi2 logger, the core library), or No
 _formatter_lock = threading.Lock()
 
 # Messages an FMU logged through an environment and an instance name that
-# are no live instance's (cw_guard.c routes them here): kept, the last 50,
+# are no live instance's (cw_log.c routes them here): kept, the last 50,
 # for last_message() of an instance that failed without a message of its own.
 unattributed: collections.deque = collections.deque(maxlen=50)
 
@@ -52,7 +52,7 @@ _fallback_sink = _SINK(_unattributed)
 def formatting_logger():
     """The core library's cw_logger, which formats an FMU's printf-style
     message with its arguments (ctypes cannot reach C varargs) and hands it
-    to the sink registered for the componentEnvironment (cw_guard.c: it
+    to the sink registered for the componentEnvironment (cw_log.c: it
     trusts nothing the FMU passes), with the library; or None when the
     library is not built: then messages are the raw format."""
     with _formatter_lock:

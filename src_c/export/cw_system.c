@@ -39,9 +39,9 @@ int cw_run_until(void *m, double t_stop, void *r, double slice_s);
 int cw_step(void *m, double h, double *taken);
 
 #ifdef _WIN32
-/* The core's crash guard (cw_guard.c, POSIX) is not in the Windows build; its
- * registry of logger environments serves FMI 3.0 inner FMUs, which an
- * exported system does not have. */
+/* The core's logger and crash guard (cw_log.c, cw_guard.c: POSIX) are not in
+ * the Windows build; the logger's registry of environments serves FMI 3.0
+ * inner FMUs, which an exported system does not have. */
 int cw_env_known(const void *key) { return 0; }
 #endif
 

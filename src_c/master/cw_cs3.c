@@ -71,7 +71,7 @@ CW_EXPORT void cw3_intermediateUpdate(void *env, double t, bool set_requested, b
     (void)get_allowed; (void)step_finished; (void)can_return_early; (void)early_time;
     if (early_requested)
         *early_requested = false;
-    /* Only an environment the master gave (cw_guard.c's registry): an FMU
+    /* Only an environment the master gave (cw_log.c's registry): an FMU
      * may pass any pointer back. */
     if (!set_requested || !cw_env_known(env))
         return;

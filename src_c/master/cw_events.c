@@ -12,12 +12,6 @@
 
 #include "cw_master.h"
 
-void indicators(cw_master *m, double *z)
-{
-    for (int k = 0; k < m->n_z; k++)
-        z[k] = m->ports[m->z_port[k]].out[m->z_pos[k]];
-}
-
 /* -- event location: polynomials (events.py) ------------------------------------- */
 
 static void hermite_coefficients(double h, double z0, double dz0, double z1, double dz1,

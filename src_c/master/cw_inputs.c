@@ -1,7 +1,8 @@
 /* The instances' inputs (clockwork/engine/coupling.py, samples.py): the
- * outputs read and handed on along the links (port_read, port_pull,
- * propagate), inputs driven from samples (an input file), and the input
- * history with its polynomials for a step (extrapolate, set_inputs).
+ * outputs read and handed on along the links (port_read, port_pull; in
+ * dependency order with the loops, cw_loops.c's propagate), inputs driven
+ * from samples (an input file), and the input history with its
+ * polynomials for a step (extrapolate, set_inputs).
  */
 
 #include <math.h>
@@ -48,17 +49,6 @@ int port_pull(cw_master *m, int i, double t)
         p->sent_valid = 0;
     }
     return port_read(m, i, t);
-}
-
-int propagate(cw_master *m, const int *order, int n, double t)
-{
-    for (int a = 0; a < n; a++) {
-        if (order[a] < 0)
-            TRY(loop_solve(m, -order[a] - 1, t));
-        else
-            TRY(port_pull(m, order[a], t));
-    }
-    return 0;
 }
 
 /* -- inputs from samples (engine/samples.py) --------------------------- */

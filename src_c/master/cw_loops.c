@@ -1,6 +1,8 @@
 /* Algebraic loops solved at communication points, as
  * clockwork/engine/loops.py solves them: Gauss-Seidel sweeps, then Newton
- * with a finite-difference Jacobian and halvings (loop_solve).
+ * with a finite-difference Jacobian and halvings (loop_solve); and the
+ * outputs handed on in dependency order, a loop where the order names one
+ * (propagate, ports.py).
  */
 
 #include <math.h>
@@ -216,4 +218,17 @@ int loop_solve(cw_master *m, int i, double t)
     }
     m->loops->fallbacks++;
     return loop_newton(m, i, L, t, sweeps, worst);
+}
+
+/* The order's entries in turn: an instance's inputs pulled from its
+ * sources and its outputs read, or (an entry -k - 1) loop k solved. */
+int propagate(cw_master *m, const int *order, int n, double t)
+{
+    for (int a = 0; a < n; a++) {
+        if (order[a] < 0)
+            TRY(loop_solve(m, -order[a] - 1, t));
+        else
+            TRY(port_pull(m, order[a], t));
+    }
+    return 0;
 }

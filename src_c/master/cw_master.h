@@ -81,7 +81,6 @@ enum { PLAN_NONE = 0, PLAN_CLEAR = 1, PLAN_APPROACH = 2, PLAN_LAND = 3 };
 /* cw_inputs.c: outputs read, inputs set (from sources, samples, polynomials) */
 int port_read(cw_master *m, int i, double t);
 int port_pull(cw_master *m, int i, double t);
-int propagate(cw_master *m, const int *order, int n, double t);
 double inputs_next_event(const cw_inputs *in, double t);
 int inputs_event_at(const cw_inputs *in, double t);
 int inputs_set(cw_master *m, int i, double t, int after_event);
@@ -90,27 +89,30 @@ void record_history(cw_master *m);
 int set_coupled_inputs(cw_master *m, int i, double t, double h);
 int set_inputs(cw_master *m, int i, double t, double h, int smooth);
 
-/* cw_loops.c: algebraic loops */
+/* cw_loops.c: algebraic loops, and the outputs handed on in dependency order */
 int loop_solve(cw_master *m, int i, double t);
+int propagate(cw_master *m, const int *order, int n, double t);
 
 /* cw_events.c: event location */
-void indicators(cw_master *m, double *z);
 void remember_sources(cw_master *m);
 void sample_sources(cw_master *m, double t);
 int plan(cw_master *m, double t, double h, double *step_out);
 int land_on_events(cw_master *m, double t, double h, int near, int checkpointed, int predicted, double *taken);
 
-/* cw_step.c: the step, checkpoints, rollback and replay */
+/* cw_advance.c: the communication step, checkpoints, rollback and replay, strong coupling */
+void indicators(cw_master *m, double *z);
 int advance(cw_master *m, double t, double h);
 int checkpoint_mark(cw_master *m);
+int checkpoint_take(cw_master *m);
 int rollback(cw_master *m);
 int since_append(cw_master *m, double h);
 int replay_to(cw_master *m, double t);
+int iterate_step(cw_master *m, double t, double h);
 
 /* cw_record.c: recording */
 void record_point(cw_master *m, cw_recorder *r);
 
-/* cw_guard.c: FMU log messages (cw_logger; it trusts nothing an FMU passes) */
+/* cw_log.c: FMU log messages (cw_logger; it trusts nothing an FMU passes) */
 int cw_env_known(const void *key);
 
 #endif
