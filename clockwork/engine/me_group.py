@@ -35,15 +35,14 @@ from __future__ import annotations
 
 import ctypes
 import math
-from ctypes import byref, c_double, c_int, c_uint
+from ctypes import byref, c_double, c_uint
 from dataclasses import replace
 from pathlib import Path
 
 from ..errors import SceneError, SimulationError
 from ..fmi.calls import OK, WARNING
 from ..fmi.contract import Instance
-from . import rk
-from .me_step import CONTINUOUS, DEFAULT_RTOL, EVENT, INITIALIZATION, SOLVERS
+from .me_step import CONTINUOUS, EVENT, INITIALIZATION, SOLVERS, ModelExchangeSteps
 from .model_exchange import MEInstance, MEOptions, _ME
 from .wiring import Link
 
@@ -142,7 +141,7 @@ class MEGroup(MEInstance):
         self.compiled_reason = (f"the compiled core does not integrate a Model Exchange group ({name}): "
                                 "the Python engine runs it")
         self.can_get_set_state = all(m.can_get_set_state for m in self.members)
-        self._needs_completed = any(m._needs_completed for m in self.members)
+        needs_completed = any(m.steps.needs_completed for m in self.members)
         self._conns = [_Conn(k, by_name[k.src], by_name[k.dst]) for k in _ordered(name, links, by_name)]
         fed = {(k.dst, k.input) for k in links}
         # The group's value references: one per (member, type class, member's vr).
@@ -171,11 +170,11 @@ class MEGroup(MEInstance):
         inputs = []
         for m in self.members:
             for k in range(m.me.n_in):
-                vr = m._in_vr[k]
+                vr = m.steps.in_vr[k]
                 vname = next(x for x, v in m.variables.items() if v.vr == vr and v.type == "Real"
                              and v.causality == "input")
                 if (m.name, vname) not in fed:
-                    inputs.append((f"{m.name}.{vname}", m._u0[k]))
+                    inputs.append((f"{m.name}.{vname}", m.steps.u0[k]))
         n_in = len(inputs)
         self.continuous_inputs = {}
         for k, (qname, _) in enumerate(inputs):
@@ -185,8 +184,8 @@ class MEGroup(MEInstance):
         for m, (off, mn, _, _) in zip(self.members, self._offsets):
             names = {v.vr: x for x, v in m.variables.items() if v.type == "Real"}
             for i in range(mn):
-                state_vr.append(variables[f"{m.name}.{names[m._state_vr[i]]}"].vr)
-                der_state.append(m._der_state[i] + off if m._der_state[i] >= 0 else -1)
+                state_vr.append(variables[f"{m.name}.{names[m.steps.state_vr[i]]}"].vr)
+                der_state.append(m.steps.der_state[i] + off if m.steps.der_state[i] >= 0 else -1)
         outputs_states = [der_state[state_vr.index(v.vr)] for v in variables.values()
                           if v.causality == "output" and v.type == "Real" and v.vr in state_vr]
         self.max_output_derivative_order = max((2 if d >= 0 else 1 for d in outputs_states), default=0)
@@ -194,23 +193,13 @@ class MEGroup(MEInstance):
         self.event_indicators = []
         self.state_names = [f"{m.name}.{s}" for m in self.members for s in m.state_names]
 
-        def doubles(k):
-            return (c_double * max(1, k))()
-
-        self._x, self._xbuf, self._xw, self._xd, self._dx, self._nominal, self._atolv = (doubles(n) for _ in range(7))
-        self._z_prev, self._z, self._z_end, self._z_lo, self._z0 = (doubles(nz) for _ in range(5))
-        self._in_vr = (c_uint * max(1, n_in))(*[variables[q].vr for q, _ in inputs])
-        self._u0, self._d1, self._d2, self._tref, self._in_val = (doubles(n_in) for _ in range(5))
-        self._state_vr = (c_uint * max(1, n))(*state_vr)
-        self._der_state = (c_int * max(1, n))(*der_state)
-        self._saved = doubles(n + nz + 4 * n_in)
         self.me = _ME(n=n, nz=nz, n_in=n_in, solver=SOLVERS[self.options.solver],
                       event_time_tolerance=float(self.options.event_time_tolerance),
-                      needs_completed=int(self._needs_completed))
+                      needs_completed=int(needs_completed))
+        self.steps = ModelExchangeSteps(self.me, [variables[q].vr for q, _ in inputs], state_vr, der_state,
+                                        needs_completed)
         for k, (_, start) in enumerate(inputs):
-            self._u0[k] = start
-        self._rk = rk.RungeKutta(n, DEFAULT_RTOL, 0.0)
-        self._cv = None
+            self.steps.u0[k] = start
         self._core = None
         self._dirty = True
         self._reset_wrapper()
@@ -221,17 +210,17 @@ class MEGroup(MEInstance):
     def _bind_group(self) -> None:
         """The calls of the algorithm (me_step) and of the contract, over the members."""
         self.component = None
-        self._set_time = self._g_set_time
-        self._set_states = self._g_set_states
-        self._get_derivatives = self._g_get_derivatives
-        self._get_indicators = self._g_get_indicators
-        self._get_states = self._g_get_states
-        self._get_nominals = self._g_get_nominals
-        self._enter_event = self._g_enter_event
-        self._enter_continuous = self._g_enter_continuous
-        self._update = self._g_update
-        self._completed_step = self._g_completed
-        self._set_inputs = lambda vr, n, v: self._g_set_real(None, vr, n, v)
+        self.steps.set_time = self._g_set_time
+        self.steps.set_states = self._g_set_states
+        self.steps.get_derivatives = self._g_get_derivatives
+        self.steps.get_indicators = self._g_get_indicators
+        self.steps.get_states = self._g_get_states
+        self.steps.get_nominals = self._g_get_nominals
+        self.steps.enter_event = self._g_enter_event
+        self.steps.enter_continuous = self._g_enter_continuous
+        self.steps.update = self._g_update
+        self.steps.completed_step = self._g_completed
+        self.steps.set_inputs = lambda vr, n, v: self._g_set_real(None, vr, n, v)
         self._fmu_set_real = self._g_set_real
         self._fmu_get_state = self._g_get_state
         self._fmu_set_state = self._g_set_state
@@ -243,7 +232,7 @@ class MEGroup(MEInstance):
         self.c_getState = self._get_state
         self.c_setState = self._set_state
         self.c_freeState = lambda c, s: OK
-        self.c_doStep = self._do_step
+        self.c_doStep = self.steps.do_step
 
     def instantiate(self) -> None:
         """The members are instantiated (engine/system.py makes the group of them)."""
@@ -259,7 +248,7 @@ class MEGroup(MEInstance):
 
     def _g_set_time(self, t: float) -> int:
         self._dirty = True
-        return self._each(lambda m: m._set_time(t))
+        return self._each(lambda m: m.steps.set_time(t))
 
     def _g_set_states(self, x, n: int) -> int:
         self._dirty = True
@@ -267,10 +256,10 @@ class MEGroup(MEInstance):
         for m, (off, mn, _, _) in zip(self.members, self._offsets):
             if not mn:
                 continue
-            buf = m._xbuf
+            buf = m.steps.xbuf
             for i in range(mn):
                 buf[i] = x[off + i]
-            st = max(st, m._set_states(buf, mn))
+            st = max(st, m.steps.set_states(buf, mn))
             if st > WARNING:
                 return st
         return st
@@ -319,11 +308,11 @@ class MEGroup(MEInstance):
         for m, (off, mn, _, _) in zip(self.members, self._offsets):
             if not mn:
                 continue
-            st = max(st, m._get_derivatives(m._dx, mn))
+            st = max(st, m.steps.get_derivatives(m.steps.dx, mn))
             if st > WARNING:
                 return st
             for i in range(mn):
-                dx[off + i] = m._dx[i]
+                dx[off + i] = m.steps.dx[i]
         return st
 
     def _g_get_indicators(self, z, nz: int) -> int:
@@ -333,11 +322,11 @@ class MEGroup(MEInstance):
         for m, (_, _, off, mz) in zip(self.members, self._offsets):
             if not mz:
                 continue
-            st = max(st, m._get_indicators(m._z, mz))
+            st = max(st, m.steps.get_indicators(m.steps.z, mz))
             if st > WARNING:
                 return st
             for i in range(mz):
-                z[off + i] = m._z[i]
+                z[off + i] = m.steps.z[i]
         return st
 
     def _gather(self, x, fetch, scratch: str) -> int:
@@ -345,7 +334,7 @@ class MEGroup(MEInstance):
         for m, (off, mn, _, _) in zip(self.members, self._offsets):
             if not mn:
                 continue
-            buf = getattr(m, scratch)
+            buf = getattr(m.steps, scratch)
             st = max(st, fetch(m)(buf, mn))
             if st > WARNING:
                 return st
@@ -354,18 +343,18 @@ class MEGroup(MEInstance):
         return st
 
     def _g_get_states(self, x, n: int) -> int:
-        return self._gather(x, lambda m: m._get_states, "_xw")
+        return self._gather(x, lambda m: m.steps.get_states, "xw")
 
     def _g_get_nominals(self, x, n: int) -> int:
-        return self._gather(x, lambda m: m._get_nominals, "_nominal")
+        return self._gather(x, lambda m: m.steps.get_nominals, "nominal")
 
     def _g_enter_event(self) -> int:
         self._dirty = True
-        return self._each(lambda m: m._enter_event())
+        return self._each(lambda m: m.steps.enter_event())
 
     def _g_enter_continuous(self) -> int:
         self._dirty = True
-        return self._each(lambda m: m._enter_continuous())
+        return self._each(lambda m: m.steps.enter_continuous())
 
     def _g_update(self):
         """One event iteration across the members: the connections, every
@@ -377,7 +366,7 @@ class MEGroup(MEInstance):
         need = term = nominals = values = defined = False
         next_time = math.inf
         for m in self.members:
-            s, n_, t_, nom, val, dfd, nxt = m._update()
+            s, n_, t_, nom, val, dfd, nxt = m.steps.update()
             st = max(st, s)
             if s > WARNING:
                 return st, False, False, False, False, False, 0.0
@@ -393,9 +382,9 @@ class MEGroup(MEInstance):
         enter = term = False
         st = OK
         for m in self.members:
-            if not m._needs_completed:
+            if not m.steps.needs_completed:
                 continue
-            s, e, t = m._completed_step()
+            s, e, t = m.steps.completed_step()
             st = max(st, s)
             if s > WARNING:
                 return st, False, False
@@ -509,12 +498,12 @@ class MEGroup(MEInstance):
     def set_values(self, values, what=None, error=SimulationError) -> None:
         if self.me.mode == CONTINUOUS and any(self.variables[q].vr not in self.continuous_inputs for q in values):
             what = what or self.CALL_NAMES["setValues"]
-            self.check(self._enter_event(), "enterEventMode", self.me.time)
+            self.check(self.steps.enter_event(), "enterEventMode", self.me.time)
             self.me.mode = EVENT
             try:
                 self._g_set_values(values, what, error)
             finally:
-                st = self._settle("input_events")
+                st = self.steps.settle("input_events")
             self.check(st, what, self.me.time, error)
             return
         self._g_set_values(values, what or self.CALL_NAMES["setValues"], error)

@@ -36,6 +36,7 @@ expression: either engine can take the next step.
 from __future__ import annotations
 
 import math
+from ctypes import c_double, c_int, c_uint
 
 from . import cvode, rk as rkmod
 from .events import Illinois, crossed, earliest, input_polynomial
@@ -73,9 +74,34 @@ STATS = ("steps", "rejected", "rhs", "state_events", "time_events", "step_events
 
 
 class ModelExchangeSteps:
-    """The wrapper's algorithm (a base of ``model_exchange.MEInstance``,
-    which binds its face's FMU calls ``_set_time`` ... ``_update`` once and
-    owns the struct ``me`` with its arrays ``_x``, ``_atolv``, ``_z_prev``...)."""
+    """The wrapper's algorithm, a part that ``model_exchange.MEInstance``
+    (and ``me_group.MEGroup``) holds and delegates to: the integration's
+    state (the struct `me`, model_exchange._ME, with its arrays ``x``,
+    ``atolv``, ``z_prev``...; the integrators) and the FMU calls it makes
+    (``set_time`` ... ``update``), which its holder binds once: a face's
+    functions, or a group's over its members.
+
+    `in_vr`: the continuous inputs' value references; `state_vr`: the
+    states'; `der_state`: for each state's derivative, the state it is
+    (its position) or -1."""
+
+    def __init__(self, me, in_vr, state_vr, der_state, needs_completed: bool):
+        self.me = me
+        n, nz, n_in = me.n, me.nz, me.n_in
+
+        def doubles(k):
+            return (c_double * max(1, k))()
+
+        self.x, self.xbuf, self.xw, self.xd, self.dx, self.nominal, self.atolv = (doubles(n) for _ in range(7))
+        self.z_prev, self.z, self.z_end, self.z_lo, self.z0 = (doubles(nz) for _ in range(5))
+        self.in_vr = (c_uint * max(1, n_in))(*in_vr)
+        self.u0, self.d1, self.d2, self.tref, self.in_val = (doubles(n_in) for _ in range(5))
+        self.state_vr = (c_uint * max(1, n))(*state_vr)
+        self.der_state = (c_int * max(1, n))(*der_state)
+        self.saved = doubles(n + nz + 4 * n_in)
+        self.needs_completed = needs_completed
+        self.rk = rkmod.RungeKutta(n, DEFAULT_RTOL, 0.0)
+        self.cv = None  # cvode.CVodeRun, at the first CVode step
 
     # -- failures ------------------------------------------------------------
 
@@ -86,7 +112,7 @@ class ModelExchangeSteps:
             me.failed_call, me.failed_status, me.err_t = call, status, me.time
         return status
 
-    def _check(self, status: int, call: int) -> bool:
+    def check(self, status: int, call: int) -> bool:
         """True when the call failed (status above Warning), noted."""
         if status > WARNING:
             self._failed(call, status)
@@ -98,19 +124,19 @@ class ModelExchangeSteps:
     def _set_point(self, t: float, x) -> int:
         """Time t, the inputs' polynomials at t and the states x into the FMU."""
         me = self.me
-        if self._check(self._set_time(t), 1):
+        if self.check(self.set_time(t), 1):
             return ERROR
         if me.poly:
-            vals = self._in_val
+            vals = self.in_val
             for k in range(me.n_in):
-                dt = t - self._tref[k]
-                vals[k] = input_polynomial(self._u0[k], self._d1[k], self._d2[k], dt)
-            if self._check(self._set_inputs(self._in_vr, me.n_in, vals), 11):
+                dt = t - self.tref[k]
+                vals[k] = input_polynomial(self.u0[k], self.d1[k], self.d2[k], dt)
+            if self.check(self.set_inputs(self.in_vr, me.n_in, vals), 11):
                 return ERROR
         if me.n:
-            buf = self._xbuf
+            buf = self.xbuf
             buf[:] = x
-            if self._check(self._set_states(buf, me.n), 2):
+            if self.check(self.set_states(buf, me.n), 2):
                 return ERROR
         return OK
 
@@ -121,9 +147,9 @@ class ModelExchangeSteps:
         me = self.me
         if not me.failed_call and self._set_point(t, x) == OK:
             me.rhs += 1
-            st = self._get_derivatives(self._dx, me.n)
+            st = self.get_derivatives(self.dx, me.n)
             if st <= WARNING:
-                dxdt[:] = self._dx
+                dxdt[:] = self.dx
                 return
             if st > DISCARD:
                 self._failed(3, st)
@@ -133,13 +159,13 @@ class ModelExchangeSteps:
     def _cvode_rhs(self, t, y, ydot, user_data) -> int:
         """CVode's right-hand side: 0, 1 (recoverable: Discard) or -1."""
         me = self.me
-        sun = self._cv.sun
+        sun = self.cv.sun
         if me.failed_call:
             return -1
         if self._set_point(t, sun.N_VGetArrayPointer(y)[:me.n]) != OK:
             return -1
         me.rhs += 1
-        st = self._get_derivatives(sun.N_VGetArrayPointer(ydot), me.n)
+        st = self.get_derivatives(sun.N_VGetArrayPointer(ydot), me.n)
         if st <= WARNING:
             return 0
         if st == DISCARD:
@@ -155,13 +181,13 @@ class ModelExchangeSteps:
 
     def _read_indicators(self) -> list[float] | None:
         me = self.me
-        if self._check(self._get_indicators(self._z, me.nz), 4):
+        if self.check(self.get_indicators(self.z, me.nz), 4):
             return None
-        return self._z[:me.nz]
+        return self.z[:me.nz]
 
     # -- events ----------------------------------------------------------------
 
-    def _settle(self, kind: str | None) -> int:
+    def settle(self, kind: str | None) -> int:
         """In event mode: update the discrete states until they settle, then
         (unless the FMU ended the simulation) continuous-time mode with the
         new states, nominals, next event time and indicators. `kind` names
@@ -169,8 +195,8 @@ class ModelExchangeSteps:
         me = self.me
         values_changed = nominals_changed = False
         for _ in range(MAX_EVENT_ITERATIONS):
-            st, need, term, nominals, values, defined, next_time = self._update()
-            if self._check(st, 7):
+            st, need, term, nominals, values, defined, next_time = self.update()
+            if self.check(st, 7):
                 return ERROR
             values_changed = values_changed or values
             nominals_changed = nominals_changed or nominals
@@ -188,42 +214,42 @@ class ModelExchangeSteps:
             me.end_time = me.time
             return OK
         me.next_event_time = next_time if defined else math.inf
-        if self._check(self._enter_continuous(), 8):
+        if self.check(self.enter_continuous(), 8):
             return ERROR
         me.mode = CONTINUOUS
-        if values_changed and me.n and self._check(self._get_states(self._x, me.n), 9):
+        if values_changed and me.n and self.check(self.get_states(self.x, me.n), 9):
             return ERROR
-        if nominals_changed and me.n and self._read_nominals() != OK:
+        if nominals_changed and me.n and self.read_nominals() != OK:
             return ERROR
         if me.nz:
             z = self._read_indicators()
             if z is None:
                 return ERROR
-            self._z_prev[:] = z
+            self.z_prev[:] = z
         return OK
 
-    def _read_nominals(self) -> int:
+    def read_nominals(self) -> int:
         """The states' nominal values: the absolute tolerances rtol |nominal|."""
         me = self.me
-        if self._check(self._get_nominals(self._nominal, me.n), 10):
+        if self.check(self.get_nominals(self.nominal, me.n), 10):
             return ERROR
         for i in range(me.n):
-            nominal = abs(self._nominal[i])
-            self._atolv[i] = me.rtol * (nominal if nominal > 0.0 else 1.0)
+            nominal = abs(self.nominal[i])
+            self.atolv[i] = me.rtol * (nominal if nominal > 0.0 else 1.0)
         return OK
 
     def _handle_event(self, kind: str) -> int:
-        if self._check(self._enter_event(), 6):
+        if self.check(self.enter_event(), 6):
             return ERROR
         self.me.mode = EVENT
-        return self._settle(kind)
+        return self.settle(kind)
 
     def _completed(self) -> tuple[int, bool, bool]:
         """fmi2CompletedIntegratorStep where the FMU needs it: (status, enterEventMode, terminateSimulation)."""
-        if not self._needs_completed:
+        if not self.needs_completed:
             return OK, False, False
-        st, enter, term = self._completed_step()
-        if self._check(st, 5):
+        st, enter, term = self.completed_step()
+        if self.check(st, 5):
             return ERROR, False, False
         return OK, enter, term
 
@@ -239,9 +265,9 @@ class ModelExchangeSteps:
             z = self._read_indicators()
             if z is None:
                 return FAILED
-            z_prev = self._z_prev
+            z_prev = self.z_prev
             if any(crossed(z_prev[k], z[k]) for k in range(me.nz)):
-                self._z_end = z
+                self.z_end = z
                 return STATE
         st, enter, term = self._completed()
         if st != OK:
@@ -249,7 +275,7 @@ class ModelExchangeSteps:
         if term:
             return TERMINATE
         if me.nz:
-            self._z_prev[:] = z
+            self.z_prev[:] = z
         if enter:
             return STEP
         if stiffness is not None:
@@ -270,7 +296,7 @@ class ModelExchangeSteps:
         for the step's own end), to the event time tolerance; None when the
         FMU failed."""
         me = self.me
-        z0, z1 = list(self._z_prev[:me.nz]), self._z_end
+        z0, z1 = list(self.z_prev[:me.nz]), self.z_end
         h = t1 - t0
         lead = earliest([crossed(a, b) for a, b in zip(z0, z1)], z0, z1)
         search = Illinois(0.0, z0[lead], h, z1[lead])
@@ -322,8 +348,8 @@ class ModelExchangeSteps:
             t_event, x_event = found
             me.time = t_event
             if me.n:
-                self._x[:] = x1 if x_event is None else x_event
-            if self._set_point(me.time, self._x[:me.n]) != OK:
+                self.x[:] = x1 if x_event is None else x_event
+            if self._set_point(me.time, self.x[:me.n]) != OK:
                 return ERROR
             st, _, term = self._completed()
             if st != OK:
@@ -335,7 +361,7 @@ class ModelExchangeSteps:
             return self._handle_event("state_events")
         me.time = t1
         if me.n:
-            self._x[:] = x1
+            self.x[:] = x1
         if reason == STEP:
             return self._handle_event("step_events")
         if reason == TERMINATE:
@@ -370,8 +396,8 @@ class ModelExchangeSteps:
 
     def _integrate_rk(self, t_stop: float) -> int:
         me = self.me
-        rk = self._rk
-        rk.method, rk.rtol, rk.atolv = me.method, me.rtol, self._atolv[:me.n]
+        rk = self.rk
+        rk.method, rk.rtol, rk.atolv = me.method, me.rtol, self.atolv[:me.n]
         rk.stiffness_test = me.solver == AUTO
         rk.n_accepted = rk.n_rejected = rk.n_rhs = 0
         reason = [REACHED]
@@ -380,7 +406,7 @@ class ModelExchangeSteps:
             reason[0] = self._after_step(r.h_lambda if r.stiffness_test else None)
             return reason[0] != REACHED
 
-        x = self._x[:me.n]
+        x = self.x[:me.n]
         result, t1, me.h_next = rk.advance(self._rhs, me.time, t_stop, x, me.h_next, observe)
         me.steps += rk.n_accepted
         me.rejected += rk.n_rejected
@@ -394,15 +420,15 @@ class ModelExchangeSteps:
 
     def _integrate_cvode(self, t_stop: float) -> int:
         me = self.me
-        if self._cv is None:
-            self._cv = cvode.CVodeRun(me, self._cvode_rhs)
-        cv = self._cv
-        x = self._x[:me.n]
+        if self.cv is None:
+            self.cv = cvode.CVodeRun(me, self._cvode_rhs)
+        cv = self.cv
+        x = self.x[:me.n]
         if me.cv_owner != 1:
-            flag = cv.create(me.time, x, self._atolv[:me.n])
+            flag = cv.create(me.time, x, self.atolv[:me.n])
             me.cv_owner = 1
         elif me.restart:
-            flag = cv.reinit(me.time, x, self._atolv[:me.n])
+            flag = cv.reinit(me.time, x, self.atolv[:me.n])
         else:
             flag = 0
         me.restart = 0
@@ -431,7 +457,7 @@ class ModelExchangeSteps:
             if reason != REACHED or t1 >= t_stop:
                 break
             me.time = t1
-            self._x[:] = x1
+            self.x[:] = x1
             t0 = t1
         else:
             me.failed_detail = 0
@@ -443,7 +469,7 @@ class ModelExchangeSteps:
 
     # -- the communication step ------------------------------------------------
 
-    def _do_step(self, comp, t: float, h: float, no_set_prior: int = 0) -> int:
+    def do_step(self, comp, t: float, h: float, no_set_prior: int = 0) -> int:
         """Integrate from t to t + h (fmi2DoStep's shape), through every event."""
         me = self.me
         me.failed_call = 0
@@ -457,12 +483,12 @@ class ModelExchangeSteps:
             z = self._read_indicators()
             if z is None:
                 return ERROR
-            if any(crossed(a, b) for a, b in zip(self._z_prev[:me.nz], z)):
+            if any(crossed(a, b) for a, b in zip(self.z_prev[:me.nz], z)):
                 st = self._handle_event("input_events")
                 if st != OK:
                     return st
             else:
-                self._z_prev[:] = z
+                self.z_prev[:] = z
         me.inputs_dirty = 0
         at_once = 0
         while not me.terminated:
@@ -483,4 +509,4 @@ class ModelExchangeSteps:
         if me.terminated:
             return OK if me.end_time >= end else DISCARD
         # The FMU at the step's end, where the master reads its outputs.
-        return OK if self._set_point(me.time, self._x[:me.n]) == OK else ERROR
+        return OK if self._set_point(me.time, self.x[:me.n]) == OK else ERROR

@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import ctypes
 import math
-from ctypes import Structure, c_char, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
+from ctypes import Structure, c_char, c_double, c_int, c_longlong, c_size_t, c_void_p
 from dataclasses import dataclass
 
 from ..errors import SceneError, SimulationError
@@ -92,11 +92,12 @@ class _ME(Structure):
             "saved_terminated", "saved_poly", "saved_mode", "pad4_")]
 
 
-class MEInstance(ModelExchangeSteps, Instance):
+class MEInstance(Instance):
     """A Model Exchange FMU behind the instance contract: its Model
     Exchange face `face` (me1.ModelExchange1, me2.ModelExchange2,
-    me3.ModelExchange3) composed
-    with the integration (ModelExchangeSteps, rk, cvode)."""
+    me3.ModelExchange3) and the integration `steps` (ModelExchangeSteps,
+    with rk and cvode), which it holds, binds to the face's calls and
+    delegates the step to."""
 
     joins_me_group = True
 
@@ -119,7 +120,7 @@ class MEInstance(ModelExchangeSteps, Instance):
                              f"{', '.join(map(repr, SOLVERS))}")
         me_md = md.modelExchange
         self.can_get_set_state = bool(me_md.canGetAndSetFMUstate)
-        self._needs_completed = bool(me_md.needsCompletedIntegratorStep)
+        needs_completed = bool(me_md.needsCompletedIntegratorStep)
         states = [d.variable.derivative for d in md.derivatives]
         n = len(states)
         nz = int(md.numberOfEventIndicators or 0)
@@ -141,27 +142,17 @@ class MEInstance(ModelExchangeSteps, Instance):
         self.event_indicators = []  # the FMU's own indicators are located inside the wrapper
         self.state_names = [v.name for v in states]
 
-        def doubles(k):
-            return (c_double * max(1, k))()
-
-        self._x, self._xbuf, self._xw, self._xd, self._dx, self._nominal, self._atolv = (doubles(n) for _ in range(7))
-        self._z_prev, self._z, self._z_end, self._z_lo, self._z0 = (doubles(nz) for _ in range(5))
-        self._in_vr = (c_uint * max(1, n_in))(*[v.valueReference for v in inputs])
-        self._u0, self._d1, self._d2, self._tref, self._in_val = (doubles(n_in) for _ in range(5))
-        self._state_vr = (c_uint * max(1, n))(*state_vr)
-        self._der_state = (c_int * max(1, n))(*der_state)
-        self._saved = doubles(n + nz + 4 * n_in)
         me = self.me = _ME(n=n, nz=nz, n_in=n_in,
                            solver=SOLVERS[self.options.solver],
                            event_time_tolerance=float(self.options.event_time_tolerance),
-                           needs_completed=int(self._needs_completed))
+                           needs_completed=int(needs_completed))
+        steps = self.steps = ModelExchangeSteps(me, [v.valueReference for v in inputs], state_vr, der_state,
+                                                needs_completed)
         for field in ("x", "xbuf", "xw", "xd", "dx", "nominal", "atolv", "z_prev", "z", "z_end", "z_lo", "z0",
                       "in_vr", "u0", "d1", "d2", "tref", "in_val", "state_vr", "der_state", "saved"):
-            setattr(me, field, ctypes.addressof(getattr(self, "_" + field)))
+            setattr(me, field, ctypes.addressof(getattr(steps, field)))
         for k, v in enumerate(inputs):
-            self._u0[k] = float(v.start) if v.start not in (None, "") else 0.0
-        self._rk = rk.RungeKutta(n, DEFAULT_RTOL, 0.0)
-        self._cv = None
+            steps.u0[k] = float(v.start) if v.start not in (None, "") else 0.0
         self._core = None  # the compiled core's cw_rk workspace, once the core steps this instance
         self._reset_wrapper()
 
@@ -202,7 +193,7 @@ class MEInstance(ModelExchangeSteps, Instance):
         self.c_setup = c_setup
         self.c_enterInit = lambda c: self._enter_init(enter_init(c))
         self.c_exitInit = lambda c: self._exit_init(exit_init(c))
-        self._update, self._completed_step = face.update, face.completed_step
+        self.steps.update, self.steps.completed_step = face.update, face.completed_step
         values = face.values  # FMI 3.0: every type through its own fmi3Get*/fmi3Set*
         self._set_values_now = super().set_values if values is None else values.set_values
         if values is not None:  # an instance attribute: no Python call of its own
@@ -216,15 +207,15 @@ class MEInstance(ModelExchangeSteps, Instance):
         f = face.functions
         for name, fn_ in f.items():
             setattr(me, name, ctypes.cast(fn_, c_void_p).value)
-        self._set_time = lambda t: f["setTime"](comp, t)
-        self._set_states = lambda x, n: f["setStates"](comp, x, n)
-        self._get_derivatives = lambda dx, n: f["getDerivatives"](comp, dx, n)
-        self._get_indicators = lambda z, n: f["getIndicators"](comp, z, n)
-        self._get_states = lambda x, n: f["getStates"](comp, x, n)
-        self._get_nominals = lambda x, n: f["getNominals"](comp, x, n)
-        self._enter_event = lambda: f["enterEventMode"](comp)
-        self._enter_continuous = lambda: f["enterContinuousMode"](comp)
-        self._set_inputs = face.set_inputs
+        self.steps.set_time = lambda t: f["setTime"](comp, t)
+        self.steps.set_states = lambda x, n: f["setStates"](comp, x, n)
+        self.steps.get_derivatives = lambda dx, n: f["getDerivatives"](comp, dx, n)
+        self.steps.get_indicators = lambda z, n: f["getIndicators"](comp, z, n)
+        self.steps.get_states = lambda x, n: f["getStates"](comp, x, n)
+        self.steps.get_nominals = lambda x, n: f["getNominals"](comp, x, n)
+        self.steps.enter_event = lambda: f["enterEventMode"](comp)
+        self.steps.enter_continuous = lambda: f["enterContinuousMode"](comp)
+        self.steps.set_inputs = face.set_inputs
         self._fmu_set_real = face.set_real
         self._fmu_get_state, self._fmu_set_state = f["getState"], f["setState"]
         self.c_getReal = face.get_real
@@ -233,7 +224,7 @@ class MEInstance(ModelExchangeSteps, Instance):
         self.c_getOutputDerivatives = self._output_derivatives
         self.c_getState = self._get_state
         self.c_setState = self._set_state
-        self.c_doStep = self._do_step
+        self.c_doStep = self.steps.do_step
 
     # -- the wrapper's own state ------------------------------------------------
 
@@ -251,7 +242,7 @@ class MEInstance(ModelExchangeSteps, Instance):
         for name in STATS:
             setattr(me, name, 0)
         for k in range(me.n_in):
-            self._d1[k] = self._d2[k] = self._tref[k] = 0.0
+            self.steps.d1[k] = self.steps.d2[k] = self.steps.tref[k] = 0.0
 
     def _setup_wrapper(self, tol_defined, tol, start) -> None:
         me = self.me
@@ -259,7 +250,7 @@ class MEInstance(ModelExchangeSteps, Instance):
         me.time = start
         me.method = self._choose_method()
         for k in range(me.n_in):
-            self._tref[k] = start
+            self.steps.tref[k] = start
 
     def _enter_init(self, status: int) -> int:
         if status <= WARNING:
@@ -273,13 +264,13 @@ class MEInstance(ModelExchangeSteps, Instance):
         if status > WARNING:
             return status
         me.mode = EVENT
-        st = self._settle(None)
+        st = self.steps.settle(None)
         if st > WARNING:
             return st
         if me.n and not me.terminated:
-            if self._check(self._get_states(self._x, me.n), 9):
+            if self.steps.check(self.steps.get_states(self.steps.x, me.n), 9):
                 return ERROR
-            if self._read_nominals() > WARNING:
+            if self.steps.read_nominals() > WARNING:
                 return ERROR
         return OK
 
@@ -314,19 +305,19 @@ class MEInstance(ModelExchangeSteps, Instance):
         for j, k in enumerate(ks):
             if k < 0:
                 continue
-            dt = me.time - self._tref[k]
-            now = input_polynomial(self._u0[k], self._d1[k], self._d2[k], dt)
-            if values[j] != now or self._d1[k] != 0.0 or self._d2[k] != 0.0:
+            dt = me.time - self.steps.tref[k]
+            now = input_polynomial(self.steps.u0[k], self.steps.d1[k], self.steps.d2[k], dt)
+            if values[j] != now or self.steps.d1[k] != 0.0 or self.steps.d2[k] != 0.0:
                 me.inputs_dirty = me.restart = 1
-            self._u0[k] = values[j]
-            self._d1[k] = self._d2[k] = 0.0
-            self._tref[k] = me.time
+            self.steps.u0[k] = values[j]
+            self.steps.d1[k] = self.steps.d2[k] = 0.0
+            self.steps.tref[k] = me.time
         self._recheck_poly()
         return st
 
     def _recheck_poly(self) -> None:
         me = self.me
-        me.poly = int(any(self._d1[k] != 0.0 or self._d2[k] != 0.0 for k in range(me.n_in)))
+        me.poly = int(any(self.steps.d1[k] != 0.0 or self.steps.d2[k] != 0.0 for k in range(me.n_in)))
 
     def _set_input_derivatives(self, comp, vr, n, order, values) -> int:
         """fmi2SetRealInputDerivatives on continuous inputs (order 1 or 2),
@@ -338,19 +329,19 @@ class MEInstance(ModelExchangeSteps, Instance):
                 return ERROR
         for j in range(n):
             k = index[vr[j]]
-            if self._tref[k] != me.time:
-                dt = me.time - self._tref[k]
-                self._u0[k] = input_polynomial(self._u0[k], self._d1[k], self._d2[k], dt)
-                self._d1[k] = self._d2[k] = 0.0
-                self._tref[k] = me.time
+            if self.steps.tref[k] != me.time:
+                dt = me.time - self.steps.tref[k]
+                self.steps.u0[k] = input_polynomial(self.steps.u0[k], self.steps.d1[k], self.steps.d2[k], dt)
+                self.steps.d1[k] = self.steps.d2[k] = 0.0
+                self.steps.tref[k] = me.time
             if order[j] == 1:
-                if self._d1[k] != values[j]:
+                if self.steps.d1[k] != values[j]:
                     me.restart = 1
-                self._d1[k] = values[j]
+                self.steps.d1[k] = values[j]
             else:
-                if self._d2[k] != values[j]:
+                if self.steps.d2[k] != values[j]:
                     me.restart = 1
-                self._d2[k] = values[j]
+                self.steps.d2[k] = values[j]
         self._recheck_poly()
         return OK
 
@@ -361,34 +352,34 @@ class MEInstance(ModelExchangeSteps, Instance):
         me = self.me
         if me.mode != CONTINUOUS or not me.n:
             return ERROR
-        state_vr = self._state_vr[:me.n]
+        state_vr = self.steps.state_vr[:me.n]
         picks = []
         for j in range(n):
             if vr[j] not in state_vr or order[j] not in (1, 2):
                 return ERROR
             i = state_vr.index(vr[j])
             if order[j] == 2:
-                i = self._der_state[i]
+                i = self.steps.der_state[i]
                 if i < 0:
                     return ERROR
             picks.append(i)
-        st = self._get_derivatives(self._dx, me.n)
+        st = self.steps.get_derivatives(self.steps.dx, me.n)
         me.rhs += 1
         if st > WARNING:
             return st
         for j, i in enumerate(picks):
-            out[j] = self._dx[i]
+            out[j] = self.steps.dx[i]
         return OK
 
     def _set_in_event_mode(self, setter) -> int:
         """A value that Model Exchange takes in event mode only: enter it, set, settle."""
-        if self._check(self._enter_event(), 6):
+        if self.steps.check(self.steps.enter_event(), 6):
             return ERROR
         self.me.mode = EVENT
         st = setter()
         if st > WARNING:
             return st
-        return max(st, self._settle("input_events"))
+        return max(st, self.steps.settle("input_events"))
 
     def set_values(self, values: dict[str, object], what: str | None = None,
                    error: type[SimulationError] = SimulationError) -> None:
@@ -399,12 +390,12 @@ class MEInstance(ModelExchangeSteps, Instance):
         if me.mode != CONTINUOUS or all(self.variables[n].vr in self.continuous_inputs for n in values):
             self._set_values_now(values, what, error)
             return
-        self.check(self._enter_event(), self.face.NAMES[FMU_CALLS[6]], me.time)
+        self.check(self.steps.enter_event(), self.face.NAMES[FMU_CALLS[6]], me.time)
         me.mode = EVENT
         try:
             self._set_values_now(values, what, error)
         finally:
-            st = self._settle("input_events")
+            st = self.steps.settle("input_events")
         self.check(st, what, me.time, error)
 
     def _get_state(self, comp, state) -> int:
@@ -413,13 +404,13 @@ class MEInstance(ModelExchangeSteps, Instance):
         if st > WARNING:
             return st
         me = self.me
-        saved = self._saved
+        saved = self.steps.saved
         n, nz, n_in = me.n, me.nz, me.n_in
-        saved[0:n] = self._x[:n]
-        saved[n:n + nz] = self._z_prev[:nz]
+        saved[0:n] = self.steps.x[:n]
+        saved[n:n + nz] = self.steps.z_prev[:nz]
         for k in range(n_in):
             base = n + nz + 4 * k
-            saved[base:base + 4] = [self._u0[k], self._d1[k], self._d2[k], self._tref[k]]
+            saved[base:base + 4] = [self.steps.u0[k], self.steps.d1[k], self.steps.d2[k], self.steps.tref[k]]
         me.saved_time, me.saved_next_event_time, me.saved_end_time, me.saved_h_next = (
             me.time, me.next_event_time, me.end_time, me.h_next)
         me.saved_method, me.saved_stiff_count, me.saved_nonstiff_count = me.method, me.stiff_count, me.nonstiff_count
@@ -431,15 +422,15 @@ class MEInstance(ModelExchangeSteps, Instance):
         if st > WARNING:
             return st
         me = self.me
-        saved = self._saved
+        saved = self.steps.saved
         n, nz, n_in = me.n, me.nz, me.n_in
         if n:
-            self._x[:n] = saved[0:n]
+            self.steps.x[:n] = saved[0:n]
         if nz:
-            self._z_prev[:nz] = saved[n:n + nz]
+            self.steps.z_prev[:nz] = saved[n:n + nz]
         for k in range(n_in):
             base = n + nz + 4 * k
-            self._u0[k], self._d1[k], self._d2[k], self._tref[k] = saved[base:base + 4]
+            self.steps.u0[k], self.steps.d1[k], self.steps.d2[k], self.steps.tref[k] = saved[base:base + 4]
         me.time, me.next_event_time, me.end_time, me.h_next = (
             me.saved_time, me.saved_next_event_time, me.saved_end_time, me.saved_h_next)
         me.method, me.stiff_count, me.nonstiff_count = me.saved_method, me.saved_stiff_count, me.saved_nonstiff_count
