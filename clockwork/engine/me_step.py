@@ -257,7 +257,7 @@ class ModelExchangeSteps:
 
     def _after_step(self, stiffness: float | None) -> int:
         """The FMU stands at the end of an accepted step: REACHED (go on),
-        STATE (an indicator changed sign: its values in _z_end), TERMINATE,
+        STATE (an indicator changed sign: its values in z_end), TERMINATE,
         STEP, STIFF or FAILED. `stiffness`: the pair's h |lambda|, or None."""
         me = self.me
         z = []
