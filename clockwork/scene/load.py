@@ -21,7 +21,6 @@ import hashlib
 import os
 import re
 import sys
-import tomllib
 from pathlib import Path
 
 from ..engine import compiled, cvode, multirate
@@ -115,6 +114,8 @@ def parse_override(text: str, instances=()) -> tuple[str, str, object]:
 
 
 def _override_value(lhs: str, rhs: str) -> object:
+    import tomllib  # TOML's reader only where TOML is read: an FMU run alone reads none (start-up)
+
     try:
         return tomllib.loads("v = " + rhs)["v"]
     except tomllib.TOMLDecodeError:
@@ -185,6 +186,8 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
         from .osp.read import OSP_FILE
 
         raise SceneError(f"is a directory without an {OSP_FILE}, not a scene: expected {_SCENE_FORMATS}", path)
+    import tomllib
+
     data = read_bounded(path, MAX_SCENE_BYTES, "scene file", "a .toml scene file")
     try:
         text = data.decode("utf-8")
