@@ -38,6 +38,29 @@ def test_an_fmu_runs_alone_with_its_default_experiment(capsys, tmp_path):
     assert "TestDecay: 1 run" in out
 
 
+def test_an_fmu_run_alone_loads_no_ssp_writer_or_osp_reader_and_hashes_no_source(tmp_path):
+    """A single run of an FMU (the first thing a user waits for) keeps to
+    what it uses: no SSP writer, no OSP reader, and no digest of the
+    package's source, which only a sweep's content-addressed points need."""
+    import subprocess
+    import sys
+
+    code = ("import sys\n"
+            "import clockwork.hashing as h\n"
+            "def refused():\n    raise AssertionError('source_digest called')\n"
+            "h.source_digest = refused\n"
+            "import clockwork.run.points as p\n"
+            "p.source_digest = refused\n"
+            "from clockwork.cli import main\n"
+            f"rc = main(['run', {str(test_fmu('TestDecay'))!r}, '--out', {str(tmp_path / 'r')!r}, '--no-plot', "
+            "'--no-progress'])\n"
+            "print(rc, *sorted(m for m in ('clockwork.scene.ssp.export', 'clockwork.scene.osp.read') "
+            "if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split()[-1:] == ["0"]
+
+
 def test_validate_and_info_of_an_fmu(capsys):
     fmu = test_fmu("TestDecay")
     rc, out, err = run_cli(capsys, ["validate", fmu])

@@ -63,7 +63,9 @@ def _run(scene, out: OutputDir, workers: int | None, scheduler: str | None, prog
     sweep = scene.sweep is not None
     kind = analysis_kind(scene)
     results: list[dict | None] = [None] * len(points)
-    keys = [point_key(scene, p) for p in points]
+    # A sweep's points are content-addressed (points/, the cache); a single run
+    # is neither, and its key would hash the package's whole source for nothing.
+    keys = [point_key(scene, p) for p in points] if sweep else []
     if sweep:
         out.points.mkdir(exist_ok=True)
         for i, (k, p) in enumerate(zip(keys, points)):

@@ -21,7 +21,6 @@ import hashlib
 import os
 import re
 import sys
-import tomllib
 from pathlib import Path
 
 from ..engine import compiled, cvode, multirate
@@ -46,7 +45,6 @@ from .inputs import Inputs, read_inputs
 from .kinds import NO_KINDS, Invalid, Kinds
 from .model import (RESULT_FORMATS, Component, ComponentVariables, Connection, Experiment, Record, Scene,
                     consistency, follow, rates, show)
-from .osp.read import OSP_FILE, OtherXml, read_osp
 from .ssp.read import read_ssp
 from .sweep import parse_sweep
 from .units import UnitError, fmt, link_conversion, to_seconds
@@ -116,6 +114,8 @@ def parse_override(text: str, instances=()) -> tuple[str, str, object]:
 
 
 def _override_value(lhs: str, rhs: str) -> object:
+    import tomllib  # TOML's reader only where TOML is read: an FMU run alone reads none (start-up)
+
     try:
         return tomllib.loads("v = " + rhs)["v"]
     except tomllib.TOMLDecodeError:
@@ -171,8 +171,11 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
     .fmu alone); `input_file` (relative to the current directory) drives
     unconnected inputs, in place of the scene's [inputs]. Raises SceneError."""
     path = Path(path)
-    if path.is_dir() and (path / OSP_FILE).is_file():
-        path = path / OSP_FILE  # a folder of an OSP system, as libcosim takes it
+    if path.is_dir():
+        from .osp.read import OSP_FILE  # an OSP system's reader: imported only for one (start-up time)
+
+        if (path / OSP_FILE).is_file():
+            path = path / OSP_FILE  # a folder of an OSP system, as libcosim takes it
     if path.suffix.lower() in (".ssp", ".ssd"):
         return _load_system(path, read_ssp(path), overrides, kinds, input_file)
     if path.suffix.lower() == ".fmu":
@@ -180,7 +183,11 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
     if path.suffix.lower() == ".xml":
         return _load_system(path, _read_xml(path), overrides, kinds, input_file)
     if path.is_dir():  # a folder stands for the OSP system in it, where there is one (above)
+        from .osp.read import OSP_FILE
+
         raise SceneError(f"is a directory without an {OSP_FILE}, not a scene: expected {_SCENE_FORMATS}", path)
+    import tomllib
+
     data = read_bounded(path, MAX_SCENE_BYTES, "scene file", "a .toml scene file")
     try:
         text = data.decode("utf-8")
@@ -248,6 +255,8 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
 
 def _read_xml(path: Path):
     """An OSP system structure; any other XML file is named with what was expected."""
+    from .osp.read import OtherXml, read_osp
+
     try:
         return read_osp(path)
     except OtherXml as e:

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import contextlib
 import io
-import logging
 import sys
 import warnings
 from pathlib import Path
@@ -36,6 +35,8 @@ def matplotlib_config() -> None:
     """Give matplotlib a usable config folder before it is imported
     (paths.matplotlib_folder), and keep its log lines off stderr (one line
     per failure is ours to print)."""
+    import logging  # here, not at the top: a run that draws with matplotlib is the one that needs it (start-up)
+
     logging.getLogger("matplotlib").setLevel(logging.ERROR)
     matplotlib_folder()
 
