@@ -8,7 +8,8 @@ its clocked input to its clocked count; Sampler a constant clock (0.1 s,
 shift 0.05 s), a countdown clock set at the third sample and a changing
 clock; Partitions is Scheduled Execution with two periodic partitions of
 different priority, an output clock and a countdown clock set through
-clockUpdate.
+clockUpdate. Each runs on both engines, and the two give the same bits
+(test_both_engines_give_the_same_bits).
 """
 
 from __future__ import annotations
@@ -196,6 +197,24 @@ def test_both_engines_give_the_same_bits(fmus, scene):
     python = _run(components, links, "python", 1.0, restart=restart, **settings)
     assert python == _run(components, links, "compiled", 1.0, restart=restart, **settings)
     assert python[1] and any(python[1].values())  # clocks ticked
+
+
+def test_a_run_to_marks_ticks_the_clocks_on_both_engines(fmus):
+    """run_marks with clocks (the compiled engine loops in Python over the core's steps)."""
+    from clockwork.engine import Marks
+
+    runs = []
+    for engine in ENGINES:
+        with System({"tk": (fmus["Ticker"], {}), "ct": (fmus["Counter"], {})},
+                    ["tk.tick -> ct.tooth", "tk.n -> ct.step_by"], MasterSettings(step=0.07, engine=engine),
+                    record={"ct": ["total"]}) as s:
+            port = s.master.ports["ct"]
+            total = (port, port.out_names.index("total"))
+            marks = Marks([0.33, 0.61], outputs=[total], watched=[total], max_step=0.07)
+            s.master.run_marks(1.0, marks)
+            runs.append((marks.rows, s.master.clock_ticks, s.master.t))
+    assert runs[0] == runs[1]
+    assert close(runs[0][1]["ct.tooth"], [0.1 * k for k in range(1, 11)]) and runs[0][0][-1][1] == 55
 
 
 def test_both_engines_tick_from_an_input_file_alike(fmus):
