@@ -1,6 +1,6 @@
 /* Every struct that Python mirrors with ctypes, in one place: the
  * master's (cw_port, cw_loop, cw_loops, cw_master, cw_inputs, cw_recorder,
- * cw_marks: clockwork/engine/compiled.py), the adapters' (cw_fmi3:
+ * cw_marks: clockwork/engine/compiled.py; cw_clocks: compiled_clocks.py), the adapters' (cw_fmi3:
  * clockwork/fmi/cs3.py's _Events; cw_fmi1: cs1.py's _Fmi1) and the Model
  * Exchange wrapper's (cw_sundials: engine/cvode.py's Table; cw_me:
  * engine/model_exchange.py's _ME).
