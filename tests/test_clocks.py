@@ -199,6 +199,29 @@ def test_both_engines_give_the_same_bits(fmus, scene):
     assert python[1] and any(python[1].values())  # clocks ticked
 
 
+@pytest.mark.parametrize("engine", ENGINES)
+def test_an_error_in_an_event_inside_a_step_is_raised_as_on_python(fmus, engine):
+    """The handler of an event an FMU signals inside its step runs under the
+    core's fmi3DoStep (a callback): its error reaches the caller as such."""
+    from clockwork.errors import SimulationError
+
+    with System({"tk": (fmus["EarlyTicker"], {"announce": 0}), "ct": (fmus["Counter"], {})},
+                ["tk.tick -> ct.tooth"], MasterSettings(step=0.25, engine=engine)) as s:
+        m = s.master
+        assert m.engine == engine
+        read = m._read_clocked_outputs
+
+        def failing(n, clocks, t):
+            if t > 0.5:
+                raise SimulationError(f"{n}: refused at t = {t!r} s", time=t, instance=n)
+            read(n, clocks, t)
+
+        m._read_clocked_outputs = failing
+        with pytest.raises(SimulationError, match=r"tk: refused at t = 0\.6"):
+            m.run_until(1.0)
+        assert close(m.clock_ticks["ct.tooth"], [0.25, 0.5])
+
+
 def test_a_run_to_marks_ticks_the_clocks_on_both_engines(fmus):
     """run_marks with clocks (the compiled engine loops in Python over the core's steps)."""
     from clockwork.engine import Marks
