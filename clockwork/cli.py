@@ -668,7 +668,7 @@ def _say_clocks(md, name: str | None = None, scene=None) -> None:
                 lines[k] += f"; ticks {', '.join(targets) or 'no connected clock'}"
     if lines:
         how = "Scheduled Execution" if is_scheduled(md) else "Co-Simulation, Event Mode"
-        _say_out(f"clocks{'' if name is None else f' of {name}'} ({how}, the Python engine):")
+        _say_out(f"clocks{'' if name is None else f' of {name}'} ({how}):")
         for line in lines:
             _say_out(line)
 

@@ -37,8 +37,9 @@ clocks never reaches this module (``make_master`` picks the plain master).
   communication points' series. Clocked variables are exchanged only at
   their clocks' ticks: never per step.
 
-The compiled core does not run clocks: such a scene runs on the Python
-engine, ``engine_reason`` says why (``master.engine = 'compiled'`` is refused).
+On the compiled core (engine/compiled_clocks.py) the steps are C's, which
+land on the ticks and stop where an event is due; the event is this
+module's, through ``at_point``.
 """
 
 from __future__ import annotations
@@ -65,12 +66,12 @@ def clock_tables(instances) -> dict[str, ClockTable]:
     return tables
 
 
-def clocks_reason(instances) -> str | None:
-    """Why the compiled core cannot run these instances (they have clocks), or None."""
+def clocks_text(instances) -> str | None:
+    """"FMI 3.0 clocks (the instances that have them)", or None without clocks."""
     names = list(clock_tables(instances))
     if not names:
         return None
-    return f"the compiled core does not run FMI 3.0 clocks ({', '.join(names[:3])}{', ...' * (len(names) > 3)})"
+    return f"FMI 3.0 clocks ({', '.join(names[:3])}{', ...' * (len(names) > 3)})"
 
 
 class _Schedule:
@@ -238,13 +239,19 @@ class ClockedMaster(Master):
             h = tick - t
         self._pending = []
         taken = super().step(h)
+        self.at_point()
+        return taken
+
+    def at_point(self) -> None:
+        """At the communication point a step reached: the event of the
+        clocks there, if any (the compiled core calls it where its step
+        says one is due)."""
         now = self.t
         # Ticks of discarded trials (a rollback beyond where the step ended) are forgotten.
         self._pending = [p for p in self._pending if p[2] <= now or isclose(p[2], now)]
         located = self.after_event_step and bool(self._asked)
         if located or self._pending or any(s.next <= now or isclose(s.next, now) for s in self._schedules):
             self._event(now, located)
-        return taken
 
     # -- events ---------------------------------------------------------------
 

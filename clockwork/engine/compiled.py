@@ -33,7 +33,8 @@ from . import cvode
 from ..fmi.contract import CORE_CALLS, Instance
 from ..fmi.cs1 import _Fmi1
 from ..fmi.cs3 import _Events
-from .clocks import ClockedMaster, clocks_reason
+from .clocks import ClockedMaster, clock_tables, clocks_text
+from .compiled_clocks import CLOCK_EVENT, CoreClocks, _Clocks
 from .master import Master
 from .parallel import group_ends
 from .model_exchange import _ME
@@ -47,7 +48,7 @@ HISTORY = 3  # input history for divided differences (HISTORY in cw_structs.h)
 ROWS_PER_CALL = 4096  # recording buffer, rows
 MAX_SINCE = 256  # steps kept since a checkpoint (the master forces one after 64)
 
-_DONE, _BUFFER_FULL, _CHECK_DIVERGENCE, _WATCHED, _ENDED, _SLICE_OVER = 0, 1, 2, 3, 4, 5
+_DONE, _BUFFER_FULL, _CHECK_DIVERGENCE, _WATCHED, _ENDED, _SLICE_OVER, _CLOCK_EVENT = 0, 1, 2, 3, 4, 5, CLOCK_EVENT
 _ERR_FMI, _ERR_NO_CHECKPOINT, _ERR_REPLAY, _ERR_LOCATE, _ERR_CAPACITY, _ERR_LOOP = -1, -2, -3, -4, -5, -6
 # What the core's err_call names: the contract's call (instance.named) and what it was for.
 _CALLS = [("doStep", ""), ("getReal", ""), ("setReal", " of inputs"), ("setInputDerivatives", ""),
@@ -103,7 +104,8 @@ class _Master(_Strict):
         ("loops", c_void_p),  # _Loops: the algebraic loops solved in the orders
         ("pool", c_void_p), ("par_end", c_void_p), ("par_status", c_void_p),  # master.threads (engine/parallel.py)
         ("after_start", c_void_p), ("after_order", c_void_p),  # per dynamic instance, the updates after its step
-        ("inputs", c_void_p)]  # a _Inputs: inputs driven from samples, or NULL
+        ("inputs", c_void_p),  # a _Inputs: inputs driven from samples, or NULL
+        ("clocks", c_void_p)]  # a compiled_clocks._Clocks: FMI 3.0 clocks, or NULL
 
 
 class _Marks(_Strict):
@@ -166,6 +168,7 @@ def load_core():
                     ("cw_layout", "recorder", _Recorder), ("cw_layout", "fmi3", _Events),
                     ("cw_layout", "marks", _Marks), ("cw_layout", "fmi1", _Fmi1), ("cw_layout", "loop", _Loop),
                     ("cw_layout", "loops", _Loops), ("cw_layout", "inputs", _Inputs),
+                    ("cw_layout", "clocks", _Clocks),
                     ("cwme_layout", "me", _ME), ("cwme_layout", "sundials", cvode.Table)):
                 differs = layout.problem(lib, lookup, name, struct)
                 if differs:
@@ -237,35 +240,41 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
     `rates`: {instance: decimation factor} where components step at their
     own multiples of settings.step (engine/multirate.py): the Python engine's."""
     settings.check()
-    clocks = clocks_reason(instances)
+    clocks = clocks_text(instances)
     if clocks is not None and rates and any(k != 1 for k in rates.values()):
         raise SceneError(f"rates: {unsupported_rates(rates).replace('the compiled core steps', 'a clock ticks')}; "
-                         f"a scene with FMI 3.0 clocks ({clocks.split('(', 1)[1]} steps every component at "
-                         "master.step")
-    if clocks is not None:  # FMI 3.0 clocks: the Python engine (engine/clocks.py)
-        if settings.engine == "compiled":
-            raise SceneError(f"master.engine = 'compiled': {clocks} (use 'auto' or 'python')")
-        master = ClockedMaster(instances, links, settings, start_time, step_order, extra_outputs, inputs)
-        master.engine_reason = clocks if settings.engine == "auto" else None
-        return master
+                         f"a scene with {clocks} steps every component at master.step")
     reason = None
     if rates and any(k != 1 for k in rates.values()):
         reason = unsupported_rates(rates)
         if settings.engine == "compiled":
             raise SceneError(f"master.engine = 'compiled': {reason} (use 'auto' or 'python')")
     elif settings.engine != "python":
-        types = [(f"{k.src}.{k.output} -> {k.dst}.{k.input}", link_type(instances, k)) for k in links]
+        # Clock connections, clocked links and clock columns are ClockedMaster's (engine/clocks.py), not the core's.
+        tables = clock_tables(instances)
+
+        def plain(inst: str, var: str) -> bool:
+            t = tables.get(inst)
+            return t is None or (var not in t.clocks and var not in t.clocked)
+
+        types = [(f"{k.src}.{k.output} -> {k.dst}.{k.input}", link_type(instances, k)) for k in links
+                 if plain(k.src, k.output) and plain(k.dst, k.input)]
         sampled = [] if inputs is None else [
             (s.name, instances[s.instance].variables[s.variable].type) for s in inputs.signals
-            if s.instance in instances and s.variable in instances[s.instance].variables]
+            if s.instance in instances and s.variable in instances[s.instance].variables
+            and plain(s.instance, s.variable)]
         refused = next((r for r in (getattr(i, "compiled_reason", None) for i in instances.values()) if r), None)
         reason = (unsupported(settings) or refused or unsupported_links(types) or unsupported_inputs(sampled)
                   or core_problem())
         if reason is None:
-            return CompiledMaster(instances, links, settings, start_time, step_order, extra_outputs, inputs)
+            kind = CompiledMaster if clocks is None else CompiledClockedMaster
+            return kind(instances, links, settings, start_time, step_order, extra_outputs, inputs)
         if settings.engine == "compiled":
             raise SceneError(f"master.engine = 'compiled': {reason} (use 'auto' or 'python')")
-    master = Master(instances, links, settings, start_time, step_order, extra_outputs, inputs, rates)
+    if clocks is not None:  # FMI 3.0 clocks on the Python engine (engine/clocks.py)
+        master = ClockedMaster(instances, links, settings, start_time, step_order, extra_outputs, inputs)
+    else:
+        master = Master(instances, links, settings, start_time, step_order, extra_outputs, inputs, rates)
     master.engine_reason = reason
     return master
 
@@ -599,13 +608,19 @@ class CompiledMaster(Master):
                 on_point.check_limit(self._core.t)
             if rc == _DONE:
                 return
-            if rc == _CHECK_DIVERGENCE:
+            if rc == _CHECK_DIVERGENCE or rc == _CLOCK_EVENT:
                 # Raises for an output that is not finite or too large; else
-                # the point is legal after all and is recorded now.
-                self._handle(rc)
+                # the point is legal after all and is recorded now, after
+                # the event of the clocks there.
+                if rc == _CHECK_DIVERGENCE:
+                    self._handle(rc)
+                self._at_core_point()
                 self._lib.cw_record_point(self._core_ptr, byref(rec))
             elif rc != _BUFFER_FULL and rc != _SLICE_OVER:
                 self._handle(rc)
+
+    def _at_core_point(self) -> None:
+        """The event of the clocks where a step ended (CompiledClockedMaster); none here."""
 
     def _run_marks(self, t_stop, marks, on_rows):
         if self.on_step is not None:
@@ -768,3 +783,6 @@ class CompiledMaster(Master):
                 f"event location did not converge in (t, t+h) = ({t!r}, {t + m.err_h!r}) s", time=t)
         raise SimulationError(f"the compiled core stopped with code {rc} at t = {m.t!r} s", time=m.t)
 
+
+class CompiledClockedMaster(CoreClocks, ClockedMaster, CompiledMaster):
+    """``ClockedMaster`` (FMI 3.0 clocks) with its steps in the compiled core (engine/compiled_clocks.py)."""

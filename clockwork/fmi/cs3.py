@@ -120,6 +120,7 @@ class _Events(Structure):
         ("scratch_val", c_void_p),    # one array's values (element by element)
         ("scratch_cap", c_int),
         ("scratch_val_cap", c_int),
+        ("clock_event", c_void_p),  # with clocks on the compiled core: the master's handler (engine/compiled_clocks.py)
     ]
 
 

@@ -9,6 +9,7 @@ nothing); its partitions run when the engine activates their clocks.
 
 from __future__ import annotations
 
+import ctypes
 import math
 from ctypes import CFUNCTYPE, POINTER, byref, c_bool, c_char_p, c_double, c_int, c_size_t, c_uint, c_void_p, cast
 
@@ -16,6 +17,7 @@ from ..errors import SceneError, SimulationError
 from .archive import extract
 from .calls import OK, WARNING, declared, new_slave, read_string
 from .clocks import Clock
+from .contract import CORE_CALLS
 from .cs3 import LOG_MESSAGE, Instance3
 
 
@@ -161,4 +163,10 @@ class ScheduledInstance(Instance3):
         self._bind(self._slave.dll)
         # No step: the time of a Scheduled Execution FMU is its activations'.
         self.c_doStep = lambda comp, t, h, no_set_prior=0: OK
+
+    def core_calls(self, lib) -> tuple[int, tuple[int, ...]]:
+        """The FMI 3.0 adapter's calls, but a step that waits (cw_wait_step: no step of its own)."""
+        comp, calls = super().core_calls(lib)
+        wait = ctypes.cast(lib.cw_wait_step, c_void_p).value
+        return comp, tuple(wait if name == "doStep" else f for name, f in zip(CORE_CALLS, calls, strict=True))
 

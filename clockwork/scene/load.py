@@ -446,9 +446,12 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
     if problem:
         raise ctx.fail("master.me_solver", problem)
     if master.engine == "compiled":
-        # Asked for by name: links the core cannot pass on are refused now, not at run time.
+        # Asked for by name: links the core cannot pass on are refused now, not at run time
+        # (those of FMI 3.0 clocks are the clocks' part, engine/clocks.py, on either engine).
         reason = compiled.unsupported_links(
-            (str(c), components[c.src_instance].variable(c.src_var).type) for c in connections)
+            (str(c), components[c.src_instance].variable(c.src_var).type) for c in connections
+            if not _clocked(components[c.src_instance].variable(c.src_var))
+            and not _clocked(components[c.dst_instance].variable(c.dst_var)))
         if reason:
             raise ctx.fail("master.engine", f'expected "auto" or "python" here: {reason}')
     record = _record(ctx, ctx.table(raw, "record", ""), components)
@@ -633,12 +636,20 @@ def _me_solver_problem(master: MasterSettings, components: dict[str, Component])
     return None
 
 
+def _clocked(var) -> bool:
+    """An FMI 3.0 clock or clocked variable: exchanged at ticks by the clocks' part, not by the core's links."""
+    return var.type == "Clock" or bool(getattr(var, "clocks", None))
+
+
 def _check_compiled_inputs(ctx: Ctx, inputs: Inputs, components: dict[str, Component]) -> None:
     """master.engine = "compiled" asked for by name: an input column the
     core cannot set (it sets Real inputs only) is refused now, naming the
     column, as the run would refuse it (engine.compiled.make_master)."""
     for j, sig in enumerate(inputs.samples.signals, start=1):
-        reason = compiled.unsupported_inputs([(sig.name, components[sig.instance].variable(sig.variable).type)])
+        var = components[sig.instance].variable(sig.variable)
+        if _clocked(var):  # a clock's ticks (engine/clocks.py), on either engine
+            continue
+        reason = compiled.unsupported_inputs([(sig.name, var.type)])
         if reason:
             path, key = ctx.where("master.engine")
             raise SceneError(f'{reason}: expected master.engine = "auto" or "python" ({key} asks for the compiled '

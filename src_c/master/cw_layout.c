@@ -71,6 +71,11 @@ static const cw_field master_layout[] = {
     CW_FIELD(cw_master, iterations), CW_FIELD(cw_master, pad3_), CW_FIELD(cw_master, loops),
     CW_FIELD(cw_master, pool), CW_FIELD(cw_master, par_end), CW_FIELD(cw_master, par_status),
     CW_FIELD(cw_master, after_start), CW_FIELD(cw_master, after_order), CW_FIELD(cw_master, inputs),
+    CW_FIELD(cw_master, clocks),
+};
+static const cw_field clocks_layout[] = {
+    CW_FIELD(cw_clocks, next), CW_FIELD(cw_clocks, n_next), CW_FIELD(cw_clocks, asked),
+    CW_FIELD(cw_clocks, pending), CW_FIELD(cw_clocks, due),
 };
 static const cw_field inputs_layout[] = {
     CW_FIELD(cw_inputs, times), CW_FIELD(cw_inputs, values), CW_FIELD(cw_inputs, continuous),
@@ -114,7 +119,7 @@ static const cw_field fmi3_layout[] = {
     CW_FIELD(cw_fmi3, iu_saved_fed), CW_FIELD(cw_fmi3, code_base), CW_FIELD(cw_fmi3, n_codes),
     CW_FIELD(cw_fmi3, code_vr), CW_FIELD(cw_fmi3, code_off), CW_FIELD(cw_fmi3, code_size),
     CW_FIELD(cw_fmi3, scratch_vr), CW_FIELD(cw_fmi3, scratch_order), CW_FIELD(cw_fmi3, scratch_val),
-    CW_FIELD(cw_fmi3, scratch_cap), CW_FIELD(cw_fmi3, scratch_val_cap),
+    CW_FIELD(cw_fmi3, scratch_cap), CW_FIELD(cw_fmi3, scratch_val_cap), CW_FIELD(cw_fmi3, clock_event),
 };
 static const cw_field fmi1_layout[] = {
     CW_FIELD(cw_fmi1, instance), CW_FIELD(cw_fmi1, doStep), CW_FIELD(cw_fmi1, getReal),
@@ -131,6 +136,7 @@ CW_EXPORT const cw_field *cw_layout(const char *name, size_t *n_fields, size_t *
     CW_LAYOUT_CASE(loops)
     CW_LAYOUT_CASE(master)
     CW_LAYOUT_CASE(inputs)
+    CW_LAYOUT_CASE(clocks)
     CW_LAYOUT_CASE(recorder)
     CW_LAYOUT_CASE(marks)
     CW_LAYOUT_CASE(fmi3)

@@ -30,6 +30,7 @@ enum {
     CW_WATCHED = 3,         /* a watched output changed (cw_run_marks, stop_at_change) */
     CW_ENDED = 4,           /* an instance asked to end the simulation (FMI 3.0 terminateSimulation) */
     CW_SLICE_OVER = 5,      /* the call's slice of wall time is spent: call again (Python handles signals between calls) */
+    CW_CLOCK_EVENT = 6,     /* the step ended at an event of the FMI 3.0 clocks: Python runs it, then calls again */
     CW_ERR_FMI = -1,        /* an fmi2 call failed: err_port, err_call, err_status */
     CW_ERR_NO_CHECKPOINT = -2,
     CW_ERR_REPLAY = -3,
@@ -108,6 +109,10 @@ int rollback(cw_master *m);
 int since_append(cw_master *m, double h);
 int replay_to(cw_master *m, double t);
 int iterate_step(cw_master *m, double t, double h);
+
+/* cw_clocks.c: FMI 3.0 clocks (the step cut to the next tick; an event due) */
+double clocks_cut(const cw_clocks *c, double t, double h);
+int clocks_due(const cw_clocks *c, double t, int after_event_step);
 
 /* cw_record.c: recording */
 void record_point(cw_master *m, cw_recorder *r);

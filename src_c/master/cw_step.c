@@ -58,6 +58,13 @@ static void discontinuity(cw_master *m)
 static int step(cw_master *m, double h, double *taken_out)
 {
     double t = m->t;
+    /* -- FMI 3.0 clocks (cw_clocks.c): a communication point on every tick. */
+    if (m->clocks) {
+        h = clocks_cut(m->clocks, t, h);
+        m->clocks->pending = 0;
+        m->clocks->due = 0;
+    }
+    /* -- end clocks */
     /* 0. An instance that asked to end the simulation ends it here; its
      * announced time event caps the step. */
     for (int i = 0; i < m->n_announcers; i++)
@@ -142,6 +149,13 @@ static int step(cw_master *m, double h, double *taken_out)
     if (m->extrapolation)
         record_history(m);
     *taken_out = taken;
+    /* -- FMI 3.0 clocks: an event at the step's end is Python's (after a divergence check). */
+    if (m->clocks && clocks_due(m->clocks, m->t, m->after_event_step)) {
+        m->clocks->due = 1;
+        if (!m->diverged)
+            return CW_CLOCK_EVENT;
+    }
+    /* -- end clocks */
     return m->diverged ? CW_CHECK_DIVERGENCE : CW_DONE;
 }
 
@@ -241,7 +255,7 @@ CW_EXPORT int cw_run_until(cw_master *m, double t_stop, cw_recorder *r, double s
             return rc;
         if (m->t >= grid - eps)
             k++;
-        if (rc == CW_CHECK_DIVERGENCE) {
+        if (rc == CW_CHECK_DIVERGENCE || rc == CW_CLOCK_EVENT) {
             /* Not recorded yet: a failed run keeps the points before this
              * one only; where Python finds every output legal, it records
              * the point (cw_record_point) and calls again. */

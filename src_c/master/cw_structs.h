@@ -1,6 +1,6 @@
 /* Every struct that Python mirrors with ctypes, in one place: the
  * master's (cw_port, cw_loop, cw_loops, cw_master, cw_inputs, cw_recorder,
- * cw_marks: clockwork/engine/compiled.py), the adapters' (cw_fmi3:
+ * cw_marks: clockwork/engine/compiled.py; cw_clocks: compiled_clocks.py), the adapters' (cw_fmi3:
  * clockwork/fmi/cs3.py's _Events; cw_fmi1: cs1.py's _Fmi1) and the Model
  * Exchange wrapper's (cw_sundials: engine/cvode.py's Table; cw_me:
  * engine/model_exchange.py's _ME).
@@ -167,7 +167,20 @@ typedef struct {
     const int *after_start;    /* per dynamic position a: after_order[after_start[a] .. after_start[a + 1]) */
     const int *after_order;    /* ... is the part of first_in_order updated after it steps (parallel.py) */
     struct cw_inputs *inputs;  /* inputs driven from samples, or NULL */
+    struct cw_clocks *clocks;  /* FMI 3.0 clocks (cw_clocks.c), or NULL */
 } cw_master;
+
+/* FMI 3.0 clocks (cw_clocks.c; engine/clocks.py says what they are):
+ * the next tick of each input clock the master ticks, which cuts the step,
+ * and what tells the core that a step ended at an event of the clocks,
+ * which Python's ClockedMaster then runs (its FMI calls, its records). */
+typedef struct cw_clocks {
+    double *next;    /* per scheduled input clock, its next tick, s; inf: none */
+    int n_next;
+    int asked;       /* some Co-Simulation FMU has output clocks: every located state event is one */
+    int pending;     /* an FMU signalled an event (an output clock) in the step now taken */
+    int due;         /* the step just taken ended at an event of the clocks (set by the core) */
+} cw_clocks;
 
 /* Inputs driven from samples (engine/samples.py): the sample table, its
  * input events, and per port the Real inputs it drives. */
@@ -281,6 +294,10 @@ typedef struct cw_fmi3 {
     int *scratch_order;           /* and their derivative orders */
     double *scratch_val;          /* one array's values */
     int scratch_cap, scratch_val_cap;
+    /* With clocks: the master's handler of an event the FMU signals in its
+     * step (engine/clocks.py), called with the time reached instead of
+     * settling here; NULL without clocks. */
+    int (*clock_event)(double);
 } cw_fmi3;
 
 /* The loop's questions to an announcer (cw_master.announcers): the FMI
