@@ -450,6 +450,8 @@ class Master:
         # 4. Events.
         if locating:
             taken = self._land_on_events(t, h, near and not predicted, possible or needs_rollback, predicted)
+            if self.after_event_step and self._multirate is not None:
+                self._multirate.land()  # the components of other rates to the event, too
             loc.last_step = None if self.after_event_step else (t, loc.z_start)
         if loc.has_sources:
             # Sources are sampled where a crossing is near, and now and then
@@ -733,12 +735,15 @@ def _slow_read_after_step(rates: dict[str, int], instances: dict) -> dict[str, i
 def _multirate(master: Master, rates: dict[str, int]):
     """The multi-rate stepping of `master`, after the one-line refusals of
     what it does not do across rates (engine/multirate.py)."""
-    from .multirate import MultiRate, loop_problem, problem
-    found = problem(master.settings, rates, {p.inst.name: p.z_pos for p in master.ports.all})
+    from .multirate import MultiRate, TimedMultiRate, loop_problem, problem, timed
+    indicators = {p.inst.name: p.z_pos for p in master.ports.all}
+    links = [(src.inst.name, p.inst.name) for p in master.ports.all for _, src, _ in p.sources]
+    links += [(src.inst.name, p.inst.name) for p in master.ports.all for src, _ in p.din_sources]
+    found = problem(master.settings, rates, indicators, links)
     if found:
         raise SceneError(found[1], key="rates")
     loops = loop_problem(rates, [(loop.name, [p.inst.name for p in loop.members]) for loop in master.ports.loops])
     if loops:
         raise SceneError(loops, key="components")
-    return MultiRate(master, rates)
+    return (TimedMultiRate if timed(master.settings, rates, indicators) else MultiRate)(master, rates)
 
