@@ -48,6 +48,16 @@ def test_extrapolation_across_rates_is_the_python_engines_with_its_reason():
         assert s.master.engine_reason == "the compiled core does not do master.extrapolation = 2 across rates"
 
 
+def test_restart_runs_the_same_numbers_again_with_polynomials():
+    with System(COMPS, BOTH_WAYS, MasterSettings(step=0.01, extrapolation=2), rates={"v": 3},
+                record={"p": ["phi"], "v": ["a2"]}) as s:
+        s.master.run_until(0.31)
+        first = (s.output("p", "phi"), s.output("v", "a2"))
+        s.restart({n: dict(params) for n, (_, params) in COMPS.items()})
+        s.master.run_until(0.31)
+        assert (s.output("p", "phi"), s.output("v", "a2")) == first
+
+
 CLOCK = (ROOT / "scenarios" / "core_vibration.toml").read_text()
 
 
