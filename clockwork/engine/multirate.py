@@ -515,17 +515,7 @@ class TimedMultiRate(MultiRate):
         if inputs is not None:
             inputs.set(ports.first, t, True)
             inputs.set(self.fast_dynamic, t, True)
-        # 1. Feedthrough-only instances (all at the base rate) commit the mode decided at t.
-        for p in ports.first:
-            st = p.doStep(p.comp, t, h, no_set_prior)
-            if st > WARNING:
-                raise m._step_failure(p, st, t, h)
-            if p.z_pos and m.after_event:
-                p.getReal(p.comp, p.out_vr, p.n_out, p.out)
-        if inputs is not None:
-            inputs.set(ports.first, t_new, False, True)
-        if m._locating:
-            loc.z_start = loc.indicators() if m.after_event else loc.z_end
+        m._commit_first(t, h, no_set_prior)  # 1. (all of them at the base rate)
         # 2. The dynamic instances whose own step ends at t + h, each from its own start.
         starts, ends = self.starts, self.ends
         due = [p for p in ports.dynamic if k[p.inst.name] == 1 or t_new >= ends[id(p)] - tol]
