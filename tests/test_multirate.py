@@ -122,8 +122,6 @@ BAD = {
                                                          "vibration every 3"]),
     "step doubling": ("step = 0.03", "richardson = true", ["components.vibration.step", "master.richardson",
                                                                 "different rates"]),
-    "extrapolation": ("step = 0.03", "extrapolation = 1", ["components.vibration.step",
-                                                                   "master.extrapolation = 1", "different rates"]),
     "compiled by name": ("step = 0.03", 'engine = "compiled"', ["master.engine", "compiled core steps every"]),
 }
 
@@ -145,7 +143,9 @@ def test_a_stop_off_the_base_grid_is_refused(tmp_path, capsys):
     assert_one_line_error(rc, err, "experiment.stop", "whole number of base steps")
 
 
-def test_event_location_across_rates_is_refused_where_a_component_has_indicators(tmp_path, capsys):
+def test_event_location_across_rates_is_refused_where_indicators_read_a_slow_component(tmp_path, capsys):
+    """(Event location where the indicators are the base rate's:
+    tests/test_multirate_timed.py.)"""
     f = tmp_path / "clock.toml"
     f.write_text(textwrap.dedent("""\
         connections = ["pendulum.phi -> escapement.phi", "pendulum.w -> escapement.w",
@@ -163,8 +163,8 @@ def test_event_location_across_rates_is_refused_where_a_component_has_indicators
         step = 0.01
         """))
     rc, _, err = run_cli(capsys, ["validate", f])
-    assert_one_line_error(rc, err, "components.pendulum.step", "master.event_location = true", "escapement",
-                          "pendulum every 2")
+    assert_one_line_error(rc, err, "components.pendulum.step", "master.event_location = true",
+                          "escapement's event indicators read pendulum's outputs", "pendulum every 2")
     # without event location it runs: the escapement at the base rate reads the slow pendulum's held angle
     rc, _, err = run_cli(capsys, ["run", f, "--set", "master.event_location=false", "--out", tmp_path / "o",
                                   "--no-progress"])

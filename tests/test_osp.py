@@ -409,7 +409,7 @@ HOSTILE = {
     # steps that differ are the simulators' own (multi-rate): not with the escapement's event location
     "different steps": (_edit(SIM, SIM.replace(">", ' stepSize="0.02">')), "stepSize='0.02'",
                         "master.event_location",
-                        "locating the events of escapement", "escapement every 2 base steps"),
+                        "the event indicators of a slow component", "escapement every 2 base steps"),
     "zero stepSize": (_edit(SIM, SIM.replace(">", ' stepSize="0">')), "stepSize", "step > 0"),
     "group without a model description": (_edit("</Connections>", '<VariableGroupConnection>'
                                                 '<VariableGroup simulator="pendulum" name="g"/>'

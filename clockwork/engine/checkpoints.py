@@ -45,7 +45,9 @@ class Checkpoints:
             p.inst.save_state(m.t)
         m.stats.states_saved += 1
         loc = m.locator
-        self.snapshot = (loc.z_end, m.t, m.coupling.snapshot(), m.after_event, loc.time_to_zero)
+        rated = m._multirate
+        self.snapshot = (loc.z_end, m.t, m.coupling.snapshot(), m.after_event, loc.time_to_zero,
+                         rated.snapshot() if rated is not None else None)
 
     def rollback(self) -> None:
         """Every FMU and the master back to the checkpoint."""
@@ -63,11 +65,13 @@ class Checkpoints:
     def restore_soft_state(self) -> None:
         m = self.master
         loc = m.locator
-        loc.z_end, m.t, history, m.after_event, loc.time_to_zero = self.snapshot
+        loc.z_end, m.t, history, m.after_event, loc.time_to_zero, rated = self.snapshot
         m.coupling.restore(history)
         # The FMU states hold their inputs; only the cached outputs are stale.
         for p in m.ports.all:
             p.read(m.t)
+        if rated is not None:  # where each component of another rate stands (engine/multirate.py)
+            m._multirate.restore(rated)
 
     def replay_to(self, t: float) -> None:
         """An event in a step predicted free of events: go back, redo the

@@ -36,6 +36,7 @@ from ..fmi.cs3 import _Events
 from .clocks import ClockedMaster, clock_tables, clocks_text
 from .compiled_clocks import CLOCK_EVENT, CoreClocks, _Clocks
 from .master import Master
+from .multirate import timed
 from .parallel import group_ends
 from .model_exchange import _ME
 from .ports import link_type
@@ -246,7 +247,8 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
                          f"a scene with {clocks} steps every component at master.step")
     reason = None
     if rates and any(k != 1 for k in rates.values()):
-        reason = unsupported_rates(rates)
+        needs = timed(settings, rates, {n: i.event_indicators for n, i in instances.items()})
+        reason = f"the compiled core does not do {needs}" if needs else unsupported_rates(rates)
         if settings.engine == "compiled":
             raise SceneError(f"master.engine = 'compiled': {reason} (use 'auto' or 'python')")
     elif settings.engine != "python":

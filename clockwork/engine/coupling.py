@@ -61,16 +61,9 @@ class InputCoupling:
         found = {}
         for p in self.dynamic:
             for k, src, j in p.sources:
-                inst = src.inst
-                name = src.out_names[j]
-                var = inst.variables[name]
-                has_feed = var.dependencies is None or len(var.dependencies) > 0
-                if not has_feed and inst.max_output_derivative_order >= 1:
-                    got = inst.output_derivatives([name], 1)
-                    if got is not None:
-                        m = 2 if inst.max_output_derivative_order >= 2 else 1
-                        found[(p.inst.name, k)] = (
-                            inst, (c_uint * 2)(var.vr, var.vr), (c_int * 2)(1, 2), (c_double * 2)(), m)
+                got = derivative_source(src, j)
+                if got is not None:
+                    found[(p.inst.name, k)] = got
         self.derivative_sources = found
 
     def set_inputs(self, p: Port, t: float, h: float, smooth: bool,
@@ -148,7 +141,12 @@ class InputCoupling:
             ta, ua = src.out_time, src.out[j]
             d1 = d2 = 0.0
             dsrc = self.derivative_sources.get((p.inst.name, k))
-            if dsrc is not None:
+            if not isinstance(src, Port):
+                # A source of another rate, as passed at the last point both
+                # share, with its polynomial there (engine/multirate.py).
+                d1 = src.d1[j]
+                d2 = src.d2[j] if order >= 2 else 0.0
+            elif dsrc is not None:
                 inst, vrs, orders, out, m = dsrc
                 m = min(m, order)
                 if inst.c_getOutputDerivatives(inst.component, vrs, m, orders, out) <= WARNING:
@@ -157,15 +155,7 @@ class InputCoupling:
             else:
                 # Divided differences through the history and the current value.
                 pts = [(tt, vv[k]) for tt, vv in zip(hist.times, hist.values) if tt < ta - 1e-15]
-                pts = pts[-order:] + [(ta, ua)]
-                if len(pts) >= 2:
-                    (t1, u1), (t2, u2) = pts[-2], pts[-1]
-                    d1 = (u2 - u1) / (t2 - t1)
-                    if order >= 2 and len(pts) >= 3:
-                        t0, u0 = pts[-3]
-                        d0 = (u1 - u0) / (t1 - t0)
-                        d2 = 2.0 * (d1 - d0) / (t2 - t0)
-                        d1 += 0.5 * d2 * (t2 - t1)
+                d1, d2 = divided_differences(pts[-order:] + [(ta, ua)], order)
             dt = t - ta
             p.inp[k] = input_polynomial(ua, d1, d2, dt)
             p.der[k] = d1 + d2 * dt
@@ -180,13 +170,14 @@ class InputCoupling:
             hist.times.clear()
             hist.values.clear()
 
-    def record(self, t: float, after_discontinuity: bool) -> None:
-        """Remember the inputs' source values at the communication point t."""
+    def record(self, t: float, after_discontinuity: bool, ports: list[Port] | None = None) -> None:
+        """Remember the inputs' source values at the communication point t
+        (of `ports`, where only some are at a point of their own: multi-rate)."""
         if not self.order:
             return
         if after_discontinuity:
             self.forget()
-        for p in self.dynamic:
+        for p in self.dynamic if ports is None else ports:
             if not p.n_in:
                 continue
             hist = self.history[p.inst.name]
@@ -202,6 +193,35 @@ class InputCoupling:
         for n, (times, values) in snap.items():
             self.history[n].times[:] = times
             self.history[n].values[:] = [list(v) for v in values]
+
+
+def derivative_source(src: Port, j: int) -> tuple | None:
+    """How to ask output j of `src` for its time derivatives (the FMU's
+    own, where it offers them and the output has no direct feedthrough):
+    (instance, value references, orders, buffer, highest order), or None."""
+    inst = src.inst
+    name = src.out_names[j]
+    var = inst.variables[name]
+    has_feed = var.dependencies is None or len(var.dependencies) > 0
+    if has_feed or inst.max_output_derivative_order < 1 or inst.output_derivatives([name], 1) is None:
+        return None
+    m = 2 if inst.max_output_derivative_order >= 2 else 1
+    return inst, (c_uint * 2)(var.vr, var.vr), (c_int * 2)(1, 2), (c_double * 2)(), m
+
+
+def divided_differences(pts: list[tuple[float, float]], order: int) -> tuple[float, float]:
+    """(du/dt, d2u/dt2) at the last of the points (time s, value), by
+    divided differences through the last order + 1 of them (0 where too few)."""
+    d1 = d2 = 0.0
+    if len(pts) >= 2:
+        (t1, u1), (t2, u2) = pts[-2], pts[-1]
+        d1 = (u2 - u1) / (t2 - t1)
+        if order >= 2 and len(pts) >= 3:
+            t0, u0 = pts[-3]
+            d0 = (u1 - u0) / (t1 - t0)
+            d2 = 2.0 * (d1 - d0) / (t2 - t0)
+            d1 += 0.5 * d2 * (t2 - t1)
+    return d1, d2
 
 
 def iterate_step(master, t: float, h: float) -> None:

@@ -303,19 +303,7 @@ class Master:
         inputs = self.file_inputs
         if inputs is not None:  # sampled inputs at t, after an event there
             inputs.set(ports.all, t, True)
-        # 1. Feedthrough-only instances commit the mode decided at t.
-        for p in ports.first:
-            st = p.doStep(p.comp, t, h, no_set_prior)
-            if st > WARNING:
-                raise self._step_failure(p, st, t, h)
-            if p.z_pos and self.after_event:
-                # A commit may have switched the mode: read z at t+.
-                p.getReal(p.comp, p.out_vr, p.n_out, p.out)
-        if inputs is not None:  # their outputs are next read at t + h: sampled inputs there, before an event
-            inputs.set(ports.first, t_new, False, True)
-        if self._locating:
-            # Without a commit of a new mode, z at t+ is z at t.
-            loc.z_start = loc.indicators() if self.after_event else loc.z_end
+        self._commit_first(t, h, no_set_prior)
         # 2. Dynamic instances step, their inputs set by the coupling.
         set_inputs = self.coupling.set_inputs
         smooth = not self.after_event
@@ -345,6 +333,24 @@ class Master:
             p.pull(t_new)
         if self._locating:
             loc.z_end = loc.indicators()
+
+    def _commit_first(self, t: float, h: float, no_set_prior: int) -> None:
+        """1. of the step from t of h s: feedthrough-only instances commit
+        the mode decided at t; the indicators at t+ are taken."""
+        inputs = self.file_inputs
+        loc = self.locator
+        for p in self.ports.first:
+            st = p.doStep(p.comp, t, h, no_set_prior)
+            if st > WARNING:
+                raise self._step_failure(p, st, t, h)
+            if p.z_pos and self.after_event:
+                # A commit may have switched the mode: read z at t+.
+                p.getReal(p.comp, p.out_vr, p.n_out, p.out)
+        if inputs is not None:  # their outputs are next read at t + h: sampled inputs there, before an event
+            inputs.set(self.ports.first, t + h, False, True)
+        if self._locating:
+            # Without a commit of a new mode, z at t+ is z at t.
+            loc.z_start = loc.indicators() if self.after_event else loc.z_end
 
     def _asked_to_end(self) -> SimulationEnded | None:
         """The end an instance asked for in a step it finished (announced in
@@ -450,6 +456,8 @@ class Master:
         # 4. Events.
         if locating:
             taken = self._land_on_events(t, h, near and not predicted, possible or needs_rollback, predicted)
+            if self.after_event_step and self._multirate is not None:
+                self._multirate.land()  # the components of other rates to the event, too
             loc.last_step = None if self.after_event_step else (t, loc.z_start)
         if loc.has_sources:
             # Sources are sampled where a crossing is near, and now and then
@@ -733,12 +741,15 @@ def _slow_read_after_step(rates: dict[str, int], instances: dict) -> dict[str, i
 def _multirate(master: Master, rates: dict[str, int]):
     """The multi-rate stepping of `master`, after the one-line refusals of
     what it does not do across rates (engine/multirate.py)."""
-    from .multirate import MultiRate, loop_problem, problem
-    found = problem(master.settings, rates, {p.inst.name: p.z_pos for p in master.ports.all})
+    from .multirate import MultiRate, TimedMultiRate, loop_problem, problem, timed
+    indicators = {p.inst.name: p.z_pos for p in master.ports.all}
+    links = [(src.inst.name, p.inst.name) for p in master.ports.all for _, src, _ in p.sources]
+    links += [(src.inst.name, p.inst.name) for p in master.ports.all for src, _ in p.din_sources]
+    found = problem(master.settings, rates, indicators, links)
     if found:
         raise SceneError(found[1], key="rates")
     loops = loop_problem(rates, [(loop.name, [p.inst.name for p in loop.members]) for loop in master.ports.loops])
     if loops:
         raise SceneError(loops, key="components")
-    return MultiRate(master, rates)
+    return (TimedMultiRate if timed(master.settings, rates, indicators) else MultiRate)(master, rates)
 

@@ -437,7 +437,7 @@ def _build(ctx: Ctx, raw: dict, overrides: tuple[str, ...], digest: str, kinds: 
         notes = tuple(notes) + _me_group_notes(ctx, wired, connections)
     notes = tuple(notes) + tuple(_loop_note(name, links, master.algebraic_loops, held)
                                  for name, links, held in loops)
-    problem = consistency(master, experiment, components) or _fmi3_inputs(master, components, connections)
+    problem = consistency(master, experiment, components, connections) or _fmi3_inputs(master, components, connections)
     if problem:
         raise ctx.fail(*problem)
     if master.tolerance is None:

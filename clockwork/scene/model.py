@@ -214,7 +214,7 @@ class Scene:
         except SceneError as err:  # a combination of the point's values (each was checked as it was read)
             m, problem = None, (err.key or "master", err.detail)
         else:
-            problem = consistency(m, e, comps)
+            problem = consistency(m, e, comps, self.connections)
         if problem:
             key, detail = problem
             raise SceneError(detail, self.path, f"{key} (with {_show_point(values)})")
@@ -238,9 +238,10 @@ def follow(master: dict, given) -> dict:
     return master
 
 
-def consistency(m: MasterSettings, e: Experiment, components: dict[str, Component]) -> tuple[str, str] | None:
+def consistency(m: MasterSettings, e: Experiment, components: dict[str, Component],
+                connections: tuple = ()) -> tuple[str, str] | None:
     """The first problem of these settings with each other and with the
-    components, as (key, what was expected), or None."""
+    components (and their `connections`), as (key, what was expected), or None."""
     if not e.stop > e.start:
         return "experiment.stop", f"expected stop > start ({fmt(e.start)} s), got {fmt(e.stop)} s"
     if e.stop - e.start <= SPAN_RESOLUTION * max(1.0, abs(e.stop)):
@@ -262,7 +263,7 @@ def consistency(m: MasterSettings, e: Experiment, components: dict[str, Componen
     problem = rollback_problem(m, components)
     if problem:
         return problem
-    problem = component_steps_problem(m, e, components)
+    problem = component_steps_problem(m, e, components, connections)
     if problem:
         return problem
     # A step below the time resolution at the end would never move the clock.
@@ -318,8 +319,8 @@ def rates(m: MasterSettings, components: dict[str, Component]) -> dict[str, int]
     return None if None in found.values() else found
 
 
-def component_steps_problem(m: MasterSettings, e: Experiment,
-                            components: dict[str, Component]) -> tuple[str, str] | None:
+def component_steps_problem(m: MasterSettings, e: Experiment, components: dict[str, Component],
+                            connections: tuple = ()) -> tuple[str, str] | None:
     """The first component step that is no whole multiple of master.step
     (within rounding), or what of the settings the multi-rate master does
     not do, as (key, what was expected), or None."""
@@ -339,7 +340,8 @@ def component_steps_problem(m: MasterSettings, e: Experiment,
         return f"components.{slow}.step", (f"expected every component at master.step ({fmt(m.step)} s) with FMI 3.0 "
                                            f"clocks ({', '.join(clocked)}): a tick is a communication point of every "
                                            "component, and the multi-rate master steps on the base grid only")
-    problem = multirate.problem(m, k, {n: c.event_indicators for n, c in components.items()})
+    problem = multirate.problem(m, k, {n: c.event_indicators for n, c in components.items()},
+                                [(c.src_instance, c.dst_instance) for c in connections])
     if problem:  # named where the slow component's step comes from (a scene key, an OSP or SSD attribute)
         slow, detail = problem
         return f"components.{slow}.step", detail
