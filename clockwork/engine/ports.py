@@ -44,6 +44,9 @@ class Port:
         self.sources: list[tuple[int, "Port", int]] = []
         # (input position, factor, offset) of the inputs whose link is not the identity
         self.scale: list[tuple[int, float, float]] = []
+        # (input position, source port, source output position) added, in
+        # order, to what `sources` gives that input (an OSP Sum, Link.adds)
+        self.adds: list[tuple[int, "Port", int]] = []
         self.out_time = 0.0  # time at which `out` was read, s
         self.doStep, self.getReal, self.setReal = inst.c_doStep, inst.c_getReal, inst.c_setReal
         self.sent: list[float] = []  # inputs last given to the FMU (zero-order hold), to skip repeats
@@ -97,6 +100,8 @@ class Port:
             inp = self.inp
             for k, src, j in self.sources:
                 inp[k] = src.out[j]
+            for k, src, j in self.adds:
+                inp[k] += src.out[j]
             for k, f, o in self.scale:
                 inp[k] = f * inp[k] + o
             st = self.setReal(self.comp, self.in_vr, self.n_in, inp)
@@ -105,6 +110,20 @@ class Port:
             self.sent_valid = False
         if read:
             self.read(t)
+
+
+def _no_sum_in_loop(ports: "Ports", wiring: Wiring) -> None:
+    """SceneError where a summed input (Link.adds) is fed from inside its
+    own algebraic loop: the loop solver takes each input from one output."""
+    in_loop = {n: i for i, members in enumerate(wiring.loops) for n in members}
+    for p in ports.values():
+        for k, _, _ in p.adds:
+            loop = in_loop.get(p.inst.name)
+            terms = [src for kk, src, _ in p.sources if kk == k] + [src for kk, src, _ in p.adds if kk == k]
+            if loop is not None and any(in_loop.get(src.inst.name) == loop for src in terms):
+                raise SceneError(f"input {p.inst.name}.{p.in_names[k]}: not supported: a sum inside the algebraic "
+                                 f"loop {loop_name(wiring.loops[loop], wiring.loop_links[loop])} (the loop solver "
+                                 "feeds an input from one output)")
 
 
 def _first_positions(names: list[str]) -> dict[str, int]:
@@ -166,12 +185,17 @@ class Ports(dict):
             if kind != "Real" and not link.identity:
                 raise SceneError(f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: a linear "
                                  f"transformation needs Real variables, these are {kind}")
+            if link.adds and (kind != "Real" or not link.identity):
+                raise SceneError(f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: a sum adds "
+                                 f"Real outputs as they are, this one is {kind} with factor {link.factor:g} and "
+                                 f"offset {link.offset:g}")
             (real_links if kind == "Real" else discrete_links).append(link)
         links = real_links
         # Sets beside the lists: an instance may have 100,000 outputs, and `in` on a list made loading quadratic.
         known: dict[str, set[str]] = {n: set() for n in instances}
         for link in links:
-            inputs[link.dst].append(link.input)
+            if not link.adds:
+                inputs[link.dst].append(link.input)
             if link.output not in known[link.src]:
                 known[link.src].add(link.output)
                 outputs[link.src].append(link.output)
@@ -214,13 +238,20 @@ class Ports(dict):
         self.out_pos = out_pos  # {instance: {output: its position in the port's `out`}}, for the recorder
         for link in links:
             dst, src = self[link.dst], self[link.src]
-            k = in_pos[link.dst][link.input]
+            k = in_pos[link.dst].get(link.input)
+            if link.adds:
+                if k is None:
+                    raise SceneError(f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: it adds "
+                                     "to a sum that no link before it starts")
+                dst.adds.append((k, src, out_pos[link.src][link.output]))
+                continue
             dst.sources.append((k, src, out_pos[link.src][link.output]))
             if not link.identity:
                 dst.scale.append((k, float(link.factor), float(link.offset)))
         for p in self.values():  # in input order
             p.sources.sort(key=lambda source: source[0])
             p.scale.sort(key=lambda scale: scale[0])
+            p.adds.sort(key=lambda add: add[0])  # stable: each sum's terms stay in their order
 
         self.all = list(self.values())
         self.first = [self[n] for n in wiring.feedthrough_only]  # stepped first: they commit modes
@@ -232,6 +263,7 @@ class Ports(dict):
             i = in_loop.get(link.src)
             if i is not None and in_loop.get(link.dst) == i and wiring.feedthrough_outputs[(link.src, link.output)]:
                 loop_discrete[i].append(link)
+        _no_sum_in_loop(self, wiring)
         held = set(wiring.held_loops)
         self.loops = [self._loop(owner, i, wiring, loop_discrete[i], "delay" if i in held else mode, len(instances))
                       for i in range(len(wiring.loops))]
