@@ -112,18 +112,24 @@ class Port:
             self.read(t)
 
 
-def _no_sum_in_loop(ports: "Ports", wiring: Wiring) -> None:
+def _no_sum_in_loop(ports: "Ports", wiring: Wiring, solved: set[int]) -> None:
     """SceneError where a summed input (Link.adds) is fed from inside its
-    own algebraic loop: the loop solver takes each input from one output."""
+    own algebraic loop and that loop is solved (`solved`: their indices in
+    wiring.loops, in the steps or in Initialization Mode): the solver takes
+    each input from one output. A loop broken by a delay sets its inputs
+    as any other (Port.pull)."""
     in_loop = {n: i for i, members in enumerate(wiring.loops) for n in members}
     for p in ports.values():
+        loop = in_loop.get(p.inst.name)
+        if loop not in solved:
+            continue
         for k, _, _ in p.adds:
-            loop = in_loop.get(p.inst.name)
-            terms = [src for kk, src, _ in p.sources if kk == k] + [src for kk, src, _ in p.adds if kk == k]
-            if loop is not None and any(in_loop.get(src.inst.name) == loop for src in terms):
+            terms = [src for kk, src, _ in p.sources + p.adds if kk == k]
+            if any(in_loop.get(src.inst.name) == loop for src in terms):
                 raise SceneError(f"input {p.inst.name}.{p.in_names[k]}: not supported: a sum inside the algebraic "
-                                 f"loop {loop_name(wiring.loops[loop], wiring.loop_links[loop])} (the loop solver "
-                                 "feeds an input from one output)")
+                                 f"loop {loop_name(wiring.loops[loop], wiring.loop_links[loop])} when it is solved "
+                                 "(the solver feeds an input from one output); master.algebraic_loops = \"delay\" "
+                                 "breaks it by a one-step delay, as libcosim does")
 
 
 def _first_positions(names: list[str]) -> dict[str, int]:
@@ -263,8 +269,8 @@ class Ports(dict):
             i = in_loop.get(link.src)
             if i is not None and in_loop.get(link.dst) == i and wiring.feedthrough_outputs[(link.src, link.output)]:
                 loop_discrete[i].append(link)
-        _no_sum_in_loop(self, wiring)
         held = set(wiring.held_loops)
+        _no_sum_in_loop(self, wiring, set(range(len(wiring.loops))) if mode == "solve" else held)
         self.loops = [self._loop(owner, i, wiring, loop_discrete[i], "delay" if i in held else mode, len(instances))
                       for i in range(len(wiring.loops))]
         for i in held:  # solved where the standard allows it: in Initialization Mode
