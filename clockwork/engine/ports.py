@@ -112,26 +112,6 @@ class Port:
             self.read(t)
 
 
-def _no_sum_in_loop(ports: "Ports", wiring: Wiring, solved: set[int]) -> None:
-    """SceneError where a summed input (Link.adds) is fed from inside its
-    own algebraic loop and that loop is solved (`solved`: their indices in
-    wiring.loops, in the steps or in Initialization Mode): the solver takes
-    each input from one output. A loop broken by a delay sets its inputs
-    as any other (Port.pull)."""
-    in_loop = {n: i for i, members in enumerate(wiring.loops) for n in members}
-    for p in ports.values():
-        loop = in_loop.get(p.inst.name)
-        if loop not in solved:
-            continue
-        for k, _, _ in p.adds:
-            terms = [src for kk, src, _ in p.sources + p.adds if kk == k]
-            if any(in_loop.get(src.inst.name) == loop for src in terms):
-                raise SceneError(f"input {p.inst.name}.{p.in_names[k]}: not supported: a sum inside the algebraic "
-                                 f"loop {loop_name(wiring.loops[loop], wiring.loop_links[loop])} when it is solved "
-                                 "(the solver feeds an input from one output); master.algebraic_loops = \"delay\" "
-                                 "breaks it by a one-step delay, as libcosim does")
-
-
 def _first_positions(names: list[str]) -> dict[str, int]:
     """{name: its first position in names} (list.index for each, at once)."""
     out: dict[str, int] = {}
@@ -270,7 +250,6 @@ class Ports(dict):
             if i is not None and in_loop.get(link.dst) == i and wiring.feedthrough_outputs[(link.src, link.output)]:
                 loop_discrete[i].append(link)
         held = set(wiring.held_loops)
-        _no_sum_in_loop(self, wiring, set(range(len(wiring.loops))) if mode == "solve" else held)
         self.loops = [self._loop(owner, i, wiring, loop_discrete[i], "delay" if i in held else mode, len(instances))
                       for i in range(len(wiring.loops))]
         for i in held:  # solved where the standard allows it: in Initialization Mode
@@ -308,8 +287,11 @@ class Ports(dict):
         unknowns = []
         for p in ports:
             scale = {k: (f, o) for k, f, o in p.scale}
+            # a summed input (Port.adds) is an unknown where any of its terms comes from inside
+            inner = {k for k, src, j in p.sources + p.adds
+                     if src.inst.name in inside and feeding[(src.inst.name, src.out_names[j])]}
             for k, src, j in p.sources:
-                if src.inst.name in inside and feeding[(src.inst.name, src.out_names[j])]:
+                if k in inner:
                     f, o = scale.get(k, (1.0, 0.0))
                     unknowns.append((p, k, src, j, f, o, k in scale))
         discrete = []
