@@ -834,3 +834,19 @@ def test_a_sum_inside_an_algebraic_loop(tmp_path, capsys):
     assert abs(s["q.s"][0] - (qx[0] + 0.5 * s["p.s"][0])) < 1e-8
     assert np.max(np.abs(s["p.s"][1:] - (px[1:] + s["q.s"][:-1] + s["r.s"][:-1]))) < 1e-12
     assert np.min(np.abs(s["r.s"])) > 0.1  # the outside term counts
+
+
+@pytest.mark.parametrize("links, needle", [
+    ([("a", "phi", "b", "tau_external", 1.0, 0.0, True)], "no link before it starts"),
+    ([("a", "phi", "b", "tau_external", 2.0, 0.0), ("a", "w", "b", "tau_external", 1.0, 0.0, True)],
+     "no link before it starts as it is"),
+    ([("a", "phi", "b", "tau_external"), ("a", "w", "b", "tau_external", 3.0, 0.0, True)], "a sum adds"),
+])
+def test_api_sums_need_a_plain_start(links, needle):
+    """Through the Python API (Link.adds): a term added to nothing, to a
+    transformed link or with a transformation of its own is refused."""
+    from clockwork.engine.system import System
+
+    path = str(fmu_file("Pendulum"))
+    with pytest.raises(SceneError, match=needle):
+        System({"a": (path, {}), "b": (path, {})}, links)

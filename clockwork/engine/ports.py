@@ -226,9 +226,9 @@ class Ports(dict):
             dst, src = self[link.dst], self[link.src]
             k = in_pos[link.dst].get(link.input)
             if link.adds:
-                if k is None:
+                if k is None or any(kk == k for kk, _, _ in dst.scale):
                     raise SceneError(f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: it adds "
-                                     "to a sum that no link before it starts")
+                                     "to a sum that no link before it starts as it is (factor 1, offset 0)")
                 dst.adds.append((k, src, out_pos[link.src][link.output]))
                 continue
             dst.sources.append((k, src, out_pos[link.src][link.output]))
