@@ -300,9 +300,10 @@ def _clock_text() -> str:
     return (DATA / "clock" / "OspSystemStructure.xml").read_text()
 
 
-def _edit(old: str, new: str):
+def _edit(old: str, new: str, fixture: str = "clock"):
+    """A maker of the fixture's file with `old` replaced by `new` (once), in the folder it is given."""
     def make(d: Path) -> Path:
-        text = _clock_text()
+        text = (DATA / fixture / "OspSystemStructure.xml").read_text()
         assert old in text, old
         (d / "OspSystemStructure.xml").write_text(text.replace(old, new, 1))
         return d / "OspSystemStructure.xml"
@@ -715,14 +716,8 @@ def test_sums_across_rates_give_libcosims_numbers(tmp_path, capsys):
         assert np.max(np.abs(ours[name][1:] - theirs[:, j])) < 1e-12, name
 
 
-def _sums_edit(old: str, new: str, file: str = "OspSystemStructure.xml"):
-    def make(d: Path) -> Path:
-        f = d / file
-        text = f.read_text()
-        assert old in text, old
-        f.write_text(text.replace(old, new, 1))
-        return d / "OspSystemStructure.xml"
-    return make
+def _sums_edit(old: str, new: str):
+    return _edit(old, new, "sums")
 
 
 BAD_SUMS = {
@@ -781,28 +776,6 @@ def test_sums_are_not_exported_where_a_format_cannot_say_them(tmp_path, capsys):
     assert not (tmp_path / "s.toml").exists() and not (tmp_path / "s.ssp").exists()
 
 
-LOOP_OSP = f"""<?xml version="1.0" encoding="utf-8"?>
-<OspSystemStructure xmlns="{NS}" version="0.1">
-    <EndTime>1</EndTime>
-    <BaseStepSize>0.05</BaseStepSize>
-    <Simulators>
-        <Simulator name="p" source="Linear.fmu"/>
-        <Simulator name="q" source="Linear.fmu"/>
-        <Simulator name="r" source="Linear.fmu"/>
-    </Simulators>
-    <Functions>
-        <Sum name="both" inputCount="2"/>
-        <LinearTransformation name="half" factor="0.5"/>
-    </Functions>
-    <Connections>
-        <SignalConnection><Variable simulator="q" name="s"/><Signal function="both" name="in[0]"/></SignalConnection>
-        <SignalConnection><Variable simulator="r" name="s"/><Signal function="both" name="in[1]"/></SignalConnection>
-        <SignalConnection><Signal function="both" name="out"/><Variable simulator="p" name="w"/></SignalConnection>
-        <SignalConnection><Variable simulator="p" name="s"/><Signal function="half" name="in"/></SignalConnection>
-        <SignalConnection><Signal function="half" name="out"/><Variable simulator="q" name="w"/></SignalConnection>
-    </Connections>
-</OspSystemStructure>
-"""
 
 
 def test_a_sum_inside_an_algebraic_loop(tmp_path, capsys):
@@ -815,9 +788,9 @@ def test_a_sum_inside_an_algebraic_loop(tmp_path, capsys):
     the step's start); the same bits on both engines."""
     from cwtest import test_fmu
 
+    shutil.copytree(DATA / "sumloop", tmp_path, dirs_exist_ok=True)
     shutil.copy(test_fmu("fmi3/Linear"), tmp_path / "Linear.fmu")
     osp = tmp_path / "OspSystemStructure.xml"
-    osp.write_text(LOOP_OSP)
     record = '["p.s", "q.s", "r.s", "p.x", "q.x"]'
     got = {}
     for engine in ("python", "compiled"):
