@@ -7,7 +7,9 @@ escapement's torque, a VariableConnection given input end first) and `bond`
 (one VariableGroupConnection of nested groups from two
 *_OspModelDescription.xml files, one beside the FMU and one beside the
 file; stepSizes of two base steps). Each must give the bits of the same
-system as an SSP (tests/data/ssp/flat10) or a TOML scene.
+system as an SSP (tests/data/ssp/flat10) or a TOML scene. `sums` (a Sum
+and a VectorSum between three pendulums) and `rates` give libcosim's
+numbers; `sumloop` puts a Sum in an algebraic loop.
 """
 
 import re
