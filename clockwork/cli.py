@@ -598,6 +598,8 @@ def _flag(x) -> str:
 
 def _link(c) -> str:
     """A connection with its transformation, as `info` shows it."""
+    if c.adds:
+        return f"{c} (added to the links above it: a sum)"
     if (c.factor, c.offset) == (1.0, 0.0):
         return str(c)
     return f"{c} (x {c.factor:g}{f' + {c.offset:g}' if c.offset else ''})"

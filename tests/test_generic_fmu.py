@@ -535,8 +535,8 @@ def test_a_dimensionless_output_may_feed_an_input_with_a_unit_and_validate_says_
 def test_convertible_units_are_converted_and_spellings_meet(capsys, tmp_path, engine):
     f = _scene(tmp_path, UNITS_SCENE)
     scene = load_scene(f)
-    assert tuple(scene.connections[1][4:]) == (1000.0, 0.0)  # m -> mm
-    assert tuple(scene.connections[2][4:]) == (1.0, 0.0)  # N.m/A -> Nm/A: the same unit
+    assert tuple(scene.connections[1][4:6]) == (1000.0, 0.0)  # m -> mm
+    assert tuple(scene.connections[2][4:6]) == (1.0, 0.0)  # N.m/A -> Nm/A: the same unit
     rc, out, err = _run(capsys, tmp_path, f, engine=engine)
     assert rc == 0, err
     cols = _csv(out)

@@ -7,9 +7,12 @@ escapement's torque, a VariableConnection given input end first) and `bond`
 (one VariableGroupConnection of nested groups from two
 *_OspModelDescription.xml files, one beside the FMU and one beside the
 file; stepSizes of two base steps). Each must give the bits of the same
-system as an SSP (tests/data/ssp/flat10) or a TOML scene.
+system as an SSP (tests/data/ssp/flat10) or a TOML scene. `sums` (a Sum
+and a VectorSum between three pendulums) and `rates` give libcosim's
+numbers; `sumloop` puts a Sum in an algebraic loop.
 """
 
+import re
 import shutil
 import textwrap
 from pathlib import Path
@@ -176,7 +179,7 @@ def test_export_ssp_keeps_the_links_as_the_osp_file_gives_them(tmp_path):
     back = load_scene(tmp_path / "types.ssp")
     assert {str(c): (c.factor, c.offset) for c in back.connections} == \
            {str(c): (c.factor, c.offset) for c in osp.connections}
-    assert next(c for c in back.connections if c.dst_var == "u_mm")[4:] == (1.0, 0.0)
+    assert next(c for c in back.connections if c.dst_var == "u_mm")[4:6] == (1.0, 0.0)
 
 
 def test_validate_info_and_simulate(tmp_path, capsys):
@@ -299,9 +302,10 @@ def _clock_text() -> str:
     return (DATA / "clock" / "OspSystemStructure.xml").read_text()
 
 
-def _edit(old: str, new: str):
+def _edit(old: str, new: str, fixture: str = "clock"):
+    """A maker of the fixture's file with `old` replaced by `new` (once), in the folder it is given."""
     def make(d: Path) -> Path:
-        text = _clock_text()
+        text = (DATA / fixture / "OspSystemStructure.xml").read_text()
         assert old in text, old
         (d / "OspSystemStructure.xml").write_text(text.replace(old, new, 1))
         return d / "OspSystemStructure.xml"
@@ -399,13 +403,16 @@ HOSTILE = {
     "bad signal name": (_edit('<Signal function="double" name="out"/>', '<Signal function="double" name="y"/>'),
                         "expected in or out"),
     "bad factor": (_edit('factor="2"', 'factor="two"'), "factor='two'", "expected a number"),
-    "sum": (_edit('<Functions>', '<Functions><Sum name="s" inputCount="2"/>'), "Sum 's'", "not supported",
-            "one output"),
-    "vector sum": (_edit('<Functions>', '<Functions><VectorSum name="s" inputCount="2" dimension="3"/>'),
-                   "VectorSum", "not supported"),
+    "unconnected sum": (_edit('<Functions>', '<Functions><Sum name="s" inputCount="2"/>'), "Sum 's'",
+                        "expected a SignalConnection to s:in[0]"),
+    "unconnected vector sum": (_edit('<Functions>', '<Functions><VectorSum name="s" inputCount="2" dimension="3"/>'),
+                               "VectorSum 's'", "expected a SignalGroupConnection to s:in[0]"),
+    "sum without inputCount": (_edit('<Functions>', '<Functions><Sum name="s"/>'), "Sum 's'", "inputCount"),
+    "sum of no inputs": (_edit('<Functions>', '<Functions><Sum name="s" inputCount="0"/>'), "inputCount='0'",
+                         "whole number from 1"),
     "unknown function": (_edit('<Functions>', '<Functions><Switch name="s"/>'), "Switch", "not an OSP function"),
-    "signal group connection": (_edit("</Connections>", '<SignalGroupConnection/></Connections>'),
-                                "SignalGroupConnection", "not supported"),
+    "empty signal group connection": (_edit("</Connections>", '<SignalGroupConnection/></Connections>'),
+                                      "SignalGroupConnection", "expected one VariableGroup and one SignalGroup"),
     # steps that differ are the simulators' own (multi-rate): not with the escapement's event location
     "different steps": (_edit(SIM, SIM.replace(">", ' stepSize="0.02">')), "stepSize='0.02'",
                         "master.event_location",
@@ -530,10 +537,10 @@ def _rates_dir(tmp_path: Path) -> Path:
 RATES_OUTPUTS = ["pendulum.phi", "vibration.a2", "follower.phi"]
 
 
-def _libcosim_rows(osp: Path, steps: int) -> np.ndarray:
+def _libcosim_rows(osp: Path, steps: int, outputs: list[str] = RATES_OUTPUTS) -> np.ndarray:
     """libcosim's fixed-step algorithm on the file: after each base step,
-    the time and the last values its observer holds of RATES_OUTPUTS (a
-    slow simulator's, those of its last finished step)."""
+    the time and the last values its observer holds of `outputs` (a slow
+    simulator's, those of its last finished step)."""
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     from libcosimpy.CosimObserver import CosimObserver
@@ -543,7 +550,7 @@ def _libcosim_rows(osp: Path, steps: int) -> np.ndarray:
     obs = CosimObserver.create_last_value()
     ex.add_observer(obs)
     refs = []
-    for name in RATES_OUTPUTS:
+    for name in outputs:
         inst, var = name.split(".")
         idx = ex.slave_index_from_instance_name(inst)
         vrs = {(v.name.decode() if isinstance(v.name, bytes) else v.name): v.reference
@@ -629,3 +636,192 @@ def test_three_rates_export_scene_keeps_the_steps(tmp_path, capsys):
     run_ok(capsys, osp, "--out", tmp_path / "a", *short)
     run_ok(capsys, tmp_path / "rates.toml", "--out", tmp_path / "b", *short)
     assert (tmp_path / "a" / "timeseries.csv").read_bytes() == (tmp_path / "b" / "timeseries.csv").read_bytes()
+
+
+# ---------------------------------------------------------------- Sum and VectorSum
+
+
+def _sums_dir(tmp_path: Path) -> Path:
+    d = tmp_path / "sums"
+    shutil.copytree(DATA / "sums", d)
+    (d / "resources").mkdir(exist_ok=True)
+    shutil.copy(fmu_file("Pendulum"), d / "resources" / "Pendulum.fmu")
+    return d
+
+
+SUMS_OUTPUTS = ["a.phi", "b.phi", "c.phi", "c.w"]
+
+
+def test_sums_read_as_libcosim_adds(tmp_path):
+    """A Sum's inputs in[0], in[1], ... and a VectorSum's groups element by
+    element: one link per term into the function's input, the first starting
+    the sum and the others added in the order of their indices (libcosim's
+    in[0] + in[1] + ...), whatever order the connections are written in."""
+    s = load_scene(_sums_dir(tmp_path) / "OspSystemStructure.xml")
+    terms = [(str(c), c.adds) for c in s.connections]
+    assert terms == [("b.phi -> a.tau_external", False), ("c.phi -> a.tau_external", True),
+                     ("c.w -> a.tau_external", True),
+                     ("a.phi -> b.tau_external", False), ("c.phi -> b.tau_external", True),
+                     ("a.w -> b.tau_coupling", False), ("c.w -> b.tau_coupling", True)]
+    assert all((c.factor, c.offset) == (1.0, 0.0) for c in s.connections)
+
+
+def test_sums_give_libcosims_numbers_on_both_engines(tmp_path, capsys):
+    """libcosim's fixed-step algorithm passes the simulators' outputs into
+    the functions after every step, sums them and passes the sums on at the
+    same communication point; clockwork's Jacobi step with the sums as links
+    gives libcosim's numbers (to the last bits of the times, as for the
+    rates above), and the same bits on both engines."""
+    pytest.importorskip("libcosimpy")
+    d = _sums_dir(tmp_path)
+    osp = d / "OspSystemStructure.xml"
+    record = f"record.outputs={SUMS_OUTPUTS!r}".replace("'", '"')
+    got = {}
+    for engine in ("python", "compiled"):
+        err = run_ok(capsys, osp, "--out", tmp_path / engine, "--set", 'master.order="jacobi"',
+                     "--set", f'master.engine="{engine}"', "--set", record)
+        assert "error" not in err
+        got[engine] = series(tmp_path / engine)
+    for name in SUMS_OUTPUTS:
+        assert np.array_equal(got["python"][name], got["compiled"][name]), name
+    ours = got["compiled"]
+    theirs = _libcosim_rows(osp, 200, SUMS_OUTPUTS)
+    assert len(ours["time"]) == 201
+    assert np.allclose(ours["time"][1:], theirs[:, 0], rtol=0, atol=1e-12)
+    for j, name in enumerate(SUMS_OUTPUTS, start=1):
+        assert np.max(np.abs(ours[name][1:] - theirs[:, j])) < 1e-12, name
+    # the further terms count: a Sum of in[0] alone swings a otherwise
+    f = d / "OspSystemStructure.xml"
+    text = re.sub(r'<SignalConnection>\s*<Variable simulator="c" name="(phi|w)"/>\s*'
+                  r'<Signal function="mix" name="in\[[12]\]"/>\s*</SignalConnection>', "", f.read_text())
+    f.write_text(text.replace('inputCount="3"', 'inputCount="1"'))
+    run_ok(capsys, f, "--out", tmp_path / "one", "--set", 'master.order="jacobi"', "--set", record)
+    assert np.max(np.abs(series(tmp_path / "one")["a.phi"] - ours["a.phi"])) > 1e-4
+
+
+def test_sums_across_rates_give_libcosims_numbers(tmp_path, capsys):
+    """A Sum whose terms come from simulators of other rates: each term
+    passes as libcosim passes it (at the least common multiple of the
+    source's and the target's decimation factors)."""
+    pytest.importorskip("libcosimpy")
+    d = _sums_dir(tmp_path)
+    osp = d / "OspSystemStructure.xml"
+    osp.write_text(osp.read_text().replace('<Simulator name="c" source="resources/Pendulum.fmu">',
+                                           '<Simulator name="c" source="resources/Pendulum.fmu" stepSize="0.03">')
+                   .replace('<Simulator name="b" source="resources/Pendulum.fmu">',
+                            '<Simulator name="b" source="resources/Pendulum.fmu" stepSize="0.02">'))
+    run_ok(capsys, osp, "--out", tmp_path / "cw", "--set", 'master.order="jacobi"',
+           "--set", f"record.outputs={SUMS_OUTPUTS!r}".replace("'", '"'))
+    ours = series(tmp_path / "cw")
+    theirs = _libcosim_rows(osp, 200, SUMS_OUTPUTS)
+    for j, name in enumerate(SUMS_OUTPUTS, start=1):
+        assert np.max(np.abs(ours[name][1:] - theirs[:, j])) < 1e-12, name
+
+
+def _sums_edit(old: str, new: str):
+    return _edit(old, new, "sums")
+
+
+BAD_SUMS = {
+    "inputCount too small": (_sums_edit('inputCount="3"', 'inputCount="2"'), "Signal name='in[2]'",
+                             "mix has no signal in[2]; expected in[0], in[1] or out"),
+    "inputCount too large": (_sums_edit('inputCount="3"', 'inputCount="4"'), "Sum 'mix'",
+                             "expected a SignalConnection to mix:in[3]"),
+    "no such input": (_sums_edit('name="in[2]"', 'name="in[x]"'), "mix has no signal in[x]"),
+    "input twice": (_sums_edit('name="in[2]"', 'name="in[1]"'), "expected one connection to mix:in[1]"),
+    "signal connection to a vector sum": (_sums_edit(
+        '<SignalConnection>\n            <Variable simulator="b" name="phi"/>\n            '
+        '<Signal function="mix" name="in[0]"/>',
+        '<SignalConnection>\n            <Variable simulator="b" name="phi"/>\n            '
+        '<Signal function="pair" name="in[0]"/>'), "pair is a VectorSum: expected a SignalGroupConnection"),
+    "dimension mismatch": (_sums_edit('dimension="2"', 'dimension="3"'), "SignalGroupConnection",
+                           "dimension mismatch: pair adds vectors of dimension 3, a's variable group state has "
+                           "2 variables"),
+    "no such group": (_sums_edit('simulator="c" name="state"', 'simulator="c" name="speed"'),
+                      "no top-level variable group speed"),
+    "sum of an input": (_sums_edit('<Variable simulator="c" name="phi"/>', '<Variable simulator="c" name="tau_drag"/>'),
+                        "expected an output at mix:in[1]: c.tau_drag is an input"),
+    "sum into an output": (_sums_edit('<Variable simulator="a" name="tau_external"/>',
+                                      '<Variable simulator="a" name="w"/>'),
+                           "expected an input at mix:out: a.w is an output"),
+    "summed input fed twice": (_sums_edit('</Connections>', '<VariableConnection><Variable simulator="c" name="phi"/>'
+                                          '<Variable simulator="a" name="tau_external"/></VariableConnection>'
+                                          '</Connections>'), "input a.tau_external is fed twice"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_SUMS))
+def test_bad_sums_give_one_line(tmp_path, capsys, case):
+    make, *needles = BAD_SUMS[case]
+    f = make(_sums_dir(tmp_path))
+    rc, _, err = run_cli(capsys, ["run", f, "--out", tmp_path / "out", "--no-progress"])
+    assert_one_line_error(rc, err, "OspSystemStructure.xml", *needles)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("setting, needles", [
+    ("master.extrapolation=1", ("master.extrapolation = 1: not supported with a sum into", "an OSP Sum")),
+    ("master.iterations=2", ("master.iterations = 2: not supported with a sum into",)),
+])
+def test_sums_refuse_what_goes_through_one_source(tmp_path, capsys, setting, needles):
+    f = _sums_dir(tmp_path) / "OspSystemStructure.xml"
+    rc, _, err = run_cli(capsys, ["run", f, "--out", tmp_path / "out", "--no-progress", "--set", setting])
+    assert_one_line_error(rc, err, *needles)
+
+
+def test_sums_are_not_exported_where_a_format_cannot_say_them(tmp_path, capsys):
+    f = _sums_dir(tmp_path) / "OspSystemStructure.xml"
+    rc, _, err = run_cli(capsys, ["export-scene", f, "--out", tmp_path / "s.toml"])
+    assert_one_line_error(rc, err, "c.phi -> a.tau_external", "a sum of several outputs (an OSP Sum)")
+    rc, _, err = run_cli(capsys, ["export-ssp", f, "--out", tmp_path / "s.ssp"])
+    assert_one_line_error(rc, err, "an SSP feeds an input from one output", "not exported")
+    assert not (tmp_path / "s.toml").exists() and not (tmp_path / "s.ssp").exists()
+
+
+
+
+def test_a_sum_inside_an_algebraic_loop(tmp_path, capsys):
+    """p.w = q.s + r.s and q.w = 0.5 p.s, with s = sum(x) + w (direct
+    feedthrough): an algebraic loop through a Sum, one term from inside it
+    and one from outside. Linear does not allow outputs to be read after
+    inputs are set without a step, so the loop is solved in Initialization
+    Mode (the solver takes every term: p.s = sum(p.x) + q.s + r.s there) and
+    broken by a one-step delay in the steps (p.s = sum(p.x) + the sum of
+    the step's start); the same bits on both engines."""
+    from cwtest import test_fmu
+
+    shutil.copytree(DATA / "sumloop", tmp_path, dirs_exist_ok=True)
+    shutil.copy(test_fmu("fmi3/Linear"), tmp_path / "Linear.fmu")
+    osp = tmp_path / "OspSystemStructure.xml"
+    record = '["p.s", "q.s", "r.s", "p.x", "q.x"]'
+    got = {}
+    for engine in ("python", "compiled"):
+        err = run_ok(capsys, osp, "--out", tmp_path / engine, "--set", f'master.engine="{engine}"',
+                     "--set", f"record.outputs={record}")
+        assert "solved in Initialization Mode, then broken by a one-step delay" in err
+        got[engine] = series(tmp_path / engine)
+    for name in got["python"]:
+        assert np.array_equal(got["python"][name], got["compiled"][name]), name
+    s = got["compiled"]
+    px = s["p.x[0]"] + s["p.x[1]"] + s["p.x[2]"]
+    qx = s["q.x[0]"] + s["q.x[1]"] + s["q.x[2]"]
+    assert abs(s["p.s"][0] - (px[0] + s["q.s"][0] + s["r.s"][0])) < 1e-8
+    assert abs(s["q.s"][0] - (qx[0] + 0.5 * s["p.s"][0])) < 1e-8
+    assert np.max(np.abs(s["p.s"][1:] - (px[1:] + s["q.s"][:-1] + s["r.s"][:-1]))) < 1e-12
+    assert np.min(np.abs(s["r.s"])) > 0.1  # the outside term counts
+
+
+@pytest.mark.parametrize("links, needle", [
+    ([("a", "phi", "b", "tau_external", 1.0, 0.0, True)], "no link before it starts"),
+    ([("a", "phi", "b", "tau_external", 2.0, 0.0), ("a", "w", "b", "tau_external", 1.0, 0.0, True)],
+     "no link before it starts as it is"),
+    ([("a", "phi", "b", "tau_external"), ("a", "w", "b", "tau_external", 3.0, 0.0, True)], "a sum adds"),
+])
+def test_api_sums_need_a_plain_start(links, needle):
+    """Through the Python API (Link.adds): a term added to nothing, to a
+    transformed link or with a transformation of its own is refused."""
+    from clockwork.engine.system import System
+
+    path = str(fmu_file("Pendulum"))
+    with pytest.raises(SceneError, match=needle):
+        System({"a": (path, {}), "b": (path, {})}, links)

@@ -163,7 +163,8 @@ def test_valid_connections_with_drag(tmp_path):
                  '[scene]\ntitle = "t"\n[components.pendulum]\nfmu = "Pendulum"\n'
                  '[components.drag]\nfmu = "Drag"\n[experiment]\nstop = 1\n')
     s = load_scene(f)
-    assert s.connections == (("pendulum", "w", "drag", "w", 1.0, 0.0), ("drag", "tau", "pendulum", "tau_drag", 1.0, 0.0))
+    assert s.connections == (("pendulum", "w", "drag", "w", 1.0, 0.0, False),
+                             ("drag", "tau", "pendulum", "tau_drag", 1.0, 0.0, False))
     src, src_var, dst, dst_var = s.connections[1][:4]
     assert (src, dst_var) == ("drag", "tau_drag")
 

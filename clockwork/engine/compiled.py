@@ -80,7 +80,8 @@ class _Port(_Strict):
         ["out_time", "lowered_at"], [],
         ["n_out", "n_in", "n_z", "max_output_derivative_order", "sent_valid", "hist_n",
          "snap_hist_n", "n_scaled", "ext_order", "pad_"]
-    ) + _fields(["it_start", "it_end"], [], [], ["can_interpolate", "pad2_"])  # strong coupling
+    ) + _fields(["it_start", "it_end"], [], [], ["can_interpolate", "pad2_"]) \
+      + _fields(["add_at", "add_port", "add_pos"], [], [], ["n_adds", "pad3_"])  # strong coupling; sums (Port.adds)
 
 
 class _Master(_Strict):
@@ -398,6 +399,10 @@ class CompiledMaster(Master):
             c.in_factor = ref(_array(c_double, (f for _, f, _ in p.scale)))
             c.in_offset = ref(_array(c_double, (o for _, _, o in p.scale)))
             c.n_scaled = len(p.scale)
+            c.add_at = ref(_array(c_int, (k for k, _, _ in p.adds)))
+            c.add_port = ref(_array(c_int, (index[id(src)] for _, src, _ in p.adds)))
+            c.add_pos = ref(_array(c_int, (j for _, _, j in p.adds)))
+            c.n_adds = len(p.adds)
             c.it_start, c.it_end = ref(_array(c_double, [], p.n_in)), ref(_array(c_double, [], p.n_in))
             c.can_interpolate = int(bool(inst.can_interpolate_inputs))
             c.ext_order = p.ext_order

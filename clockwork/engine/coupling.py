@@ -92,6 +92,8 @@ class InputCoupling:
         else:
             for k, src, j in p.sources:
                 inp[k] = src.out[j]
+            for k, src, j in p.adds:
+                inp[k] += src.out[j]
             for k, f, o in p.scale:
                 inp[k] = f * inp[k] + o
         polynomial = bool(p.ext_order) and smooth and coupling_end is None

@@ -121,11 +121,13 @@ class EventLocator:
         derivative and does not itself depend on inputs; else None."""
         found = []
         for p in self.ports:
+            summed = {k for k, _, _ in p.adds}
             for k in p.z_pos:
                 name = p.out_names[k]
                 deps = p.inst.variables[name].dependencies or []
                 info = None
-                if len(deps) == 1 and deps[0] in p.in_names:
+                # a summed input (Link.adds) has no one source to predict from
+                if len(deps) == 1 and deps[0] in p.in_names and p.in_names.index(deps[0]) not in summed:
                     k_in = p.in_names.index(deps[0])
                     for kk, src, j in p.sources:
                         if kk == k_in:

@@ -64,7 +64,8 @@ class Loop:
         self.name = name
         self.members = members
         # The Real inputs fed from inside the loop: (port, input position,
-        # source port, source output position, factor, offset, scaled).
+        # source port, source output position (a sum's first term: Port.adds has
+        # the others), factor, offset, scaled).
         self.unknowns = unknowns
         self.n = len(unknowns)
         # The discrete ones: (port, input name, source port, position in the source's dout, link text, type).
@@ -110,6 +111,9 @@ class Loop:
         worst, at = 0.0, -1
         for i, (p, k, src, j, f, o, scaled) in enumerate(self.unknowns):
             g = src.out[j]
+            for kk, term, jj in p.adds:  # a sum's further terms, in order (Port.pull)
+                if kk == k:
+                    g += term.out[jj]
             if scaled:
                 g = f * g + o
             r[i] = g - (p.inp[k] if x is None else x[i])

@@ -193,6 +193,10 @@ class Master:
             key, value, fix = "master.iterations", s.iterations, "master.iterations = 0"
         else:
             return
+        summed = next((p for p in self.ports.dynamic if p.adds), None)
+        if summed is not None:  # the polynomials go through each input's one source (coupling.py)
+            raise SceneError(f"{key} = {value}: not supported with a sum into {summed.inst.name}."
+                             f"{summed.in_names[summed.adds[0][0]]} (an OSP Sum); use {fix}")
         for p in self.ports.dynamic:
             refusal = p.inst.polynomial_inputs_refusal(fix) if p.n_in else None
             if refusal:

@@ -571,6 +571,10 @@ def plan_groups(instances: dict[str, Instance], links: list[Link]) -> list[tuple
             continue
         name = "+".join(names)
         inner = [k for k in links if k.src in names and k.dst in names]
+        summed = next((k for k in links if k.adds and k.dst in names), None)
+        if summed is not None:  # a member's inputs each come from one output at every stage
+            raise SceneError(f"{summed.dst}.{summed.input}: not supported: a sum (an OSP Sum) into the Model "
+                             f"Exchange group {name} (master.me_groups = false steps its members alone)")
         plans.append((name, names, _ordered(name, inner, {n: instances[n] for n in names})))
     return plans
 
@@ -602,5 +606,5 @@ def form_groups(instances: dict[str, Instance], links: list[Link],
         if gs is not None and gs == gd:
             continue
         rest.append(Link(gs or k.src, f"{k.src}.{k.output}" if gs else k.output,
-                         gd or k.dst, f"{k.dst}.{k.input}" if gd else k.input, k.factor, k.offset))
+                         gd or k.dst, f"{k.dst}.{k.input}" if gd else k.input, k.factor, k.offset, k.adds))
     return out, rest, group_of

@@ -201,16 +201,7 @@ class MultiRate:
         k = self.k
         for p in self.master.ports.all:
             kt = k[p.inst.name]
-            new = []
-            for pos, src, j in p.sources:
-                ks = k[src.inst.name]
-                if ks == kt:
-                    new.append((pos, src, j))
-                    continue
-                h = self._held(p, src)
-                self.real.append((h, src, j, math.lcm(ks, kt), p))
-                new.append((pos, h, j))
-            p.sources = new
+            p.sources, p.adds = self._routed(p, p.sources), self._routed(p, p.adds)  # adds: a sum's terms
             din = []
             for src, j in p.din_sources:
                 ks = k[src.inst.name]
@@ -222,6 +213,22 @@ class MultiRate:
                 din.append((h, j))
             p.din_sources = din
         self._attached = True
+
+    def _routed(self, p, sources: list) -> list:
+        """(input position, source, position) entries of port p, those
+        across rates through held copies (libcosim's transfer at the lcm of
+        both rates; an OSP Sum feeds one simulator, so its terms pass so too)."""
+        k, kt = self.k, self.k[p.inst.name]
+        new = []
+        for pos, src, j in sources:
+            ks = k[src.inst.name]
+            if ks == kt:
+                new.append((pos, src, j))
+                continue
+            h = self._held(p, src)
+            self.real.append((h, src, j, math.lcm(ks, kt), p))
+            new.append((pos, h, j))
+        return new
 
     def _held(self, target, src) -> _Held:
         key = (id(target), id(src))
@@ -242,8 +249,8 @@ class MultiRate:
         if not self._attached:
             return
         for p in self.master.ports.all:
-            p.sources = [(pos, src, j) if not isinstance(src, _Held) else (pos, self._source_of(src), j)
-                         for pos, src, j in p.sources]
+            p.sources, p.adds = ([(pos, src, j) if not isinstance(src, _Held) else (pos, self._source_of(src), j)
+                                  for pos, src, j in entries] for entries in (p.sources, p.adds))
             p.din_sources = [(src, j) if not isinstance(src, _Held) else (self._source_of(src), j)
                              for src, j in p.din_sources]
         self.real.clear()

@@ -40,7 +40,7 @@ def _reach(ports) -> tuple[dict[int, int], dict[int, int]]:
     reach: dict[int, int] = {}
     for f in ports.first_in_order:  # dependency order: a source's set is known first
         bits = 0
-        for _, src, _ in getattr(f, "sources", ()):
+        for _, src, _ in [*getattr(f, "sources", ()), *getattr(f, "adds", ())]:  # adds: a sum's further terms
             a = position.get(id(src))
             bits |= (1 << a) if a is not None else reach.get(id(src), 0)
         reach[id(f)] = bits
@@ -88,7 +88,7 @@ def group_ends(ports, jacobi: bool) -> list[int]:
     for b, p in enumerate(dynamic):
         needs = 0
         reads_first = False
-        for _, src, _ in p.sources:
+        for _, src, _ in p.sources + p.adds:  # adds: a sum's further terms
             a = position.get(id(src))
             if a is None:
                 needs |= reach.get(id(src), 0)

@@ -44,6 +44,9 @@ class Port:
         self.sources: list[tuple[int, "Port", int]] = []
         # (input position, factor, offset) of the inputs whose link is not the identity
         self.scale: list[tuple[int, float, float]] = []
+        # (input position, source port, source output position) added, in
+        # order, to what `sources` gives that input (an OSP Sum, Link.adds)
+        self.adds: list[tuple[int, "Port", int]] = []
         self.out_time = 0.0  # time at which `out` was read, s
         self.doStep, self.getReal, self.setReal = inst.c_doStep, inst.c_getReal, inst.c_setReal
         self.sent: list[float] = []  # inputs last given to the FMU (zero-order hold), to skip repeats
@@ -97,6 +100,8 @@ class Port:
             inp = self.inp
             for k, src, j in self.sources:
                 inp[k] = src.out[j]
+            for k, src, j in self.adds:
+                inp[k] += src.out[j]
             for k, f, o in self.scale:
                 inp[k] = f * inp[k] + o
             st = self.setReal(self.comp, self.in_vr, self.n_in, inp)
@@ -166,12 +171,17 @@ class Ports(dict):
             if kind != "Real" and not link.identity:
                 raise SceneError(f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: a linear "
                                  f"transformation needs Real variables, these are {kind}")
+            if link.adds and (kind != "Real" or not link.identity):
+                raise SceneError(f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: a sum adds "
+                                 f"Real outputs as they are, this one is {kind} with factor {link.factor:g} and "
+                                 f"offset {link.offset:g}")
             (real_links if kind == "Real" else discrete_links).append(link)
         links = real_links
         # Sets beside the lists: an instance may have 100,000 outputs, and `in` on a list made loading quadratic.
         known: dict[str, set[str]] = {n: set() for n in instances}
         for link in links:
-            inputs[link.dst].append(link.input)
+            if not link.adds:
+                inputs[link.dst].append(link.input)
             if link.output not in known[link.src]:
                 known[link.src].add(link.output)
                 outputs[link.src].append(link.output)
@@ -214,13 +224,20 @@ class Ports(dict):
         self.out_pos = out_pos  # {instance: {output: its position in the port's `out`}}, for the recorder
         for link in links:
             dst, src = self[link.dst], self[link.src]
-            k = in_pos[link.dst][link.input]
+            k = in_pos[link.dst].get(link.input)
+            if link.adds:
+                if k is None or any(kk == k for kk, _, _ in dst.scale):
+                    raise SceneError(f"connection {link.src}.{link.output} -> {link.dst}.{link.input}: it adds "
+                                     "to a sum that no link before it starts as it is (factor 1, offset 0)")
+                dst.adds.append((k, src, out_pos[link.src][link.output]))
+                continue
             dst.sources.append((k, src, out_pos[link.src][link.output]))
             if not link.identity:
                 dst.scale.append((k, float(link.factor), float(link.offset)))
         for p in self.values():  # in input order
             p.sources.sort(key=lambda source: source[0])
             p.scale.sort(key=lambda scale: scale[0])
+            p.adds.sort(key=lambda add: add[0])  # stable: each sum's terms stay in their order
 
         self.all = list(self.values())
         self.first = [self[n] for n in wiring.feedthrough_only]  # stepped first: they commit modes
@@ -270,8 +287,11 @@ class Ports(dict):
         unknowns = []
         for p in ports:
             scale = {k: (f, o) for k, f, o in p.scale}
+            # a summed input (Port.adds) is an unknown where any of its terms comes from inside
+            inner = {k for k, src, j in p.sources + p.adds
+                     if src.inst.name in inside and feeding[(src.inst.name, src.out_names[j])]}
             for k, src, j in p.sources:
-                if src.inst.name in inside and feeding[(src.inst.name, src.out_names[j])]:
+                if k in inner:
                     f, o = scale.get(k, (1.0, 0.0))
                     unknowns.append((p, k, src, j, f, o, k in scale))
         discrete = []

@@ -17,7 +17,7 @@ import threading
 from pathlib import Path
 
 from ..arguments import Anything, Call, Either, Instance as Of, Integer, Mapping, Optional, Path as PathSpec, Real, Sequence, Text, \
-    Tuple, checked, show
+    Flag, Tuple, checked, show
 from ..errors import ClosedError, SceneError, UsageError
 from ..fmi.description import INTEGER_TYPES, REAL_TYPES, int_range, resolve_fmu
 from ..fmi.description import variables as described
@@ -39,8 +39,8 @@ _COMPONENTS = Mapping(_NAME, Tuple(PathSpec("a model name or a path to an .fmu f
                                    what="a pair (model name or .fmu path, {parameter: value})"),
                       "{instance: (model name or .fmu path, {parameter: value})}")
 _LINK = Either(Text("a link 'instance.output -> instance.input'"), Of(Link, "a Link"),
-               Tuple(Text(), Text(), Text(), Text(), Real(), Real(), optional=2,
-                     what="(source, output, target, input[, factor[, offset]])"),
+               Tuple(Text(), Text(), Text(), Text(), Real(), Real(), Flag(), optional=3,
+                     what="(source, output, target, input[, factor[, offset[, adds]]])"),
                what="a link: 'instance.output -> instance.input', a Link or (source, output, target, input)")
 _RECORD = Optional(Mapping(_NAME, Sequence(Text("an output name"), "a list of output names"),
                            "{instance: [output name, ...]}"))
@@ -81,7 +81,8 @@ class System:
         connections: One link per entry, ``"source.output -> target.input"``
             (instance names may contain dots: they are matched longest
             first), or a ``Link`` from ``clockwork.engine.wiring`` (which
-            also takes a factor and an offset).
+            also takes a factor, an offset and ``adds``: the output added
+            to the links before it into the same input, an OSP Sum).
         settings: The master's settings; None: ``MasterSettings()``.
         record: ``{instance name: [output name, ...]}``: outputs kept up to
             date at every communication point besides the connected ones,

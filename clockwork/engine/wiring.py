@@ -25,7 +25,9 @@ from .names import split_link, split_ref
 @dataclass(frozen=True)
 class Link:
     """The input receives factor * output + offset (a Real link's linear
-    transformation or unit conversion; the identity is never computed)."""
+    transformation or unit conversion; the identity is never computed).
+    With `adds`, the output is added to what the links before it give the
+    same input, in their order (an OSP Sum: libcosim's in[0] + in[1] + ...)."""
 
     src: str
     output: str
@@ -33,6 +35,7 @@ class Link:
     input: str
     factor: float = 1.0
     offset: float = 0.0
+    adds: bool = False
 
     @property
     def identity(self) -> bool:

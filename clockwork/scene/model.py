@@ -83,7 +83,9 @@ class ComponentVariables(Mapping):
 
 class Connection(NamedTuple):
     """The input receives factor * output + offset (engine.wiring.Link's
-    fields, in order): a linear transformation or a unit conversion."""
+    fields, in order): a linear transformation or a unit conversion. With
+    `adds`, the output is added to what the connections listed before it
+    give the same input (an OSP Sum; factor 1, offset 0)."""
 
     src_instance: str
     src_var: str
@@ -91,6 +93,7 @@ class Connection(NamedTuple):
     dst_var: str
     factor: float = 1.0
     offset: float = 0.0
+    adds: bool = False
 
     def __str__(self) -> str:
         return f"{self.src_instance}.{self.src_var} -> {self.dst_instance}.{self.dst_var}"

@@ -61,6 +61,10 @@ def toml_problem(scene: Scene) -> tuple[str, str] | None:
     its variables and nothing else, so a link of another factor or offset
     (an OSP or SSP linear transformation, an OSP link passed unconverted
     between different units) has no form in it."""
+    summed = next((c for c in scene.connections if c.adds), None)
+    if summed is not None:
+        return (f"connection {summed}", f"{summed.dst_instance}.{summed.dst_var} is a sum of several outputs (an OSP "
+                                        "Sum), which a scene file cannot say; run this file itself")
     for c in scene.connections:
         sc, dc = scene.components[c.src_instance], scene.components[c.dst_instance]
         su, du = var_unit(sc.variable(c.src_var)), var_unit(dc.variable(c.dst_var))

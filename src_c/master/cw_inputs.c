@@ -27,9 +27,12 @@ int port_read(cw_master *m, int i, double t)
     return 0;
 }
 
-/* The links' linear transformations (Port.scale); the identity is skipped. */
-static void scale_inputs(cw_port *p)
+/* The sums' further terms (Port.adds), in order, then the links' linear
+ * transformations (Port.scale); the identity is skipped. */
+static void sum_and_scale(const cw_master *m, cw_port *p)
 {
+    for (int a = 0; a < p->n_adds; a++)
+        p->inp[p->add_at[a]] += m->ports[p->add_port[a]].out[p->add_pos[a]];
     for (int a = 0; a < p->n_scaled; a++) {
         int k = p->scaled[a];
         p->inp[k] = p->in_factor[a] * p->inp[k] + p->in_offset[a];
@@ -42,7 +45,7 @@ int port_pull(cw_master *m, int i, double t)
     if (p->n_in) {
         for (int k = 0; k < p->n_in; k++)
             p->inp[k] = m->ports[p->src_port[k]].out[p->src_pos[k]];
-        scale_inputs(p);
+        sum_and_scale(m, p);
         int st = p->setReal(p->comp, p->in_vr, (size_t)p->n_in, p->inp);
         if (st > FMI_WARNING)
             return fail(m, i, CALL_SET_INPUTS, st, t, 0.0);
@@ -291,7 +294,7 @@ int set_inputs(cw_master *m, int i, double t, double h, int smooth)
 again:
     for (int k = 0; k < n; k++)
         p->inp[k] = m->ports[p->src_port[k]].out[p->src_pos[k]];
-    scale_inputs(p);
+    sum_and_scale(m, p);
     int polynomial = p->ext_order && smooth;
     if (polynomial) {
         extrapolate(m, p, t);

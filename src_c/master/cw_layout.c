@@ -25,6 +25,8 @@ static const cw_field port_layout[] = {
     CW_FIELD(cw_port, snap_hist_n), CW_FIELD(cw_port, n_scaled), CW_FIELD(cw_port, ext_order),
     CW_FIELD(cw_port, pad_), CW_FIELD(cw_port, it_start), CW_FIELD(cw_port, it_end),
     CW_FIELD(cw_port, can_interpolate), CW_FIELD(cw_port, pad2_),
+    CW_FIELD(cw_port, add_at), CW_FIELD(cw_port, add_port), CW_FIELD(cw_port, add_pos),
+    CW_FIELD(cw_port, n_adds), CW_FIELD(cw_port, pad3_),
 };
 static const cw_field loop_layout[] = {
     CW_FIELD(cw_loop, members), CW_FIELD(cw_loop, u_port), CW_FIELD(cw_loop, u_pos), CW_FIELD(cw_loop, u_src),

@@ -27,6 +27,10 @@ static void loop_residual(cw_master *m, const cw_loop *L, const double *x, doubl
     int where = -1;
     for (int i = 0; i < L->n; i++) {
         double g = m->ports[L->u_src[i]].out[L->u_src_pos[i]];
+        const cw_port *p = &m->ports[L->u_port[i]];
+        for (int a = 0; a < p->n_adds; a++)  /* a sum's further terms, in order (sum_and_scale) */
+            if (p->add_at[a] == L->u_pos[i])
+                g += m->ports[p->add_port[a]].out[p->add_pos[a]];
         if (L->u_scaled[i])
             g = L->u_factor[i] * g + L->u_offset[i];
         r[i] = g - (x ? x[i] : m->ports[L->u_port[i]].inp[L->u_pos[i]]);

@@ -79,6 +79,13 @@ typedef struct {
     double *it_start, *it_end;
     int can_interpolate;      /* canInterpolateInputs: the iterate's line is handed over as a slope */
     int pad2_;
+    /* Sums (Port.adds, an OSP Sum): per added term, in order, the input it
+     * adds to and its source port and output position. */
+    const int *add_at;
+    const int *add_port;
+    const int *add_pos;
+    int n_adds;
+    int pad3_;
 } cw_port;
 
 /* One algebraic loop solved at communication points (clockwork/engine/loops.py). */

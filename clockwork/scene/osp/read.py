@@ -13,6 +13,10 @@ What is read, as libcosim reads it (docs/osp.md):
 - ``VariableConnection`` (the output end found from the FMUs' causalities),
   ``SignalConnection`` through a ``LinearTransformation`` function (one
   link with its factor and offset, as an SSP's linear transformation),
+  through a ``Sum`` (one link per term into the input it feeds, the
+  further terms added in the order of their indices: Link.adds) and
+  ``SignalGroupConnection`` through a ``VectorSum`` (the same, element by
+  element of the first ``dimension`` variables of each top-level group),
   ``VariableGroupConnection`` (the variables of two groups of the FMUs'
   ``<modelName>_OspModelDescription.xml``, pair by pair, nested groups
   first); ``powerBond`` and ``causality`` attributes (ecco's) change
@@ -20,8 +24,7 @@ What is read, as libcosim reads it (docs/osp.md):
 
 No unit conversion on links (libcosim converts none: a note where the units
 differ). What clockwork does not do is refused in one line naming the file,
-the element and what was expected: the ecco algorithm, ``Sum`` and
-``VectorSum`` functions (a scene's input has one source), FMUs on another
+the element and what was expected: the ecco algorithm, FMUs on another
 machine (``proxyfmu://host``; ``proxyfmu://localhost`` runs the FMU in this
 process). Per-simulator steps that differ become the components' own
 steps (scene/load.py, engine/multirate.py).
@@ -54,6 +57,7 @@ OSP_FILE = "OspSystemStructure.xml"  # what libcosim reads in a folder it is giv
 VERSION = "0.1"
 DEFAULT_BASE_STEP = 0.1  # s: libcosim's when BaseStepSize is not given
 MAX_SIMULATORS = 10_000  # as an SSP's components: each is an FMU instance
+MAX_SIGNALS = 100_000  # a Sum's inputs, a VectorSum's dimension: each is a connection
 # libcosim's durations are whole nanoseconds (std::chrono::nanoseconds)
 _NS_PER_S = 1_000_000_000
 _TOP = ("StartTime", "EndTime", "BaseStepSize", "Algorithm", "Simulators", "Functions", "Connections",
@@ -110,6 +114,26 @@ def _s(text: object) -> str:
 
 
 @dataclass
+class _Function:
+    """A function of the Functions element: its kind, element, its fixed
+    signal names, input count and dimension (Sum, VectorSum), and what its
+    signals are connected to (signal -> (simulator, variable or variables, element))."""
+
+    kind: str
+    el: object
+    ports: tuple[str, ...]
+    inputs: int = 0
+    dimension: int = 0
+    ends: dict = field(default_factory=dict)
+
+    def signal_names(self) -> str:
+        if not self.inputs:
+            return " or ".join(self.ports)
+        last = f"in[{self.inputs - 1}]"
+        return f"in[0]{' ... ' + last if self.inputs > 2 else ', ' + last if self.inputs == 2 else ''} or out"
+
+
+@dataclass
 class _Sim:
     name: str
     el: object
@@ -126,8 +150,10 @@ class _Reader:
         self.path = path
         self.digest = hashlib.sha256()
         self.sims: dict[str, _Sim] = {}
-        self.functions: dict[str, object] = {}  # name -> its element (LinearTransformation)
+        self.functions: dict[str, _Function] = {}
         self.links: dict[tuple[str, str], tuple] = {}  # (inst, input) -> (src inst, output, factor, offset, el)
+        # (inst, input) -> the further (src inst, output) a Sum adds to its links entry, in order
+        self.sums: dict[tuple[str, str], list[tuple[str, str]]] = {}
         self.values: dict[tuple[str, str], tuple] = {}  # (inst, var) -> (value, InitialValue element)
         self.labels: dict[str, tuple[str, str]] = {}
         self.warnings = Warnings()
@@ -192,8 +218,9 @@ class _Reader:
         if "Connections" in top:
             self._connections(top["Connections"])
         components = self._components()
-        connections = tuple(Connection(src, out, inst, var, factor, offset)
-                            for (inst, var), (src, out, factor, offset, _) in self.links.items())
+        connections = tuple(c for (inst, var), (src, out, factor, offset, _) in self.links.items()
+                            for c in [Connection(src, out, inst, var, factor, offset)]
+                            + [Connection(i, v, inst, var, adds=True) for i, v in self.sums.get((inst, var), ())])
         record = [f"{inst}.{v.name}" for inst, s in self.sims.items() for v in s.md.modelVariables
                   if v.causality == "output" and v.type in REAL_TYPES + INTEGER_TYPES + ("Boolean",)
                   and not getattr(v, "shape", None)]
@@ -407,19 +434,20 @@ class _Reader:
             if kind == "LinearTransformation":
                 _number(doc, el, "factor", 1.0)
                 _number(doc, el, "offset", 0.0)
-                self.functions[name] = el
-            elif kind in ("Sum", "VectorSum"):
-                raise doc.fail(el, f"not supported: {kind} functions (outputs added into one input): a clockwork "
-                                   "link feeds an input from one output; expected LinearTransformation")
+                self.functions[name] = _Function(kind, el, ("in", "out"))
+            elif kind == "Sum":
+                n = _count(doc, el, "inputCount")
+                self.functions[name] = _Function(kind, el, ("out",), n)
+            elif kind == "VectorSum":
+                n = _count(doc, el, "inputCount")
+                self.functions[name] = _Function(kind, el, ("out",), n, _count(doc, el, "dimension"))
             else:
-                raise doc.fail(el, "not an OSP function; expected LinearTransformation (or Sum, VectorSum, which "
-                                   "clockwork does not run)")
+                raise doc.fail(el, "not an OSP function; expected LinearTransformation, Sum or VectorSum")
 
     # -- connections
 
     def _connections(self, holder) -> None:
         doc = self.doc
-        signals: dict[tuple[str, str], tuple] = {}  # (function, "in"|"out") -> (sim, var, element)
         for el in holder:
             kind = self._own(el)
             if kind == "VariableConnection":
@@ -429,44 +457,96 @@ class _Reader:
                 a, b = self._pair(el, "VariableGroup")
                 for x, y in self._group_pairs(el, a, b):
                     self._connect(el, x, y)
-            elif kind == "SignalConnection":
+            elif kind in ("SignalConnection", "SignalGroupConnection"):
+                group = kind == "SignalGroupConnection"
+                var_tag, sig_tag = ("VariableGroup", "SignalGroup") if group else ("Variable", "Signal")
                 ends = {self._own(c): c for c in el}
-                if len(el) != 2 or set(ends) != {"Variable", "Signal"}:
-                    raise doc.fail(el, "expected one Variable and one Signal")
-                sim, var = self._endpoint(ends["Variable"])
-                sig = ends["Signal"]
+                if len(el) != 2 or set(ends) != {var_tag, sig_tag}:
+                    raise doc.fail(el, f"expected one {var_tag} and one {sig_tag}")
+                sig = ends[sig_tag]
                 fname, port = sig.get("function"), sig.get("name")
                 if fname is None or port is None:
                     raise doc.fail(sig, "expected the attributes function and name")
-                if fname not in self.functions:
+                f = self.functions.get(fname)
+                if f is None:
                     raise doc.fail(sig, f"no function named {_s(fname)}; functions: "
                                         f"{_s(', '.join(self.functions) or 'none')}", "function")
-                if port not in ("in", "out"):
-                    raise doc.fail(sig, "expected in or out (a LinearTransformation's signals)", "name")
-                if (fname, port) in signals:
-                    raise doc.fail(el, f"expected one connection to {_s(fname)}:{port}: line "
-                                       f"{signals[(fname, port)][2].sourceline} connects it too")
-                signals[(fname, port)] = (sim, var, el)
-            elif kind == "SignalGroupConnection":
-                raise doc.fail(el, "not supported: signal group connections (of VectorSum functions)")
+                if group != (f.kind == "VectorSum"):
+                    raise doc.fail(el, f"{_s(fname)} is {_article(f.kind)} {f.kind}: expected a "
+                                       f"{'SignalGroupConnection' if f.kind == 'VectorSum' else 'SignalConnection'}")
+                if port not in f.ports and not (f.inputs and _input_index(port, f.inputs) is not None):
+                    raise doc.fail(sig, f"{_s(fname)} has no signal{' group' * group} {_s(port)}; expected "
+                                        f"{f.signal_names()}", "name")
+                if port in f.ends:
+                    raise doc.fail(el, f"expected one connection to {_s(fname)}:{_s(port)}: line "
+                                       f"{f.ends[port][2].sourceline} connects it too")
+                if group:
+                    sim, gname, gel = self._group_end(ends[var_tag])
+                    f.ends[port] = (sim.name, self._vector(el, f, (sim, gname, gel)), el)
+                else:
+                    sim, var = self._endpoint(ends[var_tag])
+                    f.ends[port] = (sim, var, el)
             else:
-                raise doc.fail(el, "expected VariableConnection, VariableGroupConnection or SignalConnection")
-        for fname, fel in self.functions.items():
-            ends = [signals.get((fname, p)) for p in ("in", "out")]
-            if None in ends:
-                port = "in" if ends[0] is None else "out"
-                raise doc.fail(fel, f"expected a SignalConnection to {_s(fname)}:{port} (libcosim needs both)")
-            (si, sv, sel), (di, dv, del_) = ends
-            for inst, var, cel, role in ((si, sv, sel, "output"), (di, dv, del_, "input")):
-                v = variables_of(self.sims[inst].md)[var]
-                if v.causality != role:
-                    raise doc.fail(cel, f"expected an {role} at {_s(fname)}:{'in' if role == 'output' else 'out'}: "
-                                        f"{_s(inst + '.' + var)} is {_article(v.causality)} {v.causality}")
-                if v.type not in REAL_TYPES:
-                    raise doc.fail(cel, f"a LinearTransformation takes and gives Real values; {_s(inst + '.' + var)} "
-                                        f"is {v.type}")
-            factor, offset = _number(doc, fel, "factor", 1.0), _number(doc, fel, "offset", 0.0)
-            self._link(del_, (si, sv), (di, dv), factor, offset)
+                raise doc.fail(el, "expected VariableConnection, VariableGroupConnection, SignalConnection or "
+                                   "SignalGroupConnection")
+        for fname, f in self.functions.items():
+            wanted = list(f.ports) if not f.inputs else [f"in[{i}]" for i in range(f.inputs)] + ["out"]
+            missing = next((p for p in wanted if p not in f.ends), None)
+            if missing is not None:  # libcosim: "Missing expected connection"
+                raise doc.fail(f.el, f"expected a {'SignalGroupConnection' if f.dimension else 'SignalConnection'} "
+                                     f"to {_s(fname)}:{missing} (libcosim needs every signal of a function)")
+            if f.kind == "LinearTransformation":
+                (si, sv, sel), (di, dv, del_) = f.ends["in"], f.ends["out"]
+                self._check_ends(f, fname, [(si, sv, sel, "in")], (di, dv, del_))
+                factor, offset = _number(doc, f.el, "factor", 1.0), _number(doc, f.el, "offset", 0.0)
+                self._link(del_, (si, sv), (di, dv), factor, offset)
+                continue
+            ins = [f.ends[f"in[{i}]"] for i in range(f.inputs)]
+            out = f.ends["out"]
+            # a Sum is a VectorSum of dimension 1: element j of every input adds into element j of the output
+            for j in range(f.dimension or 1):
+                terms = [(i, v if not f.dimension else v[j], e, p) for (i, v, e), p in
+                         zip(ins, (f"in[{k}]" for k in range(f.inputs)))]
+                dst = (out[0], out[1] if not f.dimension else out[1][j])
+                self._check_ends(f, fname, terms, (dst[0], dst[1], out[2]))
+                self._link(out[2], (terms[0][0], terms[0][1]), dst, 1.0, 0.0)
+                self.sums[dst] = [(i, v) for i, v, _, _ in terms[1:]]
+
+    def _vector(self, el, f, end) -> list[str]:
+        """The first `dimension` variables of a VectorSum's variable group (libcosim adds those)."""
+        sim, name, gel = end
+        found = self._groups(sim, gel)["top"].get(name)
+        if found is None:  # libcosim's VectorSum looks among the top-level groups only
+            raise self.doc.fail(gel, f"{_s(sim.md.modelName)}_OspModelDescription.xml has no top-level variable "
+                                     f"group {_s(name)} (a VectorSum takes those, as libcosim does)", "name")
+        group = found[0]
+        refs = [c.get("ref") for c in group if _local(c) == "Variable"]
+        if len(refs) < f.dimension:
+            raise self.doc.fail(el, f"dimension mismatch: {_s(f.el.get('name'))} adds vectors of dimension "
+                                    f"{f.dimension}, {_s(end[0].name)}'s variable group {_s(end[1])} has "
+                                    f"{len(refs)} variable{'s' * (len(refs) != 1)}")
+        if len(refs) > f.dimension:
+            self.warn(self.doc.key(el), f"{_s(end[0].name)}'s variable group {_s(end[1])} has {len(refs)} "
+                      f"variables; {_s(f.el.get('name'))} (dimension {f.dimension}) takes the first "
+                      f"{f.dimension}, as libcosim does", "variable groups longer than a VectorSum's dimension")
+        return refs[:f.dimension]
+
+    def _check_ends(self, f, fname: str, ins: list, out: tuple) -> None:
+        """The function's inputs come from Real outputs, its output goes to a Real input."""
+        for inst, var, cel, port in ins:
+            self._check_end(f, fname, inst, var, cel, port, "output")
+        self._check_end(f, fname, *out, "out", "input")
+
+    def _check_end(self, f, fname: str, inst: str, var: str, cel, port: str, role: str) -> None:
+        v = variables_of(self.sims[inst].md)[var]
+        if v.causality != role:
+            raise self.doc.fail(cel, f"expected an {role} at {_s(fname)}:{port}: {_s(inst + '.' + var)} is "
+                                     f"{_article(v.causality)} {v.causality}")
+        if v.type not in REAL_TYPES:
+            raise self.doc.fail(cel, f"{_article(f.kind)} {f.kind} takes and gives Real values; "
+                                     f"{_s(inst + '.' + var)} is {v.type}")
+        if getattr(v, "shape", None):
+            raise self.doc.fail(cel, "not supported: FMI 3.0 arrays at a function's signal")
 
     def _pair(self, el, tag: str) -> tuple[tuple[str, str], tuple[str, str]]:
         ends = list(el)
@@ -638,6 +718,26 @@ class _Reader:
 
 def _article(word: str) -> str:
     return "an" if word[:1] in "aeiou" else "a"
+
+
+def _count(doc: Doc, el, attr: str) -> int:
+    """A required xs:positiveInteger attribute (a Sum's inputCount, a VectorSum's dimension)."""
+    text = el.get(attr)
+    if text is None:
+        raise doc.fail(el, "missing required attribute; expected a whole number >= 1", attr)
+    try:
+        n = parse_int(text.strip())
+    except ValueError:
+        n = 0
+    if not 1 <= n <= MAX_SIGNALS:
+        raise doc.fail(el, f"expected a whole number from 1 to {MAX_SIGNALS}, got {_s(text)!r}", attr)
+    return n
+
+
+def _input_index(port: str, count: int) -> int | None:
+    """i where `port` is in[i] of a function of `count` inputs, else None."""
+    m = re.fullmatch(r"in\[(0|[1-9][0-9]{0,9})\]", port)
+    return int(m.group(1)) if m and int(m.group(1)) < count else None
 
 
 def _number(doc: Doc, el, attr: str, default: float | None = None) -> float:

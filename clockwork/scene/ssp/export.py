@@ -131,10 +131,19 @@ def _tolerances(scene) -> tuple[float, float]:
             min(found["atol"], default=_OMS_DEFAULT_TOLERANCE))
 
 
+def _refuse_sums(scene, what: str) -> None:
+    """SceneError for a sum of outputs into one input (an OSP Sum), which `what` cannot say."""
+    c = next((c for c in scene.connections if c.adds), None)
+    if c is not None:
+        raise SceneError(f"{what} feeds an input from one output; {c.dst_instance}.{c.dst_var} is a sum of several "
+                         "(an OSP Sum): not exported", scene.path, f"connection {c}")
+
+
 def build_ssp(scene, point: dict | None = None) -> dict[str, bytes]:
     """The archive's files {path: bytes} for a scene (and a sweep point)."""
     if point:
         scene = scene.variant(point)
+    _refuse_sums(scene, "an SSP")
     files: dict[str, bytes] = {}
     # One resource per distinct FMU file; the model name when it is free.
     fmu_names: dict[str, str] = {}
@@ -293,6 +302,7 @@ def container_description(scene, point: dict | None = None) -> tuple[dict, dict[
     parameter bindings; the JSON form carries them."""
     if point:
         scene = scene.variant(point)
+    _refuse_sums(scene, "an fmucontainer description")
     files = {f"{inst}.fmu": Path(c.fmu_path) for inst, c in scene.components.items()}
     start, outputs = [], []
     for inst, comp in scene.components.items():
