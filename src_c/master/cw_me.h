@@ -1,0 +1,27 @@
+/* What the Model Exchange wrapper (cw_me.c) and the Model Exchange group
+ * (cw_me_group.c) share: the table of the calls whose shape differs by
+ * FMU (cw_me.calls points at one) and the event information it returns. */
+#ifndef CW_ME_H
+#define CW_ME_H
+
+#include <stddef.h>
+
+#include "cw_structs.h"
+
+typedef struct {
+    int need, terminate, nominals, values, defined;
+    double next_time;
+} event_info2;
+
+/* One table per kind of FMU (cwme_calls_fmi1/2/3) and one for a group
+ * (cwmg_calls): the wrapper calls through it and never asks which. */
+typedef struct {
+    int (*get_real)(cw_me *me, const unsigned *vr, size_t n, double *out);
+    int (*set_real)(cw_me *me, const unsigned *vr, size_t n, const double *values);
+    int (*completed)(cw_me *me, int *enter, int *terminate);
+    int (*update)(cw_me *me, event_info2 *info);
+} cw_me_calls;
+
+#define CWME_CALLS(me) ((const cw_me_calls *)(me)->calls)
+
+#endif
