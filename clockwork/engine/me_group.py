@@ -246,12 +246,12 @@ class MEGroup(MEInstance):
         self._rk = rk.RungeKutta(n, DEFAULT_RTOL, 0.0)
         self._cv = None
         self._core = None
-        self._share(n_in)
+        self._share()
         self._dirty = True
         self._reset_wrapper()
         self._bind_group()
 
-    def _share(self, n_in: int) -> None:
+    def _share(self) -> None:
         """The struct shared with the compiled core (``_Group``) and the
         group's ``_ME`` arrays: whichever engine steps, the other sees the
         same connections evaluated and the same values last set."""
