@@ -61,12 +61,6 @@ static double ulp(double x) { return nextafter(x, INFINITY) - x; }
 /* ---- the FMU's calls, FMI 1.0, 2.0 or 3.0 (FMI 1.0's face gives functions
  * that do nothing for the event and continuous-time modes it lacks) ---- */
 
-typedef int (*set_time_t)(void *, double);
-typedef int (*vector_t)(void *, double *, size_t);
-typedef int (*set_vector_t)(void *, const double *, size_t);
-typedef int (*mode_t_)(void *);
-typedef int (*get_state_t)(void *, void **);
-typedef int (*set_state_t)(void *, void *);
 typedef int (*get_real2_t)(void *, const unsigned *, size_t, double *);
 typedef int (*set_real2_t)(void *, const unsigned *, size_t, const double *);
 typedef int (*get_real3_t)(void *, const unsigned *, size_t, double *, size_t);

@@ -1,12 +1,21 @@
 /* What the Model Exchange wrapper (cw_me.c) and the Model Exchange group
- * (cw_me_group.c) share: the table of the calls whose shape differs by
- * FMU (cw_me.calls points at one) and the event information it returns. */
+ * (cw_me_group.c) share: the shapes of the FMU functions, the table of
+ * the calls whose shape differs by FMU (cw_me.calls points at one) and
+ * the event information it returns. */
 #ifndef CW_ME_H
 #define CW_ME_H
 
 #include <stddef.h>
 
 #include "cw_structs.h"
+
+/* The shapes of the FMU functions a cw_me points at (its setTime ... setState). */
+typedef int (*set_time_t)(void *, double);
+typedef int (*vector_t)(void *, double *, size_t);
+typedef int (*set_vector_t)(void *, const double *, size_t);
+typedef int (*mode_t_)(void *);
+typedef int (*get_state_t)(void *, void **);
+typedef int (*set_state_t)(void *, void *);
 
 typedef struct {
     int need, terminate, nominals, values, defined;

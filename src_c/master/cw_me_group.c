@@ -29,13 +29,6 @@
 enum { FMI_OK = 0, FMI_WARNING = 1 };
 enum { CONTINUOUS = 2 };
 
-typedef int (*set_time_t)(void *, double);
-typedef int (*vector_t)(void *, double *, size_t);
-typedef int (*set_vector_t)(void *, const double *, size_t);
-typedef int (*mode_call_t)(void *);
-typedef int (*get_state_t)(void *, void **);
-typedef int (*set_state_t)(void *, void *);
-
 static int worse(int a, int b) { return b > a ? b : a; }
 
 static cw_me *member(const cw_me_group *g, int i) { return ((cw_me *const *)g->members)[i]; }
@@ -202,24 +195,23 @@ static int gather(cw_me_group *g, double *out, size_t which, size_t scratch, int
     return st;
 }
 
+/* gather, after the connections are brought up to date: what follows the inputs. */
+static int gather_fresh(cw_me_group *g, double *out, size_t which, size_t scratch, int part)
+{
+    int st = fresh(g);
+    return st > FMI_WARNING ? st : gather(g, out, which, scratch, part);
+}
+
 static int group_get_derivatives(void *group, double *dx, size_t n)
 {
-    cw_me_group *g = group;
     (void)n;
-    int st = fresh(g);
-    if (st > FMI_WARNING)
-        return st;
-    return gather(g, dx, offsetof(cw_me, getDerivatives), offsetof(cw_me, dx), 0);
+    return gather_fresh(group, dx, offsetof(cw_me, getDerivatives), offsetof(cw_me, dx), 0);
 }
 
 static int group_get_indicators(void *group, double *z, size_t nz)
 {
-    cw_me_group *g = group;
     (void)nz;
-    int st = fresh(g);
-    if (st > FMI_WARNING)
-        return st;
-    return gather(g, z, offsetof(cw_me, getIndicators), offsetof(cw_me, z), 2);
+    return gather_fresh(group, z, offsetof(cw_me, getIndicators), offsetof(cw_me, z), 2);
 }
 
 static int group_get_states(void *group, double *x, size_t n)
@@ -241,7 +233,7 @@ static int each_mode(cw_me_group *g, size_t which)
     int st = FMI_OK;
     for (int i = 0; i < g->n_members; i++) {
         cw_me *m = member(g, i);
-        st = worse(st, ((mode_call_t)*(void **)((char *)m + which))(m->instance));
+        st = worse(st, ((mode_t_)*(void **)((char *)m + which))(m->instance));
         if (st > FMI_WARNING)
             return st;
     }
