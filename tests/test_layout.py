@@ -14,6 +14,7 @@ from clockwork.engine import compiled, compiled_clocks, cvode
 from clockwork.fmi import layout
 from clockwork.fmi.cs1 import _Fmi1
 from clockwork.fmi.cs3 import _Events
+from clockwork.engine.me_group import _Group
 from clockwork.engine.model_exchange import _ME
 
 MIRRORS = [("cw_layout", "port", compiled._Port), ("cw_layout", "master", compiled._Master),
@@ -21,7 +22,8 @@ MIRRORS = [("cw_layout", "port", compiled._Port), ("cw_layout", "master", compil
            ("cw_layout", "loop", compiled._Loop), ("cw_layout", "loops", compiled._Loops),
            ("cw_layout", "inputs", compiled._Inputs), ("cw_layout", "clocks", compiled_clocks._Clocks),
            ("cw_layout", "fmi3", _Events),
-           ("cw_layout", "fmi1", _Fmi1), ("cwme_layout", "me", _ME), ("cwme_layout", "sundials", cvode.Table)]
+           ("cw_layout", "fmi1", _Fmi1), ("cwme_layout", "me", _ME), ("cwme_layout", "sundials", cvode.Table),
+           ("cwme_layout", "me_group", _Group)]
 IDS = [name for _, name, _ in MIRRORS]
 
 

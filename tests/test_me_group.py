@@ -7,8 +7,10 @@ integrator and locates the ball's indicator with the floor moving.
 Stepped apart (master.me_groups = false) the floor is sampled at
 communication points and the bounce is late by far more than the
 tolerance. A chain of two lags equals its closed form to the integrator's
-tolerance at any step. FMI 2.0 and 3.0 members, and a mix; the compiled
-engine hands a group to the Python engine with its reason.
+tolerance at any step. FMI 2.0 and 3.0 members, and a mix. A ball whose
+bounce another FMU's logic commands through a Boolean bounces at the
+floor whatever the step. The compiled engine runs a group (cw_me_group.c)
+with the Python engine's bits.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import pytest
 from clockwork.engine import MasterSettings, System
 from clockwork.engine.recording import Recorder
 from clockwork.errors import SceneError
-from cwtest import test_fmu
+from cwtest import FMU_DIR, test_fmu
 
 VERSIONS = ("", "fmi3/")
 G, E, H0 = 9.81, 0.8, 1.0  # MeFloorBall's gravity, restitution, start height
@@ -161,16 +163,102 @@ def test_an_algebraic_loop_inside_a_group_is_refused_in_one_line():
     assert "master.me_groups = false" in str(e.value)
 
 
-def test_the_compiled_engine_hands_a_group_to_the_python_engine_with_its_reason():
-    _, _, master = run(ball_on_floor(), BALL_ON_FLOOR, 1.0, 0.5, {"ball": ["t_bounce"]}, engine="auto")
+# -- a ball and the logic that bounces it, joined by a Boolean ------------------------------------------------
+
+LOGIC = ["ball.h -> logic.h", "ball.v -> logic.v", "logic.hit -> ball.hit"]
+
+
+def ball_and_logic(version_ball="", version_logic=""):
+    return {"ball": (me("MeLogicBall", version_ball), {}), "logic": (me("MeBounceLogic", version_logic), {})}
+
+
+def floor_bounces(stop: float) -> list[float]:
+    """The impacts of MeLogicBall on a floor at 0 until `stop`, s (closed form)."""
+    times, t, v = [], math.sqrt(2.0 * H0 / G), math.sqrt(2.0 * G * H0)
+    while t <= stop:
+        times.append(t)
+        v *= E
+        t += 2.0 * v / G
+    return times
+
+
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+@pytest.mark.parametrize("versions", [("", ""), ("fmi3/", "")])
+@pytest.mark.parametrize("step", [1.0, 0.01])
+def test_a_ball_bounces_where_the_logic_says_whatever_the_step(engine, versions, step):
+    """The logic's event (its indicator on the ball's height, evaluated at
+    every stage) sets the Boolean, the ball reverses in the same event
+    iteration, and the logic's output falls back once the ball rises."""
+    stop = 2.0
+    cols, stats, master = run(ball_and_logic(*versions), LOGIC, stop, step,
+                              {"ball": ["t_bounce", "bounces", "h"], "logic": ["hit"]}, engine=engine)
+    assert master.engine == engine
+    expected = floor_bounces(stop)
+    assert len(expected) == 3
+    assert cols["ball.bounces"][-1] == len(expected)
+    assert abs(cols["ball.t_bounce"][-1] - expected[-1]) < 1e-7, (cols["ball.t_bounce"][-1], expected[-1])
+    assert min(cols["ball.h"]) > -1e-9
+    assert not any(cols["logic.hit"])  # true only inside the events
+
+
+def test_stepped_apart_the_ball_falls_through_the_floor():
+    cols, _, _ = run(ball_and_logic(), LOGIC, 2.0, 0.01, {"ball": ["h", "bounces"]}, me_groups=False)
+    assert min(cols["ball.h"]) < -1e-3
+
+
+# Each case: (components, links, record, settings), made when the test runs (the FMUs are built by then).
+CASES = {
+    "floor": lambda: (ball_on_floor(), BALL_ON_FLOOR,
+                      {"ball": ["t_bounce", "bounces", "h", "v"], "floor": ["y"]}, {}),
+    "floor_fmi3_mix": lambda: (ball_on_floor("fmi3/", ""), BALL_ON_FLOOR, {"ball": ["t_bounce", "h"], "floor": ["y"]},
+                               {}),
+    "lags": lambda: (lags(), ["a.e -> b.u"], {"b": ["y"], "a": ["e"]}, {}),
+    "timer": lambda: ({"timer": (me("MeTimer"), {}), "lag": (me("MeLag", "fmi3/"), {"T": 0.2})},
+                      ["timer.x -> lag.u"], {"lag": ["y"], "timer": ["turns", "level"]}, {}),
+    "logic": lambda: (ball_and_logic(), LOGIC, {"ball": ["t_bounce", "bounces", "h"], "logic": ["hit"]}, {}),
+    "logic_fmi3": lambda: (ball_and_logic("fmi3/", "fmi3/"), LOGIC, {"ball": ["t_bounce", "h"]}, {}),
+    "floor_fmi1": lambda: (ball_on_floor("fmi1me/", "fmi1me/"), BALL_ON_FLOOR, {"ball": ["t_bounce", "h"], "floor": ["y"]},
+                           {}),
+    "dp54": lambda: (ball_on_floor(), BALL_ON_FLOOR, {"ball": ["t_bounce", "h"]}, {"me_solver": "dp54"}),
+    "cvode": lambda: (ball_and_logic(), LOGIC, {"ball": ["t_bounce", "h"]}, {"me_solver": "cvode"}),
+    # a group and a Co-Simulation FMU coupled both ways (the group is one instance to the master)
+    "clock": lambda: ({"pendulum": (me("MePendulum"), {}), "lag": (me("MeLag"), {"T": 0.1}),
+                       "escapement": (str(FMU_DIR / "GrasshopperEscapement.fmu"), {"torque": 0.004, "phi_r": 0.035})},
+                      ["pendulum.phi -> escapement.phi", "pendulum.w -> escapement.w",
+                       "escapement.tau -> pendulum.tau_escapement", "pendulum.phi -> lag.u"],
+                      {"pendulum": ["phi", "tick_time"], "lag": ["y"]}, {}),
+}
+
+
+@pytest.mark.parametrize("step", [0.3, 0.01])
+@pytest.mark.parametrize("case", list(CASES))
+def test_both_engines_give_the_same_bits(case, step):
+    components, links, record, extra = CASES[case]()
+    out = {engine: run(components, links, 2.0, step, record, engine=engine, **extra)
+           for engine in ("python", "compiled")}
+    assert out["compiled"][2].engine == "compiled"
+    assert out["python"][0] == out["compiled"][0]
+    assert out["python"][1] == out["compiled"][1]
+
+
+def test_a_connection_the_core_does_not_evaluate_hands_the_group_to_python_in_one_line():
+    """An Integer output into a Real input (converted by the Python engine's typed calls)."""
+    links = BALL_ON_FLOOR + ["ball.bounces -> floor.u"]
+    cols, _, master = run(ball_on_floor(), links, 1.0, 0.5, {"floor": ["y"]}, engine="auto")
     assert master.engine == "python"
-    assert "Model Exchange group (ball+floor)" in master.engine_reason
-    with pytest.raises(SceneError, match="compiled core does not integrate a Model Exchange group"):
-        run(ball_on_floor(), BALL_ON_FLOOR, 1.0, 0.5, {"ball": ["t_bounce"]}, engine="compiled")
-    # apart, the compiled core runs them (the numbers of a Co-Simulation-like step)
-    _, _, master = run(ball_on_floor(), BALL_ON_FLOOR, 1.0, 0.5, {"ball": ["t_bounce"]}, engine="auto",
-                       me_groups=False)
+    assert master.engine_reason == ("the compiled core evaluates a Model Exchange group's Real, Integer and Boolean "
+                                    "connections only (ball+floor: ball.bounces -> floor.u): the Python engine runs it")
+    with pytest.raises(SceneError, match="master.engine = 'compiled': the compiled core evaluates") as e:
+        run(ball_on_floor(), links, 1.0, 0.5, {"floor": ["y"]}, engine="compiled")
+    assert "\n" not in str(e.value)
+
+
+def test_the_compiled_engine_runs_a_group_and_says_no_reason():
+    """Before, the compiled engine refused a group (and "auto" fell back to Python)."""
+    _, _, master = run(ball_on_floor(), BALL_ON_FLOOR, 1.0, 0.5, {"ball": ["t_bounce"]}, engine="compiled")
     assert master.engine == "compiled"
+    _, _, master = run(ball_on_floor(), BALL_ON_FLOOR, 1.0, 0.5, {"ball": ["t_bounce"]}, engine="auto")
+    assert master.engine == "compiled" and master.engine_reason is None
 
 
 def _scene(tmp_path, extra=""):
@@ -221,17 +309,17 @@ def test_a_scene_groups_its_model_exchange_fmus_unless_told_not_to(tmp_path, cap
     late = abs(float(series["ball.t_bounce"][-1]) - bounce_times(1.0)[0])
     if groups:
         assert "ball+floor" in summary["statistics"]["model_exchange"]
-        assert summary["result"]["engine"] == "python"
-        assert "Model Exchange group (ball+floor)" in summary["result"]["engine_reason"]
+        assert summary["result"]["engine"] == "compiled" and "engine_reason" not in summary["result"]
         assert late < 1e-7
     else:
         assert set(summary["statistics"]["model_exchange"]) == {"ball", "floor"}
         assert late > 1e-3
 
 
-def test_a_restarted_group_gives_the_same_bits():
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_a_restarted_group_gives_the_same_bits(engine):
     record = {"ball": ["h"], "floor": ["y"]}
-    with System(ball_on_floor(), BALL_ON_FLOOR, MasterSettings(step=0.1, engine="python", tolerance=1e-10),
+    with System(ball_on_floor(), BALL_ON_FLOOR, MasterSettings(step=0.1, engine=engine, tolerance=1e-10),
                 record=record) as s:
         seen = []
         for _ in range(2):

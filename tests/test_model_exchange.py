@@ -313,7 +313,7 @@ CASES = {
     "lag": ({"p": ("Pendulum", PENDULUM), "lag": ("MeLag", {})}, ["p.phi -> lag.u"],
             {"lag": ["y", "e"]}, {"extrapolation": 2}),
     # a Model Exchange output (with its derivatives, cwme_getOutputDerivatives) into a Model Exchange input,
-    # each stepped alone (a group, tests/test_me_group.py, runs on the Python engine only)
+    # each stepped alone (as a group: tests/test_me_group.py)
     "me_to_me": ({"o": ("MeOscillator", {}), "lag": ("MeLag", {})}, ["o.x -> lag.u"], {"lag": ["y"]},
                  {"extrapolation": 2, "me_groups": False}),
     "clock": ({"pendulum": ("MePendulum", {}),

@@ -200,7 +200,7 @@ SYSTEMS = {"clocks": lambda: _clocks(6), "mixed": _mixed, "loop": _loop_beside, 
 def _run(system: tuple[dict, list[str]], steps: int, inputs=None, **settings):
     comps, links = system
     # Model Exchange instances stepped alone, as the core schedules them (a
-    # group of connected ones runs on the Python engine: tests/test_me_group.py).
+    # group of connected ones is one instance to the core: tests/test_me_group.py).
     settings.setdefault("me_groups", False)
     # Every Real output, connected or not (an unconnected one is read after the step too).
     record = {n: [v.name for v in read_model_description(path).modelVariables

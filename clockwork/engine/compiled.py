@@ -165,13 +165,15 @@ def load_core():
             except OSError as e:
                 _lib_error = f"the compiled core {path} cannot be loaded ({e}); build it with tools/setup.sh"
                 return None
+            from .me_group import _Group  # with the core, not with the engine (engine/system.py)
             for lookup, name, struct in (
                     ("cw_layout", "port", _Port), ("cw_layout", "master", _Master),
                     ("cw_layout", "recorder", _Recorder), ("cw_layout", "fmi3", _Events),
                     ("cw_layout", "marks", _Marks), ("cw_layout", "fmi1", _Fmi1), ("cw_layout", "loop", _Loop),
                     ("cw_layout", "loops", _Loops), ("cw_layout", "inputs", _Inputs),
                     ("cw_layout", "clocks", _Clocks),
-                    ("cwme_layout", "me", _ME), ("cwme_layout", "sundials", cvode.Table)):
+                    ("cwme_layout", "me", _ME), ("cwme_layout", "sundials", cvode.Table),
+                    ("cwme_layout", "me_group", _Group)):
                 differs = layout.problem(lib, lookup, name, struct)
                 if differs:
                     _lib_error = (f"{path} was built from another version of the core ({differs}); "

@@ -27,15 +27,22 @@ integrates the members together, as one Model Exchange FMU would be:
 
 ``engine/system.py`` forms the groups (``form_groups``): each set of Model
 Exchange instances joined by connections becomes one group, unless
-``master.me_groups = false``. The compiled core does not run a group: a
-scene with one runs on the Python engine (``compiled_reason``).
+``master.me_groups = false``. The compiled core runs a group as it runs
+one Model Exchange FMU: its wrapper (src_c/master/cw_me.c) on the group's
+``_ME``, whose calls go to src_c/master/cw_me_group.c, the twin of the
+calls here, over the struct ``_Group`` both share (which connections need
+evaluating and the values last set). The core evaluates Real, Integer,
+Enumeration and Boolean connections (through the get and set each
+member's face hands over, ``core_value_calls``); a group with another
+(String; Real to or from an integral type) runs on the Python engine
+(``compiled_reason``).
 """
 
 from __future__ import annotations
 
 import ctypes
 import math
-from ctypes import byref, c_double, c_uint
+from ctypes import Structure, byref, c_double, c_int, c_uint, c_void_p
 from dataclasses import replace
 from pathlib import Path
 
@@ -48,30 +55,54 @@ from .wiring import Link
 
 # FMI 2.0 numbers value references per base type: a group's table keys them so.
 _TYPE_CLASS = {"Real": 0, "Integer": 1, "Enumeration": 1, "Boolean": 2, "String": 3}
+# Types whose values a connection carries as integers (the core's too).
+_INTEGRAL = ("Integer", "Enumeration", "Boolean")
 
 
 class _GroupNames:
     """The group's names of its calls in messages (its members' first face's)."""
+
+    CORE_CALLS_TABLE = "cwmg_calls"  # cw_me_group.c's table: the group's calls whose shape differs
 
     def __init__(self, face):
         self.CALL_NAMES = dict(face.CALL_NAMES, doStep="the Model Exchange group's step")
         self.NAMES = face.NAMES
 
 
-class _Conn:
-    """A connection inside the group, bound to its members' calls."""
+class _Group(Structure):
+    """What the group shares with the compiled core (cw_me_group.c's
+    cw_me_group, same layout): its members, its value references, its
+    connections and the values last set through them."""
 
-    def __init__(self, link: Link, src: MEInstance, dst: MEInstance):
+    _fields_ = [(n, c_void_p) for n in (
+        "me", "members", "member_state", "offsets", "vr_member", "vr_own", "c_src", "c_dst", "c_src_vr",
+        "c_dst_vr", "c_continuous", "c_identity", "c_factor", "c_offset", "c_last", "c_has_last",
+        "c_get", "c_set", "c_get_shape", "c_set_shape", "c_last_int")] + [
+        (n, c_int) for n in ("n_members", "n_conns", "dirty", "pad_")]
+
+
+class _Conn:
+    """A connection inside the group, bound to its members' calls; the
+    value last set is the group's (``_Group.c_last`` or ``c_last_int``, at
+    ``index``), but for a String."""
+
+    def __init__(self, index: int, link: Link, src: MEInstance, dst: MEInstance):
+        self.index = index
         self.link = link
         self.src, self.dst = src, dst
         sv, dv = src.variables[link.output], dst.variables[link.input]
         self.real = sv.type == "Real" and dv.type == "Real"
+        self.integral = sv.type in _INTEGRAL and dv.type in _INTEGRAL
         # In continuous-time mode only continuous Real inputs may be set.
         self.continuous = self.real and dv.variability == "continuous"
+        # The compiled core's get and set of an integral connection: (get, set, get's shape, set's shape).
+        got = src.face.core_value_calls(sv) if self.integral else None
+        put = dst.face.core_value_calls(dv) if self.integral else None
+        self.core_calls = (got[0], put[1], got[2], put[2]) if got and put else None
         self.src_vr = (c_uint * 1)(sv.vr)
         self.dst_vr = (c_uint * 1)(dv.vr)
         self.buf = (c_double * 1)()
-        self.last = None  # the value last set
+        self.last = None  # the value last set: where it is neither Real nor integral (the Python engine's only)
 
 
 def _ordered(name: str, links: list[Link], members: dict[str, MEInstance]) -> list[Link]:
@@ -138,11 +169,14 @@ class MEGroup(MEInstance):
                              f"{', '.join(map(repr, SOLVERS))}")
         self.default_tolerance = None
         self.outputs_after_inputs = True
-        self.compiled_reason = (f"the compiled core does not integrate a Model Exchange group ({name}): "
-                                "the Python engine runs it")
         self.can_get_set_state = all(m.can_get_set_state for m in self.members)
         needs_completed = any(m.steps.needs_completed for m in self.members)
-        self._conns = [_Conn(k, by_name[k.src], by_name[k.dst]) for k in _ordered(name, links, by_name)]
+        self._conns = [_Conn(i, k, by_name[k.src], by_name[k.dst])
+                       for i, k in enumerate(_ordered(name, links, by_name))]
+        other = next((c.link for c in self._conns if not (c.real or c.core_calls)), None)
+        self.compiled_reason = None if other is None else (
+            f"the compiled core evaluates a Model Exchange group's Real, Integer and Boolean connections only "
+            f"({name}: {other.src}.{other.output} -> {other.dst}.{other.input}): the Python engine runs it")
         fed = {(k.dst, k.input) for k in links}
         # The group's value references: one per (member, type class, member's vr).
         self._table: list[tuple[MEInstance, int, str]] = []  # group vr -> (member, its vr, its type)
@@ -201,9 +235,65 @@ class MEGroup(MEInstance):
         for k, (_, start) in enumerate(inputs):
             self.steps.u0[k] = start
         self._core = None
+        self._share()
         self._dirty = True
         self._reset_wrapper()
         self._bind_group()
+
+    def _share(self) -> None:
+        """The struct shared with the compiled core (``_Group``) and the
+        group's ``_ME`` arrays: whichever engine steps, the other sees the
+        same connections evaluated and the same values last set."""
+        me, conns, members = self.me, self._conns, self.members
+        for field in ("x", "xbuf", "xw", "xd", "dx", "nominal", "atolv", "z_prev", "z", "z_end", "z_lo", "z0",
+                      "in_vr", "u0", "d1", "d2", "tref", "in_val", "state_vr", "der_state", "saved"):
+            setattr(me, field, ctypes.addressof(getattr(self.steps, field)))
+        index = {id(m): i for i, m in enumerate(members)}
+        keep = self._shared = []
+
+        def array(ctype, values):
+            values = list(values)
+            a = (ctype * max(1, len(values)))(*values)
+            keep.append(a)
+            return ctypes.addressof(a)
+
+        g = self._g = _Group(n_members=len(members), n_conns=len(conns), dirty=1)
+        g.members = array(c_void_p, (ctypes.addressof(m.me) for m in members))
+        g.member_state = array(c_void_p, (ctypes.addressof(m._state) for m in members))
+        g.offsets = array(c_int, (k for off in self._offsets for k in off))
+        g.vr_member = array(c_int, (index[id(m)] for m, _, _ in self._table))
+        g.vr_own = array(c_uint, (vr for _, vr, _ in self._table))
+        g.c_src = array(c_int, (index[id(c.src)] for c in conns))
+        g.c_dst = array(c_int, (index[id(c.dst)] for c in conns))
+        g.c_src_vr = array(c_uint, (c.src_vr[0] for c in conns))
+        g.c_dst_vr = array(c_uint, (c.dst_vr[0] for c in conns))
+        g.c_continuous = array(c_int, (int(c.continuous) for c in conns))
+        g.c_identity = array(c_int, (int(c.link.identity) for c in conns))
+        g.c_factor = array(c_double, (c.link.factor for c in conns))
+        g.c_offset = array(c_double, (c.link.offset for c in conns))
+        g.c_get = array(c_void_p, (c.core_calls[0] if c.core_calls else None for c in conns))
+        g.c_set = array(c_void_p, (c.core_calls[1] if c.core_calls else None for c in conns))
+        g.c_get_shape = array(c_int, (c.core_calls[2] if c.core_calls else 0 for c in conns))
+        g.c_set_shape = array(c_int, (c.core_calls[3] if c.core_calls else 0 for c in conns))
+        self._last = (c_double * max(1, len(conns)))()
+        self._last_int = (ctypes.c_longlong * max(1, len(conns)))()
+        self._has_last = (c_int * max(1, len(conns)))()
+        g.c_last, g.c_last_int = ctypes.addressof(self._last), ctypes.addressof(self._last_int)
+        g.c_has_last = ctypes.addressof(self._has_last)
+
+    @property
+    def _dirty(self) -> bool:
+        return bool(self._g.dirty)
+
+    @_dirty.setter
+    def _dirty(self, value: bool) -> None:
+        self._g.dirty = int(value)
+
+    def _forget_values(self) -> None:
+        """No value set through a connection yet (setup, reset, a restored state)."""
+        for c in self._conns:
+            c.last = None
+            self._has_last[c.index] = 0
 
     # -- the group's calls --------------------------------------------------------
 
@@ -278,20 +368,27 @@ class MEGroup(MEInstance):
                 if st > WARNING:
                     return st, changed
                 value = c.buf[0] if k.identity else k.factor * c.buf[0] + k.offset
-                if value != c.last:
+                i = c.index
+                had = self._has_last[i]
+                if not had or value != self._last[i]:
                     c.buf[0] = value
                     st = c.dst.face.set_real(c.dst.component, c.dst_vr, 1, c.buf)
                     if st > WARNING:
                         return st, changed
-                    changed = changed or c.last is not None
-                    c.last = value
-            else:  # discrete types: by name, through the members' typed calls (Event Mode only)
+                    changed = changed or bool(had)
+                    self._last[i], self._has_last[i] = value, 1
+            else:  # other types: by name, through the members' typed calls (Event Mode only)
                 value = c.src.get_values([k.output])[0]
-                if value != c.last:
+                i = c.index
+                had = bool(self._has_last[i]) if c.integral else c.last is not None
+                if not had or value != (self._last_int[i] if c.integral else c.last):
                     c.dst._set_values_now({k.input: value}, f"the group's connection {k.src}.{k.output} -> "
                                                             f"{k.dst}.{k.input}", SimulationError)
-                    changed = changed or c.last is not None
-                    c.last = value
+                    changed = changed or had
+                    if c.integral:
+                        self._last_int[i], self._has_last[i] = int(value), 1
+                    else:
+                        c.last = value
         self._dirty = False
         return OK, changed
 
@@ -396,8 +493,7 @@ class MEGroup(MEInstance):
 
     def _g_set_state(self, comp, state) -> int:
         self._dirty = True
-        for c in self._conns:
-            c.last = None  # the members' inputs are restored with them: set again
+        self._forget_values()  # the members' inputs are restored with them: set again
         return self._each(lambda m: m._fmu_set_state(m.component, m._state))
 
     # -- values by group value reference and by name ----------------------------------
@@ -475,8 +571,7 @@ class MEGroup(MEInstance):
         self._setup_wrapper(1, min(m.me.rtol for m in self.members), start)
         self.me.mode = INITIALIZATION
         self._dirty = True
-        for c in self._conns:
-            c.last = None
+        self._forget_values()
 
     def exit_init(self) -> None:
         st, _ = self._propagate(True)
@@ -491,8 +586,7 @@ class MEGroup(MEInstance):
             m.reset()
         self._reset_wrapper()
         self._dirty = True
-        for c in self._conns:
-            c.last = None
+        self._forget_values()
         del self.messages[:]
 
     def set_values(self, values, what=None, error=SimulationError) -> None:
@@ -527,11 +621,19 @@ class MEGroup(MEInstance):
             m.clock_table()
         return None
 
-    def core_calls(self, lib):
-        raise SimulationError(self.compiled_reason)
-
-    def core_state(self, lib):
-        raise SimulationError(self.compiled_reason)
+    def core_state(self, lib) -> int:
+        """The group's ``_ME`` made ready for the compiled core's wrapper,
+        its calls the group's (cw_me_group.c's cwmg_bind), its members'
+        ``_ME`` ready for their calls tables."""
+        if self.compiled_reason:
+            raise SimulationError(self.compiled_reason)
+        if self._core is None:
+            for m in self.members:
+                m.core_state(lib)
+            lib.cwmg_bind.argtypes = [c_void_p, c_void_p]
+            lib.cwmg_bind.restype = None
+            lib.cwmg_bind(ctypes.addressof(self.me), ctypes.addressof(self._g))
+        return super().core_state(lib)
 
     def _free_instance(self) -> None:
         from . import cvode

@@ -44,6 +44,7 @@ from fmpy.fmi1 import FMU1Model, fmi1CallbackAllocateMemoryTYPE, fmi1CallbackFre
 from ..errors import SceneError
 from .archive import extract
 from .calls import ERROR, OK, fmi1_callbacks
+from .me_values import value_calls
 
 TRUE, FALSE = b"\x01", b"\x00"  # fmiBoolean (a char)
 
@@ -158,8 +159,9 @@ class ModelExchange1:
         self.set_inputs = lambda vr, n, v: f["setReal"](comp, vr, n, v)
         self.get_integer = fn("GetInteger", c, vrs, c_size_t, POINTER(c_int))
         self.set_integer = fn("SetInteger", c, vrs, c_size_t, POINTER(c_int))
-        self.get_boolean = _booleans_out(fn("GetBoolean", c, vrs, c_size_t, chars))
-        self.set_boolean = _booleans_in(fn("SetBoolean", c, vrs, c_size_t, chars))
+        self._booleans = (fn("GetBoolean", c, vrs, c_size_t, chars), fn("SetBoolean", c, vrs, c_size_t, chars))
+        self.get_boolean = _booleans_out(self._booleans[0])
+        self.set_boolean = _booleans_in(self._booleans[1])
         self.get_string = fn("GetString", c, vrs, c_size_t, POINTER(c_char_p))
         self.set_string = fn("SetString", c, vrs, c_size_t, POINTER(c_char_p))
         self.free_state = lambda comp_, state: OK  # no state was ever made
@@ -206,6 +208,16 @@ class ModelExchange1:
         self.update, self.completed_step = update_call, completed_call
         self._terminate_call = self.terminate
         self._initialized = initialized
+
+    def core_value_calls(self, variable):
+        """The compiled core's get and set of an Integer, Enumeration or
+        Boolean variable (fmiBoolean: a char), in a Model Exchange group
+        (fmi/me_values.py), or None for another type."""
+        if variable.type not in ("Integer", "Enumeration", "Boolean"):
+            return None
+        if variable.type == "Boolean":
+            return value_calls(*self._booleans, 1, False, True)
+        return value_calls(self.get_integer, self.set_integer, 4, False, False)
 
     def free(self, slave, comp) -> None:
         """fmiTerminate after a successful fmiInitialize, then fmiFreeModelInstance."""

@@ -20,6 +20,7 @@ from ..errors import SceneError
 from .archive import extract
 from .cs2 import fmi2_callbacks
 from .calls import declared, new_slave
+from .me_values import value_calls
 
 
 class ModelExchange2:
@@ -123,6 +124,16 @@ class ModelExchange2:
             return st, bool(enter.value), bool(term.value)
 
         self.update, self.completed_step = update_call, completed_call
+
+    def core_value_calls(self, variable):
+        """The compiled core's get and set of an Integer, Enumeration or
+        Boolean variable, in a Model Exchange group (fmi/me_values.py), or
+        None for another type."""
+        if variable.type not in ("Integer", "Enumeration", "Boolean"):
+            return None
+        if variable.type == "Boolean":
+            return value_calls(self.get_boolean, self.set_boolean, 4, False, True)
+        return value_calls(self.get_integer, self.set_integer, 4, False, False)
 
     @staticmethod
     def free(slave, comp) -> None:

@@ -21,6 +21,8 @@ from ..errors import SceneError
 from .archive import extract
 from .calls import OK, declared, read_string
 from .cs3 import LOG_MESSAGE
+from .description import type_name
+from .me_values import value_calls
 from .values3 import Values3
 
 
@@ -142,6 +144,20 @@ class ModelExchange3:
 
         self.update, self.completed_step = update_call, completed_call
         self.values = Values3(owner, dll)
+
+    # The bytes of a value of each discrete type the compiled group sets (fmi3Boolean: a bool).
+    _VALUE_BYTES = {"Int32": 4, "Int64": 8, "Enumeration": 8, "Boolean": 1}
+
+    def core_value_calls(self, variable):
+        """The compiled core's fmi3Get and fmi3Set of an Int32, Int64,
+        Enumeration or Boolean variable, in a Model Exchange group
+        (fmi/me_values.py), or None for another type."""
+        values = self.values
+        kind = type_name(values.owner.md, variable)
+        size = self._VALUE_BYTES.get(kind)
+        if size is None:
+            return None
+        return value_calls(*values._value_functions(kind), size, True, kind == "Boolean")
 
     @staticmethod
     def free(slave, comp) -> None:

@@ -192,10 +192,23 @@ static const cw_field me_layout[] = {
     CW_FIELD(cw_me, saved_mode), CW_FIELD(cw_me, pad4_),
 };
 
+static const cw_field me_group_layout[] = {
+    CW_FIELD(cw_me_group, me), CW_FIELD(cw_me_group, members), CW_FIELD(cw_me_group, member_state),
+    CW_FIELD(cw_me_group, offsets), CW_FIELD(cw_me_group, vr_member), CW_FIELD(cw_me_group, vr_own),
+    CW_FIELD(cw_me_group, c_src), CW_FIELD(cw_me_group, c_dst), CW_FIELD(cw_me_group, c_src_vr),
+    CW_FIELD(cw_me_group, c_dst_vr), CW_FIELD(cw_me_group, c_continuous), CW_FIELD(cw_me_group, c_identity),
+    CW_FIELD(cw_me_group, c_factor), CW_FIELD(cw_me_group, c_offset), CW_FIELD(cw_me_group, c_last),
+    CW_FIELD(cw_me_group, c_has_last), CW_FIELD(cw_me_group, c_get), CW_FIELD(cw_me_group, c_set),
+    CW_FIELD(cw_me_group, c_get_shape), CW_FIELD(cw_me_group, c_set_shape), CW_FIELD(cw_me_group, c_last_int),
+    CW_FIELD(cw_me_group, n_members), CW_FIELD(cw_me_group, n_conns),
+    CW_FIELD(cw_me_group, dirty), CW_FIELD(cw_me_group, pad_),
+};
+
 CW_EXPORT const cw_field *cwme_layout(const char *name, size_t *n_fields, size_t *struct_size)
 {
     CW_LAYOUT_CASE(sundials)
     CW_LAYOUT_CASE(me)
+    CW_LAYOUT_CASE(me_group)
     *n_fields = 0;
     *struct_size = 0;
     return NULL;

@@ -27,7 +27,7 @@
 
 #define CW_EXPORT __attribute__((visibility("default")))
 
-#include "cw_structs.h"
+#include "cw_me.h"
 
 enum { FMI_OK = 0, FMI_WARNING = 1, FMI_DISCARD = 2, FMI_ERROR = 3 };
 enum { AUTO = 0, DP54 = 1, DOP853 = 2, CVODE = 3 };         /* solver, method */
@@ -61,22 +61,12 @@ static double ulp(double x) { return nextafter(x, INFINITY) - x; }
 /* ---- the FMU's calls, FMI 1.0, 2.0 or 3.0 (FMI 1.0's face gives functions
  * that do nothing for the event and continuous-time modes it lacks) ---- */
 
-typedef int (*set_time_t)(void *, double);
-typedef int (*vector_t)(void *, double *, size_t);
-typedef int (*set_vector_t)(void *, const double *, size_t);
-typedef int (*mode_t_)(void *);
-typedef int (*get_state_t)(void *, void **);
-typedef int (*set_state_t)(void *, void *);
 typedef int (*get_real2_t)(void *, const unsigned *, size_t, double *);
 typedef int (*set_real2_t)(void *, const unsigned *, size_t, const double *);
 typedef int (*get_real3_t)(void *, const unsigned *, size_t, double *, size_t);
 typedef int (*set_real3_t)(void *, const unsigned *, size_t, const double *, size_t);
 typedef int (*completed2_t)(void *, int, int *, int *);
 typedef int (*completed3_t)(void *, bool, bool *, bool *);
-typedef struct {
-    int need, terminate, nominals, values, defined;
-    double next_time;
-} event_info2;
 typedef int (*update2_t)(void *, event_info2 *);
 typedef int (*update3_t)(void *, bool *, bool *, bool *, bool *, bool *, double *);
 /* FMI 1.0: fmiBoolean is a char; fmiEventUpdate(intermediateResults, eventInfo). */
@@ -91,12 +81,6 @@ typedef int (*update1_t)(void *, char, event_info1 *);
  * a table per version (cwme_calls_fmi1/2/3). The Model Exchange face names
  * its table and Python puts its address in cw_me.calls, so the wrapper
  * calls through it and never asks which version an FMU is. */
-typedef struct {
-    int (*get_real)(cw_me *me, const unsigned *vr, size_t n, double *out);
-    int (*set_real)(cw_me *me, const unsigned *vr, size_t n, const double *values);
-    int (*completed)(cw_me *me, int *enter, int *terminate);
-    int (*update)(cw_me *me, event_info2 *info);
-} cw_me_calls;
 
 static int get_real2(cw_me *me, const unsigned *vr, size_t n, double *out)
 {
@@ -177,7 +161,7 @@ CW_EXPORT const cw_me_calls cwme_calls_fmi1 = {get_real2, set_real2, completed1,
 CW_EXPORT const cw_me_calls cwme_calls_fmi2 = {get_real2, set_real2, completed2, update2};
 CW_EXPORT const cw_me_calls cwme_calls_fmi3 = {get_real3, set_real3, completed3, update3};
 
-#define CALLS(me) ((const cw_me_calls *)(me)->calls)
+#define CALLS(me) CWME_CALLS(me)
 
 static int fmu_get_real(cw_me *me, const unsigned *vr, size_t n, double *out)
 {

@@ -394,4 +394,40 @@ typedef struct {
         pad4_;  /* explicit: every byte is a field */
 } cw_me;
 
+/* -- the Model Exchange group (cw_me_group.c) ---------------------------- */
+
+/* Connected Model Exchange FMUs as one (engine/me_group.py's _Group, same
+ * layout): the group's own cw_me integrates the members' concatenated
+ * states through the group's calls (cwmg_bind), which call each member
+ * through its cw_me (its FMU's functions, calls table and scratch). */
+typedef struct {
+    cw_me *me;                  /* the group's wrapper (set by cwmg_bind) */
+    void *members;              /* cw_me *[n_members], in member order */
+    void *member_state;         /* void **[n_members]: where each member's FMU state is saved */
+    const int *offsets;         /* per member: state offset, states, indicator offset, indicators */
+    const int *vr_member;       /* per group value reference: its member */
+    const unsigned *vr_own;     /* ... and the member's value reference */
+    const int *c_src, *c_dst;   /* per connection, in dependency order: source and target member */
+    const unsigned *c_src_vr, *c_dst_vr;
+    const int *c_continuous;    /* into a continuous input: evaluated in continuous-time mode too */
+    const int *c_identity;      /* else factor * value + offset */
+    const double *c_factor, *c_offset;
+    double *c_last;             /* the value last set */
+    int *c_has_last;            /* 0: none since setup or a restored state */
+    /* Integer and Boolean connections: the source's get and the target's
+     * set of the value's type (void *[n_conns], NULL for Real) and the
+     * shape of each call's value (CW_VALUE_* below). */
+    void *c_get, *c_set;
+    const int *c_get_shape, *c_set_shape;
+    long long *c_last_int;      /* the discrete value last set (the source's) */
+    int n_members, n_conns;
+    int dirty;                  /* time, states or values set since the connections were evaluated */
+    int pad_;
+} cw_me_group;
+
+/* A discrete value's shape in its FMU's get or set: its size in bytes
+ * (1, 4 or 8), plus CW_VALUE_COUNTED where the call takes the number of
+ * values after them, plus CW_VALUE_BOOLEAN for a Boolean (non-zero: true). */
+enum { CW_VALUE_SIZE = 15, CW_VALUE_COUNTED = 16, CW_VALUE_BOOLEAN = 32 };
+
 #endif

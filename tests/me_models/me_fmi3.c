@@ -133,6 +133,28 @@ fmi3Status fmi3SetInt32(fmi3Instance instance, const fmi3ValueReference vr[], si
     return fmi3OK;
 }
 
+fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference vr[], size_t n, fmi3Boolean v[],
+                          size_t nv) {
+    ALLOW(ANY_RUNNING, "fmi3GetBoolean");
+    if (nv != n) return fail(f, "fmi3GetBoolean: %zu values for %zu variables", nv, n);
+    for (size_t k = 0; k < n; k++) {
+        if (vr[k] >= ME_MAX_VR) return fail(f, "fmi3GetBoolean: no variable %u", vr[k]);
+        v[k] = f->m.i[vr[k]] != 0;
+    }
+    return fmi3OK;
+}
+
+fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueReference vr[], size_t n, const fmi3Boolean v[],
+                          size_t nv) {
+    face *f = (face *)instance;
+    if (nv != n) return fail(f, "fmi3SetBoolean: %zu values for %zu variables", nv, n);
+    for (size_t k = 0; k < n; k++)
+        if (!me_settable(&f->m, vr[k]))
+            return fail(f, "fmi3SetBoolean: variable %u cannot be set in mode %d", vr[k], (int)f->m.mode);
+    for (size_t k = 0; k < n; k++) f->m.i[vr[k]] = v[k] ? 1 : 0;
+    return fmi3OK;
+}
+
 fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *state) {
     ALLOW(B(M_EVENT) | B(M_CONTINUOUS), "fmi3GetFMUState");
     if (!*state) *state = malloc(sizeof(me_instance));

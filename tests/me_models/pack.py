@@ -63,9 +63,10 @@ def fmi2(table: dict) -> str:
                   f'{_attrs(dependencies=" ".join(str(index[d]) for d in v.get("depends_on", [])))}/>'
                   for v in outputs]
         lines.append("    </Outputs>")
-    lines.append("    <Derivatives>")
-    lines += [f'      <Unknown{_attrs(index=index[d])}/>' for d in model["derivatives"]]
-    lines.append("    </Derivatives>")
+    if model["derivatives"]:  # the schema wants an Unknown in a Derivatives element
+        lines.append("    <Derivatives>")
+        lines += [f'      <Unknown{_attrs(index=index[d])}/>' for d in model["derivatives"]]
+        lines.append("    </Derivatives>")
     initial = sorted({index[v["name"]] for v in variables
                       if v.get("initial") in ("calculated", "approx")
                       and (v["causality"] == "output" or v["name"] in model["states"]
