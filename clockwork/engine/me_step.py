@@ -267,7 +267,7 @@ class ModelExchangeSteps:
                 return FAILED
             z_prev = self.z_prev
             if any(crossed(z_prev[k], z[k]) for k in range(me.nz)):
-                self.z_end = z
+                self.z_end[:me.nz] = z  # in place: the shared struct holds this array's address
                 return STATE
         st, enter, term = self._completed()
         if st != OK:
