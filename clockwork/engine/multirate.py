@@ -54,6 +54,34 @@ def is_multirate(rates: dict[str, int] | None) -> bool:
     return bool(rates) and any(k != 1 for k in rates.values())
 
 
+def slow_ones(rates: dict[str, int]) -> str:
+    """The components that do not step at the base step, said as "v every 3"."""
+    return ", ".join(f"{n} every {k}" for n, k in rates.items() if k != 1)
+
+
+# The base steps a master across rates refuses (both engines: MultiRate.step,
+# src_c/master/cw_rates.c's rates_step), each from (t, the step or the
+# event's time, the base step), s; the core names one by its position here.
+def off_base_step(t: float, h: float, base: float) -> UsageError:
+    return UsageError(f"a step of {h!r} s from t = {t!r} s: components step at different rates, each a "
+                      f"multiple of master.step, and the master takes whole base steps ({base!r} s) only")
+
+
+def time_event_inside(t: float, te: float, base: float) -> SimulationError:
+    return SimulationError(f"a time event an FMU announced at t = {te!r} s falls inside the base step from "
+                           f"t = {t!r} s: components step at different rates and the master does not shorten a "
+                           "step (master.step on the events' grid)")
+
+
+def sample_event_inside(t: float, te: float, base: float) -> SimulationError:
+    return SimulationError(f"the input samples' event at t = {te!r} s falls inside the base step from t = {t!r} s: "
+                           "components step at different rates and the master does not shorten a step (events on "
+                           "the grid of master.step)")
+
+
+REFUSALS = (off_base_step, time_event_inside, sample_event_inside)
+
+
 def problem(settings, rates: dict[str, int], indicators: dict[str, object]) -> tuple[str, str] | None:
     """What of these master settings cannot run with these decimation
     factors, as (the first slow instance, the line that says which setting
@@ -62,8 +90,7 @@ def problem(settings, rates: dict[str, int], indicators: dict[str, object]) -> t
     if not is_multirate(rates):
         return None
     first = next(n for n, k in rates.items() if k != 1)
-    slow = ", ".join(f"{n} every {k}" for n, k in rates.items() if k != 1)
-    why = f"components step at different rates ({slow} base steps)"
+    why = f"components step at different rates ({slow_ones(rates)} base steps)"
     alike = "or every component at master.step"
     if settings.iterations > 0:
         return first, (f"master.iterations = {settings.iterations}: expected 0: strong coupling repeats one step of "
@@ -250,23 +277,17 @@ class MultiRate:
         t = m.t
         base = s.step
         if abs(h - base) > 1e-9 * base:
-            raise UsageError(f"a step of {h!r} s from t = {t!r} s: components step at different rates, each a "
-                             f"multiple of master.step, and the master takes whole base steps ({base!r} s) only")
+            raise off_base_step(t, h, base)
         for ev in m.time_events:
             if ev.terminated:
                 raise m._asked_to_end()
             if t < ev.next_event_time < t + h and not math.isclose(ev.next_event_time, t + h):
-                raise SimulationError(f"a time event an FMU announced at t = {ev.next_event_time!r} s falls inside "
-                                      f"the base step from t = {t!r} s: components step at different rates and the "
-                                      "master does not shorten a step (master.step on the events' grid)")
+                raise time_event_inside(t, ev.next_event_time, base)
         inputs = m.file_inputs
         if inputs is not None:
-            samples = inputs.samples
-            te = samples.next_event(t)
+            te = inputs.samples.next_event(t)
             if t < te < t + h and not math.isclose(te, t + h):
-                raise SimulationError(f"the input samples' event at t = {te!r} s falls inside the base step from "
-                                      f"t = {t!r} s: components step at different rates and the master does not "
-                                      "shorten a step (events on the grid of master.step)")
+                raise sample_event_inside(t, te, base)
         self.advance(t, h)
         m.stats.steps += 1
         if m.ports.diverged(s.divergence_limit):

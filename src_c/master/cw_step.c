@@ -337,7 +337,7 @@ static int iterate_step(cw_master *m, double t, double h)
 
 /* -- the accurate step (Master.step) ------------------------------------------------ */
 
-static int diverged(const cw_master *m)
+int diverged(const cw_master *m)
 {
     double s = 0.0;
     for (int i = 0; i < m->n_buffer; i++)
@@ -355,6 +355,8 @@ static void discontinuity(cw_master *m)
 
 static int step(cw_master *m, double h, double *taken_out)
 {
+    if (m->rates)  /* components at their own steps: whole base steps (cw_rates.c) */
+        return rates_step(m, h, taken_out);
     double t = m->t;
     /* 0. An instance that asked to end the simulation ends it here; its
      * announced time event caps the step. */
@@ -474,6 +476,8 @@ CW_EXPORT void cw_start(cw_master *m)
      * carry over a reset; after_event makes the next step check anyway. */
     record_history(m);
     indicators(m, m->z_end);
+    if (m->rates)
+        rates_start(m);
     if (m->has_sources) {
         remember_sources(m);
         if (m->step_cap == INFINITY)
