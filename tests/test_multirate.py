@@ -233,9 +233,10 @@ EXACT = textwrap.dedent("""\
 def test_a_slow_component_takes_its_sampled_inputs_at_its_own_step_start(tmp_path, capsys, engine):
     """A pendulum every 2 base steps of 0.125 s, driven by an input file,
     gives at its own points the bits of the same pendulum run at 0.25 s:
-    its inputs are the samples at its step's start, held over its step."""
+    its inputs are the samples at its step's start, held over its step
+    (the file drives a base-rate component too, at every base step)."""
     csv = tmp_path / "in.csv"
-    csv.write_text("time,slow.tau_external\n0,0\n1.3,0.01\n2.6,-0.005\n4,0\n")
+    csv.write_text("time,slow.tau_external,other.tau_external\n0,0,0\n1.3,0.01,0.02\n2.6,-0.005,0\n4,0,0\n")
     (tmp_path / "a.toml").write_text(EXACT.format(slow="step = 0.25", base=0.125))
     (tmp_path / "b.toml").write_text(EXACT.format(slow="", base=0.25))
     on = ("--set", f'master.engine="{engine}"')
@@ -249,9 +250,11 @@ def test_a_slow_component_takes_its_sampled_inputs_at_its_own_step_start(tmp_pat
     assert np.array_equal(phia[::2], phib)  # bit for bit at its own points
     assert np.array_equal(phia[1::2], phia[:-1:2])  # held in between
     assert np.ptp(phib) > 0.1
-    if engine == "compiled":  # the Python engine's bits
-        assert a == run(capsys, tmp_path / "a.toml", tmp_path / "p", "--input", csv,
-                        "--set", 'master.engine="python"')[0]
+    if engine == "compiled":  # the Python engine's bits, the slow component's and the fast one's
+        both = ("--input", csv, "--set", 'record.outputs=["slow.phi", "other.phi"]')
+        c, _ = run(capsys, tmp_path / "a.toml", tmp_path / "c", *both)
+        p, _ = run(capsys, tmp_path / "a.toml", tmp_path / "p", *both, "--set", 'master.engine="python"')
+        assert c == p and len({line.split(",")[2] for line in c[1:]}) > 20
 
 
 @pytest.mark.parametrize("engine", ENGINES)
@@ -450,3 +453,34 @@ def test_fmi3_clocks_and_rates_together_are_one_line(tmp_path, capsys):
     with pytest.raises(SceneError, match="a scene with FMI 3.0 clocks"):
         System({"tk": (ticker, {}), "ct": (counter, {})}, ["tk.tick -> ct.tooth", "tk.n -> ct.step_by"],
                MasterSettings(step=0.25), rates={"ct": 2})
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("order", ["jacobi", "gauss-seidel"])
+def test_three_rates_with_a_feedthrough_between_give_the_same_bits_on_both_engines(order, threads):
+    """Factors 1, 2 and 3 with a feedthrough-only component at the base
+    rate between a slow source and a fast target (it reads the slow one's
+    held angle, updated at t + h), a scaled link, links across every pair
+    of rates: every output at every base step, bit for bit, on both engines."""
+    from cwtest import test_fmu
+    from clockwork.engine.wiring import Link
+
+    s = str(test_fmu("TestSum"))
+    comps = {"p1": ("Pendulum", {"phi_start": 0.2}), "s2": ("Pendulum", {"phi_start": 0.1}),
+             "sum": (s, {"k1": 0.01, "k2": -0.02, "c": 0.0}), "v3": ("MechanismVibration", {"kappa": 0, "C1": 20})}
+    links = ["s2.phi -> sum.u1", "p1.phi -> sum.u2", "sum.y -> p1.tau_external", "p1.phi -> v3.a1",
+             Link("v3", "tau", "s2", "tau_coupling", 0.5, 1e-4), "s2.w -> p1.tau_coupling"]
+    record = {"p1": ["phi", "w"], "s2": ["phi", "w"], "sum": ["y"], "v3": ["a2", "tau"]}
+    runs = []
+    for engine in ENGINES:
+        rows = []
+        with System(comps, links, MasterSettings(step=0.01, order=order, engine=engine, threads=threads),
+                    rates={"s2": 2, "v3": 3}, record=record) as sys_:
+            assert sys_.master.engine == engine
+            for k in range(1, 61):
+                sys_.master.run_until(k * 0.01)
+                rows.append([sys_.output(i, v) for i, vs in record.items() for v in vs])
+        runs.append(rows)
+    assert runs[0] == runs[1]
+    y = [r[4] for r in runs[0]]
+    assert len(set(y)) > 30  # the feedthrough follows p1 at every base step
