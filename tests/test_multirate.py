@@ -428,6 +428,24 @@ def test_large_coprime_factors_step_without_a_table_of_their_period():
     assert seen[0] == seen[1]
 
 
+def test_what_the_core_does_not_do_across_rates_is_named_where_the_engine_is_chosen():
+    """compiled.unsupported_rates decides: what multirate.py refuses today
+    is refused before either engine steps, and were the Python engine to do
+    it, "auto" would give it to Python rather than the core doing it
+    otherwise."""
+    from clockwork.engine.compiled import unsupported_rates
+
+    rates = {"p": 1, "v": 3}
+    assert unsupported_rates(MasterSettings(step=0.01), rates, {"p": [], "v": []}) is None
+    assert unsupported_rates(MasterSettings(step=0.01, extrapolation=1), {"p": 1}, {}) is None
+    for settings, needle in ((MasterSettings(step=0.01, extrapolation=2), "master.extrapolation = 2"),
+                             (MasterSettings(step=0.01, iterations=3), "master.iterations = 3"),
+                             (MasterSettings(step=0.01), "master.event_location = true")):
+        why = unsupported_rates(settings, rates, {"p": ["z"], "v": []})
+        assert why is not None and needle in why and "v every 3" in why
+    assert unsupported_rates(MasterSettings(step=0.01, event_location=False), rates, {"p": ["z"]}) is None
+
+
 def test_the_compiled_core_names_a_factor_it_cannot_count():
     comps = {"p": ("Pendulum", {}), "a": ("Pendulum", {})}
     with System(comps, [], MasterSettings(step=1e-3), rates={"a": 2 ** 31}) as s:
@@ -477,6 +495,7 @@ def test_three_rates_with_a_feedthrough_between_give_the_same_bits_on_both_engin
         with System(comps, links, MasterSettings(step=0.01, order=order, engine=engine, threads=threads),
                     rates={"s2": 2, "v3": 3}, record=record) as sys_:
             assert sys_.master.engine == engine
+            assert (threads > 1) == any("master.threads = 2" in n for n in sys_.master.notes)
             for k in range(1, 61):
                 sys_.master.run_until(k * 0.01)
                 rows.append([sys_.output(i, v) for i, vs in record.items() for v in vs])

@@ -221,14 +221,27 @@ def unsupported(settings: MasterSettings) -> str | None:
 MAX_RATE = 2 ** 31 - 1  # the core's decimation factors are C ints (cw_port.rate)
 
 
-def unsupported_rates(rates: dict[str, int] | None) -> str | None:
+def unsupported_rates(settings: MasterSettings, rates: dict[str, int] | None,
+                      indicators: dict[str, object]) -> str | None:
     """Why the core cannot step these components at their own steps, or
-    None: it steps what engine/multirate.py steps (cw_rates.c). What the
-    Python engine does across rates beyond that is refused here."""
-    big = [f"{n} every {k}" for n, k in (rates or {}).items() if k > MAX_RATE]
+    None. The core (cw_rates.c) steps what engine/multirate.py steps: whole
+    base steps, inputs held over each component's own step, no rollback.
+    What the Python engine may do across rates beyond that (event location,
+    input polynomials, strong coupling) is named here, so that "auto" gives
+    it to Python. `indicators`: per instance, its event indicators."""
+    if not is_multirate(rates):
+        return None
+    big = [f"{n} every {k}" for n, k in rates.items() if k > MAX_RATE]
     if big:
         return (f"the compiled core counts at most {MAX_RATE} base steps to a component's step, and "
                 f"{', '.join(big)} base steps here")
+    across = f"across rates ({slow_ones(rates)} base steps)"
+    if settings.extrapolation:
+        return f"the compiled core holds inputs over a step {across}: master.extrapolation = {settings.extrapolation}"
+    if settings.iterations > 0:
+        return f"the compiled core does not repeat steps {across}: master.iterations = {settings.iterations}"
+    if settings.event_location and any(indicators.values()):
+        return f"the compiled core does not locate events {across}: master.event_location = true"
     return None
 
 
@@ -276,7 +289,8 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
             (s.name, instances[s.instance].variables[s.variable].type) for s in inputs.signals
             if s.instance in instances and s.variable in instances[s.instance].variables]
         refused = next((r for r in (getattr(i, "compiled_reason", None) for i in instances.values()) if r), None)
-        reason = (unsupported(settings) or unsupported_rates(rates) or refused or unsupported_links(types)
+        indicators = {n: getattr(i, "event_indicators", ()) for n, i in instances.items()}
+        reason = (unsupported(settings) or unsupported_rates(settings, rates, indicators) or refused or unsupported_links(types)
                   or unsupported_inputs(sampled) or core_problem())
         if reason is None:
             return CompiledMaster(instances, links, settings, start_time, step_order, extra_outputs, inputs, rates)
@@ -514,6 +528,10 @@ class CompiledMaster(Master):
         instances step at once (engine/parallel.py)."""
         threads = self.settings.threads
         if threads < 2:
+            return
+        if self._multirate is not None:
+            self.coupling.note(f"master.threads = {threads}: across rates the compiled core steps one instance "
+                               "at a time (cw_rates.c)")
             return
         pool = self._lib.cw_pool_new(threads)
         if not pool:

@@ -346,7 +346,8 @@ def component_steps_problem(m: MasterSettings, e: Experiment,
     problem = multirate.stop_problem(k, m.step, e.start, e.stop)
     if problem:
         return "experiment.stop", problem
-    refused = compiled.unsupported_rates(k) if m.engine == "compiled" else None
+    indicators = {n: c.event_indicators for n, c in components.items()}
+    refused = compiled.unsupported_rates(m, k, indicators) if m.engine == "compiled" else None
     if refused:
         return "master.engine", f'expected "auto" or "python" here: {refused}'
     return None
