@@ -503,3 +503,20 @@ def test_three_rates_with_a_feedthrough_between_give_the_same_bits_on_both_engin
     assert runs[0] == runs[1]
     y = [r[4] for r in runs[0]]
     assert len(set(y)) > 30  # the feedthrough follows p1 at every base step
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_time_event_inside_a_base_step_is_refused_across_rates(engine):
+    """An FMI 3.0 FMU announcing time events every 0.3 s beside a slow
+    pendulum, base step 0.25 s: the master across rates does not shorten a
+    step, so the event at 0.3 s fails the run in one line, on either engine
+    (the same line), after the steps before it."""
+    from cwtest import test_fmu
+
+    comps = {"b": (str(test_fmu("fmi3/Early")), {"v0": 1.0, "period": 0.3}), "p": ("Pendulum", {})}
+    with System(comps, [], MasterSettings(step=0.25, engine=engine, event_location=False), rates={"p": 2}) as s:
+        assert s.master.engine == engine
+        with pytest.raises(SimulationError, match=r"^a time event an FMU announced at t = 0\.3 s falls inside the "
+                                                  r"base step from t = 0\.25 s: components step at different rates"):
+            s.master.run_until(1.0)
+        assert s.master.t == 0.25 and s.master.stats.steps == 1
