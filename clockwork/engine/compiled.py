@@ -51,7 +51,8 @@ ROWS_PER_CALL = 4096  # recording buffer, rows
 MAX_SINCE = 256  # steps kept since a checkpoint (the master forces one after 64)
 
 _DONE, _BUFFER_FULL, _CHECK_DIVERGENCE, _WATCHED, _ENDED, _SLICE_OVER = 0, 1, 2, 3, 4, 5
-_ERR_FMI, _ERR_NO_CHECKPOINT, _ERR_REPLAY, _ERR_LOCATE, _ERR_CAPACITY, _ERR_LOOP, _ERR_RATES = -1, -2, -3, -4, -5, -6, -7
+_ERR_FMI, _ERR_NO_CHECKPOINT, _ERR_REPLAY, _ERR_LOCATE, _ERR_CAPACITY, _ERR_LOOP = -1, -2, -3, -4, -5, -6
+_ERR_RATES = -7  # a step across rates refused: err_call is the position in multirate.REFUSALS
 # What the core's err_call names: the contract's call (instance.named) and what it was for.
 _CALLS = [("doStep", ""), ("getReal", ""), ("setReal", " of inputs"), ("setInputDerivatives", ""),
           ("getState", ""), ("setState", "")]
@@ -290,8 +291,8 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
             if s.instance in instances and s.variable in instances[s.instance].variables]
         refused = next((r for r in (getattr(i, "compiled_reason", None) for i in instances.values()) if r), None)
         indicators = {n: getattr(i, "event_indicators", ()) for n, i in instances.items()}
-        reason = (unsupported(settings) or unsupported_rates(settings, rates, indicators) or refused or unsupported_links(types)
-                  or unsupported_inputs(sampled) or core_problem())
+        reason = (unsupported(settings) or unsupported_rates(settings, rates, indicators) or refused
+                  or unsupported_links(types) or unsupported_inputs(sampled) or core_problem())
         if reason is None:
             return CompiledMaster(instances, links, settings, start_time, step_order, extra_outputs, inputs, rates)
         if settings.engine == "compiled":
