@@ -26,6 +26,10 @@ algebraic loops with a slow member are refused in one line
 (``problem``, ``loop_problem``) rather than done differently. A scene
 whose components all step at master.step never comes here: the master
 takes its single-rate path, with the same bits as before.
+
+The compiled core's twin is src_c/master/cw_rates.c (the same bits, by
+tests/test_multirate.py); what it does not do across rates is decided in
+compiled.unsupported_rates.
 """
 
 from __future__ import annotations
