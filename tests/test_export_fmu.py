@@ -570,3 +570,19 @@ def test_outputs_in_initialization_mode_are_the_initial_values(tmp_path, fmi):
     assert seen[1][0] == seen[0][0] and seen[1][1] > seen[0][1]  # the torque's acceleration at once
     assert rows[0] == seen[1]
     assert rows == run(False)[1]
+
+
+def test_components_at_their_own_steps_are_refused_in_one_line(tmp_path):
+    """The front's file carries no rates: a scene with a component at its
+    own step is refused, not exported to step every component at master.step."""
+    scene = tmp_path / "rates.toml"
+    scene.write_text('connections = ["pendulum.phi -> vibration.a1", "vibration.tau -> pendulum.tau_coupling"]\n'
+                     '[scene]\ntitle = "two rates"\n[components.pendulum]\nfmu = "Pendulum"\n'
+                     '[components.vibration]\nfmu = "MechanismVibration"\nstep = 0.03\n'
+                     '[experiment]\nstop = 0.3\n[master]\nstep = 0.01\n')
+    out = tmp_path / "x.fmu"
+    r = _cli("export-fmu", str(scene), "--out", str(out))
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "components.vibration.step" in lines[0] and "own steps" in lines[0], r.stderr
+    assert not out.exists()

@@ -21,6 +21,7 @@ MIRRORS = [("cw_layout", "port", compiled._Port), ("cw_layout", "master", compil
            ("cw_layout", "recorder", compiled._Recorder), ("cw_layout", "marks", compiled._Marks),
            ("cw_layout", "loop", compiled._Loop), ("cw_layout", "loops", compiled._Loops),
            ("cw_layout", "inputs", compiled._Inputs), ("cw_layout", "clocks", compiled_clocks._Clocks),
+           ("cw_layout", "rates", compiled._Rates),
            ("cw_layout", "fmi3", _Events),
            ("cw_layout", "fmi1", _Fmi1), ("cwme_layout", "me", _ME), ("cwme_layout", "sundials", cvode.Table),
            ("cwme_layout", "me_group", _Group)]

@@ -1,7 +1,8 @@
 """Components at their own steps (multi-rate, engine/multirate.py): the
 scene key `[components.X] step`, OSP stepSize and SSP osp:StepSizeHint,
 what the master does across rates (libcosim's rule) and what it refuses in
-one line. The numbers against libcosim itself: tests/test_osp.py."""
+one line, on both engines with the same bits (the compiled core's
+cw_rates.c). The numbers against libcosim itself: tests/test_osp.py."""
 
 import shutil
 import textwrap
@@ -12,7 +13,7 @@ import pytest
 from cwtest import ROOT, assert_one_line_error, fmu_file, run_cli
 
 from clockwork.engine import MasterSettings, System
-from clockwork.errors import SceneError
+from clockwork.errors import SceneError, SimulationError, UsageError
 from clockwork.run.catalog import load_scene
 
 # A pendulum driving Ziemkiewicz's mechanism vibration, which drives it back
@@ -62,11 +63,15 @@ def columns(lines):
     return data[:, 0], data[:, 1], data[:, 2]
 
 
+ENGINES = ["python", "compiled"]
+
+
 @pytest.mark.parametrize("order", ["jacobi", "gauss-seidel"])
 def test_a_slow_component_steps_every_k_base_steps_with_its_inputs_held(tmp_path, capsys, order):
     """The vibration (every 3 base steps) changes its outputs at its own
-    points only (what it gave there is held between them); the Python
-    engine runs it, with the reason in the summary."""
+    points only (what it gave there is held between them); the compiled
+    core runs it (it fell back to Python before) with the Python engine's
+    bits."""
     f = scene_file(tmp_path, master=f'order = "{order}"')
     lines, _ = run(capsys, f, tmp_path / "out")
     t, phi, a2 = columns(lines)
@@ -76,7 +81,10 @@ def test_a_slow_component_steps_every_k_base_steps_with_its_inputs_held(tmp_path
             assert a2[n] == a2[n - n % 3]
     assert a2[3] != 0.0 and a2[6] != a2[3]
     summary = (tmp_path / "out" / "summary.json").read_text()
-    assert '"engine": "python"' in summary and "the compiled core steps every component" in summary
+    assert '"engine": "compiled"' in summary
+    python, _ = run(capsys, f, tmp_path / "python", "--set", 'master.engine="python"')
+    assert '"engine": "python"' in (tmp_path / "python" / "summary.json").read_text()
+    assert python == lines
 
 
 
@@ -94,7 +102,7 @@ def test_every_component_at_the_base_step_is_the_single_rate_path_and_its_bits(t
     b, _ = run(capsys, scene_file(tmp_path, vibration='step = "10 ms"', name="b.toml"), tmp_path / "b")
     assert a == b
     summary = (tmp_path / "b" / "summary.json").read_text()
-    assert "the compiled core steps every component" not in summary
+    assert '"engine": "compiled"' in summary
 
 
 def test_slow_component_differs_from_single_rate(tmp_path, capsys):
@@ -122,7 +130,6 @@ BAD = {
                                                          "vibration every 3"]),
     "step doubling": ("step = 0.03", "richardson = true", ["components.vibration.step", "master.richardson",
                                                                 "different rates"]),
-    "compiled by name": ("step = 0.03", 'engine = "compiled"', ["master.engine", "compiled core steps every"]),
 }
 
 
@@ -185,18 +192,18 @@ def test_validate_and_export_say_and_keep_the_steps(tmp_path, capsys):
     assert back.components["vibration"].step == 0.03 and back.master.step == 0.01
 
 
-def test_the_system_api_takes_rates_and_refuses_the_compiled_core_by_name():
+@pytest.mark.parametrize("engine", ["auto", *ENGINES])
+def test_the_system_api_takes_rates_on_both_engines(engine):
     comps = {"p": ("Pendulum", {"phi_start": 0.2}), "v": ("MechanismVibration", {"kappa": 0})}
     links = ["p.phi -> v.a1", "v.tau -> p.tau_coupling"]
-    with System(comps, links, MasterSettings(step=0.01), rates={"v": 3}) as s:
-        assert s.master.engine == "python" and "v every 3" in s.master.engine_reason
+    with System(comps, links, MasterSettings(step=0.01, engine=engine), rates={"v": 3}) as s:
+        assert s.master.engine == ("python" if engine == "python" else "compiled")
+        assert s.master.engine_reason is None
         assert s.master.rates == {"p": 1, "v": 3}
         s.master.run_until(0.09)
-        assert s.master.t == pytest.approx(0.09)
-        with pytest.raises(Exception, match="whole base steps"):
+        assert s.master.t == pytest.approx(0.09) and s.master.stats.steps == 9
+        with pytest.raises(UsageError, match=r"a step of 0.005 s from t = 0.09.* whole base steps \(0.01 s\) only"):
             s.master.step(0.005)
-    with pytest.raises(SceneError, match="compiled core steps every component"):
-        System(comps, links, MasterSettings(step=0.01, engine="compiled"), rates={"v": 3})
     with pytest.raises(SceneError, match="whole number of base steps"):
         System(comps, links, MasterSettings(step=0.01), rates={"v": 0})
     with pytest.raises(SceneError, match="no instance"):
@@ -222,16 +229,20 @@ EXACT = textwrap.dedent("""\
     """)
 
 
-def test_a_slow_component_takes_its_sampled_inputs_at_its_own_step_start(tmp_path, capsys):
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_slow_component_takes_its_sampled_inputs_at_its_own_step_start(tmp_path, capsys, engine):
     """A pendulum every 2 base steps of 0.125 s, driven by an input file,
     gives at its own points the bits of the same pendulum run at 0.25 s:
-    its inputs are the samples at its step's start, held over its step."""
+    its inputs are the samples at its step's start, held over its step
+    (the file drives a base-rate component too, at every base step)."""
     csv = tmp_path / "in.csv"
-    csv.write_text("time,slow.tau_external\n0,0\n1.3,0.01\n2.6,-0.005\n4,0\n")
+    csv.write_text("time,slow.tau_external,other.tau_external\n0,0,0\n1.3,0.01,0.02\n2.6,-0.005,0\n4,0,0\n")
     (tmp_path / "a.toml").write_text(EXACT.format(slow="step = 0.25", base=0.125))
     (tmp_path / "b.toml").write_text(EXACT.format(slow="", base=0.25))
-    a, _ = run(capsys, tmp_path / "a.toml", tmp_path / "a", "--input", csv)
-    b, _ = run(capsys, tmp_path / "b.toml", tmp_path / "b", "--input", csv)
+    on = ("--set", f'master.engine="{engine}"')
+    a, _ = run(capsys, tmp_path / "a.toml", tmp_path / "a", "--input", csv, *on)
+    b, _ = run(capsys, tmp_path / "b.toml", tmp_path / "b", "--input", csv, *on)
+    assert f'"engine": "{engine}"' in (tmp_path / "a" / "summary.json").read_text()
     ta, phia = (np.array([float(x) for x in col]) for col in zip(*(line.split(",") for line in a[1:])))
     tb, phib = (np.array([float(x) for x in col]) for col in zip(*(line.split(",") for line in b[1:])))
     assert len(ta) == 33 and len(tb) == 17
@@ -239,6 +250,25 @@ def test_a_slow_component_takes_its_sampled_inputs_at_its_own_step_start(tmp_pat
     assert np.array_equal(phia[::2], phib)  # bit for bit at its own points
     assert np.array_equal(phia[1::2], phia[:-1:2])  # held in between
     assert np.ptp(phib) > 0.1
+    if engine == "compiled":  # the Python engine's bits, the slow component's and the fast one's
+        both = ("--input", csv, "--set", 'record.outputs=["slow.phi", "other.phi"]')
+        c, _ = run(capsys, tmp_path / "a.toml", tmp_path / "c", *both)
+        p, _ = run(capsys, tmp_path / "a.toml", tmp_path / "p", *both, "--set", 'master.engine="python"')
+        assert c == p and len({line.split(",")[2] for line in c[1:]}) > 20
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_sample_event_inside_a_base_step_is_refused_across_rates(tmp_path, capsys, engine):
+    """The master across rates takes whole base steps only: an input
+    file's event (a jump at 1.3 s, off the grid of 0.125 s) fails the run
+    in one line on either engine, rather than stepping over it."""
+    csv = tmp_path / "in.csv"
+    csv.write_text("time,other.tau_external\n0,0\n1.3,0\n1.3,0.01\n4,0.01\n")
+    (tmp_path / "a.toml").write_text(EXACT.format(slow="step = 0.25", base=0.125))
+    rc, _, err = run_cli(capsys, ["run", tmp_path / "a.toml", "--out", tmp_path / "a", "--no-progress",
+                                  "--input", csv, "--set", f'master.engine="{engine}"'])
+    assert rc == 1
+    assert "the input samples' event at t = 1.3 s falls inside the base step from t = 1.25 s" in err
 
 
 def test_an_algebraic_loop_across_rates_is_one_line(tmp_path, capsys):
@@ -269,16 +299,21 @@ def test_an_algebraic_loop_across_rates_is_one_line(tmp_path, capsys):
         System(comps, ["add.y -> gain.u1", "gain.y -> add.u2"], MasterSettings(step=0.125), rates={"gain": 2})
 
 
-def test_restart_runs_the_same_numbers_again():
+def test_restart_runs_the_same_numbers_again_on_both_engines():
     comps = {"p": ("Pendulum", {"phi_start": 0.2}), "v": ("MechanismVibration", {"kappa": 0, "C1": 20})}
     links = ["p.phi -> v.a1", "v.tau -> p.tau_coupling"]
-    with System(comps, links, MasterSettings(step=0.01), rates={"v": 3}, record={"p": ["phi"], "v": ["a2"]}) as s:
-        s.master.run_until(0.3)
-        first = (s.output("p", "phi"), s.output("v", "a2"))
-        s.restart({"p": {"phi_start": 0.2}, "v": {"kappa": 0, "C1": 20}})
-        assert s.master.t == 0.0
-        s.master.run_until(0.3)
-        assert (s.output("p", "phi"), s.output("v", "a2")) == first
+    runs = []
+    for engine in ENGINES:
+        with System(comps, links, MasterSettings(step=0.01, engine=engine), rates={"v": 3},
+                    record={"p": ["phi"], "v": ["a2"]}) as s:
+            s.master.run_until(0.3)
+            first = (s.output("p", "phi"), s.output("v", "a2"))
+            s.restart({"p": {"phi_start": 0.2}, "v": {"kappa": 0, "C1": 20}})
+            assert s.master.t == 0.0
+            s.master.run_until(0.3)
+            assert (s.output("p", "phi"), s.output("v", "a2")) == first
+            runs.append(first)
+    assert runs[0] == runs[1]
 
 
 def test_a_sweep_of_the_base_step_is_checked_at_every_point(tmp_path, capsys):
@@ -315,7 +350,8 @@ def test_an_osp_step_of_whole_nanosecond_base_steps_is_no_warning(tmp_path, caps
     assert "'b'" not in err and "Simulator 'c' stepSize='2.5e-4': libcosim steps c every 2 base steps" in err
 
 
-def test_a_loop_among_base_rate_components_still_solves_beside_a_slow_one():
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_loop_among_base_rate_components_still_solves_beside_a_slow_one(engine):
     """An algebraic loop whose members step at the base step is solved at
     every base step as before: a slow component elsewhere changes none of
     its bits."""
@@ -328,7 +364,7 @@ def test_a_loop_among_base_rate_components_still_solves_beside_a_slow_one():
 
     def run(components, **rates):
         values = []
-        with System(components, links, MasterSettings(step=0.125, engine="python"), record=record,
+        with System(components, links, MasterSettings(step=0.125, engine=engine), record=record,
                     **({"rates": rates} if rates else {})) as sys_:
             for k in range(1, 9):
                 sys_.master.run_until(k * 0.125)
@@ -340,13 +376,14 @@ def test_a_loop_among_base_rate_components_still_solves_beside_a_slow_one():
     assert alone == beside and alone[1] > 0
 
 
+@pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("order", ["jacobi", "gauss-seidel"])
-def test_base_rate_components_keep_their_bits_beside_an_unconnected_slow_one(order):
+def test_base_rate_components_keep_their_bits_beside_an_unconnected_slow_one(order, engine):
     comps = {"p": ("Pendulum", {"phi_start": 0.2}), "v": ("MechanismVibration", {"kappa": 0, "C1": 20})}
     links = ["p.phi -> v.a1", "v.tau -> p.tau_coupling"]
 
     def run(components, **rates):
-        with System(components, links, MasterSettings(step=0.01, order=order, engine="python"),
+        with System(components, links, MasterSettings(step=0.01, order=order, engine=engine),
                     record={"p": ["phi"], "v": ["a2"]}, **({"rates": rates} if rates else {})) as s:
             s.master.run_until(0.5)
             return s.output("p", "phi"), s.output("v", "a2")
@@ -379,11 +416,42 @@ def test_large_coprime_factors_step_without_a_table_of_their_period():
     """Factors 997 and 991 (a period of 988,027 base steps) step as any
     others: the due components are found at each step, not tabled."""
     comps = {"p": ("Pendulum", {}), "a": ("Pendulum", {}), "b": ("Pendulum", {})}
-    with System(comps, [], MasterSettings(step=1e-3), rates={"a": 997, "b": 991}, record={"a": ["phi"]}) as s:
-        assert s.master._multirate.due is None
-        s.master.run_until(2.0)
-        assert s.master.t == pytest.approx(2.0)
-        assert s.output("a", "phi") != s.instances["a"].get_real(["phi_start"])[0]
+    seen = []
+    for engine in ENGINES:
+        with System(comps, ["a.phi -> b.tau_external"], MasterSettings(step=1e-3, engine=engine),
+                    rates={"a": 997, "b": 991}, record={"a": ["phi"], "b": ["phi"]}) as s:
+            assert s.master.engine == engine and s.master._multirate.due is None
+            s.master.run_until(2.0)
+            assert s.master.t == pytest.approx(2.0)
+            assert s.output("a", "phi") != s.instances["a"].get_real(["phi_start"])[0]
+            seen.append((s.output("a", "phi"), s.output("b", "phi")))
+    assert seen[0] == seen[1]
+
+
+def test_what_the_core_does_not_do_across_rates_is_named_where_the_engine_is_chosen():
+    """compiled.unsupported_rates decides: what multirate.py refuses today
+    is refused before either engine steps, and were the Python engine to do
+    it, "auto" would give it to Python rather than the core doing it
+    otherwise."""
+    from clockwork.engine.compiled import unsupported_rates
+
+    rates = {"p": 1, "v": 3}
+    assert unsupported_rates(MasterSettings(step=0.01), rates, {"p": [], "v": []}) is None
+    assert unsupported_rates(MasterSettings(step=0.01, extrapolation=1), {"p": 1}, {}) is None
+    for settings, needle in ((MasterSettings(step=0.01, extrapolation=2), "master.extrapolation = 2"),
+                             (MasterSettings(step=0.01, iterations=3), "master.iterations = 3"),
+                             (MasterSettings(step=0.01), "master.event_location = true")):
+        why = unsupported_rates(settings, rates, {"p": ["z"], "v": []})
+        assert why is not None and needle in why and "v every 3" in why
+    assert unsupported_rates(MasterSettings(step=0.01, event_location=False), rates, {"p": ["z"]}) is None
+
+
+def test_the_compiled_core_names_a_factor_it_cannot_count():
+    comps = {"p": ("Pendulum", {}), "a": ("Pendulum", {})}
+    with System(comps, [], MasterSettings(step=1e-3), rates={"a": 2 ** 31}) as s:
+        assert s.master.engine == "python" and "a every 2147483648 base steps" in s.master.engine_reason
+    with pytest.raises(SceneError, match="counts at most 2147483647 base steps"):
+        System(comps, [], MasterSettings(step=1e-3, engine="compiled"), rates={"a": 2 ** 31})
 
 
 def test_fmi3_clocks_and_rates_together_are_one_line(tmp_path, capsys):
@@ -403,3 +471,52 @@ def test_fmi3_clocks_and_rates_together_are_one_line(tmp_path, capsys):
     with pytest.raises(SceneError, match="a scene with FMI 3.0 clocks"):
         System({"tk": (ticker, {}), "ct": (counter, {})}, ["tk.tick -> ct.tooth", "tk.n -> ct.step_by"],
                MasterSettings(step=0.25), rates={"ct": 2})
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("order", ["jacobi", "gauss-seidel"])
+def test_three_rates_with_a_feedthrough_between_give_the_same_bits_on_both_engines(order, threads):
+    """Factors 1, 2 and 3 with a feedthrough-only component at the base
+    rate between a slow source and a fast target (it reads the slow one's
+    held angle, updated at t + h), a scaled link, links across every pair
+    of rates: every output at every base step, bit for bit, on both engines."""
+    from cwtest import test_fmu
+    from clockwork.engine.wiring import Link
+
+    s = str(test_fmu("TestSum"))
+    comps = {"p1": ("Pendulum", {"phi_start": 0.2}), "s2": ("Pendulum", {"phi_start": 0.1}),
+             "sum": (s, {"k1": 0.01, "k2": -0.02, "c": 0.0}), "v3": ("MechanismVibration", {"kappa": 0, "C1": 20})}
+    links = ["s2.phi -> sum.u1", "p1.phi -> sum.u2", "sum.y -> p1.tau_external", "p1.phi -> v3.a1",
+             Link("v3", "tau", "s2", "tau_coupling", 0.5, 1e-4), "s2.w -> p1.tau_coupling"]
+    record = {"p1": ["phi", "w"], "s2": ["phi", "w"], "sum": ["y"], "v3": ["a2", "tau"]}
+    runs = []
+    for engine in ENGINES:
+        rows = []
+        with System(comps, links, MasterSettings(step=0.01, order=order, engine=engine, threads=threads),
+                    rates={"s2": 2, "v3": 3}, record=record) as sys_:
+            assert sys_.master.engine == engine
+            assert (threads > 1) == any("master.threads = 2" in n for n in sys_.master.notes)
+            for k in range(1, 61):
+                sys_.master.run_until(k * 0.01)
+                rows.append([sys_.output(i, v) for i, vs in record.items() for v in vs])
+        runs.append(rows)
+    assert runs[0] == runs[1]
+    y = [r[4] for r in runs[0]]
+    assert len(set(y)) > 30  # the feedthrough follows p1 at every base step
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_time_event_inside_a_base_step_is_refused_across_rates(engine):
+    """An FMI 3.0 FMU announcing time events every 0.3 s beside a slow
+    pendulum, base step 0.25 s: the master across rates does not shorten a
+    step, so the event at 0.3 s fails the run in one line, on either engine
+    (the same line), after the steps before it."""
+    from cwtest import test_fmu
+
+    comps = {"b": (str(test_fmu("fmi3/Early")), {"v0": 1.0, "period": 0.3}), "p": ("Pendulum", {})}
+    with System(comps, [], MasterSettings(step=0.25, engine=engine, event_location=False), rates={"p": 2}) as s:
+        assert s.master.engine == engine
+        with pytest.raises(SimulationError, match=r"^a time event an FMU announced at t = 0\.3 s falls inside the "
+                                                  r"base step from t = 0\.25 s: components step at different rates"):
+            s.master.run_until(1.0)
+        assert s.master.t == 0.25 and s.master.stats.steps == 1

@@ -9,7 +9,8 @@ the core's adapters (cw1_*, cw3_*) with the same fmi2 shape. Loading, initializa
 wiring and everything a scene or an analysis asks for stay in Python: the
 core gets the ports' preallocated arrays and runs as many steps as it can
 before Python is needed again (the stop time, a full recording buffer, an
-output to name for diverging).
+output to name for diverging). Components at their own steps (``rates``,
+engine/multirate.py) step in cw_rates.c by the same rule.
 
 ``make_master`` chooses: ``master.engine = "python"`` is the reference
 loop, ``"compiled"`` the core (bad input when it cannot serve the
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import ctypes
 import itertools
+import math
 import threading
 import weakref
 from array import array
@@ -36,7 +38,7 @@ from ..fmi.cs3 import _Events
 from .clocks import ClockedMaster, clock_tables, clocks_text
 from .compiled_clocks import CLOCK_EVENT, CoreClocks, _Clocks
 from .master import Master
-from .multirate import timed
+from .multirate import REFUSALS, is_multirate, slow_ones
 from .parallel import group_ends
 from .model_exchange import _ME
 from .ports import link_type
@@ -51,6 +53,7 @@ MAX_SINCE = 256  # steps kept since a checkpoint (the master forces one after 64
 
 _DONE, _BUFFER_FULL, _CHECK_DIVERGENCE, _WATCHED, _ENDED, _SLICE_OVER, _CLOCK_EVENT = 0, 1, 2, 3, 4, 5, CLOCK_EVENT
 _ERR_FMI, _ERR_NO_CHECKPOINT, _ERR_REPLAY, _ERR_LOCATE, _ERR_CAPACITY, _ERR_LOOP = -1, -2, -3, -4, -5, -6
+_ERR_RATES = -7  # a step across rates refused: err_call is the position in multirate.REFUSALS
 # What the core's err_call names: the contract's call (instance.named) and what it was for.
 _CALLS = [("doStep", ""), ("getReal", ""), ("setReal", " of inputs"), ("setInputDerivatives", ""),
           ("getState", ""), ("setState", "")]
@@ -80,8 +83,9 @@ class _Port(_Strict):
         ["out_time", "lowered_at"], [],
         ["n_out", "n_in", "n_z", "max_output_derivative_order", "sent_valid", "hist_n",
          "snap_hist_n", "n_scaled", "ext_order", "pad_"]
-    ) + _fields(["it_start", "it_end"], [], [], ["can_interpolate", "pad2_"]) \
-      + _fields(["add_at", "add_port", "add_pos"], [], [], ["n_adds", "pad3_"])  # strong coupling; sums (Port.adds)
+    ) + _fields(["it_start", "it_end"], [], [], ["can_interpolate",  # strong coupling
+                                                  "rate"]) \
+      + _fields(["add_at", "add_port", "add_pos"], [], [], ["n_adds", "pad3_"])  # rate: its decimation factor (_Rates); sums (Port.adds)
 
 
 class _Master(_Strict):
@@ -107,7 +111,8 @@ class _Master(_Strict):
         ("pool", c_void_p), ("par_end", c_void_p), ("par_status", c_void_p),  # master.threads (engine/parallel.py)
         ("after_start", c_void_p), ("after_order", c_void_p),  # per dynamic instance, the updates after its step
         ("inputs", c_void_p),  # a _Inputs: inputs driven from samples, or NULL
-        ("clocks", c_void_p)]  # a compiled_clocks._Clocks: FMI 3.0 clocks, or NULL
+        ("clocks", c_void_p),  # a compiled_clocks._Clocks: FMI 3.0 clocks, or NULL
+        ("rates", c_void_p)]  # a _Rates: components at their own steps, or NULL
 
 
 class _Marks(_Strict):
@@ -139,6 +144,14 @@ class _Inputs(_Strict):
                        [], [], ["n_times", "n_signals", "n_events", "pad_"])
 
 
+class _Rates(_Strict):
+    """Components at their own steps (engine/multirate.py, cw_rates.c): per
+    link across rates, its held copy (a port past the real ones) and its source."""
+
+    _fields_ = _fields(["held_port", "held_pos", "src_port", "src_pos", "every", "starts"], [], ["count"],
+                       ["n_links", "pad_"])
+
+
 class _Recorder(_Strict):
     _fields_ = _fields(
         ["col_port", "col_pos", "rows", "ticks"], ["last_tick"], ["grid_seen", "grid_k"],
@@ -146,7 +159,7 @@ class _Recorder(_Strict):
          "tick_pos", "has_interval", "pad_"])
 
 
-for _struct in (_Port, _Master, _Recorder, _Marks, _Loop, _Loops, _Inputs):
+for _struct in (_Port, _Master, _Recorder, _Marks, _Loop, _Loops, _Inputs, _Rates):
     _struct._names = frozenset(n for n, _ in _struct._fields_)
 
 _lib = None
@@ -171,7 +184,7 @@ def load_core():
                     ("cw_layout", "recorder", _Recorder), ("cw_layout", "fmi3", _Events),
                     ("cw_layout", "marks", _Marks), ("cw_layout", "fmi1", _Fmi1), ("cw_layout", "loop", _Loop),
                     ("cw_layout", "loops", _Loops), ("cw_layout", "inputs", _Inputs),
-                    ("cw_layout", "clocks", _Clocks),
+                    ("cw_layout", "clocks", _Clocks), ("cw_layout", "rates", _Rates),
                     ("cwme_layout", "me", _ME), ("cwme_layout", "sundials", cvode.Table),
                     ("cwme_layout", "me_group", _Group)):
                 differs = layout.problem(lib, lookup, name, struct)
@@ -211,11 +224,31 @@ def unsupported(settings: MasterSettings) -> str | None:
     return None
 
 
-def unsupported_rates(rates: dict[str, int]) -> str:
-    """Why the core does not run components at their own steps (it steps
-    every one at master.step): the Python engine does (engine/multirate.py)."""
-    slow = ", ".join(f"{n} every {k}" for n, k in rates.items() if k != 1)
-    return f"the compiled core steps every component at master.step, and {slow} base steps here"
+MAX_RATE = 2 ** 31 - 1  # the core's decimation factors are C ints (cw_port.rate)
+
+
+def unsupported_rates(settings: MasterSettings, rates: dict[str, int] | None,
+                      indicators: dict[str, object]) -> str | None:
+    """Why the core cannot step these components at their own steps, or
+    None. The core (cw_rates.c) steps what engine/multirate.py steps: whole
+    base steps, inputs held over each component's own step, no rollback.
+    What the Python engine may do across rates beyond that (event location,
+    input polynomials, strong coupling) is named here, so that "auto" gives
+    it to Python. `indicators`: per instance, its event indicators."""
+    if not is_multirate(rates):
+        return None
+    big = [f"{n} every {k}" for n, k in rates.items() if k > MAX_RATE]
+    if big:
+        return (f"the compiled core counts at most {MAX_RATE} base steps to a component's step, and "
+                f"{', '.join(big)} base steps here")
+    across = f"across rates ({slow_ones(rates)} base steps)"
+    if settings.extrapolation:
+        return f"the compiled core holds inputs over a step {across}: master.extrapolation = {settings.extrapolation}"
+    if settings.iterations > 0:
+        return f"the compiled core does not repeat steps {across}: master.iterations = {settings.iterations}"
+    if settings.event_location and any(indicators.values()):
+        return f"the compiled core does not locate events {across}: master.event_location = true"
+    return None
 
 
 def unsupported_links(types) -> str | None:
@@ -242,19 +275,14 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
                 rates: dict[str, int] | None = None) -> Master:
     """The master that ``settings.engine`` asks for (see the module's docstring).
     `rates`: {instance: decimation factor} where components step at their
-    own multiples of settings.step (engine/multirate.py): the Python engine's."""
+    own multiples of settings.step (engine/multirate.py)."""
     settings.check()
     clocks = clocks_text(instances)
-    if clocks is not None and rates and any(k != 1 for k in rates.values()):
-        raise SceneError(f"rates: {unsupported_rates(rates).replace('the compiled core steps', 'a clock ticks')}; "
-                         f"a scene with {clocks} steps every component at master.step")
+    if clocks is not None and is_multirate(rates):
+        raise SceneError(f"rates: a clock ticks every component at master.step, and {slow_ones(rates)} base steps "
+                         f"here; a scene with {clocks} steps every component at master.step")
     reason = None
-    if rates and any(k != 1 for k in rates.values()):
-        needs = timed(settings, rates, {n: i.event_indicators for n, i in instances.items()})
-        reason = f"the compiled core does not do {needs}" if needs else unsupported_rates(rates)
-        if settings.engine == "compiled":
-            raise SceneError(f"master.engine = 'compiled': {reason} (use 'auto' or 'python')")
-    elif settings.engine != "python":
+    if settings.engine != "python":
         # Clock connections, clocked links and clock columns are ClockedMaster's (engine/clocks.py), not the core's.
         tables = clock_tables(instances)
 
@@ -269,11 +297,13 @@ def make_master(instances: dict[str, Instance], links: list[Link], settings: Mas
             if s.instance in instances and s.variable in instances[s.instance].variables
             and plain(s.instance, s.variable)]
         refused = next((r for r in (getattr(i, "compiled_reason", None) for i in instances.values()) if r), None)
-        reason = (unsupported(settings) or refused or unsupported_links(types) or unsupported_inputs(sampled)
-                  or core_problem())
+        indicators = {n: getattr(i, "event_indicators", ()) for n, i in instances.items()}
+        reason = (unsupported(settings) or unsupported_rates(settings, rates, indicators) or refused
+                  or unsupported_links(types) or unsupported_inputs(sampled) or core_problem())
         if reason is None:
-            kind = CompiledMaster if clocks is None else CompiledClockedMaster
-            return kind(instances, links, settings, start_time, step_order, extra_outputs, inputs)
+            if clocks is not None:
+                return CompiledClockedMaster(instances, links, settings, start_time, step_order, extra_outputs, inputs)
+            return CompiledMaster(instances, links, settings, start_time, step_order, extra_outputs, inputs, rates)
         if settings.engine == "compiled":
             raise SceneError(f"master.engine = 'compiled': {reason} (use 'auto' or 'python')")
     if clocks is not None:  # FMI 3.0 clocks on the Python engine (engine/clocks.py)
@@ -318,9 +348,10 @@ class CompiledMaster(Master):
     slice_s = 0.05
 
     def __init__(self, instances, links, settings, start_time=0.0, step_order=None, extra_outputs=None,
-                 inputs=None):
+                 inputs=None, rates=None):
         self._lib = load_core()
-        super().__init__(instances, links, settings, start_time, step_order, extra_outputs, inputs)
+        super().__init__(instances, links, settings, start_time, step_order, extra_outputs, inputs, rates)
+        self.__dict__.pop("step", None)  # across rates too, the core steps (cw_rates.c), not MultiRate.step
         self._build()
 
     # The master's state lives in the C struct; before it exists (inside
@@ -376,7 +407,8 @@ class CompiledMaster(Master):
 
         ports = self.ports
         index = {id(p): i for i, p in enumerate(ports.all)}
-        cports = (_Port * len(ports.all))()
+        held = self._held_copies(index)
+        cports = (_Port * (len(ports.all) + len(held)))()
         for i, p in enumerate(ports.all):
             inst, c = p.inst, cports[i]
             # The functions the core's port calls and their first argument,
@@ -390,7 +422,8 @@ class CompiledMaster(Master):
             c.der_vr, c.der_order, c.der = ref(p.der_vr), ref(p.der_order), ref(p.der)
             if any(k != pos for pos, (k, _, _) in enumerate(p.sources)):
                 raise SimulationError(f"{inst.name}: an input is connected twice")
-            c.src_port = ref(_array(c_int, (index[id(src)] for _, src, _ in p.sources)))
+            c.src_port = ref(_array(c_int, (held.get((i, index[id(src)]), index[id(src)])
+                                            for _, src, _ in p.sources)))
             c.src_pos = ref(_array(c_int, (j for _, _, j in p.sources)))
             c.sent = ref(_array(c_double, [], p.n_in))
             for name in ("hist_t", "snap_hist_t"):
@@ -411,6 +444,7 @@ class CompiledMaster(Master):
             c.n_out, c.n_in, c.n_z = p.n_out, p.n_in, len(p.z_pos)
             c.max_output_derivative_order = inst.max_output_derivative_order
         self._cports = cports
+        rates = self._build_rates(cports, held, index, ref)
         loc = self.locator
         z_port, z_pos = [], []
         for p in loc.ports:
@@ -462,16 +496,59 @@ class CompiledMaster(Master):
         self._start_threads(m, ref)
         if self.file_inputs is not None:
             m.inputs = self._inputs()
+        if rates is not None:
+            m.rates = ctypes.addressof(rates)
         self._core_ptr = byref(m)
         self._taken = c_double()
         self._taken_ptr = byref(self._taken)
         self._empty_recorder = _Recorder(grid_k=-1, tick_port=-1, capacity=1, tick_capacity=1, stride=1)
+
+    def _held_copies(self, index: dict) -> dict[tuple[int, int], int]:
+        """Across rates, {(target port, source port): its held copy's port},
+        a port past the real ones per pair whose factors differ (as
+        MultiRate.attach routes each such link through a held copy)."""
+        mr = self._multirate
+        if mr is None:
+            return {}
+        held = {}
+        for p in self.ports.all:
+            for _, src, _ in p.sources:
+                key = (index[id(p)], index[id(src)])
+                if mr.k[src.inst.name] != mr.k[p.inst.name] and key not in held:
+                    held[key] = len(self.ports.all) + len(held)
+        return held
+
+    def _build_rates(self, cports, held: dict, index: dict, ref) -> _Rates | None:
+        """The core's factors, held copies and links across rates, or None
+        where every component steps at the base step."""
+        mr = self._multirate
+        if mr is None:
+            return None
+        ports = self.ports.all
+        for p, c in zip(ports, cports):
+            c.rate = mr.k[p.inst.name]
+        for (_, s), h in held.items():
+            c, src = cports[h], ports[s]
+            c.out, c.n_out = ref(_array(c_double, [], src.n_out)), src.n_out
+        links = [(held[(i, index[id(src)])], j, index[id(src)], j, math.lcm(mr.k[src.inst.name], mr.k[p.inst.name]))
+                 for i, p in enumerate(ports) for _, src, j in p.sources if (i, index[id(src)]) in held]
+        column = list(zip(*links)) or [(), (), (), (), ()]
+        r = _Rates(held_port=ref(_array(c_int, column[0])), held_pos=ref(_array(c_int, column[1])),
+                   src_port=ref(_array(c_int, column[2])), src_pos=ref(_array(c_int, column[3])),
+                   every=ref(_array(c_longlong, column[4])), starts=ref(_array(c_double, [], len(ports))),
+                   n_links=len(links))
+        self._keep.append(r)
+        return r
 
     def _start_threads(self, m: _Master, ref) -> None:
         """master.threads > 1: the core's thread pool, and which dynamic
         instances step at once (engine/parallel.py)."""
         threads = self.settings.threads
         if threads < 2:
+            return
+        if self._multirate is not None:
+            self.coupling.note(f"master.threads = {threads}: across rates the compiled core steps one instance "
+                               "at a time (cw_rates.c)")
             return
         pool = self._lib.cw_pool_new(threads)
         if not pool:
@@ -778,6 +855,8 @@ class CompiledMaster(Master):
             call, purpose = _CALLS[m.err_call]
             raise p.inst.fail(p.inst.named(call) + purpose, m.err_status, m.err_t)
         t = m.err_t
+        if rc == _ERR_RATES:
+            raise REFUSALS[m.err_call](t, m.err_h, self.settings.step)
         if rc == _ERR_LOOP:
             c = ctypes.cast(self._loops.loop, POINTER(_Loop))[m.err_port]
             raise self.ports.loops[m.err_port].failure(t, c.fail_why, c.fail_worst, c.fail_at, c.fail_sweeps,

@@ -28,6 +28,11 @@ member are refused in one line (``problem``, ``loop_problem``) rather
 than done differently. A scene whose components all step at master.step
 never comes here: the master takes its single-rate path, with the same
 bits as before.
+
+The compiled core's twin of ``MultiRate`` is src_c/master/cw_rates.c (the
+same bits, by tests/test_multirate.py); what it does not do across rates
+(``TimedMultiRate``'s part among them) is decided in
+compiled.unsupported_rates.
 """
 
 from __future__ import annotations
@@ -56,6 +61,34 @@ def is_multirate(rates: dict[str, int] | None) -> bool:
     return bool(rates) and any(k != 1 for k in rates.values())
 
 
+def slow_ones(rates: dict[str, int]) -> str:
+    """The components that do not step at the base step, said as "v every 3"."""
+    return ", ".join(f"{n} every {k}" for n, k in rates.items() if k != 1)
+
+
+# The base steps a master across rates refuses (both engines: MultiRate.step,
+# src_c/master/cw_rates.c's rates_step), each from (t, the step or the
+# event's time, the base step), s; the core names one by its position here.
+def off_base_step(t: float, h: float, base: float) -> UsageError:
+    return UsageError(f"a step of {h!r} s from t = {t!r} s: components step at different rates, each a "
+                      f"multiple of master.step, and the master takes whole base steps ({base!r} s) only")
+
+
+def time_event_inside(t: float, te: float, base: float) -> SimulationError:
+    return SimulationError(f"a time event an FMU announced at t = {te!r} s falls inside the base step from "
+                           f"t = {t!r} s: components step at different rates and the master does not shorten a "
+                           "step (master.step on the events' grid)")
+
+
+def sample_event_inside(t: float, te: float, base: float) -> SimulationError:
+    return SimulationError(f"the input samples' event at t = {te!r} s falls inside the base step from t = {t!r} s: "
+                           "components step at different rates and the master does not shorten a step (events on "
+                           "the grid of master.step)")
+
+
+REFUSALS = (off_base_step, time_event_inside, sample_event_inside)
+
+
 def problem(settings, rates: dict[str, int], indicators: dict[str, object],
             links: list[tuple[str, str]] = ()) -> tuple[str, str] | None:
     """What of these master settings cannot run with these decimation
@@ -66,8 +99,7 @@ def problem(settings, rates: dict[str, int], indicators: dict[str, object],
     if not is_multirate(rates):
         return None
     first = next(n for n, k in rates.items() if k != 1)
-    slow = ", ".join(f"{n} every {k}" for n, k in rates.items() if k != 1)
-    why = f"components step at different rates ({slow} base steps)"
+    why = f"components step at different rates ({slow_ones(rates)} base steps)"
     alike = "or every component at master.step"
     if settings.iterations > 0:
         return first, (f"master.iterations = {settings.iterations}: expected 0: strong coupling repeats one step of "
@@ -307,8 +339,7 @@ class MultiRate:
         t = m.t
         base = s.step
         if abs(h - base) > 1e-9 * base:
-            raise UsageError(f"a step of {h!r} s from t = {t!r} s: components step at different rates, each a "
-                             f"multiple of master.step, and the master takes whole base steps ({base!r} s) only")
+            raise off_base_step(t, h, base)
         self._no_events_inside(t, h)
         self.advance(t, h)
         m.stats.steps += 1
@@ -322,21 +353,17 @@ class MultiRate:
         """Refuse an announced time event or an input event inside the step
         from t of h s: a slow component would not land on it."""
         m = self.master
+        base = m.settings.step
         for ev in m.time_events:
             if ev.terminated:
                 raise m._asked_to_end()
             if t < ev.next_event_time < t + h and not math.isclose(ev.next_event_time, t + h):
-                raise SimulationError(f"a time event an FMU announced at t = {ev.next_event_time!r} s falls inside "
-                                      f"the base step from t = {t!r} s: components step at different rates and the "
-                                      "master does not shorten a step (master.step on the events' grid)")
+                raise time_event_inside(t, ev.next_event_time, base)
         inputs = m.file_inputs
         if inputs is not None:
-            samples = inputs.samples
-            te = samples.next_event(t)
+            te = inputs.samples.next_event(t)
             if t < te < t + h and not math.isclose(te, t + h):
-                raise SimulationError(f"the input samples' event at t = {te!r} s falls inside the base step from "
-                                      f"t = {t!r} s: components step at different rates and the master does not "
-                                      "shorten a step (events on the grid of master.step)")
+                raise sample_event_inside(t, te, base)
 
     def advance(self, t: float, h: float) -> None:
         m = self.master

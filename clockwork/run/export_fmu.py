@@ -155,6 +155,10 @@ def _check_scene(scene, settings, fmi: int) -> None:
         raise _refuse(scene, "inputs", "an input file cannot be carried: the exported FMU's open inputs take it")
     if settings.richardson:
         raise _refuse(scene, "master.richardson", "the compiled master does not do step doubling")
+    own = [n for n, c in scene.components.items() if c.step is not None and c.step != settings.step]
+    if own:  # the front's file carries no rates (cw_rates): it would step every component at master.step
+        raise _refuse(scene, f"components.{own[0]}.step", "expected every component at master.step: the exported "
+                      "FMU's front does not carry components at their own steps")
     for name, c in scene.components.items():
         md = c.model_description
         if not md.fmiVersion.startswith("2"):

@@ -351,7 +351,9 @@ def component_steps_problem(m: MasterSettings, e: Experiment, components: dict[s
     problem = multirate.stop_problem(k, m.step, e.start, e.stop)
     if problem:
         return "experiment.stop", problem
-    if m.engine == "compiled":
-        return "master.engine", f'expected "auto" or "python" here: {compiled.unsupported_rates(k)}'
+    indicators = {n: c.event_indicators for n, c in components.items()}
+    refused = compiled.unsupported_rates(m, k, indicators) if m.engine == "compiled" else None
+    if refused:
+        return "master.engine", f'expected "auto" or "python" here: {refused}'
     return None
 

@@ -14,6 +14,16 @@
 
 #include "cw_master.h"
 
+/* The run diverged: the outputs' absolute sum past master.divergence_limit, or NaN
+ * (the loop's step and cw_rates.c's base step both ask). */
+int diverged(const cw_master *m)
+{
+    double s = 0.0;
+    for (int i = 0; i < m->n_buffer; i++)
+        s += fabs(m->buffer[i]);
+    return !(s < m->divergence_limit);  /* NaN fails too */
+}
+
 
 /* The indicators' values, from the outputs last read, into z. */
 void indicators(cw_master *m, double *z)

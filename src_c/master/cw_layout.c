@@ -24,7 +24,7 @@ static const cw_field port_layout[] = {
     CW_FIELD(cw_port, max_output_derivative_order), CW_FIELD(cw_port, sent_valid), CW_FIELD(cw_port, hist_n),
     CW_FIELD(cw_port, snap_hist_n), CW_FIELD(cw_port, n_scaled), CW_FIELD(cw_port, ext_order),
     CW_FIELD(cw_port, pad_), CW_FIELD(cw_port, it_start), CW_FIELD(cw_port, it_end),
-    CW_FIELD(cw_port, can_interpolate), CW_FIELD(cw_port, pad2_),
+    CW_FIELD(cw_port, can_interpolate), CW_FIELD(cw_port, rate),
     CW_FIELD(cw_port, add_at), CW_FIELD(cw_port, add_port), CW_FIELD(cw_port, add_pos),
     CW_FIELD(cw_port, n_adds), CW_FIELD(cw_port, pad3_),
 };
@@ -73,11 +73,16 @@ static const cw_field master_layout[] = {
     CW_FIELD(cw_master, iterations), CW_FIELD(cw_master, pad3_), CW_FIELD(cw_master, loops),
     CW_FIELD(cw_master, pool), CW_FIELD(cw_master, par_end), CW_FIELD(cw_master, par_status),
     CW_FIELD(cw_master, after_start), CW_FIELD(cw_master, after_order), CW_FIELD(cw_master, inputs),
-    CW_FIELD(cw_master, clocks),
+    CW_FIELD(cw_master, clocks), CW_FIELD(cw_master, rates),
 };
 static const cw_field clocks_layout[] = {
     CW_FIELD(cw_clocks, next), CW_FIELD(cw_clocks, n_next), CW_FIELD(cw_clocks, asked),
     CW_FIELD(cw_clocks, pending), CW_FIELD(cw_clocks, due),
+};
+static const cw_field rates_layout[] = {
+    CW_FIELD(cw_rates, held_port), CW_FIELD(cw_rates, held_pos), CW_FIELD(cw_rates, src_port),
+    CW_FIELD(cw_rates, src_pos), CW_FIELD(cw_rates, every), CW_FIELD(cw_rates, starts), CW_FIELD(cw_rates, count),
+    CW_FIELD(cw_rates, n_links), CW_FIELD(cw_rates, pad_),
 };
 static const cw_field inputs_layout[] = {
     CW_FIELD(cw_inputs, times), CW_FIELD(cw_inputs, values), CW_FIELD(cw_inputs, continuous),
@@ -139,6 +144,7 @@ CW_EXPORT const cw_field *cw_layout(const char *name, size_t *n_fields, size_t *
     CW_LAYOUT_CASE(master)
     CW_LAYOUT_CASE(inputs)
     CW_LAYOUT_CASE(clocks)
+    CW_LAYOUT_CASE(rates)
     CW_LAYOUT_CASE(recorder)
     CW_LAYOUT_CASE(marks)
     CW_LAYOUT_CASE(fmi3)

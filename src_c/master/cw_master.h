@@ -37,7 +37,12 @@ enum {
     CW_ERR_LOCATE = -4,
     CW_ERR_CAPACITY = -5,
     CW_ERR_LOOP = -6,       /* an algebraic loop did not converge: err_port is the loop, see its fail_* */
+    CW_ERR_RATES = -7,      /* components at their own steps: not a whole base step (err_call says why) */
 };
+
+/* Why a step across rates was refused (CW_ERR_RATES's err_call; err_t the step's start, err_h the step or
+ * the event's time): multirate.py's REFUSALS, in this order. */
+enum { RATES_OFF_BASE = 0, RATES_TIME_EVENT, RATES_SAMPLE_EVENT };
 
 /* Which call failed (err_call). */
 enum {
@@ -109,10 +114,15 @@ int rollback(cw_master *m);
 int since_append(cw_master *m, double h);
 int replay_to(cw_master *m, double t);
 int iterate_step(cw_master *m, double t, double h);
+int diverged(const cw_master *m);
 
 /* cw_clocks.c: FMI 3.0 clocks (the step cut to the next tick; an event due) */
 double clocks_cut(const cw_clocks *c, double t, double h);
 int clocks_due(const cw_clocks *c, double t, int after_event_step);
+
+/* cw_rates.c: components at their own steps */
+void rates_start(cw_master *m);
+int rates_step(cw_master *m, double h, double *taken);
 
 /* cw_record.c: recording */
 void record_point(cw_master *m, cw_recorder *r);

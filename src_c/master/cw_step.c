@@ -39,13 +39,6 @@
 
 /* -- the accurate step (Master.step) ------------------------------------------------ */
 
-static int diverged(const cw_master *m)
-{
-    double s = 0.0;
-    for (int i = 0; i < m->n_buffer; i++)
-        s += fabs(m->buffer[i]);
-    return !(s < m->divergence_limit);  /* NaN fails too */
-}
 /* Something changed outside the wiring (Master.discontinuity). */
 static void discontinuity(cw_master *m)
 {
@@ -57,6 +50,8 @@ static void discontinuity(cw_master *m)
 
 static int step(cw_master *m, double h, double *taken_out)
 {
+    if (m->rates)  /* components at their own steps: whole base steps (cw_rates.c) */
+        return rates_step(m, h, taken_out);
     double t = m->t;
     /* -- FMI 3.0 clocks (cw_clocks.c): a communication point on every tick. */
     if (m->clocks) {
@@ -190,6 +185,8 @@ CW_EXPORT void cw_start(cw_master *m)
      * carry over a reset; after_event makes the next step check anyway. */
     record_history(m);
     indicators(m, m->z_end);
+    if (m->rates)
+        rates_start(m);
     if (m->has_sources) {
         remember_sources(m);
         if (m->step_cap == INFINITY)

@@ -78,7 +78,7 @@ typedef struct {
      * step's start and at the last iterate's end, per input. */
     double *it_start, *it_end;
     int can_interpolate;      /* canInterpolateInputs: the iterate's line is handed over as a slope */
-    int pad2_;
+    int rate;                 /* where cw_master.rates is set: it steps every `rate` base steps (cw_rates.c) */
     /* Sums (Port.adds, an OSP Sum): per added term, in order, the input it
      * adds to and its source port and output position. */
     const int *add_at;
@@ -175,6 +175,7 @@ typedef struct {
     const int *after_order;    /* ... is the part of first_in_order updated after it steps (parallel.py) */
     struct cw_inputs *inputs;  /* inputs driven from samples, or NULL */
     struct cw_clocks *clocks;  /* FMI 3.0 clocks (cw_clocks.c), or NULL */
+    struct cw_rates *rates;    /* components at their own steps (cw_rates.c), or NULL: all at `step` */
 } cw_master;
 
 /* FMI 3.0 clocks (cw_clocks.c; engine/clocks.py says what they are):
@@ -188,6 +189,20 @@ typedef struct cw_clocks {
     int pending;     /* an FMU signalled an event (an output clock) in the step now taken */
     int due;         /* the step just taken ended at an event of the clocks (set by the core) */
 } cw_clocks;
+
+/* Components at their own steps (engine/multirate.py, cw_rates.c): port i
+ * takes a step of rate * step every `rate` base steps, from its own grid.
+ * An input whose source steps at another rate reads a held copy of the
+ * source's outputs: a port past n_ports that never steps (only its `out`
+ * is used), filled at the points both ends share. */
+typedef struct cw_rates {
+    const int *held_port, *held_pos;  /* per link across rates: the held copy's port and output position */
+    const int *src_port, *src_pos;    /* ... the source it copies */
+    const long long *every;           /* ... which passes every lcm(k_source, k_target) base steps */
+    double *starts;                   /* per port: where its own step under way started, s */
+    long long count;                  /* base steps taken since the start */
+    int n_links, pad_;
+} cw_rates;
 
 /* Inputs driven from samples (engine/samples.py): the sample table, its
  * input events, and per port the Real inputs it drives. */
