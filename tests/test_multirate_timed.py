@@ -45,7 +45,8 @@ def test_extrapolation_across_rates_follows_the_fine_run_closer_than_a_hold(link
 def test_extrapolation_across_rates_is_the_python_engines_with_its_reason():
     with System(COMPS, BOTH_WAYS, MasterSettings(step=0.01, extrapolation=2), rates={"v": 3}) as s:
         assert s.master.engine == "python"
-        assert s.master.engine_reason == "the compiled core does not do master.extrapolation = 2 across rates"
+        assert s.master.engine_reason == ("the compiled core holds inputs over a step across rates (v every 3 base "
+                                          "steps): master.extrapolation = 2")
 
 
 def test_restart_runs_the_same_numbers_again_with_polynomials():
@@ -125,7 +126,8 @@ def test_event_location_runs_across_rates_and_is_the_python_engines(tmp_path, ca
     rc, _, err = run_cli(capsys, ["run", f, "--out", tmp_path / "o", "--no-progress"])
     assert rc == 0, err
     summary = (tmp_path / "o" / "summary.json").read_text()
-    assert "the compiled core does not do master.extrapolation = 2 across rates" in summary
+    assert "the compiled core holds inputs over a step across rates (vibration every 3 base steps): " \
+           "master.extrapolation = 2" in summary
 
 
 def test_indicators_fed_by_a_slow_component_are_one_line_in_system_too():

@@ -435,7 +435,7 @@ class CompiledMaster(Master):
             c.in_offset = ref(_array(c_double, (o for _, _, o in p.scale)))
             c.n_scaled = len(p.scale)
             c.add_at = ref(_array(c_int, (k for k, _, _ in p.adds)))
-            c.add_port = ref(_array(c_int, (index[id(src)] for _, src, _ in p.adds)))
+            c.add_port = ref(_array(c_int, (held.get((i, index[id(src)]), index[id(src)]) for _, src, _ in p.adds)))
             c.add_pos = ref(_array(c_int, (j for _, _, j in p.adds)))
             c.n_adds = len(p.adds)
             c.it_start, c.it_end = ref(_array(c_double, [], p.n_in)), ref(_array(c_double, [], p.n_in))
@@ -506,13 +506,14 @@ class CompiledMaster(Master):
     def _held_copies(self, index: dict) -> dict[tuple[int, int], int]:
         """Across rates, {(target port, source port): its held copy's port},
         a port past the real ones per pair whose factors differ (as
-        MultiRate.attach routes each such link through a held copy)."""
+        MultiRate.attach routes each such link, a sum's terms too, through a
+        held copy)."""
         mr = self._multirate
         if mr is None:
             return {}
         held = {}
         for p in self.ports.all:
-            for _, src, _ in p.sources:
+            for _, src, _ in p.sources + p.adds:  # adds: a sum's further terms
                 key = (index[id(p)], index[id(src)])
                 if mr.k[src.inst.name] != mr.k[p.inst.name] and key not in held:
                     held[key] = len(self.ports.all) + len(held)
@@ -531,7 +532,7 @@ class CompiledMaster(Master):
             c, src = cports[h], ports[s]
             c.out, c.n_out = ref(_array(c_double, [], src.n_out)), src.n_out
         links = [(held[(i, index[id(src)])], j, index[id(src)], j, math.lcm(mr.k[src.inst.name], mr.k[p.inst.name]))
-                 for i, p in enumerate(ports) for _, src, j in p.sources if (i, index[id(src)]) in held]
+                 for i, p in enumerate(ports) for _, src, j in p.sources + p.adds if (i, index[id(src)]) in held]
         column = list(zip(*links)) or [(), (), (), (), ()]
         r = _Rates(held_port=ref(_array(c_int, column[0])), held_pos=ref(_array(c_int, column[1])),
                    src_port=ref(_array(c_int, column[2])), src_pos=ref(_array(c_int, column[3])),
