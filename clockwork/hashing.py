@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-from pathlib import Path
 
 _SOURCE_DIGEST: str | None = None
 
@@ -24,15 +23,28 @@ def source_digest() -> str:
     """sha256 (16 hex) of every clockwork/**/*.py file, names and contents.
 
     Cached results carry it: a changed master or analysis must never reuse
-    results computed by older code.
+    results computed by older code. Made once per process (every run
+    pays it at start-up: os.walk and plain reads, not pathlib).
     """
     global _SOURCE_DIGEST
     if _SOURCE_DIGEST is None:
-        root = Path(__file__).resolve().parent
-        h = hashlib.sha256()
-        for f in sorted(root.rglob("*.py")):
-            h.update(str(f.relative_to(root)).encode())
-            h.update(b"\0")
-            h.update(f.read_bytes())
-        _SOURCE_DIGEST = h.hexdigest()[:16]
+        _SOURCE_DIGEST = tree_digest(os.path.dirname(os.path.realpath(__file__)))
     return _SOURCE_DIGEST
+
+
+def tree_digest(root: str | os.PathLike) -> str:
+    """sha256 (16 hex) of the *.py files under `root`: each one's path
+    relative to `root` ("/"-separated), a NUL and its bytes, in the order of
+    the paths' parts (sorted pathlib paths' order)."""
+    files = []
+    for folder, dirs, names in os.walk(root):  # symlinked folders not entered, as Path.rglob
+        rel = os.path.relpath(folder, root)
+        parts = () if rel == os.curdir else tuple(rel.split(os.sep))
+        files.extend((*parts, n) for n in names if n.endswith(".py"))
+    h = hashlib.sha256()
+    for parts in sorted(files):
+        h.update("/".join(parts).encode())
+        h.update(b"\0")
+        with open(os.path.join(root, *parts), "rb") as f:
+            h.update(f.read())
+    return h.hexdigest()[:16]

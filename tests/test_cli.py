@@ -315,3 +315,16 @@ def test_the_command_keeps_openblas_to_one_thread_unless_told(given, expected):
             "print(os.environ.get('OPENBLAS_NUM_THREADS'), 'numpy' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     assert out.stdout.split()[-2:] == [expected, "False"]
+
+
+def test_a_toml_scene_loads_without_the_readers_of_other_formats():
+    """A TOML scene's run (Fig. 4(a), Hoyng's clock) starts without the SSP,
+    OSP and lone-FMU readers: load_scene imports each for its own files."""
+    import subprocess
+
+    code = ("import sys; from clockwork.run.catalog import load_scene\n"
+            "load_scene('ziemkiewicz_fig4a')\n"
+            "print(sorted(m for m in sys.modules if m.startswith(('clockwork.scene.ssp', 'clockwork.scene.osp', "
+            "'clockwork.scene.fmu_alone'))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split("\n")[-2] == "[]"

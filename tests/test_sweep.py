@@ -1,5 +1,6 @@
 """Sweeps at scale: Dask, the result cache, resume after SIGKILL, worker count."""
 
+import hashlib
 import json
 import os
 import shutil
@@ -11,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from clockwork.hashing import source_digest
+from clockwork.hashing import source_digest, tree_digest
 from clockwork.results import cache
 from clockwork.run import dask as sweep
 from clockwork.run import scene_run as runner
@@ -168,6 +169,27 @@ def test_cache_off_and_code_namespace(tmp_path, monkeypatch):
     assert cache.cache_dir() == tmp_path / source_digest()
     cache.cache_store("k", {"error": "x"})
     assert cache.cache_load("k", {}, "ticks") is None  # failures are not cached
+
+
+def test_code_digest_covers_names_and_contents_in_path_order(tmp_path):
+    """The digest in every point key: each *.py file's relative name and
+    bytes, in sorted pathlib order ("a/x.py" before "a.py", whose "." sorts
+    before "/" as text); a changed byte or name changes it, other files do not."""
+    for name, text in {"a.py": "1", "a/x.py": "2", "a.b/y.py": "3", "a_c.py": "4", "a/data.txt": "5"}.items():
+        (tmp_path / name).parent.mkdir(exist_ok=True)
+        (tmp_path / name).write_text(text)
+    h = hashlib.sha256()
+    for f in sorted(tmp_path.rglob("*.py")):
+        h.update(str(f.relative_to(tmp_path)).encode() + b"\0" + f.read_bytes())
+    before = tree_digest(tmp_path)
+    assert before == h.hexdigest()[:16]
+    (tmp_path / "a" / "data.txt").write_text("6")
+    assert tree_digest(tmp_path) == before
+    (tmp_path / "a" / "x.py").write_text("7")
+    changed = tree_digest(tmp_path)
+    assert changed != before
+    (tmp_path / "a" / "x.py").rename(tmp_path / "a" / "z.py")
+    assert tree_digest(tmp_path) not in (before, changed)
 
 
 def _cli(*args):

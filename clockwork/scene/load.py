@@ -40,12 +40,10 @@ from ..errors import SceneError, say
 from ..numbers import shorten
 from .checks import (SETTABLE, STRUCTURAL, TOP_KEYS, Ctx, article, component, convert_value, instance_problem,
                      lookup, master_value, names_of, parse_ref, read_bounded, settable_problem)
-from .fmu_alone import read_fmu_scene
 from .inputs import Inputs, read_inputs
 from .kinds import NO_KINDS, Invalid, Kinds
 from .model import (RESULT_FORMATS, Component, ComponentVariables, Connection, Experiment, Record, Scene,
                     consistency, follow, rates, show)
-from .ssp.read import read_ssp
 from .sweep import parse_sweep
 from .units import UnitError, fmt, link_conversion, to_seconds
 
@@ -171,14 +169,19 @@ def load_scene(path: str | os.PathLike, overrides=(), kinds: Kinds = NO_KINDS,
     .fmu alone); `input_file` (relative to the current directory) drives
     unconnected inputs, in place of the scene's [inputs]. Raises SceneError."""
     path = Path(path)
+    # The readers of other formats imported for their files only: a TOML scene starts without them.
     if path.is_dir():
-        from .osp.read import OSP_FILE  # an OSP system's reader: imported only for one (start-up time)
+        from .osp.read import OSP_FILE
 
         if (path / OSP_FILE).is_file():
             path = path / OSP_FILE  # a folder of an OSP system, as libcosim takes it
     if path.suffix.lower() in (".ssp", ".ssd"):
+        from .ssp.read import read_ssp
+
         return _load_system(path, read_ssp(path), overrides, kinds, input_file)
     if path.suffix.lower() == ".fmu":
+        from .fmu_alone import read_fmu_scene
+
         return _load_system(path, read_fmu_scene(path), overrides, kinds, input_file)
     if path.suffix.lower() == ".xml":
         return _load_system(path, _read_xml(path), overrides, kinds, input_file)
