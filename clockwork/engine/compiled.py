@@ -422,8 +422,10 @@ class CompiledMaster(Master):
             c.der_vr, c.der_order, c.der = ref(p.der_vr), ref(p.der_order), ref(p.der)
             if any(k != pos for pos, (k, _, _) in enumerate(p.sources)):
                 raise SimulationError(f"{inst.name}: an input is connected twice")
-            c.src_port = ref(_array(c_int, (held.get((i, index[id(src)]), index[id(src)])
-                                            for _, src, _ in p.sources)))
+            def feed(src, i=i):  # the port an input reads: across rates, its held copy of src
+                return held.get((i, index[id(src)]), index[id(src)])
+
+            c.src_port = ref(_array(c_int, (feed(src) for _, src, _ in p.sources)))
             c.src_pos = ref(_array(c_int, (j for _, _, j in p.sources)))
             c.sent = ref(_array(c_double, [], p.n_in))
             for name in ("hist_t", "snap_hist_t"):
@@ -435,7 +437,7 @@ class CompiledMaster(Master):
             c.in_offset = ref(_array(c_double, (o for _, _, o in p.scale)))
             c.n_scaled = len(p.scale)
             c.add_at = ref(_array(c_int, (k for k, _, _ in p.adds)))
-            c.add_port = ref(_array(c_int, (held.get((i, index[id(src)]), index[id(src)]) for _, src, _ in p.adds)))
+            c.add_port = ref(_array(c_int, (feed(src) for _, src, _ in p.adds)))
             c.add_pos = ref(_array(c_int, (j for _, _, j in p.adds)))
             c.n_adds = len(p.adds)
             c.it_start, c.it_end = ref(_array(c_double, [], p.n_in)), ref(_array(c_double, [], p.n_in))

@@ -241,13 +241,11 @@ class MEGroup(MEInstance):
         self._bind_group()
 
     def _share(self) -> None:
-        """The struct shared with the compiled core (``_Group``) and the
-        group's ``_ME`` arrays: whichever engine steps, the other sees the
-        same connections evaluated and the same values last set."""
-        me, conns, members = self.me, self._conns, self.members
-        for field in ("x", "xbuf", "xw", "xd", "dx", "nominal", "atolv", "z_prev", "z", "z_end", "z_lo", "z0",
-                      "in_vr", "u0", "d1", "d2", "tref", "in_val", "state_vr", "der_state", "saved"):
-            setattr(me, field, ctypes.addressof(getattr(self.steps, field)))
+        """The struct shared with the compiled core (``_Group``; the
+        group's ``_ME`` arrays are its ModelExchangeSteps'): whichever
+        engine steps, the other sees the same connections evaluated and the
+        same values last set."""
+        conns, members = self._conns, self.members
         index = {id(m): i for i, m in enumerate(members)}
         keep = self._shared = []
 

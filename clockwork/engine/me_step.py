@@ -36,7 +36,7 @@ expression: either engine can take the next step.
 from __future__ import annotations
 
 import math
-from ctypes import c_double, c_int, c_uint
+from ctypes import addressof, c_double, c_int, c_uint
 
 from . import cvode, rk as rkmod
 from .events import Illinois, crossed, earliest, input_polynomial
@@ -73,6 +73,11 @@ STATS = ("steps", "rejected", "rhs", "state_events", "time_events", "step_events
          "event_iterations", "switches")
 
 
+# The arrays of the struct `me` that the algorithm allocates and both engines share.
+SHARED_ARRAYS = ("x", "xbuf", "xw", "xd", "dx", "nominal", "atolv", "z_prev", "z", "z_end", "z_lo", "z0",
+                 "in_vr", "u0", "d1", "d2", "tref", "in_val", "state_vr", "der_state", "saved")
+
+
 class ModelExchangeSteps:
     """The wrapper's algorithm, a part that ``model_exchange.MEInstance``
     (and ``me_group.MEGroup``) holds and delegates to: the integration's
@@ -99,6 +104,8 @@ class ModelExchangeSteps:
         self.state_vr = (c_uint * max(1, n))(*state_vr)
         self.der_state = (c_int * max(1, n))(*der_state)
         self.saved = doubles(n + nz + 4 * n_in)
+        for field in SHARED_ARRAYS:  # the compiled core's wrapper (cw_me.c) works on these very arrays
+            setattr(me, field, addressof(getattr(self, field)))
         self.needs_completed = needs_completed
         self.rk = rkmod.RungeKutta(n, DEFAULT_RTOL, 0.0)
         self.cv = None  # cvode.CVodeRun, at the first CVode step

@@ -148,9 +148,6 @@ class MEInstance(Instance):
                            needs_completed=int(needs_completed))
         steps = self.steps = ModelExchangeSteps(me, [v.valueReference for v in inputs], state_vr, der_state,
                                                 needs_completed)
-        for field in ("x", "xbuf", "xw", "xd", "dx", "nominal", "atolv", "z_prev", "z", "z_end", "z_lo", "z0",
-                      "in_vr", "u0", "d1", "d2", "tref", "in_val", "state_vr", "der_state", "saved"):
-            setattr(me, field, ctypes.addressof(getattr(steps, field)))
         for k, v in enumerate(inputs):
             steps.u0[k] = float(v.start) if v.start not in (None, "") else 0.0
         self._core = None  # the compiled core's cw_rk workspace, once the core steps this instance
