@@ -101,12 +101,13 @@ def _how_workers_ended(workers: list) -> str:
     " (exit code 1)", or "" when none has ended."""
     # A killed worker's pipe closes (which breaks the pool) a moment before
     # its exit status can be read: wait a little for one to show.
+    # The broken pool terminates the others (SIGTERM), and one of those can
+    # show before the cause does: wait for an end that is not the pool's own.
     deadline = time.monotonic() + 1.0
     ends = _exits(workers)
-    while not ends and workers and time.monotonic() < deadline:
+    while not ends - {"killed by SIGTERM"} and workers and time.monotonic() < deadline:
         time.sleep(0.01)
         ends = _exits(workers)
-    # The broken pool terminates the others (SIGTERM): what ended first is the cause.
     ends = ends - {"killed by SIGTERM"} or ends
     return f" ({', '.join(sorted(ends))})" if ends else ""
 
